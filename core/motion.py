@@ -1,0 +1,170 @@
+"""Motions: AMASS-style pose sequences, resampling, frame selection and settle blends.
+
+A `Motion` is in the AMASS world frame (Z-up, metres, seconds); its root
+orientation already contains the rotation from the Y-up body rest frame to the
+Z-up world. Poses are kept in the joint layout of the file they came from
+(SMPL 24, SMPL+H 52 or SMPL-X 55 joints); `poses_for_body` maps them onto a body.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from core.body import LAYOUT_JOINTS, N_BODY_JOINTS, layout_for_joint_count
+from core.errors import InputError
+from core.rotations import axis_angle_to_quat, quat_slerp, quat_to_axis_angle
+
+log = logging.getLogger(__name__)
+
+# The SMPL-X layout puts jaw and eyes (3 joints) between the body and the hands.
+_HAND_START = {"smplh": N_BODY_JOINTS, "smplx": N_BODY_JOINTS + 3}
+_N_HAND_JOINTS = 30
+
+#: Rotation taking the Y-up body rest frame to the Z-up world: +90 deg about X.
+Y_UP_TO_Z_UP = np.array([np.pi / 2, 0.0, 0.0])
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """A pose sequence.
+
+    poses: (T, J, 3) float32 axis-angle radians, J = 24 | 52 | 55 (layout).
+    trans: (T, 3) float32 metres, Z-up world.
+    fps: frames per second (> 0).
+    betas: (S,) float32 or None. gender: str or None.
+    n_settle: leading frames added by `settle` (blend from the rest pose).
+    """
+
+    poses: np.ndarray
+    trans: np.ndarray
+    fps: float
+    betas: np.ndarray | None = None
+    gender: str | None = None
+    name: str = "motion"
+    n_settle: int = 0
+
+    def __post_init__(self):
+        if self.poses.ndim != 3 or self.poses.shape[2] != 3 or layout_for_joint_count(self.poses.shape[1]) is None:
+            raise InputError(f"motion '{self.name}': expected poses of shape (T, 24|52|55, 3), got {tuple(self.poses.shape)}")
+        if self.trans.shape != (self.poses.shape[0], 3):
+            raise InputError(f"motion '{self.name}': expected trans of shape ({self.poses.shape[0]}, 3), "
+                             f"got {tuple(self.trans.shape)}")
+        if self.poses.shape[0] < 1:
+            raise InputError(f"motion '{self.name}': expected at least 1 frame, got 0")
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise InputError(f"motion '{self.name}': expected a positive frame rate, got {self.fps}")
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.poses.shape[0])
+
+    @property
+    def layout(self) -> str:
+        return layout_for_joint_count(self.poses.shape[1])
+
+    @property
+    def duration_s(self) -> float:
+        return (self.n_frames - 1) / self.fps
+
+
+def poses_for_body(motion: Motion, n_body_joints: int) -> np.ndarray:
+    """The motion's poses in the joint layout of a body with `n_body_joints` joints.
+
+    The first 22 (body) joints are shared by all layouts. Hands map between
+    SMPL+H and SMPL-X; an SMPL body gets zero hand joints (22, 23), as AMASS
+    recommends; joints a layout lacks are zero. Returns (T, n_body_joints, 3) float32.
+    """
+    target = layout_for_joint_count(n_body_joints)
+    if target is None:
+        raise InputError(f"body has {n_body_joints} joints; supported layouts are "
+                         + ", ".join(f"{k} ({v})" for k, v in LAYOUT_JOINTS.items()))
+    src = motion.layout
+    T = motion.n_frames
+    out = np.zeros((T, n_body_joints, 3), dtype=np.float32)
+    out[:, :N_BODY_JOINTS] = motion.poses[:, :N_BODY_JOINTS]
+    if src == target:
+        return motion.poses.astype(np.float32, copy=True)
+    if src in _HAND_START and target in _HAND_START:
+        s, t = _HAND_START[src], _HAND_START[target]
+        out[:, t:t + _N_HAND_JOINTS] = motion.poses[:, s:s + _N_HAND_JOINTS]
+    return out
+
+
+def resample(motion: Motion, fps: float) -> Motion:
+    """Resample to `fps` for any ratio: slerp of joint rotations, linear translation.
+
+    Output frame k lies at time k/fps, for every k with k/fps <= the clip's duration.
+    """
+    if not (np.isfinite(fps) and fps > 0):
+        raise InputError(f"--fps: expected a positive number, got {fps}")
+    if abs(fps - motion.fps) < 1e-9 or motion.n_frames == 1:
+        return replace(motion, fps=float(fps))
+    n_out = int(np.floor(motion.duration_s * fps + 1e-6)) + 1
+    t_src = np.arange(n_out) * (motion.fps / fps)  # output times in source-frame units
+    i0 = np.clip(np.floor(t_src).astype(np.int64), 0, motion.n_frames - 1)
+    i1 = np.minimum(i0 + 1, motion.n_frames - 1)
+    a = (t_src - i0).clip(0.0, 1.0)
+    q = axis_angle_to_quat(motion.poses)
+    qi = quat_slerp(q[i0], q[i1], a[:, None])
+    poses = quat_to_axis_angle(qi).astype(np.float32)
+    trans = ((1 - a)[:, None] * motion.trans[i0] + a[:, None] * motion.trans[i1]).astype(np.float32)
+    return replace(motion, poses=poses, trans=trans, fps=float(fps))
+
+
+def parse_frame_range(text: str) -> tuple[int | None, int | None]:
+    """Parse 'START:STOP' (either side optional, Python slice semantics, STOP exclusive)."""
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise InputError(f"--frames: expected START:STOP (e.g. 0:120 or 30:), got '{text}'")
+    try:
+        start = int(parts[0]) if parts[0].strip() else None
+        stop = int(parts[1]) if parts[1].strip() else None
+    except ValueError:
+        raise InputError(f"--frames: expected integers in START:STOP, got '{text}'") from None
+    return start, stop
+
+
+def select_frames(motion: Motion, start: int | None, stop: int | None) -> Motion:
+    """Frames [start, stop) (Python slice semantics); an empty selection is an error."""
+    sl = slice(start, stop)
+    idx = range(motion.n_frames)[sl]
+    if len(idx) == 0:
+        raise InputError(f"--frames {'' if start is None else start}:{'' if stop is None else stop}: "
+                         f"selects no frame of motion '{motion.name}' ({motion.n_frames} frames)")
+    return replace(motion, poses=motion.poses[sl].copy(), trans=motion.trans[sl].copy())
+
+
+def settle(motion: Motion, n_frames: int) -> Motion:
+    """Prepend `n_frames` frames that blend from the rest pose into the first frame.
+
+    The root orientation and translation of frame 0 are held; every other joint
+    slerps from identity (T-pose) to its frame-0 rotation, so a garment authored
+    on the rest body starts outside the posed body.
+    """
+    if n_frames < 0:
+        raise InputError(f"--settle: expected a non-negative number of frames, got {n_frames}")
+    if n_frames == 0:
+        return motion
+    first = motion.poses[0]
+    q_first = axis_angle_to_quat(first)
+    q_rest = np.zeros_like(q_first)
+    q_rest[:, 0] = 1.0
+    q_rest[0] = q_first[0]
+    t = np.arange(n_frames, dtype=np.float64) / n_frames  # 0 .. (K-1)/K, frame 0 itself follows
+    q = quat_slerp(q_rest[None], q_first[None], t[:, None])
+    blend = quat_to_axis_angle(q).astype(np.float32)
+    poses = np.concatenate([blend, motion.poses])
+    trans = np.concatenate([np.repeat(motion.trans[:1], n_frames, axis=0), motion.trans])
+    return replace(motion, poses=poses, trans=trans, n_settle=motion.n_settle + n_frames)
+
+
+def validate_motion_values(motion: Motion, source: str) -> None:
+    """Reject NaN/Inf in poses or translation, naming the first bad frame."""
+    for key in ("poses", "trans"):
+        arr = getattr(motion, key)
+        bad = ~np.isfinite(arr.reshape(arr.shape[0], -1)).all(axis=1)
+        if bad.any():
+            raise InputError(f"motion '{source}': {key} contains NaN or Inf (first at frame {int(np.argmax(bad))})")

@@ -1,0 +1,1 @@
+"""The `garment` command line: one thin module per subcommand."""

@@ -1,0 +1,7 @@
+"""placeholder"""
+import click
+
+
+@click.command(name="bake")
+def bake():
+    """Not yet implemented."""

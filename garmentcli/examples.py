@@ -1,0 +1,7 @@
+"""placeholder"""
+import click
+
+
+@click.command(name="examples")
+def examples():
+    """Not yet implemented."""

@@ -1,0 +1,24 @@
+"""Entry point of the `garment` command: the click group and its subcommands."""
+
+from __future__ import annotations
+
+import logging
+
+import click
+
+from garmentcli import bake, examples, make_body, metrics
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("-v", "--verbose", is_flag=True, help="Log more detail to stderr.")
+@click.version_option(package_name="garment")
+def cli(verbose: bool) -> None:
+    """Bake garment animation on SMPL-format bodies and measure it."""
+    logging.basicConfig(level=logging.INFO if verbose else logging.WARNING,
+                        format="garment: %(levelname)s: %(message)s")
+
+
+cli.add_command(bake.bake)
+cli.add_command(metrics.metrics)
+cli.add_command(examples.examples)
+cli.add_command(make_body.make_body)

@@ -1,0 +1,7 @@
+"""placeholder"""
+import click
+
+
+@click.command(name="make-body")
+def make_body():
+    """Not yet implemented."""

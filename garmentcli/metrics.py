@@ -1,0 +1,7 @@
+"""placeholder"""
+import click
+
+
+@click.command(name="metrics")
+def metrics():
+    """Not yet implemented."""
