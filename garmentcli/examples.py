@@ -1,7 +1,46 @@
-"""placeholder"""
+"""`garment examples`: regenerate the example garments (OBJ) and motions (AMASS-style npz)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
 import click
+
+from garmentcli.common import atomic_output_dir, input_errors_as_click
 
 
 @click.command(name="examples")
-def examples():
-    """Not yet implemented."""
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="examples", show_default=True,
+              help="Directory to write the examples into.")
+@click.option("--fps", type=click.FloatRange(min=1.0), default=60.0, show_default=True,
+              help="Frame rate of the generated motions.")
+@click.option("--overwrite", is_flag=True, help="Replace an existing output directory.")
+@input_errors_as_click
+def examples(out_dir, fps, overwrite):
+    """Write the example garments, fitted to the default body, and the example motions.
+
+    Deterministic: the files in the repository's examples/ were made by
+    `garment examples --out examples --overwrite`.
+    """
+    from core.body import default_body
+    from core.garmentgen import generate_example_garments
+    from core.motiongen import generate_example_motions
+    from formats.motion import save_motion
+    from formats.obj import write_obj
+
+    body = default_body()
+    garments = generate_example_garments(body)
+    motions = generate_example_motions(fps=fps)
+    out = Path(out_dir)
+    keep = [p for p in out.iterdir() if p.suffix not in (".obj", ".npz")] if out.is_dir() else []
+    with atomic_output_dir(out, overwrite) as tmp:
+        for p in keep:  # hand-written files (a README) survive a regeneration
+            if p.is_file():
+                (tmp / p.name).write_bytes(p.read_bytes())
+        for name, g in garments.items():
+            write_obj(tmp / f"{name}.obj", g.vertices, g.faces, g.uvs, g.face_uvs,
+                      header=f"garment example '{name}': made by `garment examples`, fitted to the default body")
+            click.echo(f"{out / (name + '.obj')}: {g.n_vertices} vertices, {g.n_faces} triangles")
+        for name, m in motions.items():
+            save_motion(tmp / f"{name}.npz", m)
+            click.echo(f"{out / (name + '.npz')}: {m.n_frames} frames at {m.fps:g} fps")

@@ -1,7 +1,99 @@
-"""placeholder"""
+"""`garment metrics PRED GT`: the paper's five quality metrics of a baked sequence against ground truth."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
 import click
+
+from core.errors import InputError
+from garmentcli.common import input_errors_as_click
+
+_FORMATS = {"json": ("json",), "csv": ("csv",), "md": ("md",), "all": ("json", "csv", "md")}
+
+
+def _read_sequence(path: Path):
+    """`formats.sequence.read_sequence`, imported on use so `garment --help` stays quick."""
+    from formats.sequence import read_sequence
+
+    return read_sequence(path)
+
+
+def _inside_fn(depth_m: float):
+    """The per-frame inside-the-body test of `core.geometry` (points more than `depth_m` inside)."""
+    from core.geometry import points_inside_mesh
+    from core.metrics import frames_inside
+
+    return frames_inside(lambda points, verts, faces: points_inside_mesh(points, verts, faces, depth=depth_m))
+
+
+def _default_depth_mm() -> float:
+    """The depth `garment bake` uses in its penetration summary, so both report the same share."""
+    from core.bake import PENETRATION_DEPTH_M
+
+    return PENETRATION_DEPTH_M * 1e3
 
 
 @click.command(name="metrics")
-def metrics():
-    """Not yet implemented."""
+@click.argument("pred", type=click.Path(exists=True, path_type=Path))
+@click.argument("gt", type=click.Path(exists=True, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Directory to write metrics.json / metrics.csv / metrics.md into (default: print only).")
+@click.option("--format", "fmt", type=click.Choice(sorted(_FORMATS)), default="all", show_default=True,
+              help="Which report files to write with --out.")
+@click.option("--body", "body_file", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="Body model to pose with --motion for the penetration rate (when PRED carries no body).")
+@click.option("--motion", "motion_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              default=None, help="Motion (.npz) that posed the body, with --body.")
+@click.option("--depth-mm", type=click.FloatRange(min=0.0), default=None,
+              help="A garment vertex counts as penetrating when more than this inside the body "
+                   "[default: as garment bake, 2 mm].")
+@click.option("--overwrite", is_flag=True, help="Replace existing report files in --out.")
+@input_errors_as_click
+def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Path | None,
+            motion_file: Path | None, depth_mm: float | None, overwrite: bool) -> None:
+    """Compare a predicted garment sequence PRED with a ground truth GT.
+
+    PRED and GT are OBJ-sequence directories, USD files or .npz sequences of the
+    same garment mesh with the same number of frames. Prints E_verts (mm),
+    E_vnorm and E_fnorm (deg), E_edge (%), E_curv (1/m^2) (paper Eqs. 11-15),
+    and the share of garment vertices inside the body when PRED (or GT)
+    carries a body mesh.
+    """
+    from core.metrics import check_comparable, compute_metrics
+    from formats.report import REPORT_NAMES, overall_markdown, write_report
+
+    if body_file is not None or motion_file is not None:
+        # TODO: pose the body with the motion at the sequence's frames once a posing helper exists.
+        opt = "--body" if body_file is not None else "--motion"
+        raise InputError(f"{opt}: posing a body from a motion is not yet supported; pass a PRED that "
+                         "carries the body (a USD from `garment bake`, or an .npz with body_points/body_faces)")
+
+    formats = _FORMATS[fmt]
+    if out_dir is not None and not overwrite:
+        existing = [out_dir / REPORT_NAMES[f] for f in formats if (out_dir / REPORT_NAMES[f]).exists()]
+        if existing:
+            raise InputError(f"--out: '{existing[0]}' exists; pass --overwrite to replace it")
+
+    p_seq = _read_sequence(pred)
+    g_seq = _read_sequence(gt)
+    check_comparable(p_seq.points, p_seq.faces, g_seq.points, g_seq.faces, str(pred), str(gt))
+
+    body = next((s for s in (p_seq, g_seq) if s.body_points is not None and s.body_faces is not None), None)
+    if depth_mm is None:
+        depth_mm = _default_depth_mm()
+    inside_fn = _inside_fn(depth_mm * 1e-3) if body is not None else None
+    result = compute_metrics(p_seq.points, g_seq.points, p_seq.faces,
+                             body_points=None if body is None else body.body_points,
+                             body_faces=None if body is None else body.body_faces,
+                             inside_fn=inside_fn, pred_name=str(pred), gt_name=str(gt),
+                             body_name=None if body is None else f"{body.source or (pred if body is p_seq else gt)} body")
+    result.metadata.update({"pred": str(pred), "gt": str(gt)})
+    if body is not None:
+        result.metadata.update({"body_from": str(pred if body is p_seq else gt), "penetration_depth_mm": depth_mm})
+
+    click.echo(overall_markdown(result), nl=False)
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)  # an existing directory: write_report puts metrics.* inside
+        for path in write_report(result, out_dir, formats):
+            click.echo(f"wrote {path}", err=True)

@@ -1,0 +1,74 @@
+"""Garments: a validated triangle mesh authored on a body's rest pose.
+
+A `Garment` lives in the body's rest frame (Y-up, T-pose, metres). Readers in
+`formats/` build one from a file; `validate_garment` applies the checks a
+user's mesh must pass (finite, non-empty, metres, near the body).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.errors import InputError
+
+
+@dataclass(frozen=True, eq=False)
+class Garment:
+    """A triangle mesh in the body's rest frame.
+
+    vertices: (V, 3) float32, metres. faces: (F, 3) int64.
+    uvs: (U, 2) float32 or None; face_uvs: (F, 3) int64 indices into uvs, or None.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    uvs: np.ndarray | None = None
+    face_uvs: np.ndarray | None = None
+    name: str = "garment"
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    def content_hash(self) -> str:
+        """SHA-256 of vertices and faces (hex), the key for caches of derived data."""
+        h = hashlib.sha256()
+        h.update(np.ascontiguousarray(self.vertices, dtype=np.float32).tobytes())
+        h.update(np.ascontiguousarray(self.faces, dtype=np.int64).tobytes())
+        return h.hexdigest()
+
+
+def mesh_edges(faces: np.ndarray) -> np.ndarray:
+    """Unique undirected edges of a triangle mesh.
+
+    faces: (F, 3) int -> (E, 2) int64 with edges[:, 0] < edges[:, 1], sorted.
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e.sort(axis=1)
+    return np.unique(e, axis=0)
+
+
+def validate_garment(garment: Garment, source: str) -> None:
+    """Checks every garment must pass before it is deformed; raise InputError naming `source`."""
+    v, f = garment.vertices, garment.faces
+    if v.shape[0] == 0:
+        raise InputError(f"garment mesh '{source}': expected vertices, got an empty mesh")
+    if f.shape[0] == 0:
+        raise InputError(f"garment mesh '{source}': expected triangles or quads, got no faces")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise InputError(f"garment mesh '{source}': expected finite coordinates, got NaN/Inf at vertex {int(np.argmax(bad))}")
+    extent = float(np.max(v[np.unique(f)].max(0) - v[np.unique(f)].min(0)))
+    if extent > 10.0:
+        raise InputError(f"garment mesh '{source}': expected metres (a garment spans under 3 m), got an extent of "
+                         f"{extent:.1f} units; is it in centimetres? scale it by 0.01")
+    if extent < 1e-3:
+        raise InputError(f"garment mesh '{source}': expected metres, got an extent of {extent:.2e} units")

@@ -1,0 +1,413 @@
+"""Quality metrics between a predicted and a ground-truth garment sequence (paper Sec. 5.2).
+
+The five measures of the paper's Eqs. 11-15 (vertex distance, vertex- and
+face-normal angle, relative edge-length error, Gaussian-curvature error), each
+a pure numpy function `(pred (T,V,3), gt (T,V,3), faces (F,3)) -> (T,)`
+vectorised over frames, plus the mesh quantities they need (`face_normals`,
+`vertex_normals`, `gaussian_curvature`). `compute_metrics` checks the inputs,
+evaluates all of them (and, given an inside-the-body test, the share of
+garment vertices inside the body) and returns a `MetricsResult` that
+`formats.report` writes as JSON, CSV or Markdown.
+
+Degenerate geometry never gives NaN: zero-area faces have zero normals (see
+`e_vnorm` for how they are scored), angles are taken with atan2 (no arccos of a
+cosine rounded past 1), and
+zero-length ground-truth edges are left out of the relative edge error.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from core.errors import InputError
+from core.garment import mesh_edges
+
+log = logging.getLogger(__name__)
+
+#: Metric names in report order -> (label as in the paper's tables, unit).
+METRICS: dict[str, tuple[str, str]] = {
+    "e_verts": ("E_verts", "mm"),
+    "e_vnorm": ("E_vnorm", "deg"),
+    "e_fnorm": ("E_fnorm", "deg"),
+    "e_edge": ("E_edge", "%"),
+    "e_curv": ("E_curv", "1/m^2"),
+    "penetration_pct": ("penetration", "%"),
+    "gt_penetration_pct": ("GT penetration", "%"),
+}
+
+# Below this a length, area or cross-product norm (in metres or m^2) counts as zero.
+_EPS = 1e-12
+
+InsideFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+# ---------------------------------------------------------------------------
+# Mesh quantities
+# ---------------------------------------------------------------------------
+
+def _float(verts: np.ndarray) -> np.ndarray:
+    verts = np.asarray(verts)
+    return verts if np.issubdtype(verts.dtype, np.floating) else verts.astype(np.float64)
+
+
+def _face_cross(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(v1 - v0) x (v2 - v0) per face: (..., F, 3), norm = twice the face area."""
+    faces = np.asarray(faces, dtype=np.int64)
+    v0, v1, v2 = verts[..., faces[:, 0], :], verts[..., faces[:, 1], :], verts[..., faces[:, 2], :]
+    return np.cross(v1 - v0, v2 - v0)
+
+
+def _normalise(vectors: np.ndarray) -> np.ndarray:
+    """Unit vectors along the last axis; vectors with norm below _EPS become zero vectors."""
+    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
+    return np.where(norm > _EPS, vectors / np.where(norm > _EPS, norm, 1.0), 0.0).astype(vectors.dtype)
+
+
+def _incidence(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
+    """Sparse (V, 3F) matrix summing per-corner values (corner order: all corner 0, then 1, then 2) into vertices."""
+    faces = np.asarray(faces, dtype=np.int64)
+    F = faces.shape[0]
+    rows = faces.T.reshape(-1)  # corner k of face f sits at column k*F + f
+    cols = np.arange(3 * F)
+    return sp.csr_matrix((np.ones(3 * F), (rows, cols)), shape=(n_vertices, 3 * F))
+
+
+def _scatter_corners(corner_values: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Sum per-corner values into vertices.
+
+    corner_values: (..., F, 3, C) (value of corner k of face f) -> (..., V, C) float64.
+    """
+    lead = corner_values.shape[:-3]
+    F, C = corner_values.shape[-3], corner_values.shape[-1]
+    B = int(np.prod(lead, dtype=np.int64))
+    # (B, F, 3, C) -> (3, F, B, C) -> (3F, B*C), matching the incidence's corner order.
+    x = np.asarray(corner_values, dtype=np.float64).reshape(B, F, 3, C).transpose(2, 1, 0, 3).reshape(3 * F, B * C)
+    out = _incidence(faces, n_vertices) @ x  # (V, B*C)
+    return out.reshape(n_vertices, B, C).transpose(1, 0, 2).reshape(*lead, n_vertices, C)
+
+
+def face_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit face normals, right-handed in the face's vertex order.
+
+    verts: (..., V, 3) float, metres. faces: (F, 3) int.
+    Returns (..., F, 3), the dtype of `verts` (float64 for integer input);
+    zero-area faces get zero vectors.
+    """
+    verts = _float(verts)
+    return _normalise(_face_cross(verts, faces))
+
+
+def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit vertex normals: the area-weighted sum of incident face normals, normalised.
+
+    verts: (..., V, 3) float, metres. faces: (F, 3) int.
+    Returns (..., V, 3), the dtype of `verts` (float64 for integer input);
+    vertices with no incident face of non-zero area (or whose normals cancel)
+    get zero vectors.
+    """
+    verts = _float(verts)
+    cross = _face_cross(verts, faces)  # norm = 2 * area: weighting by area is summing the raw cross products
+    corners = np.broadcast_to(cross[..., :, None, :], cross.shape[:-1] + (3, 3))
+    summed = _scatter_corners(corners, faces, verts.shape[-2])
+    return _normalise(summed).astype(verts.dtype)
+
+
+def boundary_vertex_mask(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Vertices on the mesh boundary: those on an edge used by exactly one face.
+
+    faces: (F, 3) int -> (V,) bool.
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e.sort(axis=1)
+    edges, counts = np.unique(e, axis=0, return_counts=True)
+    mask = np.zeros(n_vertices, dtype=bool)
+    mask[edges[counts == 1].reshape(-1)] = True
+    return mask
+
+
+def corner_angles(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Interior angle of each face at each of its corners.
+
+    verts: (..., V, 3) float, metres. faces: (F, 3) int.
+    Returns (..., F, 3) float64 radians; angle k is at vertex faces[:, k].
+    Computed as atan2(|a x b|, a . b), so degenerate faces give finite angles.
+    """
+    verts = np.asarray(verts, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    p = [verts[..., faces[:, k], :] for k in range(3)]
+    out = []
+    for k in range(3):
+        a = p[(k + 1) % 3] - p[k]
+        b = p[(k + 2) % 3] - p[k]
+        out.append(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.einsum("...i,...i->...", a, b)))
+    return np.stack(out, axis=-1)
+
+
+def gaussian_curvature(verts: np.ndarray, faces: np.ndarray, area_normalised: bool = True) -> np.ndarray:
+    """Discrete Gaussian curvature per vertex by angle deficit.
+
+    The deficit is 2*pi - (sum of incident corner angles) at an interior vertex
+    and pi - (sum) at a boundary vertex (one on an edge used by a single face),
+    so a flat sheet has zero curvature at interior vertices and along straight
+    stretches of its rim; at a rim corner the boundary formula gives the rim's
+    turning angle (its geodesic curvature), e.g. pi/2 at a square's corner. With
+    `area_normalised` (the default, and what `e_curv` uses) the deficit is
+    divided by the vertex's barycentric area (a third of the incident face
+    areas): the result is a curvature density in 1/m^2 that does not depend on
+    the mesh resolution (about 1/r^2 on a sphere of radius r). Without it the
+    raw deficit in radians is returned (it sums to 2*pi*chi, Gauss-Bonnet).
+    Vertices with no incident face, or only zero-area ones, get 0.
+
+    verts: (..., V, 3) float, metres. faces: (F, 3) int.
+    Returns (..., V) float64: 1/m^2 (area_normalised) or radians.
+    """
+    verts = np.asarray(verts, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    V = verts.shape[-2]
+    angle_sum = _scatter_corners(corner_angles(verts, faces)[..., None], faces, V)[..., 0]
+    used = np.zeros(V, dtype=bool)
+    used[faces.reshape(-1)] = True
+    full = np.where(boundary_vertex_mask(faces, V), np.pi, 2.0 * np.pi)
+    deficit = np.where(used, full - angle_sum, 0.0)
+    if not area_normalised:
+        return deficit
+    area = 0.5 * np.linalg.norm(_face_cross(verts, faces), axis=-1)  # (..., F)
+    corners = np.broadcast_to(area[..., None, None] / 3.0, area.shape + (3, 1))
+    vertex_area = _scatter_corners(corners, faces, V)[..., 0]
+    ok = vertex_area > _EPS
+    return np.where(ok, deficit / np.where(ok, vertex_area, 1.0), 0.0)
+
+
+# ---------------------------------------------------------------------------
+# Per-frame metrics (Eqs. 11-15)
+# ---------------------------------------------------------------------------
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle in degrees between unit-or-zero vectors (..., 3); see `e_vnorm` for zero vectors.
+
+    atan2(|a x b|, a . b) equals the paper's arccos(a . b) for unit vectors but is
+    exact (0) for identical ones and accurate for small angles, where arccos of a
+    rounded cosine is not; it needs no clipping and a zero vector gives 90 deg.
+    """
+    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    dot = np.einsum("...i,...i->...", a, b)
+    angle = np.degrees(np.arctan2(cross, dot))
+    angle = np.where((cross == 0) & (dot == 0), 90.0, angle)  # one normal is zero: no agreement
+    both_zero = ~np.any(a != 0, axis=-1) & ~np.any(b != 0, axis=-1)
+    return np.where(both_zero, 0.0, angle)
+
+
+def e_verts(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray | None = None) -> np.ndarray:
+    """Eq. 11: mean Euclidean vertex distance per frame.
+
+    pred, gt: (T, V, 3) float, metres. faces: unused (same signature as the others).
+    Returns (T,) float64, millimetres.
+    """
+    d = np.asarray(pred, dtype=np.float64) - np.asarray(gt, dtype=np.float64)
+    return 1000.0 * np.linalg.norm(d, axis=-1).mean(axis=-1)
+
+
+def e_vnorm(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Eq. 12: mean angle between predicted and ground-truth vertex normals per frame.
+
+    pred, gt: (T, V, 3) float, metres. faces: (F, 3) int. Returns (T,) float64, degrees.
+    A vertex whose normal is zero in both (no incident area) scores 0; zero in
+    one only scores 90 (the cosine is taken as 0: no agreement).
+    """
+    pred = np.asarray(pred, dtype=np.float64)
+    gt = np.asarray(gt, dtype=np.float64)
+    return _angle_deg(vertex_normals(pred, faces), vertex_normals(gt, faces)).mean(axis=-1)
+
+
+def e_fnorm(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Eq. 13: mean angle between predicted and ground-truth face normals per frame.
+
+    pred, gt: (T, V, 3) float, metres. faces: (F, 3) int. Returns (T,) float64, degrees.
+    Zero-area faces are scored as in `e_vnorm` (0 if degenerate in both, 90 if in one).
+    """
+    pred = np.asarray(pred, dtype=np.float64)
+    gt = np.asarray(gt, dtype=np.float64)
+    return _angle_deg(face_normals(pred, faces), face_normals(gt, faces)).mean(axis=-1)
+
+
+def e_edge(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Eq. 14: mean relative edge-length error |l - l_gt| / l_gt over unique edges, per frame.
+
+    pred, gt: (T, V, 3) float, metres. faces: (F, 3) int. Returns (T,) float64, percent.
+    Edges of zero ground-truth length (relative error undefined) are left out
+    of the mean; a frame with no usable edge scores 0.
+    """
+    pred = np.asarray(pred, dtype=np.float64)
+    gt = np.asarray(gt, dtype=np.float64)
+    edges = mesh_edges(faces)
+    l_pred = np.linalg.norm(pred[:, edges[:, 0]] - pred[:, edges[:, 1]], axis=-1)
+    l_gt = np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=-1)
+    ok = l_gt > _EPS
+    if not ok.all():
+        log.warning("%d ground-truth edges of zero length left out of E_edge", int((~ok).sum()))
+    rel = np.where(ok, np.abs(l_pred - l_gt) / np.where(ok, l_gt, 1.0), 0.0)
+    n = ok.sum(axis=-1)
+    return 100.0 * rel.sum(axis=-1) / np.maximum(n, 1)
+
+
+def e_curv(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Eq. 15: mean absolute difference of area-normalised Gaussian curvature per frame.
+
+    pred, gt: (T, V, 3) float, metres. faces: (F, 3) int. Returns (T,) float64, 1/m^2
+    (see `gaussian_curvature` for the definition).
+    """
+    return np.abs(gaussian_curvature(pred, faces) - gaussian_curvature(gt, faces)).mean(axis=-1)
+
+
+PER_FRAME_METRICS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = {
+    "e_verts": e_verts,
+    "e_vnorm": e_vnorm,
+    "e_fnorm": e_fnorm,
+    "e_edge": e_edge,
+    "e_curv": e_curv,
+}
+
+
+# ---------------------------------------------------------------------------
+# Checks and the whole evaluation
+# ---------------------------------------------------------------------------
+
+@dataclass
+class MetricsResult:
+    """Metrics of one prediction against its ground truth.
+
+    per_frame: name -> (T,) float64 (names and units in `METRICS`).
+    overall: name -> float, the mean over frames.
+    """
+
+    per_frame: dict[str, np.ndarray]
+    overall: dict[str, float]
+    n_frames: int
+    n_vertices: int
+    n_faces: int = 0
+    metadata: dict = field(default_factory=dict)
+
+
+def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points: np.ndarray,
+                     gt_faces: np.ndarray, pred_name: str = "pred", gt_name: str = "gt") -> None:
+    """Raise InputError unless two sequences share a topology and a frame count.
+
+    pred_points, gt_points: (T, V, 3). pred_faces, gt_faces: (F, 3) int.
+    Nothing is trimmed or resampled: mismatches are the user's to resolve.
+    """
+    for name, pts in ((pred_name, pred_points), (gt_name, gt_points)):
+        if np.ndim(pts) != 3 or np.shape(pts)[-1] != 3:
+            raise InputError(f"'{name}': expected points of shape (T, V, 3), got {tuple(np.shape(pts))}")
+    Vp, Vg = np.shape(pred_points)[1], np.shape(gt_points)[1]
+    if Vp != Vg:
+        raise InputError(f"'{pred_name}' has {Vp} vertices, '{gt_name}' has {Vg}: "
+                         "expected the same garment mesh (same vertices and faces)")
+    pf, gf = np.asarray(pred_faces), np.asarray(gt_faces)
+    if pf.shape != gf.shape or not np.array_equal(pf, gf):
+        detail = (f"{pf.shape[0]} vs {gf.shape[0]} faces" if pf.shape != gf.shape
+                  else f"first difference at face {int(np.argmax(np.any(pf != gf, axis=-1)))}")
+        raise InputError(f"'{pred_name}' and '{gt_name}' have different faces ({detail}): "
+                         "expected the same garment mesh (same vertices and faces)")
+    Tp, Tg = np.shape(pred_points)[0], np.shape(gt_points)[0]
+    if Tp != Tg:
+        raise InputError(f"'{pred_name}' has {Tp} frames, '{gt_name}' has {Tg}: expected the same "
+                         "frame count (trim or resample one of them to match)")
+
+
+def _check_points(points: np.ndarray, name: str) -> np.ndarray:
+    points = np.asarray(points)
+    if points.ndim != 3 or points.shape[-1] != 3:
+        raise InputError(f"'{name}': expected points of shape (T, V, 3), got {tuple(points.shape)}")
+    if points.shape[0] == 0 or points.shape[1] == 0:
+        raise InputError(f"'{name}': expected at least one frame and one vertex, got shape {tuple(points.shape)}")
+    if not np.issubdtype(points.dtype, np.number):
+        raise InputError(f"'{name}': expected numeric points, got dtype {points.dtype}")
+    bad = ~np.isfinite(points).all(axis=-1)
+    if bad.any():
+        t, v = np.argwhere(bad)[0]
+        raise InputError(f"'{name}': expected finite coordinates, got NaN/Inf at frame {t}, vertex {v}")
+    return points.astype(np.float64)
+
+
+def _check_faces(faces: np.ndarray, n_vertices: int, name: str) -> np.ndarray:
+    faces = np.asarray(faces)
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.shape[0] == 0:
+        raise InputError(f"'{name}': expected triangle faces of shape (F, 3), got {tuple(faces.shape)}")
+    if not np.issubdtype(faces.dtype, np.integer):
+        raise InputError(f"'{name}': expected integer face indices, got dtype {faces.dtype}")
+    if faces.min() < 0 or faces.max() >= n_vertices:
+        raise InputError(f"'{name}': expected face indices in [0, {n_vertices - 1}], "
+                         f"got {int(faces.min())}..{int(faces.max())}")
+    return faces.astype(np.int64)
+
+
+def frames_inside(points_inside_mesh: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]) -> InsideFn:
+    """Lift a one-frame inside test to the (T, ...) `inside_fn` that `compute_metrics` takes.
+
+    points_inside_mesh(points (N,3), mesh_verts (Vb,3), mesh_faces (Fb,3)) -> (N,) bool.
+    Returns inside_fn(points (T,V,3), body_points (T,Vb,3), body_faces) -> (T,V) bool.
+    """
+
+    def inside_fn(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray) -> np.ndarray:
+        return np.stack([np.asarray(points_inside_mesh(points[t], body_points[t], body_faces), dtype=bool)
+                         for t in range(points.shape[0])])
+
+    return inside_fn
+
+
+def penetration_pct(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
+                    inside_fn: InsideFn) -> np.ndarray:
+    """Share of garment vertices inside the body per frame.
+
+    points: (T, V, 3) metres; body_points: (T, Vb, 3) metres; body_faces: (Fb, 3) int.
+    Returns (T,) float64, percent.
+    """
+    inside = np.asarray(inside_fn(points, body_points, body_faces), dtype=bool)
+    if inside.shape != points.shape[:2]:
+        raise ValueError(f"inside_fn returned shape {inside.shape}, expected {points.shape[:2]}")
+    return 100.0 * inside.mean(axis=-1)
+
+
+def compute_metrics(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray,
+                    body_points: np.ndarray | None = None, body_faces: np.ndarray | None = None,
+                    inside_fn: InsideFn | None = None, pred_name: str = "pred",
+                    gt_name: str = "gt", body_name: str | None = None) -> MetricsResult:
+    """The paper's five metrics (Eqs. 11-15) per frame and overall, plus optional penetration.
+
+    pred, gt: (T, V, 3) float, metres, same topology and frame count.
+    faces: (F, 3) int, shared by both.
+    body_points: (T, Vb, 3) metres, body_faces: (Fb, 3) int, and
+    inside_fn(points (T,V,3), body_points (T,Vb,3), body_faces) -> (T,V) bool:
+    when all three are given, `penetration_pct` (pred) and `gt_penetration_pct`
+    (gt against the same body) are added, in percent of garment vertices.
+    pred_name, gt_name, body_name: how error messages name the inputs (e.g.
+    file paths; the body defaults to "<pred_name> body").
+    Raises InputError on mismatched shapes, bad faces or non-finite values.
+    """
+    check_comparable(pred, faces, gt, faces, pred_name, gt_name)
+    p = _check_points(pred, pred_name)
+    g = _check_points(gt, gt_name)
+    T, V = p.shape[:2]
+    f = _check_faces(faces, V, f"{pred_name} faces")
+
+    per_frame = {name: fn(p, g, f) for name, fn in PER_FRAME_METRICS.items()}
+
+    if body_points is not None and body_faces is not None and inside_fn is not None:
+        body_name = body_name or f"{pred_name} body"
+        b = _check_points(body_points, body_name)
+        if b.shape[0] != T:
+            raise InputError(f"'{body_name}': has {b.shape[0]} frames, the garment has {T}: "
+                             "expected one body pose per frame")
+        bf = _check_faces(body_faces, b.shape[1], f"{body_name} faces")
+        per_frame["penetration_pct"] = penetration_pct(p, b, bf, inside_fn)
+        per_frame["gt_penetration_pct"] = penetration_pct(g, b, bf, inside_fn)
+
+    overall = {name: float(np.mean(v)) for name, v in per_frame.items()}
+    return MetricsResult(per_frame=per_frame, overall=overall, n_frames=int(T), n_vertices=int(V),
+                         n_faces=int(f.shape[0]))

@@ -1,0 +1,446 @@
+"""Procedural example motions (walk, run, jump, arms raise, crouch, turn) in the AMASS convention.
+
+Each clip is a `Motion` in the SMPL 24-joint layout, world Z-up: the root
+orientation is `Rz(heading) @ Rx(+90 deg) @ R_pelvis`, where `Rx(+90 deg)`
+(`core.motion.Y_UP_TO_Z_UP`) takes the Y-up body frame (facing +Z, left at +X)
+to the world, so heading 0 faces world -Y. Joint curves are smooth (C1 or
+better): periodic gaits are sums of sines and von Mises bumps of the gait phase,
+one-shot clips are monotone cubic (PCHIP) keyframe curves. The pelvis height comes
+from a planar (sagittal) leg model with nominal segment lengths (`LegGeometry`) so
+that the lowest foot point touches the ground plane z = 0, and feet that should be
+planted stay in place. Angles are given in anatomical terms (flexion, abduction)
+in degrees and mapped to SMPL's local joint axes in one place (`_Channels`).
+New clips are new parameter sets of the same generators (speed, amplitude, ...).
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+from scipy.spatial.transform import Rotation
+
+from core.body import SMPL_JOINT_NAMES
+from core.motion import Y_UP_TO_Z_UP, Motion
+
+log = logging.getLogger(__name__)
+
+J = {name: i for i, name in enumerate(SMPL_JOINT_NAMES)}
+GRAVITY_M_S2 = 9.81
+_DEG = np.pi / 180.0
+
+
+@dataclass(frozen=True)
+class LegGeometry:
+    """Nominal sagittal leg dimensions (metres) used to put the feet on the ground.
+
+    hip_drop_m: hip joints below the pelvis joint. thigh_m: hip to knee. shank_m:
+    knee to ankle. ankle_height_m: ankle joint above the sole. toe_m / heel_m: how
+    far the sole reaches ahead of / behind the ankle.
+    """
+
+    # Measured on the embedded default body (core.body.default_body(), betas 0).
+    hip_drop_m: float = 0.016
+    thigh_m: float = 0.376
+    shank_m: float = 0.435
+    ankle_height_m: float = 0.071
+    toe_m: float = 0.20
+    heel_m: float = 0.055
+
+    @property
+    def standing_height_m(self) -> float:
+        """Pelvis joint height above the ground when standing straight."""
+        return self.hip_drop_m + self.thigh_m + self.shank_m + self.ankle_height_m
+
+    @classmethod
+    def from_rest_joints(cls, joints: np.ndarray, sole_y: float) -> "LegGeometry":
+        """Dimensions of a rest-pose SMPL skeleton.
+
+        joints: (24, 3) rest joint positions, metres, Y-up body frame. sole_y: the
+        height (Y) of the lowest rest vertex, metres.
+        """
+        j = np.asarray(joints, dtype=np.float64)
+        side = lambda a, b: 0.5 * (np.linalg.norm(j[J["left_" + a]] - j[J["left_" + b]])  # noqa: E731
+                                   + np.linalg.norm(j[J["right_" + a]] - j[J["right_" + b]]))
+        hip_y = 0.5 * (j[J["left_hip"], 1] + j[J["right_hip"], 1])
+        toe = 0.5 * (j[J["left_foot"], 2] + j[J["right_foot"], 2]) - 0.5 * (j[J["left_ankle"], 2] + j[J["right_ankle"], 2])
+        hip_drop, thigh, shank = float(j[0, 1] - hip_y), float(side("hip", "knee")), float(side("knee", "ankle"))
+        # The legs are not quite vertical: take the ankle height that makes the standing height exact.
+        ankle_height = max(float(j[0, 1] - sole_y) - hip_drop - thigh - shank, 0.0)
+        return cls(hip_drop_m=hip_drop, thigh_m=thigh, shank_m=shank, ankle_height_m=ankle_height,
+                   toe_m=float(max(toe, 0.0) + 0.06), heel_m=0.055)
+
+
+DEFAULT_LEGS = LegGeometry()
+
+
+# --------------------------------------------------------------------------- joint channels
+
+
+class _Channels:
+    """Per-frame joint angles in anatomical terms, mapped to SMPL local axes.
+
+    Each joint's local rotation is Rx(x) @ Ry(y) @ Rz(z) (z applied first, in the
+    parent frame), which with SMPL's T-pose (Y up, facing +Z, left at +X) means:
+    hip flexion (knee forward) = -x, hip abduction = +z left / -z right;
+    knee flexion (foot backward) = +x; ankle dorsiflexion (toes up) = -x;
+    spine/neck flexion (bend forward) = +x, twist = y, side bend = z;
+    shoulder: arm lowered from T-pose = -z left / +z right, then swung towards the
+    front about the vertical ("across") = -y left / +y right, then arm forward = -x;
+    elbow flexion (forearm forward) = -y left / +y right.
+    """
+
+    def __init__(self, n_frames: int):
+        self.euler = np.zeros((n_frames, 24, 3))  # radians, (x, y, z) per joint
+        self.n = n_frames
+
+    def add(self, joint: str, axis: int, value_deg) -> None:
+        self.euler[:, J[joint], axis] += np.asarray(value_deg, dtype=np.float64) * _DEG
+
+    def leg(self, side: str, hip_flex=0.0, hip_abd=0.0, knee_flex=0.0, ankle_dorsi=0.0, hip_rot=0.0) -> None:
+        s = 1.0 if side == "left" else -1.0
+        self.add(f"{side}_hip", 0, -np.asarray(hip_flex))
+        self.add(f"{side}_hip", 2, s * np.asarray(hip_abd))
+        self.add(f"{side}_hip", 1, s * np.asarray(hip_rot))
+        self.add(f"{side}_knee", 0, knee_flex)
+        self.add(f"{side}_ankle", 0, -np.asarray(ankle_dorsi))
+
+    def arm(self, side: str, lowered=75.0, forward=0.0, elbow_flex=0.0, collar_up=0.0, across=0.0) -> None:
+        s = 1.0 if side == "left" else -1.0
+        self.add(f"{side}_shoulder", 1, -s * np.asarray(across))
+        self.add(f"{side}_shoulder", 2, -s * np.asarray(lowered))
+        self.add(f"{side}_shoulder", 0, -np.asarray(forward))
+        self.add(f"{side}_elbow", 1, -s * np.asarray(elbow_flex))
+        self.add(f"{side}_collar", 2, s * np.asarray(collar_up))
+
+    def spine(self, flex=0.0, twist=0.0, side_bend=0.0) -> None:
+        """Spread over spine1/2/3 (40/30/30 %)."""
+        for joint, share in (("spine1", 0.4), ("spine2", 0.3), ("spine3", 0.3)):
+            self.add(joint, 0, share * np.asarray(flex))
+            self.add(joint, 1, share * np.asarray(twist))
+            self.add(joint, 2, share * np.asarray(side_bend))
+
+    def head(self, flex=0.0, twist=0.0) -> None:
+        for joint in ("neck", "head"):
+            self.add(joint, 0, 0.5 * np.asarray(flex))
+            self.add(joint, 1, 0.5 * np.asarray(twist))
+
+    def local_axis_angle(self) -> np.ndarray:
+        """(T, 24, 3) axis-angle of the local rotations (root still in the body frame)."""
+        e = self.euler.reshape(-1, 3)
+        rot = Rotation.from_euler("zyx", e[:, ::-1])  # extrinsic z, then y, then x: R = Rx Ry Rz
+        return rot.as_rotvec().reshape(self.n, 24, 3)
+
+
+def _assemble(ch: _Channels, heading_rad, trans: np.ndarray, fps: float, name: str) -> Motion:
+    """Compose the world root orientation Rz(heading) @ Rx(90 deg) @ R_pelvis and build the Motion."""
+    aa = ch.local_axis_angle()
+    heading = np.broadcast_to(np.asarray(heading_rad, dtype=np.float64), (ch.n,)).copy()
+    world = (Rotation.from_rotvec(np.stack([np.zeros(ch.n), np.zeros(ch.n), heading], -1))
+             * Rotation.from_rotvec(np.tile(Y_UP_TO_Z_UP, (ch.n, 1)))
+             * Rotation.from_rotvec(aa[:, 0]))
+    aa[:, 0] = world.as_rotvec()
+    return Motion(poses=aa.astype(np.float32), trans=np.asarray(trans, dtype=np.float32), fps=float(fps),
+                  betas=None, gender="neutral", name=name)
+
+
+def _forward_world(heading) -> np.ndarray:
+    """(..., 2) world XY facing direction for a heading about Z (heading 0 faces -Y)."""
+    h = np.asarray(heading, dtype=np.float64)
+    return np.stack([np.sin(h), -np.cos(h)], -1)
+
+
+# --------------------------------------------------------------------------- planar leg model
+
+
+def _rot_x(y, z, angle):
+    """Rotate sagittal points (y up, z forward) by `angle` radians about +X."""
+    c, s = np.cos(angle), np.sin(angle)
+    return c * y - s * z, s * y + c * z
+
+
+def _leg_points(ch: _Channels, side: str, legs: LegGeometry):
+    """Sagittal (y, z) of ankle, heel and toe relative to the pelvis joint, body frame, metres.
+
+    Uses the x-components of pelvis, hip, knee and ankle (exact when those joints
+    only flex; good enough with the small side rotations of these clips).
+    Returns dict of name -> (y (T,), z (T,)).
+    """
+    e = ch.euler
+    a_root = e[:, 0, 0]
+    a_thigh = a_root + e[:, J[f"{side}_hip"], 0]
+    a_shank = a_thigh + e[:, J[f"{side}_knee"], 0]
+    a_foot = a_shank + e[:, J[f"{side}_ankle"], 0]
+    hy, hz = _rot_x(-legs.hip_drop_m, 0.0, a_root)
+    ty, tz = _rot_x(-legs.thigh_m, 0.0, a_thigh)
+    sy, sz = _rot_x(-legs.shank_m, 0.0, a_shank)
+    ay, az = hy + ty + sy, hz + tz + sz
+    out = {"ankle": (ay, az)}
+    for name, dz in (("heel", -legs.heel_m), ("toe", legs.toe_m)):
+        py, pz = _rot_x(-legs.ankle_height_m, dz, a_foot)
+        out[name] = (ay + py, az + pz)
+    return out
+
+
+def _sole_depth(ch: _Channels, side: str, legs: LegGeometry) -> np.ndarray:
+    """(T,) how far the lowest sole point of a leg is below the pelvis joint, metres (smooth min)."""
+    p = _leg_points(ch, side, legs)
+    return _smooth_max(-p["heel"][0], -p["toe"][0], 0.004)
+
+
+def _smooth_max(a, b, temperature_m: float):
+    """C-infinity approximation of max(a, b), never below it (log-sum-exp)."""
+    m = np.maximum(a, b)
+    return m + temperature_m * np.log(np.exp((a - m) / temperature_m) + np.exp((b - m) / temperature_m))
+
+
+def _vm_bump(phase, centre, kappa):
+    """Periodic smooth bump in [0, 1], 1 at `centre` (von Mises shape, width ~ 1/sqrt(kappa))."""
+    return np.exp(kappa * (np.cos(phase - centre) - 1.0))
+
+
+def _times(fps: float, seconds: float) -> np.ndarray:
+    n = int(round(seconds * fps)) + 1
+    return np.arange(n, dtype=np.float64) / fps
+
+
+def _keys(t: np.ndarray, key_times, key_values) -> np.ndarray:
+    """Monotone cubic (PCHIP, C1, no overshoot) curve through keyframes, held outside them."""
+    kt = np.asarray(key_times, dtype=np.float64)
+    return PchipInterpolator(kt, np.asarray(key_values, dtype=np.float64))(np.clip(t, kt[0], kt[-1]))
+
+
+# --------------------------------------------------------------------------- gaits
+
+
+@dataclass(frozen=True)
+class GaitParams:
+    """A periodic gait. Angles in degrees; phase 0 = left hip passing neutral going forward.
+
+    stride_hz: full gait cycles per second (two steps). speed_m_s: None -> the speed
+    at which the stance foot does not slide (walks); runs set it.
+    turn_deg_s: heading change rate (walking along a circle when non-zero).
+    """
+
+    stride_hz: float = 0.9
+    speed_m_s: float | None = None
+    hip_mean: float = 8.0
+    hip_amp: float = 22.0
+    knee_stance: float = 12.0
+    knee_swing: float = 58.0
+    knee_swing_centre: float = -0.15  # in cycles
+    knee_swing_kappa: float = 3.0
+    ankle_amp: float = 10.0
+    trunk_lean: float = 3.0
+    pelvis_twist: float = 4.0
+    pelvis_roll: float = 3.0
+    arm_swing: float = 16.0
+    arms_lowered: float = 78.0
+    elbow_mean: float = 15.0
+    elbow_amp: float = 10.0
+    bounce_m: float = 0.0  # extra flight lift for runs
+    turn_deg_s: float = 0.0
+
+
+WALK = GaitParams()
+RUN = GaitParams(stride_hz=1.4, speed_m_s=3.2, hip_mean=15.0, hip_amp=33.0, knee_stance=35.0, knee_swing=95.0,
+                 knee_swing_centre=-0.08, knee_swing_kappa=2.5, ankle_amp=12.0, trunk_lean=9.0, pelvis_twist=6.0,
+                 pelvis_roll=4.0, arm_swing=30.0, arms_lowered=70.0, elbow_mean=80.0, elbow_amp=12.0,
+                 bounce_m=0.05)
+TURN = GaitParams(stride_hz=0.85, hip_amp=18.0, knee_swing=52.0, turn_deg_s=45.0)
+
+
+def make_gait(params: GaitParams, fps: float, seconds: float, name: str, legs: LegGeometry = DEFAULT_LEGS,
+              heading_rad: float = 0.0) -> Motion:
+    """A periodic gait (walk, run, curved walk) starting at the world origin, heading `heading_rad`."""
+    t = _times(fps, seconds)
+    ch = _gait_channels(params, t)
+    depth = _smooth_max(_sole_depth(ch, "left", legs), _sole_depth(ch, "right", legs), 0.005)
+    phase = 2 * np.pi * params.stride_hz * t
+    # Run: lift the body between stances (0 at mid stance of either leg, max in flight).
+    z = depth + params.bounce_m * 0.5 * (1 - np.cos(2 * (phase - 0.5 * np.pi - 0.35)))
+    speed = params.speed_m_s if params.speed_m_s is not None else _no_slip_speed(params, legs)
+    omega = params.turn_deg_s * _DEG
+    heading = heading_rad + omega * t
+    if abs(omega) < 1e-9:
+        xy = speed * t[:, None] * _forward_world(heading_rad)[None]
+    else:  # integral of speed * (sin h, -cos h) over h = heading_rad + omega s
+        xy = (speed / omega) * np.stack([np.cos(heading_rad) - np.cos(heading),
+                                         np.sin(heading_rad) - np.sin(heading)], -1)
+    trans = np.concatenate([xy, z[:, None]], axis=1)
+    return _assemble(ch, heading, trans, fps, name)
+
+
+def _gait_channels(p: GaitParams, t: np.ndarray) -> _Channels:
+    ch = _Channels(len(t))
+    phase = 2 * np.pi * p.stride_hz * t
+    for side, ph in (("left", phase), ("right", phase + np.pi)):
+        hip = p.hip_mean + p.hip_amp * np.sin(ph)
+        knee_stance = 3.0 + p.knee_stance * _vm_bump(ph, 0.65 * np.pi, 8.0)
+        knee_swing = p.knee_swing * _vm_bump(ph, 2 * np.pi * p.knee_swing_centre, p.knee_swing_kappa)
+        knee = knee_stance + knee_swing
+        # Foot level in mid-stance (flat on the ground), toes up at heel strike, toes down at
+        # push-off; in swing the ankle follows 70 % of the knee so the toes clear the ground.
+        level = knee_stance + 0.7 * knee_swing - hip + p.trunk_lean
+        ankle = (level + 0.8 * p.ankle_amp * _vm_bump(ph, 0.5 * np.pi, 6.0)
+                 - 1.8 * p.ankle_amp * _vm_bump(ph, -0.62 * np.pi, 6.0)
+                 + 0.5 * p.ankle_amp * _vm_bump(ph, -0.25 * np.pi, 4.0))
+        ch.leg(side, hip_flex=hip, knee_flex=knee, ankle_dorsi=ankle, hip_abd=1.5)
+        # Arms swing against the same-side leg.
+        ch.arm(side, lowered=p.arms_lowered, forward=-p.arm_swing * np.sin(ph),
+               elbow_flex=p.elbow_mean + p.elbow_amp * (0.5 - 0.5 * np.sin(ph)))
+    # Pelvis: forward lean, twist towards the swinging leg, drop on the swing side.
+    ch.add("pelvis", 0, p.trunk_lean)
+    ch.add("pelvis", 1, p.pelvis_twist * np.sin(phase))
+    ch.add("pelvis", 2, p.pelvis_roll * np.sin(2 * phase))
+    ch.spine(flex=0.5 * p.trunk_lean, twist=-1.5 * p.pelvis_twist * np.sin(phase),
+             side_bend=-0.8 * p.pelvis_roll * np.sin(2 * phase))
+    ch.head(flex=-0.5 * p.trunk_lean, twist=-0.3 * p.pelvis_twist * np.sin(phase))
+    if p.turn_deg_s:
+        ch.spine(side_bend=-0.08 * p.turn_deg_s)  # lean into the curve
+    return ch
+
+
+@functools.lru_cache(maxsize=32)
+def _no_slip_speed(params: GaitParams, legs: LegGeometry) -> float:
+    """Mean backward speed of the lower (stance) ankle over one cycle, m/s."""
+    t = np.linspace(0.0, 1.0 / params.stride_hz, 721)
+    ch = _gait_channels(params, t)
+    depth = {s: _sole_depth(ch, s, legs) for s in ("left", "right")}
+    az = {s: _leg_points(ch, s, legs)["ankle"][1] for s in ("left", "right")}
+    stance = np.where(depth["left"] > depth["right"], az["left"], az["right"])
+    v = -np.gradient(stance, t)
+    return float(np.mean(np.clip(v, 0.0, None)))
+
+
+def make_walk(fps: float = 60.0, seconds: float = 3.0, legs: LegGeometry = DEFAULT_LEGS, **overrides) -> Motion:
+    """Straight walk at ~1.2 m/s (0.9 strides/s). `overrides`: any GaitParams field."""
+    return make_gait(_with(WALK, overrides), fps, seconds, "walk", legs)
+
+
+def make_run(fps: float = 60.0, seconds: float = 2.5, legs: LegGeometry = DEFAULT_LEGS, **overrides) -> Motion:
+    """Straight run at 3.2 m/s (1.4 strides/s) with a short flight phase."""
+    return make_gait(_with(RUN, overrides), fps, seconds, "run", legs)
+
+
+def make_turn(fps: float = 60.0, seconds: float = 4.0, legs: LegGeometry = DEFAULT_LEGS, **overrides) -> Motion:
+    """Slow walk along a left-hand circle, turning 45 deg/s (180 deg over 4 s)."""
+    return make_gait(_with(TURN, overrides), fps, seconds, "turn", legs)
+
+
+def _with(params: GaitParams, overrides: dict) -> GaitParams:
+    from dataclasses import replace
+    return replace(params, **overrides) if overrides else params
+
+
+# --------------------------------------------------------------------------- keyframed clips
+
+
+def _standing(ch: _Channels, t: np.ndarray, arms: bool = True) -> None:
+    """Relaxed stance: arms down by the sides, elbows slightly bent, tiny breathing sway."""
+    if arms:
+        for side in ("left", "right"):
+            ch.arm(side, lowered=78.0, elbow_flex=12.0)
+    ch.spine(flex=1.0 * np.sin(2 * np.pi * 0.25 * t))
+    for side in ("left", "right"):
+        ch.leg(side, hip_abd=2.0)
+
+
+def _planted_trans(ch: _Channels, legs: LegGeometry, heading_rad: float = 0.0, lift=None) -> np.ndarray:
+    """(T, 3) trans that keeps both feet planted where they were at frame 0 (plus `lift` metres up)."""
+    depth = _smooth_max(_sole_depth(ch, "left", legs), _sole_depth(ch, "right", legs), 0.004)
+    ankle_z = 0.5 * (_leg_points(ch, "left", legs)["ankle"][1] + _leg_points(ch, "right", legs)["ankle"][1])
+    back = -(ankle_z - ankle_z[0])  # move the pelvis so the ankles stay put (body +Z = forward)
+    xy = back[:, None] * _forward_world(heading_rad)[None]
+    z = depth + (0.0 if lift is None else lift)
+    return np.concatenate([xy, z[:, None]], axis=1)
+
+
+def make_jump(fps: float = 60.0, seconds: float = 3.0, legs: LegGeometry = DEFAULT_LEGS,
+              height_scale: float = 1.0) -> Motion:
+    """Counter-movement vertical jump in place: crouch with arms back, take off, 0.4 s flight, land, stand.
+
+    height_scale scales the crouch depth and flight time (1.0: ~0.2 m rise).
+    """
+    t = _times(fps, seconds)
+    s = seconds / 3.0
+    k = lambda *times: [s * x for x in times]  # noqa: E731
+    c = height_scale
+    flight = 0.40 * np.sqrt(c)
+    t_off, t_land = 1.15 * s, 1.15 * s + flight
+    times = k(0.0, 0.40, 0.85, 1.15) + [t_land - 0.2 * flight, t_land, t_land + 0.25 * s, t_land + 0.85 * s, 3.0 * s]
+    hip = [0, 0, 75 * c, 2, 18 * c, 12, 55 * c, 0, 0]
+    knee = [2, 2, 95 * c, 4, 25 * c, 10, 70 * c, 2, 2]
+    trunk = [0, 0, 30 * c, 0, 8, 5, 25 * c, 0, 0]  # pelvis forward tilt
+    # Feet flat on the ground except the push-off / landing plantarflexion (toes down) on top.
+    plantar = [0, 0, 0, 35, 30, 20, 0, 0, 0]
+    arm_fwd = [0, 0, -35, 120, 60, 20, 40, 0, 0]
+    arm_low = [78, 78, 65, 10, 40, 60, 70, 78, 78]
+    ch = _Channels(len(t))
+    _standing(ch, t, arms=False)
+    for side in ("left", "right"):
+        h, kn, tr = _keys(t, times, hip), _keys(t, times, knee), _keys(t, times, trunk)
+        ch.leg(side, hip_flex=h, knee_flex=kn, ankle_dorsi=kn - h + tr - _keys(t, times, plantar))
+        ch.arm(side, lowered=_keys(t, times, arm_low), forward=_keys(t, times, arm_fwd), elbow_flex=15.0)
+    ch.add("pelvis", 0, _keys(t, times, trunk))
+    ch.head(flex=-0.5 * _keys(t, times, trunk))
+    # Flight: a C1 lift (zero slope at take-off and landing) with the ballistic apex g T^2 / 8.
+    u = np.clip((t - t_off) / flight, 0.0, 1.0)
+    lift = GRAVITY_M_S2 * flight**2 / 8.0 * np.sin(np.pi * u) ** 2
+    return _assemble(ch, 0.0, _planted_trans(ch, legs, lift=lift), fps, "jump")
+
+
+def make_crouch(fps: float = 60.0, seconds: float = 3.0, legs: LegGeometry = DEFAULT_LEGS,
+                depth: float = 1.0) -> Motion:
+    """Stand, squat down with flat feet and arms forward for balance, hold, stand up. depth in (0, 1]."""
+    t = _times(fps, seconds)
+    s = seconds / 3.0
+    times = [0.0, 0.4 * s, 1.35 * s, 1.85 * s, 2.7 * s, 3.0 * s]
+    amount = _keys(t, times, [0, 0, 1, 1, 0, 0]) * depth
+    ch = _Channels(len(t))
+    _standing(ch, t, arms=False)
+    lean, hip, knee = 20 * amount, 90 * amount, 110 * amount
+    ch.add("pelvis", 0, lean)
+    for side in ("left", "right"):
+        # Flat feet: thigh, shank and foot angles about X sum to zero -> ankle dorsiflexion.
+        dorsi = knee - hip + lean
+        ch.leg(side, hip_flex=hip, knee_flex=knee, ankle_dorsi=dorsi, hip_abd=10 * amount)
+        ch.arm(side, lowered=78 - 70 * amount, forward=80 * amount, elbow_flex=12 + 10 * amount)
+    ch.spine(flex=10 * amount)
+    ch.head(flex=-25 * amount)
+    return _assemble(ch, 0.0, _planted_trans(ch, legs), fps, "crouch")
+
+
+def make_arms_raise(fps: float = 60.0, seconds: float = 3.0, legs: LegGeometry = DEFAULT_LEGS,
+                    top_deg: float = 165.0) -> Motion:
+    """Standing; both arms rise sideways from the sides to overhead (`top_deg` from down) and back."""
+    t = _times(fps, seconds)
+    s = seconds / 3.0
+    amount = _keys(t, [0.0, 0.3 * s, 1.3 * s, 1.7 * s, 2.7 * s, 3.0 * s], [0, 0, 1, 1, 0, 0])
+    ch = _Channels(len(t))
+    _standing(ch, t, arms=False)
+    for side in ("left", "right"):
+        ch.arm(side, lowered=78.0 - top_deg * amount, elbow_flex=12.0 - 7.0 * amount,
+               collar_up=12.0 * amount, across=20.0)
+    ch.spine(flex=-5.0 * amount)
+    ch.head(flex=-8.0 * amount)
+    return _assemble(ch, 0.0, _planted_trans(ch, legs), fps, "arms_raise")
+
+
+EXAMPLE_MOTIONS: dict[str, Callable[..., Motion]] = {
+    "walk": make_walk,
+    "run": make_run,
+    "jump": make_jump,
+    "arms_raise": make_arms_raise,
+    "crouch": make_crouch,
+    "turn": make_turn,
+}
+
+
+def generate_example_motions(fps: float = 60.0, legs: LegGeometry = DEFAULT_LEGS) -> dict[str, Motion]:
+    """Every registered example clip at `fps`, keyed by name (deterministic)."""
+    return {name: make(fps=fps, legs=legs) for name, make in EXAMPLE_MOTIONS.items()}

@@ -1,0 +1,200 @@
+"""Read SMPL-format body model files (SMPL, SMPL+H, SMPL-X) into `core.body.Body`.
+
+Two containers: `.npz` (numpy archives, as SMPL-X and AMASS's SMPL+H ship) and
+`.pkl` (the official Python-2 pickles, with some arrays stored as chumpy `Ch`
+objects and `J_regressor` as a scipy.sparse matrix). chumpy is never imported:
+a restricted unpickler maps its classes to a stand-in that keeps the array of
+the pickled state, and refuses every global that an SMPL file has no use for.
+Keys read: v_template (V,3), shapedirs (V,3,S), posedirs (V,3,9(J-1)),
+J_regressor (J,V), weights (V,J), kintree_table (2,J) or parents (J,), f or
+faces (F,3); others (gender, landmarks, hand PCA...) are ignored.
+"""
+
+from __future__ import annotations
+
+import _compat_pickle
+import importlib
+import logging
+import pickle
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from core.body import LAYOUT_JOINTS, Body, _dense_from_sparse, body_from_arrays
+from core.errors import InputError
+
+log = logging.getLogger(__name__)
+
+REQUIRED_KEYS = ("v_template", "shapedirs", "J_regressor", "weights")
+#: SMPL-X files carry 300 shape + 100 expression directions in one `shapedirs`.
+SMPLX_SHAPE_AND_EXPRESSION = 400
+SMPLX_SHAPE = 300
+
+
+def load_body(path: str | Path) -> Body:
+    """Load an SMPL-format body file (`.npz` or `.pkl`) as a validated `Body`.
+
+    Arrays come back float32 in the file's rest frame (SMPL: Y-up, T-pose,
+    metres); a 400-coefficient SMPL-X `shapedirs` keeps its first 300 (shape)
+    coefficients. Raises InputError (one line naming the file) for a missing
+    file, an unknown suffix, an unreadable file, missing keys or wrong shapes.
+    """
+    path = Path(path)
+    label = f"body file '{path}'"
+    if not path.is_file():
+        raise InputError(f"{label}: not found" if not path.exists() else f"{label}: not a file")
+    suffix = path.suffix.lower()
+    readers = {".npz": _read_npz, ".pkl": _read_pkl}
+    if suffix not in readers:
+        raise InputError(f"{label}: expected a .npz or .pkl SMPL-format file, got suffix '{path.suffix}'")
+    arrays = readers[suffix](path, label)
+    return body_from_file_arrays(arrays, name=path.stem, source=str(path))
+
+
+def body_from_file_arrays(arrays: dict, name: str, source: str) -> Body:
+    """Check keys, convert and validate the arrays read from file `source` (see `load_body`)."""
+    label = f"body file '{source}'"
+    missing = [k for k in REQUIRED_KEYS if k not in arrays]
+    if "kintree_table" not in arrays and "parents" not in arrays:
+        missing.append("kintree_table")
+    if "f" not in arrays and "faces" not in arrays:
+        missing.append("f")
+    if missing:
+        raise InputError(f"{label}: missing keys {', '.join(missing)} "
+                         f"(an SMPL-format file has v_template, shapedirs, J_regressor, weights, kintree_table, f)")
+    wanted = REQUIRED_KEYS + ("posedirs", "kintree_table", "parents", "f", "faces")
+    out = {}
+    for key in wanted:
+        if key not in arrays:
+            continue
+        value = arrays[key]
+        if key == "J_regressor" and hasattr(value, "toarray"):
+            out[key] = value  # scipy.sparse: body_from_arrays densifies it
+            continue
+        try:
+            value = np.asarray(value)
+            if value.dtype == object:
+                raise TypeError
+            out[key] = value
+        except (TypeError, ValueError):
+            raise InputError(f"{label}: expected {key} to be a numeric array, got {type(arrays[key]).__name__}") from None
+    kt = out.get("parents", out.get("kintree_table"))
+    n_joints = kt.shape[-1] if kt.ndim >= 1 else 0
+    if n_joints not in LAYOUT_JOINTS.values():
+        families = ", ".join(f"{n} ({k})" for k, n in LAYOUT_JOINTS.items())
+        raise InputError(f"{label}: expected {families} joints, got {n_joints} "
+                         f"(from {'parents' if 'parents' in out else 'kintree_table'} of shape {tuple(kt.shape)})")
+    sd = out["shapedirs"]
+    if sd.ndim == 3 and sd.shape[2] == SMPLX_SHAPE_AND_EXPRESSION:
+        log.info("%s: shapedirs has %d coefficients (SMPL-X shape + expression): keeping the first %d (shape)",
+                 label, sd.shape[2], SMPLX_SHAPE)
+        out["shapedirs"] = sd[:, :, :SMPLX_SHAPE]
+    try:
+        return body_from_arrays(out, name=name, source=source)
+    except InputError:
+        raise
+    except (ValueError, TypeError, IndexError) as exc:
+        raise InputError(f"{label}: arrays do not form an SMPL-format body ({_reason(exc)})") from None
+
+
+def _read_npz(path: Path, label: str) -> dict:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {}
+            for key in data.files:
+                if key in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table",
+                           "parents", "f", "faces") or key.endswith(("_indices", "_values", "_shape")):
+                    arrays[key] = data[key]
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
+        raise InputError(f"{label}: cannot read it as a numpy .npz archive ({_reason(exc)})") from None
+    for key in ("J_regressor", "weights"):
+        if key not in arrays and f"{key}_indices" in arrays:
+            try:
+                arrays[key] = _dense_from_sparse(arrays, key)
+            except (KeyError, IndexError, ValueError) as exc:
+                raise InputError(f"{label}: sparse {key} is malformed ({_reason(exc)})") from None
+    return arrays
+
+
+def _read_pkl(path: Path, label: str) -> dict:
+    try:
+        with open(path, "rb") as fh:
+            data = _SMPLUnpickler(fh, label).load()
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any failure to unpickle is an unreadable file
+        raise InputError(f"{label}: cannot read it as an SMPL-format pickle ({_reason(exc)})") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{label}: expected a pickled dict of arrays, got {type(data).__name__}")
+    return {str(k): (v.array if isinstance(v, ChumpyStandIn) else v) for k, v in data.items()}
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class ChumpyStandIn:
+    """Takes the place of a chumpy `Ch` while unpickling; `.array` is its value.
+
+    A pickled `Ch` stores its value under 'x' of its state dict (other entries
+    are chumpy bookkeeping).
+    """
+
+    array = None
+
+    def __init__(self, *args, **kwargs):
+        if args:
+            self.array = np.asarray(args[0])
+
+    def __setstate__(self, state):
+        if isinstance(state, tuple):  # (dict, slots) from objects with __slots__
+            state = next((s for s in state if isinstance(s, dict)), {})
+        if not isinstance(state, dict):
+            return
+        value = state.get("x")
+        if value is None:
+            value = next((v for v in state.values() if isinstance(v, np.ndarray)), None)
+        if isinstance(value, ChumpyStandIn):
+            value = value.array
+        self.array = None if value is None else np.asarray(value)
+
+
+_NUMPY_NAMES = {"_reconstruct", "ndarray", "dtype", "scalar", "_frombuffer"}
+_BUILTIN_NAMES = {"object", "set", "frozenset", "slice", "complex", "bytearray", "list", "dict", "tuple",
+                  "int", "float", "str", "bytes", "bool"}
+
+
+class _SMPLUnpickler(pickle.Unpickler):
+    """Unpickler for SMPL files: Python-2 latin1 strings, chumpy -> stand-in, and only
+    the globals such a file needs (numpy arrays, scipy.sparse matrices)."""
+
+    def __init__(self, fh, label: str):
+        super().__init__(fh, encoding="latin1")
+        self.label = label
+
+    def find_class(self, module: str, name: str):
+        # Python-2 names (__builtin__, copy_reg), as the default find_class maps them.
+        if (module, name) in _compat_pickle.NAME_MAPPING:
+            module, name = _compat_pickle.NAME_MAPPING[(module, name)]
+        module = _compat_pickle.IMPORT_MAPPING.get(module, module)
+        if module == "chumpy" or module.startswith("chumpy."):
+            return ChumpyStandIn
+        if module.startswith("scipy.sparse") and name.endswith(("_matrix", "_array")):
+            import scipy.sparse
+
+            if hasattr(scipy.sparse, name):
+                return getattr(scipy.sparse, name)
+        if module.split(".")[0] == "numpy" and (name in _NUMPY_NAMES or name.endswith("DType")):
+            # numpy 2 moved numpy.core to numpy._core; old pickles name the former.
+            for mod in (module.replace("numpy.core", "numpy._core", 1), module):
+                try:
+                    return getattr(importlib.import_module(mod), name)
+                except (ImportError, AttributeError):
+                    continue
+        if (module, name) in (("copyreg", "_reconstructor"), ("_codecs", "encode"),
+                              ("collections", "OrderedDict")) or (module == "builtins" and name in _BUILTIN_NAMES):
+            return super().find_class(module, name)
+        raise InputError(f"{self.label}: the pickle refers to '{module}.{name}', which an SMPL-format file "
+                         f"does not use (refused)")

@@ -1,0 +1,198 @@
+"""AMASS-style motion files (.npz): read them into a `core.motion.Motion`, write them back.
+
+Accepted layouts: `poses` with 72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X) values per
+frame (or the same as a (T, J, 3) array), or, when `poses` is absent, the SMPL-X
+split keys `root_orient (T,3)`, `pose_body (T,63)` and optional `pose_jaw (T,3)`,
+`pose_eye (T,6)`, `pose_hand (T,90)`. Also read: `trans (T,3)` metres Z-up (zeros,
+with a warning, when missing), `betas` (any length), `mocap_framerate` or
+`mocap_frame_rate` (Hz), `gender`.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from core.body import LAYOUT_JOINTS
+from core.errors import InputError
+from core.motion import Motion, validate_motion_values
+
+log = logging.getLogger(__name__)
+
+FRAMERATE_KEYS = ("mocap_framerate", "mocap_frame_rate")
+_VALUES_PER_FRAME = {3 * n: n for n in LAYOUT_JOINTS.values()}  # 72, 156, 165 -> joints
+_EXPECTED = "72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X)"
+
+
+def load_motion(path, fps: float | None = None) -> Motion:
+    """Read an AMASS-style .npz motion.
+
+    path: file path. fps: frame rate in Hz that overrides (or replaces a missing)
+    `mocap_framerate` / `mocap_frame_rate`.
+    Returns a Motion: poses (T, 24|52|55, 3) float32 axis-angle radians, trans
+    (T, 3) float32 metres (Z-up world), fps, betas (S,) float32 or None, gender.
+    Raises InputError (one line naming the file) for any unreadable or invalid content.
+    """
+    path = Path(path)
+    src = f"motion '{path}'"
+    if not path.is_file():
+        raise InputError(f"{src}: file not found")
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
+    try:
+        with data:
+            arrays = {k: data[k] for k in data.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+        raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
+
+    poses = _read_poses(arrays, src)
+    T = poses.shape[0]
+    if T < 1:
+        raise InputError(f"{src}: expected at least 1 frame, got 0")
+
+    if "trans" in arrays:
+        trans = _float_array(arrays["trans"], "trans", src)
+        if trans.ndim == 1 and trans.shape == (3,) and T == 1:
+            trans = trans[None]
+        if trans.ndim != 2 or trans.shape[1] != 3:
+            raise InputError(f"{src}: expected trans of shape ({T}, 3), got {tuple(trans.shape)}")
+        if trans.shape[0] != T:
+            raise InputError(f"{src}: trans has {trans.shape[0]} frames but poses have {T}")
+    else:
+        log.warning("%s: no 'trans' key, using zero translation", src)
+        trans = np.zeros((T, 3), dtype=np.float32)
+
+    betas = None
+    if "betas" in arrays:
+        betas = _float_array(arrays["betas"], "betas", src).reshape(-1)
+        if betas.size and not np.all(np.isfinite(betas)):
+            raise InputError(f"{src}: betas contain NaN or Inf")
+
+    if fps is None:
+        key = next((k for k in FRAMERATE_KEYS if k in arrays), None)
+        if key is None:
+            raise InputError(f"{src}: expected a frame rate under 'mocap_framerate' or 'mocap_frame_rate', "
+                             f"found neither (pass an explicit fps to override)")
+        raw = arrays[key]
+        try:
+            fps = float(np.asarray(raw, dtype=np.float64).reshape(-1)[0])
+        except (ValueError, TypeError, IndexError):
+            raise InputError(f"{src}: expected a number under '{key}', got {raw!r}") from None
+        what = f"'{key}'"
+    else:
+        what = "the fps override"
+    if not (np.isfinite(fps) and fps > 0):
+        raise InputError(f"{src}: expected a positive frame rate in {what}, got {fps}")
+
+    gender = _read_gender(arrays.get("gender"))
+    motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem)
+    validate_motion_values(motion, str(path))
+    return motion
+
+
+def save_motion(path, motion: Motion) -> None:
+    """Write `motion` as an AMASS-style .npz (atomically: temp file, then rename).
+
+    Keys: poses (T, J*3) float32, trans (T, 3) float32, betas (S,) float32 (16 zeros
+    when the motion has none), mocap_framerate float64, gender str ('neutral' if None).
+    """
+    path = Path(path)
+    T, J, _ = motion.poses.shape
+    arrays = {
+        "poses": np.asarray(motion.poses, dtype=np.float32).reshape(T, J * 3),
+        "trans": np.asarray(motion.trans, dtype=np.float32),
+        "betas": (np.zeros(16, dtype=np.float32) if motion.betas is None
+                  else np.asarray(motion.betas, dtype=np.float32).reshape(-1)),
+        "mocap_framerate": np.float64(motion.fps),
+        "gender": np.array(motion.gender if motion.gender is not None else "neutral"),
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial.npz", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _read_poses(arrays: dict, src: str) -> np.ndarray:
+    """(T, J, 3) float32 poses from `poses` or the SMPL-X split keys."""
+    if "poses" in arrays:
+        poses = _float_array(arrays["poses"], "poses", src)
+        if poses.ndim == 1:  # a single frame stored flat
+            poses = poses[None]
+        if poses.ndim == 3:
+            if poses.shape[2] != 3 or poses.shape[1] * 3 not in _VALUES_PER_FRAME:
+                raise InputError(f"{src}: expected poses of shape (T, 24|52|55, 3), got {tuple(poses.shape)}")
+            return poses
+        if poses.ndim != 2:
+            raise InputError(f"{src}: expected poses of shape (T, 72|156|165), got {tuple(poses.shape)}")
+        n = poses.shape[1]
+        if n not in _VALUES_PER_FRAME:
+            raise InputError(f"{src}: expected {_EXPECTED} pose values per frame, got {n}")
+        return poses.reshape(poses.shape[0], _VALUES_PER_FRAME[n], 3)
+    if "root_orient" in arrays and "pose_body" in arrays:
+        return _split_poses(arrays, src)
+    raise InputError(f"{src}: expected a 'poses' array or SMPL-X 'root_orient' + 'pose_body', "
+                     f"found keys {sorted(arrays)}")
+
+
+def _split_poses(arrays: dict, src: str) -> np.ndarray:
+    """Assemble (T, 22|55, 3) poses from SMPL-X split keys (no hands/jaw/eyes -> SMPL-X with zeros)."""
+    widths = {"root_orient": 3, "pose_body": 63, "pose_jaw": 3, "pose_eye": 6, "pose_hand": 90}
+    parts = {}
+    for key, width in widths.items():
+        if key not in arrays:
+            continue
+        a = _float_array(arrays[key], key, src)
+        if a.ndim == 1:
+            a = a[None]
+        a = a.reshape(a.shape[0], -1)
+        if a.shape[1] != width:
+            raise InputError(f"{src}: expected {key} with {width} values per frame, got {a.shape[1]}")
+        parts[key] = a
+    T = parts["root_orient"].shape[0]
+    for key, a in parts.items():
+        if a.shape[0] != T:
+            raise InputError(f"{src}: {key} has {a.shape[0]} frames but root_orient has {T}")
+    zeros = lambda w: np.zeros((T, w), dtype=np.float32)  # noqa: E731
+    flat = np.concatenate([parts["root_orient"], parts["pose_body"], parts.get("pose_jaw", zeros(3)),
+                           parts.get("pose_eye", zeros(6)), parts.get("pose_hand", zeros(90))], axis=1)
+    return flat.reshape(T, 55, 3)
+
+
+def _float_array(a, key: str, src: str) -> np.ndarray:
+    try:
+        return np.asarray(a, dtype=np.float32)
+    except (ValueError, TypeError):
+        raise InputError(f"{src}: expected numbers in '{key}', got dtype {np.asarray(a).dtype}") from None
+
+
+def _read_gender(raw) -> str | None:
+    """bytes / str / 0-d or 1-element array -> str, or None."""
+    if raw is None:
+        return None
+    a = np.asarray(raw)
+    if a.size == 0:
+        return None
+    v = a.reshape(-1)[0]
+    if isinstance(v, bytes):
+        v = v.decode("utf-8", errors="replace")
+    return str(v).strip() or None
+
+
+def _short(exc: BaseException) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return text[:120]

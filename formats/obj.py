@@ -1,0 +1,389 @@
+"""Wavefront OBJ: reading a garment mesh, writing meshes and animation frames.
+
+`read_obj` turns a user's OBJ (triangles and quads, any of the `v`, `v/vt`,
+`v//vn`, `v/vt/vn` face forms, negative indices, several objects or groups)
+into one cleaned, validated `core.garment.Garment`. `parse_obj` and
+`triangulate` are the raw layers under it, used as they are by the OBJ
+sequence reader (which must keep every frame's vertex numbering). `write_obj`
+builds the whole file with one string formatting per block, because the
+sequence writers call it for thousands of frames.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from core.garment import Garment, validate_garment
+
+log = logging.getLogger(__name__)
+
+#: Statement keywords that carry nothing a garment needs (materials, smoothing, grouping).
+_IGNORED = frozenset({"vn", "o", "g", "s", "usemtl", "mtllib", "vp", "l", "p",
+                      "cstype", "deg", "curv", "curv2", "surf", "parm", "trim", "hole",
+                      "end", "bmat", "step", "con", "mg", "lod", "shadow_obj", "trace_obj",
+                      "ctech", "stech", "bevel", "c_interp", "d_interp", "maplib", "usemap"})
+
+
+@dataclass(frozen=True, eq=False)
+class ObjPolygons:
+    """The geometry of an OBJ file as written, before triangulation or cleaning.
+
+    vertices: (V, 3) float64, file units. polygons: (P, 4) int64, 0-based vertex
+    indices, -1 in the last column of a triangle. uvs: (U, 2) float64 or None;
+    polygon_uvs: (P, 4) int64 like `polygons` but into `uvs`, or None unless
+    every face gave texture indices. `face_lines`: the file's face lines as
+    written; `n_uv_rows`: its number of `vt` lines; `relative`: whether any face
+    uses negative indices. Two files with equal face lines, vertex and `vt`
+    counts and no relative indices have equal polygons.
+    """
+
+    vertices: np.ndarray
+    polygons: np.ndarray
+    uvs: np.ndarray | None
+    polygon_uvs: np.ndarray | None
+    face_lines: tuple
+    n_uv_rows: int
+    relative: bool
+
+    def same_faces(self, face_lines, n_vertices: int, n_uv_rows: int) -> bool:
+        """Whether a file with these face lines and counts has exactly this file's polygons."""
+        return (not self.relative and n_vertices == self.vertices.shape[0] and n_uv_rows == self.n_uv_rows
+                and len(face_lines) == len(self.face_lines) and tuple(face_lines) == self.face_lines)
+
+
+def _read_text(path: Path, label: str) -> str:
+    if not path.exists():
+        raise InputError(f"{label} '{path}': file not found")
+    if path.is_dir():
+        raise InputError(f"{label} '{path}': expected an OBJ file, got a directory")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{label} '{path}': cannot be read ({exc.strerror or exc})") from None
+    # Comments and material names in legacy encodings must not stop a read.
+    return data.decode("utf-8", errors="replace")
+
+
+def _floats(rows: list, line_numbers: list, width: int, what: str, label: str, path: Path) -> np.ndarray:
+    """Rows of number strings -> (N, width) float64; on failure name the first bad line."""
+    if not rows:
+        return np.zeros((0, width), dtype=np.float64)
+    try:
+        return np.array(rows, dtype=np.float64).reshape(len(rows), width)
+    except ValueError:
+        for row, lineno in zip(rows, line_numbers):
+            for tok in row:
+                try:
+                    float(tok)
+                except ValueError:
+                    raise InputError(f"{label} '{path}': expected a number in the {what} on line {lineno}, "
+                                     f"got '{tok}'") from None
+        raise
+
+
+def _index(tok: str, count: int, lineno: int, kind: str, label: str, path: Path) -> int:
+    """One OBJ index (1-based, or negative = relative to the `count` defined so far) -> 0-based."""
+    try:
+        i = int(tok)
+    except ValueError:
+        raise InputError(f"{label} '{path}': expected an integer {kind} index on line {lineno}, "
+                         f"got '{tok}'") from None
+    if i > 0:
+        return i - 1
+    if i < 0 and count + i >= 0:
+        return count + i
+    raise InputError(f"{label} '{path}': {kind} index {i} out of range on line {lineno}, "
+                     f"only {count} defined before it")
+
+
+def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
+              like: ObjPolygons | None = None) -> ObjPolygons:
+    """Read an OBJ's vertices, texture coordinates and triangle/quad faces as written.
+
+    Nothing is cleaned or validated beyond syntax and index ranges. `label` starts
+    every error message ("garment mesh 'dress.obj': ..."). `like`: a previously
+    parsed file (e.g. frame 0 of a sequence); when this file's face lines are the
+    same, its polygon arrays are reused instead of parsed again.
+    Raises InputError for a missing file, a directory, an unparseable number or
+    index, an index out of range, a face with fewer than 3 or more than 4
+    vertices, no vertices, or no faces.
+    """
+    path = Path(path)
+    text = _read_text(path, label)
+    if like is not None:
+        fast = _parse_like(text, like)
+        if fast is not None:
+            return fast
+
+    v_rows, v_lines, vt_rows, vt_lines = [], [], [], []
+    f_lines, f_numbers, f_nv, f_nvt = [], [], [], []
+    unknown = 0
+    for lineno, line in enumerate(text.splitlines(), 1):
+        parts = line.split()
+        if not parts:
+            continue
+        key = parts[0]
+        if key == "v":
+            if len(parts) < 4:
+                raise InputError(f"{label} '{path}': expected 3 coordinates on the vertex on line {lineno}, "
+                                 f"got {len(parts) - 1}")
+            v_rows.append(parts[1:4])  # w or vertex colours follow: ignored
+            v_lines.append(lineno)
+        elif key == "f":
+            f_lines.append(line)
+            f_numbers.append(lineno)
+            f_nv.append(len(v_rows))
+            f_nvt.append(len(vt_rows))
+        elif key == "vt":
+            if len(parts) < 2:
+                raise InputError(f"{label} '{path}': expected texture coordinates u v on line {lineno}, got none")
+            vt_rows.append((parts[1:3] + ["0"])[:2])
+            vt_lines.append(lineno)
+        elif key[0] == "#" or key in _IGNORED:
+            continue
+        else:
+            unknown += 1
+    if unknown:
+        log.debug("%s '%s': ignored %d lines with unknown keywords", label, path, unknown)
+
+    vertices = _floats(v_rows, v_lines, 3, "vertex", label, path)
+    uvs = _floats(vt_rows, vt_lines, 2, "texture coordinate", label, path)
+    if vertices.shape[0] == 0:
+        raise InputError(f"{label} '{path}': expected vertices ('v' lines), got none")
+    if not f_lines:
+        raise InputError(f"{label} '{path}': expected faces ('f' lines), got none")
+
+    if like is not None and like.same_faces(f_lines, len(v_rows), len(vt_rows)):
+        return ObjPolygons(vertices, like.polygons, uvs if like.polygon_uvs is not None else None,
+                           like.polygon_uvs, like.face_lines, like.n_uv_rows, False)
+
+    n_faces = len(f_lines)
+    polygons = np.full((n_faces, 4), -1, dtype=np.int64)
+    polygon_uvs = np.full((n_faces, 4), -1, dtype=np.int64)
+    all_uv = True
+    for k, line in enumerate(f_lines):
+        parts = line.split()
+        lineno = f_numbers[k]
+        n = len(parts) - 1
+        if n < 3 or n > 4:
+            raise InputError(f"{label} '{path}': expected triangles or quads, got a face with {n} vertices "
+                             f"(face {k + 1}, line {lineno})")
+        nv, nvt = f_nv[k], f_nvt[k]
+        row, row_uv = polygons[k], polygon_uvs[k]
+        for j in range(n):
+            tok = parts[j + 1]
+            if "/" in tok:
+                sub = tok.split("/")
+                row[j] = _index(sub[0], nv, lineno, "vertex", label, path)
+                if len(sub) > 1 and sub[1]:
+                    row_uv[j] = _index(sub[1], nvt, lineno, "texture coordinate", label, path)
+                else:
+                    all_uv = False
+            else:
+                row[j] = _index(tok, nv, lineno, "vertex", label, path)
+                all_uv = False
+
+    n_v = vertices.shape[0]
+    bad = (polygons >= n_v).any(axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        i = int(polygons[k].max()) + 1
+        raise InputError(f"{label} '{path}': vertex index {i} out of range on line {f_numbers[k]}, "
+                         f"the file has {n_v} vertices")
+    if all_uv:
+        bad = (polygon_uvs >= uvs.shape[0]).any(axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            i = int(polygon_uvs[k].max()) + 1
+            raise InputError(f"{label} '{path}': texture coordinate index {i} out of range on line "
+                             f"{f_numbers[k]}, the file has {uvs.shape[0]} texture coordinates")
+    relative = any("-" in line for line in f_lines)
+    return ObjPolygons(vertices, polygons, uvs if all_uv else None, polygon_uvs if all_uv else None,
+                       tuple(f_lines), len(vt_rows), relative)
+
+
+def _numbers(rows: list, width: int) -> np.ndarray | None:
+    """Rows of exactly `width` numbers -> (N, width) float64, or None if any row is not that."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy warns, not raises, on text it cannot read
+        try:
+            flat = np.fromstring(" ".join(rows), dtype=np.float64, sep=" ")
+        except (ValueError, DeprecationWarning):
+            return None
+    return flat.reshape(len(rows), width) if flat.size == width * len(rows) else None
+
+
+def _parse_like(text: str, like: ObjPolygons) -> ObjPolygons | None:
+    """The fast path for a file shaped like `like` (a sequence frame): only numbers are parsed.
+
+    Returns None whenever the file is not plainly `like` with other coordinates
+    (different face lines, `v` lines with w or colours, ...); the full parser then decides.
+    """
+    lines = text.splitlines()
+    v_rows = [line[2:] for line in lines if line.startswith(("v ", "v\t"))]
+    if len(v_rows) != like.vertices.shape[0]:
+        return None
+    vt_rows = [line[3:] for line in lines if line.startswith(("vt ", "vt\t"))]
+    f_lines = [line for line in lines if line.startswith(("f ", "f\t"))]
+    if not like.same_faces(f_lines, len(v_rows), len(vt_rows)):
+        return None
+    vertices = _numbers(v_rows, 3)
+    if vertices is None:
+        return None
+    uvs = None
+    if like.polygon_uvs is not None:
+        uvs = _numbers(vt_rows, 2)
+        if uvs is None:
+            return None
+    return ObjPolygons(vertices, like.polygons, uvs, like.polygon_uvs, like.face_lines, like.n_uv_rows, False)
+
+
+def triangulate(vertices: np.ndarray, polygons: np.ndarray, polygon_uvs: np.ndarray | None = None,
+                split_ac: np.ndarray | None = None):
+    """Split quads into two triangles along their shorter diagonal.
+
+    vertices: (V, 3) float. polygons: (P, 4) int64 with -1 in the last column of
+    triangles. polygon_uvs: (P, 4) int64 or None. split_ac: (P,) bool, the
+    diagonal choice to reuse (True = split quad abcd along a-c); None = choose
+    the shorter diagonal from `vertices`.
+    Returns faces (F, 3) int64, face_uvs (F, 3) int64 or None, split_ac (P,) bool.
+    Triangles keep their order; each quad's two triangles follow it.
+    """
+    polygons = np.asarray(polygons, dtype=np.int64)
+    is_quad = polygons[:, 3] >= 0
+    if split_ac is None:
+        split_ac = np.ones(len(polygons), dtype=bool)
+        q = polygons[is_quad]
+        if len(q):
+            ac = np.linalg.norm(vertices[q[:, 0]] - vertices[q[:, 2]], axis=1)
+            bd = np.linalg.norm(vertices[q[:, 1]] - vertices[q[:, 3]], axis=1)
+            split_ac[is_quad] = ac <= bd
+
+    def split(p: np.ndarray) -> np.ndarray:
+        # quad a b c d: along a-c -> (a b c)(a c d); along b-d -> (a b d)(b c d)
+        first = np.where(split_ac[:, None], p[:, [0, 1, 2]], p[:, [0, 1, 3]])
+        second = np.where(split_ac[:, None], p[:, [0, 2, 3]], p[:, [1, 2, 3]])
+        out = np.stack([first, second], axis=1)  # (P, 2, 3)
+        keep = np.stack([np.ones(len(p), dtype=bool), is_quad], axis=1)
+        return out[keep]
+
+    faces = split(polygons)
+    face_uvs = split(np.asarray(polygon_uvs, dtype=np.int64)) if polygon_uvs is not None else None
+    return faces, face_uvs, split_ac
+
+
+def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None, label: str, path: Path):
+    """Drop degenerate and duplicate faces and unused vertices, logging what went."""
+    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    finite = np.isfinite(vertices).all(axis=1)
+    used = np.unique(faces)
+    scale = float(np.ptp(vertices[used][finite[used]], axis=0).max()) if finite[used].any() else 0.0
+    tri = vertices[faces]
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    # Zero area relative to the mesh size; NaN areas are left for validate_garment to report.
+    zero_area = ~repeated & (area2 <= 1e-12 * scale * scale)
+    keep = ~(repeated | zero_area)
+    if (~keep).any():
+        log.warning("%s '%s': dropped %d degenerate faces (%d with a repeated vertex, %d with zero area)",
+                    label, path, int((~keep).sum()), int(repeated.sum()), int(zero_area.sum()))
+    faces = faces[keep]
+    face_uvs = face_uvs[keep] if face_uvs is not None else None
+
+    if len(faces):
+        _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
+        if len(first) < len(faces):
+            log.warning("%s '%s': dropped %d duplicate faces (same vertices as an earlier face)",
+                        label, path, len(faces) - len(first))
+            first.sort()
+            faces = faces[first]
+            face_uvs = face_uvs[first] if face_uvs is not None else None
+
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.ravel()] = True
+    n_unused = int((~used).sum())
+    if n_unused and len(faces):
+        log.warning("%s '%s': removed %d unused vertices", label, path, n_unused)
+        remap = np.cumsum(used) - 1
+        vertices = vertices[used]
+        faces = remap[faces]
+    return vertices, faces, face_uvs
+
+
+def read_obj(path: str | os.PathLike) -> Garment:
+    """Read a garment mesh from an OBJ file into a validated `Garment`.
+
+    Triangles and quads (quads split along the shorter diagonal); all objects,
+    groups and components form one mesh. Degenerate faces (a repeated vertex or
+    zero area), duplicate faces (same vertex set) and unused vertices are
+    removed with a logged warning. `uvs`/`face_uvs` are set only when every
+    face has texture indices. Normals, materials, groups and smoothing are ignored.
+    Returns Garment(vertices (V, 3) float32 metres, faces (F, 3) int64,
+    uvs (U, 2) float32 | None, face_uvs (F, 3) int64 | None, name = file stem).
+    Raises InputError (one line naming the file) for bad input; see `parse_obj`
+    and `core.garment.validate_garment`.
+    """
+    path = Path(path)
+    label = "garment mesh"
+    obj = parse_obj(path, label)
+    faces, face_uvs, _ = triangulate(obj.vertices, obj.polygons, obj.polygon_uvs)
+    vertices, faces, face_uvs = _clean(obj.vertices, faces, face_uvs, label, path)
+    uvs = None
+    if face_uvs is not None and len(faces):
+        used_uv = np.unique(face_uvs)
+        uv_remap = np.full(len(obj.uvs), -1, dtype=np.int64)
+        uv_remap[used_uv] = np.arange(len(used_uv))
+        uvs = obj.uvs[used_uv].astype(np.float32)
+        face_uvs = uv_remap[face_uvs]
+    else:
+        face_uvs = None
+    garment = Garment(vertices=vertices.astype(np.float32), faces=faces.astype(np.int64),
+                      uvs=uvs, face_uvs=face_uvs, name=path.stem)
+    validate_garment(garment, source=str(path))
+    return garment
+
+
+def obj_vertex_text(vertices: np.ndarray) -> str:
+    """`v x y z` lines (6 decimals) for vertices (V, 3) float, one string formatting in C."""
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    return ("v %.6f %.6f %.6f\n" * len(v)) % tuple(v.ravel().tolist())
+
+
+def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None) -> str:
+    """`vt` and `f` lines for faces (F, 3) int 0-based; with uvs (U, 2) and face_uvs (F, 3), `f a/b` forms."""
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3) + 1
+    if uvs is None or face_uvs is None:
+        return ("f %d %d %d\n" * len(f)) % tuple(f.ravel().tolist())
+    t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
+    ft = np.asarray(face_uvs, dtype=np.int64).reshape(-1, 3) + 1
+    if ft.shape != f.shape:
+        raise ValueError(f"face_uvs {ft.shape} must match faces {f.shape}")
+    inter = np.stack([f, ft], axis=2).reshape(len(f), 6)
+    return (("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
+            + ("f %d/%d %d/%d %d/%d\n" * len(f)) % tuple(inter.ravel().tolist()))
+
+
+def _header_text(header: str | None) -> str:
+    if not header:
+        return ""
+    return "".join(f"# {line}\n" for line in str(header).splitlines())
+
+
+def write_obj(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray,
+              uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
+              header: str | None = None) -> None:
+    """Write a triangle mesh as OBJ.
+
+    vertices: (V, 3) float, metres (written with 6 decimals); faces: (F, 3) int,
+    0-based; uvs: (U, 2) float and face_uvs: (F, 3) int 0-based, both or neither
+    (then `vt` lines and `f a/b` faces are written); header: text written as
+    `#` comment lines at the top.
+    """
+    text = _header_text(header) + obj_vertex_text(vertices) + obj_face_text(faces, uvs, face_uvs)
+    Path(path).write_bytes(text.encode("ascii"))

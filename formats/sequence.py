@@ -1,0 +1,251 @@
+"""Animated garment sequences: one reader for every form a baked result can take.
+
+`read_sequence` accepts a directory of OBJ frames (with an optional
+`sequence.json` giving the fps), an `.npz` sequence file, a USD stage, or a
+single OBJ (one frame), and returns a `Sequence` of points that keep the
+vertex numbering they were written with (nothing is cleaned), so sequences of
+the same garment can be compared vertex by vertex (`garment metrics`, renders).
+The writers here produce the first two forms.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from formats.obj import obj_face_text, obj_vertex_text, parse_obj, triangulate
+from formats.usd import read_usd
+
+SEQUENCE_JSON = "sequence.json"
+USD_SUFFIXES = (".usd", ".usda", ".usdc")
+
+
+@dataclass(frozen=True, eq=False)
+class Sequence:
+    """A garment's animation, with the body it moved on when the file has it.
+
+    points: (T, V, 3) float32, metres. faces: (F, 3) int64. fps: frames per
+    second, or None when the file does not say. body_points: (T, Vb, 3) float32
+    metres or None; body_faces: (Fb, 3) int64 or None. source: the path read.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    fps: float | None
+    body_points: np.ndarray | None = None
+    body_faces: np.ndarray | None = None
+    source: str = ""
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.points.shape[0])
+
+
+def _natural_key(name: str):
+    """Sort key that orders embedded numbers by value: frame_2 < frame_10."""
+    return [(0, int(tok), "") if tok.isdigit() else (1, 0, tok.lower())
+            for tok in re.split(r"(\d+)", name) if tok]
+
+
+def _fps(value, where: str) -> float | None:
+    if value is None:
+        return None
+    try:
+        fps = float(np.asarray(value).reshape(()))
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: expected fps as one positive number, got {value!r}") from None
+    if not (np.isfinite(fps) and fps > 0):
+        raise InputError(f"{where}: expected fps > 0, got {fps}")
+    return fps
+
+
+def _check_faces(faces: np.ndarray, n_points: int, what: str, where: str) -> np.ndarray:
+    faces = np.asarray(faces)
+    if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+        raise InputError(f"{where}: expected {what} (F, 3) integers, got shape {faces.shape} {faces.dtype}")
+    if faces.size and (faces.min() < 0 or faces.max() >= n_points):
+        bad = int(faces.min()) if faces.min() < 0 else int(faces.max())
+        raise InputError(f"{where}: {what} index {bad} out of range for {n_points} vertices")
+    return faces.astype(np.int64)
+
+
+def _check_points(points: np.ndarray, what: str, where: str) -> np.ndarray:
+    points = np.asarray(points)
+    if points.ndim != 3 or points.shape[2] != 3 or points.shape[0] == 0 or points.shape[1] == 0 \
+            or not np.issubdtype(points.dtype, np.number):
+        raise InputError(f"{where}: expected {what} (T, V, 3) numbers with T, V >= 1, got shape {points.shape}")
+    return points.astype(np.float32)
+
+
+def _read_obj_directory(directory: Path) -> Sequence:
+    where = f"garment sequence '{directory}'"
+    files = sorted((p for p in directory.iterdir() if p.suffix.lower() == ".obj" and p.is_file()),
+                   key=lambda p: _natural_key(p.name))
+    if not files:
+        raise InputError(f"{where}: expected OBJ frames (frame_0000.obj, ...), got a directory without .obj files")
+    fps = None
+    meta_path = directory / SEQUENCE_JSON
+    if meta_path.is_file():
+        try:
+            meta = json.loads(meta_path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise InputError(f"garment sequence '{meta_path}': expected JSON like {{\"fps\": 30}}, "
+                             f"got unreadable content ({exc})") from None
+        if not isinstance(meta, dict):
+            raise InputError(f"garment sequence '{meta_path}': expected a JSON object like {{\"fps\": 30}}, "
+                             f"got {type(meta).__name__}")
+        fps = _fps(meta.get("fps"), f"garment sequence '{meta_path}'")
+
+    first = parse_obj(files[0], label="garment sequence frame")
+    # Quads are split along frame 0's shorter diagonal in every frame, so all frames share faces.
+    faces, _, _ = triangulate(first.vertices, first.polygons)
+    points = np.empty((len(files),) + first.vertices.shape, dtype=np.float32)
+    points[0] = first.vertices
+    for t, path in enumerate(files[1:], 1):
+        frame = parse_obj(path, label="garment sequence frame", like=first)
+        same = frame.vertices.shape == first.vertices.shape and (
+            frame.polygons is first.polygons or np.array_equal(frame.polygons, first.polygons))
+        if not same:
+            raise InputError(f"{where}: expected every frame to share the topology of {files[0].name} "
+                             f"({first.vertices.shape[0]} vertices, {len(first.polygons)} faces), got "
+                             f"{frame.vertices.shape[0]} vertices, {len(frame.polygons)} faces in {path.name}")
+        points[t] = frame.vertices
+    return Sequence(points=points, faces=faces, fps=fps, source=str(directory))
+
+
+def _read_single_obj(path: Path) -> Sequence:
+    obj = parse_obj(path, label="garment sequence frame")
+    faces, _, _ = triangulate(obj.vertices, obj.polygons)
+    return Sequence(points=obj.vertices[None].astype(np.float32), faces=faces, fps=None, source=str(path))
+
+
+def _read_npz(path: Path) -> Sequence:
+    where = f"garment sequence '{path}'"
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except Exception as exc:  # zipfile/pickle/OS errors all mean "not a readable npz"
+        raise InputError(f"{where}: cannot be read as .npz ({type(exc).__name__}: {exc})") from None
+    for key in ("points", "faces"):
+        if key not in arrays:
+            raise InputError(f"{where}: expected key '{key}', got keys {sorted(arrays)}")
+    points = _check_points(arrays["points"], "points", where)
+    faces = _check_faces(arrays["faces"], points.shape[1], "faces", where)
+    fps = _fps(arrays["fps"], where) if "fps" in arrays else None
+    body_points = body_faces = None
+    if "body_points" in arrays:
+        body_points = _check_points(arrays["body_points"], "body_points", where)
+        if body_points.shape[0] != points.shape[0]:
+            raise InputError(f"{where}: expected body_points with {points.shape[0]} frames like points, "
+                             f"got {body_points.shape[0]}")
+    if "body_faces" in arrays:
+        if body_points is None:
+            raise InputError(f"{where}: expected body_points with body_faces, got body_faces alone")
+        body_faces = _check_faces(arrays["body_faces"], body_points.shape[1], "body_faces", where)
+    return Sequence(points=points, faces=faces, fps=fps, body_points=body_points,
+                    body_faces=body_faces, source=str(path))
+
+
+def _read_usd_sequence(path: Path, track: str) -> Sequence:
+    seq = read_usd(path)
+    where = f"garment sequence '{path}'"
+    if track in seq.tracks:
+        garment = seq.tracks[track]
+    elif len(seq.tracks) == 1:
+        garment = next(iter(seq.tracks.values()))
+    else:
+        raise InputError(f"{where}: expected a mesh named '{track}', got meshes {sorted(seq.tracks)}")
+    body = seq.tracks.get("body")
+    body_points = body_faces = None
+    if body is not None and body is not garment:
+        if body.points.shape[0] != garment.points.shape[0]:
+            raise InputError(f"{where}: expected the body track to have {garment.points.shape[0]} frames "
+                             f"like '{garment.name}', got {body.points.shape[0]}")
+        body_points, body_faces = body.points.astype(np.float32), body.faces.astype(np.int64)
+    return Sequence(points=garment.points.astype(np.float32), faces=garment.faces.astype(np.int64),
+                    fps=seq.fps, body_points=body_points, body_faces=body_faces, source=str(path))
+
+
+def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
+    """Read a garment sequence from any supported form.
+
+    path: a directory of OBJ frames (ordered by the number in their names; all
+    must share faces; fps from an optional `sequence.json` {"fps": 30}), an
+    `.npz` with `points (T, V, 3)`, `faces (F, 3)` and optional `fps`,
+    `body_points (T, Vb, 3)`, `body_faces (Fb, 3)`, a USD stage
+    (`.usd/.usda/.usdc`: the mesh named `track`, else the only mesh, plus a
+    mesh named "body" as the body), or one `.obj` (a single frame).
+    Returns a `Sequence` (points float32 metres, faces int64).
+    Raises InputError naming the path for a missing path, an unknown suffix, an
+    empty directory, frames with differing topology, or wrong array shapes.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"garment sequence '{path}': not found")
+    if path.is_dir():
+        return _read_obj_directory(path)
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        return _read_npz(path)
+    if suffix in USD_SUFFIXES:
+        return _read_usd_sequence(path, track)
+    if suffix == ".obj":
+        return _read_single_obj(path)
+    raise InputError(f"garment sequence '{path}': expected a directory of OBJ frames, .npz, .obj or "
+                     f".usd/.usda/.usdc, got '{path.suffix or path.name}'")
+
+
+def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: np.ndarray,
+                       uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
+                       fps: float | None = None, prefix: str = "frame_") -> list[Path]:
+    """Write one OBJ per frame, `<prefix>0000.obj` ..., and `sequence.json` into `directory`.
+
+    points: (T, V, 3) float, metres; faces: (F, 3) int 0-based; uvs (U, 2) and
+    face_uvs (F, 3), both or neither; fps: frames per second or None. Frame
+    numbers are zero padded to at least 4 digits. The face block is formatted
+    once and shared by every frame. Returns the frame paths in order.
+    """
+    directory = Path(directory)
+    points = np.asarray(points)
+    if points.ndim != 3 or points.shape[2] != 3:
+        raise InputError(f"garment sequence '{directory}': expected points (T, V, 3), got {points.shape}")
+    directory.mkdir(parents=True, exist_ok=True)
+    n_frames = points.shape[0]
+    width = max(4, len(str(max(n_frames - 1, 0))))
+    face_block = obj_face_text(faces, uvs, face_uvs).encode("ascii")
+    paths = []
+    for t in range(n_frames):
+        path = directory / f"{prefix}{t:0{width}d}.obj"
+        path.write_bytes(f"# frame {t}\n".encode("ascii") + obj_vertex_text(points[t]).encode("ascii")
+                         + face_block)
+        paths.append(path)
+    meta = {"fps": None if fps is None else float(fps), "frames": int(n_frames), "prefix": prefix}
+    (directory / SEQUENCE_JSON).write_text(json.dumps(meta, indent=2) + "\n")
+    return paths
+
+
+def write_npz_sequence(path: str | os.PathLike, points: np.ndarray, faces: np.ndarray, fps: float | None = None,
+                       body_points: np.ndarray | None = None, body_faces: np.ndarray | None = None) -> None:
+    """Write a sequence file (compressed .npz) that `read_sequence` reads back.
+
+    points: (T, V, 3) float, metres (stored float32); faces: (F, 3) int (int64);
+    fps: frames per second or None (then omitted); body_points (T, Vb, 3) and
+    body_faces (Fb, 3) optional. Written to exactly `path` (no suffix added).
+    """
+    arrays = {"points": np.asarray(points, dtype=np.float32), "faces": np.asarray(faces, dtype=np.int64)}
+    if fps is not None:
+        arrays["fps"] = np.float64(fps)
+    if body_points is not None:
+        arrays["body_points"] = np.asarray(body_points, dtype=np.float32)
+    if body_faces is not None:
+        arrays["body_faces"] = np.asarray(body_faces, dtype=np.int64)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, **arrays)

@@ -1,0 +1,296 @@
+"""USD stages of baked animation: time-sampled meshes a DCC tool or usdview can play.
+
+`write_usd_stage` writes one `UsdGeom.Mesh` per `MeshTrack` (garment, body, ...)
+under `/Root`, with points and extent sampled at integer time codes (one per
+frame), `timeCodesPerSecond = framesPerSecond = fps`, and the stage metadata
+the design fixes (`upAxis = Z`, `metersPerUnit = 1`). `read_usd` reads such a
+stage (or any stage of triangle/polygon meshes) back into arrays.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
+
+from core.errors import InputError
+
+ROOT = "/Root"
+
+
+@dataclass(frozen=True, eq=False)
+class MeshTrack:
+    """One animated mesh of a stage.
+
+    name: prim name (sanitised on write). points: (T, V, 3) float32, metres.
+    faces: (F, 3) int64, 0-based. uvs: (F*3, 2) float32, face-varying texture
+    coordinates in face-corner order, or None. color: (3,) float RGB in [0, 1] or None.
+    """
+
+    name: str
+    points: np.ndarray
+    faces: np.ndarray
+    uvs: np.ndarray | None = None
+    color: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class UsdSequence:
+    """A stage read back: tracks by prim name, frames per second, first frame, custom layer data."""
+
+    tracks: dict
+    fps: float
+    start_frame: int
+    metadata: dict = field(default_factory=dict)
+
+
+def _prim_names(names: list[str]) -> list[str]:
+    """Valid, unique prim names for the given track names."""
+    out, seen = [], set()
+    for name in names:
+        base = Tf.MakeValidIdentifier(str(name)) or "mesh"
+        cand, k = base, 1
+        while cand in seen:
+            cand, k = f"{base}_{k}", k + 1
+        seen.add(cand)
+        out.append(cand)
+    return out
+
+
+def _to_vt(value):
+    """A JSON-like value -> something customLayerData can hold (None values are dropped)."""
+    if isinstance(value, dict):
+        return {str(k): _to_vt(v) for k, v in value.items() if v is not None}
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value)
+    if isinstance(value, (str, Path)):
+        return str(value)
+    if isinstance(value, (list, tuple, np.ndarray)):
+        items = list(np.asarray(value).tolist()) if isinstance(value, np.ndarray) else list(value)
+        if all(isinstance(v, str) for v in items):
+            return Vt.StringArray(items)
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items):
+            return Vt.DoubleArray([float(v) for v in items])
+    return json.dumps(value, default=str)
+
+
+def _from_vt(value):
+    if isinstance(value, dict):
+        return {k: _from_vt(v) for k, v in value.items()}
+    if isinstance(value, (Vt.StringArray, Vt.DoubleArray, Vt.FloatArray, Vt.IntArray)):
+        return list(value)
+    return value
+
+
+def _check_track(track: MeshTrack, n_frames: int | None) -> None:
+    p, f = np.asarray(track.points), np.asarray(track.faces)
+    if p.ndim != 3 or p.shape[2] != 3 or p.shape[0] == 0:
+        raise InputError(f"USD track '{track.name}': expected points (T, V, 3) with T >= 1, got {p.shape}")
+    if n_frames is not None and p.shape[0] != n_frames:
+        raise InputError(f"USD track '{track.name}': expected {n_frames} frames like the first track, "
+                         f"got {p.shape[0]}")
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise InputError(f"USD track '{track.name}': expected faces (F, 3), got {f.shape}")
+    if f.size and (f.min() < 0 or f.max() >= p.shape[1]):
+        raise InputError(f"USD track '{track.name}': face index {int(f.max())} out of range for "
+                         f"{p.shape[1]} points")
+    if track.uvs is not None and np.asarray(track.uvs).shape != (f.shape[0] * 3, 2):
+        raise InputError(f"USD track '{track.name}': expected uvs ({f.shape[0] * 3}, 2) face-varying, "
+                         f"got {np.asarray(track.uvs).shape}")
+
+
+def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float, start_frame: int = 0,
+                    up_axis: str = "Z", meters_per_unit: float = 1.0, metadata: dict | None = None) -> None:
+    """Write time-sampled meshes to a USD stage.
+
+    meshes: tracks sharing T frames; each becomes /Root/<name> with points and
+    extent sampled at time codes start_frame .. start_frame + T - 1, triangle
+    topology, subdivisionScheme "none", doubleSided, a face-varying `st`
+    primvar when `uvs` is given and a constant displayColor when `color` is.
+    fps: frames per second (> 0), stored as timeCodesPerSecond and
+    framesPerSecond. up_axis: "Y" or "Z"; meters_per_unit: length of one stage
+    unit in metres. metadata: JSON-like dict stored as the root layer's
+    customLayerData. `.usd`/`.usdc` write the binary crate format, `.usda` text.
+    The file is written beside `path` and renamed into place, so a failed write
+    leaves no partial stage.
+    """
+    path = Path(path)
+    if not meshes:
+        raise InputError(f"USD stage '{path}': expected at least one mesh track, got none")
+    if not (np.isfinite(fps) and fps > 0):
+        raise InputError(f"USD stage '{path}': expected fps > 0, got {fps}")
+    if up_axis not in ("Y", "Z"):
+        raise InputError(f"USD stage '{path}': expected up_axis 'Y' or 'Z', got {up_axis!r}")
+    n_frames = None
+    for track in meshes:
+        _check_track(track, n_frames)
+        n_frames = np.asarray(track.points).shape[0]
+    start_frame = int(start_frame)
+
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if up_axis == "Z" else UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, float(meters_per_unit))
+    stage.SetTimeCodesPerSecond(float(fps))
+    stage.SetFramesPerSecond(float(fps))
+    stage.SetStartTimeCode(start_frame)
+    stage.SetEndTimeCode(start_frame + n_frames - 1)
+    root = UsdGeom.Xform.Define(stage, ROOT)
+    stage.SetDefaultPrim(root.GetPrim())
+    if metadata:
+        stage.GetRootLayer().customLayerData = _to_vt(dict(metadata))
+
+    for track, prim_name in zip(meshes, _prim_names([m.name for m in meshes])):
+        points = np.ascontiguousarray(track.points, dtype=np.float32)
+        faces = np.ascontiguousarray(track.faces, dtype=np.int32)
+        mesh = UsdGeom.Mesh.Define(stage, f"{ROOT}/{prim_name}")
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        mesh.CreateDoubleSidedAttr(True)
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.ravel()))
+        points_attr = mesh.CreatePointsAttr()
+        extent_attr = mesh.CreateExtentAttr()
+        lo, hi = points.min(axis=1), points.max(axis=1)  # (T, 3) each
+        for t in range(n_frames):
+            code = Usd.TimeCode(start_frame + t)
+            points_attr.Set(Vt.Vec3fArray.FromNumpy(points[t]), code)
+            extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*lo[t].tolist()), Gf.Vec3f(*hi[t].tolist())]), code)
+        if track.uvs is not None:
+            st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                         UsdGeom.Tokens.faceVarying)
+            st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(track.uvs, dtype=np.float32)))
+        if track.color is not None:
+            color = np.asarray(track.color, dtype=np.float64).reshape(3)
+            mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(
+                Vt.Vec3fArray([Gf.Vec3f(*color.tolist())]))
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".usd", dir=path.parent)
+    os.close(fd)
+    try:
+        if not stage.GetRootLayer().Export(tmp):
+            raise InputError(f"USD stage '{path}': could not be written")
+        os.replace(tmp, path)
+        # A layer of the same path still open in this process would otherwise keep the old content.
+        layer = Sdf.Layer.Find(str(path))
+        if layer:
+            layer.Reload(True)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _triangles(counts: np.ndarray, indices: np.ndarray):
+    """Fan-triangulate polygons. Returns faces (F, 3) int64 and the (F, 3) face-corner ids they use."""
+    counts = counts.astype(np.int64)
+    if counts.size and (counts == 3).all():
+        corners = np.arange(len(indices), dtype=np.int64).reshape(-1, 3)
+        return indices.reshape(-1, 3).astype(np.int64), corners
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if counts.size else np.zeros(0, np.int64)
+    n_tri = np.maximum(counts - 2, 0)
+    poly = np.repeat(np.arange(len(counts)), n_tri)
+    k = np.arange(n_tri.sum()) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)  # 0..n-3 within a polygon
+    s = starts[poly]
+    corners = np.stack([s, s + k + 1, s + k + 2], axis=1)
+    return indices[corners].astype(np.int64), corners
+
+
+def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str) -> MeshTrack:
+    points_attr = mesh.GetPointsAttr()
+    times = points_attr.GetTimeSamples()
+    frames = [points_attr.Get(Usd.TimeCode(t)) for t in times] if times else [points_attr.Get()]
+    if not frames or frames[0] is None:
+        raise InputError(f"{where}: mesh '{name}' has no points")
+    sizes = {len(f) for f in frames}
+    if len(sizes) != 1:
+        raise InputError(f"{where}: mesh '{name}' expected the same point count at every time sample, "
+                         f"got {sorted(sizes)}")
+    points = np.stack([np.asarray(f, dtype=np.float32) for f in frames]).reshape(len(frames), -1, 3)
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], dtype=np.int64)
+    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], dtype=np.int64)
+    if counts.sum() != len(indices):
+        raise InputError(f"{where}: mesh '{name}' expected {int(counts.sum())} face vertex indices, "
+                         f"got {len(indices)}")
+    faces, corners = _triangles(counts, indices)
+    if faces.size and (faces.min() < 0 or faces.max() >= points.shape[1]):
+        raise InputError(f"{where}: mesh '{name}' face index {int(faces.max())} out of range for "
+                         f"{points.shape[1]} points")
+    uvs = None
+    st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    if st and st.HasValue() and st.GetInterpolation() == UsdGeom.Tokens.faceVarying:
+        flat = st.ComputeFlattened()
+        if flat is not None and len(flat) == len(indices):
+            uvs = np.asarray(flat, dtype=np.float32).reshape(-1, 2)[corners.ravel()]
+    color = None
+    dc = mesh.GetDisplayColorPrimvar()
+    if dc and dc.HasValue():
+        value = dc.Get()
+        if value is not None and len(value):
+            color = np.asarray(value[0], dtype=np.float32)
+    return MeshTrack(name=name, points=points, faces=faces, uvs=uvs, color=color)
+
+
+def read_usd(path: str | os.PathLike) -> UsdSequence:
+    """Read every UsdGeom.Mesh of a stage as a `MeshTrack` keyed by prim name.
+
+    Points are all time samples of each mesh in time order (T, V, 3) float32 in
+    stage units (a stage that is not Z-up or metres is read as it is); faces
+    are fan-triangulated (F, 3) int64; uvs the face-varying `st` primvar per
+    triangle corner. Returns UsdSequence(tracks, fps = timeCodesPerSecond,
+    start_frame = startTimeCode or the first sample, metadata = customLayerData).
+    Raises InputError for a missing or unreadable file or a stage without meshes.
+    """
+    path = Path(path)
+    where = f"USD stage '{path}'"
+    if not path.exists():
+        raise InputError(f"{where}: file not found")
+    if path.is_dir():
+        raise InputError(f"{where}: expected a USD file, got a directory")
+    try:
+        stage = Usd.Stage.Open(str(path))
+    except Tf.ErrorException as exc:
+        detail = " ".join(str(exc).split())
+        # pxr prefixes the reason with the C++ function and source line: keep the reason.
+        if " : '" in detail:
+            detail = detail.rsplit(" : '", 1)[1].rstrip("'").strip()
+        detail = detail[:200]
+        raise InputError(f"{where}: cannot be opened as USD ({detail})") from None
+    if stage is None:
+        raise InputError(f"{where}: cannot be opened as USD")
+
+    tracks: dict[str, MeshTrack] = {}
+    first_time = None
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdGeom.Mesh):
+            continue
+        name = prim.GetName()
+        if name in tracks:
+            name = str(prim.GetPath()).strip("/").replace("/", "_")
+        mesh = UsdGeom.Mesh(prim)
+        tracks[name] = _read_mesh(mesh, name, where)
+        times = mesh.GetPointsAttr().GetTimeSamples()
+        if times and (first_time is None or times[0] < first_time):
+            first_time = times[0]
+    if not tracks:
+        raise InputError(f"{where}: expected at least one UsdGeom.Mesh, got none")
+    if stage.HasAuthoredTimeCodeRange():
+        start = stage.GetStartTimeCode()
+    else:
+        start = first_time if first_time is not None else 0.0
+    metadata = _from_vt(dict(stage.GetRootLayer().customLayerData))
+    return UsdSequence(tracks=tracks, fps=float(stage.GetTimeCodesPerSecond()),
+                       start_frame=int(round(start)), metadata=metadata)
+
+
+def read_usd_stage(path: str | os.PathLike) -> tuple[dict, float]:
+    """The meshes of a stage by name and its frames per second: `(tracks, fps)`; see `read_usd`."""
+    seq = read_usd(path)
+    return seq.tracks, seq.fps

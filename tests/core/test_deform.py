@@ -1,0 +1,124 @@
+import logging
+
+import numpy as np
+import pytest
+
+from core.deform import LBSDeformer, LBSOptions
+from core.errors import InputError
+from core.garment import Garment
+from core.motion import Motion
+from core.rotations import axis_angle_to_matrix
+from core.skinning import bind_garment, smooth_over_graph
+from tests.meshes import grid, icosphere, tiny_body
+
+
+def shell_garment(body, offset=0.02):
+    """A garment: the tiny body's own surface pushed out by `offset` along its normals."""
+    from core.geometry import vertex_normals
+
+    v = body.v_template + offset * vertex_normals(body.v_template, body.faces)
+    return Garment(v.astype(np.float32), body.faces.copy(), name="shell")
+
+
+def still_motion(T=3, J=24):
+    return Motion(poses=np.zeros((T, J, 3), np.float32), trans=np.zeros((T, 3), np.float32), fps=30.0)
+
+
+def test_transfer_reproduces_body_weights_at_body_vertices():
+    body = tiny_body()
+    g = Garment(body.v_template.copy(), body.faces.copy())
+    b = bind_garment(g, body)
+    np.testing.assert_allclose(b.weights, body.weights, atol=1e-5)
+    np.testing.assert_allclose(b.shapedirs, body.shapedirs, atol=1e-6)
+    assert np.all(b.body_distance < 1e-6)
+
+
+def test_weights_are_convex_and_smoothing_keeps_constants():
+    body = tiny_body()
+    b = bind_garment(shell_garment(body), body, smooth_iterations=5)
+    np.testing.assert_allclose(b.weights.sum(axis=1), 1.0, atol=1e-5)
+    assert b.weights.min() >= 0
+    v, f = grid(5, 5)
+    const = np.ones((len(v), 2), np.float32) * 3.0
+    np.testing.assert_allclose(smooth_over_graph(const, f, 10), const, rtol=1e-6)
+    noisy = np.random.default_rng(0).normal(size=(len(v), 1))
+    assert smooth_over_graph(noisy, f, 10).std() < noisy.std() * 0.7
+
+
+def test_smoothing_matches_naive_loop():
+    v, f = grid(3, 2)
+    x = np.random.default_rng(1).normal(size=(len(v), 3))
+    nbrs = [set() for _ in range(len(v))]
+    for a, b, c in f:
+        for i, j in ((a, b), (b, c), (c, a)):
+            nbrs[i].add(j)
+            nbrs[j].add(i)
+    ref = x.copy()
+    for _ in range(3):
+        ref = np.array([0.7 * ref[i] + 0.3 * np.mean([ref[j] for j in nbrs[i]], axis=0) for i in range(len(v))])
+    np.testing.assert_allclose(smooth_over_graph(x, f, 3, 0.3), ref, atol=1e-12)
+
+
+def test_lbs_identity_for_rest_pose():
+    body = tiny_body()
+    g = shell_garment(body)
+    out = LBSDeformer().deform(g, body, still_motion())
+    assert out.shape == (3, g.n_vertices, 3) and out.dtype == np.float32
+    np.testing.assert_allclose(out, np.broadcast_to(g.vertices, out.shape), atol=1e-5)
+
+
+def test_lbs_rigid_root_motion():
+    body = tiny_body()
+    g = shell_garment(body)
+    T = 4
+    poses = np.zeros((T, 24, 3), np.float32)
+    poses[:, 0] = np.array([[0, 0, 0], [np.pi / 2, 0, 0], [0, np.pi, 0], [0.3, -0.4, 1.2]])
+    trans = np.array([[0, 0, 0], [1, 2, 3], [0, 0, 1], [-5, 0, 0.5]], np.float32)
+    out = LBSDeformer().deform(g, body, Motion(poses=poses, trans=trans, fps=30.0))
+    j0 = body.J_regressor[0] @ body.v_template
+    for t in range(T):
+        R = axis_angle_to_matrix(poses[t, 0])
+        expect = (g.vertices - j0) @ R.T + j0 + trans[t]
+        np.testing.assert_allclose(out[t], expect, atol=2e-5)
+
+
+def test_lbs_follows_body_shape():
+    body = tiny_body()
+    g = Garment(body.v_template.copy(), body.faces.copy())
+    betas = np.array([1.0, -0.5, 0.0, 2.0], np.float32)
+    m = Motion(poses=np.zeros((1, 24, 3), np.float32), trans=np.zeros((1, 3), np.float32), fps=30, betas=betas)
+    out = LBSDeformer(LBSOptions(smooth_iterations=0)).deform(g, body, m)
+    shaped, _ = body.shaped(betas)
+    np.testing.assert_allclose(out[0], shaped, atol=1e-5)
+
+
+def test_lbs_matches_body_skinning_for_garment_on_body_surface():
+    # A garment that is the body surface itself moves exactly like the body (no pose correctives).
+    body = tiny_body()
+    g = Garment(body.v_template.copy(), body.faces.copy())
+    rng = np.random.default_rng(3)
+    poses = (rng.normal(size=(5, 24, 3)) * 0.4).astype(np.float32)
+    trans = rng.normal(size=(5, 3)).astype(np.float32)
+    m = Motion(poses=poses, trans=trans, fps=30)
+    out = LBSDeformer(LBSOptions(smooth_iterations=0)).deform(g, body, m)
+    ref, _ = body.pose(poses, trans)
+    np.testing.assert_allclose(out, ref, atol=1e-4)
+
+
+def test_garment_far_from_body_is_rejected():
+    body = tiny_body()
+    g = shell_garment(body)
+    far = Garment(g.vertices + np.array([0, 0, 3.0], np.float32), g.faces, name="far.obj")
+    with pytest.raises(InputError, match="far.obj.*median distance"):
+        LBSDeformer().deform(far, body, still_motion())
+
+
+def test_betas_count_mismatch_warns(caplog):
+    body = tiny_body(n_betas=4)
+    with caplog.at_level(logging.WARNING):
+        out = body.fit_betas(np.ones(2))
+    assert out.tolist() == [1, 1, 0, 0] and "padded" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        out = body.fit_betas(np.ones(16))
+    assert out.tolist() == [1, 1, 1, 1] and "ignored" in caplog.text

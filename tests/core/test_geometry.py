@@ -1,0 +1,109 @@
+import numpy as np
+import pytest
+
+from core.geometry import (TriangleMesh, closest_point_on_triangles, closest_points_on_mesh, face_normals,
+                           penetration_per_frame, points_inside_mesh, signed_distance, vertex_normals)
+from tests.meshes import grid, icosphere
+
+
+def naive_closest(points, verts, faces):
+    """Reference: every point against every face, one at a time, via a dense parameter search."""
+    out_d, out_f = [], []
+    for p in points:
+        best = (np.inf, -1)
+        for fi, (a, b, c) in enumerate(verts[faces]):
+            # Minimise over the triangle by projecting and clamping (brute-force on a fine grid + exact edges).
+            cp, _ = closest_point_on_triangles(p, a, b, c)
+            d = np.linalg.norm(cp - p)
+            if d < best[0]:
+                best = (d, fi)
+        out_d.append(best[0])
+        out_f.append(best[1])
+    return np.array(out_d), np.array(out_f)
+
+
+def test_closest_point_on_triangle_matches_dense_sampling():
+    rng = np.random.default_rng(0)
+    a, b, c = rng.normal(size=(3, 3))
+    u, v = np.meshgrid(np.linspace(0, 1, 401), np.linspace(0, 1, 401))
+    keep = u + v <= 1
+    samples = a + u[keep, None] * (b - a) + v[keep, None] * (c - a)
+    for p in rng.normal(size=(20, 3)) * 2:
+        cp, bary = closest_point_on_triangles(p, a, b, c)
+        d_dense = np.linalg.norm(samples - p, axis=1).min()
+        assert np.linalg.norm(cp - p) <= d_dense + 1e-12
+        assert np.linalg.norm(cp - p) >= d_dense - 5e-3
+        assert bary.min() >= -1e-12 and abs(bary.sum() - 1) < 1e-9
+        np.testing.assert_allclose(bary @ np.stack([a, b, c]), cp, atol=1e-12)
+
+
+def test_closest_points_exact_against_brute_force():
+    rng = np.random.default_rng(1)
+    v, f = icosphere(2, radius=0.3)
+    v = v * np.array([1.0, 2.0, 0.5])  # stretched: uneven triangles stress the candidate bound
+    pts = rng.normal(size=(200, 3)) * 0.4
+    res = closest_points_on_mesh(pts, v, f)
+    d_ref, _ = naive_closest(pts, v, f)
+    np.testing.assert_allclose(res.distance, d_ref, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(res.closest - pts, axis=1), res.distance, atol=1e-12)
+    # barycentric coordinates reproduce the closest point on the reported face
+    np.testing.assert_allclose(np.einsum("nk,nkc->nc", res.barycentric, v[f[res.face_index]]), res.closest, atol=1e-12)
+
+
+def test_signed_distance_sphere_and_inside():
+    v, f = icosphere(3, radius=1.0)
+    rng = np.random.default_rng(2)
+    dirs = rng.normal(size=(300, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    radii = rng.uniform(0.2, 1.8, size=300)
+    pts = dirs * radii[:, None]
+    sd = signed_distance(pts, v, f)
+    # The icosphere is inscribed in the unit sphere: within its sagitta of the analytic value.
+    np.testing.assert_allclose(sd, radii - 1.0, atol=0.02)
+    far = np.abs(radii - 1) > 0.03
+    assert np.all((sd < 0)[far] == (radii < 1)[far])
+    inside = points_inside_mesh(pts, v, f)
+    assert np.array_equal(inside[far], (radii < 1)[far])
+    # Points exactly at vertices and on edges are on the surface, not inside.
+    assert np.all(np.abs(signed_distance(v, v, f)) < 1e-12)
+
+
+def test_signed_distance_vertex_and_edge_regions_use_pseudo_normals():
+    # Points straight out from a vertex or an edge midpoint of a cube-like coarse sphere are outside.
+    v, f = icosphere(0, radius=1.0)
+    sd_out = signed_distance(v * 1.1, v, f)
+    assert np.all(sd_out > 0)
+    mids = (v[f[:, 0]] + v[f[:, 1]]) / 2
+    assert np.all(signed_distance(mids * 1.05, v, f) > 0)
+    assert np.all(signed_distance(mids * 0.95, v, f) < 0)
+
+
+def test_normals_of_flat_grid_and_sphere():
+    v, f = grid(4, 3)
+    np.testing.assert_allclose(face_normals(v, f), np.tile([0, 0, 1.0], (len(f), 1)), atol=1e-12)
+    np.testing.assert_allclose(vertex_normals(v, f), np.tile([0, 0, 1.0], (len(v), 1)), atol=1e-12)
+    vs, fs = icosphere(2)
+    n = vertex_normals(vs, fs)
+    assert np.all(np.einsum("ij,ij->i", n, vs) > 0.99)
+    # batched input gives the same as per-frame input
+    batch = np.stack([vs, vs * 2 + 1])
+    np.testing.assert_allclose(vertex_normals(batch, fs)[1], vertex_normals(vs * 2 + 1, fs), atol=1e-12)
+
+
+def test_penetration_per_frame():
+    v, f = icosphere(2, radius=1.0)
+    pts = np.array([[[0, 0, 0], [0, 0, 2.0]], [[0, 0, 2.0], [3, 0, 0]]])
+    body = np.stack([v, v])
+    np.testing.assert_allclose(penetration_per_frame(pts, body, f), [0.5, 0.0])
+    # depth: a point about 5 mm inside counts at depth 0 and 2 mm, not at 1 cm
+    p = np.array([[[0, 0, 0.995]]])
+    assert -0.007 < signed_distance(p[0], v, f)[0] < -0.004
+    assert penetration_per_frame(p, v[None], f, depth=0.002)[0] == 1.0
+    assert penetration_per_frame(p, v[None], f, depth=0.01)[0] == 0.0
+
+
+def test_triangle_mesh_reuse_gives_same_answer():
+    v, f = icosphere(1)
+    mesh = TriangleMesh(v, f)
+    pts = np.random.default_rng(3).normal(size=(50, 3))
+    np.testing.assert_array_equal(mesh.signed_distance(pts), signed_distance(pts, v, f))

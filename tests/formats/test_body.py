@@ -1,0 +1,256 @@
+"""formats/body.py: SMPL-format .npz and chumpy .pkl files, built in code, and every bad input."""
+
+from __future__ import annotations
+
+import logging
+import pickle
+import sys
+import types
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+import scipy.sparse
+import torch
+
+from core.body import SMPL_PARENTS, default_body
+from core.errors import InputError
+from formats.body import load_body
+
+V = 30
+
+
+def smpl_arrays(n_joints: int = 24, n_betas: int = 10, seed: int = 0) -> dict:
+    """A tiny random SMPL-format model as the official files lay it out."""
+    rng = np.random.default_rng(seed)
+    J = n_joints
+    parents = list(SMPL_PARENTS) + [int(rng.integers(0, j)) for j in range(24, J)]
+    kintree = np.array([parents, list(range(J))], dtype=np.int64)
+    kintree[0, 0] = 2**32 - 1  # how the official files store the root's parent
+    weights = rng.random((V, J)) ** 4
+    weights /= weights.sum(1, keepdims=True)
+    Jr = rng.random((J, V)) * (rng.random((J, V)) < 0.2)
+    Jr[:, 0] += 1e-3
+    Jr /= Jr.sum(1, keepdims=True)
+    return {
+        "v_template": rng.normal(size=(V, 3)) * 0.3,
+        "shapedirs": rng.normal(size=(V, 3, n_betas)) * 0.01,
+        "posedirs": rng.normal(size=(V, 3, 9 * (J - 1))) * 0.01,
+        "J_regressor": Jr,
+        "weights": weights,
+        "kintree_table": kintree,
+        "f": rng.integers(0, V, size=(40, 3)).astype(np.uint32),
+        "gender": "neutral",
+    }
+
+
+class _Ch:
+    """Stand-in for chumpy.ch.Ch while dumping: its pickled state is {'x': array, ...}."""
+
+    def __init__(self, x):
+        self.x = x
+        self._dirty_vars = set()
+
+
+@contextmanager
+def _fake_chumpy():
+    """Register modules 'chumpy' and 'chumpy.ch' (holding `_Ch` as `Ch`) only while dumping."""
+    _Ch.__module__, _Ch.__qualname__, _Ch.__name__ = "chumpy.ch", "Ch", "Ch"
+    pkg, mod = types.ModuleType("chumpy"), types.ModuleType("chumpy.ch")
+    mod.Ch = _Ch
+    pkg.ch = mod
+    saved = {k: sys.modules.get(k) for k in ("chumpy", "chumpy.ch")}
+    sys.modules.update({"chumpy": pkg, "chumpy.ch": mod})
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                sys.modules.pop(k, None)
+            else:
+                sys.modules[k] = v
+
+
+def write_pkl(path, arrays: dict) -> None:
+    """Write like the official SMPL pickles: chumpy arrays, a scipy.sparse J_regressor, protocol 2."""
+    data = dict(arrays)
+    with _fake_chumpy():
+        for key in ("v_template", "shapedirs", "posedirs"):
+            data[key] = _Ch(arrays[key])
+        data["J_regressor"] = scipy.sparse.csc_matrix(arrays["J_regressor"])
+        with open(path, "wb") as fh:
+            pickle.dump(data, fh, protocol=2)
+    assert "chumpy" not in sys.modules
+
+
+def write_npz(path, arrays: dict) -> None:
+    np.savez(path, **{k: v for k, v in arrays.items() if k != "gender"})
+
+
+def assert_body_matches(body, arrays):
+    np.testing.assert_allclose(body.v_template, arrays["v_template"], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(body.shapedirs, arrays["shapedirs"], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(body.posedirs, arrays["posedirs"], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(body.J_regressor, arrays["J_regressor"], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(body.weights, arrays["weights"], rtol=1e-6, atol=1e-7)
+    assert body.parents.tolist() == [-1] + arrays["kintree_table"][0, 1:].tolist()
+    np.testing.assert_array_equal(body.faces, arrays["f"].astype(np.int64))
+    for a in (body.v_template, body.shapedirs, body.J_regressor, body.weights):
+        assert a.dtype == np.float32
+
+
+def test_npz_round_trip(tmp_path):
+    arrays = smpl_arrays()
+    write_npz(tmp_path / "m.npz", arrays)
+    body = load_body(tmp_path / "m.npz")
+    assert_body_matches(body, arrays)
+    assert body.name == "m" and body.layout == "smpl" and body.n_betas == 10
+
+
+def test_chumpy_pkl_loads_without_chumpy_and_matches_npz(tmp_path):
+    arrays = smpl_arrays(seed=1)
+    write_pkl(tmp_path / "basicModel.pkl", arrays)
+    write_npz(tmp_path / "basicModel.npz", arrays)
+    from_pkl = load_body(tmp_path / "basicModel.pkl")
+    from_npz = load_body(tmp_path / "basicModel.npz")
+    assert "chumpy" not in sys.modules
+    assert_body_matches(from_pkl, arrays)
+    # Same model either way: pose both.
+    pose = np.random.default_rng(2).normal(scale=0.4, size=(3, 24, 3))
+    betas = np.linspace(-1, 1, 10)
+    v1, j1 = from_pkl.pose(pose, betas=betas)
+    v2, j2 = from_npz.pose(pose, betas=betas)
+    np.testing.assert_allclose(v1, v2, atol=1e-6)
+    np.testing.assert_allclose(j1, j2, atol=1e-6)
+
+
+@pytest.mark.parametrize("n_joints,layout", [(52, "smplh"), (55, "smplx")])
+def test_hand_families_load(tmp_path, n_joints, layout):
+    arrays = smpl_arrays(n_joints=n_joints, n_betas=16)
+    write_pkl(tmp_path / "h.pkl", arrays)
+    body = load_body(tmp_path / "h.pkl")
+    assert body.layout == layout and body.n_joints == n_joints and body.n_betas == 16
+    assert_body_matches(body, arrays)
+
+
+def test_smplx_expression_dirs_are_dropped(tmp_path, caplog):
+    arrays = smpl_arrays(n_joints=55, n_betas=400)
+    write_npz(tmp_path / "SMPLX_NEUTRAL.npz", arrays)
+    with caplog.at_level(logging.INFO, logger="formats.body"):
+        body = load_body(tmp_path / "SMPLX_NEUTRAL.npz")
+    assert body.n_betas == 300
+    np.testing.assert_allclose(body.shapedirs, arrays["shapedirs"][:, :, :300], rtol=1e-6)
+    assert any("first 300" in r.getMessage() for r in caplog.records)
+
+
+def test_default_body_file_reads_as_smpl_format():
+    from importlib import resources
+
+    with resources.as_file(resources.files("core.assets").joinpath("default_body.npz")) as path:
+        body = load_body(path)
+    ref = default_body()
+    np.testing.assert_array_equal(body.v_template, ref.v_template)
+    np.testing.assert_array_equal(body.J_regressor, ref.J_regressor)
+    np.testing.assert_array_equal(body.weights, ref.weights)
+    assert body.parents.tolist() == ref.parents.tolist()
+
+
+def _one_line(exc_info, *needles):
+    msg = str(exc_info.value)
+    assert "\n" not in msg
+    for n in needles:
+        assert n in msg, msg
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "nope.pkl")
+    _one_line(e, "nope.pkl", "not found")
+
+
+def test_unknown_suffix(tmp_path):
+    (tmp_path / "body.obj").write_text("v 0 0 0\n")
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "body.obj")
+    _one_line(e, "body.obj", ".npz or .pkl", "'.obj'")
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".pkl"])
+def test_corrupt_file(tmp_path, suffix):
+    p = tmp_path / f"bad{suffix}"
+    p.write_bytes(b"\x80\x02not really a body" * 3)
+    with pytest.raises(InputError) as e:
+        load_body(p)
+    _one_line(e, f"bad{suffix}", "cannot read")
+
+
+def test_truncated_pickle(tmp_path):
+    write_pkl(tmp_path / "m.pkl", smpl_arrays())
+    data = (tmp_path / "m.pkl").read_bytes()
+    (tmp_path / "t.pkl").write_bytes(data[: len(data) // 2])
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "t.pkl")
+    _one_line(e, "t.pkl", "cannot read")
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".pkl"])
+def test_missing_keys_are_named(tmp_path, suffix):
+    arrays = smpl_arrays()
+    del arrays["weights"], arrays["kintree_table"]
+    p = tmp_path / f"m{suffix}"
+    (write_npz if suffix == ".npz" else write_pkl)(p, arrays)
+    with pytest.raises(InputError) as e:
+        load_body(p)
+    _one_line(e, f"m{suffix}", "missing keys", "weights", "kintree_table")
+
+
+@pytest.mark.parametrize("key,bad,needle", [
+    ("weights", np.ones((V, 23)) / 23, "weights"),
+    ("J_regressor", np.ones((24, V + 1)), "J_regressor"),
+    ("v_template", np.zeros((V, 2)), "v_template"),
+    ("posedirs", np.ones((V, 3, 10)), "posedirs"),
+    ("f", np.full((4, 3), V + 5), "face indices"),
+    ("kintree_table", np.zeros((2, 16), dtype=np.int64), "16"),
+])
+def test_wrong_shapes(tmp_path, key, bad, needle):
+    arrays = smpl_arrays()
+    arrays[key] = bad
+    write_npz(tmp_path / "m.npz", arrays)
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "m.npz")
+    _one_line(e, "m.npz", needle)
+
+
+def test_pickle_that_is_not_a_dict(tmp_path):
+    with open(tmp_path / "l.pkl", "wb") as fh:
+        pickle.dump([1, 2, 3], fh, protocol=2)
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "l.pkl")
+    _one_line(e, "l.pkl", "dict", "list")
+
+
+class _Evil:
+    def __reduce__(self):
+        return (print, ("pwned",))
+
+
+def test_pickle_with_foreign_globals_is_refused(tmp_path, capsys):
+    arrays = smpl_arrays()
+    arrays["extra"] = _Evil()
+    with open(tmp_path / "e.pkl", "wb") as fh:
+        pickle.dump(arrays, fh, protocol=2)
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "e.pkl")
+    _one_line(e, "e.pkl", "builtins.print", "refused")
+    assert "pwned" not in capsys.readouterr().out
+
+
+def test_lbs_on_loaded_body_is_finite(tmp_path):
+    arrays = smpl_arrays()
+    write_pkl(tmp_path / "m.pkl", arrays)
+    body = load_body(tmp_path / "m.pkl")
+    v, j = body.pose(np.zeros((2, 24, 3)), trans=np.ones((2, 3)))
+    assert np.isfinite(v).all()
+    # Zero pose and betas: the template, translated.
+    np.testing.assert_allclose(v[0], arrays["v_template"] + 1.0, atol=1e-5)
+    assert torch.is_tensor(body.torch()[0])

@@ -1,0 +1,191 @@
+"""Tests for formats/obj.py: the parser on hand-written OBJ text, cleaning, errors, round trips."""
+
+import logging
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from formats.obj import parse_obj, read_obj, triangulate, write_obj
+
+# Every accepted feature but UVs on all faces: comments, ignored statements,
+# v with w and with vertex colours, a quad, v//vn, negative indices, v/vt,
+# v/vt/vn, two objects, an unused vertex, a repeated-vertex face, a zero-area
+# face, and two duplicate faces.
+MIXED_OBJ = """\
+# a garment panel pair
+mtllib test.mtl
+o first
+g panel_a
+usemtl cloth
+s off
+v 0.0 0.0 0.0 1.0
+v 1.0 0.0 0.0 0.2 0.3 0.4
+v 1.5 1.0 0.0
+v 0.0 1.0 0.0
+v 9.0 9.0 9.0
+vt 0.0 0.0
+vt 1.0 0.0
+vt 1.0 1.0 0.0
+vn 0 0 1
+f 1 2 3 4
+o second
+g panel_b
+s 1
+v 2.0 0.0 0.0
+v 3.0 0.0 0.0
+v 2.0 1.0 0.0
+v 3.0 1.0 0.0
+v 2.5 0.5 0.0
+f 6//1 7//1 8//1
+f -4/1 -2/2 -3/3
+f 6 9 10
+f 1 1 2
+f 8 6 7
+f 7/2/1 9/3/1 8/1/1
+"""
+
+UV_OBJ = """\
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+vn 0 0 1
+f 1/1 2/2 3/3 4/4
+v 2 0 0
+vt 0.5 0.5
+f 2/2/1 -1/-1/1 3/3/1
+"""
+
+
+def _write(tmp_path, text, name="g.obj"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _grid(n=6):
+    x, y = np.meshgrid(np.linspace(-0.5, 0.5, n), np.linspace(0.0, 1.2, n))
+    v = np.stack([x.ravel(), y.ravel(), 0.1 * np.sin(3 * x.ravel())], axis=1).astype(np.float32)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    f = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int64)
+    return v, f
+
+
+def test_read_mixed_features(tmp_path, caplog):
+    path = _write(tmp_path, MIXED_OBJ)
+    with caplog.at_level(logging.WARNING, logger="formats.obj"):
+        g = read_obj(path)
+    expected_v = np.array([[0, 0, 0], [1, 0, 0], [1.5, 1, 0], [0, 1, 0],
+                           [2, 0, 0], [3, 0, 0], [2, 1, 0], [3, 1, 0]], dtype=np.float32)
+    np.testing.assert_array_equal(g.vertices, expected_v)
+    assert g.vertices.dtype == np.float32 and g.faces.dtype == np.int64
+    # The quad's diagonal b-d (1.41) is shorter than a-c (1.80): (a b d)(b c d).
+    np.testing.assert_array_equal(g.faces, [[0, 1, 3], [1, 2, 3], [4, 5, 6], [5, 7, 6]])
+    # Not every face had texture indices: no UVs.
+    assert g.uvs is None and g.face_uvs is None
+    assert g.name == "g"
+    # Both objects ended up in one mesh, and they share no vertex.
+    assert set(np.unique(g.faces[:2])) == {0, 1, 2, 3} and set(np.unique(g.faces[2:])) == {4, 5, 6, 7}
+    text = caplog.text
+    assert "dropped 2 degenerate faces (1 with a repeated vertex, 1 with zero area)" in text
+    assert "dropped 2 duplicate faces" in text
+    assert "removed 2 unused vertices" in text
+
+
+def test_read_uvs_when_every_face_has_them(tmp_path, caplog):
+    with caplog.at_level(logging.WARNING, logger="formats.obj"):
+        g = read_obj(_write(tmp_path, UV_OBJ))
+    assert caplog.text == ""
+    # A square: equal diagonals, split along a-c.
+    np.testing.assert_array_equal(g.faces, [[0, 1, 2], [0, 2, 3], [1, 4, 2]])
+    np.testing.assert_allclose(g.uvs, [[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]])
+    np.testing.assert_array_equal(g.face_uvs, [[0, 1, 2], [0, 2, 3], [1, 4, 2]])
+    assert g.uvs.dtype == np.float32 and g.face_uvs.dtype == np.int64
+
+
+def test_triangulate_against_naive_split():
+    rng = np.random.default_rng(0)
+    v = rng.normal(size=(30, 3))
+    polys = np.stack([rng.choice(30, 4, replace=False) for _ in range(20)])
+    polys[::3, 3] = -1  # every third polygon a triangle
+    faces, _, split_ac = triangulate(v, polys)
+    expected = []
+    for a, b, c, d in polys:
+        if d < 0:
+            expected.append([a, b, c])
+        elif np.linalg.norm(v[a] - v[c]) <= np.linalg.norm(v[b] - v[d]):
+            expected += [[a, b, c], [a, c, d]]
+        else:
+            expected += [[a, b, d], [b, c, d]]
+    np.testing.assert_array_equal(faces, expected)
+    # A given diagonal choice is honoured whatever the geometry.
+    faces2, _, _ = triangulate(v * [1, 5, 1], polys, split_ac=split_ac)
+    np.testing.assert_array_equal(faces2, faces)
+
+
+def test_parse_like_reuses_polygons_of_an_identical_face_block(tmp_path):
+    first = parse_obj(_write(tmp_path, UV_OBJ, "a.obj"))
+    second = parse_obj(_write(tmp_path, UV_OBJ.replace("v 2 0 0", "v 2 0.5 0"), "b.obj"), like=first)
+    assert second.polygons is first.polygons
+    assert second.vertices[4, 1] == 0.5
+
+
+@pytest.mark.parametrize("with_uvs", [False, True])
+def test_write_read_round_trip(tmp_path, with_uvs):
+    v, f = _grid()
+    uvs = v[:, :2] + 0.5 if with_uvs else None
+    path = tmp_path / "rt.obj"
+    write_obj(path, v, f, uvs=uvs, face_uvs=f if with_uvs else None, header="written by a test\nsecond line")
+    text = path.read_text()
+    assert text.startswith("# written by a test\n# second line\n")
+    assert ("\nf 1/1 2/2 8/8\n" in text) == with_uvs
+    assert "\nv -0.500000 0.000000 -0.099749\n" in text  # 6 decimals
+    g = read_obj(path)
+    np.testing.assert_allclose(g.vertices, v, atol=1e-6)
+    np.testing.assert_array_equal(g.faces, f)
+    if with_uvs:
+        np.testing.assert_allclose(g.uvs, uvs, atol=1e-6)
+        np.testing.assert_array_equal(g.face_uvs, f)
+    else:
+        assert g.uvs is None
+
+
+@pytest.mark.parametrize("text, message", [
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 2 2 0\nv 3 1 0\nv 3 0 0\nf 1 2 3 4 5 6 7\n",
+     "expected triangles or quads, got a face with 7 vertices (face 1, line 8)"),
+    ("v 0 0 0\nv 1 0 0\nf 1 2 3\nf 1 2\n", "expected triangles or quads, got a face with 2 vertices (face 2, line 4)"),
+    ("v 0 0 0\nv 1 abc 0\nv 0 1 0\nf 1 2 3\n", "expected a number in the vertex on line 2, got 'abc'"),
+    ("v 0 0 0\nv 1 0\n", "expected 3 coordinates on the vertex on line 2, got 2"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 x\nf 1 2 3\n", "expected a number in the texture coordinate on line 4, got 'x'"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n", "vertex index 9 out of range on line 5, the file has 3 vertices"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n", "vertex index -4 out of range on line 4, only 3 defined before it"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n", "vertex index 0 out of range on line 4"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", "expected an integer vertex index on line 4, got 'x'"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/2\n",
+     "texture coordinate index 2 out of range on line 5, the file has 1 texture coordinates"),
+    ("# nothing\nf 1 2 3\n", "expected vertices ('v' lines), got none"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\n", "expected faces ('f' lines), got none"),
+    ("v 0 0 0\nv 100 0 0\nv 0 100 0\nf 1 2 3\n", "is it in centimetres?"),
+    ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "expected finite coordinates, got NaN/Inf at vertex 1"),
+    ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "got no faces"),
+])
+def test_bad_input(tmp_path, text, message):
+    path = _write(tmp_path, text, "bad.obj")
+    with pytest.raises(InputError) as err:
+        read_obj(path)
+    msg = str(err.value)
+    assert message in msg
+    assert f"'{path}'" in msg and "\n" not in msg
+
+
+def test_missing_file_and_directory(tmp_path):
+    with pytest.raises(InputError, match=r"garment mesh '.*nope\.obj': file not found"):
+        read_obj(tmp_path / "nope.obj")
+    with pytest.raises(InputError, match=r"garment mesh '.*': expected an OBJ file, got a directory"):
+        read_obj(tmp_path)

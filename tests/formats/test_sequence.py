@@ -1,0 +1,203 @@
+"""Tests for formats/sequence.py: every form round-trips through read_sequence; bad input."""
+
+import json
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from formats.obj import write_obj
+from formats.sequence import _natural_key, read_sequence, write_npz_sequence, write_obj_sequence
+from formats.usd import MeshTrack, write_usd_stage
+
+
+def _animated(n_frames=3, n=4):
+    x, y = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    rest = np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], axis=1)
+    t = np.arange(n_frames)[:, None, None]
+    points = (rest[None] + 0.05 * t * np.sin(rest[None] * 3 + t)).astype(np.float32)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int64)
+    return points, faces
+
+
+def _body(n_frames=3):
+    rng = np.random.default_rng(2)
+    return rng.normal(size=(n_frames, 6, 3)).astype(np.float32), np.array([[0, 1, 2], [3, 4, 5]])
+
+
+def test_obj_sequence_round_trip(tmp_path):
+    points, faces = _animated()
+    uvs = points[0, :, :2]
+    out = tmp_path / "frames"
+    paths = write_obj_sequence(out, points, faces, uvs=uvs, face_uvs=faces, fps=30)
+    assert [p.name for p in paths] == ["frame_0000.obj", "frame_0001.obj", "frame_0002.obj"]
+    assert json.loads((out / "sequence.json").read_text())["fps"] == 30
+    assert "f 1/1 2/2 6/6" in paths[0].read_text()
+    seq = read_sequence(out)
+    assert seq.points.shape == points.shape and seq.points.dtype == np.float32
+    np.testing.assert_allclose(seq.points, points, atol=1e-6)
+    np.testing.assert_array_equal(seq.faces, faces)
+    assert seq.faces.dtype == np.int64
+    assert seq.fps == 30 and seq.body_points is None and seq.source == str(out)
+
+
+def test_obj_sequence_padding_and_no_fps(tmp_path):
+    points, _ = _animated(n_frames=12)
+    paths = write_obj_sequence(tmp_path / "long", points[:, :3], np.array([[0, 1, 2]]), prefix="f")
+    assert paths[-1].name == "f0011.obj"
+    assert read_sequence(tmp_path / "long").fps is None
+    assert sorted(["f10000.obj", "f9999.obj", "f0002.obj"], key=_natural_key) == \
+        ["f0002.obj", "f9999.obj", "f10000.obj"]
+
+
+def test_obj_directory_sorted_by_frame_number(tmp_path):
+    points, faces = _animated(n_frames=11)
+    for t in range(11):  # unpadded names: lexical order would put 10 before 2
+        write_obj(tmp_path / f"shot_{t}.obj", points[t], faces)
+    seq = read_sequence(tmp_path)
+    np.testing.assert_allclose(seq.points, points, atol=1e-6)
+
+
+def test_obj_directory_quads_keep_frame0_split(tmp_path):
+    # A quad whose shorter diagonal flips between frames: every frame keeps frame 0's split.
+    q0 = "v 0 0 0\nv 1 0 0\nv 1.5 1 0\nv 0 1 0\nf 1 2 3 4\n"
+    q1 = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv -0.5 1 0\nf 1 2 3 4\n"
+    (tmp_path / "frame_0000.obj").write_text(q0)
+    (tmp_path / "frame_0001.obj").write_text(q1)
+    seq = read_sequence(tmp_path)
+    np.testing.assert_array_equal(seq.faces, [[0, 1, 3], [1, 2, 3]])
+    np.testing.assert_allclose(seq.points[1, 3], [-0.5, 1, 0])
+
+
+def test_single_obj_is_one_frame(tmp_path):
+    points, faces = _animated(n_frames=1)
+    write_obj(tmp_path / "g.obj", points[0], faces)
+    seq = read_sequence(tmp_path / "g.obj")
+    assert seq.points.shape == (1,) + points.shape[1:] and seq.fps is None
+
+
+@pytest.mark.parametrize("with_body", [False, True])
+def test_npz_round_trip(tmp_path, with_body):
+    points, faces = _animated()
+    body_points, body_faces = _body() if with_body else (None, None)
+    path = tmp_path / "bake.seq"  # any name: written exactly there
+    write_npz_sequence(path, points.astype(np.float64), faces, fps=59.94,
+                       body_points=body_points, body_faces=body_faces)
+    path = path.rename(tmp_path / "bake.npz")
+    seq = read_sequence(path)
+    np.testing.assert_array_equal(seq.points, points)
+    np.testing.assert_array_equal(seq.faces, faces)
+    assert seq.fps == pytest.approx(59.94)
+    if with_body:
+        np.testing.assert_array_equal(seq.body_points, body_points)
+        np.testing.assert_array_equal(seq.body_faces, body_faces)
+    else:
+        assert seq.body_points is None and seq.body_faces is None
+    with np.load(path) as data:
+        assert data["points"].dtype == np.float32
+
+
+def test_npz_without_fps(tmp_path):
+    points, faces = _animated()
+    write_npz_sequence(tmp_path / "a.npz", points, faces)
+    assert read_sequence(tmp_path / "a.npz").fps is None
+
+
+@pytest.mark.parametrize("suffix", [".usd", ".usda"])
+def test_usd_garment_and_body(tmp_path, suffix):
+    points, faces = _animated()
+    body_points, body_faces = _body()
+    path = tmp_path / f"bake{suffix}"
+    write_usd_stage(path, [MeshTrack("body", body_points, body_faces), MeshTrack("garment", points, faces)], fps=50)
+    seq = read_sequence(path)
+    np.testing.assert_array_equal(seq.points, points)
+    np.testing.assert_array_equal(seq.faces, faces)
+    np.testing.assert_array_equal(seq.body_points, body_points)
+    np.testing.assert_array_equal(seq.body_faces, body_faces)
+    assert seq.fps == 50
+    # Another track by name: the body is still attached.
+    as_body = read_sequence(path, track="body")
+    np.testing.assert_array_equal(as_body.points, body_points)
+    assert as_body.body_points is None
+
+
+def test_usd_only_mesh_and_ambiguous_tracks(tmp_path):
+    points, faces = _animated()
+    single = tmp_path / "single.usd"
+    write_usd_stage(single, [MeshTrack("shirt", points, faces)], fps=30)
+    np.testing.assert_array_equal(read_sequence(single).points, points)
+    two = tmp_path / "two.usd"
+    write_usd_stage(two, [MeshTrack("shirt", points, faces), MeshTrack("skirt", points, faces)], fps=30)
+    with pytest.raises(InputError, match=r"expected a mesh named 'garment', got meshes \['shirt', 'skirt'\]"):
+        read_sequence(two)
+    assert read_sequence(two, track="skirt").points.shape == points.shape
+
+
+def test_bad_paths(tmp_path):
+    with pytest.raises(InputError, match=r"garment sequence '.*nothing\.npz': not found"):
+        read_sequence(tmp_path / "nothing.npz")
+    odd = tmp_path / "bake.abc"
+    odd.write_text("x")
+    with pytest.raises(InputError, match=r"expected a directory of OBJ frames, .npz, .obj or .usd/.usda/.usdc, "
+                                         r"got '.abc'"):
+        read_sequence(odd)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "notes.txt").write_text("no frames here")
+    with pytest.raises(InputError, match=r"garment sequence '.*empty': expected OBJ frames"):
+        read_sequence(empty)
+
+
+def test_obj_frames_with_differing_topology(tmp_path):
+    points, faces = _animated(n_frames=4)
+    write_obj_sequence(tmp_path, points, faces)
+    write_obj(tmp_path / "frame_0002.obj", points[2], faces[::-1])
+    with pytest.raises(InputError, match=r"share the topology of frame_0000.obj \(16 vertices, 18 faces\), "
+                                         r"got 16 vertices, 18 faces in frame_0002.obj"):
+        read_sequence(tmp_path)
+    write_obj(tmp_path / "frame_0002.obj", points[2, :-1], faces[faces.max(axis=1) < 15])
+    with pytest.raises(InputError, match=r"got 15 vertices, 16 faces in frame_0002.obj"):
+        read_sequence(tmp_path)
+    (tmp_path / "frame_0003.obj").write_text("v 0 0 0\nf 1 2 3 4 5\n")
+    (tmp_path / "frame_0002.obj").unlink()
+    with pytest.raises(InputError, match=r"'.*frame_0003.obj': expected triangles or quads, got a face with 5"):
+        read_sequence(tmp_path)
+
+
+def test_bad_sequence_json(tmp_path):
+    points, faces = _animated()
+    write_obj_sequence(tmp_path, points, faces, fps=30)
+    (tmp_path / "sequence.json").write_text("{fps: 30")
+    with pytest.raises(InputError, match=r"sequence.json': expected JSON like"):
+        read_sequence(tmp_path)
+    (tmp_path / "sequence.json").write_text('{"fps": -3}')
+    with pytest.raises(InputError, match=r"sequence.json': expected fps > 0, got -3"):
+        read_sequence(tmp_path)
+
+
+@pytest.mark.parametrize("arrays, message", [
+    ({"faces": np.zeros((1, 3), int)}, "expected key 'points', got keys ['faces']"),
+    ({"points": np.zeros((3, 4)), "faces": np.zeros((1, 3), int)}, "expected points (T, V, 3)"),
+    ({"points": np.zeros((2, 4, 3)), "faces": np.zeros((1, 4), int)}, "expected faces (F, 3) integers"),
+    ({"points": np.zeros((2, 4, 3)), "faces": np.array([[0, 1, 4]])}, "faces index 4 out of range for 4 vertices"),
+    ({"points": np.zeros((2, 4, 3)), "faces": np.array([[0, 1, 2]]), "fps": np.float64(0)}, "expected fps > 0"),
+    ({"points": np.zeros((2, 4, 3)), "faces": np.array([[0, 1, 2]]), "body_points": np.zeros((3, 5, 3))},
+     "expected body_points with 2 frames like points, got 3"),
+    ({"points": np.zeros((2, 4, 3)), "faces": np.array([[0, 1, 2]]), "body_points": np.zeros((2, 5, 3)),
+      "body_faces": np.array([[0, 1, 7]])}, "body_faces index 7 out of range for 5 vertices"),
+])
+def test_bad_npz(tmp_path, arrays, message):
+    path = tmp_path / "bad.npz"
+    np.savez(path, **arrays)
+    with pytest.raises(InputError) as err:
+        read_sequence(path)
+    assert message in str(err.value) and f"'{path}'" in str(err.value)
+
+
+def test_corrupt_npz(tmp_path):
+    path = tmp_path / "corrupt.npz"
+    path.write_bytes(b"not a zip")
+    with pytest.raises(InputError, match=r"cannot be read as .npz"):
+        read_sequence(path)

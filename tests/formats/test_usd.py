@@ -1,0 +1,145 @@
+"""Tests for formats/usd.py: round trips, the stage as pxr sees it, bad input."""
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, UsdGeom
+
+from core.errors import InputError
+from formats.usd import MeshTrack, read_usd, read_usd_stage, write_usd_stage
+
+
+def _tracks(n_frames=4):
+    rng = np.random.default_rng(1)
+    quad = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=np.float32)
+    t = np.arange(n_frames, dtype=np.float32)[:, None, None]
+    garment_points = quad[None] + t * np.array([0, 0, 0.1], dtype=np.float32) + \
+        rng.normal(scale=0.01, size=(n_frames, 4, 3)).astype(np.float32)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    uvs = rng.random((6, 2)).astype(np.float32)
+    body_points = rng.normal(size=(n_frames, 5, 3)).astype(np.float32)
+    body_faces = np.array([[0, 1, 2], [2, 3, 4], [0, 2, 4]])
+    return [MeshTrack("garment", garment_points, faces, uvs=uvs, color=(0.8, 0.2, 0.1)),
+            MeshTrack("body", body_points, body_faces)]
+
+
+@pytest.mark.parametrize("suffix", [".usd", ".usda", ".usdc"])
+def test_round_trip(tmp_path, suffix):
+    tracks = _tracks()
+    path = tmp_path / f"bake{suffix}"
+    meta = {"method": "lbs", "frames": 4, "timings_s": [0.5, 1.25], "skipped": ["self_collision"],
+            "options": {"push_out": True}}
+    write_usd_stage(path, tracks, fps=59.94, start_frame=10, metadata=meta)
+    seq = read_usd(path)
+    assert set(seq.tracks) == {"garment", "body"}
+    assert seq.fps == pytest.approx(59.94) and seq.start_frame == 10
+    assert seq.metadata == {"method": "lbs", "frames": 4, "timings_s": [0.5, 1.25],
+                            "skipped": ["self_collision"], "options": {"push_out": True}}
+    for written in tracks:
+        got = seq.tracks[written.name]
+        np.testing.assert_array_equal(got.points, written.points)
+        np.testing.assert_array_equal(got.faces, written.faces)
+        assert got.points.dtype == np.float32 and got.faces.dtype == np.int64
+    np.testing.assert_array_equal(seq.tracks["garment"].uvs, tracks[0].uvs)
+    np.testing.assert_allclose(seq.tracks["garment"].color, [0.8, 0.2, 0.1], atol=1e-7)
+    assert seq.tracks["body"].uvs is None and seq.tracks["body"].color is None
+    by_name, fps = read_usd_stage(path)
+    assert set(by_name) == {"garment", "body"} and fps == pytest.approx(59.94)
+
+
+def test_stage_as_pxr_reads_it(tmp_path):
+    tracks = _tracks(n_frames=3)
+    path = tmp_path / "bake.usd"
+    write_usd_stage(path, tracks, fps=30, start_frame=0)
+    assert path.read_bytes()[:8] == b"PXR-USDC"  # .usd is written as a binary crate
+    stage = Usd.Stage.Open(str(path))
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert stage.GetTimeCodesPerSecond() == 30 and stage.GetFramesPerSecond() == 30
+    assert stage.GetStartTimeCode() == 0 and stage.GetEndTimeCode() == 2
+    assert stage.GetDefaultPrim().GetPath() == Sdf.Path("/Root")
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/garment"))
+    assert mesh and mesh.GetSubdivisionSchemeAttr().Get() == UsdGeom.Tokens.none
+    assert mesh.GetDoubleSidedAttr().Get() is True
+    assert list(mesh.GetFaceVertexCountsAttr().Get()) == [3, 3]
+    assert list(mesh.GetFaceVertexIndicesAttr().Get()) == [0, 1, 2, 0, 2, 3]
+    p0 = np.asarray(mesh.GetPointsAttr().Get(Usd.TimeCode(0)))
+    p2 = np.asarray(mesh.GetPointsAttr().Get(Usd.TimeCode(2)))
+    assert p0.shape == (4, 3) and p2.shape == (4, 3)
+    np.testing.assert_array_equal(p0, tracks[0].points[0])
+    np.testing.assert_array_equal(p2, tracks[0].points[2])
+    assert not np.allclose(p0, p2)
+    extent = np.asarray(mesh.GetExtentAttr().Get(Usd.TimeCode(2)))
+    np.testing.assert_allclose(extent, [tracks[0].points[2].min(0), tracks[0].points[2].max(0)])
+    st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    assert st.GetInterpolation() == UsdGeom.Tokens.faceVarying and len(st.Get()) == 6
+    assert mesh.GetDisplayColorPrimvar().GetInterpolation() == UsdGeom.Tokens.constant
+    body = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/body"))
+    assert len(body.GetPointsAttr().Get(Usd.TimeCode(1))) == 5
+
+
+def test_names_are_sanitised_and_unique(tmp_path):
+    points = np.zeros((1, 3, 3), dtype=np.float32)
+    points[0, 1, 0] = points[0, 2, 1] = 1
+    faces = np.array([[0, 1, 2]])
+    path = tmp_path / "names.usda"
+    write_usd_stage(path, [MeshTrack("my dress!", points, faces), MeshTrack("my dress?", points, faces),
+                           MeshTrack("3d", points, faces)], fps=24)
+    assert set(read_usd(path).tracks) == {"my_dress_", "my_dress__1", "_d"}
+
+
+def test_rewrite_replaces_content(tmp_path):
+    path = tmp_path / "again.usd"
+    tracks = _tracks(n_frames=2)
+    write_usd_stage(path, tracks, fps=30)
+    assert read_usd(path).tracks["garment"].points.shape[0] == 2
+    write_usd_stage(path, _tracks(n_frames=5), fps=30)
+    assert read_usd(path).tracks["garment"].points.shape[0] == 5
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["again.usd"]  # no temporary left
+
+
+def test_read_quads_fan_triangulated(tmp_path):
+    path = tmp_path / "quad.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0)])
+    mesh.CreateFaceVertexCountsAttr([4, 3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3, 1, 4, 2])
+    stage.GetRootLayer().Save()
+    seq = read_usd(path)
+    cloth = seq.tracks["cloth"]
+    assert cloth.points.shape == (1, 5, 3)
+    np.testing.assert_array_equal(cloth.faces, [[0, 1, 2], [0, 2, 3], [1, 4, 2]])
+
+
+def test_bad_input(tmp_path):
+    with pytest.raises(InputError, match=r"USD stage '.*missing\.usd': file not found"):
+        read_usd(tmp_path / "missing.usd")
+    with pytest.raises(InputError, match=r"expected a USD file, got a directory"):
+        read_usd(tmp_path)
+    corrupt = tmp_path / "corrupt.usd"
+    corrupt.write_bytes(b"this is not a usd file at all\x00\x01")
+    with pytest.raises(InputError, match=r"USD stage '.*corrupt\.usd': cannot be opened as USD") as err:
+        read_usd(corrupt)
+    assert "\n" not in str(err.value)
+    empty = tmp_path / "empty.usda"
+    stage = Usd.Stage.CreateNew(str(empty))
+    UsdGeom.Xform.Define(stage, "/Root")
+    stage.GetRootLayer().Save()
+    with pytest.raises(InputError, match=r"expected at least one UsdGeom.Mesh, got none"):
+        read_usd(empty)
+
+
+def test_write_rejects_bad_tracks(tmp_path):
+    tracks = _tracks()
+    short = MeshTrack("body", tracks[1].points[:2], tracks[1].faces)
+    with pytest.raises(InputError, match=r"USD track 'body': expected 4 frames like the first track, got 2"):
+        write_usd_stage(tmp_path / "x.usd", [tracks[0], short], fps=30)
+    with pytest.raises(InputError, match=r"expected fps > 0"):
+        write_usd_stage(tmp_path / "x.usd", tracks, fps=0)
+    flat = MeshTrack("garment", tracks[0].points[0], tracks[0].faces)
+    with pytest.raises(InputError, match=r"expected points \(T, V, 3\)"):
+        write_usd_stage(tmp_path / "x.usd", [flat], fps=30)
+    bad_uv = MeshTrack("garment", tracks[0].points, tracks[0].faces, uvs=np.zeros((4, 2)))
+    with pytest.raises(InputError, match=r"expected uvs \(6, 2\) face-varying"):
+        write_usd_stage(tmp_path / "x.usd", [bad_uv], fps=30)
+    assert not (tmp_path / "x.usd").exists()

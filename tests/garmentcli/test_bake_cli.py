@@ -1,0 +1,163 @@
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from garmentcli.main import cli
+from tests.garmentcli.conftest import write_motion, write_shell_obj
+
+
+def run(args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def assert_one_line_error(result, *needles):
+    assert result.exit_code != 0, result.output
+    assert "Traceback" not in result.output
+    err = result.output.strip().splitlines()
+    assert len(err) >= 1
+    line = err[-1]
+    for n in needles:
+        assert n in line, (n, line)
+
+
+def test_bake_writes_usd_obj_and_summary(scene):
+    from pxr import Usd, UsdGeom
+
+    r = run(["bake", scene["garment"], scene["motion"], scene["motion2"], "--body", scene["body"],
+             "--out", scene["out"], "--settle", 3])
+    assert r.exit_code == 0, r.output
+    walk = scene["out"] / "shell_walk"
+    # 12 frames at 60 fps -> 6 frames at 30 fps, plus 3 settle frames
+    summary = json.loads((walk / "summary.json").read_text())
+    assert summary["frames"] == 9 and summary["fps"] == 30 and summary["settle_frames"] == 3
+    assert summary["method"] == "lbs" and summary["source_fps"] == 60
+    assert 0 <= summary["penetration"]["mean_percent"] <= 100
+    assert summary["seconds_per_frame"] > 0
+    stage = Usd.Stage.Open(str(walk / "shell_walk.usd"))
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    assert stage.GetTimeCodesPerSecond() == 30
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0, 8)
+    garment = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/garment"))
+    body = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/body"))
+    p0 = np.array(garment.GetPointsAttr().Get(0))
+    p8 = np.array(garment.GetPointsAttr().Get(8))
+    assert p0.shape == (scene["tiny"].n_vertices, 3) and not np.allclose(p0, p8)
+    assert len(body.GetPointsAttr().Get(4)) == scene["tiny"].n_vertices
+    objs = sorted((walk / "obj").glob("*.obj"))
+    assert len(objs) == 9
+    # 7 frames at 120 fps -> 2 frames at 30 fps (+3 settle); SMPL+H poses drive the SMPL body
+    jump = json.loads((scene["out"] / "shell_jump" / "summary.json").read_text())
+    assert jump["frames"] == 5
+
+
+def test_bake_matches_between_obj_and_usd(scene):
+    from formats.sequence import read_sequence
+
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "shell_walk"
+    usd = read_sequence(d / "shell_walk.usd")
+    obj = read_sequence(d / "obj")
+    np.testing.assert_allclose(usd.points, obj.points, atol=2e-6)
+    assert usd.body_points is not None and usd.body_points.shape[0] == usd.points.shape[0]
+
+
+def test_bake_refuses_to_overwrite_then_overwrites(scene):
+    args = ["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]]
+    assert run(args).exit_code == 0
+    before = (scene["out"] / "shell_walk" / "summary.json").read_text()
+    r = run(args)
+    assert_one_line_error(r, "exists", "--overwrite")
+    assert (scene["out"] / "shell_walk" / "summary.json").read_text() == before
+    r = run(args + ["--overwrite", "--frames", "0:4"])
+    assert r.exit_code == 0, r.output
+    assert json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())["frames"] == 2
+    assert not list(scene["out"].glob(".*partial"))
+
+
+def test_bake_frames_fps_and_no_outputs(scene):
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
+             "--fps", 24, "--frames", "2:", "--no-obj", "--no-body"])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "shell_walk"
+    s = json.loads((d / "summary.json").read_text())
+    # source frames 2..11 at 60 fps span 0.15 s -> 24 fps frames at 0, 1/24, .., 0.125 s
+    assert s["frames"] == 4 and s["fps"] == 24
+    assert not (d / "obj").exists()
+    from pxr import Usd
+
+    assert not Usd.Stage.Open(str(d / "shell_walk.usd")).GetPrimAtPath("/Root/body")
+
+
+def bad_obj(tmp_path, text, name="bad.obj"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+BAD_CASES = {
+    "missing garment": (lambda s: ["bake", s["dir"] / "nope.obj", s["motion"]], ["nope.obj"]),
+    "missing motion": (lambda s: ["bake", s["garment"], s["dir"] / "gone.npz"], ["gone.npz"]),
+    "missing body": (lambda s: ["bake", s["garment"], s["motion"], "--body", s["dir"] / "nobody.npz"], ["nobody.npz"]),
+    "7-gon face": (lambda s: ["bake", bad_obj(s["dir"], "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 2 0\nv 1 2 0\nv 2 2 0\n"
+                                                  "f 1 2 3 4 5 6 7\n"), s["motion"]], ["bad.obj", "7 vertices"]),
+    "obj no faces": (lambda s: ["bake", bad_obj(s["dir"], "v 0 0 0\nv 1 0 0\n"), s["motion"]], ["bad.obj", "faces"]),
+    "obj nan": (lambda s: ["bake", bad_obj(s["dir"], "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), s["motion"]],
+                ["bad.obj"]),
+    "obj garbage": (lambda s: ["bake", bad_obj(s["dir"], "v 0 zero 0\nf 1 2 3\n"), s["motion"]], ["bad.obj"]),
+    "bad method": (lambda s: ["bake", s["garment"], s["motion"], "--method", "magic"], ["--method", "magic"]),
+    "zero fps": (lambda s: ["bake", s["garment"], s["motion"], "--fps", 0], ["--fps"]),
+    "bad frames": (lambda s: ["bake", s["garment"], s["motion"], "--frames", "a:b"], ["--frames"]),
+    "empty frames": (lambda s: ["bake", s["garment"], s["motion"], "--frames", "50:60"], ["--frames", "no frame"]),
+    "negative settle": (lambda s: ["bake", s["garment"], s["motion"], "--settle", -2], ["--settle"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CASES))
+def test_bake_bad_input_one_line_no_output(scene, case):
+    make_args, needles = BAD_CASES[case]
+    args = make_args(scene) + ["--out", scene["out"]]
+    if "--body" not in args:
+        args += ["--body", scene["body"]]
+    r = run(args)
+    assert_one_line_error(r, *needles)
+    assert not scene["out"].exists() or not any(scene["out"].iterdir())
+
+
+def test_bake_bad_motion_files(scene):
+    d = scene["dir"]
+    cases = {
+        "nan.npz": ({"poses": np.full((5, 72), np.nan, np.float32)}, ["nan.npz", "NaN"]),
+        "shape.npz": ({"poses": np.zeros((5, 50), np.float32)}, ["shape.npz", "72"]),
+        "trans.npz": ({"trans": np.zeros((3, 3), np.float32)}, ["trans.npz", "trans"]),
+    }
+    for name, (over, needles) in cases.items():
+        write_motion(d / name, n_frames=5, **over)
+        r = run(["bake", scene["garment"], d / name, "--body", scene["body"], "--out", scene["out"]])
+        assert_one_line_error(r, *needles)
+    (d / "notnpz.npz").write_text("hello")
+    assert_one_line_error(run(["bake", scene["garment"], d / "notnpz.npz", "--body", scene["body"],
+                               "--out", scene["out"]]), "notnpz.npz")
+    assert not scene["out"].exists() or not any(scene["out"].iterdir())
+
+
+def test_bake_garment_in_centimetres_or_far_away(scene):
+    d = scene["dir"]
+    write_shell_obj(d / "cm.obj", scene["tiny"], scale=100.0)
+    assert_one_line_error(run(["bake", d / "cm.obj", scene["motion"], "--body", scene["body"], "--out", scene["out"]]),
+                          "cm.obj", "centimetres")
+    far = (d / "shell.obj").read_text().splitlines()
+    far = [f"v {float(l.split()[1]) + 2.0} {l.split()[2]} {l.split()[3]}" if l.startswith("v ") else l for l in far]
+    (d / "far.obj").write_text("\n".join(far))
+    assert_one_line_error(run(["bake", d / "far.obj", scene["motion"], "--body", scene["body"], "--out", scene["out"]]),
+                          "far.obj", "rest pose")
+
+
+def test_bad_body_file(scene):
+    d = scene["dir"]
+    np.savez(d / "broken_body.npz", v_template=np.zeros((10, 3)))
+    r = run(["bake", scene["garment"], scene["motion"], "--body", d / "broken_body.npz", "--out", scene["out"]])
+    assert_one_line_error(r, "broken_body.npz")

@@ -1,0 +1,166 @@
+"""CLI tests of `garment metrics PRED GT`: happy paths and each bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from garmentcli.main import cli
+from tests.meshes import grid, icosphere
+
+
+def save_seq(path, points, faces, **extra):
+    np.savez(path, points=np.asarray(points, dtype=np.float32), faces=np.asarray(faces, dtype=np.int64),
+             fps=30.0, **extra)
+    return path
+
+
+@pytest.fixture
+def seq(tmp_path):
+    """A 3-frame 6x6 grid waving in z: (points (3, 49, 3), faces)."""
+    v, f = grid(6, 6, size=0.5)
+    pts = np.stack([v + [0, 0, 0.01 * t] for t in range(3)])
+    pts[:, :, 2] += 0.02 * np.sin(7 * pts[:, :, 0])
+    return pts, f
+
+
+def run(args):
+    result = CliRunner().invoke(cli, ["metrics", *map(str, args)])
+    return result
+
+
+def error_line(result):
+    lines = [line for line in result.output.splitlines() if line.startswith("Error:")]
+    assert len(lines) == 1, result.output
+    return lines[0]
+
+
+def assert_clean_failure(result, *names):
+    assert result.exit_code != 0, result.output
+    assert "Traceback" not in result.output
+    assert not isinstance(result.exception, Exception) or isinstance(result.exception, SystemExit)
+    line = error_line(result)
+    for name in names:
+        assert name in line, line
+    return line
+
+
+def test_identical_sequences_give_zeros(tmp_path, seq):
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    b = save_seq(tmp_path / "b.npz", pts, f)
+    res = run([a, b])
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert lines[0].split("|")[1:-1] == [" E_verts (mm) ", " E_vnorm (deg) ", " E_fnorm (deg) ", " E_edge (%) ",
+                                        " E_curv (1/m^2) "]
+    assert [float(x) for x in lines[2].split("|")[1:-1]] == [0.0] * 5
+    assert not list(tmp_path.glob("metrics.*"))  # no --out: print only
+
+
+def test_out_writes_requested_formats(tmp_path, seq):
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts + [0.0, 0.0, 0.005], f)
+    b = save_seq(tmp_path / "b.npz", pts, f)
+    out = tmp_path / "report"
+    res = run([a, b, "--out", out])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in out.iterdir()) == ["metrics.csv", "metrics.json", "metrics.md"]
+    doc = json.loads((out / "metrics.json").read_text())
+    assert doc["overall"]["e_verts"] == pytest.approx(5.0, rel=1e-4)
+    assert doc["metadata"]["pred"] == str(a) and doc["metadata"]["gt"] == str(b)
+    assert len((out / "metrics.csv").read_text().splitlines()) == 1 + 3
+
+    # Existing files are kept unless --overwrite; --format picks one file.
+    res = run([a, b, "--out", out, "--format", "json"])
+    assert_clean_failure(res, "--out", "metrics.json", "--overwrite")
+    out2 = tmp_path / "only_md"
+    res = run([a, b, "--out", out2, "--format", "md"])
+    assert res.exit_code == 0, res.output
+    assert [p.name for p in out2.iterdir()] == ["metrics.md"]
+    assert run([a, b, "--out", out, "--overwrite"]).exit_code == 0
+
+
+def test_body_in_pred_gives_penetration(tmp_path):
+    v, f = icosphere(2, 0.2)
+    body, body_f = icosphere(1, 0.15)
+    gt = np.stack([v, v])
+    pred = gt.copy()
+    pred[0] *= 0.5  # frame 0: every garment vertex inside the body sphere
+    T = 2
+    a = save_seq(tmp_path / "a.npz", pred, f, body_points=np.repeat(body[None], T, 0).astype(np.float32),
+                 body_faces=body_f)
+    b = save_seq(tmp_path / "b.npz", gt, f)
+    out = tmp_path / "out"
+    res = run([a, b, "--out", out, "--format", "json"])
+    assert res.exit_code == 0, res.output
+    assert "penetration (%)" in res.output
+    doc = json.loads((out / "metrics.json").read_text())
+    assert doc["per_frame"]["penetration_pct"] == [100.0, 0.0]
+    assert doc["per_frame"]["gt_penetration_pct"] == [0.0, 0.0]
+    assert doc["metadata"]["body_from"] == str(a)
+    assert doc["metadata"]["penetration_depth_mm"] == pytest.approx(2.0)
+
+    # Vertices 4-5 cm inside do not count when the depth threshold is 10 cm; a body in GT is used too.
+    a2 = save_seq(tmp_path / "a2.npz", pred, f)
+    b2 = save_seq(tmp_path / "b2.npz", gt, f, body_points=np.repeat(body[None], T, 0).astype(np.float32),
+                  body_faces=body_f)
+    res = run([a2, b2, "--out", tmp_path / "deep", "--format", "json", "--depth-mm", "100"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "deep" / "metrics.json").read_text())
+    assert doc["per_frame"]["penetration_pct"] == [0.0, 0.0]
+    assert doc["metadata"]["body_from"] == str(b2)
+
+
+def test_missing_file(tmp_path, seq):
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    assert_clean_failure(run([a, tmp_path / "nope.npz"]), "nope.npz")
+
+
+def test_different_vertex_counts(tmp_path, seq):
+    pts, f = seq
+    v2, f2 = grid(5, 6, size=0.5)
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    b = save_seq(tmp_path / "b.npz", np.stack([v2] * 3), f2)
+    assert_clean_failure(run([a, b]), "a.npz", "b.npz", "49 vertices", "42")
+
+
+def test_different_faces(tmp_path, seq):
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    b = save_seq(tmp_path / "b.npz", pts, f[:, ::-1])
+    assert_clean_failure(run([a, b]), "a.npz", "b.npz", "different faces")
+
+
+def test_different_frame_counts(tmp_path, seq):
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    b = save_seq(tmp_path / "b.npz", pts[:2], f)
+    assert_clean_failure(run([a, b]), "a.npz", "3 frames", "b.npz", "2")
+
+
+def test_nan_in_input(tmp_path, seq):
+    pts, f = seq
+    bad = pts.copy()
+    bad[1, 4, 2] = np.nan
+    a = save_seq(tmp_path / "a.npz", bad, f)
+    b = save_seq(tmp_path / "b.npz", pts, f)
+    assert_clean_failure(run([a, b]), "a.npz")
+
+
+def test_bad_format(tmp_path, seq):
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    assert_clean_failure(run([a, a, "--format", "xml"]), "--format", "xml")
+
+
+def test_body_motion_not_yet_supported(tmp_path, seq):
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    motion = tmp_path / "walk.npz"
+    np.savez(motion, poses=np.zeros((3, 72)), trans=np.zeros((3, 3)))
+    assert_clean_failure(run([a, a, "--motion", motion]), "--motion", "not yet supported")
