@@ -13,37 +13,77 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 _EPS = 1e-12
 
 
-def face_normals(verts: np.ndarray, faces: np.ndarray, unit: bool = True) -> np.ndarray:
-    """Face normals.
+def as_float(verts: np.ndarray) -> np.ndarray:
+    verts = np.asarray(verts)
+    return verts if np.issubdtype(verts.dtype, np.floating) else verts.astype(np.float64)
 
-    verts: (..., V, 3) float; faces: (F, 3) int. Returns (..., F, 3): unit normals
-    (zero for zero-area faces), or with `unit=False` cross products (length = 2 * area).
+
+def face_cross(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(v1 - v0) x (v2 - v0) per face: (..., F, 3), norm = twice the face area."""
+    faces = np.asarray(faces, dtype=np.int64)
+    v0, v1, v2 = verts[..., faces[:, 0], :], verts[..., faces[:, 1], :], verts[..., faces[:, 2], :]
+    return np.cross(v1 - v0, v2 - v0)
+
+
+def normalise(vectors: np.ndarray) -> np.ndarray:
+    """Unit vectors along the last axis; vectors with norm below _EPS become zero vectors."""
+    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
+    return np.where(norm > _EPS, vectors / np.where(norm > _EPS, norm, 1.0), 0.0).astype(vectors.dtype)
+
+
+def _incidence(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
+    """Sparse (V, 3F) matrix summing per-corner values (corner order: all corner 0, then 1, then 2) into vertices."""
+    faces = np.asarray(faces, dtype=np.int64)
+    F = faces.shape[0]
+    rows = faces.T.reshape(-1)  # corner k of face f sits at column k*F + f
+    cols = np.arange(3 * F)
+    return sp.csr_matrix((np.ones(3 * F), (rows, cols)), shape=(n_vertices, 3 * F))
+
+
+def scatter_corners(corner_values: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Sum per-corner values into vertices.
+
+    corner_values: (..., F, 3, C) (value of corner k of face f) -> (..., V, C) float64.
     """
-    v0 = verts[..., faces[:, 0], :]
-    n = np.cross(verts[..., faces[:, 1], :] - v0, verts[..., faces[:, 2], :] - v0)
-    if not unit:
-        return n
-    length = np.linalg.norm(n, axis=-1, keepdims=True)
-    return n / np.maximum(length, _EPS)
+    lead = corner_values.shape[:-3]
+    F, C = corner_values.shape[-3], corner_values.shape[-1]
+    B = int(np.prod(lead, dtype=np.int64))
+    # (B, F, 3, C) -> (3, F, B, C) -> (3F, B*C), matching the incidence's corner order.
+    x = np.asarray(corner_values, dtype=np.float64).reshape(B, F, 3, C).transpose(2, 1, 0, 3).reshape(3 * F, B * C)
+    out = _incidence(faces, n_vertices) @ x  # (V, B*C)
+    return out.reshape(n_vertices, B, C).transpose(1, 0, 2).reshape(*lead, n_vertices, C)
+
+
+def face_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit face normals, right-handed in the face's vertex order.
+
+    verts: (..., V, 3) float, metres. faces: (F, 3) int.
+    Returns (..., F, 3), the dtype of `verts` (float64 for integer input);
+    zero-area faces get zero vectors.
+    """
+    verts = as_float(verts)
+    return normalise(face_cross(verts, faces))
 
 
 def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted vertex normals.
+    """Unit vertex normals: the area-weighted sum of incident face normals, normalised.
 
-    verts: (..., V, 3); faces: (F, 3). Returns (..., V, 3) unit vectors (zero for
-    vertices in no face or only in degenerate faces).
+    verts: (..., V, 3) float, metres. faces: (F, 3) int.
+    Returns (..., V, 3), the dtype of `verts` (float64 for integer input);
+    vertices with no incident face of non-zero area (or whose normals cancel)
+    get zero vectors.
     """
-    fn = face_normals(verts, faces, unit=False)  # (..., F, 3), length 2*area
-    out = np.zeros(verts.shape, dtype=np.result_type(verts.dtype, np.float32))
-    for k in range(3):
-        # np.add.at on the vertex axis, for any leading batch shape.
-        np.add.at(out, (Ellipsis, faces[:, k], slice(None)), fn)
-    return out / np.maximum(np.linalg.norm(out, axis=-1, keepdims=True), _EPS)
+    verts = as_float(verts)
+    cross = face_cross(verts, faces)  # norm = 2 * area: weighting by area is summing the raw cross products
+    corners = np.broadcast_to(cross[..., :, None, :], cross.shape[:-1] + (3, 3))
+    summed = scatter_corners(corners, faces, verts.shape[-2])
+    return normalise(summed).astype(verts.dtype)
 
 
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):

@@ -26,6 +26,7 @@ import scipy.sparse as sp
 
 from core.errors import InputError
 from core.garment import mesh_edges
+from core.geometry import as_float, face_cross, face_normals, normalise, scatter_corners, vertex_normals  # noqa: F401
 
 log = logging.getLogger(__name__)
 
@@ -49,73 +50,6 @@ InsideFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 # ---------------------------------------------------------------------------
 # Mesh quantities
 # ---------------------------------------------------------------------------
-
-def _float(verts: np.ndarray) -> np.ndarray:
-    verts = np.asarray(verts)
-    return verts if np.issubdtype(verts.dtype, np.floating) else verts.astype(np.float64)
-
-
-def _face_cross(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(v1 - v0) x (v2 - v0) per face: (..., F, 3), norm = twice the face area."""
-    faces = np.asarray(faces, dtype=np.int64)
-    v0, v1, v2 = verts[..., faces[:, 0], :], verts[..., faces[:, 1], :], verts[..., faces[:, 2], :]
-    return np.cross(v1 - v0, v2 - v0)
-
-
-def _normalise(vectors: np.ndarray) -> np.ndarray:
-    """Unit vectors along the last axis; vectors with norm below _EPS become zero vectors."""
-    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
-    return np.where(norm > _EPS, vectors / np.where(norm > _EPS, norm, 1.0), 0.0).astype(vectors.dtype)
-
-
-def _incidence(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
-    """Sparse (V, 3F) matrix summing per-corner values (corner order: all corner 0, then 1, then 2) into vertices."""
-    faces = np.asarray(faces, dtype=np.int64)
-    F = faces.shape[0]
-    rows = faces.T.reshape(-1)  # corner k of face f sits at column k*F + f
-    cols = np.arange(3 * F)
-    return sp.csr_matrix((np.ones(3 * F), (rows, cols)), shape=(n_vertices, 3 * F))
-
-
-def _scatter_corners(corner_values: np.ndarray, faces: np.ndarray, n_vertices: int) -> np.ndarray:
-    """Sum per-corner values into vertices.
-
-    corner_values: (..., F, 3, C) (value of corner k of face f) -> (..., V, C) float64.
-    """
-    lead = corner_values.shape[:-3]
-    F, C = corner_values.shape[-3], corner_values.shape[-1]
-    B = int(np.prod(lead, dtype=np.int64))
-    # (B, F, 3, C) -> (3, F, B, C) -> (3F, B*C), matching the incidence's corner order.
-    x = np.asarray(corner_values, dtype=np.float64).reshape(B, F, 3, C).transpose(2, 1, 0, 3).reshape(3 * F, B * C)
-    out = _incidence(faces, n_vertices) @ x  # (V, B*C)
-    return out.reshape(n_vertices, B, C).transpose(1, 0, 2).reshape(*lead, n_vertices, C)
-
-
-def face_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unit face normals, right-handed in the face's vertex order.
-
-    verts: (..., V, 3) float, metres. faces: (F, 3) int.
-    Returns (..., F, 3), the dtype of `verts` (float64 for integer input);
-    zero-area faces get zero vectors.
-    """
-    verts = _float(verts)
-    return _normalise(_face_cross(verts, faces))
-
-
-def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unit vertex normals: the area-weighted sum of incident face normals, normalised.
-
-    verts: (..., V, 3) float, metres. faces: (F, 3) int.
-    Returns (..., V, 3), the dtype of `verts` (float64 for integer input);
-    vertices with no incident face of non-zero area (or whose normals cancel)
-    get zero vectors.
-    """
-    verts = _float(verts)
-    cross = _face_cross(verts, faces)  # norm = 2 * area: weighting by area is summing the raw cross products
-    corners = np.broadcast_to(cross[..., :, None, :], cross.shape[:-1] + (3, 3))
-    summed = _scatter_corners(corners, faces, verts.shape[-2])
-    return _normalise(summed).astype(verts.dtype)
-
 
 def boundary_vertex_mask(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """Vertices on the mesh boundary: those on an edge used by exactly one face.
@@ -170,16 +104,16 @@ def gaussian_curvature(verts: np.ndarray, faces: np.ndarray, area_normalised: bo
     verts = np.asarray(verts, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     V = verts.shape[-2]
-    angle_sum = _scatter_corners(corner_angles(verts, faces)[..., None], faces, V)[..., 0]
+    angle_sum = scatter_corners(corner_angles(verts, faces)[..., None], faces, V)[..., 0]
     used = np.zeros(V, dtype=bool)
     used[faces.reshape(-1)] = True
     full = np.where(boundary_vertex_mask(faces, V), np.pi, 2.0 * np.pi)
     deficit = np.where(used, full - angle_sum, 0.0)
     if not area_normalised:
         return deficit
-    area = 0.5 * np.linalg.norm(_face_cross(verts, faces), axis=-1)  # (..., F)
+    area = 0.5 * np.linalg.norm(face_cross(verts, faces), axis=-1)  # (..., F)
     corners = np.broadcast_to(area[..., None, None] / 3.0, area.shape + (3, 1))
-    vertex_area = _scatter_corners(corners, faces, V)[..., 0]
+    vertex_area = scatter_corners(corners, faces, V)[..., 0]
     ok = vertex_area > _EPS
     return np.where(ok, deficit / np.where(ok, vertex_area, 1.0), 0.0)
 

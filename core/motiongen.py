@@ -36,43 +36,43 @@ _DEG = np.pi / 180.0
 
 @dataclass(frozen=True)
 class LegGeometry:
-    """Nominal sagittal leg dimensions (metres) used to put the feet on the ground.
+    """Rest-pose sagittal leg offsets, (up, forward) in metres in the Y-up body frame.
 
-    hip_drop_m: hip joints below the pelvis joint. thigh_m: hip to knee. shank_m:
-    knee to ankle. ankle_height_m: ankle joint above the sole. toe_m / heel_m: how
-    far the sole reaches ahead of / behind the ankle.
+    Used to put the feet on the ground. hip: hip joint relative to the pelvis
+    joint; thigh: knee relative to hip; shank: ankle relative to knee; toe / heel:
+    the front / back of the sole relative to the ankle. Defaults are measured on
+    the embedded default body (core.body.default_body(), betas 0).
     """
 
-    # Measured on the embedded default body (core.body.default_body(), betas 0).
-    hip_drop_m: float = 0.016
-    thigh_m: float = 0.376
-    shank_m: float = 0.435
-    ankle_height_m: float = 0.071
-    toe_m: float = 0.20
-    heel_m: float = 0.055
+    hip: tuple[float, float] = (-0.016, -0.009)
+    thigh: tuple[float, float] = (-0.373, 0.031)
+    shank: tuple[float, float] = (-0.432, -0.032)
+    toe: tuple[float, float] = (-0.077, 0.20)
+    heel: tuple[float, float] = (-0.077, -0.055)
 
     @property
     def standing_height_m(self) -> float:
-        """Pelvis joint height above the ground when standing straight."""
-        return self.hip_drop_m + self.thigh_m + self.shank_m + self.ankle_height_m
+        """Pelvis joint height above the ground when standing in the rest pose."""
+        return -(self.hip[0] + self.thigh[0] + self.shank[0] + self.toe[0])
 
     @classmethod
-    def from_rest_joints(cls, joints: np.ndarray, sole_y: float) -> "LegGeometry":
-        """Dimensions of a rest-pose SMPL skeleton.
+    def from_rest_joints(cls, joints: np.ndarray, sole_y: float, toe_z: float | None = None,
+                         heel_z: float | None = None) -> "LegGeometry":
+        """Offsets of a rest-pose SMPL skeleton (both sides averaged).
 
-        joints: (24, 3) rest joint positions, metres, Y-up body frame. sole_y: the
-        height (Y) of the lowest rest vertex, metres.
+        joints: (24, 3) rest joint positions, metres, Y-up body frame. sole_y: height
+        (Y) of the lowest rest vertex. toe_z / heel_z: forward (Z) extent of the sole
+        (default: 6 cm ahead of the foot joint / 5.5 cm behind the ankle).
         """
         j = np.asarray(joints, dtype=np.float64)
-        side = lambda a, b: 0.5 * (np.linalg.norm(j[J["left_" + a]] - j[J["left_" + b]])  # noqa: E731
-                                   + np.linalg.norm(j[J["right_" + a]] - j[J["right_" + b]]))
-        hip_y = 0.5 * (j[J["left_hip"], 1] + j[J["right_hip"], 1])
-        toe = 0.5 * (j[J["left_foot"], 2] + j[J["right_foot"], 2]) - 0.5 * (j[J["left_ankle"], 2] + j[J["right_ankle"], 2])
-        hip_drop, thigh, shank = float(j[0, 1] - hip_y), float(side("hip", "knee")), float(side("knee", "ankle"))
-        # The legs are not quite vertical: take the ankle height that makes the standing height exact.
-        ankle_height = max(float(j[0, 1] - sole_y) - hip_drop - thigh - shank, 0.0)
-        return cls(hip_drop_m=hip_drop, thigh_m=thigh, shank_m=shank, ankle_height_m=ankle_height,
-                   toe_m=float(max(toe, 0.0) + 0.06), heel_m=0.055)
+        mid = lambda name: 0.5 * (j[J["left_" + name], 1:] + j[J["right_" + name], 1:])  # noqa: E731
+        hip, knee, ankle, foot = mid("hip"), mid("knee"), mid("ankle"), mid("foot")
+        toe_z = foot[1] + 0.06 if toe_z is None else toe_z
+        heel_z = ankle[1] - 0.055 if heel_z is None else heel_z
+        pair = lambda v: (float(v[0]), float(v[1]))  # noqa: E731
+        return cls(hip=pair(hip - j[0, 1:]), thigh=pair(knee - hip), shank=pair(ankle - knee),
+                   toe=(float(sole_y - ankle[0]), float(toe_z - ankle[1])),
+                   heel=(float(sole_y - ankle[0]), float(heel_z - ankle[1])))
 
 
 DEFAULT_LEGS = LegGeometry()
@@ -175,13 +175,13 @@ def _leg_points(ch: _Channels, side: str, legs: LegGeometry):
     a_thigh = a_root + e[:, J[f"{side}_hip"], 0]
     a_shank = a_thigh + e[:, J[f"{side}_knee"], 0]
     a_foot = a_shank + e[:, J[f"{side}_ankle"], 0]
-    hy, hz = _rot_x(-legs.hip_drop_m, 0.0, a_root)
-    ty, tz = _rot_x(-legs.thigh_m, 0.0, a_thigh)
-    sy, sz = _rot_x(-legs.shank_m, 0.0, a_shank)
+    hy, hz = _rot_x(*legs.hip, a_root)
+    ty, tz = _rot_x(*legs.thigh, a_thigh)
+    sy, sz = _rot_x(*legs.shank, a_shank)
     ay, az = hy + ty + sy, hz + tz + sz
     out = {"ankle": (ay, az)}
-    for name, dz in (("heel", -legs.heel_m), ("toe", legs.toe_m)):
-        py, pz = _rot_x(-legs.ankle_height_m, dz, a_foot)
+    for name in ("heel", "toe"):
+        py, pz = _rot_x(*getattr(legs, name), a_foot)
         out[name] = (ay + py, az + pz)
     return out
 

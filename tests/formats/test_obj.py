@@ -129,11 +129,37 @@ def test_triangulate_against_naive_split():
     np.testing.assert_array_equal(faces2, faces)
 
 
-def test_parse_like_reuses_polygons_of_an_identical_face_block(tmp_path):
-    first = parse_obj(_write(tmp_path, UV_OBJ, "a.obj"))
-    second = parse_obj(_write(tmp_path, UV_OBJ.replace("v 2 0 0", "v 2 0.5 0"), "b.obj"), like=first)
+@pytest.mark.parametrize("with_uvs", [False, True])
+def test_parse_like_reuses_polygons_of_an_identical_face_block(tmp_path, with_uvs):
+    v, f = _grid()
+    uvs = v[:, :2] if with_uvs else None
+    write_obj(tmp_path / "a.obj", v, f, uvs, f if with_uvs else None)
+    write_obj(tmp_path / "b.obj", v + 0.25, f, uvs, f if with_uvs else None)
+    first = parse_obj(tmp_path / "a.obj")
+    second = parse_obj(tmp_path / "b.obj", like=first)
+    full = parse_obj(tmp_path / "b.obj")
     assert second.polygons is first.polygons
+    np.testing.assert_array_equal(second.vertices, full.vertices)
+    np.testing.assert_array_equal(second.polygons, full.polygons)
+    assert (second.uvs is None) == (not with_uvs)
+    if with_uvs:
+        np.testing.assert_array_equal(second.uvs, full.uvs)
+        np.testing.assert_array_equal(second.polygon_uvs, full.polygon_uvs)
+
+
+def test_parse_like_falls_back_to_the_full_parser(tmp_path):
+    first = parse_obj(_write(tmp_path, UV_OBJ, "a.obj"))
+    # Negative indices: polygons are parsed again, not reused, and still agree.
+    second = parse_obj(_write(tmp_path, UV_OBJ.replace("v 2 0 0", "v 2 0.5 0"), "b.obj"), like=first)
+    assert second.polygons is not first.polygons
+    np.testing.assert_array_equal(second.polygons, first.polygons)
     assert second.vertices[4, 1] == 0.5
+    # A frame with a bad number is reported by the full parser with its line.
+    v, f = _grid()
+    write_obj(tmp_path / "c.obj", v, f)
+    text = (tmp_path / "c.obj").read_text().replace("v -0.300000", "v -0.3x0000", 1)
+    with pytest.raises(InputError, match=r"expected a number in the vertex on line 2, got '-0.3x0000'"):
+        parse_obj(_write(tmp_path, text, "d.obj"), like=parse_obj(tmp_path / "c.obj"))
 
 
 @pytest.mark.parametrize("with_uvs", [False, True])
