@@ -78,7 +78,8 @@ def body_from_file_arrays(arrays: dict, name: str, source: str) -> Body:
                 raise TypeError
             out[key] = value
         except (TypeError, ValueError):
-            raise InputError(f"{label}: expected {key} to be a numeric array, got {type(arrays[key]).__name__}") from None
+            raise InputError(f"{label}: expected {key} to be a numeric array, "
+                             f"got {type(arrays[key]).__name__}") from None
     kt = out.get("parents", out.get("kintree_table"))
     n_joints = kt.shape[-1] if kt.ndim >= 1 else 0
     if n_joints not in LAYOUT_JOINTS.values():

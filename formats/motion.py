@@ -26,6 +26,7 @@ log = logging.getLogger(__name__)
 
 FRAMERATE_KEYS = ("mocap_framerate", "mocap_frame_rate")
 _VALUES_PER_FRAME = {3 * n: n for n in LAYOUT_JOINTS.values()}  # 72, 156, 165 -> joints
+_OPTIONAL_KEYS = ("gender", "dmpls", "betas", "marker_data", "surface_model_type")
 _EXPECTED = "72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X)"
 
 
@@ -42,17 +43,27 @@ def load_motion(path, fps: float | None = None) -> Motion:
     src = f"motion '{path}'"
     if not path.is_file():
         raise InputError(f"{src}: file not found")
+    with open(path, "rb") as f:
+        magic = f.read(6)
+    if magic == b"\x93NUMPY":
+        raise InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
+    if not magic.startswith(b"PK"):
+        raise InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays), "
+                         f"got a file that is not one")
     try:
         data = np.load(path, allow_pickle=False)
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
-    if not isinstance(data, np.lib.npyio.NpzFile):
-        raise InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
-    try:
-        with data:
-            arrays = {k: data[k] for k in data.files}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
-        raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
+    arrays = {}
+    with data:
+        for key in data.files:
+            try:
+                arrays[key] = data[key]
+            except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
+                if key in _OPTIONAL_KEYS:  # e.g. an object-array gender or dmpls: not needed
+                    log.warning("%s: skipping unreadable key '%s' (%s)", src, key, _short(exc))
+                    continue
+                raise InputError(f"{src}: could not read array '{key}' ({_short(exc)})") from None
 
     poses = _read_poses(arrays, src)
     T = poses.shape[0]

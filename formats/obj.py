@@ -358,7 +358,9 @@ def obj_vertex_text(vertices: np.ndarray) -> str:
 def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None) -> str:
     """`vt` and `f` lines for faces (F, 3) int 0-based; with uvs (U, 2) and face_uvs (F, 3), `f a/b` forms."""
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3) + 1
-    if uvs is None or face_uvs is None:
+    if (uvs is None) != (face_uvs is None):
+        raise ValueError("uvs and face_uvs must be given together")
+    if uvs is None:
         return ("f %d %d %d\n" * len(f)) % tuple(f.ravel().tolist())
     t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
     ft = np.asarray(face_uvs, dtype=np.int64).reshape(-1, 3) + 1

@@ -124,6 +124,8 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
     leaves no partial stage.
     """
     path = Path(path)
+    if path.suffix.lower() not in (".usd", ".usda", ".usdc"):
+        raise InputError(f"USD stage '{path}': expected a .usd, .usda or .usdc file name, got '{path.suffix}'")
     if not meshes:
         raise InputError(f"USD stage '{path}': expected at least one mesh track, got none")
     if not (np.isfinite(fps) and fps > 0):
@@ -176,7 +178,12 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".usd", dir=path.parent)
     os.close(fd)
     try:
-        if not stage.GetRootLayer().Export(tmp):
+        try:
+            ok = stage.GetRootLayer().Export(tmp)
+        except Tf.ErrorException as exc:
+            raise InputError(f"USD stage '{path}': could not be written ({' '.join(str(exc).split())[-200:]})") \
+                from None
+        if not ok:
             raise InputError(f"USD stage '{path}': could not be written")
         os.replace(tmp, path)
         # A layer of the same path still open in this process would otherwise keep the old content.

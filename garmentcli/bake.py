@@ -13,34 +13,13 @@ import numpy as np
 from tqdm import tqdm
 
 from core.bake import bake_item
-from core.body import Body, default_body
+from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.errors import InputError
-from core.motion import parse_frame_range, resample, select_frames, settle
-from garmentcli.common import atomic_output_dir, input_errors_as_click
+from core.motion import parse_frame_range
+from garmentcli.common import atomic_output_dir, input_errors_as_click, load_body_option, prepare_motion
 
 log = logging.getLogger(__name__)
-
-
-def load_body_option(body_path: str | None) -> Body:
-    """The body named by --body, or the embedded default body."""
-    if body_path is None:
-        return default_body()
-    from formats.body import load_body
-
-    return load_body(body_path)
-
-
-def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int):
-    """Read a motion file and apply --frames (source frames), --fps and --settle, in that order."""
-    from formats.motion import load_motion
-
-    motion = load_motion(path)
-    source_fps = motion.fps
-    if frames:
-        motion = select_frames(motion, *parse_frame_range(frames))
-    motion = resample(motion, fps)
-    return settle(motion, settle_frames), source_fps
 
 
 def make_deformer(method: str, lbs_smooth: int):

@@ -11,7 +11,9 @@ from pathlib import Path
 
 import click
 
+from core.body import Body, default_body
 from core.errors import InputError
+from core.motion import parse_frame_range, resample, select_frames, settle
 
 
 def input_errors_as_click(func):
@@ -52,3 +54,24 @@ def atomic_output_dir(final: Path, overwrite: bool):
         shutil.rmtree(old, ignore_errors=True)
     else:
         os.replace(tmp, final)
+
+
+def load_body_option(body_path: str | None) -> Body:
+    """The body named by --body, or the embedded default body."""
+    if body_path is None:
+        return default_body()
+    from formats.body import load_body
+
+    return load_body(body_path)
+
+
+def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int):
+    """Read a motion file and apply --frames (source frames), --fps and --settle, in that order."""
+    from formats.motion import load_motion
+
+    motion = load_motion(path)
+    source_fps = motion.fps
+    if frames:
+        motion = select_frames(motion, *parse_frame_range(frames))
+    motion = resample(motion, fps)
+    return settle(motion, settle_frames), source_fps

@@ -27,6 +27,22 @@ def _inside_fn(depth_m: float):
     return frames_inside(lambda points, verts, faces: points_inside_mesh(points, verts, faces, depth=depth_m))
 
 
+def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames):
+    """The body posed by the motion exactly as `garment bake` prepares it, as a Sequence-like record."""
+    from types import SimpleNamespace
+
+    from core.motion import poses_for_body
+    from garmentcli.common import load_body_option, prepare_motion
+
+    body = load_body_option(None if body_file is None else str(body_file))
+    motion, _ = prepare_motion(str(motion_file), fps, frames, settle_frames)
+    if motion.n_frames != n_frames:
+        raise InputError(f"--motion '{motion_file}': expected {n_frames} frames like PRED, got {motion.n_frames} "
+                         f"at --fps {fps:g} (pass the --fps, --frames and --settle of the bake)")
+    points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
+    return SimpleNamespace(body_points=points, body_faces=body.faces, source=str(motion_file))
+
+
 def _default_depth_mm() -> float:
     """The depth `garment bake` uses in its penetration summary, so both report the same share."""
     from core.bake import PENETRATION_DEPTH_M
@@ -42,16 +58,22 @@ def _default_depth_mm() -> float:
 @click.option("--format", "fmt", type=click.Choice(sorted(_FORMATS)), default="all", show_default=True,
               help="Which report files to write with --out.")
 @click.option("--body", "body_file", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
-              help="Body model to pose with --motion for the penetration rate (when PRED carries no body).")
+              help="Body model to pose with --motion (default: the embedded body).")
 @click.option("--motion", "motion_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              default=None, help="Motion (.npz) that posed the body, with --body.")
+              default=None, help="Motion (.npz) of the bake: the body posed with it (same --fps, --frames, --settle "
+                                 "as the bake) gives the penetration rate when PRED carries no body.")
+@click.option("--fps", type=float, default=30.0, show_default=True, help="With --motion: the frame rate of the bake.")
+@click.option("--frames", default=None, metavar="START:STOP", help="With --motion: the source frames of the bake.")
+@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
+              help="With --motion: the settle frames of the bake.")
 @click.option("--depth-mm", type=click.FloatRange(min=0.0), default=None,
               help="A garment vertex counts as penetrating when more than this inside the body "
                    "[default: as garment bake, 2 mm].")
 @click.option("--overwrite", is_flag=True, help="Replace existing report files in --out.")
 @input_errors_as_click
 def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Path | None,
-            motion_file: Path | None, depth_mm: float | None, overwrite: bool) -> None:
+            motion_file: Path | None, fps: float, frames: str | None, settle_frames: int, depth_mm: float | None,
+            overwrite: bool) -> None:
     """Compare a predicted garment sequence PRED with a ground truth GT.
 
     PRED and GT are OBJ-sequence directories, USD files or .npz sequences of the
@@ -63,11 +85,8 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
     from core.metrics import check_comparable, compute_metrics
     from formats.report import REPORT_NAMES, overall_markdown, write_report
 
-    if body_file is not None or motion_file is not None:
-        # TODO: pose the body with the motion at the sequence's frames once a posing helper exists.
-        opt = "--body" if body_file is not None else "--motion"
-        raise InputError(f"{opt}: posing a body from a motion is not yet supported; pass a PRED that "
-                         "carries the body (a USD from `garment bake`, or an .npz with body_points/body_faces)")
+    if body_file is not None and motion_file is None:
+        raise click.BadParameter("needs --motion, the motion that posed the body", param_hint="--body")
 
     formats = _FORMATS[fmt]
     if out_dir is not None and not overwrite:
@@ -80,6 +99,8 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
     check_comparable(p_seq.points, p_seq.faces, g_seq.points, g_seq.faces, str(pred), str(gt))
 
     body = next((s for s in (p_seq, g_seq) if s.body_points is not None and s.body_faces is not None), None)
+    if motion_file is not None:
+        body = _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, p_seq.points.shape[0])
     if depth_mm is None:
         depth_mm = _default_depth_mm()
     inside_fn = _inside_fn(depth_mm * 1e-3) if body is not None else None

@@ -142,4 +142,6 @@ def test_write_rejects_bad_tracks(tmp_path):
     bad_uv = MeshTrack("garment", tracks[0].points, tracks[0].faces, uvs=np.zeros((4, 2)))
     with pytest.raises(InputError, match=r"expected uvs \(6, 2\) face-varying"):
         write_usd_stage(tmp_path / "x.usd", [bad_uv], fps=30)
+    with pytest.raises(InputError, match=r"expected a .usd, .usda or .usdc file name, got '.abc'"):
+        write_usd_stage(tmp_path / "x.abc", tracks, fps=30)
     assert not (tmp_path / "x.usd").exists()

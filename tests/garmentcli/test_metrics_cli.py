@@ -158,9 +158,20 @@ def test_bad_format(tmp_path, seq):
     assert_clean_failure(run([a, a, "--format", "xml"]), "--format", "xml")
 
 
-def test_body_motion_not_yet_supported(tmp_path, seq):
-    pts, f = seq
-    a = save_seq(tmp_path / "a.npz", pts, f)
-    motion = tmp_path / "walk.npz"
-    np.savez(motion, poses=np.zeros((3, 72)), trans=np.zeros((3, 3)))
-    assert_clean_failure(run([a, a, "--motion", motion]), "--motion", "not yet supported")
+def test_body_from_motion_matches_bake_penetration(scene):
+    """--body/--motion pose the body like the bake did: same penetration share as a USD that carries it."""
+    args = ["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--settle", 2]
+    assert CliRunner().invoke(cli, [str(x) for x in args]).exit_code == 0
+    d = scene["out"] / "shell_walk"
+    with_body = run([d / "shell_walk.usd", d / "obj", "--out", scene["dir"] / "m1", "--format", "json"])
+    from_motion = run([d / "obj", d / "obj", "--body", scene["body"], "--motion", scene["motion"], "--settle", 2,
+                       "--out", scene["dir"] / "m2", "--format", "json"])
+    assert with_body.exit_code == 0 and from_motion.exit_code == 0, (with_body.output, from_motion.output)
+    m1 = json.loads((scene["dir"] / "m1" / "metrics.json").read_text())
+    m2 = json.loads((scene["dir"] / "m2" / "metrics.json").read_text())
+    assert m1["overall"]["penetration_pct"] == pytest.approx(m2["overall"]["penetration_pct"], abs=1e-6)
+    # a motion prepared differently (no settle) has another frame count: a clear error
+    bad = run([d / "obj", d / "obj", "--body", scene["body"], "--motion", scene["motion"]])
+    assert_clean_failure(bad, "--motion", "frames")
+    assert_clean_failure(run([d / "obj", d / "obj", "--body", scene["body"]]), "--body", "--motion")
+

@@ -1,0 +1,203 @@
+"""Tests of core/motion.py: resampling, joint layouts, frame selection, settle blends."""
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from core.motion import Motion, parse_frame_range, poses_for_body, resample, select_frames, settle, validate_motion_values
+from core.rotations import axis_angle_to_matrix, axis_angle_to_quat, quat_to_axis_angle
+
+AXIS = np.array([0.48, 0.6, 0.64])  # unit axis
+OMEGA = 2.5  # rad/s
+
+
+def _spinning_motion(fps, n_frames, n_joints=24):
+    """Joint 1 spins at OMEGA rad/s about AXIS (beyond pi over the clip); trans moves linearly."""
+    t = np.arange(n_frames) / fps
+    poses = np.zeros((n_frames, n_joints, 3), dtype=np.float32)
+    poses[:, 1] = (OMEGA * t)[:, None] * AXIS
+    poses[:, 0] = [np.pi / 2, 0, 0]
+    trans = np.stack([0.5 + 1.2 * t, -0.3 * t, 0.9 + 0.0 * t], axis=1).astype(np.float32)
+    return Motion(poses=poses, trans=trans, fps=fps, name="spin")
+
+
+def _random_motion(n_frames, n_joints, seed=0):
+    rng = np.random.default_rng(seed)
+    poses = rng.normal(scale=0.4, size=(n_frames, n_joints, 3)).astype(np.float32)
+    trans = rng.normal(size=(n_frames, 3)).astype(np.float32)
+    return Motion(poses=poses, trans=trans, fps=30.0, name="random")
+
+
+@pytest.mark.parametrize("src_fps, dst_fps", [(120, 30), (100, 30), (59.94, 30), (30, 60), (24, 30)])
+def test_resample_counts_times_and_exact_curves(src_fps, dst_fps):
+    n = int(round(2.0 * src_fps)) + 1  # a little over 2 s
+    m = _spinning_motion(float(src_fps), n)
+    out = resample(m, float(dst_fps))
+    duration = (n - 1) / src_fps
+    expected_n = int(np.floor(duration * dst_fps + 1e-6)) + 1
+    assert out.n_frames == expected_n
+    assert out.fps == dst_fps
+    assert out.duration_s <= duration + 1e-9
+    assert duration - out.duration_s < 1.0 / dst_fps
+    t = np.arange(expected_n) / dst_fps
+    # Constant angular velocity about one axis is reproduced exactly by slerp.
+    np.testing.assert_allclose(axis_angle_to_matrix(out.poses[:, 1]),
+                               axis_angle_to_matrix((OMEGA * t)[:, None] * AXIS), atol=2e-6)
+    np.testing.assert_allclose(out.poses[:, 0], np.broadcast_to([np.pi / 2, 0, 0], (expected_n, 3)), atol=1e-6)
+    np.testing.assert_allclose(out.poses[:, 2:], 0.0, atol=1e-7)
+    # Linear translation is interpolated exactly.
+    np.testing.assert_allclose(out.trans, np.stack([0.5 + 1.2 * t, -0.3 * t, 0.9 + 0.0 * t], 1), atol=2e-6)
+    assert out.poses.dtype == np.float32 and out.trans.dtype == np.float32
+
+
+def test_resample_59_94_to_30_frame_count():
+    out = resample(_spinning_motion(59.94, 600), 30.0)
+    assert out.n_frames == 300  # 599 / 59.94 s = 9.993 s -> frames at 0 .. 299/30 s
+
+
+def test_resample_same_fps_and_single_frame_are_unchanged():
+    m = _random_motion(5, 24)
+    same = resample(m, 30.0)
+    np.testing.assert_array_equal(same.poses, m.poses)
+    one = resample(_random_motion(1, 52), 120.0)
+    assert one.n_frames == 1 and one.fps == 120.0
+
+
+def test_resample_keeps_metadata_and_layout():
+    m = _random_motion(31, 55)
+    m = Motion(poses=m.poses, trans=m.trans, fps=30.0, betas=np.ones(10, np.float32), gender="female", name="x")
+    out = resample(m, 60.0)
+    assert out.poses.shape == (61, 55, 3)
+    assert out.gender == "female" and out.name == "x"
+    np.testing.assert_array_equal(out.betas, m.betas)
+    # Source frames land on even output frames unchanged (as rotations).
+    np.testing.assert_allclose(axis_angle_to_matrix(out.poses[::2]), axis_angle_to_matrix(m.poses), atol=1e-5)
+
+
+@pytest.mark.parametrize("fps", [0.0, -30.0, float("nan"), float("inf")])
+def test_resample_rejects_bad_fps(fps):
+    with pytest.raises(InputError, match="--fps"):
+        resample(_random_motion(3, 24), fps)
+
+
+@pytest.mark.parametrize("src_joints, dst_joints", [(j, k) for j in (24, 52, 55) for k in (24, 52, 55)])
+def test_poses_for_body(src_joints, dst_joints):
+    m = _random_motion(4, src_joints, seed=src_joints)
+    out = poses_for_body(m, dst_joints)
+    assert out.shape == (4, dst_joints, 3) and out.dtype == np.float32
+    np.testing.assert_array_equal(out[:, :22], m.poses[:, :22])
+    if src_joints == dst_joints:
+        np.testing.assert_array_equal(out, m.poses)
+        return
+    hand_start = {52: 22, 55: 25}
+    if dst_joints == 24:
+        np.testing.assert_array_equal(out[:, 22:], 0.0)  # SMPL hands zeroed
+    elif src_joints == 24:
+        np.testing.assert_array_equal(out[:, 22:], 0.0)  # nothing to map from SMPL's two hand joints
+    else:
+        s, t = hand_start[src_joints], hand_start[dst_joints]
+        np.testing.assert_array_equal(out[:, t:t + 30], m.poses[:, s:s + 30])
+        if dst_joints == 55:
+            np.testing.assert_array_equal(out[:, 22:25], 0.0)  # jaw and eyes
+
+
+def test_poses_for_body_returns_a_copy():
+    m = _random_motion(2, 24)
+    out = poses_for_body(m, 24)
+    out[:] = 0
+    assert np.any(m.poses != 0)
+
+
+def test_poses_for_body_rejects_unknown_joint_count():
+    with pytest.raises(InputError, match="30 joints"):
+        poses_for_body(_random_motion(2, 24), 30)
+
+
+@pytest.mark.parametrize("start, stop, expected", [(None, None, range(10)), (2, 5, range(2, 5)), (7, None, range(7, 10)),
+                                                   (None, 3, range(3)), (-3, None, range(7, 10)), (5, 100, range(5, 10))])
+def test_select_frames(start, stop, expected):
+    m = _random_motion(10, 24)
+    out = select_frames(m, start, stop)
+    np.testing.assert_array_equal(out.poses, m.poses[list(expected)])
+    np.testing.assert_array_equal(out.trans, m.trans[list(expected)])
+    assert out.fps == m.fps
+
+
+@pytest.mark.parametrize("start, stop", [(5, 5), (8, 2), (20, None), (None, -20)])
+def test_select_frames_empty_selection_is_an_error(start, stop):
+    with pytest.raises(InputError, match=r"--frames .*selects no frame.*10 frames"):
+        select_frames(_random_motion(10, 24), start, stop)
+
+
+@pytest.mark.parametrize("text, expected", [("0:120", (0, 120)), ("30:", (30, None)), (":50", (None, 50)),
+                                            (":", (None, None)), (" 3 : 7 ", (3, 7)), ("-10:", (-10, None))])
+def test_parse_frame_range(text, expected):
+    assert parse_frame_range(text) == expected
+
+
+@pytest.mark.parametrize("text", ["", "5", "1:2:3", "a:b", "1.5:3", "0:x"])
+def test_parse_frame_range_errors(text):
+    with pytest.raises(InputError, match="--frames") as info:
+        parse_frame_range(text)
+    assert "\n" not in str(info.value)
+
+
+def _angle_between(aa0, aa1):
+    """(..., ) rotation angle between axis-angle rotations."""
+    q0, q1 = axis_angle_to_quat(aa0), axis_angle_to_quat(aa1)
+    return 2 * np.arccos(np.clip(np.abs(np.sum(q0 * q1, -1)), 0, 1))
+
+
+def test_settle_blends_from_rest_pose():
+    m = _random_motion(6, 24, seed=3)
+    K = 8
+    out = settle(m, K)
+    assert out.n_frames == m.n_frames + K and out.n_settle == K
+    np.testing.assert_array_equal(out.poses[K:], m.poses)
+    np.testing.assert_array_equal(out.trans[K:], m.trans)
+    np.testing.assert_array_equal(out.trans[:K], np.repeat(m.trans[:1], K, 0))
+    # First frame: rest pose except the root, which holds frame 0's orientation.
+    np.testing.assert_allclose(out.poses[0, 1:], 0.0, atol=1e-7)
+    np.testing.assert_allclose(_angle_between(out.poses[:K, 0], m.poses[0, 0]), 0.0, atol=1e-6)
+    # The last blend frame is 1/K of the way short of frame 0, per joint.
+    full = _angle_between(np.zeros(3), m.poses[0, 1:])
+    np.testing.assert_allclose(_angle_between(out.poses[K - 1, 1:], m.poses[0, 1:]), full / K, atol=1e-5)
+    # Each joint moves monotonically towards frame 0 in equal steps.
+    d = _angle_between(out.poses[:K, 1:], m.poses[0, 1:][None])
+    np.testing.assert_allclose(d, full[None] * (1 - np.arange(K)[:, None] / K), atol=1e-5)
+
+
+def test_settle_zero_and_accumulation_and_errors():
+    m = _random_motion(3, 52)
+    assert settle(m, 0) is m
+    twice = settle(settle(m, 2), 3)
+    assert twice.n_settle == 5 and twice.n_frames == 8
+    with pytest.raises(InputError, match="--settle"):
+        settle(m, -1)
+
+
+def test_motion_rejects_bad_shapes():
+    with pytest.raises(InputError, match="24\\|52\\|55"):
+        Motion(poses=np.zeros((3, 23, 3), np.float32), trans=np.zeros((3, 3), np.float32), fps=30.0)
+    with pytest.raises(InputError, match="trans"):
+        Motion(poses=np.zeros((3, 24, 3), np.float32), trans=np.zeros((2, 3), np.float32), fps=30.0)
+    with pytest.raises(InputError, match="positive frame rate"):
+        Motion(poses=np.zeros((3, 24, 3), np.float32), trans=np.zeros((3, 3), np.float32), fps=0.0)
+    m = _random_motion(31, 24)
+    assert m.layout == "smpl" and m.n_frames == 31 and m.duration_s == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("key", ["poses", "trans"])
+def test_validate_motion_values_names_first_bad_frame(key):
+    m = _random_motion(6, 24)
+    getattr(m, key)[4].flat[0] = np.nan
+    getattr(m, key)[5].flat[0] = np.inf
+    with pytest.raises(InputError, match=f"motion 'walk.npz': {key} contains NaN or Inf \\(first at frame 4\\)"):
+        validate_motion_values(m, "walk.npz")
+    validate_motion_values(_random_motion(6, 24), "ok.npz")
+
+
+def test_resample_output_is_canonical_axis_angle():
+    out = resample(_spinning_motion(120.0, 241), 30.0)
+    assert np.all(np.linalg.norm(out.poses, axis=-1) <= np.pi + 1e-5)
+    np.testing.assert_allclose(quat_to_axis_angle(axis_angle_to_quat(out.poses)), out.poses, atol=1e-5)

@@ -1,0 +1,262 @@
+"""Tests of formats/motion.py: AMASS-style .npz reading, writing and validation."""
+
+import logging
+import zipfile
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from core.motion import Motion
+from formats.motion import load_motion, save_motion
+
+
+def _poses(T, n_values, seed=0):
+    return np.random.default_rng(seed).normal(scale=0.3, size=(T, n_values)).astype(np.float32)
+
+
+def _trans(T):
+    return np.stack([np.linspace(0, 1, T), np.zeros(T), np.full(T, 0.9)], 1).astype(np.float32)
+
+
+def _write(tmp_path, name="m.npz", **arrays):
+    path = tmp_path / name
+    np.savez(path, **arrays)
+    return path
+
+
+@pytest.mark.parametrize("n_values, n_joints", [(72, 24), (156, 52), (165, 55)])
+def test_load_layouts(tmp_path, n_values, n_joints):
+    poses = _poses(5, n_values)
+    path = _write(tmp_path, poses=poses, trans=_trans(5), betas=np.arange(16, dtype=np.float64),
+                  mocap_framerate=np.array(120.0), gender=np.array("female"))
+    m = load_motion(path)
+    assert m.poses.shape == (5, n_joints, 3) and m.poses.dtype == np.float32
+    np.testing.assert_array_equal(m.poses.reshape(5, -1), poses)
+    np.testing.assert_array_equal(m.trans, _trans(5))
+    np.testing.assert_array_equal(m.betas, np.arange(16))
+    assert m.fps == 120.0 and m.gender == "female" and m.name == "m"
+    assert m.layout == {24: "smpl", 52: "smplh", 55: "smplx"}[n_joints]
+
+
+def test_load_tjx3_poses(tmp_path):
+    poses = _poses(4, 156).reshape(4, 52, 3)
+    m = load_motion(_write(tmp_path, poses=poses, trans=_trans(4), mocap_framerate=30))
+    np.testing.assert_array_equal(m.poses, poses)
+
+
+@pytest.mark.parametrize("key", ["mocap_framerate", "mocap_frame_rate"])
+def test_both_framerate_spellings(tmp_path, key):
+    m = load_motion(_write(tmp_path, poses=_poses(3, 72), trans=_trans(3), **{key: np.array(59.94)}))
+    assert m.fps == pytest.approx(59.94)
+
+
+def test_fps_override_and_missing_framerate(tmp_path):
+    path = _write(tmp_path, poses=_poses(3, 72), trans=_trans(3))
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    msg = str(info.value)
+    assert "mocap_framerate" in msg and "mocap_frame_rate" in msg and str(path) in msg and "\n" not in msg
+    assert load_motion(path, fps=50.0).fps == 50.0
+    path2 = _write(tmp_path, "n.npz", poses=_poses(3, 72), trans=_trans(3), mocap_framerate=120.0)
+    assert load_motion(path2, fps=25).fps == 25.0
+
+
+def test_smplx_split_keys(tmp_path):
+    T = 6
+    rng = np.random.default_rng(1)
+    parts = {"root_orient": rng.normal(size=(T, 3)), "pose_body": rng.normal(size=(T, 63)),
+             "pose_jaw": rng.normal(size=(T, 3)), "pose_eye": rng.normal(size=(T, 6)),
+             "pose_hand": rng.normal(size=(T, 90))}
+    m = load_motion(_write(tmp_path, trans=_trans(T), mocap_frame_rate=60.0, **parts))
+    expected = np.concatenate([parts[k] for k in ("root_orient", "pose_body", "pose_jaw", "pose_eye", "pose_hand")], 1)
+    assert m.poses.shape == (T, 55, 3)
+    np.testing.assert_allclose(m.poses.reshape(T, -1), expected.astype(np.float32))
+
+
+def test_smplx_split_keys_without_hands(tmp_path):
+    T = 3
+    m = load_motion(_write(tmp_path, root_orient=np.ones((T, 3)), pose_body=np.full((T, 63), 0.1),
+                           trans=_trans(T), mocap_frame_rate=30))
+    assert m.poses.shape == (T, 55, 3)
+    np.testing.assert_allclose(m.poses[:, 0], 1.0)
+    np.testing.assert_allclose(m.poses[:, 1:22], 0.1)
+    np.testing.assert_array_equal(m.poses[:, 22:], 0.0)
+
+
+def test_poses_preferred_over_split_keys(tmp_path):
+    m = load_motion(_write(tmp_path, poses=_poses(2, 72), root_orient=np.ones((2, 3)), pose_body=np.ones((2, 63)),
+                           trans=_trans(2), mocap_framerate=30))
+    assert m.poses.shape == (2, 24, 3)
+
+
+def test_single_frame(tmp_path):
+    m = load_motion(_write(tmp_path, poses=_poses(1, 72)[0], trans=np.array([0, 0, 0.9]), mocap_framerate=30))
+    assert m.n_frames == 1 and m.trans.shape == (1, 3)
+    m2 = load_motion(_write(tmp_path, "b.npz", poses=_poses(1, 156), trans=_trans(1), mocap_framerate=30))
+    assert m2.n_frames == 1
+
+
+def test_missing_trans_warns_and_uses_zeros(tmp_path, caplog):
+    with caplog.at_level(logging.WARNING, logger="formats.motion"):
+        m = load_motion(_write(tmp_path, poses=_poses(4, 72), mocap_framerate=30))
+    np.testing.assert_array_equal(m.trans, np.zeros((4, 3)))
+    assert any("trans" in r.getMessage() for r in caplog.records)
+
+
+@pytest.mark.parametrize("raw, expected", [(np.array("male"), "male"), (np.array(b"female"), "female"),
+                                           (np.array(["neutral"]), "neutral"), ("male", "male")])
+def test_gender_forms(tmp_path, raw, expected):
+    m = load_motion(_write(tmp_path, poses=_poses(2, 72), trans=_trans(2), mocap_framerate=30, gender=raw))
+    assert m.gender == expected
+
+
+def test_betas_any_length_and_optional(tmp_path):
+    m = load_motion(_write(tmp_path, poses=_poses(2, 72), trans=_trans(2), mocap_framerate=30, betas=np.ones(300)))
+    assert m.betas.shape == (300,)
+    m = load_motion(_write(tmp_path, "b.npz", poses=_poses(2, 72), trans=_trans(2), mocap_framerate=30))
+    assert m.betas is None and m.gender is None
+
+
+@pytest.mark.parametrize("n_joints", [24, 52, 55])
+def test_round_trip(tmp_path, n_joints):
+    rng = np.random.default_rng(n_joints)
+    m = Motion(poses=rng.normal(size=(7, n_joints, 3)).astype(np.float32), trans=_trans(7), fps=59.94,
+               betas=rng.normal(size=10).astype(np.float32), gender="male", name="x")
+    path = tmp_path / "sub" / "out.npz"
+    save_motion(path, m)
+    back = load_motion(path)
+    np.testing.assert_array_equal(back.poses, m.poses)
+    np.testing.assert_array_equal(back.trans, m.trans)
+    np.testing.assert_array_equal(back.betas, m.betas)
+    assert back.fps == m.fps and back.gender == "male"
+    # The file follows the AMASS convention.
+    with np.load(path) as data:
+        assert data["poses"].shape == (7, n_joints * 3) and data["poses"].dtype == np.float32
+        assert float(data["mocap_framerate"]) == pytest.approx(59.94)
+    save_motion(path, back)  # load -> save -> load again
+    again = load_motion(path)
+    np.testing.assert_array_equal(again.poses, m.poses)
+    assert [p.name for p in path.parent.iterdir()] == ["out.npz"]  # no temp files left
+
+
+def test_save_without_betas_or_gender(tmp_path):
+    m = Motion(poses=np.zeros((2, 24, 3), np.float32), trans=np.zeros((2, 3), np.float32), fps=30.0)
+    save_motion(tmp_path / "a.npz", m)
+    back = load_motion(tmp_path / "a.npz")
+    np.testing.assert_array_equal(back.betas, np.zeros(16))
+    assert back.gender == "neutral"
+
+
+def _assert_one_line(info, *fragments):
+    msg = str(info.value)
+    assert "\n" not in msg
+    for f in fragments:
+        assert f in msg, (f, msg)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(InputError) as info:
+        load_motion(tmp_path / "nope.npz")
+    _assert_one_line(info, "nope.npz", "not found")
+
+
+def test_not_an_npz(tmp_path):
+    path = tmp_path / "text.npz"
+    path.write_text("hello, this is not an archive\n")
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    _assert_one_line(info, "text.npz", "npz")
+
+
+def test_npy_instead_of_npz(tmp_path):
+    path = tmp_path / "poses.npy"
+    np.save(path, _poses(3, 72))
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    _assert_one_line(info, "poses.npy", ".npz")
+
+
+def test_corrupt_npz(tmp_path):
+    good = _write(tmp_path, poses=_poses(50, 156), trans=_trans(50), mocap_framerate=30)
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    with pytest.raises(InputError) as info:
+        load_motion(bad)
+    _assert_one_line(info, "bad.npz")
+
+
+def test_corrupt_member(tmp_path):
+    path = tmp_path / "member.npz"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("poses.npy", b"garbage that is not an npy header")
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    _assert_one_line(info, "member.npz")
+
+
+def test_missing_poses_keys(tmp_path):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, trans=_trans(3), mocap_framerate=30))
+    _assert_one_line(info, "m.npz", "poses", "root_orient")
+
+
+@pytest.mark.parametrize("n_values", [69, 63, 168, 3])
+def test_wrong_values_per_frame(tmp_path, n_values):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, poses=_poses(3, n_values), trans=_trans(3), mocap_framerate=30))
+    _assert_one_line(info, "m.npz", "72", "156", "165", f"got {n_values}")
+
+
+def test_wrong_joint_count_tjx3(tmp_path):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, poses=np.zeros((3, 23, 3)), trans=_trans(3), mocap_framerate=30))
+    _assert_one_line(info, "m.npz", "(3, 23, 3)")
+
+
+def test_split_key_wrong_width(tmp_path):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, root_orient=np.zeros((3, 3)), pose_body=np.zeros((3, 60)), mocap_framerate=30))
+    _assert_one_line(info, "pose_body", "63", "60")
+
+
+def test_trans_frame_count_mismatch(tmp_path):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, poses=_poses(5, 72), trans=_trans(4), mocap_framerate=30))
+    _assert_one_line(info, "m.npz", "trans", "4", "5")
+
+
+def test_trans_wrong_width(tmp_path):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, poses=_poses(5, 72), trans=np.zeros((5, 2)), mocap_framerate=30))
+    _assert_one_line(info, "m.npz", "trans", "(5, 2)")
+
+
+@pytest.mark.parametrize("key, value", [("poses", np.nan), ("poses", np.inf), ("trans", -np.inf)])
+def test_nan_inf(tmp_path, key, value):
+    arrays = {"poses": _poses(5, 72), "trans": _trans(5), "mocap_framerate": 30}
+    arrays[key][3, 1] = value
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, **arrays))
+    _assert_one_line(info, "m.npz", key, "NaN or Inf", "frame 3")
+
+
+@pytest.mark.parametrize("fps", [0.0, -30.0, np.nan])
+def test_non_positive_frame_rate(tmp_path, fps):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, poses=_poses(2, 72), trans=_trans(2), mocap_framerate=fps))
+    _assert_one_line(info, "m.npz", "positive frame rate", "mocap_framerate")
+    with pytest.raises(InputError, match="positive frame rate"):
+        load_motion(_write(tmp_path, "ok.npz", poses=_poses(2, 72), trans=_trans(2), mocap_framerate=30), fps=fps)
+
+
+def test_zero_frames(tmp_path):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, poses=np.zeros((0, 72)), trans=np.zeros((0, 3)), mocap_framerate=30))
+    _assert_one_line(info, "m.npz", "at least 1 frame")
+
+
+def test_non_numeric_poses(tmp_path):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, poses=np.array([["a"] * 72]), trans=_trans(1), mocap_framerate=30))
+    _assert_one_line(info, "m.npz", "poses")
