@@ -347,14 +347,14 @@ def default_body() -> Body:
         with resources.as_file(ref) as path, np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
         if "J_regressor_indices" in arrays:
-            arrays["J_regressor"] = _dense_from_sparse(arrays, "J_regressor")
+            arrays["J_regressor"] = dense_from_sparse(arrays, "J_regressor")
         if "weights_indices" in arrays:
-            arrays["weights"] = _dense_from_sparse(arrays, "weights")
+            arrays["weights"] = dense_from_sparse(arrays, "weights")
         cache["body"] = body_from_arrays(arrays, name="default", source="embedded default body")
     return cache["body"]
 
 
-def _dense_from_sparse(arrays: dict, key: str) -> np.ndarray:
+def dense_from_sparse(arrays: dict, key: str) -> np.ndarray:
     """Rebuild a dense matrix saved as `{key}_indices (nnz, 2)`, `{key}_values (nnz,)`, `{key}_shape (2,)`."""
     idx = arrays.pop(f"{key}_indices")
     val = arrays.pop(f"{key}_values")

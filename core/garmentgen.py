@@ -49,6 +49,8 @@ log = logging.getLogger(__name__)
 #: Vertex-count range every example garment is built to.
 MIN_VERTICES = 2000
 MAX_VERTICES = 8000
+#: Vertex count the offset garments (t-shirt, trousers, jumpsuit) are refined towards.
+TARGET_VERTICES = 5000
 
 _J = {name: i for i, name in enumerate(SMPL_JOINT_NAMES[:22])}
 _ARM_JOINTS = ("left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist")
@@ -117,16 +119,31 @@ class _RestBody:
             check = np.flatnonzero((d_vertex < clearance + 2 * self.mesh.max_radius) | (facing < 0))
             if len(check) == 0:
                 break
-            res = self.mesh.closest(points[check])
-            sd = res.distance * self.mesh._sign(points[check], res)
+            closest, normal = self.closest_with_normals(points[check])
+            sd = np.einsum("ij,ij->i", points[check] - closest, normal)
             bad = sd < clearance[check] - 1e-6
             if not bad.any():
                 break
-            f = self.faces[res.face_index[bad]]
-            n = np.einsum("ik,ikc->ic", res.barycentric[bad], self.normals[f])
-            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-            points[check[bad]] = res.closest[bad] + n * clearance[check[bad], None]
+            points[check[bad]] = closest[bad] + normal[bad] * clearance[check[bad], None]
         return points
+
+    def closest_with_normals(self, points: np.ndarray, k: int = 24) -> tuple[np.ndarray, np.ndarray]:
+        """Closest body points (N, 3) among the k faces with the nearest centroids, and the
+        interpolated unit vertex normal there (N, 3). Exact for points within a few centimetres of
+        the surface, which is all the fitting needs (core.geometry's exact query is slower)."""
+        from core.geometry import closest_point_on_triangles
+
+        k = min(k, len(self.faces))
+        _, cand = self.mesh.tree.query(points, k=k)
+        cand = cand.reshape(len(points), k)
+        tri = self.verts[self.faces[cand]]  # (N, k, 3, 3)
+        cp, bary = closest_point_on_triangles(points[:, None], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
+        best = np.argmin(np.linalg.norm(cp - points[:, None], axis=-1), axis=1)
+        rows = np.arange(len(points))
+        face = cand[rows, best]
+        normal = np.einsum("ik,ikc->ic", bary[rows, best], self.normals[self.faces[face]])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        return cp[rows, best], normal
 
 
 # --------------------------------------------------------------------------- tubes (dress, skirt)
@@ -324,6 +341,55 @@ def _subdivide_midpoint(attrs: list[np.ndarray], faces: np.ndarray) -> tuple[lis
     return new_attrs, out
 
 
+def _refine_long_edges(attrs: list[np.ndarray], faces: np.ndarray, target: int) -> tuple[list[np.ndarray], np.ndarray]:
+    """One pass of red-green refinement that splits the edges longer than the spacing of a
+    `target`-vertex mesh of the same area (never above MAX_VERTICES in all).
+
+    Faces with all three edges split become four (red), faces with one split edge two (green);
+    a face with two split edges gets its third split too. Attributes (V, ...) are averaged
+    onto the new edge vertices; attrs[0] are the positions (V, 3).
+    """
+    pts = attrs[0]
+    V = len(pts)
+    e = np.stack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], axis=1)  # edge k joins corners k, k+1
+    uniq, inv = np.unique(np.sort(e, axis=-1).reshape(-1, 2), axis=0, return_inverse=True)
+    inv = inv.reshape(-1, 3)
+    length = np.linalg.norm(pts[uniq[:, 0]] - pts[uniq[:, 1]], axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(pts[faces[:, 1]] - pts[faces[:, 0]], pts[faces[:, 2]] - pts[faces[:, 0]]), axis=1).sum()
+    spacing = np.sqrt(2 * area / (np.sqrt(3) * target))
+    for _ in range(20):
+        split = length > spacing
+        while True:
+            promote = split[inv].sum(axis=1) == 2
+            if not promote.any():
+                break
+            split[inv[promote].ravel()] = True
+        if V + split.sum() <= MAX_VERTICES:
+            break
+        spacing *= 1.15
+    if not split.any():
+        return attrs, faces
+    new_index = np.full(len(uniq), -1, dtype=np.int64)
+    new_index[split] = V + np.arange(split.sum())
+    su = uniq[split]
+    attrs = [np.concatenate([a, 0.5 * (a[su[:, 0]] + a[su[:, 1]])]) for a in attrs]
+    mid = new_index[inv]  # (F, 3) new vertex on edge k, or -1
+    n_split = (mid >= 0).sum(axis=1)
+    out = [faces[n_split == 0]]
+    red = n_split == 3
+    a, b, c = faces[red].T
+    ab, bc, ca = mid[red].T
+    out += [np.stack(x, 1) for x in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))]
+    green = np.flatnonzero(n_split == 1)
+    k = np.argmax(mid[green] >= 0, axis=1)
+    v0 = faces[green, k]
+    v1 = faces[green, (k + 1) % 3]
+    v2 = faces[green, (k + 2) % 3]
+    m = mid[green, k]
+    out += [np.stack([v0, m, v2], 1), np.stack([m, v1, v2], 1)]
+    return attrs, np.concatenate(out)
+
+
 def _neighbour_matrix(faces: np.ndarray, n: int):
     """Row-normalised vertex adjacency (n, n) sparse, and the boundary-vertex mask with boundary-only adjacency."""
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
@@ -409,6 +475,7 @@ def _offset_garment(rest: _RestBody, name: str, fields: list[Callable[[np.ndarra
         return (1 - t[used, None]) * x[parents[used, 0]] + t[used, None] * x[parents[used, 1]]
 
     attrs = [interp(rest.verts), interp(rest.normals), interp(rest.weights)]
+    attrs, faces = _refine_long_edges(attrs, faces, TARGET_VERTICES)
     while len(attrs[0]) < MIN_VERTICES:
         attrs, faces = _subdivide_midpoint(attrs, faces)
     points, normals, weights = attrs

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.body import LAYOUT_JOINTS, Body, _dense_from_sparse, body_from_arrays
+from core.body import LAYOUT_JOINTS, Body, dense_from_sparse, body_from_arrays
 from core.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -112,7 +112,7 @@ def _read_npz(path: Path, label: str) -> dict:
     for key in ("J_regressor", "weights"):
         if key not in arrays and f"{key}_indices" in arrays:
             try:
-                arrays[key] = _dense_from_sparse(arrays, key)
+                arrays[key] = dense_from_sparse(arrays, key)
             except (KeyError, IndexError, ValueError) as exc:
                 raise InputError(f"{label}: sparse {key} is malformed ({_reason(exc)})") from None
     return arrays

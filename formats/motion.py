@@ -26,7 +26,7 @@ log = logging.getLogger(__name__)
 
 FRAMERATE_KEYS = ("mocap_framerate", "mocap_frame_rate")
 _VALUES_PER_FRAME = {3 * n: n for n in LAYOUT_JOINTS.values()}  # 72, 156, 165 -> joints
-_OPTIONAL_KEYS = ("gender", "dmpls", "betas", "marker_data", "surface_model_type")
+_OPTIONAL_KEYS = ("gender", "dmpls", "marker_data", "surface_model_type")
 _EXPECTED = "72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X)"
 
 

@@ -166,7 +166,7 @@ def test_not_an_npz(tmp_path):
     path.write_text("hello, this is not an archive\n")
     with pytest.raises(InputError) as info:
         load_motion(path)
-    _assert_one_line(info, "text.npz", "npz")
+    _assert_one_line(info, "text.npz", "npz", "not one")
 
 
 def test_npy_instead_of_npz(tmp_path):
@@ -260,3 +260,15 @@ def test_non_numeric_poses(tmp_path):
     with pytest.raises(InputError) as info:
         load_motion(_write(tmp_path, poses=np.array([["a"] * 72]), trans=_trans(1), mocap_framerate=30))
     _assert_one_line(info, "m.npz", "poses")
+
+
+def test_object_array_gender_is_skipped_but_object_poses_are_an_error(tmp_path, caplog):
+    path = _write(tmp_path, poses=_poses(2, 72), trans=_trans(2), mocap_framerate=30,
+                  gender=np.array(["male"], dtype=object))
+    with caplog.at_level(logging.WARNING, logger="formats.motion"):
+        assert load_motion(path).gender is None
+    assert any("gender" in r.getMessage() for r in caplog.records)
+    path = _write(tmp_path, "o.npz", poses=np.empty((2, 72), dtype=object), trans=_trans(2), mocap_framerate=30)
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    _assert_one_line(info, "o.npz", "'poses'")
