@@ -99,7 +99,8 @@ class _RestBody:
             rel = self.verts - s
             along = rel @ u
             radial = np.linalg.norm(rel - along[:, None] * u, axis=1)
-            upper_arm = (self.weights[:, _J[f"{side}_shoulder"]] > 0.5) & (along > 0) & (along < 0.5 * np.linalg.norm(e - s))
+            near_shoulder = (along > 0) & (along < 0.5 * np.linalg.norm(e - s))
+            upper_arm = (self.weights[:, _J[f"{side}_shoulder"]] > 0.5) & near_shoulder
             r_arm = np.median(radial[upper_arm]) if upper_arm.any() else 0.05
             heights.append(s[1] - 1.3 * r_arm)
         return float(min(heights))
@@ -238,10 +239,14 @@ def _tube_garment(rest: _RestBody, name: str, y_top: float, y_bottom: float, eas
         first = int(np.argmax(flare_rows))
         r[first:] = np.maximum.accumulate(r[first:], axis=0)
         r[first:] += flare_slope * (flare_from_y - ys[first:])[:, None]
-    r = _smooth_periodic_rows(r, sigma_cols=2.0, sigma_rows=1.5)
-    r = np.maximum(r, need)
-    if flare_rows.any():
-        r[first:] = np.maximum.accumulate(r[first:], axis=0)
+    # Smooth while keeping the ease: alternate "at least the need" and Gaussian smoothing, then
+    # accept at most a third of the ease lost at the end so no kink is reintroduced.
+    for _ in range(6):
+        r = np.maximum(r, need)
+        if flare_rows.any():
+            r[first:] = np.maximum.accumulate(r[first:], axis=0)
+        r = _smooth_periodic_rows(r, sigma_cols=2.5, sigma_rows=3.0)
+    r = np.maximum(r, need - ease / 3)
 
     verts = np.empty((n_rows, n_theta, 3))
     verts[..., 0] = centre[0] + r * dirs[None, :, 0]
@@ -255,7 +260,7 @@ def _tube_garment(rest: _RestBody, name: str, y_top: float, y_bottom: float, eas
     return _finish(rest, name, verts, faces, uvs, face_uvs)
 
 
-# --------------------------------------------------------------------------- offset surfaces (t-shirt, trousers, jumpsuit)
+# --------------------------------------------------------------------------- offset surfaces (t-shirt, trousers, ...)
 
 
 def _clip_by_level_set(verts: np.ndarray, faces: np.ndarray, field: np.ndarray, snap: float):
@@ -355,7 +360,8 @@ def _refine_long_edges(attrs: list[np.ndarray], faces: np.ndarray, target: int) 
     uniq, inv = np.unique(np.sort(e, axis=-1).reshape(-1, 2), axis=0, return_inverse=True)
     inv = inv.reshape(-1, 3)
     length = np.linalg.norm(pts[uniq[:, 0]] - pts[uniq[:, 1]], axis=1)
-    area = 0.5 * np.linalg.norm(np.cross(pts[faces[:, 1]] - pts[faces[:, 0]], pts[faces[:, 2]] - pts[faces[:, 0]]), axis=1).sum()
+    cross = np.cross(pts[faces[:, 1]] - pts[faces[:, 0]], pts[faces[:, 2]] - pts[faces[:, 0]])
+    area = 0.5 * np.linalg.norm(cross, axis=1).sum()
     spacing = np.sqrt(2 * area / (np.sqrt(3) * target))
     for _ in range(20):
         split = length > spacing
@@ -575,7 +581,7 @@ def _levels(rest: _RestBody) -> dict[str, float]:
     knees = 0.5 * (rest.joint("left_knee")[1] + rest.joint("right_knee")[1])
     ankles = 0.5 * (rest.joint("left_ankle")[1] + rest.joint("right_ankle")[1])
     return {"pelvis": pelvis, "spine1": spine1, "hips": hips, "knees": knees, "ankles": ankles,
-            "waist": spine1 + 0.1 * (spine1 - pelvis), "armpits": rest.armpit_height()}
+            "armpits": rest.armpit_height()}
 
 
 def _dress(rest: _RestBody) -> Garment:
@@ -629,7 +635,8 @@ def _public(name: str) -> Callable[[Body], Garment]:
     def make(body: Body) -> Garment:
         return _BUILDERS[name](_RestBody(body))
     make.__name__ = f"make_{name}"
-    make.__doc__ = _BUILDERS[name].__doc__ + "\n\n    body: SMPL-format Body in its rest pose. Returns a Garment (metres, rest frame)."
+    make.__doc__ = (_BUILDERS[name].__doc__
+                    + "\n\n    body: SMPL-format Body in its rest pose. Returns a Garment (metres, rest frame).")
     return make
 
 

@@ -1,9 +1,9 @@
 """Mesh geometry: normals, exact closest points on a triangle mesh, signed distance, inside tests.
 
 Used by weight transfer (nearest body face), penetration statistics and
-validation. Closest points are exact: a KD-tree over face centroids proposes
+validation. Closest points are exact: a KD-tree over points covering each face proposes
 candidates and a distance bound proves that no other face can be closer
-(points where it cannot are re-queried with a ball search). Signs come from
+(points where it cannot are re-queried with more candidates). Signs come from
 angle-weighted pseudo-normals (Baerentzen and Aanaes 2005), exact for closed,
 consistently oriented meshes.
 """
@@ -134,6 +134,18 @@ def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
     return closest, bary
 
 
+def _subtriangle_centroids(n: int) -> np.ndarray:
+    """Barycentric centroids of the n*n sub-triangles of a triangle split n times per edge: (n*n, 3)."""
+    out = []
+    for i in range(n):
+        for j in range(n - i):
+            out.append(((i + 1 / 3) / n, (j + 1 / 3) / n))  # upward sub-triangle
+            if i + j <= n - 2:
+                out.append(((i + 2 / 3) / n, (j + 2 / 3) / n))  # downward sub-triangle
+    uv = np.array(out)
+    return np.column_stack([1 - uv.sum(axis=1), uv])
+
+
 @dataclass(frozen=True)
 class ClosestPoints:
     """Result of `closest_points_on_mesh` for N query points.
@@ -158,42 +170,79 @@ class TriangleMesh:
         self.verts = np.asarray(verts, dtype=np.float64)
         self.faces = np.asarray(faces, dtype=np.int64)
         tri = self.verts[self.faces]  # (F, 3, 3)
-        self.centroids = tri.mean(axis=1)
+        centroids = tri.mean(axis=1)
         # Radius of the ball around a centroid that holds its whole triangle.
-        self.radius = np.linalg.norm(tri - self.centroids[:, None], axis=-1).max(axis=1)
-        self.max_radius = float(self.radius.max()) if len(self.radius) else 0.0
-        self.tree = cKDTree(self.centroids)
+        radius = np.linalg.norm(tri - centroids[:, None], axis=-1).max(axis=1)
+        # Index sample points that cover every face within `cover` metres (a large face gets the
+        # centroids of an n x n subdivision), so the exclusion bound below is tight on meshes
+        # whose triangle sizes vary a lot.
+        cover = max(float(np.median(radius)) if len(radius) else 0.0, 1e-9)
+        n_sub = np.clip(np.ceil(radius / cover), 1, 16).astype(np.int64)
+        samples, owner = [centroids[n_sub == 1]], [np.flatnonzero(n_sub == 1)]
+        for n in np.unique(n_sub[n_sub > 1]):
+            fi = np.flatnonzero(n_sub == n)
+            w = _subtriangle_centroids(int(n))  # (S, 3) barycentric
+            samples.append(np.einsum("sk,fkc->fsc", w, tri[fi]).reshape(-1, 3))
+            owner.append(np.repeat(fi, len(w)))
+        self.sample_points = np.concatenate(samples)
+        self.sample_face = np.concatenate(owner)
+        self.cover_radius = float((radius / n_sub).max()) if len(radius) else 0.0
+        self.tree = cKDTree(self.sample_points)
         self._pseudo = None
 
-    def closest(self, points: np.ndarray, k: int = 8) -> ClosestPoints:
-        """Exact closest points on the mesh for points (N, 3)."""
+    def closest(self, points: np.ndarray, k: int = 16, exact: bool = True) -> ClosestPoints:
+        """Closest points on the mesh for points (N, 3).
+
+        Candidates are the faces of the k nearest sample points; with `exact`,
+        points for which the bound cannot exclude every other face are
+        re-queried with 4x more samples (vectorised, up to 1024), and only the
+        rare rest one by one. Without it, one pass: the best of the k candidates
+        (what per-frame penetration statistics use; a miss needs a face nearer
+        than the k nearest samples of the surface, which a smooth body rarely has).
+        """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        N, F = len(points), len(self.faces)
-        k = max(1, min(k, F))
-        cd, ci = self.tree.query(points, k=k)
-        cd = cd.reshape(N, k)
-        ci = ci.reshape(N, k)
-        tri = self.verts[self.faces[ci]]  # (N, k, 3, 3)
-        cp, bary = closest_point_on_triangles(points[:, None], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
-        d = np.linalg.norm(cp - points[:, None], axis=-1)
-        best = np.argmin(d, axis=1)
-        rows = np.arange(N)
-        dist, face = d[rows, best], ci[rows, best]
-        bary_best, cp_best = bary[rows, best], cp[rows, best]
-        # A face not among the k candidates has its centroid at least cd[:, -1] away, so
-        # its points are at least cd[:, -1] - max_radius away: beyond `dist` it cannot win.
-        unsure = (k < F) & (cd[:, -1] - self.max_radius < dist)
-        for i in np.flatnonzero(unsure):
-            cand = np.asarray(self.tree.query_ball_point(points[i], dist[i] + self.max_radius), dtype=np.int64)
-            if len(cand) == 0:
-                continue
+        N, S = len(points), len(self.sample_points)
+        dist = np.full(N, np.inf)
+        face = np.zeros(N, dtype=np.int64)
+        bary = np.zeros((N, 3))
+        cp = np.zeros((N, 3))
+        todo = np.arange(N)
+        k = max(1, min(k, S))
+        while len(todo):
+            kth = np.empty(len(todo))
+            step = max(1, 600_000 // k)  # keeps the (n, k, 3, 3) candidate array near 50 MB
+            for s in range(0, len(todo), step):
+                idx = todo[s:s + step]
+                cd, si = self.tree.query(points[idx], k=k, workers=-1)
+                cd, ci = cd.reshape(len(idx), k), self.sample_face[si.reshape(len(idx), k)]
+                tri = self.verts[self.faces[ci]]  # (n, k, 3, 3)
+                c, b = closest_point_on_triangles(points[idx, None], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
+                d = np.linalg.norm(c - points[idx, None], axis=-1)
+                best = np.argmin(d, axis=1)
+                rows = np.arange(len(idx))
+                better = d[rows, best] < dist[idx]
+                upd = idx[better]
+                dist[upd], face[upd] = d[rows, best][better], ci[rows, best][better]
+                bary[upd], cp[upd] = b[rows, best][better], c[rows, best][better]
+                kth[s:s + step] = cd[:, -1]
+            if k >= S or not exact:
+                break
+            # Every point of a face lies within cover_radius of one of its samples; a face none of whose
+            # samples is among the k nearest is therefore at least kth - cover_radius away.
+            todo = todo[kth - self.cover_radius < dist[todo]]
+            if k >= 1024:
+                break
+            k = min(4 * k, S)
+        for i in todo if (k < S and exact) else ():
+            near = self.tree.query_ball_point(points[i], dist[i] + self.cover_radius)
+            cand = np.unique(self.sample_face[np.asarray(near, dtype=np.int64)])
             t = self.verts[self.faces[cand]]
             c2, b2 = closest_point_on_triangles(points[i][None], t[:, 0], t[:, 1], t[:, 2])
             d2 = np.linalg.norm(c2 - points[i], axis=-1)
             j = int(np.argmin(d2))
             if d2[j] < dist[i]:
-                dist[i], face[i], bary_best[i], cp_best[i] = d2[j], cand[j], b2[j], c2[j]
-        return ClosestPoints(dist, face.astype(np.int64), bary_best, cp_best)
+                dist[i], face[i], bary[i], cp[i] = d2[j], cand[j], b2[j], c2[j]
+        return ClosestPoints(dist, face, bary, cp)
 
     def _pseudo_normals(self):
         """Angle-weighted vertex normals, edge normals (sum of adjacent faces) and face normals."""
@@ -216,9 +265,12 @@ class TriangleMesh:
             self._pseudo = (vn, en[inv.reshape(-1)].reshape(len(f), 3, 3), fn)
         return self._pseudo
 
-    def signed_distance(self, points: np.ndarray) -> np.ndarray:
-        """Signed distance (N,) in metres: negative inside a closed, outward-oriented mesh."""
-        res = self.closest(points)
+    def signed_distance(self, points: np.ndarray, exact: bool = True) -> np.ndarray:
+        """Signed distance (N,) in metres: negative inside a closed, outward-oriented mesh.
+
+        exact=False: one candidate pass (see `closest`), for statistics over many frames.
+        """
+        res = self.closest(points, exact=exact)
         return res.distance * self._sign(np.asarray(points, dtype=np.float64).reshape(-1, 3), res)
 
     def _sign(self, points: np.ndarray, res: ClosestPoints) -> np.ndarray:
@@ -250,9 +302,13 @@ def signed_distance(points: np.ndarray, verts: np.ndarray, faces: np.ndarray) ->
     return TriangleMesh(verts, faces).signed_distance(points)
 
 
-def points_inside_mesh(points: np.ndarray, verts: np.ndarray, faces: np.ndarray, depth: float = 0.0) -> np.ndarray:
-    """(N,) bool: points more than `depth` metres inside a closed, outward-oriented mesh."""
-    return signed_distance(points, verts, faces) < -depth
+def points_inside_mesh(points: np.ndarray, verts: np.ndarray, faces: np.ndarray, depth: float = 0.0,
+                       exact: bool = False) -> np.ndarray:
+    """(N,) bool: points more than `depth` metres inside a closed, outward-oriented mesh.
+
+    Approximate (one candidate pass) unless `exact`: it is meant for per-frame statistics.
+    """
+    return TriangleMesh(verts, faces).signed_distance(points, exact=exact) < -depth
 
 
 def penetration_per_frame(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,

@@ -83,10 +83,10 @@ def poses_for_body(motion: Motion, n_body_joints: int) -> np.ndarray:
                          + ", ".join(f"{k} ({v})" for k, v in LAYOUT_JOINTS.items()))
     src = motion.layout
     T = motion.n_frames
-    out = np.zeros((T, n_body_joints, 3), dtype=np.float32)
-    out[:, :N_BODY_JOINTS] = motion.poses[:, :N_BODY_JOINTS]
     if src == target:
         return motion.poses.astype(np.float32, copy=True)
+    out = np.zeros((T, n_body_joints, 3), dtype=np.float32)
+    out[:, :N_BODY_JOINTS] = motion.poses[:, :N_BODY_JOINTS]
     if src in _HAND_START and target in _HAND_START:
         s, t = _HAND_START[src], _HAND_START[target]
         out[:, t:t + _N_HAND_JOINTS] = motion.poses[:, s:s + _N_HAND_JOINTS]
@@ -111,7 +111,9 @@ def resample(motion: Motion, fps: float) -> Motion:
     qi = quat_slerp(q[i0], q[i1], a[:, None])
     poses = quat_to_axis_angle(qi).astype(np.float32)
     trans = ((1 - a)[:, None] * motion.trans[i0] + a[:, None] * motion.trans[i1]).astype(np.float32)
-    return replace(motion, poses=poses, trans=trans, fps=float(fps))
+    # Settle frames keep their share of the clip's time.
+    n_settle = min(n_out, int(np.ceil(motion.n_settle * fps / motion.fps - 1e-9)))
+    return replace(motion, poses=poses, trans=trans, fps=float(fps), n_settle=n_settle)
 
 
 def parse_frame_range(text: str) -> tuple[int | None, int | None]:
@@ -134,7 +136,8 @@ def select_frames(motion: Motion, start: int | None, stop: int | None) -> Motion
     if len(idx) == 0:
         raise InputError(f"--frames {'' if start is None else start}:{'' if stop is None else stop}: "
                          f"selects no frame of motion '{motion.name}' ({motion.n_frames} frames)")
-    return replace(motion, poses=motion.poses[sl].copy(), trans=motion.trans[sl].copy())
+    return replace(motion, poses=motion.poses[sl].copy(), trans=motion.trans[sl].copy(),
+                   n_settle=sum(1 for i in idx if i < motion.n_settle))
 
 
 def settle(motion: Motion, n_frames: int) -> Motion:

@@ -6,7 +6,7 @@ orientation is `Rz(heading) @ Rx(+90 deg) @ R_pelvis`, where `Rx(+90 deg)`
 to the world, so heading 0 faces world -Y. Joint curves are smooth (C1 or
 better): periodic gaits are sums of sines and von Mises bumps of the gait phase,
 one-shot clips are monotone cubic (PCHIP) keyframe curves. The pelvis height comes
-from a planar (sagittal) leg model with nominal segment lengths (`LegGeometry`) so
+from a planar (sagittal) leg model with the default body's rest offsets (`LegGeometry`) so
 that the lowest foot point touches the ground plane z = 0, and feet that should be
 planted stay in place. Angles are given in anatomical terms (flexion, abduction)
 in degrees and mapped to SMPL's local joint axes in one place (`_Channels`).
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import functools
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -259,10 +259,8 @@ def make_gait(params: GaitParams, fps: float, seconds: float, name: str, legs: L
     """A periodic gait (walk, run, curved walk) starting at the world origin, heading `heading_rad`."""
     t = _times(fps, seconds)
     ch = _gait_channels(params, t)
-    depth = _smooth_max(_sole_depth(ch, "left", legs), _sole_depth(ch, "right", legs), 0.005)
     phase = 2 * np.pi * params.stride_hz * t
-    # Run: lift the body between stances (0 at mid stance of either leg, max in flight).
-    z = depth + params.bounce_m * 0.5 * (1 - np.cos(2 * (phase - 0.5 * np.pi - 0.35)))
+    z = _gait_pelvis_height(params, legs, phase)
     speed = params.speed_m_s if params.speed_m_s is not None else _no_slip_speed(params, legs)
     omega = params.turn_deg_s * _DEG
     heading = heading_rad + omega * t
@@ -306,6 +304,37 @@ def _gait_channels(p: GaitParams, t: np.ndarray) -> _Channels:
 
 
 @functools.lru_cache(maxsize=32)
+def _gait_height_series(params: GaitParams, legs: LegGeometry, n_harmonics: int = 4):
+    """Fourier coefficients of the pelvis height over one gait cycle.
+
+    The exact height (lowest sole on the ground) has kinks where the supporting
+    foot changes; keeping `n_harmonics` harmonics makes it smooth (vertical
+    accelerations of a few m/s^2, as measured on walking people), and the constant
+    term is raised so that no foot goes below the ground.
+    """
+    n = 720
+    t = np.arange(n) / (n * params.stride_hz)
+    ch = _gait_channels(params, t)
+    phase = 2 * np.pi * params.stride_hz * t
+    exact = np.maximum(_sole_depth(ch, "left", legs), _sole_depth(ch, "right", legs))
+    # Runs: lift the body between stances (0 at mid stance of either leg, max in flight).
+    exact = exact + params.bounce_m * 0.5 * (1 - np.cos(2 * (phase - 0.5 * np.pi - 0.35)))
+    coeffs = np.fft.rfft(exact) / n
+    coeffs[n_harmonics + 1:] = 0.0
+    smooth = np.fft.irfft(coeffs * n, n)
+    coeffs[0] += np.max(exact - smooth)
+    return coeffs[: n_harmonics + 1]
+
+
+def _gait_pelvis_height(params: GaitParams, legs: LegGeometry, phase: np.ndarray) -> np.ndarray:
+    """(T,) pelvis height in metres at gait phases `phase` (radians, left leg)."""
+    c = _gait_height_series(params, legs)
+    k = np.arange(len(c))
+    terms = c[None, 1:] * np.exp(1j * phase[:, None] * k[None, 1:])
+    return c[0].real + 2.0 * terms.real.sum(axis=1)
+
+
+@functools.lru_cache(maxsize=32)
 def _no_slip_speed(params: GaitParams, legs: LegGeometry) -> float:
     """Mean backward speed of the lower (stance) ankle over one cycle, m/s."""
     t = np.linspace(0.0, 1.0 / params.stride_hz, 721)
@@ -333,7 +362,6 @@ def make_turn(fps: float = 60.0, seconds: float = 4.0, legs: LegGeometry = DEFAU
 
 
 def _with(params: GaitParams, overrides: dict) -> GaitParams:
-    from dataclasses import replace
     return replace(params, **overrides) if overrides else params
 
 

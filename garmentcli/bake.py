@@ -63,10 +63,12 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
               help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
 @click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
 @click.option("--no-body", is_flag=True, help="Leave the body out of the USD stage.")
+@click.option("--render", "render_video", is_flag=True,
+              help="Also render render/front.mp4, render/side.mp4 and render/contact_sheet.png (off-screen).")
 @click.option("--overwrite", is_flag=True, help="Replace existing output directories.")
 @input_errors_as_click
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
-         no_obj, no_body, overwrite):
+         no_obj, no_body, overwrite, render_video=False):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -112,6 +114,11 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                 write_bake_outputs(tmp, target.name, result, garment, body, write_obj=not no_obj)
                 result.summary["seconds_total"] = time.perf_counter() - t0
                 (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2))
+                if render_video:  # inside the temporary directory: a failed render leaves nothing behind
+                    from formats.render import render_bake
+
+                    render_bake(tmp / "render", result.garment_points, garment.faces, result.body_points,
+                                body.faces, fps)
             bar.update(motion.n_frames)
             pen = result.summary.get("penetration", {})
             click.echo(f"{target}: {motion.n_frames} frames at {fps:g} fps, "

@@ -6,7 +6,7 @@ import logging
 
 import click
 
-from garmentcli import bake, examples, make_body, metrics
+from garmentcli import bake, examples, make_body, metrics, preprocess, render
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -20,5 +20,7 @@ def cli(verbose: bool) -> None:
 
 cli.add_command(bake.bake)
 cli.add_command(metrics.metrics)
+cli.add_command(render.render)
 cli.add_command(examples.examples)
 cli.add_command(make_body.make_body)
+cli.add_command(preprocess.preprocess)

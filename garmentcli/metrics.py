@@ -69,11 +69,14 @@ def _default_depth_mm() -> float:
 @click.option("--depth-mm", type=click.FloatRange(min=0.0), default=None,
               help="A garment vertex counts as penetrating when more than this inside the body "
                    "[default: as garment bake, 2 mm].")
+@click.option("--plots", is_flag=True,
+              help="With --out: also write per-frame curves and error histograms (PNG), an error heatmap render "
+                   "of the worst frame, and metrics_report.md / metrics_report.html showing them with the tables.")
 @click.option("--overwrite", is_flag=True, help="Replace existing report files in --out.")
 @input_errors_as_click
 def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Path | None,
             motion_file: Path | None, fps: float, frames: str | None, settle_frames: int, depth_mm: float | None,
-            overwrite: bool) -> None:
+            overwrite: bool, plots: bool = False) -> None:
     """Compare a predicted garment sequence PRED with a ground truth GT.
 
     PRED and GT are OBJ-sequence directories, USD files or .npz sequences of the
@@ -88,6 +91,8 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
     if body_file is not None and motion_file is None:
         raise click.BadParameter("needs --motion, the motion that posed the body", param_hint="--body")
 
+    if plots and out_dir is None:
+        raise click.BadParameter("needs --out, the directory to write the pictures into", param_hint="--plots")
     formats = _FORMATS[fmt]
     if out_dir is not None and not overwrite:
         existing = [out_dir / REPORT_NAMES[f] for f in formats if (out_dir / REPORT_NAMES[f]).exists()]
@@ -118,3 +123,10 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
         out_dir.mkdir(parents=True, exist_ok=True)  # an existing directory: write_report puts metrics.* inside
         for path in write_report(result, out_dir, formats):
             click.echo(f"wrote {path}", err=True)
+        if plots:
+            from formats.plots import write_plot_report, render_worst_frame_heatmap
+
+            heatmap = render_worst_frame_heatmap(p_seq, g_seq, result, out_dir / "metrics_heatmap.png")
+            images = [("Per-vertex error (mm) on the worst frame", heatmap)] if heatmap is not None else []
+            for path in write_plot_report(result, out_dir, p_seq.points, g_seq.points, p_seq.faces, images):
+                click.echo(f"wrote {path}", err=True)

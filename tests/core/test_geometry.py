@@ -107,3 +107,19 @@ def test_triangle_mesh_reuse_gives_same_answer():
     mesh = TriangleMesh(v, f)
     pts = np.random.default_rng(3).normal(size=(50, 3))
     np.testing.assert_array_equal(mesh.signed_distance(pts), signed_distance(pts, v, f))
+
+
+def test_approximate_inside_test_agrees_with_exact_on_a_body():
+    from core.body import default_body
+    from core.geometry import vertex_normals
+
+    b = default_body()
+    rng = np.random.default_rng(4)
+    idx = rng.choice(b.n_vertices, 3000, replace=False)
+    offsets = rng.uniform(-0.03, 0.05, size=(len(idx), 1))
+    pts = b.v_template[idx] + offsets * vertex_normals(b.v_template, b.faces)[idx]
+    mesh = TriangleMesh(b.v_template, b.faces)
+    exact = mesh.signed_distance(pts, exact=True)
+    approx = mesh.signed_distance(pts, exact=False)
+    assert np.all(np.abs(approx) >= np.abs(exact) - 1e-12)
+    assert np.mean(np.sign(approx) == np.sign(exact)) > 0.999

@@ -201,3 +201,14 @@ def test_resample_output_is_canonical_axis_angle():
     out = resample(_spinning_motion(120.0, 241), 30.0)
     assert np.all(np.linalg.norm(out.poses, axis=-1) <= np.pi + 1e-5)
     np.testing.assert_allclose(quat_to_axis_angle(axis_angle_to_quat(out.poses)), out.poses, atol=1e-5)
+
+
+def test_settle_frames_survive_selection_and_resampling():
+    from core.motion import Motion, resample, select_frames, settle
+
+    m = Motion(poses=np.zeros((40, 24, 3), np.float32), trans=np.zeros((40, 3), np.float32), fps=120.0)
+    s = settle(m, 10)
+    assert s.n_settle == 10
+    assert select_frames(s, 4, None).n_settle == 6
+    assert select_frames(s, 12, None).n_settle == 0
+    assert resample(s, 30.0).n_settle == 3

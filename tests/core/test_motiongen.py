@@ -94,7 +94,21 @@ def test_smooth_joint_speeds_and_accelerations(motions):
         assert acc.max() < 600.0, (name, acc.max())
         v = np.diff(m.trans, axis=0) * m.fps
         assert np.linalg.norm(v, axis=1).max() < 6.0, name
-        assert np.linalg.norm(np.diff(v, axis=0), axis=1).max() * m.fps < 40.0, name
+        # Below ~8 g (jump landings reach 5-6 g); a velocity jump of 1 m/s would read 120 m/s^2 here.
+        assert np.linalg.norm(np.diff(v, axis=0), axis=1).max() * m.fps < 80.0, name
+
+
+def _max_trans_acceleration(m):
+    v = np.diff(m.trans.astype(np.float64), axis=0) * m.fps
+    return np.linalg.norm(np.diff(v, axis=0), axis=1).max() * m.fps
+
+
+@pytest.mark.parametrize("name", sorted(EXAMPLE_MOTIONS))
+def test_c1_acceleration_does_not_grow_with_fps(name):
+    """A velocity discontinuity makes finite-difference accelerations grow with fps; C1 curves don't."""
+    coarse = _max_trans_acceleration(EXAMPLE_MOTIONS[name](fps=120.0))
+    fine = _max_trans_acceleration(EXAMPLE_MOTIONS[name](fps=960.0))
+    assert fine < 1.5 * coarse + 1.0, (coarse, fine)
 
 
 def test_root_is_z_up_and_head_above_pelvis(motions):
@@ -217,6 +231,6 @@ def test_default_body_feet_touch_but_do_not_sink(motions):
         lowest = verts[..., 2].min(axis=1)
         assert lowest.min() > -0.015, (name, lowest.min())
         if name in ("walk", "turn", "crouch", "arms_raise"):  # always in contact
-            assert lowest.max() < 0.03, (name, lowest.max())
+            assert lowest.max() < 0.05, (name, lowest.max())
         else:  # run and jump have flight phases, but land
             assert np.median(lowest) < 0.05, (name, np.median(lowest))

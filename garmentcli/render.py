@@ -1,0 +1,103 @@
+"""`garment render INPUT`: off-screen PNG frames, MP4 and a contact sheet of a baked sequence."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+from tqdm import tqdm
+
+from core.errors import InputError
+from garmentcli.common import atomic_output_dir, input_errors_as_click
+
+COLORS = ("plain", "error", "penetration", "scalar")
+CAMERA_CHOICES = ("front", "side", "back", "orbit")
+
+
+def _frame_slice(frames: str | None, every: int) -> slice:
+    from core.motion import parse_frame_range
+
+    start, stop = parse_frame_range(frames) if frames else (None, None)
+    return slice(start, stop, every)
+
+
+@click.command(name="render")
+@click.argument("input_path", metavar="INPUT", type=click.Path(exists=True, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Output directory [default: <INPUT stem>_render beside INPUT].")
+@click.option("--camera", "cameras", type=click.Choice(CAMERA_CHOICES), multiple=True,
+              help="Camera preset, repeatable [default: front]. 'orbit' turns once around over the frames.")
+@click.option("--color", type=click.Choice(COLORS), default="plain", show_default=True,
+              help="plain; error: distance to --gt per vertex (mm); penetration: vertices inside the body in red; "
+                   "scalar: the per-vertex array of --scalars.")
+@click.option("--gt", "gt_path", type=click.Path(exists=True, path_type=Path), default=None,
+              help="Ground-truth sequence for --color error (same mesh and frame count as INPUT).")
+@click.option("--scalars", "scalars_spec", metavar="FILE.npz[:KEY]", default=None,
+              help="Per-vertex values (V,) or (T, V) for --color scalar.")
+@click.option("--range", "value_range", type=(float, float), default=None, metavar="LO HI",
+              help="Colour-bar range for error/scalar [default: 0 to the 99th percentile].")
+@click.option("--frames", default=None, metavar="START:STOP", help="Frames to render (Python slice, STOP exclusive).")
+@click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Render every N-th frame.")
+@click.option("--size", default="1280x720", show_default=True, metavar="WxH", help="Image size in pixels.")
+@click.option("--azimuth", type=float, default=0.0, show_default=True,
+              help="Turn every camera preset by this many degrees about the up axis (Z).")
+@click.option("--framing", type=click.Choice(("auto", "fixed", "follow")), default="auto", show_default=True,
+              help="fixed: one view of the whole animation; follow: track the body; auto: follow when it travels.")
+@click.option("--no-body", is_flag=True, help="Draw the garment alone.")
+@click.option("--no-ground", is_flag=True, help="Leave out the ground grid.")
+@click.option("--no-png", is_flag=True, help="Skip the PNG frames.")
+@click.option("--no-mp4", is_flag=True, help="Skip the MP4.")
+@click.option("--no-sheet", is_flag=True, help="Skip the contact sheet.")
+@click.option("--overwrite", is_flag=True, help="Replace an existing output directory.")
+@input_errors_as_click
+def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_range, frames, every, size, azimuth,
+           framing, no_body, no_ground, no_png, no_mp4, no_sheet, overwrite):
+    """Render INPUT (a baked USD, an OBJ-sequence directory or a sequence .npz) off-screen.
+
+    Draws the garment with the body it moved on (when INPUT carries one) on a
+    ground grid and writes OUT/frames/<camera>/frame_NNNN.png, OUT/<camera>.mp4
+    and OUT/contact_sheet.png. Needs no display (EGL).
+    """
+    from formats.render import RenderOptions, load_vertex_scalars, parse_size, render_outputs, scene_from_sequence
+    from formats.sequence import read_sequence
+
+    width, height = parse_size(size)
+    if color == "error" and gt_path is None:
+        raise click.BadParameter("--color error needs --gt", param_hint="--gt")
+    if color == "scalar" and scalars_spec is None:
+        raise click.BadParameter("--color scalar needs --scalars FILE.npz[:KEY]", param_hint="--scalars")
+    if gt_path is not None and color != "error":
+        color = "error"  # --gt alone means: show the error
+    if scalars_spec is not None and color == "plain":
+        color = "scalar"
+    options = RenderOptions(width=width, height=height, cameras=tuple(cameras) or ("front",), azimuth_deg=azimuth,
+                            framing=framing, show_body=not no_body, ground=not no_ground)
+    if out_dir is None:
+        out_dir = input_path.parent / f"{input_path.stem}_render"
+    if out_dir.exists() and not overwrite:
+        raise click.ClickException(f"output '{out_dir}' exists: pass --overwrite to replace it")
+    if no_png and no_mp4 and no_sheet:
+        raise click.BadParameter("nothing to write: drop one of --no-png, --no-mp4, --no-sheet", param_hint="--no-png")
+
+    seq = read_sequence(input_path)
+    gt = read_sequence(gt_path) if gt_path is not None else None
+    scalars, label = None, "value"
+    if scalars_spec is not None:
+        file, key = scalars_spec, ""
+        if not Path(file).exists() and ":" in scalars_spec:
+            file, key = scalars_spec.rsplit(":", 1)
+        if not Path(file).is_file():
+            raise InputError(f"--scalars: file '{file}' not found")
+        scalars = load_vertex_scalars(file, key or None, seq.n_frames, seq.points.shape[1])
+        label = key or Path(file).stem
+    scene = scene_from_sequence(seq, color=color, gt=gt, scalars=scalars, scalar_label=label,
+                                value_range=value_range, frames=_frame_slice(frames, every))
+    total = scene.n_frames * len(options.cameras)
+    with atomic_output_dir(out_dir, overwrite) as tmp:
+        with tqdm(total=total, unit="frame", desc="render", disable=None, leave=False) as bar:
+            written = render_outputs(scene, tmp, options, png_frames=not no_png, mp4=not no_mp4, sheet=not no_sheet,
+                                     progress=bar.update)
+    n_png = len(written["png"])
+    click.echo(f"{out_dir}: {scene.n_frames} frames x {len(options.cameras)} camera(s) at {width}x{height}"
+               + (f", {n_png} PNG" if n_png else "") + (f", {len(written['mp4'])} MP4" if written["mp4"] else "")
+               + (", contact_sheet.png" if written["sheet"] else ""))

@@ -1,0 +1,101 @@
+"""CLI tests of `garment render`, `garment bake --render` and `garment metrics --plots`."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from formats.render import read_png
+from formats.sequence import write_npz_sequence
+from garmentcli.main import cli
+from tests.meshes import icosphere
+
+
+@pytest.fixture
+def seqs(tmp_path):
+    """A 3-frame garment sphere around a body sphere (.npz with body) and a ground truth 1 cm off."""
+    vb, fb = icosphere(2, radius=0.25)
+    vg, fg = icosphere(2, radius=0.3)
+    shift = np.array([[0.0, -0.05 * t, 0.3] for t in range(3)])[:, None]
+    pred = tmp_path / "pred.npz"
+    write_npz_sequence(pred, vg[None] + shift, fg, fps=30.0, body_points=vb[None] + shift, body_faces=fb)
+    gt = tmp_path / "gt.npz"
+    write_npz_sequence(gt, vg[None] * 1.03 + shift, fg, fps=30.0)
+    return {"pred": pred, "gt": gt, "dir": tmp_path, "V": vg.shape[0]}
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def error_line(result):
+    lines = [line for line in result.output.splitlines() if line.startswith("Error:")]
+    assert result.exit_code != 0 and len(lines) == 1, result.output
+    return lines[0]
+
+
+def test_render_happy_path(seqs):
+    out = seqs["dir"] / "r"
+    res = run("render", seqs["pred"], "--out", out, "--size", "96x64", "--camera", "front", "--camera", "side")
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (out / "frames" / "side").iterdir()) == ["frame_0000.png", "frame_0001.png",
+                                                                          "frame_0002.png"]
+    assert (out / "front.mp4").stat().st_size > 0 and (out / "side.mp4").is_file()
+    assert read_png(out / "frames" / "front" / "frame_0000.png").shape == (64, 96, 3)
+    assert read_png(out / "contact_sheet.png").shape[0] > 2 * 64
+    assert not list(seqs["dir"].glob(".r.*"))  # no temporary directory left
+    assert "exists" in error_line(run("render", seqs["pred"], "--out", out))
+    assert run("render", seqs["pred"], "--out", out, "--size", "96x64", "--no-mp4", "--no-sheet",
+               "--overwrite").exit_code == 0
+    assert not (out / "front.mp4").exists()
+
+
+def test_render_colour_modes(seqs, tmp_path):
+    base = ["--size", "96x64", "--no-mp4", "--no-sheet", "--frames", "1:2"]
+    res = run("render", seqs["pred"], "--out", tmp_path / "e", "--gt", seqs["gt"], *base)
+    assert res.exit_code == 0, res.output
+    assert [p.name for p in (tmp_path / "e" / "frames" / "front").iterdir()] == ["frame_0001.png"]
+    assert run("render", seqs["pred"], "--out", tmp_path / "p", "--color", "penetration", *base).exit_code == 0
+    np.savez(tmp_path / "s.npz", height=np.linspace(0, 1, seqs["V"]))
+    res = run("render", seqs["pred"], "--out", tmp_path / "s", "--scalars", f"{tmp_path / 's.npz'}:height", *base)
+    assert res.exit_code == 0, res.output
+    plain = read_png(tmp_path / "p" / "frames" / "front" / "frame_0001.png")
+    scalar = read_png(tmp_path / "s" / "frames" / "front" / "frame_0001.png")
+    assert not np.array_equal(plain, scalar)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--color", "error"], "--gt"),
+    (["--color", "scalar"], "--scalars"),
+    (["--size", "huge"], "--size: expected WIDTHxHEIGHT"),
+    (["--frames", "5:9"], "--frames"),
+    (["--scalars", "missing.npz"], "--scalars: file 'missing.npz' not found"),
+])
+def test_render_bad_input(seqs, args, needle):
+    assert needle in error_line(run("render", seqs["pred"], "--out", seqs["dir"] / "bad", *args))
+    assert not (seqs["dir"] / "bad").exists()
+
+
+def test_render_penetration_needs_a_body(seqs):
+    line = error_line(run("render", seqs["gt"], "--out", seqs["dir"] / "x", "--color", "penetration"))
+    assert "carries no body mesh" in line and "gt.npz" in line
+
+
+def test_bake_render_writes_videos_and_sheet(scene):
+    res = run("bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
+              "--frames", "0:4", "--no-obj", "--render")
+    assert res.exit_code == 0, res.output
+    rdir = scene["out"] / "shell_walk" / "render"
+    assert {p.name for p in rdir.iterdir()} == {"front.mp4", "side.mp4", "contact_sheet.png"}
+
+
+def test_metrics_plots(seqs):
+    out = seqs["dir"] / "m"
+    res = run("metrics", seqs["pred"], seqs["gt"], "--out", out, "--plots")
+    assert res.exit_code == 0, res.output
+    for name in ("metrics_per_frame.png", "metrics_histograms.png", "metrics_heatmap.png", "metrics_report.md",
+                 "metrics_report.html", "metrics.json"):
+        assert (out / name).is_file(), name
+    assert "metrics_heatmap.png" in (out / "metrics_report.md").read_text()
+    assert "--plots" in error_line(run("metrics", seqs["pred"], seqs["gt"], "--plots"))
