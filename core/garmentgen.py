@@ -81,6 +81,9 @@ class _RestBody:
         self.joints = joints.astype(np.float64)
         self.weights = np.asarray(body.weights, dtype=np.float64)
         self.mesh = TriangleMesh(self.verts, faces)
+        # Largest distance from a face's centroid to its corners: bounds vertex-to-surface gaps.
+        tri = self.verts[faces]
+        self.max_radius = float(np.linalg.norm(tri - tri.mean(axis=1, keepdims=True), axis=-1).max())
         self.vertex_tree = cKDTree(self.verts)
         # Joints past the 22 SMPL body joints are hands (SMPL/SMPL+H) or jaw, eyes and hands (SMPL-X).
         arm = [_J[n] for n in _ARM_JOINTS] + list(range(22, body.n_joints))
@@ -117,7 +120,7 @@ class _RestBody:
             # their nearest vertex (the exact query is slow for points far from the surface).
             d_vertex, nearest = self.vertex_tree.query(points)
             facing = np.einsum("ij,ij->i", points - self.verts[nearest], self.normals[nearest])
-            check = np.flatnonzero((d_vertex < clearance + 2 * self.mesh.max_radius) | (facing < 0))
+            check = np.flatnonzero((d_vertex < clearance + 2 * self.max_radius) | (facing < 0))
             if len(check) == 0:
                 break
             closest, normal = self.closest_with_normals(points[check])
@@ -129,22 +132,13 @@ class _RestBody:
         return points
 
     def closest_with_normals(self, points: np.ndarray, k: int = 24) -> tuple[np.ndarray, np.ndarray]:
-        """Closest body points (N, 3) among the k faces with the nearest centroids, and the
+        """Closest body points (N, 3) among the faces of the k nearest surface samples, and the
         interpolated unit vertex normal there (N, 3). Exact for points within a few centimetres of
-        the surface, which is all the fitting needs (core.geometry's exact query is slower)."""
-        from core.geometry import closest_point_on_triangles
-
-        k = min(k, len(self.faces))
-        _, cand = self.mesh.tree.query(points, k=k)
-        cand = cand.reshape(len(points), k)
-        tri = self.verts[self.faces[cand]]  # (N, k, 3, 3)
-        cp, bary = closest_point_on_triangles(points[:, None], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
-        best = np.argmin(np.linalg.norm(cp - points[:, None], axis=-1), axis=1)
-        rows = np.arange(len(points))
-        face = cand[rows, best]
-        normal = np.einsum("ik,ikc->ic", bary[rows, best], self.normals[self.faces[face]])
+        the surface, which is all the fitting needs (one candidate pass, no exactness proof)."""
+        hit = self.mesh.closest(points, k=k, exact=False)
+        normal = np.einsum("ik,ikc->ic", hit.barycentric, self.normals[self.faces[hit.face_index]])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-        return cp[rows, best], normal
+        return hit.closest, normal
 
 
 # --------------------------------------------------------------------------- tubes (dress, skirt)

@@ -11,8 +11,6 @@ with a warning, when missing), `betas` (any length), `mocap_framerate` or
 from __future__ import annotations
 
 import logging
-import os
-import tempfile
 import zipfile
 from pathlib import Path
 
@@ -21,6 +19,7 @@ import numpy as np
 from core.body import LAYOUT_JOINTS
 from core.errors import InputError
 from core.motion import Motion, validate_motion_values
+from formats.atomic import atomic_file
 
 log = logging.getLogger(__name__)
 
@@ -126,16 +125,8 @@ def save_motion(path, motion: Motion) -> None:
         "mocap_framerate": np.float64(motion.fps),
         "gender": np.array(motion.gender if motion.gender is not None else "neutral"),
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial.npz", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_file(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, **arrays)
 
 
 def _read_poses(arrays: dict, src: str) -> np.ndarray:

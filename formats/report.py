@@ -17,7 +17,6 @@ import io
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
@@ -25,6 +24,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.metrics import METRICS, MetricsResult
+from formats.atomic import atomic_file
 
 REPORT_FORMATS = ("json", "csv", "md")
 #: File names written into a report directory.
@@ -79,17 +79,8 @@ def markdown_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], digits
 
 
 def _atomic_write_text(path: Path, text: str) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_file(path) as tmp:
+        tmp.write_text(text, encoding="utf-8", newline="")
 
 
 def write_json(path: str | os.PathLike, obj: Any) -> Path:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,6 +18,7 @@ import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
 
 from core.errors import InputError
+from formats.atomic import atomic_file
 
 ROOT = "/Root"
 
@@ -174,25 +174,18 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
             mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(
                 Vt.Vec3fArray([Gf.Vec3f(*color.tolist())]))
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".usd", dir=path.parent)
-    os.close(fd)
-    try:
+    with atomic_file(path) as tmp:
         try:
-            ok = stage.GetRootLayer().Export(tmp)
+            ok = stage.GetRootLayer().Export(str(tmp))
         except Tf.ErrorException as exc:
             raise InputError(f"USD stage '{path}': could not be written ({' '.join(str(exc).split())[-200:]})") \
                 from None
         if not ok:
             raise InputError(f"USD stage '{path}': could not be written")
-        os.replace(tmp, path)
-        # A layer of the same path still open in this process would otherwise keep the old content.
-        layer = Sdf.Layer.Find(str(path))
-        if layer:
-            layer.Reload(True)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    # A layer of the same path still open in this process would otherwise keep the old content.
+    layer = Sdf.Layer.Find(str(path))
+    if layer:
+        layer.Reload(True)
 
 
 def _triangles(counts: np.ndarray, indices: np.ndarray):

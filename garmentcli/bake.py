@@ -15,9 +15,9 @@ from tqdm import tqdm
 from core.bake import bake_item
 from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
-from core.errors import InputError
 from core.motion import parse_frame_range
-from garmentcli.common import atomic_output_dir, input_errors_as_click, load_body_option, prepare_motion
+from formats.atomic import atomic_dir
+from garmentcli.common import input_errors_as_click, load_body_option, prepare_motion
 
 log = logging.getLogger(__name__)
 
@@ -110,7 +110,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                 "options": {"fps": fps, "frames": frames, "settle": settle_frames},
                 "software": {"garment": _version(), "python": platform.python_version()},
             })
-            with atomic_output_dir(target, overwrite) as tmp:
+            with atomic_dir(target, overwrite) as tmp:
                 write_bake_outputs(tmp, target.name, result, garment, body, write_obj=not no_obj)
                 result.summary["seconds_total"] = time.perf_counter() - t0
                 (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2))

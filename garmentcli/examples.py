@@ -6,7 +6,8 @@ from pathlib import Path
 
 import click
 
-from garmentcli.common import atomic_output_dir, input_errors_as_click
+from formats.atomic import atomic_dir
+from garmentcli.common import input_errors_as_click
 
 
 @click.command(name="examples")
@@ -33,7 +34,7 @@ def examples(out_dir, fps, overwrite):
     motions = generate_example_motions(fps=fps)
     out = Path(out_dir)
     keep = [p for p in out.iterdir() if p.suffix not in (".obj", ".npz")] if out.is_dir() else []
-    with atomic_output_dir(out, overwrite) as tmp:
+    with atomic_dir(out, overwrite) as tmp:
         for p in keep:  # hand-written files (a README) survive a regeneration
             if p.is_file():
                 (tmp / p.name).write_bytes(p.read_bytes())

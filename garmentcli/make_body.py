@@ -6,8 +6,6 @@ the packaged `core/assets/default_body.npz`.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from importlib import resources
 from pathlib import Path
 
@@ -15,6 +13,7 @@ import click
 import numpy as np
 
 from core.body import DEFAULT_BODY_RESOURCE
+from formats.atomic import atomic_file
 
 
 def _default_out() -> Path:
@@ -40,18 +39,8 @@ def make_body(out: Path | None, samples: int, seed: int, overwrite: bool) -> Non
         arrays = build_default_body_arrays(n_samples=samples, seed=seed)
     except (ImportError, RuntimeError) as exc:
         raise click.ClickException(f"make-body: {exc}") from None
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".partial.npz", dir=out.parent)
-    os.close(fd)
-    try:
+    with atomic_file(out) as tmp:
         np.savez_compressed(tmp, **arrays)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; a package asset is world-readable
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     click.echo(f"wrote {out}: {arrays['v_template'].shape[0]} vertices, "
                f"height {float(arrays['stats_mean_height_m']):.3f} m, "
                f"PCA residual {float(arrays['stats_pca_residual_mean_mm']):.2f} mm mean, "

@@ -9,7 +9,7 @@ from core.garment import Garment
 from core.motion import Motion
 from core.rotations import axis_angle_to_matrix
 from core.skinning import bind_garment, smooth_over_graph
-from tests.meshes import grid, icosphere, tiny_body
+from tests.meshes import grid, tiny_body
 
 
 def shell_garment(body, offset=0.02):

@@ -1,5 +1,4 @@
 import numpy as np
-import pytest
 
 from core.geometry import (TriangleMesh, closest_point_on_triangles, closest_points_on_mesh, face_normals,
                            penetration_per_frame, points_inside_mesh, signed_distance, vertex_normals)
