@@ -162,30 +162,51 @@ def _truncated_searches(vertices: np.ndarray, graph: sp.csr_matrix, sources: np.
         yield src, sub, d.reshape(len(src), len(sub))
 
 
-def geodesic_neighbourhood(vertices: np.ndarray, graph: sp.csr_matrix, radius: float = SELF_COLLISION_GEODESIC_M
-                           ) -> sp.csr_matrix:
-    """All vertex pairs within `radius` metres along the rest surface: sparse (V, V) float64.
+def geodesic_neighbourhood(vertices: np.ndarray, graph: sp.csr_matrix, radius: float = SELF_COLLISION_GEODESIC_M,
+                           distances: bool = True) -> sp.csr_matrix:
+    """All vertex pairs within `radius` metres along the rest surface: sparse (V, V), int32 indices.
 
-    Entry (i, j) = geodesic distance for i != j within `radius` (the diagonal is
-    left out; pairs at distance 0 are stored as 1e-12). Memory ~ V times the
-    number of vertices in a disc of that radius (about 12 bytes per pair);
-    time ~ the same times log. The complement is the Eq. 6 mask: pairs absent
-    here are "geodesically far" (see `far_by_neighbourhood`).
+    Entry (i, j) for i != j within `radius` (the diagonal is left out): the
+    geodesic distance as float32 (pairs at distance 0 stored as 1e-12), or True
+    when `distances` is False (the pattern only, 4 bytes a pair). Memory and
+    time ~ V times the number of vertices k in a disc of that radius (times
+    log k for time). The complement is the Eq. 6 mask: pairs absent here are
+    "geodesically far" (see `far_by_neighbourhood`).
     """
     V = len(vertices)
-    rows, cols, vals = [], [], []
+    per_row = np.zeros(V, dtype=np.int64)
+    blocks = []
     for src, sub, d in _truncated_searches(vertices, graph, np.arange(V, dtype=np.int64), radius):
         r, c = np.nonzero(np.isfinite(d))
-        gi, gj = src[r], sub[c]
-        off = gi != gj
-        rows.append(gi[off])
-        cols.append(gj[off].astype(np.int32))
-        vals.append(np.maximum(d[r[off], c[off]], 1e-12))
-    if rows:
-        rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    else:
-        rows, cols, vals = np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(0)
-    out = sp.csr_matrix((vals, (rows, cols)), shape=(V, V))
+        off = src[r] != sub[c]
+        r, c = r[off], c[off]
+        gi = src[r]
+        per_row += np.bincount(gi, minlength=V)
+        vals = np.maximum(d[r, c], 1e-12).astype(np.float32) if distances else None
+        blocks.append((gi.astype(np.int32), sub[c].astype(np.int32), vals))
+    # Fill CSR arrays directly (no COO copy): rows are scattered over blocks, so place by running offsets.
+    indptr = np.zeros(V + 1, dtype=np.int64)
+    np.cumsum(per_row, out=indptr[1:])
+    nnz = int(indptr[-1])
+    indices = np.empty(nnz, dtype=np.int32)
+    data = np.empty(nnz, dtype=np.float32) if distances else np.ones(nnz, dtype=bool)
+    fill = indptr[:-1].copy()
+    for gi, gj, vals in blocks:
+        if len(gi) == 0:
+            continue
+        order = np.argsort(gi, kind="stable")
+        gi, gj = gi[order], gj[order]
+        starts = np.r_[0, np.flatnonzero(np.diff(gi)) + 1]
+        counts = np.diff(np.r_[starts, len(gi)])
+        pos = np.repeat(fill[gi[starts]] - starts, counts) + np.arange(len(gi))
+        indices[pos] = gj
+        if distances:
+            data[pos] = vals[order]
+        fill[gi[starts]] += counts
+    blocks.clear()
+    if nnz and indptr[-1] < 2**31:
+        indptr = indptr.astype(np.int32)
+    out = sp.csr_matrix((data, indices, indptr), shape=(V, V))
     out.sort_indices()
     return out
 

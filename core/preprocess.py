@@ -127,9 +127,7 @@ def compute_preprocessed(garment: Garment, body: Body, settings: PreprocessSetti
                             settings.sigma_m, settings.seed)
     near = None
     if settings.collision_radius_m > 0:
-        near = geodesic_neighbourhood(v, graph, settings.collision_radius_m)
-        near = sp.csr_matrix((np.ones(near.nnz, dtype=bool), near.indices.astype(np.int32), near.indptr),
-                             shape=near.shape)
+        near = geodesic_neighbourhood(v, graph, settings.collision_radius_m, distances=False)
     g_hash, b_key = garment.content_hash(), body_key(body, betas)
     return Preprocessed(settings=settings, features=feats, edges=edges, component=labels, hierarchy=hier,
                         descriptor=desc, collision_near=near, key=cache_key(cache_meta(g_hash, b_key, settings)),

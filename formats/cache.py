@@ -13,13 +13,13 @@ from __future__ import annotations
 import json
 import logging
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import InputError
+from formats.atomic import atomic_file
 
 log = logging.getLogger(__name__)
 
@@ -70,18 +70,11 @@ def write_cache(path: str | os.PathLike, arrays: dict, meta: dict) -> Path:
     Raises InputError naming the directory when it cannot be created or written.
     """
     path = Path(path)
+    payload = {"__meta__": np.array(json.dumps({"version": CACHE_FORMAT_VERSION, "key": meta}))}
+    payload.update({k: np.asarray(v) for k, v in arrays.items()})
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".partial.npz", dir=path.parent)
+        with atomic_file(path) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, **payload)
     except OSError as exc:
         raise InputError(f"cache directory '{path.parent}': cannot be written ({exc.strerror or exc})") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            payload = {"__meta__": np.array(json.dumps({"version": CACHE_FORMAT_VERSION, "key": meta}))}
-            payload.update({k: np.asarray(v) for k, v in arrays.items()})
-            np.savez(fh, **payload)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path

@@ -10,13 +10,13 @@ libgl1-mesa-dri).
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import InputError
 from core.hierarchy import Hierarchy
+from formats.atomic import atomic_file
 
 _LEVEL_COLOURS = ["#2b6cb0", "#c05621", "#2f855a", "#6b46c1", "#b7791f", "#c53030", "#319795", "#4a5568", "#805ad5"]
 
@@ -29,7 +29,7 @@ def _pyvista():
 
 
 def render_hierarchy(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray, hierarchy: Hierarchy,
-                     title: str = "", panel_size: tuple[int, int] = (400, 520)) -> Path:
+                     title: str = "", panel_size: tuple[int, int] = (300, 400)) -> Path:
     """Write a PNG with one panel per hierarchy level (level 0 = the mesh) to `path`; returns the path.
 
     vertices: (V, 3) rest positions, metres (Y-up, facing +Z); faces: (F, 3) int;
@@ -71,15 +71,8 @@ def render_hierarchy(path: str | os.PathLike, vertices: np.ndarray, faces: np.nd
             plotter.camera.Elevation(10)
             plotter.camera.zoom(1.2)
         plotter.render()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-        os.close(fd)
-        try:
-            plotter.screenshot(tmp)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        with atomic_file(path) as tmp:
+            plotter.screenshot(str(tmp))
     except OSError as exc:
         raise InputError(f"render '{path}': cannot be written ({exc.strerror or exc})") from None
     finally:

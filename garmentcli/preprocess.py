@@ -26,7 +26,7 @@ def summary_lines(path: str, p: Preprocessed, cache_note: str) -> list[str]:
                  + " ".join(f"{x:.4f}" for x in d))
     if p.collision_near is not None:
         lines.append(f"  self-collision: {p.collision_near.nnz // 2} vertex pairs within "
-                     f"{p.settings.collision_radius_m * 100:g} cm along the rest surface never repel")
+                     f"{p.settings.collision_radius_m * 100:g} cm along the rest surface (excluded from Eq. 6 repulsion)")
     return lines
 
 

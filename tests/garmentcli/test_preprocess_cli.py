@@ -1,0 +1,71 @@
+"""`garment preprocess`: summary, cache hit/miss, render, and one-line errors for bad input."""
+
+import pytest
+from click.testing import CliRunner
+
+from garmentcli.main import cli
+
+
+def run(*args, env=None):
+    return CliRunner().invoke(cli, list(args), env=env)
+
+
+def test_happy_path_miss_then_hit(scene):
+    cache = scene["dir"] / "cache"
+    args = ["preprocess", scene["garment"], "--body", scene["body"], "--cache-dir", str(cache), "--landmarks", "16"]
+    r = run(*args)
+    assert r.exit_code == 0, r.output
+    assert "cache miss" in r.output and "level 2:" in r.output and "1 component(s)" in r.output
+    assert "descriptor (16 eigenvalues, 16 landmarks)" in r.output
+    assert len(list(cache.glob("preprocess-*.npz"))) == 1
+    r2 = run(*args)
+    assert r2.exit_code == 0 and "cache hit" in r2.output
+    r3 = run(*args[:-2], "--landmarks", "16", "--levels", "3")
+    assert "cache miss" in r3.output and "level 3:" in r3.output
+
+
+def test_env_cache_dir_and_no_cache(scene):
+    env = {"GARMENT_CACHE_DIR": str(scene["dir"] / "envcache")}
+    r = run("preprocess", scene["garment"], "--body", scene["body"], "--landmarks", "8", "--levels", "1", env=env)
+    assert r.exit_code == 0, r.output
+    assert list((scene["dir"] / "envcache").glob("*.npz"))
+    r = run("preprocess", scene["garment"], "--body", scene["body"], "--landmarks", "8", "--no-cache", env=env)
+    assert r.exit_code == 0 and "cache off" in r.output
+
+
+def test_render_writes_a_png(scene):
+    pytest.importorskip("pyvista")
+    out = scene["dir"] / "renders"
+    r = run("preprocess", scene["garment"], "--body", scene["body"], "--no-cache", "--landmarks", "8",
+            "--render", str(out))
+    assert r.exit_code == 0, r.output
+    png = out / "shell_hierarchy.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--levels", "0"], "--levels"), (["--levels", "-1"], "--levels"), (["--levels", "10"], "--levels"),
+    (["--levels", "two"], "--levels"), (["--landmarks", "1"], "--landmarks"), (["--landmarks", "0"], "--landmarks"),
+])
+def test_bad_options(scene, extra, message):
+    r = run("preprocess", scene["garment"], "--no-cache", *extra)
+    assert r.exit_code != 0 and message in r.output and "Traceback" not in r.output
+
+
+def test_missing_and_broken_files(scene):
+    r = run("preprocess", str(scene["dir"] / "nope.obj"), "--no-cache")
+    assert r.exit_code == 1 and "file not found" in r.output and len(r.output.strip().splitlines()) == 1
+    broken = scene["dir"] / "broken.obj"
+    broken.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
+    r = run("preprocess", str(broken), "--no-cache")
+    assert r.exit_code == 1 and "broken.obj" in r.output and len(r.output.strip().splitlines()) == 1
+    r = run("preprocess")
+    assert r.exit_code == 2 and "GARMENT" in r.output
+
+
+def test_unwritable_cache_dir_is_one_line(scene):
+    blocker = scene["dir"] / "file"
+    blocker.write_text("x")
+    r = run("preprocess", scene["garment"], "--body", scene["body"], "--landmarks", "8",
+            "--cache-dir", str(blocker / "sub"))
+    assert r.exit_code == 1 and "cache directory" in r.output and "Traceback" not in r.output
