@@ -159,6 +159,24 @@ class ClosestPoints:
     closest: np.ndarray
 
 
+_EDGE_INDEX_CACHE: dict = {}
+
+
+def _face_edge_index(faces: np.ndarray) -> tuple[int, np.ndarray]:
+    """Unique-edge index of each face's three edges (edge k is opposite corner k): (E, (3F,) int64).
+
+    Depends on topology only, so it is cached: a body posed over many frames computes it once.
+    """
+    key = hash(faces.tobytes())
+    if key not in _EDGE_INDEX_CACHE:
+        edges = np.stack([faces[:, [1, 2]], faces[:, [2, 0]], faces[:, [0, 1]]], axis=1)  # (F, 3, 2)
+        uniq, inv = np.unique(np.sort(edges, axis=-1).reshape(-1, 2), axis=0, return_inverse=True)
+        if len(_EDGE_INDEX_CACHE) > 16:
+            _EDGE_INDEX_CACHE.clear()
+        _EDGE_INDEX_CACHE[key] = (len(uniq), inv.reshape(-1))
+    return _EDGE_INDEX_CACHE[key]
+
+
 class TriangleMesh:
     """A triangle mesh prepared for repeated closest-point and signed-distance queries.
 
@@ -169,26 +187,35 @@ class TriangleMesh:
     def __init__(self, verts: np.ndarray, faces: np.ndarray):
         self.verts = np.asarray(verts, dtype=np.float64)
         self.faces = np.asarray(faces, dtype=np.int64)
-        tri = self.verts[self.faces]  # (F, 3, 3)
-        centroids = tri.mean(axis=1)
-        # Radius of the ball around a centroid that holds its whole triangle.
-        radius = np.linalg.norm(tri - centroids[:, None], axis=-1).max(axis=1)
-        # Index sample points that cover every face within `cover` metres (a large face gets the
-        # centroids of an n x n subdivision), so the exclusion bound below is tight on meshes
-        # whose triangle sizes vary a lot.
-        cover = max(float(np.median(radius)) if len(radius) else 0.0, 1e-9)
-        n_sub = np.clip(np.ceil(radius / cover), 1, 16).astype(np.int64)
-        samples, owner = [centroids[n_sub == 1]], [np.flatnonzero(n_sub == 1)]
-        for n in np.unique(n_sub[n_sub > 1]):
-            fi = np.flatnonzero(n_sub == n)
-            w = _subtriangle_centroids(int(n))  # (S, 3) barycentric
-            samples.append(np.einsum("sk,fkc->fsc", w, tri[fi]).reshape(-1, 3))
-            owner.append(np.repeat(fi, len(w)))
-        self.sample_points = np.concatenate(samples)
-        self.sample_face = np.concatenate(owner)
-        self.cover_radius = float((radius / n_sub).max()) if len(radius) else 0.0
-        self.tree = cKDTree(self.sample_points)
+        self.centroids = self.verts[self.faces].mean(axis=1)
+        self._trees: dict = {}
         self._pseudo = None
+
+    def _tree(self, exact: bool):
+        """(KD-tree, sample -> face map, cover radius), built on first use.
+
+        Approximate queries index face centroids. Exact queries index points that
+        cover every face within a fixed radius (a large face gets the centroids of
+        an n x n subdivision), so the exclusion bound in `closest` is tight on
+        meshes whose triangle sizes vary a lot.
+        """
+        if exact not in self._trees:
+            tri = self.verts[self.faces]
+            radius = np.linalg.norm(tri - self.centroids[:, None], axis=-1).max(axis=1)
+            if not exact:
+                self._trees[exact] = (cKDTree(self.centroids), np.arange(len(self.faces)), float(radius.max(initial=0)))
+            else:
+                cover = max(float(np.median(radius)) if len(radius) else 0.0, 1e-9)
+                n_sub = np.clip(np.ceil(radius / cover), 1, 16).astype(np.int64)
+                samples, owner = [self.centroids[n_sub == 1]], [np.flatnonzero(n_sub == 1)]
+                for n in np.unique(n_sub[n_sub > 1]):
+                    fi = np.flatnonzero(n_sub == n)
+                    w = _subtriangle_centroids(int(n))  # (S, 3) barycentric
+                    samples.append(np.einsum("sk,fkc->fsc", w, tri[fi]).reshape(-1, 3))
+                    owner.append(np.repeat(fi, len(w)))
+                cover_radius = float((radius / n_sub).max()) if len(radius) else 0.0
+                self._trees[exact] = (cKDTree(np.concatenate(samples)), np.concatenate(owner), cover_radius)
+        return self._trees[exact]
 
     def closest(self, points: np.ndarray, k: int = 16, exact: bool = True) -> ClosestPoints:
         """Closest points on the mesh for points (N, 3).
@@ -201,7 +228,8 @@ class TriangleMesh:
         than the k nearest samples of the surface, which a smooth body rarely has).
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        N, S = len(points), len(self.sample_points)
+        tree, sample_face, cover_radius = self._tree(exact)
+        N, S = len(points), tree.n
         dist = np.full(N, np.inf)
         face = np.zeros(N, dtype=np.int64)
         bary = np.zeros((N, 3))
@@ -213,8 +241,8 @@ class TriangleMesh:
             step = max(1, 600_000 // k)  # keeps the (n, k, 3, 3) candidate array near 50 MB
             for s in range(0, len(todo), step):
                 idx = todo[s:s + step]
-                cd, si = self.tree.query(points[idx], k=k, workers=-1)
-                cd, ci = cd.reshape(len(idx), k), self.sample_face[si.reshape(len(idx), k)]
+                cd, si = tree.query(points[idx], k=k, workers=-1)
+                cd, ci = cd.reshape(len(idx), k), sample_face[si.reshape(len(idx), k)]
                 tri = self.verts[self.faces[ci]]  # (n, k, 3, 3)
                 c, b = closest_point_on_triangles(points[idx, None], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
                 d = np.linalg.norm(c - points[idx, None], axis=-1)
@@ -229,13 +257,13 @@ class TriangleMesh:
                 break
             # Every point of a face lies within cover_radius of one of its samples; a face none of whose
             # samples is among the k nearest is therefore at least kth - cover_radius away.
-            todo = todo[kth - self.cover_radius < dist[todo]]
+            todo = todo[kth - cover_radius < dist[todo]]
             if k >= 1024:
                 break
             k = min(4 * k, S)
         for i in todo if (k < S and exact) else ():
-            near = self.tree.query_ball_point(points[i], dist[i] + self.cover_radius)
-            cand = np.unique(self.sample_face[np.asarray(near, dtype=np.int64)])
+            near = tree.query_ball_point(points[i], dist[i] + cover_radius)
+            cand = np.unique(sample_face[np.asarray(near, dtype=np.int64)])
             t = self.verts[self.faces[cand]]
             c2, b2 = closest_point_on_triangles(points[i][None], t[:, 0], t[:, 1], t[:, 2])
             d2 = np.linalg.norm(c2 - points[i], axis=-1)
@@ -256,13 +284,10 @@ class TriangleMesh:
                 cosang = np.einsum("ij,ij->i", e1, e2) / np.maximum(
                     np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), _EPS)
                 np.add.at(vn, f[:, k], fn * np.arccos(np.clip(cosang, -1, 1))[:, None])
-            # Edge k of a face joins corners k+1 and k+2 (the edge opposite corner k).
-            edges = np.stack([f[:, [1, 2]], f[:, [2, 0]], f[:, [0, 1]]], axis=1)  # (F, 3, 2)
-            key = np.sort(edges, axis=-1).reshape(-1, 2)
-            uniq, inv = np.unique(key, axis=0, return_inverse=True)
-            en = np.zeros((len(uniq), 3))
-            np.add.at(en, inv.reshape(-1), np.repeat(fn, 3, axis=0))
-            self._pseudo = (vn, en[inv.reshape(-1)].reshape(len(f), 3, 3), fn)
+            n_edges, inv = _face_edge_index(f)
+            en = np.zeros((n_edges, 3))
+            np.add.at(en, inv, np.repeat(fn, 3, axis=0))
+            self._pseudo = (vn, en[inv].reshape(len(f), 3, 3), fn)
         return self._pseudo
 
     def signed_distance(self, points: np.ndarray, exact: bool = True) -> np.ndarray:

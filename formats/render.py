@@ -470,8 +470,8 @@ class Renderer:
         if s.vertex_values is not None:
             garment.point_data["values"] = s.vertex_values[0].astype(np.float32)
             h = o.height
-            bar = dict(title=s.value_label, vertical=True, position_x=0.84, position_y=0.1, width=0.12,
-                       height=0.76, n_labels=5, fmt="%.3g", color="black", title_font_size=max(8, h // 40),
+            bar = dict(title=s.value_label, vertical=True, position_x=0.84, position_y=0.06, width=0.12,
+                       height=0.7, n_labels=5, fmt="%.3g", color="black", title_font_size=max(8, h // 40),
                        label_font_size=max(8, h // 48), font_family="arial")
             actor = p.add_mesh(garment, scalars="values", cmap=s.value_cmap, clim=s.value_range,
                                scalar_bar_args=bar, **material)
@@ -617,9 +617,12 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
 
 
 class Mp4Writer:
-    """H.264 MP4 through imageio-ffmpeg (no system ffmpeg needed); odd sizes are padded to even."""
+    """H.264 MP4 through imageio-ffmpeg (no system ffmpeg needed); odd sizes are padded to even.
 
-    def __init__(self, path: str | os.PathLike, fps: float):
+    quality: imageio's 0-10 scale (higher: larger file, fewer artefacts).
+    """
+
+    def __init__(self, path: str | os.PathLike, fps: float, quality: float = 7.0):
         try:
             import imageio.v2 as iio
             import imageio_ffmpeg  # noqa: F401  (imageio's ffmpeg plugin needs it)
@@ -629,7 +632,7 @@ class Mp4Writer:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._writer = iio.get_writer(self.path, format="FFMPEG", mode="I", fps=float(fps), codec="libx264",
-                                      pixelformat="yuv420p", quality=7, macro_block_size=1,
+                                      pixelformat="yuv420p", quality=quality, macro_block_size=1,
                                       ffmpeg_log_level="error")
 
     def append(self, image: np.ndarray) -> None:

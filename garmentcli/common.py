@@ -43,7 +43,3 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
         motion = select_frames(motion, *parse_frame_range(frames))
     motion = resample(motion, fps)
     return settle(motion, settle_frames), source_fps
-
-
-# Transitional name used by modules written before formats.atomic existed.
-from formats.atomic import atomic_dir as atomic_output_dir  # noqa: E402,F401

@@ -8,7 +8,8 @@ import click
 from tqdm import tqdm
 
 from core.errors import InputError
-from garmentcli.common import atomic_output_dir, input_errors_as_click
+from formats.atomic import atomic_dir
+from garmentcli.common import input_errors_as_click
 
 COLORS = ("plain", "error", "penetration", "scalar")
 CAMERA_CHOICES = ("front", "side", "back", "orbit")
@@ -93,7 +94,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
     scene = scene_from_sequence(seq, color=color, gt=gt, scalars=scalars, scalar_label=label,
                                 value_range=value_range, frames=_frame_slice(frames, every))
     total = scene.n_frames * len(options.cameras)
-    with atomic_output_dir(out_dir, overwrite) as tmp:
+    with atomic_dir(out_dir, overwrite) as tmp:
         with tqdm(total=total, unit="frame", desc="render", disable=None, leave=False) as bar:
             written = render_outputs(scene, tmp, options, png_frames=not no_png, mp4=not no_mp4, sheet=not no_sheet,
                                      progress=bar.update)

@@ -103,7 +103,7 @@ def default():
 
 def check_garment(g, body, max_distance):
     """The properties every example garment must have on `body`."""
-    V, F = g.n_vertices, g.n_faces
+    V = g.n_vertices
     assert MIN_VERTICES <= V <= MAX_VERTICES, (g.name, V)
     assert g.vertices.dtype == np.float32 and g.faces.dtype == np.int64
     assert np.array_equal(np.unique(g.faces), np.arange(V)), "every vertex is used"

@@ -44,7 +44,7 @@ def test_write_plot_report_shows_tables_and_pictures(tmp_path):
     assert img.shape[0] > 200 and img.shape[1] > 400 and img.std() > 10  # a real picture, not blank
     assert read_png(tmp_path / plots.HISTOGRAMS_PNG).std() > 10
     md = (tmp_path / plots.REPORT_MD).read_text()
-    assert "E_verts (mm)" in md and f"![Heatmap](heat.png)" in md and f"]({plots.PER_FRAME_PNG})" in md
+    assert "E_verts (mm)" in md and "![Heatmap](heat.png)" in md and f"]({plots.PER_FRAME_PNG})" in md
     assert f"{result.overall['e_verts']:.4g}"[:4] in md
     html = (tmp_path / plots.REPORT_HTML).read_text()
     assert html.count("<img") == 3 and "<table>" in html and "E_verts (mm)" in html

@@ -119,7 +119,7 @@ def test_a_changed_render_fails_the_comparison(perturbation, posed, tmp_path, mo
     if perturbation == "garment moved 1 cm":
         scene = replace(scene, garment_points=scene.garment_points + np.float32([0.01, 0.0, 0.0]))
     elif perturbation == "garment colour":
-        options = replace(options, garment_color=(0.75, 0.36, 0.28))
+        options = replace(options, garment_color=(0.60, 0.30, 0.60))
     else:
         options = replace(options, azimuth_deg=5.0)
     image = R.render_image(scene, 0, camera, options)
