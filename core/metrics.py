@@ -136,14 +136,41 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(both_zero, 0.0, angle)
 
 
+def vertex_distance_mm(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """Per-vertex Euclidean distance. pred, gt: (T, V, 3) metres -> (T, V) float64 millimetres."""
+    d = np.asarray(pred, dtype=np.float64) - np.asarray(gt, dtype=np.float64)
+    return 1000.0 * np.linalg.norm(d, axis=-1)
+
+
+def vertex_normal_angle_deg(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Per-vertex angle between vertex normals. pred, gt: (T, V, 3); faces: (F, 3) -> (T, V) degrees."""
+    pred = np.asarray(pred, dtype=np.float64)
+    gt = np.asarray(gt, dtype=np.float64)
+    return _angle_deg(vertex_normals(pred, faces), vertex_normals(gt, faces))
+
+
+def edge_relative_error(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-edge |l - l_gt| / l_gt over unique edges.
+
+    pred, gt: (T, V, 3) metres; faces: (F, 3). Returns (rel (T, E) fraction, valid (T, E) bool):
+    edges of zero ground-truth length are not valid (their relative error is undefined, stored as 0).
+    """
+    pred = np.asarray(pred, dtype=np.float64)
+    gt = np.asarray(gt, dtype=np.float64)
+    edges = mesh_edges(faces)
+    l_pred = np.linalg.norm(pred[:, edges[:, 0]] - pred[:, edges[:, 1]], axis=-1)
+    l_gt = np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=-1)
+    ok = l_gt > _EPS
+    return np.where(ok, np.abs(l_pred - l_gt) / np.where(ok, l_gt, 1.0), 0.0), ok
+
+
 def e_verts(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray | None = None) -> np.ndarray:
     """Eq. 11: mean Euclidean vertex distance per frame.
 
     pred, gt: (T, V, 3) float, metres. faces: unused (same signature as the others).
     Returns (T,) float64, millimetres.
     """
-    d = np.asarray(pred, dtype=np.float64) - np.asarray(gt, dtype=np.float64)
-    return 1000.0 * np.linalg.norm(d, axis=-1).mean(axis=-1)
+    return vertex_distance_mm(pred, gt).mean(axis=-1)
 
 
 def e_vnorm(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -153,9 +180,7 @@ def e_vnorm(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
     A vertex whose normal is zero in both (no incident area) scores 0; zero in
     one only scores 90 (the cosine is taken as 0: no agreement).
     """
-    pred = np.asarray(pred, dtype=np.float64)
-    gt = np.asarray(gt, dtype=np.float64)
-    return _angle_deg(vertex_normals(pred, faces), vertex_normals(gt, faces)).mean(axis=-1)
+    return vertex_normal_angle_deg(pred, gt, faces).mean(axis=-1)
 
 
 def e_fnorm(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -176,15 +201,9 @@ def e_edge(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
     Edges of zero ground-truth length (relative error undefined) are left out
     of the mean; a frame with no usable edge scores 0.
     """
-    pred = np.asarray(pred, dtype=np.float64)
-    gt = np.asarray(gt, dtype=np.float64)
-    edges = mesh_edges(faces)
-    l_pred = np.linalg.norm(pred[:, edges[:, 0]] - pred[:, edges[:, 1]], axis=-1)
-    l_gt = np.linalg.norm(gt[:, edges[:, 0]] - gt[:, edges[:, 1]], axis=-1)
-    ok = l_gt > _EPS
+    rel, ok = edge_relative_error(pred, gt, faces)
     if not ok.all():
         log.warning("%d ground-truth edges of zero length left out of E_edge", int((~ok).sum()))
-    rel = np.where(ok, np.abs(l_pred - l_gt) / np.where(ok, l_gt, 1.0), 0.0)
     n = ok.sum(axis=-1)
     return 100.0 * rel.sum(axis=-1) / np.maximum(n, 1)
 

@@ -63,6 +63,11 @@ def plot_per_frame(result: MetricsResult, path: str | os.PathLike, dpi: int = 10
         ax.legend(fontsize=8, loc="best")
     for ax in axes.ravel()[len(names):]:
         ax.axis("off")
+    return _save_figure(plt, fig, path, dpi)
+
+
+def _save_figure(plt, fig, path: str | os.PathLike, dpi: int) -> Path:
+    """Lay out, write and close a figure; returns the path."""
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -78,21 +83,12 @@ def per_element_errors(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> d
     Returns {"vertex distance (mm)": (T*V,), "vertex normal angle (deg)": (T*V,),
     "edge length error (%)": (T*E,)} float64 (edges of zero ground-truth length left out).
     """
-    from core.garment import mesh_edges
-    from core.geometry import vertex_normals
+    from core.metrics import edge_relative_error, vertex_distance_mm, vertex_normal_angle_deg
 
-    pred = np.asarray(pred, dtype=np.float64)
-    gt = np.asarray(gt, dtype=np.float64)
-    dist = 1000.0 * np.linalg.norm(pred - gt, axis=-1)
-    npd, ngt = vertex_normals(pred, faces), vertex_normals(gt, faces)
-    angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(npd, ngt), axis=-1), np.einsum("...i,...i", npd, ngt)))
-    e = mesh_edges(faces)
-    lp = np.linalg.norm(pred[:, e[:, 0]] - pred[:, e[:, 1]], axis=-1)
-    lg = np.linalg.norm(gt[:, e[:, 0]] - gt[:, e[:, 1]], axis=-1)
-    ok = lg > 1e-12
-    edge = 100.0 * np.abs(lp[ok] - lg[ok]) / lg[ok]
-    return {"vertex distance (mm)": dist.ravel(), "vertex normal angle (deg)": angle.ravel(),
-            "edge length error (%)": edge.ravel()}
+    rel, ok = edge_relative_error(pred, gt, faces)
+    return {"vertex distance (mm)": vertex_distance_mm(pred, gt).ravel(),
+            "vertex normal angle (deg)": vertex_normal_angle_deg(pred, gt, faces).ravel(),
+            "edge length error (%)": 100.0 * rel[ok]}
 
 
 def plot_error_histograms(errors: dict[str, np.ndarray], path: str | os.PathLike, bins: int = 50,
@@ -113,12 +109,7 @@ def plot_error_histograms(errors: dict[str, np.ndarray], path: str | os.PathLike
         ax.set_xlabel(name)
         ax.set_ylabel("count")
         ax.grid(alpha=0.3)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path
+    return _save_figure(plt, fig, path, dpi)
 
 
 def _html_table(headers: list[str], rows: list[list]) -> str:
