@@ -230,11 +230,11 @@ def skin_points(points: torch.Tensor, weights: torch.Tensor, A: torch.Tensor) ->
     points: (V, 3) or (B, V, 3) rest positions, metres; weights: (V, J); A: (B, J, 4, 4).
     Returns (B, V, 3).
     """
-    # Blend the 3x4 matrices first (J-sized contraction), then apply once per point.
-    M = torch.einsum("vj,bjrc->bvrc", weights, A[..., :3, :])  # (B, V, 3, 4)
-    if points.dim() == 2:
-        return torch.einsum("bvrc,vc->bvr", M[..., :3], points) + M[..., 3]
-    return torch.einsum("bvrc,bvc->bvr", M[..., :3], points) + M[..., 3]
+    # Blend the 3x4 matrices first (one (V, J) @ (J, 12) product per frame), then apply once per point.
+    B, J = A.shape[:2]
+    M = torch.matmul(weights, A[..., :3, :].reshape(B, J, 12)).reshape(B, -1, 3, 4)  # (B, V, 3, 4)
+    x = points if points.dim() == 3 else points.unsqueeze(0)
+    return (M[..., :3] * x.unsqueeze(-2)).sum(-1) + M[..., 3]
 
 
 def forward_kinematics(rot: torch.Tensor, joints_rest: torch.Tensor, parents: torch.Tensor) -> torch.Tensor:
