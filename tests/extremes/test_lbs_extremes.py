@@ -1,0 +1,178 @@
+"""Stability of the LBS path at the extremes (issue 10, point 4): every case returns finite output,
+bounded (no garment vertex further from the body than the garment's own size), or stops with a clear error.
+"""
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from core.body import default_body
+from core.deform import LBSDeformer, LBSOptions
+from core.errors import InputError
+from core.garment import Garment, mesh_edges
+from core.geometry import vertex_normals
+from core.motion import Motion, Y_UP_TO_Z_UP, resample, settle
+from core.motion import poses_for_body
+
+
+@pytest.fixture(scope="module")
+def body():
+    return default_body()
+
+
+def shell(body, offset=0.015, subdivisions=0, stride=1):
+    """A garment: the body surface pushed out along its normals (optionally subdivided or thinned)."""
+    v = (body.v_template + offset * vertex_normals(body.v_template, body.faces)).astype(np.float64)
+    f = body.faces.copy()
+    for _ in range(subdivisions):
+        e = mesh_edges(f)
+        mid = {tuple(k): len(v) + i for i, k in enumerate(e)}
+        v = np.concatenate([v, (v[e[:, 0]] + v[e[:, 1]]) / 2])
+        a, b, c = f[:, 0], f[:, 1], f[:, 2]
+        m = lambda x, y: np.array([mid[(min(i, j), max(i, j))] for i, j in zip(x, y)])  # noqa: E731
+        ab, bc, ca = m(a, b), m(b, c), m(c, a)
+        f = np.concatenate([np.stack(t, 1) for t in ((a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca))])
+    return Garment(v.astype(np.float32), f.astype(np.int64), name="shell")
+
+
+def assert_finite_and_bounded(points, body, motion, stride=10):
+    assert np.all(np.isfinite(points))
+    size = float(np.ptp(points[0], axis=0).max())
+    frames = np.arange(0, motion.n_frames, stride)
+    body_pts, _ = body.pose(poses_for_body(motion, body.n_joints)[frames], motion.trans[frames], motion.betas)
+    for t, bp in zip(frames, body_pts):
+        d, _ = cKDTree(bp).query(points[t])
+        assert d.max() < size, (t, d.max(), size)
+
+
+def still(n, J=24):
+    poses = np.zeros((n, J, 3), np.float32)
+    poses[:, 0] = Y_UP_TO_Z_UP
+    return poses
+
+
+@pytest.fixture(scope="module")
+def garment(body):
+    return shell(body)
+
+
+@pytest.fixture(scope="module")
+def deformer():
+    return LBSDeformer()
+
+
+def test_extreme_betas(body, garment, deformer):
+    for sign in (-5.0, 5.0):
+        m = Motion(poses=still(2), trans=np.zeros((2, 3), np.float32), fps=30, betas=np.full(10, sign, np.float32))
+        out = deformer.deform(garment, body, m)
+        assert_finite_and_bounded(out, body, m, stride=1)
+
+
+def test_poses_at_and_beyond_joint_limits(body, garment, deformer):
+    rng = np.random.default_rng(0)
+    poses = still(20)
+    poses[:, 1:] = rng.uniform(-1, 1, size=(20, 23, 3)) * np.linspace(0.5, 2 * np.pi, 20)[:, None, None]
+    m = Motion(poses=poses.astype(np.float32), trans=np.zeros((20, 3), np.float32), fps=30)
+    assert_finite_and_bounded(deformer.deform(garment, body, m), body, m, stride=4)
+
+
+def test_180_degree_flips_between_frames(body, garment, deformer):
+    poses = still(8)
+    poses[1::2, 16] = [np.pi, 0, 0]  # left shoulder flips by 180 deg every frame
+    poses[1::2, 1] = [0, 0, -np.pi]
+    m = Motion(poses=poses, trans=np.zeros((8, 3), np.float32), fps=30)
+    # resampling across antipodal rotations must not produce NaN (slerp of opposite quaternions)
+    m60 = resample(m, 60.0)
+    assert np.all(np.isfinite(m60.poses))
+    assert_finite_and_bounded(deformer.deform(garment, body, m60), body, m60, stride=3)
+
+
+def test_root_teleports_of_10_m(body, garment, deformer):
+    trans = np.zeros((6, 3), np.float32)
+    trans[::2] = [10.0, -10.0, 0.0]
+    m = Motion(poses=still(6), trans=trans, fps=30)
+    out = deformer.deform(garment, body, m)
+    assert_finite_and_bounded(out, body, m, stride=1)
+    np.testing.assert_allclose(out[0] - out[1], np.broadcast_to([10.0, -10.0, 0.0], out[0].shape), atol=1e-4)
+
+
+@pytest.mark.parametrize("source_fps", [5.0, 240.0])
+def test_very_low_and_high_input_frame_rates(body, garment, deformer, source_fps):
+    n = int(source_fps * 2) + 1  # two seconds
+    poses = still(n)
+    poses[:, 18, 2] = np.linspace(0, 1.5, n)  # elbow bends
+    m = resample(Motion(poses=poses, trans=np.zeros((n, 3), np.float32), fps=source_fps), 30.0)
+    assert m.n_frames == 61
+    np.testing.assert_allclose(np.linalg.norm(m.poses[-1, 18]), 1.5, atol=1e-5)
+    assert_finite_and_bounded(deformer.deform(garment, body, m), body, m, stride=10)
+
+
+def test_10000_frames_error_does_not_grow(body, garment, deformer):
+    """A periodic 10,000-frame motion: the last thousand frames equal the first thousand (no drift)."""
+    n, period = 10_000, 100
+    poses = still(n)
+    phase = 2 * np.pi * np.arange(n) / period
+    poses[:, 1, 0] = 0.5 * np.sin(phase)
+    poses[:, 2, 0] = -0.5 * np.sin(phase)
+    poses[:, 16, 2] = -0.6 + 0.3 * np.cos(phase)
+    m = Motion(poses=poses, trans=np.zeros((n, 3), np.float32), fps=30)
+    out = deformer.deform(garment, body, m)
+    assert out.shape == (n, garment.n_vertices, 3) and np.all(np.isfinite(out))
+    np.testing.assert_allclose(out[-1000:], out[:1000], atol=1e-5)
+
+
+@pytest.mark.parametrize("size", ["tiny", "huge"])
+def test_garments_of_50_and_50000_vertices(body, size):
+    if size == "tiny":
+        # a 50-vertex band around the waist: two rings of 25, quads split in two
+        full = shell(body)
+        ring = full.vertices[np.abs(full.vertices[:, 1] - 0.1) < 0.01]
+        centre = ring.mean(axis=0)
+        angle = np.linspace(0, 2 * np.pi, 25, endpoint=False)
+        radius = np.max(np.linalg.norm((ring - centre)[:, [0, 2]], axis=1)) + 0.01
+        rings = [np.stack([centre[0] + radius * np.cos(angle), np.full(25, y), centre[2] + radius * np.sin(angle)], 1)
+                 for y in (0.05, 0.12)]
+        i = np.arange(25)
+        j = (i + 1) % 25
+        f = np.concatenate([np.stack([i, j, 25 + i], 1), np.stack([j, 25 + j, 25 + i], 1)])
+        g = Garment(np.concatenate(rings).astype(np.float32), f, name="tiny")
+        assert g.n_vertices == 50
+    else:
+        g = shell(body, subdivisions=1)
+        assert g.n_vertices > 50_000
+    m = Motion(poses=still(3), trans=np.zeros((3, 3), np.float32), fps=30)
+    m.poses[1:, 16, 2] = -1.0
+    out = LBSDeformer(LBSOptions(smooth_iterations=2)).deform(g, body, m)
+    assert out.shape == (3, g.n_vertices, 3)
+    assert_finite_and_bounded(out, body, m, stride=1)
+
+
+def test_float32_and_float64_lbs_agree(body):
+    import torch
+
+    from core.body import lbs
+
+    rng = np.random.default_rng(1)
+    pose = torch.from_numpy(rng.normal(size=(3, 24, 3)) * 0.5)
+    betas = torch.from_numpy(rng.normal(size=(3, 10)))
+    v64, _ = lbs(betas, pose, *body.torch(torch.float64))
+    v32, _ = lbs(betas.float(), pose.float(), *body.torch(torch.float32))
+    assert (v64 - v32.double()).abs().max().item() < 1e-5  # metres: under 10 micrometres
+
+
+def test_single_frame_motion(body, garment, deformer):
+    m = Motion(poses=still(1), trans=np.zeros((1, 3), np.float32), fps=30)
+    assert resample(m, 60.0).n_frames == 1
+    s = settle(m, 5)
+    out = deformer.deform(garment, body, s)
+    assert out.shape[0] == 6
+    assert_finite_and_bounded(out, body, s, stride=1)
+
+
+def test_non_finite_motion_stops_with_a_clear_error():
+    from core.motion import validate_motion_values
+
+    poses = still(3)
+    poses[2, 5, 1] = np.inf
+    with pytest.raises(InputError, match="frame 2"):
+        validate_motion_values(Motion(poses=poses, trans=np.zeros((3, 3), np.float32), fps=30), "inf.npz")
