@@ -1,0 +1,485 @@
+"""The learned garment model of paper section 3.2: dynamic skinning weights and multi-scale blend shapes.
+
+One network serves every garment and body shape (no per-garment parameters):
+everything garment-specific enters as inputs built by `garment_inputs` from the
+cached preprocessing (`core.preprocess`) and the LBS binding (`core.skinning`).
+
+Per (garment, body shape), once ("rest-pose module", frozen in training phase 2):
+  vertex features X (position, normal, joint distances) -> GAT encoder -> X^gg;
+  Nystrom eigenvalues -> style MLP -> C^gs, added to X^gg and refined by an
+  induced self-attention block (Set-Transformer ISAB: V x M attention through
+  M learned inducing points instead of V x V, so 6k-vertex garments stay cheap)
+  -> X^gg_hat; body joint-vertex distances D (N_b, S) -> shared MLP per body
+  vertex, mean/max pooled (any body vertex count) -> C^bs;
+  X^fuse = X^gg_hat * C^bs (element-wise).
+Per frame, from a window of m frames:
+  poses (axis-angle of the non-root joints, the up axis and the translation
+  velocity in the root's frame: heading-invariant) -> LSTM E^t1 -> a (hidden, S)
+  matrix M; skinning weights (Eq. 3) W = softmax_S(X^fuse M + log W_prior),
+  where W_prior are the weights transferred from the body surface, so an
+  untrained model starts as LBS;
+  body-vertex velocities (pooled per joint by the body's skinning weights,
+  root frame) -> LSTM E^t2 -> per-joint codes spread to garment vertices by W,
+  plus a global code, combined with X^fuse -> multi-scale GAT U-Net over the
+  pooling hierarchy -> blend shapes B (Eq. 4, rest frame, metres; output layer
+  zero-initialised);
+  garment = LBS of T + B with W and the body's skinning transforms (Eq. 1-2).
+
+Graph attention is PyG's GATv2Conv (its parameters); `GATv2` evaluates it on
+a padded (V, K) neighbour table with gather + masked softmax, which FACTS.md
+measured about 2x faster on CPU and which batches frames; tests check it
+against `GATv2Conv.forward`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import torch
+import torch.nn.functional as F
+from torch import nn
+from torch_geometric.nn import GATv2Conv
+
+from core.body import Body
+from core.errors import InputError
+
+#: Floor of the prior weights before the log (joints with no transferred weight stay reachable).
+PRIOR_FLOOR = 1e-4
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Sizes of the network (stored in every checkpoint).
+
+    n_joints: S, the body skeleton's joints (24 for SMPL). hidden: graph feature width.
+    heads: GATv2 attention heads (hidden must divide by heads). encoder_layers: GAT blocks of E^gg.
+    level_layers: GAT blocks per U-Net level on the way down and up; bottom_layers: at the coarsest.
+    levels: pooling levels L of the U-Net (the preprocessing must have at least L).
+    window: m, frames seen by the temporal encoders. lstm_hidden: their width.
+    inducing_points: M of the self-attention block; attention_heads: its heads.
+    n_eigenvalues: style descriptor length; n_landmarks: Nystrom N* (preprocessing settings).
+    """
+
+    n_joints: int = 24
+    hidden: int = 32
+    heads: int = 1
+    encoder_layers: int = 2
+    level_layers: int = 1
+    bottom_layers: int = 2
+    levels: int = 2
+    window: int = 5
+    lstm_hidden: int = 64
+    inducing_points: int = 16
+    attention_heads: int = 2
+    n_eigenvalues: int = 16
+    n_landmarks: int = 64
+
+    def validate(self, source: str = "model config") -> None:
+        for name in ("n_joints", "hidden", "heads", "window", "lstm_hidden", "inducing_points",
+                     "attention_heads", "n_eigenvalues", "n_landmarks"):
+            if int(getattr(self, name)) < 1:
+                raise InputError(f"{source}: expected {name} >= 1, got {getattr(self, name)!r}")
+        for name in ("encoder_layers", "level_layers", "bottom_layers", "levels"):
+            if int(getattr(self, name)) < 0:
+                raise InputError(f"{source}: expected {name} >= 0, got {getattr(self, name)!r}")
+        if self.hidden % self.heads or self.hidden % self.attention_heads:
+            raise InputError(f"{source}: expected hidden ({self.hidden}) divisible by heads ({self.heads}) and "
+                             f"attention_heads ({self.attention_heads})")
+
+    @property
+    def vertex_features(self) -> int:
+        """Width of the input vertex features: position 3 + normal 3 + joint distances S."""
+        return 6 + self.n_joints
+
+    @property
+    def pose_features(self) -> int:
+        """Per-frame input of E^t1: (S-1) axis-angles, up axis, translation velocity."""
+        return 3 * (self.n_joints - 1) + 6
+
+    @property
+    def velocity_features(self) -> int:
+        """Per-frame input of E^t2: S joint-pooled body velocities and the up axis."""
+        return 3 * self.n_joints + 3
+
+
+def config_from_dict(values: dict, source: str = "model config") -> ModelConfig:
+    """A ModelConfig from a dict; unknown keys are an InputError naming the key and `source`."""
+    known = {f.name: f for f in dataclasses.fields(ModelConfig)}
+    for key in values:
+        if key not in known:
+            raise InputError(f"{source}: unknown key '{key}' (expected one of {', '.join(known)})")
+    cfg = ModelConfig(**{k: int(v) for k, v in values.items()})
+    cfg.validate(source)
+    return cfg
+
+
+# ----------------------------------------------------------------------------------------------- graph inputs
+
+def neighbour_table(edges: np.ndarray, n: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Padded incoming-neighbour table of an undirected graph, self loop first (GATv2Conv's default).
+
+    edges: (E, 2) int, undirected, no self loops. Returns nbr (n, K) int64 (padding repeats the
+    vertex itself) and mask (n, K) bool; K = 1 + max degree. Neighbours are in increasing order.
+    """
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    edges = edges[edges[:, 0] != edges[:, 1]]
+    src = np.r_[edges[:, 0], edges[:, 1]]
+    dst = np.r_[edges[:, 1], edges[:, 0]]
+    order = np.lexsort((src, dst))
+    src, dst = src[order], dst[order]
+    deg = np.bincount(dst, minlength=n)
+    K = 1 + int(deg.max(initial=0))
+    nbr = np.repeat(np.arange(n, dtype=np.int64)[:, None], K, axis=1)
+    mask = np.zeros((n, K), dtype=bool)
+    mask[:, 0] = True
+    start = np.r_[0, np.cumsum(deg)[:-1]]
+    col = 1 + np.arange(len(dst)) - np.repeat(start, deg)
+    nbr[dst, col] = src
+    mask[dst, col] = True
+    return torch.from_numpy(nbr), torch.from_numpy(mask)
+
+
+def padded_rows(m: sp.csr_matrix) -> tuple[torch.Tensor, torch.Tensor]:
+    """A sparse (n, k) matrix as padded gather: index (n, K) int64, weight (n, K) float32 (0 where padded)."""
+    m = sp.csr_matrix(m)
+    m.sort_indices()
+    n = m.shape[0]
+    counts = np.diff(m.indptr)
+    K = max(1, int(counts.max(initial=0)))
+    idx = np.zeros((n, K), dtype=np.int64)
+    w = np.zeros((n, K), dtype=np.float32)
+    rows = np.repeat(np.arange(n), counts)
+    col = np.arange(m.nnz) - np.repeat(m.indptr[:-1], counts)
+    idx[rows, col] = m.indices
+    w[rows, col] = m.data
+    return torch.from_numpy(idx), torch.from_numpy(w)
+
+
+@dataclass(frozen=True, eq=False)
+class GarmentInputs:
+    """What the network reads about one garment (rest frame, built by `garment_inputs`).
+
+    features: (V, 6+S) float32. eigenvalues: (n_eig,) float32. prior_weights: (V, S) float32, rows sum to 1.
+    rest: (V, 3) float32 metres. shapedirs: (V, 3, n_betas) float32 (garment follows the body's shape).
+    nbr[l], mask[l]: (n_l, K_l) neighbour tables of level l. pool_index[l]: (n_{l+1},) int64 level-l rows.
+    unpool_index[l], unpool_weight[l]: (n_l, K) padded rows of the level l+1 -> l unpooling matrix.
+    faces: (F, 3) int64. edges: (E, 2) int64.
+    """
+
+    features: torch.Tensor
+    eigenvalues: torch.Tensor
+    prior_weights: torch.Tensor
+    rest: torch.Tensor
+    shapedirs: torch.Tensor
+    nbr: list
+    mask: list
+    pool_index: list
+    unpool_index: list
+    unpool_weight: list
+    faces: torch.Tensor
+    edges: torch.Tensor
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.rest.shape[0])
+
+
+def garment_inputs(prep, binding, faces: np.ndarray, levels: int) -> GarmentInputs:
+    """Tensors of `GarmentInputs` from a `core.preprocess.Preprocessed` and a `core.skinning.GarmentBinding`.
+
+    levels: U-Net levels used (<= the hierarchy's). Raises InputError when the hierarchy is shallower.
+    """
+    h = prep.hierarchy
+    if h.n_levels < levels:
+        raise InputError(f"preprocessed garment: expected at least {levels} pooling levels, got {h.n_levels}")
+    nbr, mask, pool, up_i, up_w = [], [], [], [], []
+    for l in range(levels + 1):
+        t, m = neighbour_table(h.edges[l], len(h.vertex_index[l]))
+        nbr.append(t)
+        mask.append(m)
+    for l in range(levels):
+        pool.append(torch.as_tensor(h.pool_index[l], dtype=torch.long))
+        i, w = padded_rows(h.unpool[l])
+        up_i.append(i)
+        up_w.append(w)
+    w = np.maximum(binding.weights, 0).astype(np.float32)
+    w /= np.maximum(w.sum(1, keepdims=True), 1e-12)
+    return GarmentInputs(
+        features=torch.from_numpy(prep.features.as_array()),
+        eigenvalues=torch.as_tensor(prep.descriptor.eigenvalues, dtype=torch.float32),
+        prior_weights=torch.from_numpy(w), rest=torch.as_tensor(prep.features.positions, dtype=torch.float32),
+        shapedirs=torch.as_tensor(binding.shapedirs, dtype=torch.float32), nbr=nbr, mask=mask, pool_index=pool,
+        unpool_index=up_i, unpool_weight=up_w, faces=torch.as_tensor(faces, dtype=torch.long),
+        edges=torch.as_tensor(prep.edges, dtype=torch.long))
+
+
+# ------------------------------------------------------------------------------------------- body and motion
+
+def body_distances(body: Body, betas: np.ndarray | None) -> torch.Tensor:
+    """D of section 3.2.1: (N_b, S) float32 metres from each rest body vertex to each joint (shaped by betas)."""
+    v, j = body.shaped(betas)
+    return torch.from_numpy(np.linalg.norm(v[:, None, :] - j[None], axis=-1).astype(np.float32))
+
+
+@dataclass(frozen=True, eq=False)
+class MotionFeatures:
+    """Per-frame inputs of one sequence on one body (all float32).
+
+    pose: (T, 3(S-1)+6) E^t1 inputs. velocity: (T, 3S+3) E^t2 inputs.
+    transforms: (T, S, 4, 4) skinning transforms (rest body of these betas -> world, Z-up, metres).
+    """
+
+    pose: torch.Tensor
+    velocity: torch.Tensor
+    transforms: torch.Tensor
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.pose.shape[0])
+
+
+def motion_features(body: Body, poses: np.ndarray, trans: np.ndarray, betas: np.ndarray | None,
+                    fps: float) -> MotionFeatures:
+    """Temporal-encoder inputs of a pose sequence.
+
+    poses: (T, S, 3) axis-angle radians (body joint layout); trans: (T, 3) metres, Z-up world;
+    betas: (n,) or None; fps: frames per second. Velocities are finite differences times fps (m/s),
+    zero at frame 0, expressed in the root joint's frame (heading-invariant); body-vertex velocities are
+    pooled per joint with the body's skinning weights (any body vertex count gives (S, 3)).
+    """
+    poses = np.asarray(poses, dtype=np.float32)
+    trans = np.asarray(trans, dtype=np.float32)
+    T = poses.shape[0]
+    verts, _, A = body.pose_with_transforms(poses, trans, betas)
+    R = A[:, 0, :3, :3]  # root's world rotation (T, 3, 3)
+    Rt = np.transpose(R, (0, 2, 1))
+    up = np.einsum("tij,j->ti", Rt, np.array([0.0, 0.0, 1.0], dtype=np.float32))
+    dtrans = np.zeros_like(trans)
+    dtrans[1:] = (trans[1:] - trans[:-1]) * fps
+    dtrans = np.einsum("tij,tj->ti", Rt, dtrans)
+    pose = np.concatenate([poses[:, 1:].reshape(T, -1), up, dtrans], axis=1)
+    vel = np.zeros_like(verts)
+    vel[1:] = (verts[1:] - verts[:-1]) * fps
+    w = body.weights.astype(np.float32)
+    pooled = np.einsum("vj,tvc->tjc", w, vel) / np.maximum(w.sum(0), 1e-8)[None, :, None]
+    pooled = np.einsum("tij,tsj->tsi", Rt, pooled)
+    velocity = np.concatenate([pooled.reshape(T, -1), up], axis=1)
+    return MotionFeatures(torch.from_numpy(pose.astype(np.float32)), torch.from_numpy(velocity.astype(np.float32)),
+                          torch.from_numpy(A.astype(np.float32)))
+
+
+def window_index(frames: torch.Tensor | np.ndarray, m: int) -> torch.Tensor:
+    """Frame indices of the windows ending at `frames` (B,): (B, m), oldest first, clamped at frame 0."""
+    f = torch.as_tensor(np.asarray(frames), dtype=torch.long)
+    return (f[:, None] + torch.arange(-m + 1, 1)[None]).clamp(min=0)
+
+
+# ------------------------------------------------------------------------------------------------- layers
+
+class GATv2(nn.Module):
+    """PyG's GATv2Conv (concatenated heads, self loops) evaluated on a padded neighbour table, batched.
+
+    forward(x (B, n, F_in), nbr (n, K), mask (n, K)) -> (B, n, F_out).
+    `reference(x (n, F_in), edge_index (2, E))` runs GATv2Conv.forward itself (for tests).
+    """
+
+    def __init__(self, in_features: int, out_features: int, heads: int = 1):
+        super().__init__()
+        self.heads, self.channels = heads, out_features // heads
+        self.conv = GATv2Conv(in_features, self.channels, heads=heads, concat=True)
+
+    def forward(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        B, n, _ = x.shape
+        H, C = self.heads, self.channels
+        xl = self.conv.lin_l(x).view(B, n, H, C)
+        xr = self.conv.lin_r(x).view(B, n, H, C)
+        xj = xl[:, nbr]  # (B, n, K, H, C)
+        e = F.leaky_relu(xj + xr[:, :, None], self.conv.negative_slope)
+        score = (e * self.conv.att.view(1, 1, 1, H, C)).sum(-1)  # (B, n, K, H)
+        score = score.masked_fill(~mask[None, :, :, None], float("-inf"))
+        alpha = torch.softmax(score, dim=2)
+        out = torch.einsum("bnkh,bnkhc->bnhc", alpha, xj).reshape(B, n, H * C)
+        return out + self.conv.bias
+
+    def reference(self, x: torch.Tensor, edge_index: torch.Tensor) -> torch.Tensor:
+        return self.conv(x, edge_index)
+
+
+class GATBlock(nn.Module):
+    """x + SiLU(GATv2(x)): a residual graph-attention block of constant width."""
+
+    def __init__(self, width: int, heads: int):
+        super().__init__()
+        self.gat = GATv2(width, width, heads)
+
+    def forward(self, x, nbr, mask):
+        return x + F.silu(self.gat(x, nbr, mask))
+
+
+def mlp(sizes: list[int]) -> nn.Sequential:
+    layers = []
+    for a, b in zip(sizes[:-1], sizes[1:]):
+        layers += [nn.Linear(a, b), nn.SiLU()]
+    return nn.Sequential(*layers[:-1])
+
+
+class InducedSelfAttention(nn.Module):
+    """Set-Transformer ISAB over vertices: H = MHA(I, X, X); X + MHA(X, H, H), layer-normalised. (n, C)."""
+
+    def __init__(self, width: int, inducing: int, heads: int):
+        super().__init__()
+        self.inducing = nn.Parameter(torch.randn(1, inducing, width) / math.sqrt(width))
+        self.gather = nn.MultiheadAttention(width, heads, batch_first=True)
+        self.scatter = nn.MultiheadAttention(width, heads, batch_first=True)
+        self.norm = nn.LayerNorm(width)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = x[None]
+        h, _ = self.gather(self.inducing, x, x, need_weights=False)
+        y, _ = self.scatter(x, h, h, need_weights=False)
+        return self.norm(x + y)[0]
+
+
+class RestPoseModule(nn.Module):
+    """Garment encoder, style encoder + self-attention, body-shape encoder: -> X^fuse (V, hidden)."""
+
+    def __init__(self, cfg: ModelConfig):
+        super().__init__()
+        h = cfg.hidden
+        self.inp = nn.Linear(cfg.vertex_features, h)
+        self.encoder = nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.encoder_layers))
+        self.style = mlp([cfg.n_eigenvalues, h, h])
+        self.attention = InducedSelfAttention(h, cfg.inducing_points, cfg.attention_heads)
+        self.body_point = mlp([cfg.n_joints, h, h])
+        self.body_shape = mlp([2 * h, h, h])
+        # C^bs starts near 1 so the product does not wipe the garment features at initialisation.
+        nn.init.normal_(self.body_shape[-1].weight, std=0.01)
+        nn.init.ones_(self.body_shape[-1].bias)
+
+    def forward(self, g: GarmentInputs, body_dist: torch.Tensor) -> torch.Tensor:
+        x = self.inp(g.features)[None]
+        for blk in self.encoder:
+            x = blk(x, g.nbr[0], g.mask[0])
+        eig = torch.log(g.eigenvalues.clamp(min=0) + 1e-4) / 5.0
+        x = self.attention(x[0] + self.style(eig)[None])
+        p = self.body_point(body_dist)  # (N_b, h)
+        c_bs = self.body_shape(torch.cat([p.mean(0), p.max(0).values]))
+        return x * c_bs[None]
+
+
+class GraphUNet(nn.Module):
+    """Multi-scale GAT U-Net over the pooling hierarchy (section 3.3): (B, V, h) -> (B, V, 3)."""
+
+    def __init__(self, cfg: ModelConfig):
+        super().__init__()
+        h, L = cfg.hidden, cfg.levels
+        self.levels = L
+        self.down = nn.ModuleList(nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.level_layers))
+                                  for _ in range(L))
+        self.bottom = nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.bottom_layers))
+        self.merge = nn.ModuleList(nn.Linear(2 * h, h) for _ in range(L))
+        self.up = nn.ModuleList(nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.level_layers))
+                                for _ in range(L))
+        self.out = nn.Linear(h, 3)
+        nn.init.zeros_(self.out.weight)
+        nn.init.zeros_(self.out.bias)
+
+    def forward(self, x: torch.Tensor, g: GarmentInputs) -> torch.Tensor:
+        skips = []
+        for l in range(self.levels):
+            for blk in self.down[l]:
+                x = blk(x, g.nbr[l], g.mask[l])
+            skips.append(x)
+            x = x[:, g.pool_index[l]]
+        for blk in self.bottom:
+            x = blk(x, g.nbr[self.levels], g.mask[self.levels])
+        for l in reversed(range(self.levels)):
+            x = torch.einsum("bnkc,nk->bnc", x[:, g.unpool_index[l]], g.unpool_weight[l])
+            x = F.silu(self.merge[l](torch.cat([x, skips[l]], dim=-1)))
+            for blk in self.up[l]:
+                x = blk(x, g.nbr[l], g.mask[l])
+        return self.out(x)
+
+
+@dataclass
+class ModelOutput:
+    """verts: (B, V, 3) world, metres. weights: (B, V, S) skinning weights. blend: (B, V, 3) rest-frame offsets."""
+
+    verts: torch.Tensor
+    weights: torch.Tensor
+    blend: torch.Tensor
+
+
+class GarmentModel(nn.Module):
+    """The whole network. `encode` once per (garment, body shape); `forward_frames` per batch of frames."""
+
+    def __init__(self, cfg: ModelConfig = ModelConfig()):
+        super().__init__()
+        cfg.validate()
+        self.config = cfg
+        h, S = cfg.hidden, cfg.n_joints
+        self.rest_pose = RestPoseModule(cfg)
+        self.temporal_pose = nn.LSTM(cfg.pose_features, cfg.lstm_hidden, batch_first=True)
+        self.skinning = nn.Linear(cfg.lstm_hidden, h * S)
+        nn.init.zeros_(self.skinning.weight)
+        nn.init.zeros_(self.skinning.bias)
+        self.temporal_velocity = nn.LSTM(cfg.velocity_features, cfg.lstm_hidden, batch_first=True)
+        self.joint_codes = nn.Linear(cfg.lstm_hidden, h * S)
+        self.global_code = nn.Linear(cfg.lstm_hidden, h)
+        self.combine = nn.Linear(2 * h, h)
+        self.unet = GraphUNet(cfg)
+
+    def check_inputs(self, g: GarmentInputs) -> None:
+        cfg = self.config
+        if g.features.shape[1] != cfg.vertex_features or g.prior_weights.shape[1] != cfg.n_joints:
+            raise InputError(f"garment inputs: the model expects a {cfg.n_joints}-joint body, got features for "
+                             f"{g.prior_weights.shape[1]} joints")
+        if g.eigenvalues.shape[0] != cfg.n_eigenvalues:
+            raise InputError(f"garment inputs: expected {cfg.n_eigenvalues} style eigenvalues, got {g.eigenvalues.shape[0]}")
+        if len(g.pool_index) < cfg.levels:
+            raise InputError(f"garment inputs: expected {cfg.levels} pooling levels, got {len(g.pool_index)}")
+
+    def encode(self, g: GarmentInputs, body_dist: torch.Tensor) -> torch.Tensor:
+        """X^fuse: (V, hidden). body_dist: (N_b, S) from `body_distances`."""
+        self.check_inputs(g)
+        return self.rest_pose(g, body_dist)
+
+    def forward_frames(self, fused: torch.Tensor, g: GarmentInputs, rest: torch.Tensor, pose_win: torch.Tensor,
+                       vel_win: torch.Tensor, transforms: torch.Tensor) -> ModelOutput:
+        """Garment vertices for B frames.
+
+        fused: (V, h) from `encode`. rest: (V, 3) rest garment on the shaped body (metres).
+        pose_win: (B, m, 3(S-1)+6); vel_win: (B, m, 3S+3) windows ending at each frame.
+        transforms: (B, S, 4, 4) skinning transforms of each frame.
+        """
+        B = pose_win.shape[0]
+        S, h = self.config.n_joints, self.config.hidden
+        _, (h1, _) = self.temporal_pose(pose_win)
+        M = self.skinning(h1[-1]).view(B, h, S)
+        logits = torch.einsum("vc,bcs->bvs", fused, M) / math.sqrt(h)
+        weights = torch.softmax(logits + torch.log(g.prior_weights + PRIOR_FLOOR)[None], dim=-1)  # Eq. 3
+        _, (h2, _) = self.temporal_velocity(vel_win)
+        codes = self.joint_codes(h2[-1]).view(B, S, h)
+        per_vertex = torch.einsum("bvs,bsc->bvc", weights, codes)
+        x = F.silu(self.combine(torch.cat([fused[None].expand(B, -1, -1), per_vertex], dim=-1))
+                   + self.global_code(h2[-1])[:, None])
+        blend = self.unet(x, g)  # Eq. 4
+        shaped = rest[None] + blend  # Eq. 2
+        Mx = torch.einsum("bvs,bsrc->bvrc", weights, transforms[:, :, :3, :])
+        verts = torch.einsum("bvrc,bvc->bvr", Mx[..., :3], shaped) + Mx[..., 3]  # Eq. 1
+        return ModelOutput(verts=verts, weights=weights, blend=blend)
+
+
+def shaped_rest(g: GarmentInputs, body: Body, betas: np.ndarray | None) -> torch.Tensor:
+    """The garment's rest vertices on the body shaped by betas: (V, 3) float32, metres."""
+    b = torch.from_numpy(body.fit_betas(betas))
+    n = min(g.shapedirs.shape[2], b.shape[0])
+    return g.rest + torch.einsum("vcs,s->vc", g.shapedirs[..., :n], b[:n])
+
+
+def count_parameters(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,193 @@
+"""Training data of the learned model: simulated sequences as windows of m frames, per-garment inputs cached.
+
+Reads a simulator dataset directory (the layout `formats/dataset.py` writes):
+manifest.json with `splits` {"train"|"val"|"test": [item ids]} and `items`
+(a list of {"id", "garment", "motion", "betas", optional "file"}, or a dict
+id -> such a record), garments/<name>.obj rest templates, and one .npz per
+item (`<id>.npz` beside the manifest or under sequences/, or the item's
+"file") with positions (T, V, 3) float32 Z-up metres, poses (T, J, 3), trans
+(T, 3), betas, fps. Garment preprocessing goes through `core.preprocess`
+(cached by mesh hash when `cache_dir` is set) and the LBS binding through
+`core.skinning`; both are computed once per garment. Sequence features
+(`core.model.motion_features`) once per item.
+# TODO(lead): move the file reading to formats/dataset.py's reader once it exists.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+import torch
+
+from core.body import Body
+from core.errors import InputError
+from core.garment import Garment
+from core.losses import rest_uv_frame, vertex_masses
+from core.model import (GarmentInputs, ModelConfig, MotionFeatures, body_distances, garment_inputs, motion_features,
+                        shaped_rest)
+from core.preprocess import preprocess_garment
+from core.skinning import bind_garment
+
+log = logging.getLogger(__name__)
+
+#: Weight-smoothing passes of the LBS prior (as the `lbs` method's default).
+PRIOR_SMOOTH_ITERATIONS = 10
+
+
+@dataclass(frozen=True, eq=False)
+class GarmentData:
+    """One garment ready for training and inference.
+
+    inputs: GarmentInputs. near: (V, V) sparse rest 10 cm neighbourhood (Eq. 6). masses: (V,) kg.
+    dm_inv: (F, 2, 2) rest (u, v) frames (Eq. 10); area: (F,) m^2.
+    """
+
+    garment: Garment
+    inputs: GarmentInputs
+    near: sp.csr_matrix | None
+    masses: torch.Tensor
+    dm_inv: torch.Tensor
+    area: torch.Tensor
+
+
+def prepare_garment(garment: Garment, body: Body, config: ModelConfig, cache_dir=None,
+                    source: str | None = None) -> GarmentData:
+    """Preprocess (cached) and bind `garment` on `body` for a model of `config`."""
+    prep = preprocess_garment(garment, body, levels=config.levels, n_landmarks=config.n_landmarks,
+                              n_eigenvalues=config.n_eigenvalues, cache_dir=cache_dir)
+    binding = bind_garment(garment, body, PRIOR_SMOOTH_ITERATIONS, 0.5, source=source)
+    dm, area = rest_uv_frame(garment.vertices, garment.faces, garment.uvs, garment.face_uvs)
+    return GarmentData(garment=garment, inputs=garment_inputs(prep, binding, garment.faces, config.levels),
+                       near=prep.collision_near,
+                       masses=torch.from_numpy(vertex_masses(garment.vertices, garment.faces)),
+                       dm_inv=torch.from_numpy(dm), area=torch.from_numpy(area))
+
+
+@dataclass(frozen=True, eq=False)
+class Sequence:
+    """One simulated sequence of one garment on one body shape.
+
+    positions: (T, V, 3) float32 world metres (ground truth). poses: (T, J, 3); trans: (T, 3); betas: (S,).
+    motion: MotionFeatures. rest: (V, 3) garment rest on the shaped body. body_dist: (N_b, S).
+    """
+
+    item_id: str
+    garment_name: str
+    positions: torch.Tensor
+    poses: np.ndarray
+    trans: np.ndarray
+    betas: np.ndarray
+    fps: float
+    motion: MotionFeatures
+    rest: torch.Tensor
+    body_dist: torch.Tensor
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.positions.shape[0])
+
+
+def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Body, garment: GarmentData,
+                         source: str) -> Sequence:
+    """Build a Sequence from an item's arrays (see module docstring); InputError naming `source` when bad."""
+    for key in ("positions", "poses", "trans", "fps"):
+        if key not in arrays:
+            raise InputError(f"dataset sequence '{source}': expected key '{key}', got {sorted(arrays)}")
+    pos = np.asarray(arrays["positions"], dtype=np.float32)
+    poses = np.asarray(arrays["poses"], dtype=np.float32)
+    trans = np.asarray(arrays["trans"], dtype=np.float32)
+    V = garment.inputs.n_vertices
+    if pos.ndim != 3 or pos.shape[1:] != (V, 3):
+        raise InputError(f"dataset sequence '{source}': expected positions of shape (T, {V}, 3) for garment "
+                         f"'{garment_name}', got {tuple(pos.shape)}")
+    T = pos.shape[0]
+    if poses.shape != (T, body.n_joints, 3):
+        raise InputError(f"dataset sequence '{source}': expected poses of shape ({T}, {body.n_joints}, 3), "
+                         f"got {tuple(poses.shape)}")
+    if trans.shape != (T, 3):
+        raise InputError(f"dataset sequence '{source}': expected trans of shape ({T}, 3), got {tuple(trans.shape)}")
+    betas = body.fit_betas(arrays.get("betas"))
+    fps = float(np.asarray(arrays["fps"]))
+    return Sequence(item_id=item_id, garment_name=garment_name, positions=torch.from_numpy(pos), poses=poses,
+                    trans=trans, betas=betas, fps=fps, motion=motion_features(body, poses, trans, betas, fps),
+                    rest=shaped_rest(garment.inputs, body, betas), body_dist=body_distances(body, betas))
+
+
+def _items(manifest: dict, source: str) -> dict:
+    items = manifest.get("items", {})
+    if isinstance(items, list):
+        out = {}
+        for rec in items:
+            if not isinstance(rec, dict) or "id" not in rec:
+                raise InputError(f"dataset manifest '{source}': expected items with an 'id', got {rec!r:.80}")
+            out[str(rec["id"])] = rec
+        return out
+    if isinstance(items, dict):
+        return {str(k): v for k, v in items.items()}
+    raise InputError(f"dataset manifest '{source}': expected 'items' as a list or a mapping, got {type(items).__name__}")
+
+
+class ModelDataset:
+    """A simulator dataset loaded for training: garments (shared) and sequences per split.
+
+    root: dataset directory. body: the body the sequences were simulated on. splits: which to load.
+    cache_dir: preprocessing cache (None = compute).
+    """
+
+    def __init__(self, root, body: Body, config: ModelConfig, splits=("train", "val"), cache_dir=None):
+        from formats.obj import read_obj  # file reading lives in formats/
+
+        self.root = Path(root)
+        self.body = body
+        self.config = config
+        mpath = self.root / "manifest.json"
+        if not mpath.is_file():
+            raise InputError(f"dataset '{self.root}': expected a manifest.json in it, found none")
+        try:
+            manifest = json.loads(mpath.read_text())
+        except json.JSONDecodeError as exc:
+            raise InputError(f"dataset manifest '{mpath}': expected JSON, got {exc}") from None
+        self.manifest = manifest
+        items = _items(manifest, str(mpath))
+        split_ids = manifest.get("splits", {})
+        self.garments: dict[str, GarmentData] = {}
+        self.splits: dict[str, list[Sequence]] = {}
+        for split in splits:
+            seqs = []
+            for item_id in split_ids.get(split, []):
+                item_id = str(item_id)
+                if item_id not in items:
+                    raise InputError(f"dataset manifest '{mpath}': split '{split}' names item '{item_id}', "
+                                     f"which is not in 'items'")
+                rec = items[item_id]
+                name = str(rec["garment"])
+                if name not in self.garments:
+                    gpath = self.root / "garments" / f"{name}.obj"
+                    if not gpath.is_file():
+                        raise InputError(f"dataset '{self.root}': expected garment template '{gpath}', found none")
+                    self.garments[name] = prepare_garment(read_obj(gpath), body, config, cache_dir, str(gpath))
+                spath = self._sequence_path(item_id, rec)
+                with np.load(spath, allow_pickle=False) as data:
+                    arrays = {k: data[k] for k in data.files}
+                seqs.append(sequence_from_arrays(item_id, name, arrays, body, self.garments[name], str(spath)))
+            self.splits[split] = seqs
+            log.info("dataset split '%s': %d sequences", split, len(seqs))
+
+    def _sequence_path(self, item_id: str, rec: dict) -> Path:
+        cands = [self.root / str(rec["file"])] if "file" in rec else []
+        cands += [self.root / f"{item_id}.npz", self.root / "sequences" / f"{item_id}.npz"]
+        for c in cands:
+            if c.is_file():
+                return c
+        raise InputError(f"dataset '{self.root}': expected the sequence file of item '{item_id}' "
+                         f"(tried {', '.join(str(c) for c in cands)}), found none")
+
+    def posed_body(self, seq: Sequence, frames: np.ndarray) -> torch.Tensor:
+        """The body of `seq` at `frames` (B,): (B, N_b, 3) float32 world metres (no gradient)."""
+        v, _ = self.body.pose(seq.poses[frames], seq.trans[frames], seq.betas)
+        return torch.from_numpy(v)

@@ -1,0 +1,242 @@
+"""Hybrid three-phase training of the garment model (paper section 4).
+
+Phase 1: supervised (vertex x100, edge x15, normal x50). Phase 2, when the
+validation vertex error plateaus: + penetration and self-collision, supervised
+x0.05, rest-pose module frozen. Phase 3, when the validation collision loss
+plateaus: + gravity, stretch and shear, supervised x0.2 (phase-2 terms kept).
+A plateau is `patience` validations in a row without a relative improvement
+of more than `tolerance` over the best value of the phase.
+
+Deterministic on CPU given the seed: the model is initialised from the seed,
+batches are drawn from a numpy PCG64 generator held in the trainer's state,
+validation uses fixed frames and no randomness. A checkpoint holds the model,
+optimizer, both RNG states, the phase state and the step, so resuming gives
+bitwise the same losses as an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from core import losses as L
+from core.errors import InputError
+from core.model import GarmentModel, ModelConfig, window_index
+from core.model_data import ModelDataset, Sequence
+
+log = logging.getLogger(__name__)
+
+LOSS_COLUMNS = ("vert", "edge", "normal", "penetration", "self_collision", "gravity", "stretch", "shear")
+SUPERVISED_SCALE = {1: 1.0, 2: 0.05, 3: 0.2}
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training settings (dumped next to the model).
+
+    steps: optimizer steps in all. lr: Adam learning rate. seed: init and sampling seed.
+    phases: enabled phases, (1,), (1, 2) or (1, 2, 3). frames_per_step: frames of one sequence per step.
+    val_every: steps between validations (phase switches happen there). val_frames: frames per val sequence.
+    patience, tolerance: plateau detection (relative improvement). checkpoint_every: steps (0 = only at end).
+    grad_clip: max gradient norm (0 = off).
+    """
+
+    steps: int = 20000
+    lr: float = 1e-3
+    seed: int = 0
+    phases: tuple = (1, 2, 3)
+    frames_per_step: int = 8
+    val_every: int = 200
+    val_frames: int = 32
+    patience: int = 5
+    tolerance: float = 1e-3
+    checkpoint_every: int = 1000
+    grad_clip: float = 1.0
+
+    def validate(self, source: str = "train config") -> None:
+        if tuple(self.phases) not in ((1,), (1, 2), (1, 2, 3)):
+            raise InputError(f"{source}: expected phases 1, 1,2 or 1,2,3, got {','.join(map(str, self.phases))}")
+        for name in ("steps", "frames_per_step", "val_every", "val_frames", "patience"):
+            if int(getattr(self, name)) < 1:
+                raise InputError(f"{source}: expected {name} >= 1, got {getattr(self, name)!r}")
+        if not (self.lr > 0 and self.tolerance >= 0 and self.checkpoint_every >= 0 and self.grad_clip >= 0):
+            raise InputError(f"{source}: expected lr > 0 and tolerance, checkpoint_every, grad_clip >= 0")
+
+
+def train_config_from_dict(values: dict, source: str = "train config") -> TrainConfig:
+    known = {f.name for f in dataclasses.fields(TrainConfig)}
+    for key in values:
+        if key not in known:
+            raise InputError(f"{source}: unknown key '{key}' (expected one of {', '.join(sorted(known))})")
+    v = dict(values)
+    if "phases" in v:
+        v["phases"] = tuple(int(p) for p in v["phases"])
+    cfg = TrainConfig(**v)
+    cfg.validate(source)
+    return cfg
+
+
+@dataclass
+class PhaseState:
+    """phase: current phase; best: best watched value in this phase; bad: validations without improvement."""
+
+    phase: int = 1
+    best: float = math.inf
+    bad: int = 0
+    switches: list = field(default_factory=list)  # [(step, new phase)]
+
+
+def frame_losses(model: GarmentModel, data: ModelDataset, seq: Sequence, frames: np.ndarray, phase: int,
+                 freeze_rest: bool) -> dict:
+    """All loss terms active in `phase` for `frames` (B,) of `seq` (unweighted by the phase scale)."""
+    g = data.garments[seq.garment_name]
+    gi = g.inputs
+    cfg = model.config
+    if freeze_rest:
+        with torch.no_grad():
+            fused = model.encode(gi, seq.body_dist)
+    else:
+        fused = model.encode(gi, seq.body_dist)
+    win = window_index(frames, cfg.window)
+    fr = torch.as_tensor(frames, dtype=torch.long)
+    out = model.forward_frames(fused, gi, seq.rest, seq.motion.pose[win], seq.motion.velocity[win],
+                               seq.motion.transforms[fr])
+    x, gt = out.verts, seq.positions[fr]
+    terms = {"vert": L.vertex_loss(x, gt), "edge": L.edge_loss(x, gt, gi.edges), "normal": L.normal_loss(x, gt, gi.faces)}
+    if phase >= 2:
+        body = data.posed_body(seq, frames)
+        terms["penetration"] = L.penetration_loss(x, body, torch.as_tensor(data.body.faces))
+        terms["self_collision"] = (L.self_collision_loss(x, g.near) if g.near is not None else x.new_zeros(()))
+    if phase >= 3:
+        terms["gravity"] = L.gravity_loss(x, g.masses)
+        terms["stretch"] = L.stretch_loss(x, gi.faces, g.dm_inv, g.area)
+        terms["shear"] = L.shear_loss(x, gi.faces, g.dm_inv, g.area)
+    terms["_verts"] = x
+    return terms
+
+
+def total_loss(terms: dict, phase: int) -> torch.Tensor:
+    s = SUPERVISED_SCALE[phase]
+    total = s * (terms["vert"] + terms["edge"] + terms["normal"])
+    for k in ("penetration", "self_collision", "gravity", "stretch", "shear"):
+        if k in terms:
+            total = total + terms[k]
+    return total
+
+
+class Trainer:
+    """Runs the hybrid schedule on a ModelDataset.
+
+    progress: optional callable(step, phase, row dict) after every step. log_rows: every step's row.
+    """
+
+    def __init__(self, data: ModelDataset, model_config: ModelConfig, config: TrainConfig, progress=None):
+        config.validate()
+        if not data.splits.get("train"):
+            raise InputError(f"dataset '{data.root}': expected sequences in the 'train' split, got none")
+        self.data, self.config, self.progress = data, config, progress
+        torch.manual_seed(config.seed)
+        self.model = GarmentModel(model_config)
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
+        self.rng = np.random.Generator(np.random.PCG64(config.seed))
+        self.step = 0
+        self.phase = PhaseState()
+        self.rows: list[dict] = []
+        self.val = data.splits.get("val") or data.splits["train"]
+        if not data.splits.get("val"):
+            log.warning("no 'val' split: validating on the training sequences")
+
+    # -- one step ---------------------------------------------------------------------------------------
+    def train_step(self) -> dict:
+        self.model.train()
+        train = self.data.splits["train"]
+        seq = train[int(self.rng.integers(len(train)))]
+        frames = np.sort(self.rng.integers(0, seq.n_frames, size=self.config.frames_per_step))
+        phase = self.phase.phase
+        frozen = phase >= 2
+        terms = frame_losses(self.model, self.data, seq, frames, phase, frozen)
+        loss = total_loss(terms, phase)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        if frozen:  # rest-pose module frozen: no gradient, so Adam leaves it (and its moments) untouched
+            for p in self.model.rest_pose.parameters():
+                p.grad = None
+        if self.config.grad_clip > 0:
+            torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
+        self.optimizer.step()
+        self.step += 1
+        row = {"step": self.step, "phase": phase, "item": seq.item_id, "loss": float(loss.detach())}
+        row.update({k: float(terms[k].detach()) if k in terms else "" for k in LOSS_COLUMNS})
+        if self.step % self.config.val_every == 0:
+            row.update(self.validate_and_switch())
+        self.rows.append(row)
+        if self.progress is not None:
+            self.progress(self.step, phase, row)
+        return row
+
+    # -- validation and phase switches --------------------------------------------------------------------
+    def validate(self) -> dict:
+        """Validation vertex error (E_verts, mm) and, from phase 2, collision loss (pen + self-coll)."""
+        self.model.eval()
+        errs, coll = [], []
+        with torch.no_grad():
+            for seq in self.val:
+                n = min(self.config.val_frames, seq.n_frames)
+                frames = np.unique(np.linspace(0, seq.n_frames - 1, n).round().astype(np.int64))
+                terms = frame_losses(self.model, self.data, seq, frames, min(self.phase.phase, 2), True)
+                x = terms["_verts"]
+                errs.append(float((x - seq.positions[frames]).norm(dim=-1).mean()) * 1e3)
+                if "penetration" in terms:
+                    coll.append(float(terms["penetration"] + terms["self_collision"]))
+        out = {"val_verts_mm": float(np.mean(errs))}
+        if coll:
+            out["val_collision"] = float(np.mean(coll))
+        return out
+
+    def validate_and_switch(self) -> dict:
+        v = self.validate()
+        ps = self.phase
+        watched = v["val_verts_mm"] if ps.phase == 1 else v.get("val_collision", math.inf)
+        improved = (not math.isfinite(ps.best)) or watched < ps.best * (1.0 - self.config.tolerance)
+        if improved:
+            ps.best, ps.bad = watched, 0
+        else:
+            ps.bad += 1
+        if ps.bad >= self.config.patience and ps.phase + 1 in self.config.phases:
+            ps.phase += 1
+            ps.best, ps.bad = math.inf, 0
+            ps.switches.append((self.step, ps.phase))
+            log.info("step %d: plateau, switching to phase %d", self.step, ps.phase)
+        return v
+
+    def run(self, until: int | None = None, checkpoint=None) -> None:
+        """Train up to step `until` (default config.steps); checkpoint(trainer) every checkpoint_every steps."""
+        until = self.config.steps if until is None else until
+        while self.step < until:
+            self.train_step()
+            if checkpoint is not None and self.config.checkpoint_every and self.step % self.config.checkpoint_every == 0:
+                checkpoint(self)
+
+    # -- state ----------------------------------------------------------------------------------------------
+    def state(self) -> dict:
+        """Everything needed to continue exactly (tensors, numbers, strings only)."""
+        return {"optimizer": self.optimizer.state_dict(), "torch_rng": torch.get_rng_state(),
+                "numpy_rng": json.dumps(self.rng.bit_generator.state), "step": self.step,
+                "phase": json.dumps(dataclasses.asdict(self.phase)),
+                "train_config": json.dumps(dataclasses.asdict(self.config))}
+
+    def load_state(self, model_state: dict, state: dict) -> None:
+        self.model.load_state_dict(model_state)
+        self.optimizer.load_state_dict(state["optimizer"])
+        torch.set_rng_state(state["torch_rng"])
+        self.rng.bit_generator.state = json.loads(state["numpy_rng"])
+        self.step = int(state["step"])
+        p = json.loads(state["phase"])
+        self.phase = PhaseState(phase=p["phase"], best=p["best"], bad=p["bad"],
+                                switches=[tuple(s) for s in p["switches"]])

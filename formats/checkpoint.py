@@ -1,0 +1,70 @@
+"""Model and training checkpoints: one torch file holding the model config, weights and (optionally) training state.
+
+Layout (a dict saved with `torch.save`, read with `weights_only=True`, so
+loading never runs pickled code): format "garment-model", version,
+config (ModelConfig as a dict), model (state dict), meta (free JSON-able
+dict), and for training checkpoints `train` (optimizer state, RNG states,
+phase state, step). Written atomically (temporary file, rename).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import torch
+
+from core.errors import InputError
+from formats.atomic import atomic_file
+
+FORMAT = "garment-model"
+VERSION = 1
+
+
+def save_checkpoint(path: str | os.PathLike, config, model_state: dict, meta: dict | None = None,
+                    train: dict | None = None) -> Path:
+    """Write a checkpoint atomically. config: a ModelConfig (dataclass) or dict."""
+    cfg = dataclasses.asdict(config) if dataclasses.is_dataclass(config) else dict(config)
+    payload = {"format": FORMAT, "version": VERSION, "config": cfg, "model": model_state, "meta": meta or {}}
+    if train is not None:
+        payload["train"] = train
+    path = Path(path)
+    with atomic_file(path) as tmp:
+        torch.save(payload, tmp)
+    return path
+
+
+def load_checkpoint(path: str | os.PathLike) -> dict:
+    """Read and check a checkpoint; InputError naming the file when it is not one of this version."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"model '{path}': expected a checkpoint file, found none")
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # torch raises many types for foreign or damaged files
+        raise InputError(f"model '{path}': expected a garment model checkpoint, could not read it "
+                         f"({type(exc).__name__})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise InputError(f"model '{path}': expected a '{FORMAT}' checkpoint, got another kind of file")
+    if data.get("version") != VERSION:
+        raise InputError(f"model '{path}': expected checkpoint format version {VERSION}, "
+                         f"got version {data.get('version')!r}")
+    for key in ("config", "model"):
+        if key not in data:
+            raise InputError(f"model '{path}': checkpoint lacks '{key}'")
+    return data
+
+
+def load_model(path: str | os.PathLike):
+    """The GarmentModel stored in a checkpoint (eval mode) and the checkpoint dict."""
+    from core.model import GarmentModel, config_from_dict
+
+    data = load_checkpoint(path)
+    model = GarmentModel(config_from_dict(data["config"], source=f"model '{path}'"))
+    try:
+        model.load_state_dict(data["model"])
+    except RuntimeError as exc:
+        raise InputError(f"model '{path}': weights do not match its config ({str(exc).splitlines()[0]})") from None
+    model.eval()
+    return model, data

@@ -1,0 +1,121 @@
+"""The hybrid trainer end to end on a tiny synthetic dataset: learns, switches phase, resumes exactly."""
+
+import numpy as np
+import pytest
+import torch
+
+from core.errors import InputError
+from core.model_data import ModelDataset
+from core.train import TrainConfig, Trainer, train_config_from_dict
+from formats.checkpoint import load_checkpoint, save_checkpoint
+from tests.core.model_fixtures import TINY_CONFIG, make_dataset
+from tests.meshes import tiny_body
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    # Tiny tensors: one thread avoids OpenMP hand-off costs that dominate on a busy 2-core machine.
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    root = make_dataset(tmp_path_factory.mktemp("ds"))
+    yield ModelDataset(root, tiny_body(), TINY_CONFIG)
+    torch.set_num_threads(threads)
+
+
+def _train_error(tr: Trainer) -> float:
+    """Mean vertex error (m) over every frame of the training sequences."""
+    from core.train import frame_losses
+
+    errs = []
+    with torch.no_grad():
+        for seq in tr.data.splits["train"]:
+            frames = np.arange(seq.n_frames)
+            x = frame_losses(tr.model, tr.data, seq, frames, 1, True)["_verts"]
+            errs.append(float((x - seq.positions).norm(dim=-1).mean()))
+    return float(np.mean(errs))
+
+
+def test_dataset_loads(data):
+    assert [s.item_id for s in data.splits["train"]] == ["s0", "s1"]
+    assert set(data.garments) == {"a", "b"}
+    s = data.splits["val"][0]
+    assert s.motion.pose.shape == (12, TINY_CONFIG.pose_features)
+    assert s.motion.velocity.shape == (12, TINY_CONFIG.velocity_features)
+
+
+def test_training_decreases_the_error(data):
+    tr = Trainer(data, TINY_CONFIG, TrainConfig(steps=40, lr=5e-3, frames_per_step=4, val_every=1000, phases=(1,)))
+    before = _train_error(tr)
+    tr.run()
+    after = _train_error(tr)
+    assert after < 0.8 * before
+    assert all(r["phase"] == 1 for r in tr.rows)
+
+
+def test_phase_switches_on_forced_plateau(data):
+    # tolerance 1.0: no validation ever counts as an improvement after the first -> plateau at once.
+    cfg = TrainConfig(steps=8, frames_per_step=2, val_every=2, patience=1, tolerance=1.0, phases=(1, 2, 3))
+    tr = Trainer(data, TINY_CONFIG, cfg)
+    before = [p.detach().clone() for p in tr.model.rest_pose.parameters()]
+    tr.run(4)
+    assert tr.phase.phase == 2 and tr.phase.switches == [(4, 2)]
+    tr.run(6)
+    # Phase 2: penetration and self-collision on, rest-pose module frozen (no longer changes).
+    assert tr.rows[-1]["penetration"] != "" and tr.rows[-1]["gravity"] == ""
+    frozen = [p.detach().clone() for p in tr.model.rest_pose.parameters()]
+    tr.run(8)
+    assert tr.phase.phase == 3 and tr.phase.switches == [(4, 2), (8, 3)]
+    assert all(torch.equal(a, b) for a, b in zip(frozen, tr.model.rest_pose.parameters()))
+    assert not all(torch.equal(a, b) for a, b in zip(before, frozen))
+    tr.run(9)
+    assert tr.rows[-1]["stretch"] != "" and tr.rows[-1]["gravity"] != ""
+    # --phases 1,2 never reaches phase 3.
+    tr2 = Trainer(data, TINY_CONFIG, TrainConfig(steps=8, frames_per_step=2, val_every=2, patience=1, tolerance=1.0,
+                                                 phases=(1, 2)))
+    tr2.run()
+    assert tr2.phase.phase == 2
+
+
+def test_resume_is_bitwise_exact(data, tmp_path):
+    cfg = TrainConfig(steps=10, frames_per_step=2, val_every=3, patience=1, tolerance=1.0, seed=3)
+    full = Trainer(data, TINY_CONFIG, cfg)
+    full.run()
+    part = Trainer(data, TINY_CONFIG, cfg)
+    part.run(5)
+    path = save_checkpoint(tmp_path / "run.ckpt", TINY_CONFIG, part.model.state_dict(), train=part.state())
+    ck = load_checkpoint(path)
+    resumed = Trainer(data, TINY_CONFIG, cfg)
+    resumed.load_state(ck["model"], ck["train"])
+    assert resumed.step == 5
+    resumed.run()
+    assert [r for r in resumed.rows] == full.rows[5:]
+    assert full.phase.switches == resumed.phase.switches and full.phase.switches  # switches crossed the checkpoint
+    for a, b in zip(full.model.state_dict().values(), resumed.model.state_dict().values()):
+        assert torch.equal(a, b)
+
+
+def test_same_seed_same_run(data):
+    cfg = TrainConfig(steps=3, frames_per_step=2, val_every=100, seed=7)
+    a, b = Trainer(data, TINY_CONFIG, cfg), Trainer(data, TINY_CONFIG, cfg)
+    a.run()
+    b.run()
+    assert a.rows == b.rows
+
+
+def test_train_config_rejects_unknown_key_and_bad_phases():
+    with pytest.raises(InputError, match="unknown key 'lrate'"):
+        train_config_from_dict({"lrate": 1.0})
+    with pytest.raises(InputError, match="phases"):
+        train_config_from_dict({"phases": [2, 3]})
+
+
+def test_checkpoint_rejects_other_version(tmp_path):
+    path = save_checkpoint(tmp_path / "m.pt", TINY_CONFIG, {})
+    ck = torch.load(path, weights_only=True)
+    ck["version"] = 99
+    torch.save(ck, path)
+    with pytest.raises(InputError, match="version 1, got version 99"):
+        load_checkpoint(path)
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(InputError, match="junk.pt"):
+        load_checkpoint(tmp_path / "junk.pt")
