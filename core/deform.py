@@ -7,7 +7,9 @@ and records in `report` what it did and skipped, for `summary.json`.
 
 from __future__ import annotations
 
+import importlib
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -26,6 +28,8 @@ class Deformer(ABC):
 
     def __init__(self):
         self.report: dict = {}
+        #: Called with a count of output frames just finished, by methods slow enough to report per frame.
+        self.on_frames: Callable[[int], None] | None = None
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         """Per-(garment, body) work done once before any motion, validating the pair.
@@ -88,4 +92,18 @@ class LBSDeformer(Deformer):
         return out
 
 
-DEFORMERS: dict[str, type[Deformer]] = {"lbs": LBSDeformer}
+def _lazy(module: str, name: str) -> Callable[..., Deformer]:
+    """A factory importing `module.name` on use, so importing this module loads neither warp nor the network."""
+
+    def make(*args, **kwargs) -> Deformer:
+        return getattr(importlib.import_module(module), name)(*args, **kwargs)
+
+    return make
+
+
+#: Method name -> factory of its Deformer (`bake --method NAME`).
+DEFORMERS: dict[str, Callable[..., Deformer]] = {
+    "lbs": LBSDeformer,
+    "model": _lazy("core.model_deform", "ModelDeformer"),
+    "sim": _lazy("core.sim", "SimDeformer"),
+}

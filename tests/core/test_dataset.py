@@ -1,0 +1,92 @@
+"""Dataset planning (splits, betas, clips) and the sequence storage round trip."""
+
+import numpy as np
+import pytest
+
+from core.dataset import clip_ranges, plan_items, sample_betas, split_motions
+from core.errors import InputError
+from formats.dataset import Sequence, read_sequence, write_sequence
+
+
+def test_betas_are_seeded_in_range_with_a_mean_body():
+    b = sample_betas(4, 10, 2.0, seed=1)
+    assert b.shape == (4, 10) and b.dtype == np.float32
+    assert np.all(b[0] == 0) and np.abs(b).max() <= 2.0 and np.abs(b[1:]).min() > 0
+    np.testing.assert_array_equal(b, sample_betas(4, 10, 2.0, seed=1))
+    assert not np.array_equal(b, sample_betas(4, 10, 2.0, seed=2))
+    with pytest.raises(InputError, match="--bodies"):
+        sample_betas(0, 10)
+
+
+def test_splits_share_no_motion_and_test_holds_an_unseen_garment():
+    motions = {f"m{i:02d}": 40 for i in range(20)}
+    garments = ["dress", "skirt", "tshirt", "trousers"]
+    items, splits = plan_items(garments, motions, n_bodies=3, frames_per_clip=None, seed=0)
+    by_split = {s: {it.motion for it in items if it.split == s} for s in ("train", "val", "test")}
+    assert by_split["train"] and by_split["val"] and by_split["test"]
+    assert not (by_split["train"] & by_split["val"]) and not (by_split["train"] & by_split["test"])
+    assert not (by_split["val"] & by_split["test"])
+    assert len(by_split["train"]) == 14 and len(by_split["test"]) == 3
+    held = splits["held_out_garments"]
+    assert len(held) == 1
+    train_garments = {it.garment for it in items if it.split in ("train", "val")}
+    test_garments = {it.garment for it in items if it.split == "test"}
+    assert held[0] not in train_garments and held[0] in test_garments and test_garments == set(garments)
+    assert len({it.id for it in items}) == len(items)
+    assert {it.body for it in items} == {0, 1, 2}
+    # deterministic
+    assert items == plan_items(garments, motions, 3, None, seed=0)[0]
+
+
+def test_split_naive_small_cases():
+    assert set(split_motions(["a"]).values()) == {"train"}
+    assert sorted(split_motions(["a", "b"]).values()) == ["test", "train"]
+    with pytest.raises(InputError, match="distinct"):
+        split_motions(["a", "a"])
+
+
+def test_clips_cover_the_motion_in_order():
+    assert clip_ranges(100, None) == [(0, 100)]
+    assert clip_ranges(100, 40) == [(0, 40), (40, 80), (80, 100)]
+    assert clip_ranges(85, 40) == [(0, 40), (40, 80)]  # a 5-frame tail is dropped (< a quarter clip)
+
+
+def test_sequence_round_trip(tmp_path):
+    rng = np.random.default_rng(0)
+    s = Sequence(positions=rng.normal(size=(5, 7, 3)).astype(np.float32), poses=rng.normal(size=(5, 24, 3)),
+                 trans=rng.normal(size=(5, 3)), betas=np.arange(10), fps=30.0, n_settle=2, garment="dress",
+                 garment_sha256="ab" * 32, body="default")
+    p = tmp_path / "x" / "seq.npz"
+    write_sequence(p, s)
+    r = read_sequence(p)
+    np.testing.assert_array_equal(r.positions, s.positions)
+    np.testing.assert_allclose(r.poses, s.poses, rtol=1e-6)
+    assert r.poses.dtype == np.float32 and r.betas.dtype == np.float32
+    assert (r.fps, r.n_settle, r.garment, r.garment_sha256, r.body) == (30.0, 2, "dress", "ab" * 32, "default")
+    assert [f.name for f in p.parent.iterdir()] == ["seq.npz"]  # no temporary left
+    with pytest.raises(InputError, match="share T=5"):
+        write_sequence(p, Sequence(s.positions, s.poses[:3], s.trans, s.betas, 30.0, 0, "d", "x", "b"))
+
+
+def test_motion_library_keeps_the_examples_and_is_varied():
+    from core.motiongen import generate_example_motions, generate_motion_library
+
+    lib = generate_motion_library(fps=30.0)
+    ex = generate_example_motions(fps=30.0)
+    assert len(lib) >= 24
+    for name, m in ex.items():
+        np.testing.assert_array_equal(lib[name].poses, m.poses)
+        np.testing.assert_array_equal(lib[name].trans, m.trans)
+    for name, m in lib.items():
+        assert m.name == name and m.poses.shape[1:] == (24, 3)
+        assert np.all(np.isfinite(m.poses)) and np.all(np.isfinite(m.trans))
+        assert 0.3 < m.trans[:, 2].min() and m.trans[:, 2].max() < 1.4  # pelvis above the ground, below 1.4 m
+    # variations differ from their base clip
+    for a, b in (("walk", "walk_fast"), ("turn", "turn_right"), ("jump", "jump_high"), ("kick_left", "kick_right")):
+        assert not np.allclose(lib[a].poses[: min(lib[a].n_frames, lib[b].n_frames)],
+                               lib[b].poses[: min(lib[a].n_frames, lib[b].n_frames)])
+
+
+def test_max_clips_per_motion_keeps_the_first_clips():
+    items, _ = plan_items(["a"], {"m": 100}, 1, frames_per_clip=30, max_clips_per_motion=2)
+    assert [(it.start_frame, it.n_frames) for it in items] == [(0, 30), (30, 30)]

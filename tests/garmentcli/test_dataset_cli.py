@@ -1,0 +1,95 @@
+"""`garment dataset` (and `bake --method sim`) end to end on a tiny body, a small garment and two 3-frame motions."""
+
+import json
+import os
+from pathlib import Path
+
+os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" / "warp"))
+
+import numpy as np
+from click.testing import CliRunner
+
+from formats.dataset import read_sequence
+from garmentcli.main import cli
+from tests.garmentcli.conftest import write_motion
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def still_motions(d):
+    poses = np.zeros((3, 72), np.float32)
+    poses[:, :3] = [np.pi / 2, 0, 0]
+    poses[:, 3 * 16 + 2] = np.linspace(0.0, 0.1, 3)  # a little left-shoulder motion
+    write_motion(d / "a.npz", n_frames=3, fps=30.0, poses=poses)
+    write_motion(d / "b.npz", n_frames=3, fps=30.0, poses=poses[::-1].copy())
+    return d / "a.npz", d / "b.npz"
+
+
+def test_dataset_builds_resumes_and_refuses_other_settings(scene):
+    a, b = still_motions(scene["dir"])
+    out = scene["dir"] / "data"
+    args = ["dataset", "--garments", scene["garment"], "--motions", a, "--motions", b, "--body", scene["body"],
+            "--bodies", 2, "--betas-range", 0.5, "--settle", 1, "--substeps", 5, "--out", out]
+    r = run(*args)
+    assert r.exit_code == 0, r.output
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["totals"]["items"] == 4 and len(m["items"]) == 4
+    assert set(m["inputs"]["garments"]) == {"shell"} and len(m["inputs"]["motions"]["a"]["sha256"]) == 64
+    assert m["settings"]["material"]["density_kg_m2"] > 0 and m["settings"]["solver"]["substeps"] == 5
+    assert "newton" in m["software"] and "warp-lang" in m["software"]
+    train, test = set(m["splits"]["motions"]["train"]), set(m["splits"]["motions"]["test"])
+    assert train and test and not train & test
+    assert (out / "garments" / "shell.obj").read_bytes() == Path(scene["garment"]).read_bytes()
+    files = sorted((out / "sequences").glob("*.npz"))
+    assert len(files) == 4
+    s = read_sequence(files[0])
+    assert s.positions.shape == (4, 642, 3) and s.positions.dtype == np.float32  # 1 settle + 3 frames
+    assert s.poses.shape == (4, 24, 3) and s.trans.shape == (4, 3) and s.n_settle == 1 and s.fps == 30.0
+    assert s.garment == "shell" and len(s.garment_sha256) == 64 and s.body == "tiny_body.npz"
+    assert np.all(np.isfinite(s.positions))
+    assert len(m["item_stats"]) == 4
+    # Resume: nothing to do, files untouched.
+    mtime = files[0].stat().st_mtime_ns
+    r = run(*args)
+    assert r.exit_code == 0 and "0 to simulate" in r.output and files[0].stat().st_mtime_ns == mtime
+    # A deleted item is redone.
+    files[1].unlink()
+    r = run(*args)
+    assert r.exit_code == 0 and "1 to simulate" in r.output and files[1].is_file()
+    # Other settings into the same directory: refused with one line.
+    r = run(*args[:-2], "--seed", 3, "--out", out)
+    assert r.exit_code != 0 and "other settings" in r.output and "Traceback" not in r.output
+
+
+def test_dataset_bad_material_key(scene, tmp_path):
+    a, _ = still_motions(scene["dir"])
+    mat = tmp_path / "m.json"
+    mat.write_text('{"stiffness": 3}')
+    r = run("dataset", "--garments", scene["garment"], "--motions", a, "--body", scene["body"], "--material", mat,
+            "--out", tmp_path / "d")
+    assert r.exit_code != 0 and "unknown key 'stiffness'" in r.output and len(r.output.strip().splitlines()) == 1
+    assert not (tmp_path / "d").exists()
+
+
+def test_bake_method_sim_and_sim_options_rejected_for_lbs(scene):
+    a, _ = still_motions(scene["dir"])
+    r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "lbs", "--substeps", 3,
+            "--out", scene["out"])
+    assert r.exit_code != 0 and "--substeps applies to --method sim only" in r.output
+    r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "sim", "--substeps", 4, "--no-obj",
+            "--out", scene["out"])
+    assert r.exit_code == 0, r.output
+    summary = json.loads(next(scene["out"].glob("*/summary.json")).read_text())
+    assert summary["method"] == "sim" and summary["deformer"]["options"]["substeps"] == 4
+    assert summary["deformer"]["checks"]["nan"] is False
+
+
+def test_dataset_needs_motions_and_library_loads(scene):
+    r = run("dataset", "--garments", scene["garment"], "--out", scene["dir"] / "d")
+    assert r.exit_code != 0 and "--library" in r.output and not (scene["dir"] / "d").exists()
+    from garmentcli.dataset import _load_motions
+
+    motions = _load_motions([], True, 30.0)
+    assert len(motions) >= 24 and all(m.fps == 30.0 for m in motions.values())
