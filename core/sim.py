@@ -187,7 +187,8 @@ def _warp():
     os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" / "warp"))
     import warp as wp
 
-    wp.config.quiet = True
+    # warp 1.19 logs every kernel module load at INFO; users should see warnings only.
+    wp.config.log_level = wp.LOG_WARNING
     return wp
 
 
