@@ -66,16 +66,12 @@ class _RestBody:
         if body.n_joints < 22:
             raise InputError(f"body '{body.name}': expected an SMPL-format skeleton with at least 22 joints "
                              f"for example garments, got {body.n_joints}")
-        from core.geometry import TriangleMesh, vertex_normals
+        from core.geometry import TriangleMesh, outward_faces, vertex_normals
 
         verts, joints = body.shaped(None)
         self.verts = verts.astype(np.float64)
-        faces = np.asarray(body.faces, dtype=np.int64)
-        # Orient faces outward (positive signed volume) whatever the file's convention.
-        tri = self.verts[faces]
-        volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
-        if volume < 0:
-            faces = faces[:, ::-1].copy()
+        # Orient faces outward whatever the file's convention.
+        faces = outward_faces(self.verts, body.faces)
         self.faces = faces
         self.normals = vertex_normals(self.verts, faces).astype(np.float64)
         self.joints = joints.astype(np.float64)

@@ -159,6 +159,17 @@ class ClosestPoints:
     closest: np.ndarray
 
 
+def outward_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Faces of a closed mesh wound so that its signed volume is positive (normals point outward).
+
+    verts: (V, 3); faces: (F, 3). Returns (F, 3) int64, reversed when the volume was negative.
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    tri = np.asarray(verts, dtype=np.float64)[faces]
+    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
+    return faces[:, ::-1].copy() if volume < 0 else faces
+
+
 _EDGE_INDEX_CACHE: dict = {}
 
 

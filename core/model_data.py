@@ -15,7 +15,6 @@ item (`<id>.npz` beside the manifest or under sequences/, or the item's
 
 from __future__ import annotations
 
-import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -140,18 +139,18 @@ class ModelDataset:
     """
 
     def __init__(self, root, body: Body, config: ModelConfig, splits=("train", "val"), cache_dir=None):
+        from dataclasses import asdict
+
+        from formats.dataset import MANIFEST, read_manifest, read_sequence
         from formats.obj import read_obj  # file reading lives in formats/
 
         self.root = Path(root)
         self.body = body
         self.config = config
-        mpath = self.root / "manifest.json"
-        if not mpath.is_file():
-            raise InputError(f"dataset '{self.root}': expected a manifest.json in it, found none")
-        try:
-            manifest = json.loads(mpath.read_text())
-        except json.JSONDecodeError as exc:
-            raise InputError(f"dataset manifest '{mpath}': expected JSON, got {exc}") from None
+        mpath = self.root / MANIFEST
+        manifest = read_manifest(self.root)
+        if manifest is None:
+            raise InputError(f"dataset '{self.root}': expected a {MANIFEST} in it, found none")
         self.manifest = manifest
         items = _items(manifest, str(mpath))
         split_ids = manifest.get("splits", {})
@@ -172,20 +171,19 @@ class ModelDataset:
                         raise InputError(f"dataset '{self.root}': expected garment template '{gpath}', found none")
                     self.garments[name] = prepare_garment(read_obj(gpath), body, config, cache_dir, str(gpath))
                 spath = self._sequence_path(item_id, rec)
-                with np.load(spath, allow_pickle=False) as data:
-                    arrays = {k: data[k] for k in data.files}
+                arrays = asdict(read_sequence(spath))
                 seqs.append(sequence_from_arrays(item_id, name, arrays, body, self.garments[name], str(spath)))
             self.splits[split] = seqs
             log.info("dataset split '%s': %d sequences", split, len(seqs))
 
     def _sequence_path(self, item_id: str, rec: dict) -> Path:
-        cands = [self.root / str(rec["file"])] if "file" in rec else []
-        cands += [self.root / f"{item_id}.npz", self.root / "sequences" / f"{item_id}.npz"]
-        for c in cands:
-            if c.is_file():
-                return c
-        raise InputError(f"dataset '{self.root}': expected the sequence file of item '{item_id}' "
-                         f"(tried {', '.join(str(c) for c in cands)}), found none")
+        from formats.dataset import sequence_path
+
+        path = self.root / str(rec["file"]) if "file" in rec else sequence_path(self.root, item_id)
+        if not path.is_file():
+            raise InputError(f"dataset '{self.root}': expected the sequence file of item '{item_id}' at '{path}', "
+                             "found none")
+        return path
 
     def posed_body(self, seq: Sequence, frames: np.ndarray) -> torch.Tensor:
         """The body of `seq` at `frames` (B,): (B, N_b, 3) float32 world metres (no gradient)."""

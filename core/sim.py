@@ -38,7 +38,7 @@ from core.body import Body
 from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment, mesh_edges
-from core.geometry import TriangleMesh
+from core.geometry import TriangleMesh, outward_faces
 from core.motion import Motion, poses_for_body, settle
 
 log = logging.getLogger(__name__)
@@ -289,13 +289,6 @@ class ClothSim:
         return self.state_0.particle_q.numpy().copy()
 
 
-def _oriented_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Faces wound so that the mesh's signed volume is positive (normals outward), as Newton expects."""
-    faces = np.asarray(faces, dtype=np.int64)
-    tri = np.asarray(verts, dtype=np.float64)[faces]
-    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
-    return faces[:, ::-1].copy() if volume < 0 else faces
-
 
 class SimDeformer(Deformer):
     """Reference physics: the garment as VBD cloth on the posed body (moving collider), gravity along -Z."""
@@ -337,7 +330,7 @@ class SimDeformer(Deformer):
         all_poses = np.concatenate([rest_pose, *([pre] if len(pre) else []), poses])
         all_trans = np.concatenate([motion.trans[:1], np.repeat(motion.trans[:1], len(pre), axis=0), motion.trans])
         body_pts, _ = body.pose(all_poses, all_trans, betas)
-        faces_b = _oriented_faces(body_pts[0], body.faces)
+        faces_b = outward_faces(body_pts[0], body.faces)  # Newton expects outward normals
         A = body.skinning_transforms(rest_pose, motion.trans[:1], betas)[0, 0]
         shaped = garment.vertices + np.einsum("vcs,s->vc", binding.shapedirs, betas)
         start = shaped @ A[:3, :3].T + A[:3, 3]

@@ -6,12 +6,14 @@ plus a smooth pose-dependent offset (a flare that follows the hips), so there is
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from core.model import ModelConfig
+from formats.dataset import Sequence as DatasetSequence
+from formats.dataset import sequence_path, write_manifest, write_sequence
+from formats.obj import write_obj
 from tests.meshes import tiny_body
 
 TINY_CONFIG = ModelConfig(hidden=8, heads=1, encoder_layers=1, level_layers=1, bottom_layers=1, levels=1,
@@ -31,14 +33,6 @@ def tube(n_theta: int, n_rows: int, radius=(0.3, 0.2), y=(-0.35, 0.1)):
             c, d = a + n_theta, b + n_theta
             f += [[a, c, b], [b, c, d]]
     return v, np.array(f, dtype=np.int64)
-
-
-def write_obj(path: Path, v, f):
-    with open(path, "w") as fh:
-        for p in v:
-            fh.write(f"v {p[0]:.6f} {p[1]:.6f} {p[2]:.6f}\n")
-        for t in f:
-            fh.write(f"f {t[0] + 1} {t[1] + 1} {t[2] + 1}\n")
 
 
 def sequence(body, v, f, T: int, seed: int, betas):
@@ -86,9 +80,9 @@ def make_dataset(root: Path, T: int = 12) -> Path:
         v, f = garments[gname]
         poses, trans, pos = sequence(body, v, f, T, seed, betas)
         iid = f"s{k}"
-        np.savez_compressed(root / f"{iid}.npz", positions=pos, poses=poses, trans=trans, betas=betas,
-                            fps=np.float32(30), n_settle=np.int64(0), garment=gname, garment_sha256="", body="tiny")
+        write_sequence(sequence_path(root, iid), DatasetSequence(
+            positions=pos, poses=poses, trans=trans, betas=betas, fps=30.0, n_settle=0, garment=gname,
+            garment_sha256="", body="tiny"))
         items.append({"id": iid, "garment": gname, "motion": f"m{k}", "betas": betas.tolist()})
-    manifest = {"splits": {"train": ["s0", "s1"], "val": ["s2"], "test": []}, "items": items}
-    (root / "manifest.json").write_text(json.dumps(manifest))
+    write_manifest(root, {"splits": {"train": ["s0", "s1"], "val": ["s2"], "test": []}, "items": items})
     return root

@@ -122,3 +122,11 @@ def test_approximate_inside_test_agrees_with_exact_on_a_body():
     approx = mesh.signed_distance(pts, exact=False)
     assert np.all(np.abs(approx) >= np.abs(exact) - 1e-12)
     assert np.mean(np.sign(approx) == np.sign(exact)) > 0.999
+
+
+def test_outward_faces_flips_an_inward_mesh_only():
+    from core.geometry import outward_faces
+
+    v, f = icosphere(1)
+    np.testing.assert_array_equal(outward_faces(v, f), f)
+    np.testing.assert_array_equal(outward_faces(v, f[:, ::-1]), f)
