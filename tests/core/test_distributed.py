@@ -1,0 +1,86 @@
+"""core.distributed: the same items through the local engines and a Dask LocalCluster, with injected failures."""
+
+import os
+from pathlib import Path
+
+import pytest
+
+from core.distributed import ItemsFailed, run_items
+
+distributed = pytest.importorskip("distributed", reason="dask.distributed is not installed")
+
+
+def make_task(work_dir):
+    """A task (a closure, so it is pickled by value) that writes x*x to work_dir/x.out atomically.
+
+    Item 2 raises on its first attempt; item 3 kills its worker process on its first attempt
+    (a marker file records the attempt, so the retry goes through).
+    """
+    work_dir = str(work_dir)
+
+    def task(x):
+        from formats.atomic import atomic_file
+
+        attempt = Path(work_dir) / f"{x}.attempt"
+        with open(Path(work_dir) / f"{x}.runs", "a") as fh:
+            fh.write(".")
+        if x in (2, 3) and not attempt.exists():
+            attempt.touch()
+            if x == 2:
+                raise RuntimeError("injected failure")
+            os._exit(1)
+        with atomic_file(Path(work_dir) / f"{x}.out") as tmp:
+            tmp.write_text(str(x * x))
+        return x * x
+
+    return task
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as c:
+        yield c
+
+
+def test_local_engine_in_process_and_in_order(tmp_path):
+    got = list(run_items(lambda a, b: a + b, [(1, 2), (3, 4)], ["x", "y"]))
+    assert got == [("x", 3), ("y", 7)]
+    assert list(run_items(abs, [], [])) == []
+    with pytest.raises(ValueError, match="one name per call"):
+        list(run_items(abs, [(1,)], []))
+
+
+def test_cluster_retries_failed_and_killed_tasks(client, tmp_path):
+    task = make_task(tmp_path)
+    calls = [(x,) for x in range(6)]
+    got = dict(run_items(task, calls, [f"item{x}" for x in range(6)], client=client, retries=2))
+    assert got == {f"item{x}": x * x for x in range(6)}  # nothing lost, nothing duplicated
+    for x in range(6):
+        assert (tmp_path / f"{x}.out").read_text() == str(x * x)
+    assert (tmp_path / "2.runs").read_text() == ".."  # raised once, retried once
+    assert len((tmp_path / "3.runs").read_text()) == 2  # worker killed once, rescheduled once
+    assert not list(tmp_path.glob(".*partial*"))  # no half-written file left
+
+
+def test_cluster_reports_items_that_keep_failing(client, tmp_path):
+    def task(x):
+        if x == 1:
+            raise ValueError("always broken")
+        return x
+
+    with pytest.raises(ItemsFailed, match="1 of 3 items failed.*'b'.*always broken") as info:
+        got = []
+        for name, value in run_items(task, [(0,), (1,), (2,)], ["a", "b", "c"], client=client, retries=1):
+            got.append(name)
+    assert sorted(got) == ["a", "c"] and info.value.total == 3  # the others finished
+
+
+def test_bad_scheduler_address_is_one_line():
+    from core.distributed import connect
+    from core.errors import InputError
+
+    with pytest.raises(InputError, match="--scheduler 'tcp://127.0.0.1:9': expected a running Dask scheduler"):
+        connect("tcp://127.0.0.1:9", timeout_s=1.0)
