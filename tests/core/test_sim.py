@@ -144,8 +144,8 @@ def test_failing_frames_are_retried_with_more_substeps_then_kept_or_refused():
     assert np.all(np.isfinite(out))
     assert [r["frame"] for r in d.report["retries"]] == [0, 1, 2]
     assert all(r["tries"] == 2 and r["kept_substeps"] in (4, 8) for r in d.report["retries"])
-    # fail_max_strain 0: no try can pass; the error names the frame.
-    d = SimDeformer(options=SimOptions(settle_s=0.0, max_retries=1, retry_mean_strain=0.0, fail_max_strain=0.0,
+    # fail_mean_strain 0: no try can pass; the error names the frame.
+    d = SimDeformer(options=SimOptions(settle_s=0.0, max_retries=1, retry_mean_strain=0.0, fail_mean_strain=0.0,
                                        substeps=4))
     with pytest.raises(SimulationError, match=r"frame 0 of motion 'still' failed after 2 tries \(up to 8 substeps\)"):
         d.deform(garment, body, motion)
