@@ -178,3 +178,19 @@ def test_edge_strain_matches_naive_loop():
     rest = np.array([1.0, 2.0, 0.5])
     naive = [(np.linalg.norm(v[a] - v[b]) - r) / r for (a, b), r in zip(e, rest)]
     np.testing.assert_allclose(edge_strain(v, e, rest), naive)
+
+
+def test_a_garment_that_falls_off_the_body_stops_the_bake():
+    """A loose open tube around the tiny body's middle has nothing to hang on: it falls, and the
+    off-body check says so (a falling garment neither penetrates nor stretches)."""
+    body, _, motion = _shell_scene()
+    theta = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    rows = [np.stack([0.35 * np.cos(theta), np.full(24, y), 0.35 * np.sin(theta)], 1) for y in (-0.1, 0.0, 0.1)]
+    i = np.arange(24)
+    j = (i + 1) % 24
+    faces = np.concatenate([np.stack([r * 24 + i, r * 24 + j, (r + 1) * 24 + i], 1) for r in (0, 1)]
+                           + [np.stack([r * 24 + j, (r + 1) * 24 + j, (r + 1) * 24 + i], 1) for r in (0, 1)])
+    tube = Garment(np.concatenate(rows).astype(np.float32), faces, name="tube")
+    d = SimDeformer(options=SimOptions(settle_s=0.5, max_retries=0))
+    with pytest.raises(SimulationError, match="median distance to the body"):
+        d.deform(tube, body, motion)
