@@ -116,30 +116,14 @@ class DistributedTrainer(Trainer):
         phase = self.phase.phase
         frozen = phase >= 2
         loss, terms = (self._ddp or self._loss)(mine, phase, frozen)
-        self.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        if frozen:
-            for p in self.model.rest_pose.parameters():
-                p.grad = None
-        if self.config.grad_clip > 0:
-            torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
-        self.optimizer.step()
-        self.step += 1
+        self.apply_gradients(loss, frozen)
         names = [c for c in LOSS_COLUMNS if c in terms]
         logged = torch.stack([loss.detach()] + [terms[c].reshape(()) for c in names]).double()
         if self.world > 1:  # the global batch's mean, for the log (every rank gets it)
             dist.all_reduce(logged)
             logged /= self.world
-        row = {"step": self.step, "phase": phase, "item": "+".join(s.item_id for s, _ in batch),
-               "loss": float(logged[0])}
-        row.update({c: "" for c in LOSS_COLUMNS})
-        row.update({c: float(v) for c, v in zip(names, logged[1:])})
-        if self.step % self.config.val_every == 0:
-            row.update(self.validate_and_switch())
-        self.rows.append(row)
-        if self.progress is not None:
-            self.progress(self.step, phase, row)
-        return row
+        return self.log_step(phase, "+".join(s.item_id for s, _ in batch), float(logged[0]),
+                             {c: float(v) for c, v in zip(names, logged[1:])})
 
     def state(self) -> dict:
         return {**super().state(), "parallel": json.dumps({"global_batch": self.global_batch,

@@ -162,6 +162,12 @@ class Trainer:
         frozen = phase >= 2
         terms = frame_losses(self.model, self.data, seq, frames, phase, frozen)
         loss = total_loss(terms, phase)
+        self.apply_gradients(loss, frozen)
+        return self.log_step(phase, seq.item_id, float(loss.detach()),
+                             {k: float(terms[k].detach()) for k in LOSS_COLUMNS if k in terms})
+
+    def apply_gradients(self, loss: torch.Tensor, frozen: bool) -> None:
+        """Backward, optional freeze of the rest-pose module, clipping, one optimiser step; counts the step."""
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
         if frozen:  # rest-pose module frozen: no gradient, so Adam leaves it (and its moments) untouched
@@ -171,8 +177,11 @@ class Trainer:
             torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
         self.optimizer.step()
         self.step += 1
-        row = {"step": self.step, "phase": phase, "item": seq.item_id, "loss": float(loss.detach())}
-        row.update({k: float(terms[k].detach()) if k in terms else "" for k in LOSS_COLUMNS})
+
+    def log_step(self, phase: int, item: str, loss: float, terms: dict[str, float]) -> dict:
+        """The step's CSV row (validation and phase switch every val_every steps); reports progress."""
+        row = {"step": self.step, "phase": phase, "item": item, "loss": loss}
+        row.update({k: terms.get(k, "") for k in LOSS_COLUMNS})
         if self.step % self.config.val_every == 0:
             row.update(self.validate_and_switch())
         self.rows.append(row)

@@ -18,7 +18,7 @@ from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
 from formats.atomic import atomic_dir
-from garmentcli.common import input_errors_as_click, load_body_option, prepare_motion
+from garmentcli.common import input_errors_as_click, load_body_option, prepare_motion, scheduler_options
 
 log = logging.getLogger(__name__)
 
@@ -177,11 +177,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--overwrite", is_flag=True, help="Replace existing output directories.")
 @click.option("--skip-existing", is_flag=True,
               help="Leave motions whose output directory exists and bake the others (resume a batch).")
-@click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="Run on a Dask distributed cluster (tcp://host:port), one task per motion; inputs and --out "
-                   "must be on a path every worker sees.")
-@click.option("--retries", type=click.IntRange(min=0), default=2, show_default=True,
-              help="--scheduler: re-runs of a motion whose bake failed.")
+@scheduler_options("motion")
 @input_errors_as_click
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,

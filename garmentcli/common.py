@@ -43,3 +43,17 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
         motion = select_frames(motion, *parse_frame_range(frames))
     motion = resample(motion, fps)
     return settle(motion, settle_frames), source_fps
+
+
+def scheduler_options(task: str, note: str = ""):
+    """The --scheduler and --retries options of the commands that run one task per `task` on a Dask cluster."""
+
+    def decorate(command):
+        command = click.option("--retries", type=click.IntRange(min=0), default=2, show_default=True,
+                               help=f"--scheduler: re-runs of a {task} that failed.")(command)
+        return click.option("--scheduler", default=None, metavar="ADDRESS",
+                            help=f"Run on a Dask distributed cluster (tcp://host:port), one task per {task}; the "
+                                 f"inputs and the output must be on a path every worker sees.{note}")(command)
+
+    return decorate
+

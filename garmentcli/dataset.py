@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from garmentcli.common import input_errors_as_click
+from garmentcli.common import input_errors_as_click, scheduler_options
 
 
 def _sha256(path) -> str:
@@ -124,11 +124,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 @click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 2x slower).")
 @click.option("--substeps", type=click.IntRange(min=1), default=10, show_default=True)
 @click.option("--iterations", type=click.IntRange(min=1), default=10, show_default=True)
-@click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="Run on a Dask distributed cluster (tcp://host:port), one task per item; OUT and the inputs "
-                   "must be on a path every worker sees. --workers is then ignored.")
-@click.option("--retries", type=click.IntRange(min=0), default=2, show_default=True,
-              help="--scheduler: re-runs of an item that failed.")
+@scheduler_options("item", note=" --workers is then ignored.")
 @input_errors_as_click
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
