@@ -162,7 +162,9 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     settings = {"library": library, "fps": fps, "frames_per_clip": frames_per_clip,
                 "max_clips_per_motion": max_clips_per_motion, "settle": settle_frames, "bodies": n_bodies,
                 "betas_range": betas_range, "seed": seed, "body": body_id, "material": asdict(material),
-                "solver": asdict(options)}
+                "solver": asdict(options),
+                # Garment meshes key the plan too: resuming after a garment was edited must not keep its old sequences.
+                "garment_meshes": {k: g.content_hash() for k, g in sorted(garments.items())}}
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
               "motions": {Path(p).stem: {"path": str(p), "sha256": _sha256(p)} for p in motion_paths},

@@ -61,6 +61,15 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene):
     # Other settings into the same directory: refused with one line.
     r = run(*args[:-2], "--seed", 3, "--out", out)
     assert r.exit_code != 0 and "other settings" in r.output and "Traceback" not in r.output
+    # An edited garment (same file name) is another plan too: its old sequences are not kept.
+    garment = Path(scene["garment"])
+    lines = garment.read_text().splitlines()
+    first_v = next(i for i, line in enumerate(lines) if line.startswith("v "))
+    x, y, z = map(float, lines[first_v].split()[1:4])
+    lines[first_v] = f"v {x + 0.001:.6f} {y:.6f} {z:.6f}"
+    garment.write_text("\n".join(lines) + "\n")
+    r = run(*args)
+    assert r.exit_code != 0 and "other settings" in r.output and "Traceback" not in r.output
 
 
 def test_dataset_bad_material_key(scene, tmp_path):
