@@ -39,6 +39,7 @@ from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment, mesh_edges
 from core.geometry import TriangleMesh, outward_faces
+from core.provenance import package_version
 from core.motion import Motion, poses_for_body, settle
 
 log = logging.getLogger(__name__)
@@ -405,8 +406,8 @@ class SimDeformer(Deformer):
             "method": self.name,
             "material": asdict(m),
             "options": asdict(o),
-            "solver": {"engine": "newton SolverVBD", "device": sim.device, "newton": _version("newton"),
-                       "warp": _version("warp-lang"), "dt_s": frame_dt / o.substeps},
+            "solver": {"engine": "newton SolverVBD", "device": sim.device, "newton": package_version("newton"),
+                       "warp": package_version("warp-lang"), "dt_s": frame_dt / o.substeps},
             "settle_frames_internal": n_settle_steps, "blend_frames_internal": len(pre),
             "seconds": {"build": t_built - t_start, "settle": t_pre - t_built, "frames": t_end - t_pre},
             "seconds_per_output_frame": (t_end - t_pre) / T,
@@ -438,11 +439,3 @@ def _describe(check: dict) -> str:
             f"edge strain mean {check['mean_strain'] * 100:.2f}% max {check['max_strain'] * 100:.1f}%, "
             f"median distance to the body {check['median_body_distance_m'] * 100:.1f} cm")
 
-
-def _version(dist: str) -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version(dist)
-    except PackageNotFoundError:
-        return "unknown"

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import json
 import logging
-import platform
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import click
@@ -17,6 +16,7 @@ from core.bake import bake_item
 from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
+from core.provenance import software_versions
 from formats.atomic import atomic_dir
 from garmentcli.common import input_errors_as_click, load_body_option, prepare_motion, scheduler_options
 
@@ -125,7 +125,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
                    "body": str(spec.body_path) if spec.body_path else "embedded default (anny)"},
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames},
-        "software": {"garment": _version(), "python": platform.python_version()},
+        "software": software_versions("garment"),
     })
     with atomic_dir(target, spec.overwrite) as tmp:
         write_bake_outputs(tmp, target.name, result, garment, body, write_obj=spec.write_obj)
@@ -253,10 +253,9 @@ def _bake_on_cluster(spec: BakeSpec, motions, scheduler: str, retries: int) -> N
     """One Dask task per motion; outputs written by the workers; progress as motions finish."""
     from core.distributed import ItemsFailed, connect, run_items
 
-    spec = BakeSpec(**{**spec.__dict__, "garment_path": str(Path(spec.garment_path).resolve()),
-                       "body_path": str(Path(spec.body_path).resolve()) if spec.body_path else None,
-                       "material_path": str(Path(spec.material_path).resolve()) if spec.material_path else None,
-                       "model_path": str(Path(spec.model_path).resolve()) if spec.model_path else None})
+    absolute = lambda p: str(Path(p).resolve()) if p else None  # noqa: E731 - workers run elsewhere
+    spec = replace(spec, garment_path=absolute(spec.garment_path), body_path=absolute(spec.body_path),
+                   material_path=absolute(spec.material_path), model_path=absolute(spec.model_path))
     client = connect(scheduler)
     calls = [(spec, str(m), target.resolve(), prepared) for prepared, m, target in motions]  # m: a label only
     names = [target.name for _, _, target in motions]
@@ -272,11 +271,3 @@ def _bake_on_cluster(spec: BakeSpec, motions, scheduler: str, retries: int) -> N
     finally:
         client.close()
 
-
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("garment")
-    except PackageNotFoundError:
-        return "unknown"

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import platform
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -11,23 +10,12 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
+from core.provenance import software_versions
 from garmentcli.common import input_errors_as_click, scheduler_options
 
 
 def _sha256(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-def _versions() -> dict:
-    from importlib.metadata import PackageNotFoundError, version
-
-    out = {"python": platform.python_version()}
-    for dist in ("garment", "newton", "warp-lang", "numpy", "torch"):
-        try:
-            out[dist] = version(dist)
-        except PackageNotFoundError:
-            out[dist] = "unknown"
-    return out
 
 
 # Per worker process: inputs loaded once.
@@ -171,7 +159,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
               "motion_library": (sorted(set(motions) - {Path(p).stem for p in motion_paths}) if library else []),
               "body": {"path": str(body_path) if body_path else "embedded default (anny)",
                        "sha256": _sha256(body_path) if body_path else None}}
-    manifest = build_manifest(settings, items, splits, betas, inputs, _versions())
+    manifest = build_manifest(settings, items, splits, betas, inputs, software_versions("garment", "newton", "warp-lang", "numpy", "torch"))
     old = read_manifest(out)
     if old is not None and old.get("plan_key") != manifest["plan_key"]:
         raise click.ClickException(f"output '{out}' holds a dataset made with other settings or inputs "
