@@ -76,9 +76,15 @@ def split_motions(motion_names: list[str], seed: int = 0, fractions=SPLIT_FRACTI
     return dict(zip(order, splits))
 
 
-def held_out_garments(garment_names: list[str], seed: int = 0) -> list[str]:
-    """Garments used only in the test split: one of two or more (chosen with the seed), none of a single one."""
+def held_out_garments(garment_names: list[str], seed: int = 0, chosen: str | None = None) -> list[str]:
+    """Garments used only in the test split: one of two or more (`chosen`, else drawn with the seed), none of one."""
     names = sorted(garment_names)
+    if chosen is not None:
+        if chosen not in names:
+            raise InputError(f"--held-out: expected one of the garments ({', '.join(names)}), got '{chosen}'")
+        if len(names) < 2:
+            raise InputError("--held-out: needs at least two garments (the others are trained on)")
+        return [chosen]
     if len(names) < 2:
         return []
     return [names[int(np.random.default_rng(seed + 1).integers(len(names)))]]
@@ -96,24 +102,34 @@ def clip_ranges(n_frames: int, frames_per_clip: int | None) -> list[tuple[int, i
 
 def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies: int,
                frames_per_clip: int | None = None, seed: int = 0,
-               max_clips_per_motion: int | None = None) -> tuple[list[DatasetItem], dict]:
+               max_clips_per_motion: int | None = None, bodies_per_clip: int | None = None,
+               held_out: str | None = None) -> tuple[list[DatasetItem], dict]:
     """Items over garments x motion clips x bodies and the split description.
 
     motion_frames: motion name -> frame count at the dataset's fps.
     max_clips_per_motion: keep only the first clips of each motion (None: all).
+    bodies_per_clip: simulate each (garment, clip) on this many of the bodies, taken in turn
+      (body k, k+1, ... modulo n_bodies, k counting the pairs in motion/clip/garment order), so every
+      body shape appears at a fraction of the cost; None: every body.
+    held_out: the garment kept for the test split (None: drawn with the seed).
     Returns (items sorted by id, {"motions": {split: [...]}, "garments": {split: [...]}, "held_out_garments": [...]}).
     """
     if len(set(garment_names)) != len(garment_names):
         raise InputError("--garments: expected distinct garment file names (stems), got duplicates")
     motion_split = split_motions(list(motion_frames), seed)
-    held = held_out_garments(garment_names, seed)
-    items = []
+    held = held_out_garments(garment_names, seed, held_out)
+    per_clip = n_bodies if bodies_per_clip is None else min(bodies_per_clip, n_bodies)
+    if per_clip < 1:
+        raise InputError(f"--bodies-per-clip: expected at least 1, got {bodies_per_clip}")
+    items, turn = [], 0
     for motion, n in motion_frames.items():
         split = motion_split[motion]
         garments = garment_names if split == "test" else [g for g in garment_names if g not in held]
         for c, (start, stop) in enumerate(clip_ranges(n, frames_per_clip)[:max_clips_per_motion]):
             for g in garments:
-                for b in range(n_bodies):
+                bodies = sorted({(turn + k) % n_bodies for k in range(per_clip)})
+                turn += per_clip
+                for b in bodies:
                     items.append(DatasetItem(id=f"{g}__{motion}__c{c:02d}__b{b:02d}", garment=g, motion=motion, clip=c,
                                              start_frame=start, n_frames=stop - start, body=b, split=split))
     items.sort(key=lambda it: it.id)

@@ -56,6 +56,35 @@ def mesh_edges(faces: np.ndarray) -> np.ndarray:
     return np.unique(e, axis=0)
 
 
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """Edges used by exactly one face: faces (F, 3) int -> (B, 2) int64, sorted rows."""
+    faces = np.asarray(faces, dtype=np.int64)
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e.sort(axis=1)
+    edges, counts = np.unique(e, axis=0, return_counts=True)
+    return edges[counts == 1]
+
+
+def boundary_loops(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
+    """The vertices of each boundary loop (opening) of a triangle mesh.
+
+    faces: (F, 3) int. A boundary edge is used by exactly one face; each connected set of
+    boundary edges is one loop. Returns a list of sorted (k,) int64 vertex-index arrays, one
+    per loop (unordered along the loop), in order of their smallest vertex index.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    border = boundary_edges(faces)
+    if len(border) == 0:
+        return []
+    adjacency = coo_matrix((np.ones(len(border)), (border[:, 0], border[:, 1])), shape=(n_vertices, n_vertices))
+    _, label = connected_components(adjacency, directed=False)
+    on_border = np.unique(border)
+    loops = [on_border[label[on_border] == lab] for lab in np.unique(label[on_border])]
+    return sorted(loops, key=lambda loop: int(loop[0]))
+
+
 def validate_garment(garment: Garment, source: str) -> None:
     """Checks every garment must pass before it is deformed; raise InputError naming `source`."""
     v, f = garment.vertices, garment.faces

@@ -50,7 +50,7 @@ log = logging.getLogger(__name__)
 MIN_VERTICES = 2000
 MAX_VERTICES = 8000
 #: Vertex count the offset garments (t-shirt, trousers, jumpsuit) are refined towards.
-TARGET_VERTICES = 5000
+TARGET_VERTICES = 3000
 
 _J = {name: i for i, name in enumerate(SMPL_JOINT_NAMES[:22])}
 _ARM_JOINTS = ("left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist")
@@ -190,7 +190,7 @@ def _tube_grid_faces(n_rows: int, n_theta: int) -> tuple[np.ndarray, np.ndarray]
 
 
 def _tube_garment(rest: _RestBody, name: str, y_top: float, y_bottom: float, ease: float, flare_from_y: float,
-                  flare_slope: float, spacing: float = 0.013) -> Garment:
+                  flare_slope: float, spacing: float = 0.018) -> Garment:
     """A loose tube around the vertical axis through the pelvis, from `y_top` down to `y_bottom` (metres).
 
     ease: clearance (metres) added to the convex hull of each cross-section; flare_from_y:
@@ -198,7 +198,7 @@ def _tube_garment(rest: _RestBody, name: str, y_top: float, y_bottom: float, eas
     metres per metre of drop.
     """
     height = y_top - y_bottom
-    n_theta = 96
+    n_theta = 72
     n_rows = int(np.clip(round(height / spacing) + 1, MIN_VERTICES // n_theta + 1, MAX_VERTICES // n_theta))
     ys = np.linspace(y_top, y_bottom, n_rows)
     theta = 2 * np.pi * np.arange(n_theta) / n_theta

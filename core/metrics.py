@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from core.errors import InputError
-from core.garment import mesh_edges
+from core.garment import boundary_edges, mesh_edges
 from core.geometry import as_float, face_cross, face_normals, normalise, scatter_corners, vertex_normals  # noqa: F401
 
 log = logging.getLogger(__name__)
@@ -55,12 +55,8 @@ def boundary_vertex_mask(faces: np.ndarray, n_vertices: int) -> np.ndarray:
 
     faces: (F, 3) int -> (V,) bool.
     """
-    faces = np.asarray(faces, dtype=np.int64)
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    e.sort(axis=1)
-    edges, counts = np.unique(e, axis=0, return_counts=True)
     mask = np.zeros(n_vertices, dtype=bool)
-    mask[edges[counts == 1].reshape(-1)] = True
+    mask[boundary_edges(faces).reshape(-1)] = True
     return mask
 
 

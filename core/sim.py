@@ -33,8 +33,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
 
-from core.body import Body
+from core.body import Body, skin_points
 from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment, mesh_edges
@@ -47,6 +48,14 @@ log = logging.getLogger(__name__)
 GRAVITY_M_S2 = 9.81
 #: Depth below the body surface at which a garment vertex counts as penetrating (as in core.bake).
 PENETRATION_DEPTH_M = 0.002
+
+
+#: Values of `SimOptions.pin`.
+PIN_MODES = ("auto", "none")
+#: A waistband's edge must lie on average within this distance of the rest body (metres).
+WAISTBAND_MAX_GAP_M = 0.03
+#: A loop encircles the body's vertical axis when no angular gap between its vertices exceeds this.
+WAISTBAND_MAX_ANGLE_GAP_RAD = np.pi / 2
 
 
 class SimulationError(FloatingPointError):
@@ -142,6 +151,9 @@ class SimOptions:
       so the largest edge strain is reported, not used to stop.
     fail_off_body_m: a frame whose median garment-to-body distance exceeds this (the garment fell
       or slid off the body) raises SimulationError: no retry can fix the garment's fit.
+    pin: "auto" pins the garment's waistband (see `waistband_vertices`) to the body, as the
+      elastic of a real skirt, pair of trousers or strapless dress holds it; "none" pins nothing.
+    pin_band_m: width of the pinned band below the waistband's edge, metres along the surface.
     """
 
     substeps: int = 10
@@ -155,6 +167,8 @@ class SimOptions:
     fail_penetration_share: float = 0.10
     fail_mean_strain: float = 0.25
     fail_off_body_m: float = 0.25
+    pin: str = "auto"
+    pin_band_m: float = 0.02
 
     def __post_init__(self):
         if self.substeps < 1 or self.iterations < 1:
@@ -162,6 +176,8 @@ class SimOptions:
                              f"{self.iterations}")
         if self.max_retries < 0 or self.blend_frames < 0 or self.settle_s < 0:
             raise InputError("sim options: expected non-negative max_retries, blend_frames and settle_s")
+        if self.pin not in PIN_MODES:
+            raise InputError(f"sim option pin: expected one of {', '.join(PIN_MODES)}, got {self.pin!r}")
 
 
 def edge_strain(points: np.ndarray, edges: np.ndarray, rest_length: np.ndarray) -> np.ndarray:
@@ -192,6 +208,55 @@ def frame_checks(points: np.ndarray, body_points: np.ndarray, body_faces: np.nda
             "median_body_distance_m": float(np.median(sd))}
 
 
+def waistband_vertices(garment: Garment, body: Body, band_m: float = 0.02) -> np.ndarray:
+    """Vertices of the garment's waistband: the band that holds a skirt, trousers or a strapless top up.
+
+    A garment without shoulders hangs from a snug opening around the torso; cloth alone (friction on
+    a waist no narrower than the hips) lets it slide off, so the simulator pins this band to the
+    skinned body. Rule, in the body's rest frame (Y-up): take the garment's highest boundary loop that
+    encircles the vertical axis through the pelvis joint (no angular gap between its vertices wider
+    than 90 degrees); it is a waistband when its mean height is below the midpoint of the spine3
+    (chest) and neck joints (a neckline is above) and its vertices lie on average within 3 cm of the
+    body. The band is that loop plus every vertex within `band_m` metres of it along the mesh edges.
+
+    garment: in the body's rest frame; body: SMPL-format with at least 13 joints (spine3 = 9, neck = 12).
+    Returns sorted vertex indices (P,) int64, empty when the garment has no waistband (a t-shirt,
+    a jumpsuit: they hang from the shoulders).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    from core.garment import boundary_loops
+
+    verts = np.asarray(garment.vertices, dtype=np.float64)
+    if body.n_joints < 13:
+        return np.zeros(0, dtype=np.int64)
+    body_verts, joints = body.shaped(None)
+    pelvis = joints[0]
+    ceiling = 0.5 * (joints[9, 1] + joints[12, 1])
+    encircling = []
+    for loop in boundary_loops(garment.faces, garment.n_vertices):
+        p = verts[loop]
+        angle = np.sort(np.arctan2(p[:, 0] - pelvis[0], p[:, 2] - pelvis[2]))
+        gaps = np.diff(np.concatenate([angle, angle[:1] + 2 * np.pi]))
+        if len(loop) >= 3 and gaps.max() <= WAISTBAND_MAX_ANGLE_GAP_RAD:
+            encircling.append(loop)
+    if not encircling:
+        return np.zeros(0, dtype=np.int64)
+    top = max(encircling, key=lambda loop: verts[loop, 1].mean())
+    if verts[top, 1].mean() >= ceiling:
+        return np.zeros(0, dtype=np.int64)
+    gap = np.abs(TriangleMesh(body_verts, outward_faces(body_verts, body.faces)).signed_distance(verts[top]))
+    if gap.mean() > WAISTBAND_MAX_GAP_M:
+        return np.zeros(0, dtype=np.int64)
+    edges = mesh_edges(garment.faces)
+    length = np.linalg.norm(verts[edges[:, 0]] - verts[edges[:, 1]], axis=1)
+    n = garment.n_vertices
+    graph = coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
+    dist = dijkstra(graph, directed=False, indices=top, min_only=True, limit=band_m + 1e-9)
+    return np.flatnonzero(dist <= band_m).astype(np.int64)
+
+
 def _warp():
     os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" / "warp"))
     import warp as wp
@@ -207,13 +272,14 @@ class ClothSim:
     rest_vertices: (V, 3) cloth rest shape, metres; faces: (F, 3) int; start_vertices: (V, 3)
     initial positions (default: the rest shape); collider_vertices: (Vb, 3) initial collider
     points; collider_faces: (Fb, 3) int, outward-oriented; bounds: (2, 3) world box that
-    contains the collider during the whole run (its collision AABB).
+    contains the collider during the whole run (its collision AABB); pinned: (P,) int indices of
+    particles that do not move under the solver but follow targets given to `advance` (a waistband).
     """
 
     def __init__(self, rest_vertices: np.ndarray, faces: np.ndarray, collider_vertices: np.ndarray,
                  collider_faces: np.ndarray, material: Material = Material(), self_contact: bool = False,
                  iterations: int = 10, start_vertices: np.ndarray | None = None, bounds: np.ndarray | None = None,
-                 device: str | None = None):
+                 pinned: np.ndarray | None = None, device: str | None = None):
         wp = _warp()
         import newton
 
@@ -233,6 +299,9 @@ class ClothSim:
                                density=m.density_kg_m2, tri_ke=m.shear_stiffness_n_m, tri_ka=m.stretch_stiffness_n_m,
                                tri_kd=m.stretch_damping_s, edge_ke=m.bending_stiffness_n_m, edge_kd=m.bending_damping_s,
                                particle_radius=m.contact_distance_m)
+        self.pinned = np.zeros(0, dtype=np.int64) if pinned is None else np.asarray(pinned, dtype=np.int64)
+        for i in self.pinned:  # zero mass: VBD leaves the particle where the state puts it
+            builder.particle_mass[int(i)] = 0.0
         builder.color(include_bending=True)
         self.model = builder.finalize(device=device)
         self.model.soft_contact_ke = m.contact_stiffness_n_m
@@ -279,19 +348,31 @@ class ClothSim:
         self.state_0.particle_q.assign(np.asarray(positions, dtype=np.float32))
         self.state_0.particle_qd.assign(np.asarray(velocities, dtype=np.float32))
 
-    def advance(self, body_from: np.ndarray, body_to: np.ndarray, duration_s: float, substeps: int) -> np.ndarray:
+    def advance(self, body_from: np.ndarray, body_to: np.ndarray, duration_s: float, substeps: int,
+                pins_from: np.ndarray | None = None, pins_to: np.ndarray | None = None) -> np.ndarray:
         """Step `duration_s` seconds in `substeps` steps while the collider moves linearly body_from -> body_to.
 
-        body_from, body_to: (Vb, 3) metres. Returns the cloth positions (V, 3) float32 at the end.
+        body_from, body_to: (Vb, 3) metres; pins_from, pins_to: (P, 3) metres, where the pinned
+        particles are at the start and the end (moved linearly too). Returns the cloth positions
+        (V, 3) float32 at the end.
         """
         dt = duration_s / substeps
         a = np.asarray(body_from, dtype=np.float32)
         b = np.asarray(body_to, dtype=np.float32)
         vel = (b - a) / duration_s
+        pinning = len(self.pinned) > 0 and pins_from is not None
+        if pinning:
+            pa = np.asarray(pins_from, dtype=np.float32)
+            pb = np.asarray(pins_to, dtype=np.float32)
         for k in range(substeps):
             # The collider sits where the body is at the end of the substep, moving at the frame's velocity.
             s = (k + 1) / substeps
             self.set_collider(a + s * (b - a), vel)
+            if pinning:
+                q, qd = self.get_state()
+                q[self.pinned] = pa + s * (pb - pa)
+                qd[self.pinned] = (pb - pa) / duration_s
+                self.set_state(q, qd)
             self.state_0.clear_forces()
             self.solver.step(self.state_0, self.state_1, self.control, None, dt)
             self.state_0, self.state_1 = self.state_1, self.state_0
@@ -316,14 +397,16 @@ class SimDeformer(Deformer):
 
         key = (garment.content_hash(), id(body))
         if key not in self._bindings:
-            self._bindings[key] = bind_garment(garment, body, source=source)
+            pinned = (waistband_vertices(garment, body, self.options.pin_band_m) if self.options.pin == "auto"
+                      else np.zeros(0, dtype=np.int64))
+            self._bindings[key] = (bind_garment(garment, body, source=source), pinned)
         _warp()
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
         o, m = self.options, self.material
         t_start = time.perf_counter()
         self.prepare(garment, body)
-        binding = self._bindings[(garment.content_hash(), id(body))]
+        binding, pinned = self._bindings[(garment.content_hash(), id(body))]
         betas = body.fit_betas(motion.betas)
         poses = poses_for_body(motion, body.n_joints)
         T = motion.n_frames
@@ -338,10 +421,14 @@ class SimDeformer(Deformer):
             pre = poses_for_body(blended, body.n_joints)[1:o.blend_frames]  # [0] is the rest pose itself
         all_poses = np.concatenate([rest_pose, *([pre] if len(pre) else []), poses])
         all_trans = np.concatenate([motion.trans[:1], np.repeat(motion.trans[:1], len(pre), axis=0), motion.trans])
-        body_pts, _ = body.pose(all_poses, all_trans, betas)
+        body_pts, _, transforms = body.pose_with_transforms(all_poses, all_trans, betas)
         faces_b = outward_faces(body_pts[0], body.faces)  # Newton expects outward normals
         A = body.skinning_transforms(rest_pose, motion.trans[:1], betas)[0, 0]
         shaped = garment.vertices + np.einsum("vcs,s->vc", binding.shapedirs, betas)
+        # The waistband follows the body by skinning: (frames, P, 3) targets of the pinned particles.
+        pins = skin_points(torch.from_numpy(shaped[pinned].astype(np.float32)),
+                           torch.from_numpy(binding.weights[pinned]),
+                           torch.from_numpy(np.asarray(transforms, dtype=np.float32))).numpy()
         start = shaped @ A[:3, :3].T + A[:3, 3]
         template = garment.vertices @ A[:3, :3].T + A[:3, 3]  # rest lengths: the garment as authored
         bounds = np.stack([body_pts.reshape(-1, 3).min(0), body_pts.reshape(-1, 3).max(0)])
@@ -351,15 +438,15 @@ class SimDeformer(Deformer):
         edges, rest_length = edges[keep], rest_length[keep].astype(np.float64)
 
         sim = ClothSim(template, garment.faces, body_pts[0], faces_b, m, o.self_contact, o.iterations,
-                       start_vertices=start, bounds=bounds)
+                       start_vertices=start, bounds=bounds, pinned=pinned)
         t_built = time.perf_counter()
         # Phase 1: settle on the static rest body.
         n_settle_steps = int(round(o.settle_s * motion.fps))
         for _ in range(n_settle_steps):
-            sim.advance(body_pts[0], body_pts[0], frame_dt, o.substeps)
+            sim.advance(body_pts[0], body_pts[0], frame_dt, o.substeps, pins[0], pins[0])
         # Phase 2: internal blend into frame 0.
         for i in range(len(pre)):
-            sim.advance(body_pts[i], body_pts[i + 1], frame_dt, o.substeps)
+            sim.advance(body_pts[i], body_pts[i + 1], frame_dt, o.substeps, pins[i], pins[i + 1])
         t_pre = time.perf_counter()
         # Phase 3: the output frames, checked and retried.
         offset = 1 + len(pre)
@@ -375,7 +462,7 @@ class SimDeformer(Deformer):
                 if attempt:
                     sim.set_state(*saved)
                     substeps *= 2
-                points = sim.advance(prev, cur, frame_dt, substeps)
+                points = sim.advance(prev, cur, frame_dt, substeps, pins[offset + t - 1], pins[offset + t])
                 check = frame_checks(points, cur, faces_b, edges, rest_length)
                 check["substeps"] = substeps
                 if best is None or _worse(best[1], check):
@@ -408,6 +495,7 @@ class SimDeformer(Deformer):
             "options": asdict(o),
             "solver": {"engine": "newton SolverVBD", "device": sim.device, "newton": package_version("newton"),
                        "warp": package_version("warp-lang"), "dt_s": frame_dt / o.substeps},
+            "pinned_vertices": int(len(pinned)),
             "settle_frames_internal": n_settle_steps, "blend_frames_internal": len(pre),
             "seconds": {"build": t_built - t_start, "settle": t_pre - t_built, "frames": t_end - t_pre},
             "seconds_per_output_frame": (t_end - t_pre) / T,

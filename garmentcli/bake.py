@@ -18,15 +18,23 @@ from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
 from core.provenance import software_versions
 from formats.atomic import atomic_dir
-from garmentcli.common import input_errors_as_click, load_body_option, prepare_motion, scheduler_options
+from garmentcli.common import (
+    PIN_CHOICES,
+    PIN_HELP,
+    input_errors_as_click,
+    load_body_option,
+    prepare_motion,
+    scheduler_options,
+)
 
 log = logging.getLogger(__name__)
 
 
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
-                  iterations=None, model_path=None):
+                  iterations=None, model_path=None, pin=None):
     sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
-                                      ("--substeps", substeps), ("--iterations", iterations)) if v is not None]
+                                      ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin))
+                 if v is not None]
     if method != "sim" and sim_given:
         raise click.UsageError(f"{sim_given[0]} applies to --method sim only (got --method {method})")
     if method == "lbs":
@@ -44,7 +52,7 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
         material = load_material(material_path) if material_path else Material()
         defaults = SimOptions()
         options = SimOptions(substeps=substeps or defaults.substeps, iterations=iterations or defaults.iterations,
-                             self_contact=self_contact)
+                             self_contact=self_contact, pin=pin or defaults.pin)
         return SimDeformer(material, options)
     return DEFORMERS[method]()
 
@@ -80,6 +88,7 @@ class BakeSpec:
     substeps: int | None
     iterations: int | None
     model_path: str | None
+    pin: str | None
     fps: float
     frames: str | None
     settle_frames: int
@@ -99,7 +108,7 @@ def _context(spec: BakeSpec):
 
         _CONTEXT.clear()
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
-                                 spec.iterations, spec.model_path)
+                                 spec.iterations, spec.model_path, spec.pin)
         garment = read_obj(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
@@ -168,6 +177,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--substeps", type=click.IntRange(min=1), default=None, help="sim: solver steps per frame [default: 10].")
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
               help="sim: VBD iterations per substep [default: 10].")
+@click.option("--pin", type=click.Choice(PIN_CHOICES), default=None, help=f"sim: {PIN_HELP} [default: auto]")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False), default=None,
               help="model: trained model checkpoint (from `garment train`).")
 @click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
@@ -181,7 +191,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @input_errors_as_click
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
-         iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2):
+         iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -193,7 +203,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
     if frames:
         parse_frame_range(frames)  # reject a bad --frames before any work
-    deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path)
+    deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin)
     for p in (garment_path, *motion_paths):
         if not Path(p).is_file():
             raise click.FileError(p, hint="no such file")
@@ -214,7 +224,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
     motions = [(prepare_motion(m, fps, frames, settle_frames), m, target) for m, target in targets]
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
-                    model_path, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite)
+                    model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     if scheduler:  # the workers prepare their own copy (once per worker process)
         _bake_on_cluster(spec, motions, scheduler, retries)

@@ -10,6 +10,11 @@ from core.body import Body, default_body
 from core.errors import InputError
 from core.motion import parse_frame_range, resample, select_frames, settle
 
+#: `--pin` values (core.sim.PIN_MODES; repeated here so the CLI starts without importing the simulator).
+PIN_CHOICES = ("auto", "none")
+PIN_HELP = ("auto: the waistband of a garment without shoulders (skirt, trousers, strapless dress) follows the "
+            "body, as an elastic holds it; none: nothing pinned.")
+
 
 def input_errors_as_click(func):
     """Decorator: an `InputError` from core/formats becomes a one-line `click.ClickException`."""

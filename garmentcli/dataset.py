@@ -11,7 +11,7 @@ import click
 from tqdm import tqdm
 
 from core.provenance import software_versions
-from garmentcli.common import input_errors_as_click, scheduler_options
+from garmentcli.common import PIN_CHOICES, PIN_HELP, input_errors_as_click, scheduler_options
 
 
 def _sha256(path) -> str:
@@ -104,6 +104,10 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
               help="Cut motions into clips of at most this many frames (default: whole motions).")
 @click.option("--max-clips-per-motion", type=click.IntRange(min=1), default=None,
               help="Keep only the first N clips of each motion (default: all).")
+@click.option("--bodies-per-clip", type=click.IntRange(min=1), default=None,
+              help="Simulate each garment x clip on this many body shapes, taken in turn (default: all of --bodies).")
+@click.option("--held-out", "held_out", default=None, metavar="GARMENT",
+              help="Garment (file stem) kept for the test split only (default: one drawn with --seed).")
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=10, show_default=True,
               help="Blend frames from the rest pose prepended to every clip (stored, flagged by n_settle).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of body shapes and splits.")
@@ -112,11 +116,12 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 @click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 2x slower).")
 @click.option("--substeps", type=click.IntRange(min=1), default=10, show_default=True)
 @click.option("--iterations", type=click.IntRange(min=1), default=10, show_default=True)
+@click.option("--pin", type=click.Choice(PIN_CHOICES), default="auto", show_default=True, help=PIN_HELP)
 @scheduler_options("item", note=" --workers is then ignored.")
 @input_errors_as_click
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
-            scheduler=None, retries=2):
+            pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
@@ -135,7 +140,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
 
     out = Path(out_dir)
     material = load_material(material_path) if material_path else Material()
-    options = SimOptions(substeps=substeps, iterations=iterations, self_contact=self_contact)
+    options = SimOptions(substeps=substeps, iterations=iterations, self_contact=self_contact, pin=pin)
     garments = {Path(p).stem: read_obj(p) for p in garment_paths}  # validates every garment before any work
     if len(garments) != len(garment_paths):
         raise click.BadParameter("expected distinct file names (stems)", param_hint="--garments")
@@ -146,9 +151,10 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
     items, splits = plan_items(sorted(garments), {k: v.n_frames for k, v in motions.items()}, n_bodies,
-                               frames_per_clip, seed, max_clips_per_motion)
+                               frames_per_clip, seed, max_clips_per_motion, bodies_per_clip, held_out)
     settings = {"library": library, "fps": fps, "frames_per_clip": frames_per_clip,
                 "max_clips_per_motion": max_clips_per_motion, "settle": settle_frames, "bodies": n_bodies,
+                "bodies_per_clip": bodies_per_clip, "held_out": held_out,
                 "betas_range": betas_range, "seed": seed, "body": body_id, "material": asdict(material),
                 "solver": asdict(options),
                 # Garment meshes key the plan too: resuming after a garment was edited must not keep its old sequences.

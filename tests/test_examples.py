@@ -63,3 +63,17 @@ def test_examples_are_reproducible_by_the_documented_generator():
     shipped = read_obj(EXAMPLES / "skirt.obj")
     np.testing.assert_allclose(garments["skirt"].vertices, shipped.vertices, atol=2e-6)
     np.testing.assert_array_equal(garments["skirt"].faces, shipped.faces)
+
+
+def test_garments_without_shoulders_get_a_waistband_and_the_others_none():
+    """The simulator pins the waistband of the skirt, trousers and strapless dress (they slide off otherwise)."""
+    from core.sim import waistband_vertices
+
+    body = default_body()
+    for name, expected in {"dress": True, "skirt": True, "trousers": True, "tshirt": False, "jumpsuit": False}.items():
+        garment = read_obj(EXAMPLES / f"{name}.obj")
+        band = waistband_vertices(garment, body)
+        assert (len(band) > 0) == expected, name
+        if expected:  # the top rows only
+            y = garment.vertices[:, 1]
+            assert y[band].min() > np.percentile(y, 75), name

@@ -90,3 +90,22 @@ def test_motion_library_keeps_the_examples_and_is_varied():
 def test_max_clips_per_motion_keeps_the_first_clips():
     items, _ = plan_items(["a"], {"m": 100}, 1, frames_per_clip=30, max_clips_per_motion=2)
     assert [(it.start_frame, it.n_frames) for it in items] == [(0, 30), (30, 30)]
+
+
+def test_bodies_per_clip_takes_the_bodies_in_turn_and_held_out_is_chosen():
+    motions = {f"m{i}": 40 for i in range(10)}
+    full, _ = plan_items(["a", "b", "c"], motions, 3, held_out="c")
+    items, splits = plan_items(["a", "b", "c"], motions, 3, bodies_per_clip=1, held_out="c")
+    assert splits["held_out_garments"] == ["c"]
+    assert {it.garment for it in items if it.split != "test"} == {"a", "b"}
+    assert "c" in {it.garment for it in items if it.split == "test"}
+    # One body per (garment, clip), every body used about equally, a subset of the full plan.
+    pairs = {(it.garment, it.motion, it.clip) for it in items}
+    assert len(items) == len(pairs) == len(full) // 3
+    counts = np.bincount([it.body for it in items], minlength=3)
+    assert counts.max() - counts.min() <= 1
+    assert {it.id for it in items} <= {it.id for it in full}
+    two, _ = plan_items(["a", "b"], motions, 3, bodies_per_clip=2)
+    assert len(two) == 2 * len({(it.garment, it.motion) for it in two})
+    with pytest.raises(InputError, match="--held-out"):
+        plan_items(["a", "b"], motions, 1, held_out="z")

@@ -194,3 +194,60 @@ def test_a_garment_that_falls_off_the_body_stops_the_bake():
     d = SimDeformer(options=SimOptions(settle_s=0.5, max_retries=0))
     with pytest.raises(SimulationError, match="median distance to the body"):
         d.deform(tube, body, motion)
+
+
+def test_pinned_particles_follow_their_targets_while_the_rest_falls():
+    """Zero-mass pinned particles sit exactly on the targets given to advance (moved linearly); the others fall."""
+    bv, bf = box()
+    cv, cf = cloth(1.0)  # far above the box: no contact
+    pinned = np.flatnonzero(np.isclose(cv[:, 1], cv[:, 1].min()))  # one edge row
+    sim = ClothSim(cv, cf, bv, bf, iterations=10, bounds=np.array([[-1, -1, -1], [1, 1, 2.0]]), pinned=pinned)
+    step = np.array([0.01, 0.0, 0.0])
+    targets = cv[pinned]
+    for k in range(6):
+        x = sim.advance(bv, bv, 1 / FPS, 10, targets + k * step, targets + (k + 1) * step)
+        np.testing.assert_allclose(x[pinned], targets + (k + 1) * step, atol=1e-6)
+    far = np.isclose(cv[:, 1], cv[:, 1].max())
+    assert x[far, 2].mean() < 1.0 - 0.05  # the free edge swings down under gravity
+    assert np.all(np.isfinite(x))
+
+
+def _torso_tube(body, y_top, y_bottom, gap=0.01, n_theta=48, n_rows=12):
+    """A tube around the tiny body's ellipsoid torso, `gap` metres off its surface, from y_top down to y_bottom."""
+    ys = np.linspace(y_top, y_bottom, n_rows)
+    theta = 2 * np.pi * np.arange(n_theta) / n_theta
+    scale = np.sqrt(np.clip(1 - (ys / 0.8) ** 2, 0.05, None))[:, None]
+    x = (0.25 * scale + gap) * np.sin(theta)
+    z = (0.15 * scale + gap) * np.cos(theta)
+    v = np.stack([x, np.repeat(ys[:, None], n_theta, 1), z], -1).reshape(-1, 3)
+    faces = []
+    for i in range(n_rows - 1):
+        for k in range(n_theta):
+            a, b = i * n_theta + k, i * n_theta + (k + 1) % n_theta
+            c, d = a + n_theta, b + n_theta
+            faces += [[a, c, b], [b, c, d]]
+    return Garment(v.astype(np.float32), np.array(faces), name="tube")
+
+
+def test_waistband_is_the_top_opening_of_a_garment_hanging_from_the_waist():
+    from core.sim import waistband_vertices
+
+    body = tiny_body()
+    skirt = _torso_tube(body, 0.1, -0.3)  # top below the chest: pinned
+    band = waistband_vertices(skirt, body, band_m=0.02)
+    top = np.flatnonzero(np.isclose(skirt.vertices[:, 1], 0.1))
+    assert set(top) <= set(band)
+    assert skirt.vertices[band, 1].min() > 0.1 - 0.02 - 1e-6  # only the band below the edge
+    assert len(band) < skirt.n_vertices // 2
+    # A wider band takes more rows.
+    assert len(waistband_vertices(skirt, body, band_m=0.1)) > len(band)
+    # A top opening above the chest (a neckline) is not a waistband; nor is a loose opening, nor a flat sheet.
+    assert len(waistband_vertices(_torso_tube(body, 0.5, 0.0), body)) == 0
+    assert len(waistband_vertices(_torso_tube(body, 0.1, -0.3, gap=0.08), body)) == 0
+    v, f = grid(6, 6, 0.3)
+    assert len(waistband_vertices(Garment((v + [0, 0, 0.2]).astype(np.float32), f), body)) == 0
+
+
+def test_sim_options_reject_an_unknown_pin_mode():
+    with pytest.raises(InputError, match="pin"):
+        SimOptions(pin="waist")

@@ -87,6 +87,11 @@ def test_bake_method_sim_and_sim_options_rejected_for_lbs(scene):
     r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "lbs", "--substeps", 3,
             "--out", scene["out"])
     assert r.exit_code != 0 and "--substeps applies to --method sim only" in r.output
+    r = run("bake", scene["garment"], a, "--body", scene["body"], "--pin", "none", "--out", scene["out"])
+    assert r.exit_code != 0 and "--pin applies to --method sim only" in r.output
+    r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "sim", "--pin", "belt",
+            "--out", scene["out"])
+    assert r.exit_code != 0 and "--pin" in r.output and "belt" in r.output
     r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "sim", "--substeps", 4, "--no-obj",
             "--out", scene["out"])
     assert r.exit_code == 0, r.output
@@ -98,6 +103,8 @@ def test_bake_method_sim_and_sim_options_rejected_for_lbs(scene):
 def test_dataset_needs_motions_and_library_loads(scene):
     r = run("dataset", "--garments", scene["garment"], "--out", scene["dir"] / "d")
     assert r.exit_code != 0 and "--library" in r.output and not (scene["dir"] / "d").exists()
+    r = run("dataset", "--garments", scene["garment"], "--library", "--held-out", "nosuch", "--out", scene["dir"] / "d")
+    assert r.exit_code != 0 and "--held-out" in r.output and "nosuch" in r.output and not (scene["dir"] / "d").exists()
     from garmentcli.dataset import _load_motions
 
     motions = _load_motions([], True, 30.0)
