@@ -356,3 +356,68 @@ def penetration_per_frame(points: np.ndarray, body_points: np.ndarray, body_face
     Returns (T,) fractions in [0, 1].
     """
     return np.array([points_inside_mesh(p, b, body_faces, depth).mean() for p, b in zip(points, body_points)])
+
+
+def segment_triangle_hits(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
+                          eps: float = 1e-9) -> np.ndarray:
+    """Whether each segment p0-p1 crosses the interior of triangle abc (Moller-Trumbore), row by row.
+
+    All inputs (N, 3) float64, metres. A segment lying in the triangle's plane does not count.
+    Returns (N,) bool.
+    """
+    d = p1 - p0
+    e1, e2 = b - a, c - a
+    h = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, h)
+    ok = np.abs(det) > eps * np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1) * np.linalg.norm(d, axis=1)
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = p0 - a
+    u = inv * np.einsum("ij,ij->i", s, h)
+    q = np.cross(s, e1)
+    v = inv * np.einsum("ij,ij->i", d, q)
+    t = inv * np.einsum("ij,ij->i", e2, q)
+    return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= 1)
+
+
+def self_intersecting_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Faces of a triangle mesh that intersect another face of the same mesh (cloth passing through itself).
+
+    verts: (V, 3) metres; faces: (F, 3) int. An edge crossing a face that shares none of its
+    vertices is an intersection; both that face and the faces on the edge are marked. Candidate
+    pairs come from a k-d tree of face centroids (edge midpoint within half the edge plus the
+    face's circumradius bound), so the cost grows with the number of close pairs, not F^2.
+    Returns (F,) bool.
+    """
+    from scipy.spatial import cKDTree
+
+    from core.garment import mesh_edges
+
+    v = np.asarray(verts, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    marked = np.zeros(len(faces), dtype=bool)
+    if len(faces) < 2:
+        return marked
+    edges = mesh_edges(faces)
+    tri = v[faces]
+    centroid = tri.mean(axis=1)
+    radius = np.linalg.norm(tri - centroid[:, None], axis=-1).max(axis=1)
+    mid = 0.5 * (v[edges[:, 0]] + v[edges[:, 1]])
+    half = 0.5 * np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1)
+    pairs = cKDTree(mid).query_ball_tree(cKDTree(centroid), r=float(half.max() + radius.max()))
+    ei = np.repeat(np.arange(len(edges)), [len(p) for p in pairs])
+    if len(ei) == 0:
+        return marked
+    fi = np.fromiter((f for p in pairs for f in p), dtype=np.int64, count=len(ei))
+    near = np.linalg.norm(mid[ei] - centroid[fi], axis=1) <= half[ei] + radius[fi] + 1e-12
+    shares = (faces[fi] == edges[ei, :1]).any(axis=1) | (faces[fi] == edges[ei, 1:]).any(axis=1)
+    ei, fi = ei[near & ~shares], fi[near & ~shares]
+    hit = segment_triangle_hits(v[edges[ei, 0]], v[edges[ei, 1]], tri[fi, 0], tri[fi, 1], tri[fi, 2])
+    if not hit.any():
+        return marked
+    marked[fi[hit]] = True
+    # The faces on each crossing edge are intersecting too.
+    hit_edges = np.unique(edges[ei[hit]], axis=0)
+    corner_edges = np.sort(np.stack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], axis=1), axis=-1)
+    key = lambda e: e[..., 0] * (len(v) + 1) + e[..., 1]  # noqa: E731
+    marked |= np.isin(key(corner_edges), key(hit_edges)).any(axis=1)
+    return marked

@@ -322,6 +322,17 @@ def penetration_pct(points: np.ndarray, body_points: np.ndarray, body_faces: np.
     return 100.0 * inside.mean(axis=-1)
 
 
+def self_intersection_pct(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Share of garment faces that intersect another face of the garment, per frame.
+
+    points: (T, V, 3) metres; faces: (F, 3) int. Returns (T,) float64, percent
+    (`core.geometry.self_intersecting_faces` on each frame).
+    """
+    from core.geometry import self_intersecting_faces
+
+    return np.array([100.0 * self_intersecting_faces(x, faces).mean() for x in np.asarray(points)])
+
+
 def compute_metrics(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray,
                     body_points: np.ndarray | None = None, body_faces: np.ndarray | None = None,
                     inside_fn: InsideFn | None = None, pred_name: str = "pred",

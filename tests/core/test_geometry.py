@@ -130,3 +130,40 @@ def test_outward_faces_flips_an_inward_mesh_only():
     v, f = icosphere(1)
     np.testing.assert_array_equal(outward_faces(v, f), f)
     np.testing.assert_array_equal(outward_faces(v, f[:, ::-1]), f)
+
+
+def _naive_self_intersections(v, f):
+    """Every edge against every face sharing none of its vertices, one pair at a time."""
+    from core.garment import mesh_edges
+    from core.geometry import segment_triangle_hits
+
+    marked = np.zeros(len(f), dtype=bool)
+    for e in mesh_edges(f):
+        for k, face in enumerate(f):
+            if e[0] in face or e[1] in face:
+                continue
+            a, b, c = (v[face[i]][None] for i in range(3))
+            if segment_triangle_hits(v[e[0]][None], v[e[1]][None], a, b, c)[0]:
+                marked[k] = True
+                marked |= np.array([e[0] in g and e[1] in g for g in f])
+    return marked
+
+
+def test_self_intersecting_faces_matches_the_naive_loop_and_known_cases():
+    from core.geometry import self_intersecting_faces
+
+    v, f = grid(6, 6, 0.3)
+    assert not self_intersecting_faces(v, f).any()  # a flat sheet
+    s, sf = icosphere(2)
+    assert not self_intersecting_faces(s, sf).any()  # a closed smooth surface
+    # A sheet whose far half is lifted and pushed back through the near half.
+    folded = v.copy()
+    far = folded[:, 0] > 0.15
+    folded[far, 2] = 0.05 * np.sin(12 * folded[far, 1])
+    folded[far, 0] = 0.3 - folded[far, 0]
+    marked = self_intersecting_faces(folded, f)
+    assert marked.any()
+    np.testing.assert_array_equal(marked, _naive_self_intersections(folded, f))
+    rng = np.random.default_rng(3)
+    crumpled = v + rng.normal(scale=0.03, size=v.shape)
+    np.testing.assert_array_equal(self_intersecting_faces(crumpled, f), _naive_self_intersections(crumpled, f))

@@ -359,3 +359,16 @@ def test_check_comparable_rejects_different_faces():
         check_comparable(seq, f, seq, f2, "a", "b")
     with pytest.raises(InputError, match=r"different faces \(50 vs 49 faces\)"):
         check_comparable(seq, f, seq, f[:-1], "a", "b")
+
+
+def test_self_intersection_pct_counts_faces_per_frame():
+    from core.metrics import self_intersection_pct
+    from tests.meshes import grid
+
+    v, f = grid(6, 6, 0.3)
+    folded = v.copy()
+    far = folded[:, 0] > 0.15
+    folded[far, 2] = 0.05 * np.sin(12 * folded[far, 1])
+    folded[far, 0] = 0.3 - folded[far, 0]
+    pct = self_intersection_pct(np.stack([v, folded]), f)
+    assert pct.shape == (2,) and pct[0] == 0.0 and 0.0 < pct[1] < 100.0

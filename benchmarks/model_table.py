@@ -1,0 +1,162 @@
+"""Table 1 of the paper on our data: training variants of the learned model and LBS against the simulator.
+
+Every test-split sequence of a `garment dataset` directory is baked by each method
+(LBS and every --model given) from its stored motion and body shape, and compared
+with the simulated positions (settle frames excluded): the five metrics of
+`core.metrics` (E_verts mm, E_vnorm deg, E_fnorm deg, E_edge, E_curv), body
+penetration (% of garment vertices more than 2 mm inside the body) and
+self-intersection (% of garment faces crossing another face, every
+--self-every-th frame). Rows are averaged over sequences, separately for the
+held-out motions with trained garments and for the held-out garment. The
+simulator's own penetration and self-intersection rates are listed as the
+reference row.
+
+    python benchmarks/model_table.py --data data/sim_v1 \\
+        --model "phase 1=models/p1.pt" --model "phases 1+2=models/p12.pt" \\
+        --model "phases 1+2+3=models/p123.pt"
+
+Writes benchmarks/results/model_table.md and .csv (or --out).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from core.body import default_body  # noqa: E402
+from core.deform import LBSDeformer  # noqa: E402
+from core.geometry import points_inside_mesh  # noqa: E402
+from core.metrics import compute_metrics, frames_inside, self_intersection_pct  # noqa: E402
+from core.motion import Motion, poses_for_body  # noqa: E402
+from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
+from formats.obj import read_obj  # noqa: E402
+
+PENETRATION_DEPTH_M = 0.002
+#: core.metrics names (units in core.metrics.METRICS), then this report's own columns.
+COLUMNS = ("e_verts", "e_vnorm", "e_fnorm", "e_edge", "e_curv", "penetration_pct", "self_intersection_pct",
+           "ms_per_frame")
+
+
+@dataclass
+class Row:
+    group: str
+    method: str
+    item: str
+    values: dict
+
+
+def test_items(manifest: dict) -> list[dict]:
+    """The test-split items of a dataset manifest, each with its evaluation group."""
+    held = set(manifest["splits"]["held_out_garments"])
+    out = []
+    for it in manifest["items"]:
+        if it["split"] == "test":
+            out.append({**it, "group": "held-out garment" if it["garment"] in held else "held-out motions"})
+    return out
+
+
+def evaluate(data: Path, methods: dict, self_every: int = 6, max_items: int | None = None) -> list[Row]:
+    manifest = read_manifest(data)
+    if manifest is None:
+        raise SystemExit(f"{data}: no manifest.json (expected a `garment dataset` directory)")
+    body = default_body()
+    inside = frames_inside(lambda p, v, f: points_inside_mesh(p, v, f, depth=PENETRATION_DEPTH_M))
+    rows = []
+    items = [it for it in test_items(manifest) if sequence_path(data, it["id"]).exists()][:max_items]
+    garments = {}
+    for n, it in enumerate(items):
+        seq = read_sequence(sequence_path(data, it["id"]))
+        if seq.garment not in garments:
+            garments[seq.garment] = read_obj(data / "garments" / f"{seq.garment}.obj")
+        garment = garments[seq.garment]
+        motion = Motion(poses=seq.poses, trans=seq.trans, fps=seq.fps, betas=seq.betas, n_settle=seq.n_settle,
+                        name=it["id"])
+        keep = slice(seq.n_settle, None)
+        gt = seq.positions[keep]
+        body_pts, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
+        body_pts = body_pts[keep]
+        sampled = slice(0, None, self_every)
+        rows.append(Row(it["group"], "simulator (reference)", it["id"], {
+            "penetration_pct": float(np.mean(100 * inside(gt, body_pts, body.faces).mean(axis=1))),
+            "self_intersection_pct": float(self_intersection_pct(gt[sampled], garment.faces).mean())}))
+        for name, deformer in methods.items():
+            t0 = time.perf_counter()
+            pred = deformer.deform(garment, body, motion)[keep]
+            ms = (time.perf_counter() - t0) * 1e3 / len(seq.positions)
+            m = compute_metrics(pred, gt, garment.faces, body_pts, body.faces, inside)
+            values = {k: m.overall[k] for k in COLUMNS[:6]}
+            values["self_intersection_pct"] = float(self_intersection_pct(pred[sampled], garment.faces).mean())
+            values["ms_per_frame"] = ms
+            rows.append(Row(it["group"], name, it["id"], values))
+        print(f"[{n + 1}/{len(items)}] {it['id']}", flush=True)
+    return rows
+
+
+def summarise(rows: list[Row], order: list[str]) -> list[tuple[str, str, int, dict]]:
+    out = []
+    for group in ("held-out motions", "held-out garment"):
+        for method in ["simulator (reference)", *order]:
+            sel = [r for r in rows if r.group == group and r.method == method]
+            if sel:
+                keys = sel[0].values.keys()
+                out.append((group, method, len(sel), {k: float(np.mean([r.values[k] for r in sel])) for k in keys}))
+    return out
+
+
+def write(out: Path, summary, rows, args) -> None:
+    from formats.atomic import atomic_file
+
+    lines = ["# Learned model variants and LBS against the simulator (paper Table 1 layout)", "",
+             f"Data: `{args.data}` test split (held-out motions; the held-out garment separately). Made by "
+             f"`python benchmarks/model_table.py --data {args.data} "
+             + " ".join(f'--model "{m}"' for m in args.model) + "`.", "",
+             "E_verts in mm, normal errors in degrees, E_edge in %, E_curv in 1/m^2 (core.metrics); penetration: % "
+             "of garment vertices > 2 mm inside the body; self-intersection: % of garment faces crossing another "
+             f"(every {args.self_every}th frame); ms/frame: bake time per frame on this CPU.", "",
+             "| split | method | sequences | " + " | ".join(COLUMNS) + " |",
+             "|---|---|---:|" + "---:|" * len(COLUMNS)]
+    for group, method, n, v in summary:
+        cells = [f"{v[k]:.3f}" if k in v else "" for k in COLUMNS]
+        lines.append(f"| {group} | {method} | {n} | " + " | ".join(cells) + " |")
+    with atomic_file(out) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+    with atomic_file(out.with_suffix(".csv")) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["split", "method", "item", *COLUMNS])
+        for r in rows:
+            w.writerow([r.group, r.method, r.item, *[r.values.get(k, "") for k in COLUMNS]])
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, required=True, help="`garment dataset` directory")
+    ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH", help="a trained model (repeatable)")
+    ap.add_argument("--self-every", type=int, default=6, help="self-intersection on every Nth frame")
+    ap.add_argument("--max-items", type=int, default=None)
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "model_table.md")
+    args = ap.parse_args(argv)
+    methods = {"lbs": LBSDeformer()}
+    for spec in args.model:
+        name, sep, path = spec.partition("=")
+        if not sep:
+            raise SystemExit(f"--model: expected NAME=PATH, got {spec!r}")
+        from core.model_deform import load_model_deformer
+
+        methods[name] = load_model_deformer(path)
+    rows = evaluate(args.data, methods, args.self_every, args.max_items)
+    summary = summarise(rows, list(methods))
+    write(args.out, summary, rows, args)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
