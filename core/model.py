@@ -49,6 +49,15 @@ from core.errors import InputError
 
 #: Floor of the prior weights before the log (joints with no transferred weight stay reachable).
 PRIOR_FLOOR = 1e-4
+#: Blend shapes (Eq. 4) are squashed to at most m per vertex: m tanh(raw / m), the identity for small
+#: offsets, so no input can fling a vertex far from the skinned garment. m is this many metres or this
+#: fraction of the garment's largest extent, whichever is smaller.
+MAX_BLEND_M = 0.25
+MAX_BLEND_FRACTION = 0.2
+#: Root and body-vertex speeds fed to the temporal encoders are clipped to this (m/s; a sprinter's
+#: foot peaks near 20): a teleport or a broken frame reads as very fast motion, not as an input the
+#: network never saw by orders of magnitude.
+MAX_SPEED_M_S = 20.0
 
 
 @dataclass(frozen=True)
@@ -242,6 +251,21 @@ class MotionFeatures:
         return int(self.pose.shape[0])
 
 
+def _pooled_vertex_moments(body: Body, betas: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """P (S, S, 4) = sum_v w_vj w_vk [x_v, 1] over the rest body shaped by betas, and W (S,) = sum_v w_vj."""
+    verts, _ = body.shaped(betas)
+    w = np.asarray(body.weights, dtype=np.float64)
+    xh = np.concatenate([verts.astype(np.float64), np.ones((len(verts), 1))], axis=1)
+    P = np.einsum("vj,vk,vc->jkc", w, w, xh, optimize=True)
+    return P.astype(np.float32), np.maximum(w.sum(0), 1e-8).astype(np.float32)
+
+
+def _clip_speed(v: np.ndarray) -> np.ndarray:
+    """Scale each (..., 3) velocity down to at most MAX_SPEED_M_S, keeping its direction."""
+    speed = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v * np.minimum(1.0, MAX_SPEED_M_S / np.maximum(speed, 1e-12))
+
+
 def motion_features(body: Body, poses: np.ndarray, trans: np.ndarray, betas: np.ndarray | None,
                     fps: float) -> MotionFeatures:
     """Temporal-encoder inputs of a pose sequence.
@@ -249,24 +273,29 @@ def motion_features(body: Body, poses: np.ndarray, trans: np.ndarray, betas: np.
     poses: (T, S, 3) axis-angle radians (body joint layout); trans: (T, 3) metres, Z-up world;
     betas: (n,) or None; fps: frames per second. Velocities are finite differences times fps (m/s),
     zero at frame 0, expressed in the root joint's frame (heading-invariant); body-vertex velocities are
-    pooled per joint with the body's skinning weights (any body vertex count gives (S, 3)).
+    pooled per joint with the body's skinning weights (any body vertex count gives (S, 3); computed from
+    the skinning transforms, pose correctives left out); speeds are clipped to MAX_SPEED_M_S.
     """
     poses = np.asarray(poses, dtype=np.float32)
     trans = np.asarray(trans, dtype=np.float32)
     T = poses.shape[0]
-    verts, _, A = body.pose_with_transforms(poses, trans, betas)
+    A = body.skinning_transforms(poses, trans, betas)  # (T, S, 4, 4)
+    # Skinning-weighted mean of the posed body vertices per joint, m_j(t) = sum_v w_vj x_v(t) / sum_v w_vj,
+    # is linear in the transforms: x_v(t) = sum_k w_vk A_k(t) [x_v, 1], so m_j(t) = sum_k A_k(t) P_jk / W_j with
+    # P_jk = sum_v w_vj w_vk [x_v, 1] computed once. No (T, Vb, 3) array is ever posed.
+    P, W = _pooled_vertex_moments(body, betas)
+    means = np.einsum("tkrc,jkc->tjr", A[:, :, :3, :], P) / W[None, :, None]  # (T, S, 3)
+    vel = np.zeros_like(means)
+    vel[1:] = (means[1:] - means[:-1]) * fps
+    vel = _clip_speed(vel)
     R = A[:, 0, :3, :3]  # root's world rotation (T, 3, 3)
     Rt = np.transpose(R, (0, 2, 1))
     up = np.einsum("tij,j->ti", Rt, np.array([0.0, 0.0, 1.0], dtype=np.float32))
     dtrans = np.zeros_like(trans)
     dtrans[1:] = (trans[1:] - trans[:-1]) * fps
-    dtrans = np.einsum("tij,tj->ti", Rt, dtrans)
+    dtrans = _clip_speed(np.einsum("tij,tj->ti", Rt, dtrans))
     pose = np.concatenate([poses[:, 1:].reshape(T, -1), up, dtrans], axis=1)
-    vel = np.zeros_like(verts)
-    vel[1:] = (verts[1:] - verts[:-1]) * fps
-    w = body.weights.astype(np.float32)
-    pooled = np.einsum("vj,tvc->tjc", w, vel) / np.maximum(w.sum(0), 1e-8)[None, :, None]
-    pooled = np.einsum("tij,tsj->tsi", Rt, pooled)
+    pooled = np.einsum("tij,tsj->tsi", Rt, vel)
     velocity = np.concatenate([pooled.reshape(T, -1), up], axis=1)
     return MotionFeatures(torch.from_numpy(pose.astype(np.float32)), torch.from_numpy(velocity.astype(np.float32)),
                           torch.from_numpy(A.astype(np.float32)))
@@ -461,13 +490,17 @@ class GarmentModel(nn.Module):
         _, (h1, _) = self.temporal_pose(pose_win)
         M = self.skinning(h1[-1]).view(B, h, S)
         logits = torch.einsum("vc,bcs->bvs", fused, M) / math.sqrt(h)
+        # Only joints with transferred (prior) weight at a vertex may move it: joints that do not influence a
+        # region are never computed into it, and no learned weights can carry a vertex to a distant bone.
+        logits = logits.masked_fill((g.prior_weights <= 0)[None], float("-inf"))
         weights = torch.softmax(logits + torch.log(g.prior_weights + PRIOR_FLOOR)[None], dim=-1)  # Eq. 3
         _, (h2, _) = self.temporal_velocity(vel_win)
         codes = self.joint_codes(h2[-1]).view(B, S, h)
         per_vertex = torch.einsum("bvs,bsc->bvc", weights, codes)
         x = F.silu(self.combine(torch.cat([fused[None].expand(B, -1, -1), per_vertex], dim=-1))
                    + self.global_code(h2[-1])[:, None])
-        blend = self.unet(x, g)  # Eq. 4
+        cap = torch.clamp(MAX_BLEND_FRACTION * (rest.amax(0) - rest.amin(0)).max(), max=MAX_BLEND_M).detach()
+        blend = cap * torch.tanh(self.unet(x, g) / cap)  # Eq. 4, bounded
         shaped = rest[None] + blend  # Eq. 2
         Mx = torch.einsum("bvs,bsrc->bvrc", weights, transforms[:, :, :3, :])
         verts = torch.einsum("bvrc,bvc->bvr", Mx[..., :3], shaped) + Mx[..., 3]  # Eq. 1

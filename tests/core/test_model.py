@@ -153,3 +153,25 @@ def test_model_deformer_bakes_a_motion(body, tmp_path):
     out = d.deform(Garment(v, f), body, Motion(poses=poses, trans=trans, fps=30.0))
     assert out.shape == (7, len(v), 3) and out.dtype == np.float32 and np.isfinite(out).all()
     assert d.report["method"] == "model"
+
+
+def test_pooled_body_velocities_match_posing_every_vertex(body):
+    """motion_features pools body-vertex velocities per joint without posing the body: naive reference."""
+    from core.model import motion_features
+
+    rng = np.random.default_rng(4)
+    T, fps = 6, 30.0
+    poses = (rng.normal(size=(1, body.n_joints, 3)) * 0.3 + np.cumsum(rng.normal(size=(T, body.n_joints, 3)) * 0.03,
+                                                                       axis=0)).astype(np.float32)
+    trans = np.cumsum(rng.normal(size=(T, 3)) * 0.01, axis=0).astype(np.float32)
+    betas = rng.normal(size=body.n_betas).astype(np.float32)
+    mf = motion_features(body, poses, trans, betas, fps)
+    verts, _, A = body.pose_with_transforms(poses, trans, betas)  # no pose correctives on this body
+    w = body.weights
+    expected = np.zeros((T, body.n_joints, 3))
+    for t in range(1, T):
+        for j in range(body.n_joints):
+            v = (verts[t] - verts[t - 1]) * fps
+            expected[t, j] = A[t, 0, :3, :3].T @ (w[:, j] @ v / w[:, j].sum())
+    got = mf.velocity[:, : 3 * body.n_joints].numpy().reshape(T, body.n_joints, 3)
+    np.testing.assert_allclose(got, expected, atol=1e-4)

@@ -1,5 +1,10 @@
-"""Stability of the LBS path at the extremes (issue 10, point 4): every case returns finite output,
-bounded (no garment vertex further from the body than the garment's own size), or stops with a clear error.
+"""Stability at the extremes (issue 10, point 4): every case returns finite output, bounded (no
+garment vertex further from the body than the garment's own size), or stops with a clear error.
+
+Each motion case runs through LBS (on a 13k-vertex shell of the body) and through the learned
+model (a small network whose weights are perturbed at random, so its learned skinning and blend
+shapes are far from zero, on a 384-vertex skirt): the model must stay bounded for any
+weights, not only for well-trained ones.
 """
 
 import numpy as np
@@ -51,14 +56,42 @@ def still(n, J=24):
     return poses
 
 
-@pytest.fixture(scope="module")
-def garment(body):
-    return shell(body)
+def perturbed_model_deformer(cache_dir, seed=0, scale=0.3):
+    """A ModelDeformer over a small GarmentModel whose every parameter got N(0, scale^2) noise."""
+    import torch
+
+    from core.model import GarmentModel, ModelConfig
+    from core.model_deform import ModelDeformer
+
+    torch.manual_seed(seed)
+    model = GarmentModel(ModelConfig(hidden=16, heads=1, encoder_layers=1, level_layers=1, bottom_layers=1,
+                                     levels=2, window=5, lstm_hidden=16, inducing_points=4, attention_heads=1,
+                                     n_eigenvalues=8, n_landmarks=16))
+    with torch.no_grad():
+        for p in model.parameters():
+            p.add_(scale * torch.randn_like(p))
+    return ModelDeformer(model, batch_frames=64, cache_dir=cache_dir, model_name="perturbed")
+
+
+@pytest.fixture(scope="module", params=["lbs", "model"])
+def case(request, body, tmp_path_factory):
+    """(garment, deformer) for each method."""
+    if request.param == "lbs":
+        return shell(body), LBSDeformer()
+    from tests.core.model_fixtures import tube
+
+    v, f = tube(32, 12, radius=(0.2, 0.15), y=(-0.35, 0.05))  # a 384-vertex skirt around the hips
+    return Garment(v, f, name="skirt"), perturbed_model_deformer(tmp_path_factory.mktemp("cache"))
 
 
 @pytest.fixture(scope="module")
-def deformer():
-    return LBSDeformer()
+def garment(case):
+    return case[0]
+
+
+@pytest.fixture(scope="module")
+def deformer(case):
+    return case[1]
 
 
 def test_extreme_betas(body, garment, deformer):
@@ -93,7 +126,8 @@ def test_root_teleports_of_10_m(body, garment, deformer):
     m = Motion(poses=still(6), trans=trans, fps=30)
     out = deformer.deform(garment, body, m)
     assert_finite_and_bounded(out, body, m, stride=1)
-    np.testing.assert_allclose(out[0] - out[1], np.broadcast_to([10.0, -10.0, 0.0], out[0].shape), atol=1e-4)
+    if isinstance(deformer, LBSDeformer):  # LBS is exactly translation-equivariant; the model sees the jump's speed
+        np.testing.assert_allclose(out[0] - out[1], np.broadcast_to([10.0, -10.0, 0.0], out[0].shape), atol=1e-4)
 
 
 @pytest.mark.parametrize("source_fps", [5.0, 240.0])
@@ -108,7 +142,7 @@ def test_very_low_and_high_input_frame_rates(body, garment, deformer, source_fps
 
 
 def test_10000_frames_error_does_not_grow(body, garment, deformer):
-    """A periodic 10,000-frame motion: the last thousand frames equal the first thousand (no drift)."""
+    """A periodic 10,000-frame motion: the last thousand frames equal frames 1,000-1,999 (no drift)."""
     n, period = 10_000, 100
     poses = still(n)
     phase = 2 * np.pi * np.arange(n) / period
@@ -118,7 +152,7 @@ def test_10000_frames_error_does_not_grow(body, garment, deformer):
     m = Motion(poses=poses, trans=np.zeros((n, 3), np.float32), fps=30)
     out = deformer.deform(garment, body, m)
     assert out.shape == (n, garment.n_vertices, 3) and np.all(np.isfinite(out))
-    np.testing.assert_allclose(out[-1000:], out[:1000], atol=1e-5)
+    np.testing.assert_allclose(out[-1000:], out[1000:2000], atol=1e-4)  # 80 periods apart, windows full
 
 
 @pytest.mark.parametrize("size", ["tiny", "huge"])
