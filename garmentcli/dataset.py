@@ -190,7 +190,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 library, str(Path(body_path).resolve()) if body_path else None, fps, material, options)
     calls = [(init, it, betas[it.body], settle_frames, task_out, body_id) for it in todo]
     frames_of = {it.id: it.n_frames + settle_frames for it in todo}
-    failed = None
+    failed, finished = None, 0
     with tqdm(total=sum(it.n_frames + settle_frames for it in todo), unit="frame", desc="dataset", disable=None) as bar:
         try:
             for iid, res in run_items(dataset_task, calls, [it.id for it in todo], workers=workers, retries=retries,
@@ -199,6 +199,10 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                     _, n, sec, checks = res
                     stats[iid] = {"seconds_per_frame": sec / n, **checks}
                 bar.update(frames_of[iid])
+                finished += 1
+                if bar.disable:  # no terminal (a log file, a cluster job): one line per finished sequence
+                    rate = f", {stats[iid]['seconds_per_frame']:.2f} s/frame" if iid in stats else ""
+                    click.echo(f"dataset: {finished}/{len(todo)} {iid}{rate}", err=True)
         except ItemsFailed as exc:  # the finished items are kept (and recorded below): a rerun resumes
             failed = exc
         finally:

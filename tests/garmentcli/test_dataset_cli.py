@@ -50,6 +50,7 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene):
     assert s.garment == "shell" and len(s.garment_sha256) == 64 and s.body == "tiny_body.npz"
     assert np.all(np.isfinite(s.positions))
     assert len(m["item_stats"]) == 4
+    assert "dataset: 4/4 " in r.output and "s/frame" in r.output  # no terminal: one line per sequence
     # Resume: nothing to do, files untouched.
     mtime = files[0].stat().st_mtime_ns
     r = run(*args)
