@@ -6,7 +6,7 @@ import logging
 
 import click
 
-from garmentcli import bake, dataset, examples, make_body, metrics, preprocess, render
+from garmentcli import attribute, bake, dataset, examples, make_body, metrics, preprocess, render
 from garmentcli import train as train_cmd
 
 
@@ -27,3 +27,4 @@ cli.add_command(examples.examples)
 cli.add_command(make_body.make_body)
 cli.add_command(preprocess.preprocess)
 cli.add_command(train_cmd.train)
+cli.add_command(attribute.attribute)

@@ -1,0 +1,69 @@
+"""`garment attribute`: outputs on a tiny scene, and every bad input refused with one clear line."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from click.testing import CliRunner
+
+from core.model import GarmentModel
+from formats.checkpoint import save_checkpoint
+from garmentcli.main import cli
+from tests.core.model_fixtures import TINY_CONFIG
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+@pytest.fixture
+def model_path(tmp_path):
+    torch.manual_seed(0)
+    model = GarmentModel(TINY_CONFIG)
+    with torch.no_grad():
+        for p in model.parameters():
+            p.add_(0.2 * torch.randn_like(p))
+    return save_checkpoint(tmp_path / "m.pt", TINY_CONFIG, model.state_dict())
+
+
+def test_attribute_writes_table_arrays_and_heatmaps(scene, model_path, monkeypatch, tmp_path):
+    monkeypatch.setenv("GARMENT_CACHE_DIR", str(tmp_path / "cache"))
+    out = scene["out"] / "att"
+    r = run("attribute", model_path, scene["garment"], scene["motion"], "--frame", 3, "--steps", 6,
+            "--body", scene["body"], "--out", out)
+    assert r.exit_code == 0, r.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["steps"] == 6 and len(summary["top"]) == 15
+    with np.load(out / "attributions.npz") as z:
+        n = len(z["deformation_m"])
+        assert n == 642 and z["garment_feature_attribution"].shape == (n,)
+        total = sum(float(z[f"phi_{k}"].sum()) for k in ("pose", "velocity", "body", "garment"))
+    assert np.isclose(total, summary["sum_m"])
+    table = (out / "attributions.md").read_text()
+    assert "| body shape |" in table and "| garment features |" in table
+    for name in ("heatmap_deformation.png", "heatmap_garment_features.png"):
+        assert (out / name).stat().st_size > 1000
+    # A region: the first 10 vertices.
+    (tmp_path / "v.txt").write_text(" ".join(str(i) for i in range(10)))
+    r = run("attribute", model_path, scene["garment"], scene["motion"], "--frame", 3, "--steps", 2, "--no-render",
+            "--body", scene["body"], "--vertices", tmp_path / "v.txt", "--out", out, "--overwrite")
+    assert r.exit_code == 0, r.output
+    assert "over 10 vertices" in (out / "attributions.md").read_text()
+
+
+def test_attribute_bad_inputs(scene, model_path, tmp_path):
+    base = [model_path, scene["garment"], scene["motion"], "--body", scene["body"], "--no-render"]
+    r = run("attribute", *base, "--frame", 999, "--out", tmp_path / "a")
+    assert r.exit_code != 0 and "--frame" in r.output and not (tmp_path / "a").exists()
+    (tmp_path / "bad.txt").write_text("1 2 x")
+    r = run("attribute", *base, "--frame", 1, "--vertices", tmp_path / "bad.txt", "--out", tmp_path / "a")
+    assert r.exit_code != 0 and "--vertices" in r.output and not (tmp_path / "a").exists()
+    (tmp_path / "far.txt").write_text("5000")
+    r = run("attribute", *base, "--frame", 1, "--vertices", tmp_path / "far.txt", "--out", tmp_path / "a")
+    assert r.exit_code != 0 and "0..641" in r.output
+    (tmp_path / "notamodel.pt").write_text("hello")
+    r = run("attribute", tmp_path / "notamodel.pt", *base[1:], "--frame", 1, "--out", tmp_path / "a")
+    assert r.exit_code != 0 and "notamodel.pt" in r.output
+    r = run("attribute", *base, "--out", tmp_path / "a")
+    assert r.exit_code != 0 and "--frame" in r.output
