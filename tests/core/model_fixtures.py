@@ -86,3 +86,17 @@ def make_dataset(root: Path, T: int = 12) -> Path:
         items.append({"id": iid, "garment": gname, "motion": f"m{k}", "betas": betas.tolist()})
     write_manifest(root, {"splits": {"train": ["s0", "s1"], "val": ["s2"], "test": []}, "items": items})
     return root
+
+
+def perturbed_model(config: ModelConfig = TINY_CONFIG, scale: float = 0.2, seed: int = 0):
+    """A GarmentModel whose every parameter got N(0, scale^2) noise: away from the LBS-reproducing start."""
+    import torch
+
+    from core.model import GarmentModel
+
+    torch.manual_seed(seed)
+    model = GarmentModel(config)
+    with torch.no_grad():
+        for p in model.parameters():
+            p.add_(scale * torch.randn_like(p))
+    return model

@@ -2,8 +2,6 @@
 
 import numpy as np
 import pytest
-import torch
-
 from core.attribution import (
     DeformationTarget,
     attribution_table,
@@ -13,23 +11,18 @@ from core.attribution import (
 )
 from core.errors import InputError
 from core.garment import Garment
-from core.model import GarmentModel
 from core.model_data import prepare_garment
 from core.motion import Motion, Y_UP_TO_Z_UP
-from tests.core.model_fixtures import TINY_CONFIG, tube
+from tests.core.model_fixtures import TINY_CONFIG, perturbed_model, tube
 from tests.meshes import tiny_body
 
 
 @pytest.fixture(scope="module")
 def target(tmp_path_factory):
-    torch.manual_seed(0)
     body = tiny_body()
     v, f = tube(16, 8)
     garment = Garment(v, f, name="tube")
-    model = GarmentModel(TINY_CONFIG)
-    with torch.no_grad():  # away from the LBS-reproducing initialisation, so f is not flat
-        for p in model.parameters():
-            p.add_(0.2 * torch.randn_like(p))
+    model = perturbed_model(TINY_CONFIG, 0.2)  # away from the LBS-reproducing start, so f is not flat
     g = prepare_garment(garment, body, TINY_CONFIG, tmp_path_factory.mktemp("cache")).inputs
     T = 6
     poses = np.zeros((T, 24, 3), np.float32)

@@ -9,7 +9,7 @@ from core.errors import InputError
 from core.model import (GATv2, GarmentModel, ModelConfig, body_distances, config_from_dict, count_parameters,
                         motion_features, neighbour_table, shaped_rest, window_index)
 from core.model_data import prepare_garment
-from tests.core.model_fixtures import TINY_CONFIG, sequence, tube
+from tests.core.model_fixtures import TINY_CONFIG, perturbed_model, sequence, tube
 from tests.meshes import tiny_body
 
 
@@ -106,11 +106,7 @@ def test_vertex_permutation_equivariance(body):
     """Renumbering the garment's vertices renumbers the output (no vertex-order dependence)."""
     from core.garment import Garment
 
-    torch.manual_seed(0)
-    model = GarmentModel(TINY_CONFIG)
-    with torch.no_grad():
-        for p in model.parameters():
-            p.add_(0.05 * torch.randn_like(p))
+    model = perturbed_model(TINY_CONFIG, 0.05)
     v, f = tube(12, 6)
     perm = np.random.default_rng(3).permutation(len(v))
     inv = np.argsort(perm)

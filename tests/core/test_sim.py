@@ -214,19 +214,13 @@ def test_pinned_particles_follow_their_targets_while_the_rest_falls():
 
 def _torso_tube(body, y_top, y_bottom, gap=0.01, n_theta=48, n_rows=12):
     """A tube around the tiny body's ellipsoid torso, `gap` metres off its surface, from y_top down to y_bottom."""
-    ys = np.linspace(y_top, y_bottom, n_rows)
-    theta = 2 * np.pi * np.arange(n_theta) / n_theta
-    scale = np.sqrt(np.clip(1 - (ys / 0.8) ** 2, 0.05, None))[:, None]
-    x = (0.25 * scale + gap) * np.sin(theta)
-    z = (0.15 * scale + gap) * np.cos(theta)
-    v = np.stack([x, np.repeat(ys[:, None], n_theta, 1), z], -1).reshape(-1, 3)
-    faces = []
-    for i in range(n_rows - 1):
-        for k in range(n_theta):
-            a, b = i * n_theta + k, i * n_theta + (k + 1) % n_theta
-            c, d = a + n_theta, b + n_theta
-            faces += [[a, c, b], [b, c, d]]
-    return Garment(v.astype(np.float32), np.array(faces), name="tube")
+    from tests.core.model_fixtures import tube
+
+    v, f = tube(n_theta, n_rows, radius=(1.0, 1.0), y=(y_bottom, y_top))  # unit circles, then the ellipsoid's
+    scale = np.sqrt(np.clip(1 - (v[:, 1] / 0.8) ** 2, 0.05, None))
+    v[:, 0] *= 0.25 * scale + gap
+    v[:, 2] *= 0.15 * scale + gap
+    return Garment(v.astype(np.float32), f, name="tube")
 
 
 def test_waistband_is_the_top_opening_of_a_garment_hanging_from_the_waist():

@@ -58,18 +58,13 @@ def still(n, J=24):
 
 def perturbed_model_deformer(cache_dir, seed=0, scale=0.3):
     """A ModelDeformer over a small GarmentModel whose every parameter got N(0, scale^2) noise."""
-    import torch
-
-    from core.model import GarmentModel, ModelConfig
+    from core.model import ModelConfig
     from core.model_deform import ModelDeformer
+    from tests.core.model_fixtures import perturbed_model
 
-    torch.manual_seed(seed)
-    model = GarmentModel(ModelConfig(hidden=16, heads=1, encoder_layers=1, level_layers=1, bottom_layers=1,
-                                     levels=2, window=5, lstm_hidden=16, inducing_points=4, attention_heads=1,
-                                     n_eigenvalues=8, n_landmarks=16))
-    with torch.no_grad():
-        for p in model.parameters():
-            p.add_(scale * torch.randn_like(p))
+    model = perturbed_model(ModelConfig(hidden=16, heads=1, encoder_layers=1, level_layers=1, bottom_layers=1,
+                                        levels=2, window=5, lstm_hidden=16, inducing_points=4, attention_heads=1,
+                                        n_eigenvalues=8, n_landmarks=16), scale, seed)
     return ModelDeformer(model, batch_frames=64, cache_dir=cache_dir, model_name="perturbed")
 
 

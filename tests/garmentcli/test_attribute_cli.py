@@ -4,13 +4,11 @@ import json
 
 import numpy as np
 import pytest
-import torch
 from click.testing import CliRunner
 
-from core.model import GarmentModel
 from formats.checkpoint import save_checkpoint
 from garmentcli.main import cli
-from tests.core.model_fixtures import TINY_CONFIG
+from tests.core.model_fixtures import TINY_CONFIG, perturbed_model
 
 
 def run(*args):
@@ -19,11 +17,7 @@ def run(*args):
 
 @pytest.fixture
 def model_path(tmp_path):
-    torch.manual_seed(0)
-    model = GarmentModel(TINY_CONFIG)
-    with torch.no_grad():
-        for p in model.parameters():
-            p.add_(0.2 * torch.randn_like(p))
+    model = perturbed_model(TINY_CONFIG, 0.2)
     return save_checkpoint(tmp_path / "m.pt", TINY_CONFIG, model.state_dict())
 
 
