@@ -153,17 +153,21 @@ class ModelDataset:
             raise InputError(f"dataset '{self.root}': expected a {MANIFEST} in it, found none")
         self.manifest = manifest
         items = _items(manifest, str(mpath))
-        split_ids = manifest.get("splits", {})
+        unknown = sorted({str(rec.get("split")) for rec in items.values()} - {"train", "val", "test"})
+        if unknown:
+            raise InputError(f"dataset manifest '{mpath}': expected every item's 'split' to be train, val or test, "
+                             f"got {unknown[0]!r}")
+        missing = [i for i, rec in items.items() if rec["split"] in splits and not self._file(i, rec).is_file()]
+        if missing:
+            raise InputError(f"dataset '{self.root}': {len(missing)} of {len(items)} sequences are missing (e.g. "
+                             f"'{missing[0]}'); the `garment dataset` run has not finished: rerun it to resume")
         self.garments: dict[str, GarmentData] = {}
         self.splits: dict[str, list[Sequence]] = {}
         for split in splits:
             seqs = []
-            for item_id in split_ids.get(split, []):
-                item_id = str(item_id)
-                if item_id not in items:
-                    raise InputError(f"dataset manifest '{mpath}': split '{split}' names item '{item_id}', "
-                                     f"which is not in 'items'")
-                rec = items[item_id]
+            for item_id, rec in items.items():
+                if rec["split"] != split:
+                    continue
                 name = str(rec["garment"])
                 if name not in self.garments:
                     gpath = self.root / "garments" / f"{name}.obj"
@@ -176,10 +180,13 @@ class ModelDataset:
             self.splits[split] = seqs
             log.info("dataset split '%s': %d sequences", split, len(seqs))
 
-    def _sequence_path(self, item_id: str, rec: dict) -> Path:
+    def _file(self, item_id: str, rec: dict) -> Path:
         from formats.dataset import sequence_path
 
-        path = self.root / str(rec["file"]) if "file" in rec else sequence_path(self.root, item_id)
+        return self.root / str(rec["file"]) if "file" in rec else sequence_path(self.root, item_id)
+
+    def _sequence_path(self, item_id: str, rec: dict) -> Path:
+        path = self._file(item_id, rec)
         if not path.is_file():
             raise InputError(f"dataset '{self.root}': expected the sequence file of item '{item_id}' at '{path}', "
                              "found none")

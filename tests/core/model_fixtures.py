@@ -74,7 +74,7 @@ def make_dataset(root: Path, T: int = 12) -> Path:
     for name, (v, f) in garments.items():
         write_obj(root / "garments" / f"{name}.obj", v, f)
     items = []
-    for k, (gname, seed) in enumerate([("a", 0), ("a", 1), ("b", 2)]):
+    for k, (gname, seed, split) in enumerate([("a", 0, "train"), ("a", 1, "train"), ("b", 2, "val")]):
         betas = np.zeros(4, np.float32)
         betas[0] = 0.5 * k
         v, f = garments[gname]
@@ -83,8 +83,12 @@ def make_dataset(root: Path, T: int = 12) -> Path:
         write_sequence(sequence_path(root, iid), DatasetSequence(
             positions=pos, poses=poses, trans=trans, betas=betas, fps=30.0, n_settle=0, garment=gname,
             garment_sha256="", body="tiny"))
-        items.append({"id": iid, "garment": gname, "motion": f"m{k}", "betas": betas.tolist()})
-    write_manifest(root, {"splits": {"train": ["s0", "s1"], "val": ["s2"], "test": []}, "items": items})
+        items.append({"id": iid, "garment": gname, "motion": f"m{k}", "split": split, "betas": betas.tolist(),
+                      "file": f"sequences/{iid}.npz"})
+    # The layout `garment dataset` writes (core.dataset.build_manifest): the split is a field of each item.
+    write_manifest(root, {"format": "garment-dataset/1", "items": items,
+                          "splits": {"motions": {"train": ["m0", "m1"], "val": ["m2"], "test": []},
+                                     "garments": {"train": ["a"], "val": ["b"], "test": []}, "held_out_garments": []}})
     return root
 
 

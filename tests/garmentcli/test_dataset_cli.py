@@ -59,6 +59,18 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene):
     files[1].unlink()
     r = run(*args)
     assert r.exit_code == 0 and "1 to simulate" in r.output and files[1].is_file()
+    # What `garment dataset` wrote is what `garment train` reads (the split is a field of each item).
+    r = run("train", "--data", out, "--out", scene["dir"] / "m.pt", "--steps", 2, "--body", scene["body"],
+            "--config", _tiny_config(scene["dir"]), "--cache-dir", scene["dir"] / "cache")
+    assert r.exit_code == 0, r.output
+    rows = (scene["dir"] / "m.pt.csv").read_text().splitlines()
+    assert len(rows) == 3  # header + 2 steps
+    # A sequence missing (an unfinished dataset run) is refused by training with one line.
+    files[1].unlink()
+    r = run("train", "--data", out, "--out", scene["dir"] / "m2.pt", "--steps", 1, "--body", scene["body"])
+    assert r.exit_code != 0 and "missing" in r.output and "rerun it to resume" in r.output
+    r = run(*args)
+    assert r.exit_code == 0 and files[1].is_file()
     # Other settings into the same directory: refused with one line.
     r = run(*args[:-2], "--seed", 3, "--out", out)
     assert r.exit_code != 0 and "other settings" in r.output and "Traceback" not in r.output
@@ -71,6 +83,16 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene):
     garment.write_text("\n".join(lines) + "\n")
     r = run(*args)
     assert r.exit_code != 0 and "other settings" in r.output and "Traceback" not in r.output
+
+
+def _tiny_config(directory):
+    from dataclasses import asdict
+
+    from tests.core.model_fixtures import TINY_CONFIG
+
+    path = Path(directory) / "tiny.json"
+    path.write_text(json.dumps({"model": asdict(TINY_CONFIG)}))
+    return path
 
 
 def test_dataset_bad_material_key(scene, tmp_path):
