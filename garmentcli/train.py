@@ -123,6 +123,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             with open(csv_path, newline="") as fh:
                 rows = [r for r in csv.DictReader(fh) if int(r["step"]) <= trainer.step]
     if main:
+        out.parent.mkdir(parents=True, exist_ok=True)
         json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
                                          "data": str(data_dir), "processes": world,
                                          "sequences_per_step": sequences_per_step}, indent=2))

@@ -60,10 +60,10 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene):
     r = run(*args)
     assert r.exit_code == 0 and "1 to simulate" in r.output and files[1].is_file()
     # What `garment dataset` wrote is what `garment train` reads (the split is a field of each item).
-    r = run("train", "--data", out, "--out", scene["dir"] / "m.pt", "--steps", 2, "--body", scene["body"],
+    r = run("train", "--data", out, "--out", scene["dir"] / "models" / "m.pt", "--steps", 2, "--body", scene["body"],
             "--config", _tiny_config(scene["dir"]), "--cache-dir", scene["dir"] / "cache")
     assert r.exit_code == 0, r.output
-    rows = (scene["dir"] / "m.pt.csv").read_text().splitlines()
+    rows = (scene["dir"] / "models" / "m.pt.csv").read_text().splitlines()  # its folder made on the way
     assert len(rows) == 3  # header + 2 steps
     # A sequence missing (an unfinished dataset run) is refused by training with one line.
     files[1].unlink()
