@@ -49,6 +49,8 @@ from core.errors import InputError
 
 #: Floor of the prior weights before the log (joints with no transferred weight stay reachable).
 PRIOR_FLOOR = 1e-4
+#: ModelConfig.pooling values: ours, then the learned baselines of PyTorch Geometric.
+POOLINGS = ("structure", "topk", "sag", "asap")
 #: Blend shapes (Eq. 4) are squashed to at most m per vertex: m tanh(raw / m), the identity for small
 #: offsets, so no input can fling a vertex far from the skinned garment. m is this many metres or this
 #: fraction of the garment's largest extent, whichever is smaller.
@@ -71,6 +73,9 @@ class ModelConfig:
     window: m, frames seen by the temporal encoders. lstm_hidden: their width.
     inducing_points: M of the self-attention block; attention_heads: its heads.
     n_eigenvalues: style descriptor length; n_landmarks: Nystrom N* (preprocessing settings).
+    pooling: "structure" (the paper's structure-preserving hierarchy, precomputed per garment) or a
+      learned baseline pooling of PyTorch Geometric, for the comparison of paper section 5: "topk"
+      (TopKPooling), "sag" (SAGPooling), "asap" (ASAPooling), each keeping half the nodes per level.
     """
 
     n_joints: int = 24
@@ -86,6 +91,7 @@ class ModelConfig:
     attention_heads: int = 2
     n_eigenvalues: int = 16
     n_landmarks: int = 64
+    pooling: str = "structure"
 
     def validate(self, source: str = "model config") -> None:
         for name in ("n_joints", "hidden", "heads", "window", "lstm_hidden", "inducing_points",
@@ -95,6 +101,8 @@ class ModelConfig:
         for name in ("encoder_layers", "level_layers", "bottom_layers", "levels"):
             if int(getattr(self, name)) < 0:
                 raise InputError(f"{source}: expected {name} >= 0, got {getattr(self, name)!r}")
+        if self.pooling not in POOLINGS:
+            raise InputError(f"{source}: expected pooling among {', '.join(POOLINGS)}, got {self.pooling!r}")
         if self.hidden % self.heads or self.hidden % self.attention_heads:
             raise InputError(f"{source}: expected hidden ({self.hidden}) divisible by heads ({self.heads}) and "
                              f"attention_heads ({self.attention_heads})")
@@ -121,7 +129,7 @@ def config_from_dict(values: dict, source: str = "model config") -> ModelConfig:
     for key in values:
         if key not in known:
             raise InputError(f"{source}: unknown key '{key}' (expected one of {', '.join(known)})")
-    cfg = ModelConfig(**{k: int(v) for k, v in values.items()})
+    cfg = ModelConfig(**{k: (str(v) if known[k].type in (str, "str") else int(v)) for k, v in values.items()})
     cfg.validate(source)
     return cfg
 
@@ -434,6 +442,94 @@ class GraphUNet(nn.Module):
         return self.out(x)
 
 
+class LearnedPoolUNet(nn.Module):
+    """The U-Net of `GraphUNet` with a learned PyTorch Geometric pooling in place of ours (the baselines).
+
+    Level 0 is the garment graph; each pooling keeps half the nodes of the level above, chosen from
+    the features of each frame (TopK, SAG: scored nodes and the edges among them; ASAP: clusters),
+    so coarse graphs differ between frames and are processed frame by frame with GATv2Conv on edge
+    lists. Unpooling scatters the pooled features back to the kept nodes (zeros elsewhere), as in
+    Graph U-Nets, then merges with the skip connection. (B, V, h) -> (B, V, 3).
+    """
+
+    def __init__(self, cfg: ModelConfig):
+        super().__init__()
+        from torch_geometric.nn import ASAPooling, SAGPooling, TopKPooling
+
+        h, L = cfg.hidden, cfg.levels
+        self.levels = L
+        make = {"topk": lambda: TopKPooling(h, ratio=0.5), "sag": lambda: SAGPooling(h, ratio=0.5),
+                "asap": lambda: ASAPooling(h, ratio=0.5)}[cfg.pooling]
+        self.kind = cfg.pooling
+        self.pools = nn.ModuleList(make() for _ in range(L))
+        self.down = nn.ModuleList(nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.level_layers))
+                                  for _ in range(L))
+        self.coarse = nn.ModuleList(nn.ModuleList(GATv2Conv(h, h // cfg.heads, heads=cfg.heads)
+                                                  for _ in range(cfg.level_layers)) for _ in range(L))
+        self.bottom = nn.ModuleList(GATv2Conv(h, h // cfg.heads, heads=cfg.heads) for _ in range(cfg.bottom_layers))
+        self.merge = nn.ModuleList(nn.Linear(2 * h, h) for _ in range(L))
+        self.up = nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.level_layers if L else 0))
+        self.coarse_up = nn.ModuleList(nn.ModuleList(GATv2Conv(h, h // cfg.heads, heads=cfg.heads)
+                                                     for _ in range(cfg.level_layers)) for _ in range(max(L - 1, 0)))
+        self.out = nn.Linear(h, 3)
+        nn.init.zeros_(self.out.weight)
+        nn.init.zeros_(self.out.bias)
+
+    def _pool(self, l: int, x: torch.Tensor, edge_index: torch.Tensor):
+        if self.kind == "asap":
+            x, edge_index, _, _, perm = self.pools[l](x, edge_index)
+        else:
+            x, edge_index, _, _, perm, _ = self.pools[l](x, edge_index)
+        return x, edge_index, perm
+
+    def pooled_graphs(self, x: torch.Tensor, g: GarmentInputs) -> list[tuple[int, torch.Tensor]]:
+        """(node count, edge_index) of every level for one frame's features x (V, h): for diagnostics."""
+        edge_index = _both_directions(g.edges)
+        out = [(x.shape[0], edge_index)]
+        for l in range(self.levels):
+            x, edge_index, _ = self._pool(l, x, edge_index)
+            out.append((x.shape[0], edge_index))
+        return out
+
+    def forward(self, x: torch.Tensor, g: GarmentInputs) -> torch.Tensor:
+        base_edges = _both_directions(g.edges)
+        frames = []
+        for xb in x:
+            skips, perms, edges = [], [], []
+            y, edge_index = xb, base_edges
+            for l in range(self.levels):
+                y = self._level_blocks(y, l, edge_index, g, self.down[0], self.coarse[l - 1] if l else None)
+                skips.append(y)
+                edges.append(edge_index)
+                y, edge_index, perm = self._pool(l, y, edge_index)
+                perms.append(perm)
+            for conv in self.bottom:
+                y = y + F.silu(conv(y, edge_index))
+            for l in reversed(range(self.levels)):
+                up = skips[l].new_zeros(skips[l].shape).index_copy(0, perms[l], y)
+                y = F.silu(self.merge[l](torch.cat([up, skips[l]], dim=-1)))
+                y = self._level_blocks(y, l, edges[l], g, self.up, self.coarse_up[l - 1] if l else None)
+            frames.append(y)
+        return self.out(torch.stack(frames))
+
+    @staticmethod
+    def _level_blocks(y, l, edge_index, g, fine_blocks, coarse_convs):
+        """Level 0: the garment's GAT blocks on its neighbour table; coarser: GATv2Conv on this frame's edges."""
+        if l == 0:
+            for blk in fine_blocks:
+                y = blk(y[None], g.nbr[0], g.mask[0])[0]
+            return y
+        for conv in coarse_convs:
+            y = y + F.silu(conv(y, edge_index))
+        return y
+
+
+def _both_directions(edges: torch.Tensor) -> torch.Tensor:
+    """(E, 2) undirected edges -> (2, 2E) edge_index with both directions."""
+    e = edges.t()
+    return torch.cat([e, e.flip(0)], dim=1)
+
+
 @dataclass
 class ModelOutput:
     """verts: (B, V, 3) world, metres. weights: (B, V, S) skinning weights. blend: (B, V, 3) rest-frame offsets."""
@@ -460,7 +556,7 @@ class GarmentModel(nn.Module):
         self.joint_codes = nn.Linear(cfg.lstm_hidden, h * S)
         self.global_code = nn.Linear(cfg.lstm_hidden, h)
         self.combine = nn.Linear(2 * h, h)
-        self.unet = GraphUNet(cfg)
+        self.unet = GraphUNet(cfg) if cfg.pooling == "structure" else LearnedPoolUNet(cfg)
 
     def check_inputs(self, g: GarmentInputs) -> None:
         cfg = self.config

@@ -171,3 +171,34 @@ def test_pooled_body_velocities_match_posing_every_vertex(body):
             expected[t, j] = A[t, 0, :3, :3].T @ (w[:, j] @ v / w[:, j].sum())
     got = mf.velocity[:, : 3 * body.n_joints].numpy().reshape(T, body.n_joints, 3)
     np.testing.assert_allclose(got, expected, atol=1e-4)
+
+
+@pytest.mark.parametrize("pooling", ["topk", "sag", "asap"])
+def test_learned_pooling_baselines_run_train_and_report_their_levels(body, pooling, tmp_path):
+    """The comparison networks: same model with PyG's TopK / SAG / ASAP pooling in the U-Net."""
+    from dataclasses import replace
+
+    from core.garment import Garment
+    from core.model import config_from_dict
+    from core.model_data import prepare_garment
+
+    cfg = replace(TINY_CONFIG, pooling=pooling, levels=2)
+    assert config_from_dict({"pooling": pooling, "levels": 2}).pooling == pooling
+    model = perturbed_model(cfg, 0.1)  # the zero-initialised output layer would stop every gradient
+    v, f = tube(12, 6)
+    gd = prepare_garment(Garment(v, f), body, cfg, tmp_path)
+    poses, trans, _ = sequence(body, v, f, 4, 0, None)
+    from core.model import motion_features, shaped_rest, window_index
+
+    mf = motion_features(body, poses, trans, None, 30.0)
+    fused = model.encode(gd.inputs, body_distances(body, None))
+    win = window_index(torch.arange(4), cfg.window)
+    out = model.forward_frames(fused, gd.inputs, shaped_rest(gd.inputs, body, None), mf.pose[win],
+                               mf.velocity[win], mf.transforms)
+    assert out.verts.shape == (4, len(v), 3) and torch.isfinite(out.verts).all()
+    out.verts.square().sum().backward()
+    assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in model.unet.pools.parameters())
+    graphs = model.unet.pooled_graphs(fused.detach(), gd.inputs)
+    assert [n for n, _ in graphs] == [len(v), len(v) // 2, len(v) // 4]
+    with pytest.raises(InputError, match="pooling"):
+        config_from_dict({"pooling": "random"})
