@@ -28,3 +28,7 @@ cli.add_command(make_body.make_body)
 cli.add_command(preprocess.preprocess)
 cli.add_command(train_cmd.train)
 cli.add_command(attribute.attribute)
+
+
+if __name__ == "__main__":  # python -m garmentcli.main ...
+    cli()

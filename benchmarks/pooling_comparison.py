@@ -1,0 +1,177 @@
+"""Pooling comparison and levels ablation (paper section 5): the same network, data and training budget.
+
+Variants: our structure-preserving pooling, PyTorch Geometric's TopKPool, SAGPool and ASAP in the
+same U-Net (`ModelConfig.pooling`), no pooling (a single scale, levels 0), and the levels ablation
+of ours (0, 1, 2, 3 levels). Each is trained with `garment train` on the same dataset with the same
+steps and seed (phases 1 only unless --phases), then evaluated on the test split exactly as
+benchmarks/model_table.py does (held-out motions; the held-out garment separately). Also per
+variant: the connected components of every level on each test garment (ours keeps the garment's
+own count; learned poolings usually split it) and renders of the levels side by side.
+
+    python benchmarks/pooling_comparison.py --data data/sim_v1 --steps 3000
+    python benchmarks/pooling_comparison.py --data data/sim_v1 --steps 3000 --levels-ablation
+
+Models go to --models-dir (reused when present: the run resumes); tables to
+benchmarks/results/pooling_comparison.md / levels_ablation.md, renders to docs/pooling/.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from model_table import COLUMNS, evaluate, summarise  # noqa: E402
+
+from core.model import ModelConfig  # noqa: E402
+
+POOLING_VARIANTS = {"ours (structure-preserving)": {"pooling": "structure", "levels": 2},
+                    "TopKPool": {"pooling": "topk", "levels": 2},
+                    "SAGPool": {"pooling": "sag", "levels": 2},
+                    "ASAP": {"pooling": "asap", "levels": 2},
+                    "no pooling (single scale)": {"pooling": "structure", "levels": 0}}
+LEVEL_VARIANTS = {f"ours, {n} level{'s' if n != 1 else ''}": {"pooling": "structure", "levels": n} for n in range(4)}
+
+
+def train(name: str, overrides: dict, args) -> Path:
+    """Train (or reuse) the model of one variant; returns its path."""
+    slug = "".join(c if c.isalnum() else "_" for c in name).strip("_")
+    out = Path(args.models_dir) / f"{slug}.pt"
+    if out.is_file():
+        return out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    config = out.with_suffix(".config.json")
+    config.write_text(json.dumps({"model": {**dataclasses.asdict(ModelConfig()), **overrides}}))
+    subprocess.run([sys.executable, "-m", "garmentcli.main", "train", "--data", str(args.data), "--out", str(out),
+                    "--steps", str(args.steps), "--seed", str(args.seed), "--phases", args.phases,
+                    "--config", str(config)], check=True, cwd=ROOT)
+    return out
+
+
+def level_components(model, garment, body) -> list[int]:
+    """Connected components of each level of the model's U-Net on `garment` (rest features)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from core.model import body_distances
+    from core.model_data import prepare_garment
+
+    prep = prepare_garment(garment, body, model.config)
+    cfg = model.config
+    if cfg.pooling == "structure":
+        from core.preprocess import preprocess_garment
+
+        h = preprocess_garment(garment, body, levels=max(cfg.levels, 1), n_landmarks=cfg.n_landmarks,
+                               n_eigenvalues=cfg.n_eigenvalues).hierarchy
+        return list(h.components[: cfg.levels + 1])
+    fused = model.encode(prep.inputs, body_distances(body, None)).detach()
+    counts = []
+    for n, edge_index in model.unet.pooled_graphs(fused, prep.inputs):
+        e = edge_index.numpy()
+        counts.append(int(connected_components(coo_matrix((np.ones(e.shape[1]), (e[0], e[1])), shape=(n, n)),
+                                               directed=False)[0]))
+    return counts
+
+
+def pooled_levels(model, garment, body):
+    """A Hierarchy-like object (vertex_index, edges, components, n_levels) of the model's levels, for renders."""
+    from core.model import body_distances
+    from core.model_data import prepare_garment
+
+    prep = prepare_garment(garment, body, model.config)
+    fused = model.encode(prep.inputs, body_distances(body, None)).detach()
+    index, edges = [np.arange(garment.n_vertices)], []
+    graphs = model.unet.pooled_graphs(fused, prep.inputs)
+    x = fused
+    for level, (n, edge_index) in enumerate(graphs):
+        e = edge_index.numpy().T
+        edges.append(np.unique(np.sort(e, axis=1), axis=0))
+        if level < len(graphs) - 1:
+            _, _, perm = model.unet._pool(level, x, edge_index)
+            index.append(index[-1][perm.numpy()])
+            x = x[perm]
+    return SimpleNamespace(vertex_index=index, edges=edges, n_levels=len(graphs) - 1,
+                           components=[1] * len(graphs))
+
+
+def run(variants: dict, args, table: Path) -> None:
+    from core.body import default_body
+    from core.model_deform import load_model_deformer
+    from formats.checkpoint import load_model
+    from formats.dataset import read_manifest
+    from formats.obj import read_obj
+
+    body = default_body()
+    methods, models = {}, {}
+    for name, overrides in variants.items():
+        path = train(name, overrides, args)
+        methods[name] = load_model_deformer(path)
+        models[name] = load_model(path)[0]
+    rows = evaluate(args.data, methods, args.self_every, args.max_items)
+    summary = summarise(rows, list(methods))
+    manifest = read_manifest(args.data)
+    test_garments = sorted({it["garment"] for it in manifest["items"] if it["split"] == "test"})
+    components = {}
+    for name, model in models.items():
+        for g in test_garments:
+            garment = read_obj(Path(args.data) / "garments" / f"{g}.obj")
+            components[(name, g)] = level_components(model, garment, body)
+            if not args.no_render and model.config.levels > 0:
+                from formats.hierarchy_render import render_hierarchy
+
+                levels = (None if model.config.pooling == "structure" else pooled_levels(model, garment, body))
+                if levels is None:
+                    from core.preprocess import preprocess_garment
+
+                    levels = preprocess_garment(garment, body, levels=model.config.levels).hierarchy
+                slug = "".join(c if c.isalnum() else "_" for c in name).strip("_")
+                render_hierarchy(ROOT / "docs" / "pooling" / f"{g}_{slug}.png", garment.vertices, garment.faces,
+                                 levels, title=f"{g}: {name}")
+    lines = [f"# {table.stem.replace('_', ' ').capitalize()}", "",
+             f"Same data (`{args.data}`), {args.steps} training steps (phases {args.phases}, seed {args.seed}) per "
+             f"variant; test split as in model_table.md. Made by `python benchmarks/pooling_comparison.py "
+             f"--data {args.data} --steps {args.steps}{' --levels-ablation' if args.levels_ablation else ''}`.", "",
+             "| split | variant | sequences | " + " | ".join(COLUMNS) + " |", "|---|---|---:|" + "---:|" * len(COLUMNS)]
+    for group, method, n, v in summary:
+        lines.append(f"| {group} | {method} | {n} | " + " | ".join(f"{v[k]:.3f}" if k in v else "" for k in COLUMNS)
+                     + " |")
+    lines += ["", "Connected components per level (level 0 = the garment):", "",
+              "| variant | " + " | ".join(test_garments) + " |", "|---|" + "---|" * len(test_garments)]
+    for name in models:
+        lines.append(f"| {name} | " + " | ".join(" / ".join(map(str, components[(name, g)])) for g in test_garments)
+                     + " |")
+    table.parent.mkdir(parents=True, exist_ok=True)
+    table.write_text("\n".join(lines) + "\n")
+    print(f"wrote {table}")
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, required=True)
+    ap.add_argument("--steps", type=int, default=3000)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--phases", default="1")
+    ap.add_argument("--models-dir", type=Path, default=ROOT / "data" / "pooling_models")
+    ap.add_argument("--levels-ablation", action="store_true", help="run the levels ablation instead")
+    ap.add_argument("--self-every", type=int, default=6)
+    ap.add_argument("--max-items", type=int, default=None)
+    ap.add_argument("--no-render", action="store_true")
+    args = ap.parse_args(argv)
+    if args.levels_ablation:
+        run(LEVEL_VARIANTS, args, ROOT / "benchmarks" / "results" / "levels_ablation.md")
+    else:
+        run(POOLING_VARIANTS, args, ROOT / "benchmarks" / "results" / "pooling_comparison.md")
+
+
+if __name__ == "__main__":
+    main()
