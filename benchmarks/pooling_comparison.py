@@ -166,11 +166,15 @@ def main(argv=None) -> None:
     ap.add_argument("--self-every", type=int, default=6)
     ap.add_argument("--max-items", type=int, default=None)
     ap.add_argument("--no-render", action="store_true")
+    ap.add_argument("--only", nargs="*", default=None, metavar="WORD",
+                    help="run only the variants whose name contains one of these words (e.g. TopK ours)")
+    ap.add_argument("--out", type=Path, default=None, help="table path (default: benchmarks/results/...)")
     args = ap.parse_args(argv)
-    if args.levels_ablation:
-        run(LEVEL_VARIANTS, args, ROOT / "benchmarks" / "results" / "levels_ablation.md")
-    else:
-        run(POOLING_VARIANTS, args, ROOT / "benchmarks" / "results" / "pooling_comparison.md")
+    variants = LEVEL_VARIANTS if args.levels_ablation else POOLING_VARIANTS
+    if args.only:
+        variants = {k: v for k, v in variants.items() if any(w in k for w in args.only)}
+    default = "levels_ablation.md" if args.levels_ablation else "pooling_comparison.md"
+    run(variants, args, args.out or ROOT / "benchmarks" / "results" / default)
 
 
 if __name__ == "__main__":
