@@ -76,8 +76,8 @@ def level_components(model, garment, body) -> list[int]:
         return list(h.components[: cfg.levels + 1])
     fused = model.encode(prep.inputs, body_distances(body, None)).detach()
     counts = []
-    for n, edge_index in model.unet.pooled_graphs(fused, prep.inputs):
-        e = edge_index.numpy()
+    for kept, edge_index in model.unet.pooled_graphs(fused, prep.inputs):
+        n, e = len(kept), edge_index.numpy()
         counts.append(int(connected_components(coo_matrix((np.ones(e.shape[1]), (e[0], e[1])), shape=(n, n)),
                                                directed=False)[0]))
     return counts
@@ -90,18 +90,10 @@ def pooled_levels(model, garment, body):
 
     prep = prepare_garment(garment, body, model.config)
     fused = model.encode(prep.inputs, body_distances(body, None)).detach()
-    index, edges = [np.arange(garment.n_vertices)], []
     graphs = model.unet.pooled_graphs(fused, prep.inputs)
-    x = fused
-    for level, (n, edge_index) in enumerate(graphs):
-        e = edge_index.numpy().T
-        edges.append(np.unique(np.sort(e, axis=1), axis=0))
-        if level < len(graphs) - 1:
-            _, _, perm = model.unet._pool(level, x, edge_index)
-            index.append(index[-1][perm.numpy()])
-            x = x[perm]
-    return SimpleNamespace(vertex_index=index, edges=edges, n_levels=len(graphs) - 1,
-                           components=[1] * len(graphs))
+    edges = [np.unique(np.sort(e.numpy().T, axis=1), axis=0) for _, e in graphs]
+    return SimpleNamespace(vertex_index=[k for k, _ in graphs], edges=edges, n_levels=len(graphs) - 1,
+                           components=level_components(model, garment, body))
 
 
 def run(variants: dict, args, table: Path) -> None:

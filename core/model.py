@@ -482,27 +482,33 @@ class LearnedPoolUNet(nn.Module):
             x, edge_index, _, _, perm, _ = self.pools[l](x, edge_index)
         return x, edge_index, perm
 
-    def pooled_graphs(self, x: torch.Tensor, g: GarmentInputs) -> list[tuple[int, torch.Tensor]]:
-        """(node count, edge_index) of every level for one frame's features x (V, h): for diagnostics."""
-        edge_index = _both_directions(g.edges)
-        out = [(x.shape[0], edge_index)]
+    def _descend(self, xb: torch.Tensor, g: GarmentInputs):
+        """The way down for one frame: (coarsest features, its edge_index, skips, perms, edge_index per level)."""
+        skips, perms, edges = [], [], []
+        y, edge_index = xb, _both_directions(g.edges)
         for l in range(self.levels):
-            x, edge_index, _ = self._pool(l, x, edge_index)
-            out.append((x.shape[0], edge_index))
-        return out
+            y = self._level_blocks(y, l, edge_index, g, self.down[0], self.coarse[l - 1] if l else None)
+            skips.append(y)
+            edges.append(edge_index)
+            y, edge_index, perm = self._pool(l, y, edge_index)
+            perms.append(perm)
+        return y, edge_index, skips, perms, edges
+
+    def pooled_graphs(self, x: torch.Tensor, g: GarmentInputs) -> list[tuple[np.ndarray, torch.Tensor]]:
+        """Levels for one frame's features x (V, h), as the forward pass pools them (for diagnostics).
+
+        Returns per level (kept: level-0 vertex indices of its nodes, edge_index (2, E) among them).
+        """
+        _, last_edges, _, perms, edges = self._descend(x, g)
+        kept = [np.arange(x.shape[0])]
+        for perm in perms:
+            kept.append(kept[-1][perm.numpy()])
+        return list(zip(kept, [*edges, last_edges]))
 
     def forward(self, x: torch.Tensor, g: GarmentInputs) -> torch.Tensor:
-        base_edges = _both_directions(g.edges)
         frames = []
         for xb in x:
-            skips, perms, edges = [], [], []
-            y, edge_index = xb, base_edges
-            for l in range(self.levels):
-                y = self._level_blocks(y, l, edge_index, g, self.down[0], self.coarse[l - 1] if l else None)
-                skips.append(y)
-                edges.append(edge_index)
-                y, edge_index, perm = self._pool(l, y, edge_index)
-                perms.append(perm)
+            y, edge_index, skips, perms, edges = self._descend(xb, g)
             for conv in self.bottom:
                 y = y + F.silu(conv(y, edge_index))
             for l in reversed(range(self.levels)):

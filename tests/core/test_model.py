@@ -199,6 +199,8 @@ def test_learned_pooling_baselines_run_train_and_report_their_levels(body, pooli
     out.verts.square().sum().backward()
     assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in model.unet.pools.parameters())
     graphs = model.unet.pooled_graphs(fused.detach(), gd.inputs)
-    assert [n for n, _ in graphs] == [len(v), len(v) // 2, len(v) // 4]
+    assert [len(k) for k, _ in graphs] == [len(v), len(v) // 2, len(v) // 4]
+    for kept, edge_index in graphs:  # level-0 vertices, edges among the level's own nodes
+        assert len(set(kept.tolist())) == len(kept) and int(edge_index.max()) < len(kept)
     with pytest.raises(InputError, match="pooling"):
         config_from_dict({"pooling": "random"})
