@@ -43,10 +43,14 @@ POOLING_VARIANTS = {"ours (structure-preserving)": {"pooling": "structure", "lev
 LEVEL_VARIANTS = {f"ours, {n} level{'s' if n != 1 else ''}": {"pooling": "structure", "levels": n} for n in range(4)}
 
 
+def slug(name: str) -> str:
+    """A file-name form of a variant's name."""
+    return "".join(c if c.isalnum() else "_" for c in name).strip("_")
+
+
 def train(name: str, overrides: dict, args) -> Path:
     """Train (or reuse) the model of one variant; returns its path."""
-    slug = "".join(c if c.isalnum() else "_" for c in name).strip("_")
-    out = Path(args.models_dir) / f"{slug}.pt"
+    out = Path(args.models_dir) / f"{slug(name)}.pt"
     if out.is_file():
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -58,42 +62,37 @@ def train(name: str, overrides: dict, args) -> Path:
     return out
 
 
-def level_components(model, garment, body) -> list[int]:
-    """Connected components of each level of the model's U-Net on `garment` (rest features)."""
+def model_levels(model, garment, body):
+    """The levels of the model's U-Net on `garment` and their connected components.
+
+    Ours: the precomputed hierarchy (preprocessing). Learned poolings: the levels the forward pass makes
+    from the garment's rest features. Returns (an object with vertex_index, edges, n_levels for
+    `render_hierarchy`, [components of level 0..L]).
+    """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     from core.model import body_distances
     from core.model_data import prepare_garment
+    from core.preprocess import preprocess_garment
 
-    prep = prepare_garment(garment, body, model.config)
     cfg = model.config
     if cfg.pooling == "structure":
-        from core.preprocess import preprocess_garment
-
         h = preprocess_garment(garment, body, levels=max(cfg.levels, 1), n_landmarks=cfg.n_landmarks,
                                n_eigenvalues=cfg.n_eigenvalues).hierarchy
-        return list(h.components[: cfg.levels + 1])
+        return h, list(h.components[: cfg.levels + 1])
+    prep = prepare_garment(garment, body, cfg)
     fused = model.encode(prep.inputs, body_distances(body, None)).detach()
+    graphs = model.unet.pooled_graphs(fused, prep.inputs)
     counts = []
-    for kept, edge_index in model.unet.pooled_graphs(fused, prep.inputs):
+    for kept, edge_index in graphs:
         n, e = len(kept), edge_index.numpy()
         counts.append(int(connected_components(coo_matrix((np.ones(e.shape[1]), (e[0], e[1])), shape=(n, n)),
                                                directed=False)[0]))
-    return counts
-
-
-def pooled_levels(model, garment, body):
-    """A Hierarchy-like object (vertex_index, edges, components, n_levels) of the model's levels, for renders."""
-    from core.model import body_distances
-    from core.model_data import prepare_garment
-
-    prep = prepare_garment(garment, body, model.config)
-    fused = model.encode(prep.inputs, body_distances(body, None)).detach()
-    graphs = model.unet.pooled_graphs(fused, prep.inputs)
     edges = [np.unique(np.sort(e.numpy().T, axis=1), axis=0) for _, e in graphs]
-    return SimpleNamespace(vertex_index=[k for k, _ in graphs], edges=edges, n_levels=len(graphs) - 1,
-                           components=level_components(model, garment, body))
+    levels = SimpleNamespace(vertex_index=[k for k, _ in graphs], edges=edges, n_levels=len(graphs) - 1,
+                             components=counts)
+    return levels, counts
 
 
 def run(variants: dict, args, table: Path) -> None:
@@ -117,17 +116,11 @@ def run(variants: dict, args, table: Path) -> None:
     for name, model in models.items():
         for g in test_garments:
             garment = read_obj(Path(args.data) / "garments" / f"{g}.obj")
-            components[(name, g)] = level_components(model, garment, body)
+            levels, components[(name, g)] = model_levels(model, garment, body)
             if not args.no_render and model.config.levels > 0:
                 from formats.hierarchy_render import render_hierarchy
 
-                levels = (None if model.config.pooling == "structure" else pooled_levels(model, garment, body))
-                if levels is None:
-                    from core.preprocess import preprocess_garment
-
-                    levels = preprocess_garment(garment, body, levels=model.config.levels).hierarchy
-                slug = "".join(c if c.isalnum() else "_" for c in name).strip("_")
-                render_hierarchy(ROOT / "docs" / "pooling" / f"{g}_{slug}.png", garment.vertices, garment.faces,
+                render_hierarchy(ROOT / "docs" / "pooling" / f"{g}_{slug(name)}.png", garment.vertices, garment.faces,
                                  levels, title=f"{g}: {name}")
     lines = [f"# {table.stem.replace('_', ' ').capitalize()}", "",
              f"Same data (`{args.data}`), {args.steps} training steps (phases {args.phases}, seed {args.seed}) per "

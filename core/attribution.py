@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
-from core.body import SMPL_JOINT_NAMES, Body
+from core.body import SMPL_JOINT_NAMES, Body, skin_points
 from core.errors import InputError
 from core.model import GarmentInputs, GarmentModel, body_distances, motion_features, shaped_rest, window_index
 from core.motion import Motion, poses_for_body
@@ -100,9 +100,7 @@ class DeformationTarget:
         self.baseline = Inputs(pose=pose0, velocity=vel0, body=body_distances(body, np.zeros_like(betas)).double(),
                                garment=torch.zeros_like(self.input.garment))
         with torch.no_grad():
-            w = self.g.prior_weights
-            Mx = torch.einsum("vs,src->vrc", w, self.transforms[0, :, :3, :])
-            self.lbs = torch.einsum("vrc,vc->vr", Mx[..., :3], self.rest) + Mx[..., 3]
+            self.lbs = skin_points(self.rest, self.g.prior_weights, self.transforms)[0]
         n = g.n_vertices
         self.vertices = np.arange(n) if vertices is None else np.asarray(vertices, dtype=np.int64)
         if self.vertices.size == 0 or self.vertices.min() < 0 or self.vertices.max() >= n:
@@ -110,12 +108,15 @@ class DeformationTarget:
                              f"{self.vertices.size} indices" + (f" from {self.vertices.min()} to {self.vertices.max()}"
                                                                  if self.vertices.size else ""))
 
-    def per_vertex(self, x: Inputs) -> torch.Tensor:
-        """|x_v - x_v^lbs| (V,) for inputs x (differentiable)."""
+    def verts(self, x: Inputs) -> torch.Tensor:
+        """The network's garment (V, 3) at this frame for inputs x (differentiable)."""
         g = replace(self.g, features=x.garment)
         fused = self.model.encode(g, x.body)
-        out = self.model.forward_frames(fused, g, self.rest, x.pose[None], x.velocity[None], self.transforms)
-        return torch.linalg.norm(out.verts[0] - self.lbs, dim=-1)
+        return self.model.forward_frames(fused, g, self.rest, x.pose[None], x.velocity[None], self.transforms).verts[0]
+
+    def per_vertex(self, x: Inputs) -> torch.Tensor:
+        """|x_v - x_v^lbs| (V,) for inputs x (differentiable)."""
+        return torch.linalg.norm(self.verts(x) - self.lbs, dim=-1)
 
     def __call__(self, x: Inputs) -> torch.Tensor:
         return self.per_vertex(x)[torch.as_tensor(self.vertices)].mean()

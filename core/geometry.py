@@ -415,9 +415,7 @@ def self_intersecting_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     if not hit.any():
         return marked
     marked[fi[hit]] = True
-    # The faces on each crossing edge are intersecting too.
-    hit_edges = np.unique(edges[ei[hit]], axis=0)
-    corner_edges = np.sort(np.stack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], axis=1), axis=-1)
-    key = lambda e: e[..., 0] * (len(v) + 1) + e[..., 1]  # noqa: E731
-    marked |= np.isin(key(corner_edges), key(hit_edges)).any(axis=1)
+    # The faces on each crossing edge are intersecting too (mesh_edges order = the cached face-edge index's).
+    _, face_edge = _face_edge_index(faces)
+    marked |= np.isin(face_edge.reshape(-1, 3), np.unique(ei[hit])).any(axis=1)
     return marked

@@ -462,15 +462,19 @@ class LearnedPoolUNet(nn.Module):
                 "asap": lambda: ASAPooling(h, ratio=0.5)}[cfg.pooling]
         self.kind = cfg.pooling
         self.pools = nn.ModuleList(make() for _ in range(L))
-        self.down = nn.ModuleList(nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.level_layers))
-                                  for _ in range(L))
-        self.coarse = nn.ModuleList(nn.ModuleList(GATv2Conv(h, h // cfg.heads, heads=cfg.heads)
-                                                  for _ in range(cfg.level_layers)) for _ in range(L))
+        # Level 0 (the garment's own graph) uses GAT blocks on its neighbour table; levels 1..L-1 GATv2Conv on
+        # each frame's pooled edges; the bottom (level L) likewise.
+        def fine():
+            return nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.level_layers if L else 0))
+
+        def coarse():
+            return nn.ModuleList(nn.ModuleList(GATv2Conv(h, h // cfg.heads, heads=cfg.heads)
+                                               for _ in range(cfg.level_layers)) for _ in range(max(L - 1, 0)))
+
+        self.down, self.up = fine(), fine()
+        self.coarse, self.coarse_up = coarse(), coarse()
         self.bottom = nn.ModuleList(GATv2Conv(h, h // cfg.heads, heads=cfg.heads) for _ in range(cfg.bottom_layers))
         self.merge = nn.ModuleList(nn.Linear(2 * h, h) for _ in range(L))
-        self.up = nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.level_layers if L else 0))
-        self.coarse_up = nn.ModuleList(nn.ModuleList(GATv2Conv(h, h // cfg.heads, heads=cfg.heads)
-                                                     for _ in range(cfg.level_layers)) for _ in range(max(L - 1, 0)))
         self.out = nn.Linear(h, 3)
         nn.init.zeros_(self.out.weight)
         nn.init.zeros_(self.out.bias)
@@ -487,7 +491,7 @@ class LearnedPoolUNet(nn.Module):
         skips, perms, edges = [], [], []
         y, edge_index = xb, _both_directions(g.edges)
         for l in range(self.levels):
-            y = self._level_blocks(y, l, edge_index, g, self.down[0], self.coarse[l - 1] if l else None)
+            y = self._level_blocks(y, l, edge_index, g, self.down, self.coarse[l - 1] if l else None)
             skips.append(y)
             edges.append(edge_index)
             y, edge_index, perm = self._pool(l, y, edge_index)

@@ -174,7 +174,7 @@ class ModelDataset:
                     if not gpath.is_file():
                         raise InputError(f"dataset '{self.root}': expected garment template '{gpath}', found none")
                     self.garments[name] = prepare_garment(read_obj(gpath), body, config, cache_dir, str(gpath))
-                spath = self._sequence_path(item_id, rec)
+                spath = self._file(item_id, rec)
                 arrays = asdict(read_sequence(spath))
                 seqs.append(sequence_from_arrays(item_id, name, arrays, body, self.garments[name], str(spath)))
             self.splits[split] = seqs
@@ -184,13 +184,6 @@ class ModelDataset:
         from formats.dataset import sequence_path
 
         return self.root / str(rec["file"]) if "file" in rec else sequence_path(self.root, item_id)
-
-    def _sequence_path(self, item_id: str, rec: dict) -> Path:
-        path = self._file(item_id, rec)
-        if not path.is_file():
-            raise InputError(f"dataset '{self.root}': expected the sequence file of item '{item_id}' at '{path}', "
-                             "found none")
-        return path
 
     def posed_body(self, seq: Sequence, frames: np.ndarray) -> torch.Tensor:
         """The body of `seq` at `frames` (B,): (B, N_b, 3) float32 world metres (no gradient)."""

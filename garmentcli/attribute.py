@@ -53,6 +53,8 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     body shape, garment features), attributions.npz (every attribution, f values) and
     heatmaps of the deformation and of the garment-feature attributions per vertex.
     """
+    import torch
+
     from core.attribution import DeformationTarget, attribution_table, integrated_gradients
     from core.model_data import prepare_garment
     from formats.atomic import atomic_dir
@@ -86,7 +88,10 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     for name, value in rows:
         share = value / gap if gap else float("nan")
         lines.append(f"| {name} | {value * 1e3:.4f} | {share:.3f} |")
-    per_vertex = target.per_vertex(target.input).detach().numpy()
+    with torch.no_grad():
+        verts = target.verts(target.input)
+        per_vertex = torch.linalg.norm(verts - target.lbs, dim=-1).numpy()
+        verts = verts.numpy()
     feature_map = att.phi.garment.abs().sum(1).numpy()
     with atomic_dir(out, overwrite) as tmp:
         (tmp / "attributions.md").write_text("\n".join(lines) + "\n")
@@ -103,22 +108,16 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
             "steps": steps, "f_input_m": att.f_input, "f_baseline_m": att.f_baseline, "sum_m": att.total,
             "completeness_error_m": att.completeness_error, "top": rows[:top]}, indent=2))
         if not no_render:
-            _render_heatmaps(tmp, g, target, per_vertex, feature_map, body, motion, frame)
+            _render_heatmaps(tmp, g, verts, per_vertex, feature_map, body, motion, frame)
     click.echo("\n".join(lines[4:6 + top]))
     click.echo(f"wrote {out}")
 
 
-def _render_heatmaps(directory: Path, g, target, deformation, feature_map, body, motion, frame) -> None:
-    """heatmap_deformation.png and heatmap_garment_features.png on the posed garment (front camera)."""
-    import torch
-
+def _render_heatmaps(directory: Path, g, verts, deformation, feature_map, body, motion, frame) -> None:
+    """heatmap_deformation.png and heatmap_garment_features.png on the posed garment `verts` (front camera)."""
     from core.motion import poses_for_body
     from formats.render import RenderError, RenderOptions, Scene, render_image, robust_range, write_png
 
-    with torch.no_grad():
-        fused = target.model.encode(target.g, target.input.body)
-        verts = target.model.forward_frames(fused, target.g, target.rest, target.input.pose[None],
-                                            target.input.velocity[None], target.transforms).verts[0].numpy()
     body_pts, _ = body.pose(poses_for_body(motion, body.n_joints)[frame:frame + 1], motion.trans[frame:frame + 1],
                             motion.betas)
     for name, values, label in (("deformation", deformation * 1e3, "|x - x_lbs| (mm)"),

@@ -243,5 +243,9 @@ def test_waistband_is_the_top_opening_of_a_garment_hanging_from_the_waist():
 
 
 def test_sim_options_reject_an_unknown_pin_mode():
+    from core.sim import PIN_MODES
+    from garmentcli.common import PIN_CHOICES
+
+    assert PIN_CHOICES == PIN_MODES  # the CLI's copy (it starts without importing the simulator)
     with pytest.raises(InputError, match="pin"):
         SimOptions(pin="waist")
