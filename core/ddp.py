@@ -80,8 +80,8 @@ class DistributedTrainer(Trainer):
     rank, world: from the initialised process group (0, 1 when there is none).
     """
 
-    def __init__(self, data, model_config, config, progress=None, sequences_per_rank: int = 1):
-        super().__init__(data, model_config, config, progress)
+    def __init__(self, data, model_config, config, progress=None, sequences_per_rank: int = 1, device="cpu"):
+        super().__init__(data, model_config, config, progress, device=device)
         if sequences_per_rank < 1:
             raise InputError(f"--sequences-per-step: expected at least 1, got {sequences_per_rank}")
         self.distributed = dist.is_available() and dist.is_initialized()

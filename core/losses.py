@@ -85,11 +85,12 @@ def penetration_loss(verts: torch.Tensor, body_verts: torch.Tensor, body_faces: 
     body_faces: (F_b, 3) int64. face_index: (B, V) precomputed closest faces, else searched here.
     """
     if face_index is None:
-        face_index = closest_body_faces(verts.detach().numpy(), body_verts.detach().numpy(), body_faces.numpy())
-    fi = torch.as_tensor(face_index, dtype=torch.long)
-    tri = body_verts[:, body_faces]  # (B, F, 3, 3)
+        face_index = closest_body_faces(verts.detach().cpu().numpy(), body_verts.detach().cpu().numpy(),
+                                        body_faces.cpu().numpy())
+    fi = torch.as_tensor(face_index, dtype=torch.long, device=verts.device)
+    tri = body_verts[:, body_faces.to(verts.device)]  # (B, F, 3, 3)
     n = F.normalize(torch.linalg.cross(tri[:, :, 1] - tri[:, :, 0], tri[:, :, 2] - tri[:, :, 0], dim=-1), dim=-1)
-    b = torch.arange(verts.shape[0])[:, None]
+    b = torch.arange(verts.shape[0], device=verts.device)[:, None]
     d = ((verts - tri[b, fi, 0]) * n[b, fi]).sum(-1)  # (B, V)
     return k_c * (torch.clamp(d - eps, max=0.0) ** 2).sum(-1).mean()
 
@@ -118,10 +119,10 @@ def self_collision_loss(verts: torch.Tensor, near: sp.csr_matrix, k_sc: float = 
     """
     total = verts.new_zeros(())
     for b in range(verts.shape[0]):
-        p = pairs[b] if pairs is not None else self_collision_pairs(verts[b].detach().numpy(), near, radius)
+        p = pairs[b] if pairs is not None else self_collision_pairs(verts[b].detach().cpu().numpy(), near, radius)
         if len(p) == 0:
             continue
-        p = torch.as_tensor(p, dtype=torch.long)
+        p = torch.as_tensor(p, dtype=torch.long, device=verts.device)
         d = (verts[b, p[:, 0]] - verts[b, p[:, 1]]).norm(dim=-1) / unit_m
         total = total + k_sc * torch.exp(-lambda_a * (d - lambda_b)).mean()
     return total / verts.shape[0]
@@ -141,7 +142,7 @@ def vertex_masses(rest: np.ndarray, faces: np.ndarray, density_kg_m2: float = DE
 def gravity_loss(verts: torch.Tensor, masses: torch.Tensor, k_g: float = 0.1,
                  g: tuple = GRAVITY_M_S2) -> torch.Tensor:
     """Eq. 7: -k_g sum_i m_i v_i . g (potential energy, J), mean over frames. masses: (V,) kg."""
-    gv = torch.as_tensor(g, dtype=verts.dtype)
+    gv = torch.as_tensor(g, dtype=verts.dtype, device=verts.device)
     return -k_g * ((verts @ gv) * masses[None]).sum(-1).mean()
 
 

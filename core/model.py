@@ -506,7 +506,7 @@ class LearnedPoolUNet(nn.Module):
         _, last_edges, _, perms, edges = self._descend(x, g)
         kept = [np.arange(x.shape[0])]
         for perm in perms:
-            kept.append(kept[-1][perm.numpy()])
+            kept.append(kept[-1][perm.cpu().numpy()])
         return list(zip(kept, [*edges, last_edges]))
 
     def forward(self, x: torch.Tensor, g: GarmentInputs) -> torch.Tensor:
@@ -613,9 +613,29 @@ class GarmentModel(nn.Module):
         return ModelOutput(verts=verts, weights=weights, blend=blend)
 
 
+def tensors_to(obj, device):
+    """A copy of the frozen dataclass `obj` with every tensor field (also in lists and nested dataclasses) on
+    `device`; other fields (arrays, sparse matrices, strings) shared. The same object when nothing moves."""
+    def move(v):
+        if isinstance(v, torch.Tensor):
+            return v.to(device)
+        if isinstance(v, list):
+            return [move(u) for u in v]
+        if dataclasses.is_dataclass(v) and not isinstance(v, type):
+            return tensors_to(v, device)
+        return v
+
+    values = {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj) if f.init}
+    moved = {k: move(v) for k, v in values.items()}
+    if all(moved[k] is v or (isinstance(v, list) and all(a is b for a, b in zip(moved[k], v)))
+           for k, v in values.items()):
+        return obj
+    return dataclasses.replace(obj, **moved)
+
+
 def shaped_rest(g: GarmentInputs, body: Body, betas: np.ndarray | None) -> torch.Tensor:
     """The garment's rest vertices on the body shaped by betas: (V, 3) float32, metres."""
-    b = torch.from_numpy(body.fit_betas(betas))
+    b = torch.from_numpy(body.fit_betas(betas)).to(g.shapedirs.device)
     n = min(g.shapedirs.shape[2], b.shape[0])
     return g.rest + torch.einsum("vcs,s->vc", g.shapedirs[..., :n], b[:n])
 

@@ -28,7 +28,7 @@ from core.errors import InputError
 from core.garment import Garment
 from core.losses import rest_uv_frame, vertex_masses
 from core.model import (GarmentInputs, ModelConfig, MotionFeatures, body_distances, garment_inputs, motion_features,
-                        shaped_rest)
+                        shaped_rest, tensors_to)
 from core.preprocess import preprocess_garment
 from core.skinning import bind_garment
 
@@ -161,6 +161,8 @@ class ModelDataset:
         if missing:
             raise InputError(f"dataset '{self.root}': {len(missing)} of {len(items)} sequences are missing (e.g. "
                              f"'{missing[0]}'); the `garment dataset` run has not finished: rerun it to resume")
+        self.device = torch.device("cpu")
+        self.body_faces = torch.as_tensor(np.asarray(body.faces), dtype=torch.long)
         self.garments: dict[str, GarmentData] = {}
         self.splits: dict[str, list[Sequence]] = {}
         for split in splits:
@@ -185,7 +187,15 @@ class ModelDataset:
 
         return self.root / str(rec["file"]) if "file" in rec else sequence_path(self.root, item_id)
 
+    def to(self, device) -> ModelDataset:
+        """Move every tensor of the garments and sequences to `device` (in place); returns self."""
+        self.device = torch.device(device)
+        self.garments = {k: tensors_to(g, self.device) for k, g in self.garments.items()}
+        self.splits = {k: [tensors_to(s, self.device) for s in seqs] for k, seqs in self.splits.items()}
+        self.body_faces = self.body_faces.to(self.device)
+        return self
+
     def posed_body(self, seq: Sequence, frames: np.ndarray) -> torch.Tensor:
-        """The body of `seq` at `frames` (B,): (B, N_b, 3) float32 world metres (no gradient)."""
+        """The body of `seq` at `frames` (B,): (B, N_b, 3) float32 world metres (no gradient), on the data's device."""
         v, _ = self.body.pose(seq.poses[frames], seq.trans[frames], seq.betas)
-        return torch.from_numpy(v)
+        return torch.from_numpy(v).to(self.device)

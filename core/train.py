@@ -103,15 +103,16 @@ def frame_losses(model: GarmentModel, data: ModelDataset, seq: Sequence, frames:
             fused = model.encode(gi, seq.body_dist)
     else:
         fused = model.encode(gi, seq.body_dist)
-    win = window_index(frames, cfg.window)
-    fr = torch.as_tensor(frames, dtype=torch.long)
+    dev = seq.positions.device
+    win = window_index(frames, cfg.window).to(dev)
+    fr = torch.as_tensor(frames, dtype=torch.long, device=dev)
     out = model.forward_frames(fused, gi, seq.rest, seq.motion.pose[win], seq.motion.velocity[win],
                                seq.motion.transforms[fr])
     x, gt = out.verts, seq.positions[fr]
     terms = {"vert": L.vertex_loss(x, gt), "edge": L.edge_loss(x, gt, gi.edges), "normal": L.normal_loss(x, gt, gi.faces)}
     if phase >= 2:
         body = data.posed_body(seq, frames)
-        terms["penetration"] = L.penetration_loss(x, body, torch.as_tensor(data.body.faces))
+        terms["penetration"] = L.penetration_loss(x, body, data.body_faces)
         terms["self_collision"] = (L.self_collision_loss(x, g.near) if g.near is not None else x.new_zeros(()))
     if phase >= 3:
         terms["gravity"] = L.gravity_loss(x, g.masses)
@@ -134,20 +135,26 @@ class Trainer:
     """Runs the hybrid schedule on a ModelDataset.
 
     progress: optional callable(step, phase, row dict) after every step. log_rows: every step's row.
+    on_switch: optional callable(trainer, ending phase) just before a phase switch (the model at the end of
+    that phase: the ablation rows of Table 1 without training again).
     """
 
-    def __init__(self, data: ModelDataset, model_config: ModelConfig, config: TrainConfig, progress=None):
+    def __init__(self, data: ModelDataset, model_config: ModelConfig, config: TrainConfig, progress=None,
+                 device="cpu"):
         config.validate()
         if not data.splits.get("train"):
             raise InputError(f"dataset '{data.root}': expected sequences in the 'train' split, got none")
         self.data, self.config, self.progress = data, config, progress
         torch.manual_seed(config.seed)
-        self.model = GarmentModel(model_config)
+        # Initialised on the CPU from the seed (the same weights on any device), then moved with the data.
+        self.model = GarmentModel(model_config).to(device)
+        data.to(device)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
         self.rng = np.random.Generator(np.random.PCG64(config.seed))
         self.step = 0
         self.phase = PhaseState()
         self.rows: list[dict] = []
+        self.on_switch = None
         self.val = data.splits.get("val") or data.splits["train"]
         if not data.splits.get("val"):
             log.warning("no 'val' split: validating on the training sequences")
@@ -200,7 +207,7 @@ class Trainer:
                 frames = np.unique(np.linspace(0, seq.n_frames - 1, n).round().astype(np.int64))
                 terms = frame_losses(self.model, self.data, seq, frames, min(self.phase.phase, 2), True)
                 x = terms["_verts"]
-                errs.append(float((x - seq.positions[frames]).norm(dim=-1).mean()) * 1e3)
+                errs.append(float((x - seq.positions[torch.as_tensor(frames, device=x.device)]).norm(dim=-1).mean()) * 1e3)
                 if "penetration" in terms:
                     coll.append(float(terms["penetration"] + terms["self_collision"]))
         out = {"val_verts_mm": float(np.mean(errs))}
@@ -218,17 +225,26 @@ class Trainer:
         else:
             ps.bad += 1
         if ps.bad >= self.config.patience and ps.phase + 1 in self.config.phases:
+            if self.on_switch is not None:
+                self.on_switch(self, ps.phase)
             ps.phase += 1
             ps.best, ps.bad = math.inf, 0
             ps.switches.append((self.step, ps.phase))
             log.info("step %d: plateau, switching to phase %d", self.step, ps.phase)
         return v
 
-    def run(self, until: int | None = None, checkpoint=None) -> None:
-        """Train up to step `until` (default config.steps); checkpoint(trainer) every checkpoint_every steps."""
+    def run(self, until: int | None = None, checkpoint=None, should_stop=None) -> None:
+        """Train up to step `until` (default config.steps); checkpoint(trainer) every checkpoint_every steps.
+
+        should_stop: optional callable() -> bool asked after every step (a wall-clock budget); True ends the run
+        early, resumable from a checkpoint written then.
+        """
         until = self.config.steps if until is None else until
         while self.step < until:
             self.train_step()
+            if should_stop is not None and self.step < until and should_stop():
+                log.info("step %d: stopping early (time limit)", self.step)
+                break
             if checkpoint is not None and self.config.checkpoint_every and self.step % self.config.checkpoint_every == 0:
                 checkpoint(self)
 

@@ -2,7 +2,8 @@
 
 Writes MODEL (config + weights, what `bake --method model --model MODEL` reads),
 and beside it <MODEL>.ckpt (full training state, for --resume), <MODEL>.csv
-(one row per step) and <MODEL>.json (the model and training configs used).
+(one row per step), <MODEL>.json (the model and training configs used) and, at
+each phase switch, the model at the end of the phase (<stem>.phase1<suffix>, ...).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import json
 from pathlib import Path
 
 import click
+import torch
 from tqdm import tqdm
 
 from core.errors import InputError
@@ -61,9 +63,13 @@ def _parse_phases(text: str) -> tuple:
 @click.option("--cache-dir", type=click.Path(file_okay=False), default=None, help="Preprocessing cache directory.")
 @click.option("--sequences-per-step", type=click.IntRange(min=1), default=1, show_default=True,
               help="Sequences per step and process; the global batch is this x the number of processes (torchrun).")
+@click.option("--device", default="cpu", show_default=True,
+              help="Where to train: cpu, cuda or cuda:N. The model is initialised on the CPU from the seed either way.")
+@click.option("--time-limit", type=click.FloatRange(min=0, min_open=True), default=None, metavar="MINUTES",
+              help="Stop after this many minutes of training (checkpoint and model written); continue with --resume.")
 @input_errors_as_click
 def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-          sequences_per_step=1):
+          sequences_per_step=1, device="cpu", time_limit=None):
     """Train the garment model on a simulator dataset (phases switch on validation plateaus).
 
     Under `torchrun --nproc_per_node N` it trains with DistributedDataParallel (gloo on CPU); only
@@ -71,10 +77,15 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
     """
     from core.ddp import DistributedTrainer, init_from_env, torchrun_env
 
-    rank, world = init_from_env()
+    dev = _parse_device(device)
+    env = torchrun_env()
+    if dev.type == "cuda" and env is not None and dev.index is None:
+        dev = torch.device("cuda", env[2])  # one GPU per process: the local rank's
+    rank, world = init_from_env(dev)
     try:
         _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-               sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None)
+               sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None,
+               dev, time_limit)
     finally:
         if torchrun_env() is not None:
             import torch.distributed as dist
@@ -83,8 +94,25 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
                 dist.destroy_process_group()
 
 
+def _parse_device(text: str):
+    """--device as a torch.device; BadParameter when unknown or not available here."""
+    try:
+        dev = torch.device(text)
+    except (RuntimeError, ValueError):
+        raise click.BadParameter(f"expected cpu, cuda or cuda:N, got {text!r}", param_hint="--device") from None
+    if dev.type not in ("cpu", "cuda"):
+        raise click.BadParameter(f"expected cpu, cuda or cuda:N, got {text!r}", param_hint="--device")
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise click.BadParameter(f"{text!r}: no CUDA device is available on this machine (torch "
+                                 f"{torch.__version__})", param_hint="--device")
+    if dev.type == "cuda" and dev.index is not None and dev.index >= torch.cuda.device_count():
+        raise click.BadParameter(f"{text!r}: this machine has {torch.cuda.device_count()} CUDA devices",
+                                 param_hint="--device")
+    return dev
+
+
 def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-           sequences_per_step, rank, world, parallel_trainer):
+           sequences_per_step, rank, world, parallel_trainer, device=torch.device("cpu"), time_limit=None):
     import os
 
     from core.model_data import ModelDataset
@@ -109,9 +137,9 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
 
     data = ModelDataset(data_dir, body, model_cfg, cache_dir=cache_dir)
     if parallel_trainer is None:
-        trainer = Trainer(data, model_cfg, train_cfg)
+        trainer = Trainer(data, model_cfg, train_cfg, device=device)
     else:
-        trainer = parallel_trainer(data, model_cfg, train_cfg, sequences_per_rank=sequences_per_step)
+        trainer = parallel_trainer(data, model_cfg, train_cfg, sequences_per_rank=sequences_per_step, device=device)
     main = rank == 0
     rows = []
     if resume:
@@ -126,7 +154,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         out.parent.mkdir(parents=True, exist_ok=True)
         json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
                                          "data": str(data_dir), "processes": world,
-                                         "sequences_per_step": sequences_per_step}, indent=2))
+                                         "device": str(device), "sequences_per_step": sequences_per_step}, indent=2))
     # Only rank 0 writes: the others log into the null device.
     with (open(csv_path, "w", newline="") if main else open(os.devnull, "w")) as fh:
         writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
@@ -145,17 +173,45 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             if main:
                 save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(), train=tr.state())
 
+        def snapshot(tr, phase):
+            if main:  # the model at the end of `phase`, e.g. MODEL.phase1.pt
+                save_checkpoint(out.with_name(f"{out.stem}.phase{phase}{out.suffix}"), model_cfg,
+                                {k: v.cpu() for k, v in tr.model.state_dict().items()},
+                                meta={"steps": tr.step, "phase": phase, "of": out.name})
+
         trainer.progress = progress
-        trainer.run(checkpoint=checkpoint)
+        trainer.on_switch = snapshot
+        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(time_limit, world, device))
         bar.close()
         checkpoint(trainer)
     last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
     meta = {"train_config": dataclasses.asdict(train_cfg), "data": str(data_dir),
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
-            "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches,
+            "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
             "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name}
     if not main:
         return
-    save_checkpoint(out, model_cfg, trainer.model.state_dict(), meta=meta)
-    click.echo(f"{out}: {trainer.step} steps, phase {trainer.phase.phase}, "
-               f"validation E_verts {last_val.get('val_verts_mm', float('nan')):.2f} mm")
+    save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)
+    val = last_val.get("val_verts_mm")
+    left = f" (stopped at the time limit: --resume continues to {train_cfg.steps})" if trainer.step < train_cfg.steps else ""
+    click.echo(f"{out}: {trainer.step} steps{left}, phase {trainer.phase.phase}, "
+               + (f"validation E_verts {float(val):.2f} mm" if val not in (None, "") else "no validation yet"))
+
+
+def _time_limit(minutes: float | None, world: int, device):
+    """should_stop for Trainer.run: True once `minutes` have passed (all ranks agree: rank 0's clock decides)."""
+    if minutes is None:
+        return None
+    import time
+
+    end = time.monotonic() + 60.0 * minutes
+
+    def should_stop() -> bool:
+        flag = torch.tensor([1.0 if time.monotonic() > end else 0.0], device=device)
+        if world > 1:
+            import torch.distributed as dist
+
+            dist.broadcast(flag, src=0)
+        return bool(flag.item())
+
+    return should_stop

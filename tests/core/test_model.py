@@ -204,3 +204,17 @@ def test_learned_pooling_baselines_run_train_and_report_their_levels(body, pooli
         assert len(set(kept.tolist())) == len(kept) and int(edge_index.max()) < len(kept)
     with pytest.raises(InputError, match="pooling"):
         config_from_dict({"pooling": "random"})
+
+
+def test_tensors_to_moves_every_tensor_and_keeps_the_rest(body):
+    from core.model import tensors_to
+
+    gd = _garment(body, 12, 6)
+    moved = tensors_to(gd, "meta")
+    assert moved.garment is gd.garment and moved.near is gd.near  # not tensors: shared
+    for g in (moved, moved.inputs):
+        for name, value in vars(g).items():
+            for t in value if isinstance(value, list) else [value]:
+                if isinstance(t, torch.Tensor):
+                    assert t.device.type == "meta", name
+    assert len(moved.inputs.nbr) == len(gd.inputs.nbr) and gd.inputs.rest.device.type == "cpu"

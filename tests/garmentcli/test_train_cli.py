@@ -53,6 +53,19 @@ def test_train_writes_model_log_and_resumes(setup):
     r = _train(root, data, body, cfg, full, "--steps", "6", "--seed", "1")
     assert r.exit_code == 0, r.output
     assert resumed == list(csv.DictReader(open(root / "full.pt.csv")))
+    # The forced plateaus switched phases: the model at the end of each phase was kept, and equals a model
+    # the trainer held at that step (it differs from the final one).
+    from formats.checkpoint import load_checkpoint
+
+    phase_at = {int(r["step"]): int(r["phase"]) for r in resumed}
+    ended = sorted({phase_at[s] for s in phase_at if phase_at.get(s + 1, phase_at[s]) != phase_at[s]})
+    assert ended == [1]  # (val every 2 steps, patience 1: phase 1 ends at step 4, phase 2 runs on)
+    snap = load_checkpoint(root / "full.phase1.pt")
+    assert snap["meta"]["phase"] == 1 and phase_at[snap["meta"]["steps"]] == 1
+    assert not (root / "full.phase2.pt").exists()
+    final = load_checkpoint(full)["model"]
+    snap1 = load_checkpoint(root / "full.phase1.pt")["model"]
+    assert any(not torch.equal(final[k], snap1[k]) for k in final)
     # bake --method model with the trained file.
     g = root / "g.obj"
     write_obj(g, *tube(12, 6))
@@ -65,6 +78,30 @@ def test_train_writes_model_log_and_resumes(setup):
                                  str(body), "--out", str(root / "bake"), "--no-obj"])
     assert r.exit_code == 0, r.output
     assert (root / "bake" / "g_walk" / "summary.json").is_file()
+
+
+def test_train_time_limit_stops_early_and_resumes(setup):
+    root, data, body, cfg = setup
+    out = root / "timed.pt"
+    r = _train(root, data, body, cfg, out, "--steps", "5", "--seed", "1", "--time-limit", "1e-9")
+    assert r.exit_code == 0, r.output
+    assert "stopped at the time limit" in r.output
+    rows = list(csv.DictReader(open(root / "timed.pt.csv")))
+    assert [int(row["step"]) for row in rows] == [1]
+    r = _train(root, data, body, cfg, out, "--steps", "5", "--seed", "1", "--resume")
+    assert r.exit_code == 0, r.output
+    assert [int(row["step"]) for row in csv.DictReader(open(root / "timed.pt.csv"))] == [1, 2, 3, 4, 5]
+    r = _train(root, data, body, cfg, root / "t2.pt", "--time-limit", "0")
+    assert r.exit_code != 0 and "--time-limit" in r.output
+
+
+def test_train_device_option(setup):
+    root, data, body, cfg = setup
+    r = _train(root, data, body, cfg, root / "d.pt", "--device", "tpu")
+    assert r.exit_code != 0 and "--device" in r.output and "'tpu'" in r.output
+    if not torch.cuda.is_available():
+        r = _train(root, data, body, cfg, root / "d.pt", "--device", "cuda")
+        assert r.exit_code != 0 and "no CUDA device" in r.output and not (root / "d.pt").exists()
 
 
 def test_train_bad_inputs(setup):
