@@ -15,13 +15,14 @@ reference row.
         --model "phase 1=models/p1.pt" --model "phases 1+2=models/p12.pt" \\
         --model "phases 1+2+3=models/p123.pt"
 
-Writes benchmarks/results/model_table.md and .csv (or --out).
+Writes benchmarks/results/model_table.md, .csv (per sequence) and .json (the summary) (or --out).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 import time
 from dataclasses import dataclass
@@ -115,10 +116,10 @@ def summarise(rows: list[Row], order: list[str]) -> list[tuple[str, str, int, di
 def write(out: Path, summary, rows, args) -> None:
     from formats.atomic import atomic_file
 
+    command = f"python benchmarks/model_table.py --data {args.data} " + " ".join(f'--model "{m}"' for m in args.model)
     lines = ["# Learned model variants and LBS against the simulator (paper Table 1 layout)", "",
              f"Data: `{args.data}` test split (held-out motions; the held-out garment separately). Made by "
-             f"`python benchmarks/model_table.py --data {args.data} "
-             + " ".join(f'--model "{m}"' for m in args.model) + "`.", "",
+             f"`{command}`.", "",
              "E_verts in mm, normal errors in degrees, E_edge in %, E_curv in 1/m^2 (core.metrics); penetration: % "
              "of garment vertices > 2 mm inside the body; self-intersection: % of garment faces crossing another "
              f"(every {args.self_every}th frame); ms/frame: bake time per frame on this CPU.", "",
@@ -127,8 +128,22 @@ def write(out: Path, summary, rows, args) -> None:
     for group, method, n, v in summary:
         cells = [f"{v[k]:.3f}" if k in v else "" for k in COLUMNS]
         lines.append(f"| {group} | {method} | {n} | " + " | ".join(cells) + " |")
+    by_group = {}
+    for group, method, n, v in summary:
+        by_group.setdefault(group, {})[method] = {"sequences": n, **v}
+    lines += ["", "Relative to LBS (negative: lower than LBS):", ""]
+    for group, methods in by_group.items():
+        lbs = methods.get("lbs")
+        for method, v in methods.items():
+            if lbs is None or method in ("lbs", "simulator (reference)"):
+                continue
+            rel = {k: 100.0 * (v[k] - lbs[k]) / lbs[k] for k in ("e_verts", "penetration_pct") if lbs.get(k)}
+            lines.append(f"- {group}, {method}: E_verts {rel.get('e_verts', float('nan')):+.1f} %, "
+                         f"penetration {rel.get('penetration_pct', float('nan')):+.1f} %")
     with atomic_file(out) as tmp:
         tmp.write_text("\n".join(lines) + "\n")
+    with atomic_file(out.with_suffix(".json")) as tmp:
+        tmp.write_text(json.dumps({"command": command, "columns": list(COLUMNS), "summary": by_group}, indent=1))
     with atomic_file(out.with_suffix(".csv")) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["split", "method", "item", *COLUMNS])

@@ -2,14 +2,13 @@ import json
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from garmentcli.main import cli
+from tests.garmentcli.cli import invoke
 from tests.garmentcli.conftest import write_motion, write_shell_obj
 
 
 def run(args):
-    return CliRunner().invoke(cli, [str(a) for a in args])
+    return invoke(args)
 
 
 def assert_one_line_error(result, *needles):

@@ -7,15 +7,14 @@ from pathlib import Path
 os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" / "warp"))
 
 import numpy as np
-from click.testing import CliRunner
 
 from formats.dataset import read_sequence
-from garmentcli.main import cli
+from tests.garmentcli.cli import invoke
 from tests.garmentcli.conftest import write_motion
 
 
 def run(*args):
-    return CliRunner().invoke(cli, [str(a) for a in args])
+    return invoke(args)
 
 
 def still_motions(d):

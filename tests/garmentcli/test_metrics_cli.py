@@ -160,7 +160,8 @@ def test_bad_format(tmp_path, seq):
 
 def test_body_from_motion_matches_bake_penetration(scene):
     """--body/--motion pose the body like the bake did: same penetration share as a USD that carries it."""
-    args = ["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--settle", 2]
+    args = ["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--settle", 2,
+            "--method", "lbs"]
     assert CliRunner().invoke(cli, [str(x) for x in args]).exit_code == 0
     d = scene["out"] / "shell_walk"
     with_body = run([d / "shell_walk.usd", d / "obj", "--out", scene["dir"] / "m1", "--format", "json"])

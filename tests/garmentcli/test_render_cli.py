@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 from formats.render import read_png
 from formats.sequence import write_npz_sequence
-from garmentcli.main import cli
+from tests.garmentcli.cli import invoke
 from tests.meshes import icosphere
 
 
@@ -26,7 +25,7 @@ def seqs(tmp_path):
 
 
 def run(*args):
-    return CliRunner().invoke(cli, [str(a) for a in args])
+    return invoke(args)
 
 
 def error_line(result):

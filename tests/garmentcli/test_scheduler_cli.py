@@ -13,17 +13,16 @@ os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" 
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 from formats.dataset import read_sequence
-from garmentcli.main import cli
+from tests.garmentcli.cli import invoke
 from tests.garmentcli.test_dataset_cli import still_motions
 
 pytest.importorskip("distributed", reason="dask.distributed is not installed")
 
 
 def run(*args):
-    return CliRunner().invoke(cli, [str(a) for a in args])
+    return invoke(args)
 
 
 @pytest.fixture(scope="module")

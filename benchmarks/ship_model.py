@@ -1,0 +1,78 @@
+"""Copy a trained model into the package as the default of `bake`, with its model card.
+
+    python benchmarks/ship_model.py data/models/model_p123.pt --data data/sim_v1 \\
+        --table benchmarks/results/model_table.json --name "phases 1+2+3"
+
+Writes core/assets/default_model.pt (weights and config only: no optimizer state) and
+core/assets/default_model.json: the commands that made it, the dataset it was trained on
+(manifest digest, splits, sizes), the training run (configs, steps, phase switches, validation
+error) and its Table-1 metrics against LBS (from benchmarks/model_table.py's JSON).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from core.model_deform import DEFAULT_MODEL  # noqa: E402
+from formats.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
+from formats.dataset import MANIFEST, read_manifest  # noqa: E402
+
+
+def dataset_card(data: Path) -> dict:
+    manifest = read_manifest(data)
+    items = manifest["items"]
+    per_split = {}
+    for it in items:
+        s = per_split.setdefault(it["split"], {"sequences": 0, "frames": 0, "garments": set(), "motions": set()})
+        s["sequences"] += 1
+        s["frames"] += int(it["n_frames"])
+        s["garments"].add(it["garment"])
+        s["motions"].add(it["motion"])
+    return {"directory": data.name, "manifest_sha256": hashlib.sha256((data / MANIFEST).read_bytes()).hexdigest(),
+            "settings": manifest.get("settings", {}), "splits_declared": manifest.get("splits", {}),
+            "splits": {k: {**v, "garments": sorted(v["garments"]), "motions": sorted(v["motions"])}
+                       for k, v in sorted(per_split.items())},
+            "totals": manifest.get("totals", {})}
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("model", type=Path)
+    ap.add_argument("--data", type=Path, required=True)
+    ap.add_argument("--table", type=Path, required=True, help="model_table.py's JSON summary")
+    ap.add_argument("--name", required=True, help="the model's row name in the table")
+    ap.add_argument("--train-command", default="python benchmarks/train_variants.py --data data/sim_v1 "
+                    "--models-dir data/models --minutes 92 --only model_p123 model_p1")
+    args = ap.parse_args(argv)
+    ck = load_checkpoint(args.model)
+    run = json.loads(args.model.with_name(args.model.name + ".json").read_text())
+    table = json.loads(args.table.read_text())
+    metrics = {group: {m: v for m, v in rows.items() if m in ("lbs", args.name, "simulator (reference)")}
+               for group, rows in table["summary"].items()}
+    if not all(args.name in rows for rows in metrics.values()):
+        raise SystemExit(f"{args.table}: no rows named {args.name!r}")
+    card = {
+        "model": DEFAULT_MODEL.name,
+        "source": str(args.model),
+        "command": {"dataset": "see README 'Training data' (garment dataset ... --held-out tshirt ...)",
+                    "train": args.train_command,
+                    "evaluate": table.get("command", ""),
+                    "ship": "python " + " ".join([Path(__file__).relative_to(ROOT).as_posix(), *map(str, argv or sys.argv[1:])])},
+        "dataset": dataset_card(args.data),
+        "training": {"config": ck["config"], "run": run, "meta": ck["meta"]},
+        "metrics": metrics,
+    }
+    save_checkpoint(DEFAULT_MODEL, ck["config"], ck["model"], meta={**ck["meta"], "card": DEFAULT_MODEL.with_suffix(".json").name})
+    DEFAULT_MODEL.with_suffix(".json").write_text(json.dumps(card, indent=1, default=str) + "\n")
+    print(f"{DEFAULT_MODEL}: {DEFAULT_MODEL.stat().st_size / 1e6:.2f} MB; card {DEFAULT_MODEL.with_suffix('.json')}")
+
+
+if __name__ == "__main__":
+    main()
