@@ -306,8 +306,12 @@ class TriangleMesh:
 
         exact=False: one candidate pass (see `closest`), for statistics over many frames.
         """
+        return self.signed_closest(points, exact)[1]
+
+    def signed_closest(self, points: np.ndarray, exact: bool = True) -> tuple[ClosestPoints, np.ndarray]:
+        """The closest points (see `closest`) and the signed distances (N,) they give, negative inside."""
         res = self.closest(points, exact=exact)
-        return res.distance * self._sign(np.asarray(points, dtype=np.float64).reshape(-1, 3), res)
+        return res, res.distance * self._sign(np.asarray(points, dtype=np.float64).reshape(-1, 3), res)
 
     def _sign(self, points: np.ndarray, res: ClosestPoints) -> np.ndarray:
         vn, en, fn = self._pseudo_normals()

@@ -599,17 +599,19 @@ class GarmentModel(nn.Module):
         # Only joints with transferred (prior) weight at a vertex may move it: joints that do not influence a
         # region are never computed into it, and no learned weights can carry a vertex to a distant bone.
         logits = logits.masked_fill((g.prior_weights <= 0)[None], float("-inf"))
-        weights = torch.softmax(logits + torch.log(g.prior_weights + PRIOR_FLOOR)[None], dim=-1)  # Eq. 3
+        # In float32 also under bfloat16 autocast: rounded weights would move vertices by millimetres.
+        weights = torch.softmax(logits.float() + torch.log(g.prior_weights + PRIOR_FLOOR)[None], dim=-1)  # Eq. 3
         _, (h2, _) = self.temporal_velocity(vel_win)
         codes = self.joint_codes(h2[-1]).view(B, S, h)
         per_vertex = torch.einsum("bvs,bsc->bvc", weights, codes)
         x = F.silu(self.combine(torch.cat([fused[None].expand(B, -1, -1), per_vertex], dim=-1))
                    + self.global_code(h2[-1])[:, None])
         cap = torch.clamp(MAX_BLEND_FRACTION * (rest.amax(0) - rest.amin(0)).max(), max=MAX_BLEND_M).detach()
-        blend = cap * torch.tanh(self.unet(x, g) / cap)  # Eq. 4, bounded
-        shaped = rest[None] + blend  # Eq. 2
-        Mx = torch.einsum("bvs,bsrc->bvrc", weights, transforms[:, :, :3, :])
-        verts = torch.einsum("bvrc,bvc->bvr", Mx[..., :3], shaped) + Mx[..., 3]  # Eq. 1
+        blend = cap * torch.tanh(self.unet(x, g).float() / cap)  # Eq. 4, bounded
+        with torch.autocast(device_type=blend.device.type, enabled=False):  # world coordinates in float32
+            shaped = rest[None] + blend  # Eq. 2
+            Mx = torch.einsum("bvs,bsrc->bvrc", weights, transforms[:, :, :3, :])
+            verts = torch.einsum("bvrc,bvc->bvr", Mx[..., :3], shaped) + Mx[..., 3]  # Eq. 1
         return ModelOutput(verts=verts, weights=weights, blend=blend)
 
 

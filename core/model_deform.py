@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -23,15 +24,27 @@ from core.motion import Motion, poses_for_body
 
 log = logging.getLogger(__name__)
 
+#: The model shipped in the package (trained by the command in core/assets/README.md); `bake`'s default.
+DEFAULT_MODEL = Path(__file__).resolve().parent / "assets" / "default_model.pt"
+PRECISIONS = ("float32", "bfloat16")
+
 
 class ModelDeformer(Deformer):
-    """The paper's network. model: a GarmentModel; batch_frames: frames per forward pass."""
+    """The paper's network. model: a GarmentModel; batch_frames: frames per forward pass.
+
+    precision: "float32", or "bfloat16" (the network under CPU autocast; skinning weights and the final
+    world-space skinning stay float32).
+    """
 
     name = "model"
 
-    def __init__(self, model: GarmentModel, batch_frames: int = 8, cache_dir=None, model_name: str = "model"):
+    def __init__(self, model: GarmentModel, batch_frames: int = 8, cache_dir=None, model_name: str = "model",
+                 precision: str = "float32"):
         super().__init__()
+        if precision not in PRECISIONS:
+            raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
         self.model = model.eval()
+        self.precision = precision
         self.batch_frames = batch_frames
         self.cache_dir = cache_dir
         self.model_name = model_name
@@ -54,23 +67,29 @@ class ModelDeformer(Deformer):
         rest = shaped_rest(g, body, betas)
         out = np.empty((motion.n_frames, garment.n_vertices, 3), dtype=np.float32)
         t0 = time.perf_counter()
-        with torch.no_grad():
+        with torch.no_grad(), torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.precision == "bfloat16"):
             fused = self.model.encode(g, body_distances(body, betas))
             t1 = time.perf_counter()
             for s in range(0, motion.n_frames, self.batch_frames):
                 fr = torch.arange(s, min(s + self.batch_frames, motion.n_frames))
                 win = window_index(fr, self.model.config.window)
                 res = self.model.forward_frames(fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr])
-                out[s:s + len(fr)] = res.verts.numpy()
+                out[s:s + len(fr)] = res.verts.float().numpy()
         t2 = time.perf_counter()
         self.report = {"method": self.name, "model": self.model_name, "batch_frames": self.batch_frames,
+                       "precision": self.precision,
                        "encode_seconds": t1 - t0, "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
         return out
 
 
-def load_model_deformer(path, **kwargs) -> ModelDeformer:
-    """A ModelDeformer for the checkpoint at `path` (InputError naming it when unusable)."""
+def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
+    """A ModelDeformer for the checkpoint at `path`, default the shipped model (InputError naming it when unusable)."""
     from formats.checkpoint import load_model
 
+    if path is None:
+        if not DEFAULT_MODEL.is_file():
+            raise InputError(f"the default model '{DEFAULT_MODEL}' is missing from this installation: reinstall garment, "
+                             "pass --model PATH or use --method lbs")
+        path = DEFAULT_MODEL
     model, _ = load_model(path)
     return ModelDeformer(model, model_name=str(path), **kwargs)

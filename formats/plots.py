@@ -190,3 +190,27 @@ def render_worst_frame_heatmap(pred_seq, gt_seq, result: MetricsResult, path: st
         log.warning("no heatmap render in the report: %s", exc)
         return None
     return write_png(path, img)
+
+
+def plot_pareto(names: list[str], seconds_per_frame: list[float], errors_mm: list[float], front: list[bool],
+                path: str | os.PathLike, title: str = "", dpi: int = 100) -> Path:
+    """Error (mm, linear) against seconds per frame (log scale), one labelled point per configuration,
+    the Pareto front joined by a line. The reference (error 0) sits on the x axis. Writes a PNG."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    x = np.maximum(np.asarray(seconds_per_frame, dtype=np.float64), 1e-7)
+    y = np.asarray(errors_mm, dtype=np.float64)
+    on = np.asarray(front, dtype=bool)
+    ax.scatter(x[~on], y[~on], color="0.55", s=28, label="dominated", zorder=3)
+    ax.scatter(x[on], y[on], color="#c0503f", s=36, label="Pareto front", zorder=4)
+    order = np.argsort(x[on])
+    ax.plot(x[on][order], y[on][order], color="#c0503f", lw=1, zorder=2)
+    for n, xi, yi in zip(names, x, y):
+        ax.annotate(n, (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    ax.set_xscale("log")
+    ax.set_xlabel("seconds per frame (log scale)")
+    ax.set_ylabel("E_verts against the reference (mm)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="upper right")
+    return _save_figure(plt, fig, path, dpi)

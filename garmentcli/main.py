@@ -6,7 +6,7 @@ import logging
 
 import click
 
-from garmentcli import attribute, bake, dataset, examples, make_body, metrics, preprocess, render
+from garmentcli import attribute, bake, dataset, examples, make_body, metrics, preprocess, render, tradeoff
 from garmentcli import train as train_cmd
 
 
@@ -28,6 +28,7 @@ cli.add_command(make_body.make_body)
 cli.add_command(preprocess.preprocess)
 cli.add_command(train_cmd.train)
 cli.add_command(attribute.attribute)
+cli.add_command(tradeoff.tradeoff)
 
 
 if __name__ == "__main__":  # python -m garmentcli.main ...

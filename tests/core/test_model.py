@@ -148,7 +148,22 @@ def test_model_deformer_bakes_a_motion(body, tmp_path):
     poses, trans, _ = sequence(body, v, f, 7, 0, None)
     out = d.deform(Garment(v, f), body, Motion(poses=poses, trans=trans, fps=30.0))
     assert out.shape == (7, len(v), 3) and out.dtype == np.float32 and np.isfinite(out).all()
-    assert d.report["method"] == "model"
+    assert d.report["method"] == "model" and d.report["precision"] == "float32"
+    # bfloat16 network (autocast) but float32 skinning weights and world coordinates: the untrained model (LBS)
+    # gives float32's result to float32 rounding (bfloat16 coordinates would be off by millimetres).
+    motion = Motion(poses=poses, trans=trans, fps=30.0)
+    half = load_model_deformer(path, precision="bfloat16")
+    b = half.deform(Garment(v, f), body, motion)
+    assert b.dtype == np.float32 and np.abs(b - out).max() < 1e-5
+    # A perturbed network in bfloat16: finite and bounded, not equal to float32.
+    model = perturbed_model(TINY_CONFIG, scale=0.3, seed=1)
+    save_checkpoint(tmp_path / "p.pt", TINY_CONFIG, model.state_dict())
+    a = load_model_deformer(tmp_path / "p.pt").deform(Garment(v, f), body, motion)
+    b = load_model_deformer(tmp_path / "p.pt", precision="bfloat16").deform(Garment(v, f), body, motion)
+    gap = np.linalg.norm(a - b, axis=-1)
+    assert np.isfinite(b).all() and 0 < gap.max() < np.ptp(v, axis=0).max(), gap.max()
+    with pytest.raises(InputError, match="float16"):
+        load_model_deformer(tmp_path / "p.pt", precision="float16")
 
 
 def test_pooled_body_velocities_match_posing_every_vertex(body):

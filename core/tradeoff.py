@@ -1,0 +1,162 @@
+"""Speed against accuracy on one scene: every method and configuration, timed and compared with the reference.
+
+Configurations (`configurations`): `lbs`; each model in float32 and bfloat16, each with and without
+the penetration push-out (`core.pushout`); the simulator with and without self-contact at two substep
+settings, the finest with self-contact being the reference every other row is compared with.
+
+`measure` times one configuration: a warm-up run (its preparation: binding, preprocessing, kernel
+compilation, is timed apart), then `repeats` timed runs, seconds per frame = their median; peak memory
+= the largest rise of the process's resident memory over its level before the timed runs, sampled
+every 5 ms. Metrics: `core.metrics.compute_metrics` against the reference (E_verts mm, E_vnorm and
+E_fnorm degrees, E_edge %, E_curv) and the penetration rate (% of vertices > 2 mm inside the body).
+"""
+
+from __future__ import annotations
+
+import statistics
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from core.body import Body
+from core.deform import Deformer, LBSDeformer
+from core.garment import Garment
+from core.motion import Motion, poses_for_body
+
+#: Simulator substeps per frame of the two settings; the finest, with self-contact, is the reference.
+SIM_SUBSTEPS = (5, 10)
+PENETRATION_DEPTH_M = 0.002
+METRIC_COLUMNS = ("e_verts", "e_vnorm", "e_fnorm", "e_edge", "e_curv", "penetration_pct")
+
+
+@dataclass(frozen=True)
+class Config:
+    """One row: name, method (lbs | model | sim), options of that method, whether it is the reference."""
+
+    name: str
+    method: str
+    options: dict = field(default_factory=dict)
+    reference: bool = False
+
+
+def configurations(models: dict, with_sim: bool = True) -> list[Config]:
+    """The rows of a tradeoff run. models: name -> checkpoint path (None: the shipped model)."""
+    rows = [Config("lbs", "lbs")]
+    for name, path in models.items():
+        for precision in ("float32", "bfloat16"):
+            for push in (False, True):
+                label = f"{name} {precision}" + (" +push-out" if push else "")
+                rows.append(Config(label, "model", {"path": path, "precision": precision, "push_out": push}))
+    if with_sim:
+        for substeps in SIM_SUBSTEPS:
+            for contact in (False, True):
+                rows.append(Config(f"sim {substeps} substeps" + (" +self-contact" if contact else ""), "sim",
+                                   {"substeps": substeps, "self_contact": contact},
+                                   reference=contact and substeps == max(SIM_SUBSTEPS)))
+    return rows
+
+
+def make_deformer(config: Config, cache_dir=None) -> Deformer:
+    """The Deformer of a configuration."""
+    if config.method == "lbs":
+        return LBSDeformer()
+    if config.method == "model":
+        from core.model_deform import load_model_deformer
+
+        d = load_model_deformer(config.options["path"], cache_dir=cache_dir, precision=config.options["precision"])
+        if config.options["push_out"]:
+            from core.pushout import PushOutDeformer
+
+            d = PushOutDeformer(d)
+        return d
+    if config.method == "sim":
+        from core.sim import Material, SimDeformer, SimOptions
+
+        return SimDeformer(Material(), SimOptions(substeps=config.options["substeps"],
+                                                  self_contact=config.options["self_contact"]))
+    raise ValueError(f"unknown method {config.method!r}")
+
+
+class PeakMemory:
+    """Context manager sampling the process's resident memory; `.peak_mb` = largest rise over the start level."""
+
+    def __init__(self, interval_s: float = 0.005):
+        import psutil
+
+        self._proc = psutil.Process()
+        self.interval = interval_s
+        self.peak_mb = 0.0
+
+    def __enter__(self):
+        self._start = self._proc.memory_info().rss
+        self._peak = self._start
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+        return self
+
+    def _run(self):
+        while not self._stop.is_set():
+            self._peak = max(self._peak, self._proc.memory_info().rss)
+            self._stop.wait(self.interval)
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        self._peak = max(self._peak, self._proc.memory_info().rss)
+        self.peak_mb = (self._peak - self._start) / 2**20
+        return False
+
+
+@dataclass
+class Measurement:
+    config: Config
+    points: np.ndarray
+    seconds_per_frame: float
+    seconds_prepare: float
+    peak_memory_mb: float
+    runs: int
+    metrics: dict = field(default_factory=dict)
+
+
+def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeats: int = 3,
+            cache_dir=None) -> Measurement:
+    """Warm-up (preparation timed apart) and `repeats` timed runs (1 for the simulator: minutes per run)."""
+    deformer = make_deformer(config, cache_dir)
+    t0 = time.perf_counter()
+    deformer.prepare(garment, body)
+    prep = time.perf_counter() - t0
+    runs = 1 if config.method == "sim" else max(1, repeats)
+    if config.method != "sim":
+        deformer.deform(garment, body, motion)  # warm-up (caches, allocator, first-call costs)
+    times = []
+    with PeakMemory() as mem:
+        for _ in range(runs):
+            t = time.perf_counter()
+            points = deformer.deform(garment, body, motion)
+            times.append(time.perf_counter() - t)
+    return Measurement(config, points, statistics.median(times) / motion.n_frames, prep, mem.peak_mb, runs)
+
+
+def compare(measurements: list[Measurement], garment: Garment, body: Body, motion: Motion) -> None:
+    """Fill each measurement's metrics against the reference configuration's points (in place)."""
+    from core.geometry import points_inside_mesh
+    from core.metrics import compute_metrics, frames_inside
+
+    ref = next(m for m in measurements if m.config.reference)
+    body_pts, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
+    inside = frames_inside(lambda p, v, f: points_inside_mesh(p, v, f, depth=PENETRATION_DEPTH_M))
+    for m in measurements:
+        res = compute_metrics(m.points, ref.points, garment.faces, body_pts, body.faces, inside,
+                              pred_name=m.config.name, gt_name=ref.config.name)
+        m.metrics = {k: res.overall[k] for k in METRIC_COLUMNS}
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
+    """For (cost, error) pairs: True where no other pair is at least as good in both and better in one."""
+    out = []
+    for i, (c, e) in enumerate(points):
+        out.append(not any((c2 <= c and e2 <= e) and (c2 < c or e2 < e) for j, (c2, e2) in enumerate(points) if j != i))
+    return out

@@ -1,0 +1,134 @@
+"""`garment tradeoff GARMENT MOTION`: every method and configuration on one scene, speed against accuracy.
+
+Writes OUT/<garment>_<motion>/tradeoff.md, tradeoff.csv, tradeoff.json and tradeoff.png (Pareto plot);
+the rows are those of `core.tradeoff.configurations`, compared with its reference (the simulator at
+the finest substeps with self-contact).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import tempfile
+from pathlib import Path
+
+import click
+from tqdm import tqdm
+
+from core.tradeoff import METRIC_COLUMNS, compare, configurations, measure, pareto_front
+from garmentcli.common import input_errors_as_click, load_body_option, prepare_motion
+
+COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "seconds_prepare", "peak_memory_mb",
+           *METRIC_COLUMNS, "pareto")
+
+
+def _models(specs: tuple) -> dict:
+    if not specs:
+        return {"model": None}  # the shipped model
+    out = {}
+    for spec in specs:
+        name, sep, path = spec.partition("=")
+        if not sep or not name or not path:
+            raise click.BadParameter(f"expected NAME=PATH, got {spec!r}", param_hint="--model")
+        if not Path(path).is_file():
+            raise click.BadParameter(f"model '{path}': no such file", param_hint="--model")
+        out[name] = path
+    return out
+
+
+@click.command(name="tradeoff")
+@click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
+@click.argument("motion_path", metavar="MOTION", type=click.Path(dir_okay=False))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_tradeoff", show_default=True,
+              help="Output directory; the scene's results go to OUT/<garment>_<motion>/.")
+@click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
+              help="SMPL-format body (.npz or .pkl). Default: the embedded body.")
+@click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the scene is baked at.")
+@click.option("--frames", default=None, metavar="START:STOP", help="Source frames (Python slice, STOP exclusive).")
+@click.option("--model", "model_specs", multiple=True, metavar="NAME=PATH",
+              help="Model checkpoints to compare (repeatable). Default: the shipped model.")
+@click.option("--repeats", type=click.IntRange(min=1), default=3, show_default=True,
+              help="Timed runs per configuration after a warm-up (the median counts); the simulator runs once.")
+@click.option("--overwrite", is_flag=True, help="Replace an existing result directory.")
+@input_errors_as_click
+def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite):
+    """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
+
+    Rows: lbs; each model in float32 and bfloat16, with and without penetration push-out; the
+    simulator at two substep settings with and without self-contact. The finest simulation with
+    self-contact is the reference the errors are measured against.
+    """
+    from formats.obj import read_obj
+
+    for p in (garment_path, motion_path):
+        if not Path(p).is_file():
+            raise click.FileError(p, hint="no such file")
+    models = _models(model_specs)
+    try:
+        import newton  # noqa: F401
+    except ImportError:
+        raise click.ClickException("tradeoff needs the reference simulator: pip install 'garment[sim]'") from None
+    target = Path(out_dir) / f"{Path(garment_path).stem}_{Path(motion_path).stem}"
+    if target.exists() and not overwrite:
+        raise click.ClickException(f"output '{target}' exists: pass --overwrite to replace it")
+    garment = read_obj(garment_path)
+    body = load_body_option(body_path)
+    motion, _ = prepare_motion(motion_path, fps, frames, 0)
+    from formats.cache import default_cache_dir
+
+    rows = configurations(models)
+    results = []
+    for config in tqdm(rows, desc="tradeoff", unit="config", disable=None):
+        results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
+    compare(results, garment, body, motion)
+    front = pareto_front([(m.seconds_per_frame, m.metrics["e_verts"]) for m in results])
+    table = []
+    for m, on in zip(results, front):
+        table.append({"config": m.config.name, "method": m.config.method, "seconds_per_frame": m.seconds_per_frame,
+                      "frames_per_second": 1.0 / m.seconds_per_frame, "seconds_prepare": m.seconds_prepare,
+                      "peak_memory_mb": m.peak_memory_mb, **m.metrics, "pareto": on,
+                      "reference": m.config.reference, "runs": m.runs})
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    try:
+        _write(tmp, table, garment_path, motion_path, motion, garment)
+        if target.exists():
+            shutil.rmtree(target)
+        tmp.rename(target)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    best = min((r for r in table if r["method"] == "model"), key=lambda r: r["e_verts"], default=None)
+    lbs = next(r for r in table if r["method"] == "lbs")
+    click.echo(f"{target}: {len(table)} configurations on {motion.n_frames} frames; lbs {lbs['e_verts']:.1f} mm at "
+               f"{lbs['seconds_per_frame'] * 1e3:.2f} ms/frame"
+               + (f", best model row '{best['config']}' {best['e_verts']:.1f} mm at "
+                  f"{best['seconds_per_frame'] * 1e3:.1f} ms/frame" if best else ""))
+
+
+def _write(directory: Path, table: list[dict], garment_path, motion_path, motion, garment) -> None:
+    from formats.plots import plot_pareto
+    from formats.report import markdown_table
+
+    with open(directory / "tradeoff.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=[*COLUMNS, "reference", "runs"])
+        w.writeheader()
+        w.writerows(table)
+    (directory / "tradeoff.json").write_text(json.dumps(
+        {"garment": str(garment_path), "motion": str(motion_path), "frames": motion.n_frames, "fps": motion.fps,
+         "vertices": garment.n_vertices, "rows": table}, indent=1))
+    ref = next(r["config"] for r in table if r["reference"])
+    md = [f"# Speed against accuracy: `{Path(garment_path).name}` on `{Path(motion_path).name}`", "",
+          f"{motion.n_frames} frames at {motion.fps:g} fps, {garment.n_vertices} garment vertices. Errors against "
+          f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
+          "run); preparation (binding, preprocessing, simulator build) apart; peak memory: the largest rise of "
+          "resident memory during the timed runs. E_verts mm, E_vnorm / E_fnorm degrees, E_edge %, penetration: "
+          "% of vertices > 2 mm inside the body.", "",
+          markdown_table(["config", "s/frame", "fps", "prepare s", "peak MB", *METRIC_COLUMNS, "Pareto"],
+                         [[r["config"], r["seconds_per_frame"], r["frames_per_second"], r["seconds_prepare"],
+                           r["peak_memory_mb"], *[r[k] for k in METRIC_COLUMNS], "yes" if r["pareto"] else ""]
+                          for r in table])]
+    (directory / "tradeoff.md").write_text("\n".join(md))
+    plot_pareto([r["config"] for r in table], [r["seconds_per_frame"] for r in table],
+                [r["e_verts"] for r in table], [r["pareto"] for r in table], directory / "tradeoff.png",
+                title=f"{Path(garment_path).stem} on {Path(motion_path).stem}: error against time per frame")

@@ -1,0 +1,76 @@
+"""`garment tradeoff` on a tiny scene: every configuration measured against the finest simulation."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from core.tradeoff import configurations, pareto_front
+from tests.core.model_fixtures import TINY_CONFIG, perturbed_model
+from tests.garmentcli.cli import invoke
+
+
+def test_configurations_cover_methods_precisions_push_out_and_sim_settings():
+    rows = configurations({"m": "m.pt"})
+    assert [r.name for r in rows][:5] == ["lbs", "m float32", "m float32 +push-out", "m bfloat16",
+                                          "m bfloat16 +push-out"]
+    sims = [r for r in rows if r.method == "sim"]
+    assert {(r.options["substeps"], r.options["self_contact"]) for r in sims} == {(5, False), (5, True), (10, False),
+                                                                                 (10, True)}
+    assert [r.name for r in rows if r.reference] == ["sim 10 substeps +self-contact"]
+
+
+def test_pareto_front_naive():
+    pts = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 0.0), (2.0, 3.0)]
+    # (3, 4) is beaten by (2, 3); the two equal (2, 3) do not beat each other.
+    assert pareto_front(pts) == [True, True, False, True, True]
+
+
+@pytest.fixture
+def model_file(tmp_path):
+    from formats.checkpoint import save_checkpoint
+
+    return save_checkpoint(tmp_path / "tiny.pt", TINY_CONFIG, perturbed_model(TINY_CONFIG, 0.05).state_dict())
+
+
+def test_tradeoff_writes_table_plot_and_json(scene, model_file):
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--model", f"tiny={model_file}",
+                "--repeats", 1, "--frames", "0:4", "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "shell_walk"
+    rows = list(csv.DictReader(open(d / "tradeoff.csv")))
+    assert [row["config"] for row in rows] == [c.name for c in configurations({"tiny": str(model_file)})]
+    by = {row["config"]: row for row in rows}
+    ref = by["sim 10 substeps +self-contact"]
+    assert float(ref["e_verts"]) == 0.0 and ref["reference"] == "True" and ref["pareto"] == "True"
+    assert float(by["lbs"]["e_verts"]) > 0 and float(by["sim 5 substeps"]["e_verts"]) > 0
+    for row in rows:
+        assert float(row["seconds_per_frame"]) > 0 and np.isfinite(float(row["e_verts"]))
+        assert float(row["peak_memory_mb"]) >= 0
+    # The fastest row is on the Pareto front; the push-out leaves no vertex > 2 mm inside the body.
+    fastest = min(rows, key=lambda row: float(row["seconds_per_frame"]))
+    assert fastest["pareto"] == "True"
+    assert float(by["tiny float32 +push-out"]["penetration_pct"]) == 0.0
+    meta = json.loads((d / "tradeoff.json").read_text())
+    assert meta["frames"] > 0 and len(meta["rows"]) == len(rows)
+    assert (d / "tradeoff.png").stat().st_size > 1000 and "| lbs " in (d / "tradeoff.md").read_text()
+    assert "shell_walk" in r.output
+    # Existing output: refused without --overwrite.
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--model",
+                f"tiny={model_file}", "--out", scene["out"]])
+    assert r.exit_code != 0 and "--overwrite" in r.output
+
+
+@pytest.mark.parametrize("extra, needle", [(["--model", "nopath"], "NAME=PATH"),
+                                           (["--model", "x=missing.pt"], "missing.pt"),
+                                           (["--repeats", "0"], "--repeats")])
+def test_tradeoff_bad_options(scene, extra, needle):
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--out", scene["out"], *extra])
+    assert r.exit_code != 0 and needle in r.output and "Traceback" not in r.output
+    assert not scene["out"].exists()
+
+
+def test_tradeoff_missing_garment(scene):
+    r = invoke(["tradeoff", scene["dir"] / "gone.obj", scene["motion"], "--out", scene["out"]])
+    assert r.exit_code != 0 and "gone.obj" in r.output and not scene["out"].exists()
