@@ -116,7 +116,8 @@ def summarise(rows: list[Row], order: list[str]) -> list[tuple[str, str, int, di
 def write(out: Path, summary, rows, args) -> None:
     from formats.atomic import atomic_file
 
-    command = f"python benchmarks/model_table.py --data {args.data} " + " ".join(f'--model "{m}"' for m in args.model)
+    command = (f"python benchmarks/model_table.py --data {args.data} " + " ".join(f'--model "{m}"' for m in args.model)
+               + (" --push-out" if args.push_out else ""))
     lines = ["# Learned model variants and LBS against the simulator (paper Table 1 layout)", "",
              f"Data: `{args.data}` test split (held-out motions; the held-out garment separately). Made by "
              f"`{command}`.", "",
@@ -158,6 +159,7 @@ def main(argv=None) -> None:
     ap.add_argument("--self-every", type=int, default=6, help="self-intersection on every Nth frame")
     ap.add_argument("--max-items", type=int, default=None)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "model_table.md")
+    ap.add_argument("--push-out", action="store_true", help="also each model with the penetration push-out")
     args = ap.parse_args(argv)
     methods = {"lbs": LBSDeformer()}
     for spec in args.model:
@@ -167,6 +169,10 @@ def main(argv=None) -> None:
         from core.model_deform import load_model_deformer
 
         methods[name] = load_model_deformer(path)
+        if args.push_out:
+            from core.pushout import PushOutDeformer
+
+            methods[f"{name} +push-out"] = PushOutDeformer(load_model_deformer(path))
     rows = evaluate(args.data, methods, args.self_every, args.max_items)
     summary = summarise(rows, list(methods))
     write(args.out, summary, rows, args)

@@ -17,10 +17,13 @@ from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
 from core.provenance import software_versions
+from core.quality import DEFAULT_BUDGET_MM
 from formats.atomic import atomic_dir
 from garmentcli.common import (
     PIN_CHOICES,
     PIN_HELP,
+    body_option,
+    frames_option,
     input_errors_as_click,
     load_body_option,
     prepare_motion,
@@ -31,21 +34,36 @@ log = logging.getLogger(__name__)
 
 
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
-                  iterations=None, model_path=None, pin=None):
+                  iterations=None, model_path=None, pin=None, precision=None, push_out=False):
+    deformer = _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
+                                precision)
+    if push_out:
+        if method == "sim":
+            raise click.UsageError("--push-out applies to --method lbs or model (the simulator handles contact)")
+        from core.pushout import PushOutDeformer
+
+        deformer = PushOutDeformer(deformer)
+    return deformer
+
+
+def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
+                     precision):
     sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
                                       ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin))
                  if v is not None]
     if method != "sim" and sim_given:
         raise click.UsageError(f"{sim_given[0]} applies to --method sim only (got --method {method})")
+    for name, v in (("--model", model_path), ("--precision", precision)):
+        if method != "model" and v is not None:
+            raise click.UsageError(f"{name} applies to --method model only (got --method {method})")
     if method == "lbs":
         return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth))
     if method == "model":
-        if model_path is None:
-            raise click.BadParameter("expected --model PATH with --method model (no default model is shipped yet)",
-                                     param_hint="--model")
         from core.model_deform import load_model_deformer
+        from formats.cache import default_cache_dir
 
-        return load_model_deformer(model_path)
+        # Garment preprocessing is cached ($GARMENT_CACHE_DIR or ~/.cache/garment), as `garment preprocess` does.
+        return load_model_deformer(model_path, cache_dir=default_cache_dir(), precision=precision or "float32")
     if method == "sim":
         from core.sim import Material, SimDeformer, SimOptions, load_material
 
@@ -96,6 +114,9 @@ class BakeSpec:
     with_body: bool
     render_video: bool
     overwrite: bool
+    precision: str | None = None
+    push_out: bool = False
+    quality: str = ""  # JSON of the --quality auto choice, recorded in summary.json
 
 
 # Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
@@ -108,7 +129,7 @@ def _context(spec: BakeSpec):
 
         _CONTEXT.clear()
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
-                                 spec.iterations, spec.model_path, spec.pin)
+                                 spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out)
         garment = read_obj(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
@@ -136,6 +157,10 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames},
         "software": software_versions("garment"),
     })
+    if spec.quality:
+        result.summary["quality"] = json.loads(spec.quality)
+    if spec.push_out:
+        result.summary["push_out"] = True
     with atomic_dir(target, spec.overwrite) as tmp:
         write_bake_outputs(tmp, target.name, result, garment, body, write_obj=spec.write_obj)
         result.summary["seconds_total"] = time.perf_counter() - t0
@@ -159,14 +184,25 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.command(name="bake")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
 @click.argument("motion_paths", metavar="MOTION...", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--method", type=click.Choice(sorted(DEFORMERS)), default="lbs", show_default=True,
-              help="Deformation method.")
+@click.option("--method", type=click.Choice(sorted(DEFORMERS)), default=None,
+              help="Deformation method: model (the learned network; the default), lbs (linear blend skinning: "
+                   "fastest, no cloth dynamics) or sim (reference physics: slowest).")
+@click.option("--quality", type=click.Choice(["auto"]), default=None,
+              help="auto: choose the cheapest method expected within --budget-mm from the scene (garment looseness, "
+                   "motion speed) and the model's calibration; the choice is printed and kept in summary.json.")
+@click.option("--budget-mm", type=click.FloatRange(min=0, min_open=True), default=None,
+              help=f"--quality auto: error budget, mean vertex distance to the simulator in mm [default: "
+                   f"{DEFAULT_BUDGET_MM:g}].")
+@click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
+              help="--quality auto: calibration JSON (`garment tradeoff --calibrate`). Default: the model's own.")
+@click.option("--precision", type=click.Choice(["float32", "bfloat16"]), default=None,
+              help="model: arithmetic of the network [default: float32].")
+@click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_bake", show_default=True,
               help="Output directory; one sub-directory per motion.")
-@click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
-              help="SMPL-format body (.npz or .pkl). Default: the embedded body built from anny.")
+@body_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Output frame rate (any ratio to the source).")
-@click.option("--frames", default=None, metavar="START:STOP", help="Source frames to bake (Python slice, STOP exclusive).")
+@frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="Frames blending from the rest pose into the first frame, prepended to the output.")
 @click.option("--lbs-smooth", type=click.IntRange(min=0), default=LBSOptions.smooth_iterations, show_default=True,
@@ -179,7 +215,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="sim: VBD iterations per substep [default: 10].")
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default=None, help=f"sim: {PIN_HELP} [default: auto]")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False), default=None,
-              help="model: trained model checkpoint (from `garment train`).")
+              help="model: trained model checkpoint (from `garment train`). Default: the shipped model.")
 @click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
 @click.option("--no-body", is_flag=True, help="Leave the body out of the USD stage.")
 @click.option("--render", "render_video", is_flag=True,
@@ -191,7 +227,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @input_errors_as_click
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
-         iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None):
+         iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
+         budget_mm=None, calibration_path=None, precision=None, push_out=False):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -203,7 +240,16 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
     if frames:
         parse_frame_range(frames)  # reject a bad --frames before any work
-    deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin)
+    if quality is None:
+        for name, v in (("--budget-mm", budget_mm), ("--calibration", calibration_path)):
+            if v is not None:
+                raise click.UsageError(f"{name} applies to --quality auto only")
+        method = method or "model"
+        deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
+                                 precision, push_out)
+    elif method is not None or precision is not None or push_out:
+        raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
+                               "--precision and --push-out")
     for p in (garment_path, *motion_paths):
         if not Path(p).is_file():
             raise click.FileError(p, hint="no such file")
@@ -223,8 +269,24 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
     motions = [(prepare_motion(m, fps, frames, settle_frames), m, target) for m, target in targets]
+    choice = ""
+    if quality == "auto":
+        pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,
+                               DEFAULT_BUDGET_MM if budget_mm is None else budget_mm)
+        method, opts = pick["method"], pick["options"]
+        precision, push_out = opts.get("precision"), bool(opts.get("push_out", False))
+        substeps = opts.get("substeps", substeps)
+        self_contact = bool(opts.get("self_contact", self_contact))
+        if method != "model":
+            model_path, precision = None, None
+        deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
+                                 precision, push_out)
+        choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
+                                                   "features", "reason", "candidates")})
+        click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
-                    model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite)
+                    model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
+                    precision, push_out, choice)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     if scheduler:  # the workers prepare their own copy (once per worker process)
         _bake_on_cluster(spec, motions, scheduler, retries)
@@ -245,6 +307,28 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         finally:
             _CONTEXT.clear()
             deformer.on_frames = None
+
+
+def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm) -> dict:
+    """--quality auto: the choice for the most demanding motion (the fastest) of the batch."""
+    from core.model_deform import DEFAULT_MODEL
+    from core.quality import Calibration, choose, scene_features
+
+    if calibration_path is None:
+        model = Path(model_path) if model_path else DEFAULT_MODEL
+        calibration_path = model.with_name(model.stem + ".calibration.json")
+        if not calibration_path.is_file():
+            raise click.ClickException(f"--quality auto: model '{model}' has no calibration '{calibration_path.name}' "
+                                       "beside it: make one with `garment tradeoff --calibrate`, or pass "
+                                       "--calibration or --method")
+    elif not Path(calibration_path).is_file():
+        raise click.BadParameter(f"'{calibration_path}': no such file", param_hint="--calibration")
+    calibration = Calibration.load(calibration_path)
+    features = max((scene_features(garment, body, m) for m in motions), key=lambda f: f["speed_m_s"])
+    pick = choose(calibration, features, budget_mm)
+    if pick["method"] == "model" and model_path:
+        pick["options"] = {**pick["options"], "path": str(model_path)}
+    return pick
 
 
 def _bake_locally(spec: BakeSpec, motions, bar, ticked, method: str, fps: float) -> None:

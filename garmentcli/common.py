@@ -62,3 +62,15 @@ def scheduler_options(task: str, note: str = ""):
 
     return decorate
 
+
+def body_option(command):
+    """--body PATH (an SMPL-format body; the embedded one by default)."""
+    return click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
+                        help="SMPL-format body (.npz or .pkl). Default: the embedded body built from anny.")(command)
+
+
+def frames_option(command):
+    """--frames START:STOP (source frames, parsed by `core.motion.parse_frame_range`)."""
+    return click.option("--frames", default=None, metavar="START:STOP",
+                        help="Source frames (Python slice, STOP exclusive).")(command)
+

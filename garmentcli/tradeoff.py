@@ -17,7 +17,13 @@ import click
 from tqdm import tqdm
 
 from core.tradeoff import METRIC_COLUMNS, compare, configurations, measure, pareto_front
-from garmentcli.common import input_errors_as_click, load_body_option, prepare_motion
+from garmentcli.common import (
+    body_option,
+    frames_option,
+    input_errors_as_click,
+    load_body_option,
+    prepare_motion,
+)
 
 COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "seconds_prepare", "peak_memory_mb",
            *METRIC_COLUMNS, "pareto")
@@ -42,17 +48,20 @@ def _models(specs: tuple) -> dict:
 @click.argument("motion_path", metavar="MOTION", type=click.Path(dir_okay=False))
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_tradeoff", show_default=True,
               help="Output directory; the scene's results go to OUT/<garment>_<motion>/.")
-@click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
-              help="SMPL-format body (.npz or .pkl). Default: the embedded body.")
+@body_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the scene is baked at.")
-@click.option("--frames", default=None, metavar="START:STOP", help="Source frames (Python slice, STOP exclusive).")
+@frames_option
 @click.option("--model", "model_specs", multiple=True, metavar="NAME=PATH",
               help="Model checkpoints to compare (repeatable). Default: the shipped model.")
 @click.option("--repeats", type=click.IntRange(min=1), default=3, show_default=True,
               help="Timed runs per configuration after a warm-up (the median counts); the simulator runs once.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing result directory.")
+@click.option("--calibrate", "calibration_path", type=click.Path(dir_okay=False), default=None, metavar="FILE",
+              help="Also add this scene to the --quality auto calibration FILE (created if missing), e.g. "
+                   "<model>.calibration.json beside the model.")
 @input_errors_as_click
-def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite):
+def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
+             calibration_path=None):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each model in float32 and bfloat16, with and without penetration push-out; the
@@ -98,6 +107,16 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         tmp.rename(target)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    if calibration_path:
+        from core.quality import Calibration, add_scene, scene_features
+
+        cal = Calibration.load(calibration_path) if Path(calibration_path).is_file() else Calibration({})
+        features = scene_features(garment, body, motion)
+        add_scene(cal, features, [{**r, "options": {k: v for k, v in m.config.options.items() if k != "path"}}
+                                  for r, m in zip(table, results)])
+        cal.save(calibration_path)
+        click.echo(f"{calibration_path}: added the scene (looseness {features['looseness_m'] * 100:.1f} cm, "
+                   f"speed {features['speed_m_s']:.2f} m/s)")
     best = min((r for r in table if r["method"] == "model"), key=lambda r: r["e_verts"], default=None)
     lbs = next(r for r in table if r["method"] == "lbs")
     click.echo(f"{target}: {len(table)} configurations on {motion.n_frames} frames; lbs {lbs['e_verts']:.1f} mm at "

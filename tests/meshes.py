@@ -75,3 +75,12 @@ def tiny_body(n_betas: int = 4, seed: int = 0):
     shapedirs = np.stack([v * rng.uniform(0.01, 0.03) * (k + 1) / n_betas for k in range(n_betas)], axis=-1)
     return body_from_arrays({"v_template": v, "shapedirs": shapedirs, "posedirs": None, "J_regressor": Jr,
                              "weights": w, "parents": np.array(SMPL_PARENTS), "faces": f}, name="tiny")
+
+
+def points_around(n: int, r_min: float, r_max: float, seed: int = 0) -> np.ndarray:
+    """(n, 3) float64 points in random directions from the origin, at radii uniform in [r_min, r_max]."""
+    rng = np.random.default_rng(seed)
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    return dirs * rng.uniform(r_min, r_max, size=n)[:, None]
+

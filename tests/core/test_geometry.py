@@ -1,8 +1,16 @@
 import numpy as np
 
-from core.geometry import (TriangleMesh, closest_point_on_triangles, closest_points_on_mesh, face_normals,
-                           penetration_per_frame, points_inside_mesh, signed_distance, vertex_normals)
-from tests.meshes import grid, icosphere
+from core.geometry import (
+    TriangleMesh,
+    closest_point_on_triangles,
+    closest_points_on_mesh,
+    face_normals,
+    penetration_per_frame,
+    points_inside_mesh,
+    signed_distance,
+    vertex_normals,
+)
+from tests.meshes import grid, icosphere, points_around
 
 
 def naive_closest(points, verts, faces):
@@ -51,11 +59,8 @@ def test_closest_points_exact_against_brute_force():
 
 def test_signed_distance_sphere_and_inside():
     v, f = icosphere(3, radius=1.0)
-    rng = np.random.default_rng(2)
-    dirs = rng.normal(size=(300, 3))
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    radii = rng.uniform(0.2, 1.8, size=300)
-    pts = dirs * radii[:, None]
+    pts = points_around(300, 0.2, 1.8, seed=2)
+    radii = np.linalg.norm(pts, axis=1)
     sd = signed_distance(pts, v, f)
     # The icosphere is inscribed in the unit sphere: within its sagitta of the analytic value.
     np.testing.assert_allclose(sd, radii - 1.0, atol=0.02)

@@ -4,16 +4,12 @@ import numpy as np
 
 from core.geometry import TriangleMesh
 from core.pushout import PushOutDeformer, push_out
-from tests.meshes import icosphere, tiny_body
+from tests.meshes import icosphere, points_around, tiny_body
 
 
 def test_push_out_moves_inside_and_near_vertices_to_the_margin_only():
     v, f = icosphere(3, radius=0.5)
-    rng = np.random.default_rng(0)
-    d = rng.normal(size=(300, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    radii = rng.uniform(0.1, 0.8, size=300)
-    pts = (d * radii[:, None]).astype(np.float32)
+    pts = points_around(300, 0.1, 0.8).astype(np.float32)
     mesh = TriangleMesh(v, f)
     before = mesh.signed_distance(pts)
     margin = 0.003

@@ -1,0 +1,69 @@
+"""The --quality auto calibration of a model from its Table-1 evaluation (benchmarks/model_table.py's CSV).
+
+    python benchmarks/calibrate_quality.py --data data/sim_v1 --table benchmarks/results/model_table.csv \\
+        --model-row "phases 1+2+3" --out core/assets/default_model.calibration.json
+
+Each test sequence is one calibration scene: its features (`core.quality.scene_features`: the garment's
+looseness on the sequence's body shape, the motion's joint speed) and, per configuration (lbs, the model,
+the model with push-out), its E_verts against the simulator and its cost per frame per 1,000 vertices.
+The simulator is the reference (its cost from benchmarks/results/sim_report.md's measured 0.64 s per
+frame per 1,000 vertices on two shared cores). `garment tradeoff --calibrate` adds scenes the same way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from core.body import default_body  # noqa: E402
+from core.motion import Motion  # noqa: E402
+from core.quality import Calibration, add_scene, scene_features  # noqa: E402
+from formats.dataset import read_sequence, sequence_path  # noqa: E402
+from formats.obj import read_obj  # noqa: E402
+
+SIM_SECONDS_PER_FRAME_PER_KVERT = 0.64
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, required=True)
+    ap.add_argument("--table", type=Path, required=True, help="model_table.py's per-sequence CSV")
+    ap.add_argument("--model-row", required=True, help="the model's method name in the table")
+    ap.add_argument("--out", type=Path, required=True)
+    args = ap.parse_args(argv)
+    rows = list(csv.DictReader(open(args.table, newline="")))
+    names = {"lbs": ("lbs", "lbs", {}),
+             args.model_row: ("model float32", "model", {"precision": "float32", "push_out": False}),
+             f"{args.model_row} +push-out": ("model float32 +push-out", "model",
+                                             {"precision": "float32", "push_out": True})}
+    body = default_body()
+    cal = Calibration({})
+    garments = {}
+    for item in sorted({r["item"] for r in rows}):
+        seq = read_sequence(sequence_path(args.data, item))
+        if seq.garment not in garments:
+            garments[seq.garment] = read_obj(args.data / "garments" / f"{seq.garment}.obj")
+        motion = Motion(poses=seq.poses[seq.n_settle:], trans=seq.trans[seq.n_settle:], fps=seq.fps,
+                        betas=seq.betas)
+        features = scene_features(garments[seq.garment], body, motion)
+        scene = [{"config": "sim 10 substeps", "method": "sim", "reference": True, "e_verts": 0.0,
+                  "seconds_per_frame": SIM_SECONDS_PER_FRAME_PER_KVERT * features["vertices"] / 1000.0,
+                  "options": {"substeps": 10, "self_contact": False}}]
+        for r in rows:
+            if r["item"] == item and r["method"] in names and r["e_verts"]:
+                config, method, options = names[r["method"]]
+                scene.append({"config": config, "method": method, "options": options, "e_verts": float(r["e_verts"]),
+                              "seconds_per_frame": float(r["ms_per_frame"]) / 1e3})
+        add_scene(cal, features, scene)
+        print(f"{item}: looseness {features['looseness_m'] * 100:.1f} cm, speed {features['speed_m_s']:.2f} m/s")
+    cal.save(args.out)
+    print(f"wrote {args.out}: {', '.join(cal.configs)}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,143 @@
+"""`bake --quality auto`: pick the cheapest configuration expected to stay under an error budget.
+
+A scene is described by two numbers (`scene_features`): how loose the garment is (mean distance of
+its rest vertices from the rest body, metres) and how fast the motion is (95th percentile of the
+joints' speeds, m/s). LBS is exact for cloth glued to the skin and errs more the looser the garment
+and the faster the motion; the learned model and the simulator cut that error at a price.
+
+A calibration (JSON, stored next to a model: `<model>.calibration.json`) holds, per configuration,
+its cost (milliseconds per frame per 1,000 garment vertices) and measured errors against the
+simulator on calibration scenes (points: looseness, speed, E_verts mm). It is made by `garment
+tradeoff --calibrate FILE` (one scene per call, appended) or from the Table-1 evaluation
+(benchmarks/calibrate_quality.py). The expected error of a configuration on a new scene is the
+inverse-distance weighted mean of its k nearest calibration points in (log looseness, log speed);
+the choice is the cheapest configuration whose expected error is within the budget (the reference
+simulator, expected error 0, when nothing cheaper is), else the most accurate one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from core.body import Body
+from core.errors import InputError
+from core.garment import Garment
+from core.motion import Motion, poses_for_body
+
+#: Default error budget of `--quality auto` (E_verts against the simulator, mm).
+DEFAULT_BUDGET_MM = 40.0
+#: Neighbours averaged for an expected error.
+K_NEAREST = 4
+#: Floors of the features before the logarithm (a skin-tight garment, a still pose).
+MIN_LOOSENESS_M, MIN_SPEED_M_S = 0.002, 0.05
+
+
+def scene_features(garment: Garment, body: Body, motion: Motion) -> dict:
+    """looseness_m: mean distance of the garment's rest vertices to the rest body (shaped by the motion's betas);
+    speed_m_s: 95th percentile over frames and joints of joint speed; vertices; frames."""
+    from core.geometry import TriangleMesh
+
+    verts, joints_rest = body.shaped(motion.betas)
+    looseness = float(TriangleMesh(verts, body.faces).closest(garment.vertices, exact=False).distance.mean())
+    A = body.skinning_transforms(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
+    joints = np.einsum("tjrc,jc->tjr", A[:, :, :3, :3], joints_rest) + A[:, :, :3, 3]
+    if len(joints) > 1:
+        speed = np.linalg.norm(np.diff(joints, axis=0), axis=-1) * motion.fps
+        speed95 = float(np.percentile(speed, 95))
+    else:
+        speed95 = 0.0
+    return {"looseness_m": looseness, "speed_m_s": speed95, "vertices": int(garment.n_vertices),
+            "frames": int(motion.n_frames)}
+
+
+def _point(looseness: float, speed: float) -> np.ndarray:
+    return np.log(np.array([max(looseness, MIN_LOOSENESS_M), max(speed, MIN_SPEED_M_S)]))
+
+
+@dataclass
+class Calibration:
+    """configs: name -> {"method", "options", "ms_per_frame_per_kvert", "points": [[looseness, speed, e_mm], ...],
+    "reference": true for the configuration the errors are measured against (expected error 0, no points)}."""
+
+    configs: dict
+    source: str = ""
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Calibration:
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text())
+            configs = data["configs"]
+            for name, c in configs.items():
+                float(c["ms_per_frame_per_kvert"])
+                if not c.get("reference"):
+                    pts = np.asarray(c["points"], dtype=np.float64)
+                    if pts.ndim != 2 or pts.shape[1] != 3 or not len(pts) or not np.isfinite(pts).all():
+                        raise ValueError(f"'{name}': points must be a non-empty list of [looseness, speed, error]")
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise InputError(f"quality calibration '{path}': expected the JSON `garment tradeoff --calibrate` writes, "
+                             f"got {type(exc).__name__}: {exc}") from None
+        return cls(configs=configs, source=str(path))
+
+    def save(self, path: str | os.PathLike) -> None:
+        from formats.atomic import atomic_file
+
+        with atomic_file(Path(path)) as tmp:
+            Path(tmp).write_text(json.dumps({"configs": self.configs}, indent=1))
+
+    def expected_error(self, name: str, features: dict) -> float:
+        """Expected E_verts (mm) of configuration `name` on a scene with `features`; 0 for the reference."""
+        c = self.configs[name]
+        if c.get("reference"):
+            return 0.0
+        pts = np.asarray(c["points"], dtype=np.float64)
+        x = _point(features["looseness_m"], features["speed_m_s"])
+        d = np.linalg.norm(np.log(np.maximum(pts[:, :2], [MIN_LOOSENESS_M, MIN_SPEED_M_S])) - x, axis=1)
+        near = np.argsort(d)[:K_NEAREST]
+        w = 1.0 / np.maximum(d[near], 1e-3)
+        return float(np.sum(w * pts[near, 2]) / np.sum(w))
+
+
+def choose(calibration: Calibration, features: dict, budget_mm: float) -> dict:
+    """The cheapest configuration expected within `budget_mm`: {"config", "method", "options", "expected_mm",
+    "candidates": [{name, expected_mm, ms_per_frame}], "reason"}."""
+    kvert = features["vertices"] / 1000.0
+    cands = []
+    for name, c in calibration.configs.items():
+        cands.append({"config": name, "method": c["method"], "options": c.get("options", {}),
+                      "expected_mm": calibration.expected_error(name, features),
+                      "ms_per_frame": float(c["ms_per_frame_per_kvert"]) * kvert})
+    cands.sort(key=lambda c: c["ms_per_frame"])
+    ok = [c for c in cands if c["expected_mm"] <= budget_mm]
+    scene = (f"garment {features['looseness_m'] * 100:.1f} cm from the body on average, joints up to "
+             f"{features['speed_m_s']:.2f} m/s (95th percentile)")
+    if ok:
+        pick = ok[0]
+        cheaper = [c for c in cands if c["ms_per_frame"] < pick["ms_per_frame"]]
+        why = (f"{scene}: '{pick['config']}' is expected at {pick['expected_mm']:.1f} mm <= {budget_mm:g} mm, "
+               f"{pick['ms_per_frame']:.2f} ms/frame"
+               + "".join(f"; '{c['config']}' is cheaper but expected at {c['expected_mm']:.1f} mm" for c in cheaper))
+    else:
+        pick = min(cands, key=lambda c: c["expected_mm"])
+        why = (f"{scene}: no configuration is expected within {budget_mm:g} mm: the most accurate, "
+               f"'{pick['config']}', expected at {pick['expected_mm']:.1f} mm")
+    return {**pick, "budget_mm": budget_mm, "features": features, "candidates": cands, "reason": why}
+
+
+def add_scene(calibration: Calibration, features: dict, rows: list[dict]) -> None:
+    """Append one tradeoff run (rows: config, method, seconds_per_frame, e_verts, options) to `calibration`."""
+    kvert = max(features["vertices"], 1) / 1000.0
+    for r in rows:
+        c = calibration.configs.setdefault(r["config"], {"method": r["method"], "options": r.get("options", {}),
+                                                         "ms_per_frame_per_kvert": 0.0, "points": [], "scenes": 0,
+                                                         "reference": bool(r.get("reference", False))})
+        n = c.get("scenes", 0)
+        cost = r["seconds_per_frame"] * 1e3 / kvert
+        c["ms_per_frame_per_kvert"] = (c["ms_per_frame_per_kvert"] * n + cost) / (n + 1)
+        c["scenes"] = n + 1
+        c["points"].append([features["looseness_m"], features["speed_m_s"], float(r["e_verts"])])

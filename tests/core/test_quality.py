@@ -1,0 +1,75 @@
+"""--quality auto: scene features with known answers, and the choice on a synthetic calibration."""
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from core.garment import Garment
+from core.geometry import vertex_normals
+from core.motion import Motion
+from core.quality import Calibration, add_scene, choose, scene_features
+from tests.meshes import tiny_body
+
+
+def shell(body, offset):
+    v = body.v_template + offset * vertex_normals(body.v_template, body.faces)
+    return Garment(v.astype(np.float32), body.faces.astype(np.int64))
+
+
+def test_scene_features_known_answers():
+    body = tiny_body()
+    T = 10
+    poses = np.zeros((T, body.n_joints, 3), np.float32)
+    trans = np.zeros((T, 3), np.float32)
+    trans[:, 0] = np.arange(T) / 30.0 * 1.5  # 1.5 m/s along x at 30 fps, no rotation
+    motion = Motion(poses=poses, trans=trans, fps=30.0)
+    for offset in (0.01, 0.05):
+        f = scene_features(shell(body, offset), body, motion)
+        # Each vertex moved `offset` along its normal: its distance to the body is about the offset.
+        assert f["looseness_m"] == pytest.approx(offset, rel=0.15)
+        assert f["speed_m_s"] == pytest.approx(1.5, rel=1e-4)
+        assert f["vertices"] == body.v_template.shape[0] and f["frames"] == T
+    still = Motion(poses=poses[:1], trans=trans[:1], fps=30.0)
+    assert scene_features(shell(body, 0.01), body, still)["speed_m_s"] == 0.0
+
+
+def synthetic_calibration():
+    cal = Calibration({})
+    for loose in (0.005, 0.01, 0.03, 0.1):
+        for speed in (0.2, 1.0, 3.0, 6.0):
+            lbs = 100.0 * loose * speed * 10  # mm: grows with looseness and speed
+            rows = [{"config": "lbs", "method": "lbs", "seconds_per_frame": 1e-4, "e_verts": lbs},
+                    {"config": "model float32", "method": "model", "seconds_per_frame": 1e-2,
+                     "e_verts": 0.4 * lbs + 2.0, "options": {"precision": "float32", "push_out": False}},
+                    {"config": "sim", "method": "sim", "seconds_per_frame": 1.0, "e_verts": 0.0, "reference": True,
+                     "options": {"substeps": 10, "self_contact": True}}]
+            add_scene(cal, {"looseness_m": loose, "speed_m_s": speed, "vertices": 1000}, rows)
+    return cal
+
+
+def test_choose_cheapest_within_budget():
+    cal = synthetic_calibration()
+    tight_slow = {"looseness_m": 0.006, "speed_m_s": 0.3, "vertices": 4000}
+    loose_run = {"looseness_m": 0.09, "speed_m_s": 5.0, "vertices": 4000}
+    pick = choose(cal, tight_slow, budget_mm=20.0)
+    assert pick["config"] == "lbs" and pick["expected_mm"] < 20 and "lbs" in pick["reason"]
+    pick = choose(cal, loose_run, budget_mm=250.0)
+    assert pick["config"] == "model float32" and "'lbs' is cheaper but expected" in pick["reason"]
+    assert pick["ms_per_frame"] == pytest.approx(40.0)  # 10 ms per 1k vertices x 4k
+    pick = choose(cal, loose_run, budget_mm=5.0)
+    assert pick["config"] == "sim" and "'model float32' is cheaper but expected at" in pick["reason"]
+    # A calibration without the reference: nothing meets the budget -> the most accurate, said so.
+    del cal.configs["sim"]
+    pick = choose(cal, loose_run, budget_mm=5.0)
+    assert pick["config"] == "model float32" and "no configuration is expected within 5 mm" in pick["reason"]
+
+
+def test_calibration_round_trip_and_bad_file(tmp_path):
+    cal = synthetic_calibration()
+    cal.save(tmp_path / "c.json")
+    again = Calibration.load(tmp_path / "c.json")
+    assert again.configs == cal.configs
+    (tmp_path / "bad.json").write_text('{"configs": {"lbs": {"method": "lbs", "ms_per_frame_per_kvert": 1, '
+                                       '"points": [[0.1, 1.0]]}}}')
+    with pytest.raises(InputError, match="bad.json"):
+        Calibration.load(tmp_path / "bad.json")

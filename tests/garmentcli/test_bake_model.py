@@ -1,0 +1,69 @@
+"""`bake` with its default method, the shipped model, on every example garment; its bad inputs."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from click.testing import CliRunner
+
+from core.model_deform import DEFAULT_MODEL
+from formats.usd import read_usd
+from garmentcli.main import cli
+from tests.garmentcli.cli import invoke
+
+
+def invoke_default(args):
+    """The CLI as a user runs it (no --method added: the default method)."""
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted((ROOT / "examples").glob("*.obj"))
+
+
+def _bake(garment, out, *extra):
+    r = invoke_default(["bake", garment, ROOT / "examples" / "run.npz", "--frames", "0:8", "--out", out, "--no-obj",
+                "--no-body", *extra])
+    assert r.exit_code == 0, r.output
+    d = out / f"{garment.stem}_run"
+    summary = json.loads((d / "summary.json").read_text())
+    return read_usd(d / f"{garment.stem}_run.usd").tracks["garment"].points, summary
+
+
+@pytest.mark.parametrize("garment", EXAMPLES, ids=lambda p: p.stem)
+def test_default_bake_runs_the_shipped_model_on_every_example_garment(garment, tmp_path):
+    assert len(EXAMPLES) == 5
+    model, summary = _bake(garment, tmp_path / "model")
+    assert summary["method"] == "model" and Path(summary["deformer"]["model"]) == DEFAULT_MODEL
+    lbs, _ = _bake(garment, tmp_path / "lbs", "--method", "lbs")
+    assert model.shape == lbs.shape and np.isfinite(model).all()
+    gap = np.linalg.norm(model - lbs, axis=-1)
+    extent = float(np.ptp(lbs[0], axis=0).max())
+    # The network corrects LBS (it is not LBS: trained blend shapes and weights move vertices) and stays
+    # bounded: on average within a tenth of the garment's size of the LBS garment, no vertex further than half.
+    assert 1e-3 < gap.mean() < 0.1 * extent, (gap.mean(), extent)
+    assert gap.max() < 0.5 * extent, (gap.max(), extent)
+
+
+def test_model_option_needs_method_model(tmp_path):
+    r = invoke(["bake", EXAMPLES[0], ROOT / "examples" / "walk.npz", "--method", "lbs", "--model", DEFAULT_MODEL,
+                "--out", tmp_path])
+    assert r.exit_code != 0 and "--model applies to --method model only" in r.output
+    assert not any(tmp_path.iterdir())
+
+
+def test_missing_default_model_is_one_clear_line(tmp_path, monkeypatch):
+    import core.model_deform
+
+    monkeypatch.setattr(core.model_deform, "DEFAULT_MODEL", tmp_path / "gone.pt")
+    r = invoke_default(["bake", EXAMPLES[0], ROOT / "examples" / "walk.npz", "--out", tmp_path / "out"])
+    assert r.exit_code != 0 and "gone.pt" in r.output and "--method lbs" in r.output
+    assert "Traceback" not in r.output and not (tmp_path / "out").exists()
+
+
+def test_shipped_model_is_small_and_documented():
+    assert DEFAULT_MODEL.is_file() and DEFAULT_MODEL.stat().st_size < 20e6
+    card = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
+    for key in ("command", "dataset", "training", "metrics"):
+        assert key in card, key

@@ -1,0 +1,71 @@
+"""`bake --quality auto`: LBS for a tight garment on a slow motion, the model for a loose one on a fast motion."""
+
+import json
+
+import numpy as np
+import pytest
+
+from tests.core.model_fixtures import TINY_CONFIG, perturbed_model
+from tests.core.test_quality import synthetic_calibration
+from tests.garmentcli.cli import invoke
+from tests.garmentcli.conftest import write_motion, write_shell_obj
+
+
+@pytest.fixture
+def auto_scene(scene):
+    from formats.checkpoint import save_checkpoint
+
+    d = scene["dir"]
+    model = save_checkpoint(d / "tiny.pt", TINY_CONFIG, perturbed_model(TINY_CONFIG, 0.05).state_dict())
+    synthetic_calibration().save(d / "tiny.calibration.json")
+    write_shell_obj(d / "loose.obj", scene["tiny"], offset=0.09)
+    write_shell_obj(d / "tight.obj", scene["tiny"], offset=0.006)
+    poses = np.zeros((8, 72), np.float32)
+    poses[:, :3] = [np.pi / 2, 0, 0]
+    slow = np.zeros((8, 3), np.float32)
+    slow[:, 0] = np.arange(8) * 0.01  # 0.3 m/s at 30 fps
+    fast = np.zeros((8, 3), np.float32)
+    fast[:, 0] = np.arange(8) * 0.17  # 5.1 m/s
+    write_motion(d / "slow.npz", n_frames=8, fps=30.0, poses=poses, trans=slow)
+    write_motion(d / "fast.npz", n_frames=8, fps=30.0, poses=poses, trans=fast)
+    return {**scene, "model": model}
+
+
+def _auto(s, garment, motion, *extra):
+    return invoke(["bake", s["dir"] / garment, s["dir"] / motion, "--body", s["body"], "--model", s["model"],
+                   "--quality", "auto", "--out", s["out"], "--no-obj", *extra])
+
+
+def test_auto_picks_lbs_for_tight_and_slow_and_model_for_loose_and_fast(auto_scene):
+    s = auto_scene
+    r = _auto(s, "tight.obj", "slow.npz")
+    assert r.exit_code == 0, r.output
+    summary = json.loads((s["out"] / "tight_slow" / "summary.json").read_text())
+    assert summary["method"] == "lbs" and summary["quality"]["config"] == "lbs"
+    assert summary["quality"]["expected_mm"] <= summary["quality"]["budget_mm"] == 40.0
+    assert "quality auto: lbs" in r.output
+    r = _auto(s, "loose.obj", "fast.npz", "--budget-mm", 250)
+    assert r.exit_code == 0, r.output
+    summary = json.loads((s["out"] / "loose_fast" / "summary.json").read_text())
+    assert summary["method"] == "model" and summary["quality"]["config"] == "model float32"
+    assert summary["quality"]["features"]["speed_m_s"] == pytest.approx(5.1, rel=1e-3)
+    assert "'lbs' is cheaper but expected" in summary["quality"]["reason"]
+
+
+@pytest.mark.parametrize("extra, needle", [(["--method", "lbs"], "leave out --method"),
+                                           (["--push-out"], "leave out --method"),
+                                           (["--calibration", "nope.json"], "nope.json")])
+def test_auto_bad_combinations(auto_scene, extra, needle):
+    r = _auto(auto_scene, "tight.obj", "slow.npz", *extra)
+    assert r.exit_code != 0 and needle in r.output and "Traceback" not in r.output
+    assert not auto_scene["out"].exists()
+
+
+def test_budget_without_auto_and_model_without_calibration(auto_scene):
+    s = auto_scene
+    r = invoke(["bake", s["dir"] / "tight.obj", s["dir"] / "slow.npz", "--body", s["body"], "--budget-mm", 5,
+                "--out", s["out"]])
+    assert r.exit_code != 0 and "--budget-mm applies to --quality auto only" in r.output
+    (s["dir"] / "tiny.calibration.json").unlink()
+    r = _auto(s, "tight.obj", "slow.npz")
+    assert r.exit_code != 0 and "tiny.calibration.json" in r.output and not s["out"].exists()
