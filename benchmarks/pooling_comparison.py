@@ -48,9 +48,15 @@ def slug(name: str) -> str:
     return "".join(c if c.isalnum() else "_" for c in name).strip("_")
 
 
+def variant_stem(overrides: dict, phases: str = "1") -> str:
+    """The model file stem of one configuration: variants with equal settings share one model
+    ("no pooling" is "ours, 0 levels")."""
+    return f"pool_{overrides['pooling']}_L{overrides['levels']}_p{phases.replace(',', '')}"
+
+
 def train(name: str, overrides: dict, args) -> Path:
     """Train (or reuse) the model of one variant; returns its path."""
-    out = Path(args.models_dir) / f"{slug(name)}.pt"
+    out = Path(args.models_dir) / f"{variant_stem(overrides, args.phases)}.pt"
     if out.is_file():
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -146,7 +152,8 @@ def main(argv=None) -> None:
     ap.add_argument("--steps", type=int, default=3000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--phases", default="1")
-    ap.add_argument("--models-dir", type=Path, default=ROOT / "data" / "pooling_models")
+    ap.add_argument("--models-dir", type=Path, default=ROOT / "data" / "models",
+                    help="trained variants (benchmarks/train_variants.py writes the same files)")
     ap.add_argument("--levels-ablation", action="store_true", help="run the levels ablation instead")
     ap.add_argument("--self-every", type=int, default=6)
     ap.add_argument("--max-items", type=int, default=None)

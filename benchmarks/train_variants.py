@@ -8,8 +8,9 @@ continued exactly), until --steps. Variants:
 
 - the Table-1 rows (benchmarks/model_table.py): phases 1,2,3 (the shipped model), 1 and 1,2;
 - the pooling comparison and levels ablation (benchmarks/pooling_comparison.py, which reuses these
-  files from the same --models-dir): TopK, SAG, ASAP, a single scale and 1 and 3 levels of ours, each
-  phase 1 only. "ours, 2 levels" is the phase-1 row above.
+  files from the same --models-dir): ours, TopK, SAG, ASAP, and 0 (a single scale), 1, 2 and 3 levels
+  of ours, each phase 1 only, one file per configuration (pool_<pooling>_L<levels>_p1.pt). Give them
+  the same --steps: "ours, 2 levels" is trained again rather than taken from the longer model_p1.
 
 Training settings for all: benchmarks/configs/train_default.json (validation every 100 steps, phase
 switch after 4 validations without 0.5 % improvement). Writes MODELS_DIR/<variant>.pt (+ .ckpt, .csv,
@@ -32,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from pooling_comparison import LEVEL_VARIANTS, POOLING_VARIANTS, slug  # noqa: E402
+from pooling_comparison import LEVEL_VARIANTS, POOLING_VARIANTS, variant_stem  # noqa: E402
 
 from core.model import ModelConfig  # noqa: E402
 
@@ -42,10 +43,8 @@ TRAIN_CONFIG = ROOT / "benchmarks" / "configs" / "train_default.json"
 def variants() -> dict[str, tuple[str, dict]]:
     """file stem -> (phases, model config overrides)."""
     out = {"model_p123": ("1,2,3", {}), "model_p1": ("1", {}), "model_p12": ("1,2", {})}
-    for name, over in {**POOLING_VARIANTS, **LEVEL_VARIANTS}.items():
-        if over == {"pooling": "structure", "levels": ModelConfig().levels}:
-            continue  # ours with the default levels: the phase-1 model above
-        out.setdefault(slug(name), ("1", over))
+    for over in {**POOLING_VARIANTS, **LEVEL_VARIANTS}.values():
+        out.setdefault(variant_stem(over), ("1", over))
     return out
 
 

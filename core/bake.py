@@ -79,6 +79,7 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
         "seconds_deform": t_deform,
         "seconds_per_frame": t_deform / motion.n_frames,
         "deformer": deformer.report,
+        "scene": deformer.scene,
     }
     if not np.all(np.isfinite(points)):
         bad = int(np.argmax(~np.isfinite(points).reshape(points.shape[0], -1).all(axis=1)))

@@ -2,7 +2,8 @@
 
 `bake --method NAME` looks methods up in `DEFORMERS`. Every method returns the
 garment's vertices per frame in the motion's world frame (Z-up, metres), float32,
-and records in `report` what it did and skipped, for `summary.json`.
+and records in `report` what it did, and in `scene` the work its scene analysis
+(`core.scene`) left out, for `summary.json`.
 """
 
 from __future__ import annotations
@@ -18,6 +19,13 @@ import torch
 from core.body import Body, skin_points
 from core.garment import Garment
 from core.motion import Motion, poses_for_body
+from core.scene import (
+    JOINT_WEIGHT_EPS,
+    SKIPS,
+    SceneAnalysis,
+    active_joints,
+    restrict_weights,
+)
 from core.skinning import bind_garment
 
 
@@ -30,6 +38,10 @@ class Deformer(ABC):
         self.report: dict = {}
         #: Called with a count of output frames just finished, by methods slow enough to report per frame.
         self.on_frames: Callable[[int], None] | None = None
+        #: The skips of `core.scene` this method may apply (`bake --no-skip` removes some).
+        self.skips: frozenset = frozenset(SKIPS)
+        #: What the last `deform` skipped (core.scene.SceneAnalysis.report), for summary.json "scene".
+        self.scene: dict = {}
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         """Per-(garment, body) work done once before any motion, validating the pair.
@@ -80,12 +92,20 @@ class LBSDeformer(Deformer):
         rest = garment.vertices + np.einsum("vcs,s->vc", binding.shapedirs, betas)
         poses = poses_for_body(motion, body.n_joints)
         A = body.skinning_transforms(poses, motion.trans, betas)
-        w = torch.from_numpy(binding.weights)
+        scene = SceneAnalysis(self.skips)
+        active = active_joints(binding.weights)
+        scene.record("joints", not active.all(), used=int(active.sum()), joints=len(active),
+                     weight_eps=JOINT_WEIGHT_EPS)
+        if scene.enabled("joints") and not active.all():
+            w, A = torch.from_numpy(restrict_weights(binding.weights, active)), A[:, active]
+        else:
+            w = torch.from_numpy(binding.weights)
         x = torch.from_numpy(rest.astype(np.float32))
         out = np.empty((motion.n_frames, garment.n_vertices, 3), dtype=np.float32)
         with torch.no_grad():
             for s in range(0, motion.n_frames, o.batch_frames):
                 out[s:s + o.batch_frames] = skin_points(x, w, torch.from_numpy(A[s:s + o.batch_frames])).numpy()
+        self.scene = scene.report
         self.report = {"method": self.name, "options": asdict(o),
                        "rest_body_distance_mm": {"median": float(np.median(binding.body_distance) * 1e3),
                                                  "max": float(binding.body_distance.max() * 1e3)}}

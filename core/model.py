@@ -584,8 +584,11 @@ class GarmentModel(nn.Module):
         return self.rest_pose(g, body_dist)
 
     def forward_frames(self, fused: torch.Tensor, g: GarmentInputs, rest: torch.Tensor, pose_win: torch.Tensor,
-                       vel_win: torch.Tensor, transforms: torch.Tensor) -> ModelOutput:
+                       vel_win: torch.Tensor, transforms: torch.Tensor, skip_joints: bool = True) -> ModelOutput:
         """Garment vertices for B frames.
+
+        skip_joints: leave joints without prior weight on any vertex out of the per-vertex sums (their
+        weights are exactly 0, so the result is the same; `bake --no-skip joints` turns it off).
 
         fused: (V, h) from `encode`. rest: (V, 3) rest garment on the shaped body (metres).
         pose_win: (B, m, 3(S-1)+6); vel_win: (B, m, 3S+3) windows ending at each frame.
@@ -603,14 +606,18 @@ class GarmentModel(nn.Module):
         weights = torch.softmax(logits.float() + torch.log(g.prior_weights + PRIOR_FLOOR)[None], dim=-1)  # Eq. 3
         _, (h2, _) = self.temporal_velocity(vel_win)
         codes = self.joint_codes(h2[-1]).view(B, S, h)
-        per_vertex = torch.einsum("bvs,bsc->bvc", weights, codes)
+        used = (g.prior_weights > 0).any(0) if skip_joints else None
+        w_used = weights if used is None else weights[..., used]
+        if used is not None:
+            codes, transforms = codes[:, used], transforms[:, used]
+        per_vertex = torch.einsum("bvs,bsc->bvc", w_used, codes)
         x = F.silu(self.combine(torch.cat([fused[None].expand(B, -1, -1), per_vertex], dim=-1))
                    + self.global_code(h2[-1])[:, None])
         cap = torch.clamp(MAX_BLEND_FRACTION * (rest.amax(0) - rest.amin(0)).max(), max=MAX_BLEND_M).detach()
         blend = cap * torch.tanh(self.unet(x, g).float() / cap)  # Eq. 4, bounded
         with torch.autocast(device_type=blend.device.type, enabled=False):  # world coordinates in float32
             shaped = rest[None] + blend  # Eq. 2
-            Mx = torch.einsum("bvs,bsrc->bvrc", weights, transforms[:, :, :3, :])
+            Mx = torch.einsum("bvs,bsrc->bvrc", w_used, transforms[:, :, :3, :])
             verts = torch.einsum("bvrc,bvc->bvr", Mx[..., :3], shaped) + Mx[..., 3]  # Eq. 1
         return ModelOutput(verts=verts, weights=weights, blend=blend)
 

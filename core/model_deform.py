@@ -18,9 +18,16 @@ from core.body import Body
 from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment
-from core.model import GarmentModel, body_distances, motion_features, shaped_rest, window_index
+from core.model import (
+    GarmentModel,
+    body_distances,
+    motion_features,
+    shaped_rest,
+    window_index,
+)
 from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body
+from core.scene import SceneAnalysis, scene_levels
 
 log = logging.getLogger(__name__)
 
@@ -66,6 +73,12 @@ class ModelDeformer(Deformer):
         mf = motion_features(body, poses, motion.trans, betas, motion.fps)
         rest = shaped_rest(g, body, betas)
         out = np.empty((motion.n_frames, garment.n_vertices, 3), dtype=np.float32)
+        scene = SceneAnalysis(self.skips)
+        used = (g.prior_weights > 0).any(0)
+        scene.record("joints", not bool(used.all()), used=int(used.sum()), joints=len(used))
+        levels = scene_levels(garment, body, motion)
+        scene.report["levels"] = {**levels, "model": self.model.config.levels,
+                                  "matches": levels["suggested"] == self.model.config.levels}
         t0 = time.perf_counter()
         with torch.no_grad(), torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.precision == "bfloat16"):
             fused = self.model.encode(g, body_distances(body, betas))
@@ -73,12 +86,14 @@ class ModelDeformer(Deformer):
             for s in range(0, motion.n_frames, self.batch_frames):
                 fr = torch.arange(s, min(s + self.batch_frames, motion.n_frames))
                 win = window_index(fr, self.model.config.window)
-                res = self.model.forward_frames(fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr])
+                res = self.model.forward_frames(fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr],
+                                                skip_joints=scene.enabled("joints"))
                 out[s:s + len(fr)] = res.verts.float().numpy()
         t2 = time.perf_counter()
         self.report = {"method": self.name, "model": self.model_name, "batch_frames": self.batch_frames,
                        "precision": self.precision,
                        "encode_seconds": t1 - t0, "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
+        self.scene = scene.report
         return out
 
 

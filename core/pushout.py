@@ -65,8 +65,9 @@ class PushOutDeformer(Deformer):
         self.inner.prepare(garment, body, source)
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
-        self.inner.on_frames = self.on_frames
+        self.inner.on_frames, self.inner.skips = self.on_frames, self.skips
         points = self.inner.deform(garment, body, motion)
+        self.scene = self.inner.scene
         body_points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
         pushed, moved = push_out(points, body_points, body.faces, self.margin)
         self.report = {**self.inner.report, "push_out": {"margin_m": self.margin,

@@ -40,8 +40,9 @@ from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment, mesh_edges
 from core.geometry import TriangleMesh, outward_faces
-from core.provenance import package_version
 from core.motion import Motion, poses_for_body, settle
+from core.provenance import package_version
+from core.scene import SceneAnalysis, analyse_collisions
 
 log = logging.getLogger(__name__)
 
@@ -437,23 +438,33 @@ class SimDeformer(Deformer):
         keep = rest_length > 1e-9
         edges, rest_length = edges[keep], rest_length[keep].astype(np.float64)
 
-        sim = ClothSim(template, garment.faces, body_pts[0], faces_b, m, o.self_contact, o.iterations,
+        # Scene analysis: the collider keeps the body faces within reach of the garment; self-contact only
+        # where distant parts of the garment can meet.
+        scene = SceneAnalysis(self.skips)
+        kept, self_contact = analyse_collisions(scene, garment, body_pts, faces_b, shaped, binding.weights,
+                                                np.asarray(transforms), o.self_contact)
+        collider_v, collider_f = np.arange(body.n_vertices), faces_b
+        if kept is not None:
+            collider_v = np.unique(faces_b[kept])
+            collider_f = np.searchsorted(collider_v, faces_b[kept])
+        collider = body_pts[:, collider_v]
+        sim = ClothSim(template, garment.faces, collider[0], collider_f, m, self_contact, o.iterations,
                        start_vertices=start, bounds=bounds, pinned=pinned)
         t_built = time.perf_counter()
         # Phase 1: settle on the static rest body.
         n_settle_steps = int(round(o.settle_s * motion.fps))
         for _ in range(n_settle_steps):
-            sim.advance(body_pts[0], body_pts[0], frame_dt, o.substeps, pins[0], pins[0])
+            sim.advance(collider[0], collider[0], frame_dt, o.substeps, pins[0], pins[0])
         # Phase 2: internal blend into frame 0.
         for i in range(len(pre)):
-            sim.advance(body_pts[i], body_pts[i + 1], frame_dt, o.substeps, pins[i], pins[i + 1])
+            sim.advance(collider[i], collider[i + 1], frame_dt, o.substeps, pins[i], pins[i + 1])
         t_pre = time.perf_counter()
         # Phase 3: the output frames, checked and retried.
         offset = 1 + len(pre)
         out = np.empty((T, garment.n_vertices, 3), dtype=np.float32)
         stats, retries = [], []
         for t in range(T):
-            prev = body_pts[offset + t - 1]
+            prev = collider[offset + t - 1]
             cur = body_pts[offset + t]
             saved = sim.get_state()
             best = None
@@ -462,7 +473,7 @@ class SimDeformer(Deformer):
                 if attempt:
                     sim.set_state(*saved)
                     substeps *= 2
-                points = sim.advance(prev, cur, frame_dt, substeps, pins[offset + t - 1], pins[offset + t])
+                points = sim.advance(prev, collider[offset + t], frame_dt, substeps, pins[offset + t - 1], pins[offset + t])
                 check = frame_checks(points, cur, faces_b, edges, rest_length)
                 check["substeps"] = substeps
                 if best is None or _worse(best[1], check):
@@ -495,7 +506,7 @@ class SimDeformer(Deformer):
             "options": asdict(o),
             "solver": {"engine": "newton SolverVBD", "device": sim.device, "newton": package_version("newton"),
                        "warp": package_version("warp-lang"), "dt_s": frame_dt / o.substeps},
-            "pinned_vertices": int(len(pinned)),
+            "pinned_vertices": len(pinned),
             "settle_frames_internal": n_settle_steps, "blend_frames_internal": len(pre),
             "seconds": {"build": t_built - t_start, "settle": t_pre - t_built, "frames": t_end - t_pre},
             "seconds_per_output_frame": (t_end - t_pre) / T,
@@ -509,6 +520,7 @@ class SimDeformer(Deformer):
                           "edge_strain_mean": [round(float(s), 6) for s in mean_strain]},
             "retries": retries,
         }
+        self.scene = scene.report
         return out
 
 

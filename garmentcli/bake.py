@@ -18,6 +18,7 @@ from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
 from core.provenance import software_versions
 from core.quality import DEFAULT_BUDGET_MM
+from core.scene import SKIPS, parse_no_skip
 from formats.atomic import atomic_dir
 from garmentcli.common import (
     PIN_CHOICES,
@@ -34,9 +35,10 @@ log = logging.getLogger(__name__)
 
 
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
-                  iterations=None, model_path=None, pin=None, precision=None, push_out=False):
+                  iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=()):
     deformer = _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                 precision)
+    deformer.skips = parse_no_skip(no_skip)
     if push_out:
         if method == "sim":
             raise click.UsageError("--push-out applies to --method lbs or model (the simulator handles contact)")
@@ -117,6 +119,7 @@ class BakeSpec:
     precision: str | None = None
     push_out: bool = False
     quality: str = ""  # JSON of the --quality auto choice, recorded in summary.json
+    no_skip: tuple = ()
 
 
 # Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
@@ -129,7 +132,8 @@ def _context(spec: BakeSpec):
 
         _CONTEXT.clear()
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
-                                 spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out)
+                                 spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
+                                 spec.no_skip)
         garment = read_obj(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
@@ -198,6 +202,10 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--precision", type=click.Choice(["float32", "bfloat16"]), default=None,
               help="model: arithmetic of the network [default: float32].")
 @click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
+@click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
+              help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
+                   "on the garment, body faces out of its reach (sim), self-contact where distant parts never meet "
+                   "(sim). Every skip is reported in summary.json under 'scene'.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_bake", show_default=True,
               help="Output directory; one sub-directory per motion.")
 @body_option
@@ -228,7 +236,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
-         budget_mm=None, calibration_path=None, precision=None, push_out=False):
+         budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=()):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -246,7 +254,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                 raise click.UsageError(f"{name} applies to --quality auto only")
         method = method or "model"
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out)
+                                 precision, push_out, no_skip)
     elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
                                "--precision and --push-out")
@@ -280,13 +288,13 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if method != "model":
             model_path, precision = None, None
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out)
+                                 precision, push_out, no_skip)
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
                                                    "features", "reason", "candidates")})
         click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
-                    precision, push_out, choice)
+                    precision, push_out, choice, tuple(sorted(set(no_skip))))
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     if scheduler:  # the workers prepare their own copy (once per worker process)
         _bake_on_cluster(spec, motions, scheduler, retries)

@@ -44,8 +44,11 @@ def grid(nx: int = 6, ny: int = 6, size: float = 1.0):
     return v, f.astype(np.int64)
 
 
-def tiny_body(n_betas: int = 4, seed: int = 0):
+def tiny_body(n_betas: int = 4, seed: int = 0, weight_falloff_m: float = 0.05, min_weight: float = 0.0):
     """A small SMPL-format body (24 joints, SMPL kinematic tree): an ellipsoid 'torso' of 642 vertices.
+
+    weight_falloff_m: skinning weights fall off as exp(-distance / this); weights under min_weight are cut
+    to 0 (as real bodies' are, a few joints per vertex).
 
     Joints sit at SMPL-like rest positions (Y-up, metres); skinning weights are a
     softmax of inverse distance to the joints; shapedirs are smooth random fields;
@@ -63,8 +66,10 @@ def tiny_body(n_betas: int = 4, seed: int = 0):
         [-0.15, 0.42, 0], [0.2, 0.42, 0], [-0.2, 0.42, 0], [0.23, 0.42, 0], [-0.23, 0.42, 0], [0.24, 0.42, 0],
         [-0.24, 0.42, 0]])
     d = np.linalg.norm(v[:, None] - joints[None], axis=-1)
-    logits = -d / 0.05
+    logits = -d / weight_falloff_m
     w = np.exp(logits - logits.max(axis=1, keepdims=True))
+    w /= w.sum(axis=1, keepdims=True)
+    w[w < min_weight] = 0.0
     w /= w.sum(axis=1, keepdims=True)
     # J_regressor: each joint the normalised weighted mean of its closest vertices reproduces the joint.
     Jr = np.zeros((24, len(v)))

@@ -7,6 +7,7 @@ retry path re-runs frames with more substeps and gives up naming the frame.
 Warp compiles its kernels once (about a minute on CPU) into the shared cache.
 """
 
+import dataclasses
 import json
 import os
 from pathlib import Path
@@ -249,3 +250,27 @@ def test_sim_options_reject_an_unknown_pin_mode():
     assert PIN_CHOICES == PIN_MODES  # the CLI's copy (it starts without importing the simulator)
     with pytest.raises(InputError, match="pin"):
         SimOptions(pin="waist")
+
+
+def test_scene_skips_leave_the_simulation_unchanged_and_are_reported():
+    from core.scene import parse_no_skip
+    from tests.core.model_fixtures import tube
+
+    body = tiny_body()
+    v, f = tube(16, 6, radius=(0.3, 0.3), y=(-0.35, 0.05))
+    garment = Garment(v.astype(np.float32), f, name="tube")
+    _, _, motion = _shell_scene()
+    options = SimOptions(settle_s=0.05, pin="none")
+    d = SimDeformer(options=options)
+    skipped = d.deform(garment, body, motion)
+    faces = d.scene["body-faces"]
+    assert faces["skipped_work"] and 0 < faces["kept_faces"] < faces["body_faces"] == len(body.faces)
+    assert d.scene["self-contact"] == {"skipped_work": False, "overridden": False, "reason": "self-contact not requested"}
+    d.skips = parse_no_skip(["all"])
+    full = d.deform(garment, body, motion)
+    assert d.scene["body-faces"]["overridden"] and not d.scene["body-faces"]["skipped_work"]
+    assert np.abs(skipped - full).max() < 1e-4
+    # Self-contact asked for: the tube's sides are 60 cm apart and never meet, so contact is switched off.
+    d = SimDeformer(options=dataclasses.replace(options, self_contact=True))
+    d.deform(garment, body, motion)
+    assert d.scene["self-contact"]["skipped_work"] and d.scene["self-contact"]["pairs"] == 0

@@ -160,3 +160,18 @@ def test_bad_body_file(scene):
     np.savez(d / "broken_body.npz", v_template=np.zeros((10, 3)))
     r = run(["bake", scene["garment"], scene["motion"], "--body", d / "broken_body.npz", "--out", scene["out"]])
     assert_one_line_error(r, "broken_body.npz")
+
+
+def test_bake_reports_scene_skips_and_no_skip_overrides_them(scene):
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--no-obj"])
+    assert r.exit_code == 0, r.output
+    joints = json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())["scene"]["joints"]
+    assert not joints["overridden"] and joints["skipped_work"] == (joints["used"] < joints["joints"])
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--no-obj",
+             "--overwrite", "--no-skip", "joints"])
+    assert r.exit_code == 0, r.output
+    joints = json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())["scene"]["joints"]
+    assert joints["overridden"] and not joints["skipped_work"]
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
+             "--no-skip", "faces"])
+    assert_one_line_error(r, "--no-skip", "faces")

@@ -1,0 +1,215 @@
+"""Scene analysis: which work a (garment, body, motion) scene needs, so that methods leave the rest out.
+
+Each decision is cheap next to the work it saves, conservative (it keeps work whenever it cannot
+show the work is useless), reported in `summary.json` under "scene", and can be overridden
+(`bake --no-skip NAME`, or `all`):
+
+- ``joints``: joints that carry no skinning weight anywhere on the garment are left out of its
+  skinning sums (LBS: weights below `JOINT_WEIGHT_EPS` on every vertex, renormalised; the model:
+  joints without transferred prior weight, whose learned weights are exactly zero by construction).
+- ``body-faces``: the simulator's body collider keeps only the body faces that come within
+  `BODY_REACH_M` of the garment's LBS preview in some frame (the cloth deviates from LBS by far less
+  than that); the rest of the body (the head, the far arm...) is never queried.
+- ``self-contact``: cloth-cloth contact, when asked for, is switched off where no two garment points
+  more than 10 cm apart along the rest surface (paper Eq. 6) come within `SELF_REACH_M` of each
+  other in any frame of the LBS preview.
+- ``levels``: the pooling levels a garment's size and looseness call for (`suggested_levels`);
+  reported next to the levels of the model in use (a checkpoint's levels are fixed by its training:
+  pass `--model` with a checkpoint of the suggested levels, see `garment tradeoff`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from scipy.spatial import cKDTree
+
+from core.body import Body, skin_points
+from core.garment import Garment
+from core.motion import Motion
+
+#: Overridable skips (`bake --no-skip NAME`).
+SKIPS = ("joints", "body-faces", "self-contact")
+#: A joint whose LBS weight stays below this on every garment vertex is left out of its skinning.
+JOINT_WEIGHT_EPS = 1e-4
+#: Body faces further than this from the garment's LBS preview in every frame are left out of the collider.
+BODY_REACH_M = 0.15
+#: Self-contact is needed when geodesically distant garment points come this close in the LBS preview.
+SELF_REACH_M = 0.05
+#: Frames of the LBS preview examined (evenly spaced; the gap between them widens the reach).
+PREVIEW_FRAMES = 200
+
+
+@dataclass
+class SceneAnalysis:
+    """What one scene needs. `report` is JSON-ready (summary.json "scene")."""
+
+    skips: frozenset = frozenset(SKIPS)
+    report: dict = field(default_factory=dict)
+
+    def enabled(self, name: str) -> bool:
+        return name in self.skips
+
+    def record(self, name: str, applied: bool, **details) -> None:
+        self.report[name] = {"skipped_work": bool(applied and self.enabled(name)),
+                             "overridden": not self.enabled(name), **details}
+
+
+def parse_no_skip(names) -> frozenset:
+    """The skips left on after `--no-skip NAME ...` (`all` turns every skip off)."""
+    names = set(names or ())
+    if "all" in names:
+        return frozenset()
+    return frozenset(SKIPS) - names
+
+
+def active_joints(weights: np.ndarray, eps: float = JOINT_WEIGHT_EPS) -> np.ndarray:
+    """(J,) bool: joints whose weight exceeds `eps` on some vertex of (V, J) `weights`."""
+    return np.asarray(weights).max(axis=0) > eps
+
+
+def restrict_weights(weights: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """(V, J_active) weights of the active joints, each row renormalised to sum 1."""
+    w = np.asarray(weights)[:, active].astype(np.float64)
+    w /= np.maximum(w.sum(axis=1, keepdims=True), 1e-12)
+    return w.astype(np.float32)
+
+
+def preview_frames(n_frames: int, limit: int = PREVIEW_FRAMES) -> np.ndarray:
+    """Evenly spaced frame indices (at most `limit`, always the first and last)."""
+    return np.unique(np.linspace(0, n_frames - 1, min(n_frames, limit)).round().astype(np.int64))
+
+
+def lbs_preview(rest: np.ndarray, weights: np.ndarray, transforms: np.ndarray) -> np.ndarray:
+    """The garment by plain LBS: rest (V, 3) shaped rest positions; weights (V, J); transforms (T, J, 4, 4).
+
+    Returns (T, V, 3) float32.
+    """
+    with torch.no_grad():
+        return skin_points(torch.from_numpy(np.asarray(rest, np.float32)), torch.from_numpy(np.asarray(weights, np.float32)),
+                           torch.from_numpy(np.asarray(transforms, np.float32))).numpy()
+
+
+def interpolation_slack_per_point(points: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """(len(frames), N) metres: how far each point of (T, N, 3) `points` can be from its position at each
+    examined frame while on its way to a neighbouring examined frame (half its longest path over the gap
+    on either side; covers skipped frames and the simulator's interpolation within a frame)."""
+    T, N = points.shape[:2]
+    step = np.linalg.norm(np.diff(points, axis=0), axis=2) if T > 1 else np.zeros((0, N))
+    path = np.concatenate([np.zeros((1, N)), np.cumsum(step, axis=0)])  # (T, N) path length so far
+    gaps = path[frames[1:]] - path[frames[:-1]]  # (F-1, N)
+    gaps = np.concatenate([np.zeros((1, N)), gaps, np.zeros((1, N))])
+    return 0.5 * np.maximum(gaps[:-1], gaps[1:])
+
+
+def faces_in_reach(body_points: np.ndarray, body_faces: np.ndarray, garment_points: np.ndarray,
+                   reach=BODY_REACH_M) -> np.ndarray:
+    """Indices of the body faces within `reach` of the garment in some frame.
+
+    body_points: (T, Vb, 3); body_faces: (Fb, 3); garment_points: (T, V, 3), same frames, metres;
+    reach: metres, one for all, (T,) per frame or (T, Fb) per frame and face. A face counts when its centroid lies within
+    reach + its extent (the largest corner-to-centroid distance) of a garment point: conservative for
+    every point of the face.
+    """
+    keep = np.zeros(len(body_faces), dtype=bool)
+    reach = np.asarray(reach, dtype=np.float64)
+    reach = np.broadcast_to(reach[:, None] if reach.ndim == 1 else reach, (len(body_points), len(body_faces)))
+    for b, g, r in zip(body_points, garment_points, reach):
+        todo = np.flatnonzero(~keep)
+        if len(todo) == 0:
+            break
+        corners = b[body_faces[todo]]  # (F, 3, 3)
+        centroid = corners.mean(axis=1)
+        bound = r[todo] + np.linalg.norm(corners - centroid[:, None], axis=2).max(axis=1)
+        d, _ = cKDTree(g).query(centroid, distance_upper_bound=float(bound.max()))
+        keep[todo] = d <= bound
+    return np.flatnonzero(keep)
+
+
+def distant_parts_meet(garment: Garment, garment_points: np.ndarray, reach=SELF_REACH_M) -> dict:
+    """Whether two garment points > 10 cm apart along the rest surface come within `reach` in some frame.
+
+    garment_points: (T, V, 3) metres; reach: metres, one or (T,) per frame. Returns {"meet": bool,
+    "frame": the first such frame (index into garment_points) or None, "pairs": such pairs in it}.
+    """
+    from core.geodesic import SELF_COLLISION_GEODESIC_M, far_by_neighbourhood, geodesic_graph, geodesic_neighbourhood
+
+    near = None
+    reach = np.broadcast_to(np.asarray(reach, dtype=np.float64), len(garment_points))
+    for t, pts in enumerate(garment_points):
+        pairs = cKDTree(pts).query_pairs(float(reach[t]), output_type="ndarray")
+        if len(pairs) == 0:
+            continue
+        # Geodesic distance is at least the Euclidean one: pairs over 10 cm apart at rest are far for certain.
+        far = np.linalg.norm(garment.vertices[pairs[:, 0]] - garment.vertices[pairs[:, 1]], axis=1) \
+            > SELF_COLLISION_GEODESIC_M
+        if not far.any():
+            if near is None:  # built once, on the first frame that needs it
+                graph = geodesic_graph(garment.vertices, garment.faces)
+                near = geodesic_neighbourhood(garment.vertices, graph, SELF_COLLISION_GEODESIC_M, distances=False)
+            far = far_by_neighbourhood(near, pairs)
+        if far.any():
+            return {"meet": True, "frame": t, "pairs": int(far.sum())}
+    return {"meet": False, "frame": None, "pairs": 0}
+
+
+def suggested_levels(n_vertices: int, looseness_m: float) -> int:
+    """Pooling levels of the U-Net a garment calls for (paper: no gain beyond 2).
+
+    Coarse levels carry deformation over distances a tight garment (within 1 cm of the skin, where
+    skinning explains nearly all) or a small mesh does not have: under 300 vertices 0 levels, under
+    1,500 vertices or tight 1 level, else 2.
+    """
+    if n_vertices < 300:
+        return 0
+    if n_vertices < 1500 or looseness_m < 0.01:
+        return 1
+    return 2
+
+
+def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: np.ndarray, body_faces: np.ndarray,
+                       rest: np.ndarray, weights: np.ndarray, transforms: np.ndarray, self_contact: bool):
+    """The simulator's part: (collider face indices or None for all, self-contact on/off), recorded in `analysis`.
+
+    body_points: (T, Vb, 3) every simulated body frame; transforms: (T, J, 4, 4) the same frames;
+    rest: (V, 3) shaped garment; weights: (V, J) its LBS weights.
+    """
+    frames = preview_frames(len(body_points))
+    preview = lbs_preview(rest, weights, transforms[frames])
+    # Between examined frames (and within a frame, where the simulator interpolates the body) body and garment
+    # move on: widen each face's reach by its own slack and the garment's.
+    slack_v = interpolation_slack_per_point(body_points, frames)  # (F, Vb)
+    slack_g = interpolation_slack_per_point(preview, np.arange(len(frames))).max(axis=1)  # (F,)
+    faces = None
+    kept = faces_in_reach(body_points[frames], body_faces, preview,
+                          BODY_REACH_M + slack_g[:, None] + slack_v[:, body_faces].max(axis=2))
+    applied = len(kept) < len(body_faces)
+    analysis.record("body-faces", applied, reach_m=BODY_REACH_M, kept_faces=len(kept), body_faces=len(body_faces),
+                    frames_examined=len(frames))
+    if applied and analysis.enabled("body-faces"):
+        faces = kept
+    contact = self_contact
+    if self_contact:
+        # Cloth-cloth distances: every frame of the preview up to PREVIEW_FRAMES; with frames skipped, the reach
+        # widens by the garment's slack.
+        reach = SELF_REACH_M + (slack_g if len(frames) < len(body_points) else 0.0)
+        meet = distant_parts_meet(garment, preview, reach)
+        analysis.record("self-contact", not meet["meet"], reach_m=SELF_REACH_M,
+                        first_frame=None if meet["frame"] is None else int(frames[meet["frame"]]), pairs=meet["pairs"])
+        if not meet["meet"] and analysis.enabled("self-contact"):
+            contact = False
+    else:
+        analysis.record("self-contact", False, reason="self-contact not requested")
+    return faces, contact
+
+
+def scene_levels(garment: Garment, body: Body, motion: Motion) -> dict:
+    """The `levels` report: suggested levels and the looseness they follow."""
+    from core.geometry import TriangleMesh
+
+    verts, _ = body.shaped(motion.betas)
+    looseness = float(TriangleMesh(verts, body.faces).closest(garment.vertices, exact=False).distance.mean())
+    return {"suggested": suggested_levels(garment.n_vertices, looseness), "vertices": int(garment.n_vertices),
+            "looseness_m": looseness}
