@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -120,6 +121,7 @@ class BakeSpec:
     push_out: bool = False
     quality: str = ""  # JSON of the --quality auto choice, recorded in summary.json
     no_skip: tuple = ()
+    threads: int = 0  # torch threads of a --workers process (0: torch's default)
 
 
 # Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
@@ -131,6 +133,10 @@ def _context(spec: BakeSpec):
         from formats.obj import read_obj
 
         _CONTEXT.clear()
+        if spec.threads:
+            import torch
+
+            torch.set_num_threads(spec.threads)
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
                                  spec.no_skip)
@@ -231,12 +237,15 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--overwrite", is_flag=True, help="Replace existing output directories.")
 @click.option("--skip-existing", is_flag=True,
               help="Leave motions whose output directory exists and bake the others (resume a batch).")
-@scheduler_options("motion")
+@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Local processes baking motions side by side (each prepares the garment and loads the method "
+                   "once; the cores are shared out among them).")
+@scheduler_options("motion", note=" --workers is then ignored.")
 @input_errors_as_click
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
-         budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=()):
+         budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -296,10 +305,14 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))))
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
-    if scheduler:  # the workers prepare their own copy (once per worker process)
-        _bake_on_cluster(spec, motions, scheduler, retries)
-        return
+    t_start = time.perf_counter()
     total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
+    if scheduler or (workers > 1 and len(motions) > 1):  # the workers prepare their own copy (once per process)
+        if not scheduler:
+            spec = replace(spec, threads=max(1, (os.cpu_count() or 1) // min(workers, len(motions))))
+        _bake_in_workers(spec, motions, scheduler, retries, workers)
+        _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
+        return
     _CONTEXT.clear()
     _CONTEXT[spec] = (garment, body, deformer)
     with tqdm(total=total_frames, unit="frame", desc="bake", disable=None, leave=False) as bar:
@@ -315,6 +328,13 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         finally:
             _CONTEXT.clear()
             deformer.on_frames = None
+    _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
+
+
+def _echo_throughput(frames: int, motions: int, seconds: float) -> None:
+    if motions > 1:
+        click.echo(f"baked {frames} frames of {motions} motions in {seconds:.1f} s: {frames / max(seconds, 1e-9):.1f} "
+                   "frames/s (writing included)")
 
 
 def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm) -> dict:
@@ -351,25 +371,29 @@ def _bake_locally(spec: BakeSpec, motions, bar, ticked, method: str, fps: float)
             _echo_done(target, summary, method, fps)
 
 
-def _bake_on_cluster(spec: BakeSpec, motions, scheduler: str, retries: int) -> None:
-    """One Dask task per motion; outputs written by the workers; progress as motions finish."""
+def _bake_in_workers(spec: BakeSpec, motions, scheduler: str | None, retries: int, workers: int) -> None:
+    """One task per motion on a Dask cluster (`scheduler`) or in `workers` local processes; outputs written by
+    the workers; progress as motions finish."""
     from core.distributed import ItemsFailed, connect, run_items
 
     absolute = lambda p: str(Path(p).resolve()) if p else None  # noqa: E731 - workers run elsewhere
     spec = replace(spec, garment_path=absolute(spec.garment_path), body_path=absolute(spec.body_path),
                    material_path=absolute(spec.material_path), model_path=absolute(spec.model_path))
-    client = connect(scheduler)
+    client = connect(scheduler) if scheduler else None
     calls = [(spec, str(m), target.resolve(), prepared) for prepared, m, target in motions]  # m: a label only
     names = [target.name for _, _, target in motions]
     target_of = {target.name: target for _, _, target in motions}
     try:
         with tqdm(total=len(calls), unit="motion", desc="bake", disable=None, leave=False) as bar:
-            for name, summary in run_items(bake_task, calls, names, retries=retries, client=client):
+            for name, summary in run_items(bake_task, calls, names, retries=retries, client=client, workers=workers):
                 bar.update(1)
                 if summary is not None:
                     _echo_done(target_of[name], summary, spec.method, spec.fps)
     except ItemsFailed as exc:
         raise click.ClickException(f"bake: {exc}; rerun with --skip-existing to resume") from None
+    except FloatingPointError as exc:  # local workers raise the task's own error
+        raise click.ClickException(f"bake: {exc}") from None
     finally:
-        client.close()
+        if client is not None:
+            client.close()
 

@@ -175,3 +175,21 @@ def test_bake_reports_scene_skips_and_no_skip_overrides_them(scene):
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
              "--no-skip", "faces"])
     assert_one_line_error(r, "--no-skip", "faces")
+
+
+def test_bake_workers_equal_one_process_and_report_throughput(scene):
+    from formats.sequence import read_sequence
+
+    outs = {}
+    for n in (1, 2):
+        out = scene["out"] / f"w{n}"
+        r = run(["bake", scene["garment"], scene["motion"], scene["motion2"], "--body", scene["body"], "--out", out,
+                 "--workers", n, "--no-body"])
+        assert r.exit_code == 0, r.output
+        assert "frames/s" in r.output.splitlines()[-1] and "of 2 motions" in r.output
+        outs[n] = {d.name: read_sequence(d / "obj").points for d in sorted(out.iterdir())}
+    assert sorted(outs[1]) == sorted(outs[2]) == ["shell_jump", "shell_walk"]
+    for name in outs[1]:
+        np.testing.assert_allclose(outs[2][name], outs[1][name], atol=1e-6)
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--workers", 0])
+    assert_one_line_error(r, "--workers")
