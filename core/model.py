@@ -335,11 +335,20 @@ class GATv2(nn.Module):
         xl = self.conv.lin_l(x).view(B, n, H, C)
         xr = self.conv.lin_r(x).view(B, n, H, C)
         xj = xl[:, nbr]  # (B, n, K, H, C)
-        e = F.leaky_relu(xj + xr[:, :, None], self.conv.negative_slope)
-        score = (e * self.conv.att.view(1, 1, 1, H, C)).sum(-1)  # (B, n, K, H)
+        K = xj.shape[2]
+        e = xj + xr[:, :, None]
+        # In place when no gradient is taken (inference): one (B, n, K, H, C) temporary fewer.
+        e = F.leaky_relu(e, self.conv.negative_slope, inplace=not torch.is_grad_enabled())
+        if H == 1:  # matrix products instead of broadcast-and-sum: no permuted copies
+            score = (e.view(B, n, K, C) @ self.conv.att.view(C, 1)).view(B, n, K, 1)
+        else:
+            score = (e * self.conv.att.view(1, 1, 1, H, C)).sum(-1)  # (B, n, K, H)
         score = score.masked_fill(~mask[None, :, :, None], float("-inf"))
         alpha = torch.softmax(score, dim=2)
-        out = torch.einsum("bnkh,bnkhc->bnhc", alpha, xj).reshape(B, n, H * C)
+        if H == 1:
+            out = (alpha.view(B * n, 1, K) @ xj.view(B * n, K, C)).view(B, n, C)
+        else:
+            out = torch.einsum("bnkh,bnkhc->bnhc", alpha, xj).reshape(B, n, H * C)
         return out + self.conv.bias
 
     def reference(self, x: torch.Tensor, edge_index: torch.Tensor) -> torch.Tensor:

@@ -80,7 +80,7 @@ class ModelDeformer(Deformer):
         scene.report["levels"] = {**levels, "model": self.model.config.levels,
                                   "matches": levels["suggested"] == self.model.config.levels}
         t0 = time.perf_counter()
-        with torch.no_grad(), torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.precision == "bfloat16"):
+        with torch.inference_mode(), torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.precision == "bfloat16"):
             fused = self.model.encode(g, body_distances(body, betas))
             t1 = time.perf_counter()
             for s in range(0, motion.n_frames, self.batch_frames):

@@ -49,6 +49,8 @@ def test_gatv2_fast_path_matches_pyg():
         ei = torch.as_tensor(np.r_[edges, edges[:, ::-1]].T.copy())
         ref = torch.stack([layer.reference(x[b], ei) for b in range(3)])
         assert torch.allclose(layer(x, nbr, mask), ref, atol=1e-5)
+        with torch.no_grad():  # the inference path (in-place activation)
+            assert torch.allclose(layer(x, nbr, mask), ref, atol=1e-5)
 
 
 def test_neighbour_table_naive():
