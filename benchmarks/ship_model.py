@@ -20,6 +20,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from core.body import SMPL_JOINT_NAMES  # noqa: E402
 from core.model_deform import DEFAULT_MODEL  # noqa: E402
 from formats.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
 from formats.dataset import MANIFEST, read_manifest  # noqa: E402
@@ -40,6 +41,20 @@ def dataset_card(data: Path) -> dict:
             "splits": {k: {**v, "garments": sorted(v["garments"]), "motions": sorted(v["motions"])}
                        for k, v in sorted(per_split.items())},
             "totals": manifest.get("totals", {})}
+
+
+def training_coverage(data: Path) -> list[float]:
+    """`core.model_deform.joint_coverage` of the dataset's training and validation garments on the default body."""
+    from core.body import default_body
+    from core.model_data import PRIOR_SMOOTH_ITERATIONS
+    from core.model_deform import joint_coverage
+    from core.skinning import bind_garment
+    from formats.obj import read_obj
+
+    body = default_body()
+    names = sorted({it["garment"] for it in read_manifest(data)["items"] if it["split"] in ("train", "val")})
+    return joint_coverage([bind_garment(read_obj(data / "garments" / f"{n}.obj"), body, PRIOR_SMOOTH_ITERATIONS,
+                                        0.5).weights.clip(min=0) for n in names])
 
 
 def main(argv=None) -> None:
@@ -69,7 +84,10 @@ def main(argv=None) -> None:
         "training": {"config": ck["config"], "run": run, "meta": ck["meta"]},
         "metrics": metrics,
     }
-    save_checkpoint(DEFAULT_MODEL, ck["config"], ck["model"], meta={**ck["meta"], "card": DEFAULT_MODEL.with_suffix(".json").name})
+    meta = {**ck["meta"], "card": DEFAULT_MODEL.with_suffix(".json").name}
+    meta.setdefault("joint_coverage", training_coverage(args.data))  # models trained before it was recorded
+    card["training_joint_coverage"] = dict(zip(SMPL_JOINT_NAMES, meta["joint_coverage"]))
+    save_checkpoint(DEFAULT_MODEL, ck["config"], ck["model"], meta=meta)
     DEFAULT_MODEL.with_suffix(".json").write_text(json.dumps(card, indent=1, default=str) + "\n")
     print(f"{DEFAULT_MODEL}: {DEFAULT_MODEL.stat().st_size / 1e6:.2f} MB; card {DEFAULT_MODEL.with_suffix('.json')}")
 

@@ -122,6 +122,7 @@ class BakeSpec:
     quality: str = ""  # JSON of the --quality auto choice, recorded in summary.json
     no_skip: tuple = ()
     threads: int = 0  # torch threads of a --workers process (0: torch's default)
+    fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
 
 
 # Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
@@ -169,6 +170,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
     })
     if spec.quality:
         result.summary["quality"] = json.loads(spec.quality)
+    if spec.fallback:
+        result.summary["method_fallback"] = json.loads(spec.fallback)
     if spec.push_out:
         result.summary["push_out"] = True
     with atomic_dir(target, spec.overwrite) as tmp:
@@ -261,6 +264,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         for name, v in (("--budget-mm", budget_mm), ("--calibration", calibration_path)):
             if v is not None:
                 raise click.UsageError(f"{name} applies to --quality auto only")
+        explicit = method is not None
         method = method or "model"
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                  precision, push_out, no_skip)
@@ -286,7 +290,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
     motions = [(prepare_motion(m, fps, frames, settle_frames), m, target) for m, target in targets]
-    choice = ""
+    choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,
                                DEFAULT_BUDGET_MM if budget_mm is None else budget_mm)
@@ -301,9 +305,16 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
                                                    "features", "reason", "candidates")})
         click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
+        explicit = False
+    if method == "model":
+        deformer.prepare(garment, body, source=garment_path)
+        fallback = _training_range_guard(deformer, garment, body, garment_path, explicit)
+        if fallback:
+            method, model_path, precision = "lbs", None, None
+            deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
-                    precision, push_out, choice, tuple(sorted(set(no_skip))))
+                    precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     t_start = time.perf_counter()
     total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
@@ -335,6 +346,23 @@ def _echo_throughput(frames: int, motions: int, seconds: float) -> None:
     if motions > 1:
         click.echo(f"baked {frames} frames of {motions} motions in {seconds:.1f} s: {frames / max(seconds, 1e-9):.1f} "
                    "frames/s (writing included)")
+
+
+def _training_range_guard(deformer, garment, body, garment_path, explicit: bool) -> str:
+    """Warn when the garment lies outside the model's training garments; returns the JSON of a fall-back to
+    lbs when the model was not asked for by name (--method model), else ""."""
+    inner = getattr(deformer, "inner", deformer)  # under --push-out
+    rng = inner.training_range(garment, body)
+    if rng is None or rng["within"]:
+        return ""
+    joints = ", ".join(rng["uncovered_joints"][:4])
+    what = (f"garment '{garment_path}' puts {rng['uncovered_share']:.0%} of its skinning weight on joints no training "
+            f"garment of model '{inner.model_name}' covered ({joints})")
+    if explicit:
+        click.echo(f"warning: {what}: its result may be worse than lbs", err=True)
+        return ""
+    click.echo(f"{what}: baking with lbs instead (--method model uses the model anyway)", err=True)
+    return json.dumps({"from": "model", "to": "lbs", "model": inner.model_name, **rng})
 
 
 def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm) -> dict:

@@ -116,6 +116,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     import os
 
     from core.model_data import ModelDataset
+    from core.model_deform import joint_coverage
     from formats.checkpoint import load_checkpoint, save_checkpoint
 
     if not Path(data_dir).is_dir():
@@ -188,7 +189,9 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     meta = {"train_config": dataclasses.asdict(train_cfg), "data": str(data_dir),
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
-            "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name}
+            "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name,
+            # What the model has seen: per joint, the largest share of a training garment's weight on it.
+            "joint_coverage": joint_coverage([g.inputs.prior_weights.numpy() for g in data.garments.values()])}
     if not main:
         return
     save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)

@@ -28,15 +28,27 @@ def _bake(garment, out, *extra):
     assert r.exit_code == 0, r.output
     d = out / f"{garment.stem}_run"
     summary = json.loads((d / "summary.json").read_text())
-    return read_usd(d / f"{garment.stem}_run.usd").tracks["garment"].points, summary
+    return read_usd(d / f"{garment.stem}_run.usd").tracks["garment"].points, summary, r.output
 
 
 @pytest.mark.parametrize("garment", EXAMPLES, ids=lambda p: p.stem)
-def test_default_bake_runs_the_shipped_model_on_every_example_garment(garment, tmp_path):
+def test_model_on_every_example_garment_and_by_default_within_its_training_range(garment, tmp_path):
     assert len(EXAMPLES) == 5
-    model, summary = _bake(garment, tmp_path / "model")
+    # The shipped model was trained on lower-body garments: the arms and shoulders of these are new to it.
+    outside = garment.stem in ("tshirt", "jumpsuit")
+    default, summary, out = _bake(garment, tmp_path / "default")
+    lbs, _, _ = _bake(garment, tmp_path / "lbs", "--method", "lbs")
+    if outside:
+        assert summary["method"] == "lbs" and summary["method_fallback"]["to"] == "lbs"
+        assert summary["method_fallback"]["uncovered_share"] > 0.05 and "baking with lbs instead" in out
+        np.testing.assert_allclose(default, lbs, atol=1e-6)
+        model, summary, out = _bake(garment, tmp_path / "model", "--method", "model")
+        assert "warning:" in out and "worse than lbs" in out
+    else:
+        model = default
+        assert "method_fallback" not in summary
     assert summary["method"] == "model" and Path(summary["deformer"]["model"]) == DEFAULT_MODEL
-    lbs, _ = _bake(garment, tmp_path / "lbs", "--method", "lbs")
+    assert summary["deformer"]["training_range"]["within"] == (not outside)
     assert model.shape == lbs.shape and np.isfinite(model).all()
     gap = np.linalg.norm(model - lbs, axis=-1)
     extent = float(np.ptp(lbs[0], axis=0).max())
@@ -44,6 +56,17 @@ def test_default_bake_runs_the_shipped_model_on_every_example_garment(garment, t
     # bounded: on average within a tenth of the garment's size of the LBS garment, no vertex further than half.
     assert 1e-3 < gap.mean() < 0.1 * extent, (gap.mean(), extent)
     assert gap.max() < 0.5 * extent, (gap.max(), extent)
+
+
+def test_training_range_shares():
+    from core.model_deform import training_range
+
+    w = np.zeros((4, 3))
+    w[:, 0] = 1.0
+    w[3] = [0.0, 0.2, 0.8]  # one vertex of four mostly on joint 2
+    res = training_range(w, coverage=[0.5, 0.3, 0.0], joint_names=["a", "b", "c"])
+    assert np.isclose(res["uncovered_share"], 0.2) and res["uncovered_joints"] == ["c"] and not res["within"]
+    assert training_range(w, coverage=[0.5, 0.3, 0.02])["within"]
 
 
 def test_model_option_needs_method_model(tmp_path):

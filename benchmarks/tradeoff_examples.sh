@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# The tradeoff table and Pareto plot of every example garment on a held-out motion (issue 10).
+#
+#   bash benchmarks/tradeoff_examples.sh [MOTION] [FRAMES]
+#
+# MOTION: a motion file, default the held-out walk_brisk of the motion library (written to
+# data/heldout/ by this script); FRAMES: source frames (60 fps source: 0:60 is one second at 30 fps).
+# Models: the shipped one, and the 0/1/2-level variants of benchmarks/train_variants.py (phase 1,
+# same steps) when data/models has them. One torch thread, so each row's time does not depend on
+# what else the machine runs. Results: benchmarks/results/tradeoff/<garment>_<motion>/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MOTION=${1:-data/heldout/walk_brisk.npz}
+FRAMES=${2:-0:60}
+if [ ! -f "$MOTION" ]; then
+    mkdir -p "$(dirname "$MOTION")"
+    python -c "import sys; from core.motiongen import MOTION_LIBRARY; from formats.motion import save_motion; \
+save_motion(sys.argv[1], MOTION_LIBRARY['walk_brisk'](fps=60.0))" "$MOTION"
+fi
+MODELS=(--model shipped=core/assets/default_model.pt)
+for L in 0 1 2; do
+    f=data/models/pool_structure_L${L}_p1.pt
+    [ -f "$f" ] && MODELS+=(--model "L${L}-phase1=$f")
+done
+export OMP_NUM_THREADS=1
+for g in examples/*.obj; do
+    garment tradeoff "$g" "$MOTION" --frames "$FRAMES" "${MODELS[@]}" --repeats 2 \
+        --out benchmarks/results/tradeoff --overwrite
+done
