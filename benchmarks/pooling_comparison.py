@@ -109,11 +109,12 @@ def run(variants: dict, args, table: Path) -> None:
     from formats.obj import read_obj
 
     body = default_body()
-    methods, models = {}, {}
+    methods, models, steps = {}, {}, {}
     for name, overrides in variants.items():
         path = train(name, overrides, args)
         methods[name] = load_model_deformer(path)
-        models[name] = load_model(path)[0]
+        models[name], ck = load_model(path)
+        steps[name] = ck["meta"].get("steps")
     rows = evaluate(args.data, methods, args.self_every, args.max_items)
     summary = summarise(rows, list(methods))
     manifest = read_manifest(args.data)
@@ -136,11 +137,12 @@ def run(variants: dict, args, table: Path) -> None:
     for group, method, n, v in summary:
         lines.append(f"| {group} | {method} | {n} | " + " | ".join(f"{v[k]:.3f}" if k in v else "" for k in COLUMNS)
                      + " |")
-    lines += ["", "Connected components per level (level 0 = the garment):", "",
-              "| variant | " + " | ".join(test_garments) + " |", "|---|" + "---|" * len(test_garments)]
+    lines += ["", "Training steps reached (a variant stopped by its time limit has fewer) and connected components "
+              "per level (level 0 = the garment):", "",
+              "| variant | steps | " + " | ".join(test_garments) + " |", "|---|---:|" + "---|" * len(test_garments)]
     for name in models:
-        lines.append(f"| {name} | " + " | ".join(" / ".join(map(str, components[(name, g)])) for g in test_garments)
-                     + " |")
+        lines.append(f"| {name} | {steps[name]} | "
+                     + " | ".join(" / ".join(map(str, components[(name, g)])) for g in test_garments) + " |")
     table.parent.mkdir(parents=True, exist_ok=True)
     table.write_text("\n".join(lines) + "\n")
     print(f"wrote {table}")
