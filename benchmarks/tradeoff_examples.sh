@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The tradeoff table and Pareto plot of every example garment on a held-out motion (issue 10).
 #
-#   bash benchmarks/tradeoff_examples.sh [MOTION] [FRAMES]
+#   bash benchmarks/tradeoff_examples.sh [MOTION] [FRAMES] [GARMENT.obj ...]
 #
 # MOTION: a motion file, default the held-out walk_brisk of the motion library (written to
 # data/heldout/ by this script); FRAMES: source frames (60 fps source: 0:60 is one second at 30 fps).
@@ -12,6 +12,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 MOTION=${1:-data/heldout/walk_brisk.npz}
 FRAMES=${2:-0:60}
+shift $(( $# > 2 ? 2 : $# ))
+GARMENTS=("$@")
+[ ${#GARMENTS[@]} -gt 0 ] || GARMENTS=(examples/*.obj)
 if [ ! -f "$MOTION" ]; then
     mkdir -p "$(dirname "$MOTION")"
     python -c "import sys; from core.motiongen import MOTION_LIBRARY; from formats.motion import save_motion; \
@@ -23,7 +26,7 @@ for L in 0 1 2; do
     [ -f "$f" ] && MODELS+=(--model "L${L}-phase1=$f")
 done
 export OMP_NUM_THREADS=1
-for g in examples/*.obj; do
+for g in "${GARMENTS[@]}"; do
     garment tradeoff "$g" "$MOTION" --frames "$FRAMES" "${MODELS[@]}" --repeats 2 \
         --out benchmarks/results/tradeoff --overwrite
 done

@@ -96,11 +96,10 @@ def interpolation_slack_per_point(points: np.ndarray, frames: np.ndarray) -> np.
     """(len(frames), N) metres: how far each point of (T, N, 3) `points` can be from its position at each
     examined frame while on its way to a neighbouring examined frame (half its longest path over the gap
     on either side; covers skipped frames and the simulator's interpolation within a frame)."""
-    T, N = points.shape[:2]
-    step = np.linalg.norm(np.diff(points, axis=0), axis=2) if T > 1 else np.zeros((0, N))
-    path = np.concatenate([np.zeros((1, N)), np.cumsum(step, axis=0)])  # (T, N) path length so far
-    gaps = path[frames[1:]] - path[frames[:-1]]  # (F-1, N)
-    gaps = np.concatenate([np.zeros((1, N)), gaps, np.zeros((1, N))])
+    N = points.shape[1]
+    gaps = np.zeros((len(frames) + 1, N), dtype=np.float32)  # path length over each gap, zero beyond the ends
+    for i, (a, b) in enumerate(zip(frames[:-1], frames[1:])):  # gap by gap: memory of one gap's frames only
+        gaps[i + 1] = np.linalg.norm(np.diff(points[a:b + 1], axis=0), axis=2).sum(axis=0)
     return 0.5 * np.maximum(gaps[:-1], gaps[1:])
 
 
