@@ -87,9 +87,15 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     from formats.cache import default_cache_dir
 
     rows = configurations(models)
-    results = []
+    results, failed = [], []
     for config in tqdm(rows, desc="tradeoff", unit="config", disable=None):
-        results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
+        try:
+            results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
+        except FloatingPointError as exc:  # an unstable configuration (e.g. too few substeps) is a result too
+            if config.reference:
+                raise click.ClickException(f"tradeoff: the reference configuration '{config.name}' failed: {exc}")
+            click.echo(f"{config.name}: failed ({exc})", err=True)
+            failed.append((config, str(exc)))
     compare(results, garment, body, motion)
     front = pareto_front([(m.seconds_per_frame, m.metrics["e_verts"]) for m in results])
     table = []
@@ -97,7 +103,10 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         table.append({"config": m.config.name, "method": m.config.method, "seconds_per_frame": m.seconds_per_frame,
                       "frames_per_second": 1.0 / m.seconds_per_frame, "seconds_prepare": m.seconds_prepare,
                       "peak_memory_mb": m.peak_memory_mb, **m.metrics, "pareto": on,
-                      "reference": m.config.reference, "runs": m.runs})
+                      "reference": m.config.reference, "runs": m.runs, "failed": ""})
+    for config, reason in failed:
+        table.append({"config": config.name, "method": config.method, "pareto": False, "reference": False, "runs": 0,
+                      "failed": reason})
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     try:
@@ -117,7 +126,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         cal.save(calibration_path)
         click.echo(f"{calibration_path}: added the scene (looseness {features['looseness_m'] * 100:.1f} cm, "
                    f"speed {features['speed_m_s']:.2f} m/s)")
-    best = min((r for r in table if r["method"] == "model"), key=lambda r: r["e_verts"], default=None)
+    best = min((r for r in table if r["method"] == "model" and not r["failed"]), key=lambda r: r["e_verts"], default=None)
     lbs = next(r for r in table if r["method"] == "lbs")
     click.echo(f"{target}: {len(table)} configurations on {motion.n_frames} frames; lbs {lbs['e_verts']:.1f} mm at "
                f"{lbs['seconds_per_frame'] * 1e3:.2f} ms/frame"
@@ -130,13 +139,14 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
     from formats.report import markdown_table
 
     with open(directory / "tradeoff.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=[*COLUMNS, "reference", "runs"])
+        w = csv.DictWriter(fh, fieldnames=[*COLUMNS, "reference", "runs", "failed"])
         w.writeheader()
         w.writerows(table)
     (directory / "tradeoff.json").write_text(json.dumps(
         {"garment": str(garment_path), "motion": str(motion_path), "frames": motion.n_frames, "fps": motion.fps,
          "vertices": garment.n_vertices, "rows": table}, indent=1))
     ref = next(r["config"] for r in table if r["reference"])
+    done = [r for r in table if not r["failed"]]
     md = [f"# Speed against accuracy: `{Path(garment_path).name}` on `{Path(motion_path).name}`", "",
           f"{motion.n_frames} frames at {motion.fps:g} fps, {garment.n_vertices} garment vertices. Errors against "
           f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
@@ -146,8 +156,9 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
           markdown_table(["config", "s/frame", "fps", "prepare s", "peak MB", *METRIC_COLUMNS, "Pareto"],
                          [[r["config"], r["seconds_per_frame"], r["frames_per_second"], r["seconds_prepare"],
                            r["peak_memory_mb"], *[r[k] for k in METRIC_COLUMNS], "yes" if r["pareto"] else ""]
-                          for r in table])]
+                          for r in done])]
+    md += [f"\n`{r['config']}` failed: {r['failed']}" for r in table if r["failed"]]
     (directory / "tradeoff.md").write_text("\n".join(md))
-    plot_pareto([r["config"] for r in table], [r["seconds_per_frame"] for r in table],
-                [r["e_verts"] for r in table], [r["pareto"] for r in table], directory / "tradeoff.png",
+    plot_pareto([r["config"] for r in done], [r["seconds_per_frame"] for r in done],
+                [r["e_verts"] for r in done], [r["pareto"] for r in done], directory / "tradeoff.png",
                 title=f"{Path(garment_path).stem} on {Path(motion_path).stem}: error against time per frame")

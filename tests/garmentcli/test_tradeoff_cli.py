@@ -74,3 +74,40 @@ def test_tradeoff_bad_options(scene, extra, needle):
 def test_tradeoff_missing_garment(scene):
     r = invoke(["tradeoff", scene["dir"] / "gone.obj", scene["motion"], "--out", scene["out"]])
     assert r.exit_code != 0 and "gone.obj" in r.output and not scene["out"].exists()
+
+
+def _fake_measure(fail):
+    """A stand-in for core.tradeoff.measure: LBS points for every row (shifted 1 cm but for the reference);
+    rows for which `fail(config)` holds raise the simulator's error."""
+    from core.deform import LBSDeformer
+    from core.sim import SimulationError
+    from core.tradeoff import Measurement
+
+    def measure(config, garment, body, motion, repeats=3, cache_dir=None):
+        if fail(config):
+            raise SimulationError(f"sim: frame 3 of motion '{motion.name}' failed after 3 tries")
+        pts = LBSDeformer().deform(garment, body, motion) + (0.0 if config.reference else 0.01)
+        return Measurement(config, pts, 1.0 if config.method == "sim" else 0.01, 0.0, 0.0, 1)
+
+    return measure
+
+
+def test_a_failing_configuration_is_a_row_that_says_so(scene, monkeypatch):
+    import garmentcli.tradeoff
+
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: c.name == "sim 5 substeps"))
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4",
+                "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
+    assert "sim 5 substeps: failed (sim: frame 3" in r.output
+    d = scene["out"] / "shell_walk"
+    rows = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
+    assert rows["sim 5 substeps"]["failed"].startswith("sim: frame 3") and rows["sim 5 substeps"]["e_verts"] == ""
+    assert rows["lbs"]["failed"] == "" and np.isclose(float(rows["lbs"]["e_verts"]), 10 * np.sqrt(3), atol=0.01)
+    assert "`sim 5 substeps` failed: sim: frame 3" in (d / "tradeoff.md").read_text()
+    # The reference failing leaves nothing to compare with: one clear line, nothing written.
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: c.reference))
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4",
+                "--out", scene["out"] / "second"])
+    assert r.exit_code != 0 and "reference configuration 'sim 10 substeps +self-contact' failed" in r.output
+    assert "Traceback" not in r.output and not (scene["out"] / "second").exists()
