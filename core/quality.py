@@ -37,13 +37,19 @@ K_NEAREST = 4
 MIN_LOOSENESS_M, MIN_SPEED_M_S = 0.002, 0.05
 
 
+def looseness(garment: Garment, body: Body, betas=None) -> float:
+    """Mean distance (metres) of the garment's rest vertices to the rest body shaped by `betas`."""
+    from core.geometry import TriangleMesh
+
+    verts, _ = body.shaped(betas)
+    return float(TriangleMesh(verts, body.faces).closest(garment.vertices, exact=False).distance.mean())
+
+
 def scene_features(garment: Garment, body: Body, motion: Motion) -> dict:
     """looseness_m: mean distance of the garment's rest vertices to the rest body (shaped by the motion's betas);
     speed_m_s: 95th percentile over frames and joints of joint speed; vertices; frames."""
-    from core.geometry import TriangleMesh
-
-    verts, joints_rest = body.shaped(motion.betas)
-    looseness = float(TriangleMesh(verts, body.faces).closest(garment.vertices, exact=False).distance.mean())
+    _, joints_rest = body.shaped(motion.betas)
+    loose = looseness(garment, body, motion.betas)
     A = body.skinning_transforms(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
     joints = np.einsum("tjrc,jc->tjr", A[:, :, :3, :3], joints_rest) + A[:, :, :3, 3]
     if len(joints) > 1:
@@ -51,7 +57,7 @@ def scene_features(garment: Garment, body: Body, motion: Motion) -> dict:
         speed95 = float(np.percentile(speed, 95))
     else:
         speed95 = 0.0
-    return {"looseness_m": looseness, "speed_m_s": speed95, "vertices": int(garment.n_vertices),
+    return {"looseness_m": loose, "speed_m_s": speed95, "vertices": int(garment.n_vertices),
             "frames": int(motion.n_frames)}
 
 

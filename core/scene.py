@@ -206,9 +206,8 @@ def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: n
 
 def scene_levels(garment: Garment, body: Body, motion: Motion) -> dict:
     """The `levels` report: suggested levels and the looseness they follow."""
-    from core.geometry import TriangleMesh
+    from core.quality import looseness
 
-    verts, _ = body.shaped(motion.betas)
-    looseness = float(TriangleMesh(verts, body.faces).closest(garment.vertices, exact=False).distance.mean())
-    return {"suggested": suggested_levels(garment.n_vertices, looseness), "vertices": int(garment.n_vertices),
-            "looseness_m": looseness}
+    loose = looseness(garment, body, motion.betas)
+    return {"suggested": suggested_levels(garment.n_vertices, loose), "vertices": int(garment.n_vertices),
+            "looseness_m": loose}
