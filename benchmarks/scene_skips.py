@@ -37,15 +37,22 @@ from formats.obj import read_obj  # noqa: E402
 from formats.report import markdown_table  # noqa: E402
 
 
-def timed(deformer, garment, body, motion, skips, repeats):
-    """(median seconds per frame, output) of `deformer` with `skips` on."""
-    deformer.skips = skips
-    times, out = [], None
+def timed_ab(deformer, garment, body, motion, repeats):
+    """Median seconds per frame and output of `deformer` with every skip on and with none, runs alternating
+    (on, off, on, off, ...) so that a change in the machine's load falls on both alike."""
+    times = {True: [], False: []}
+    out = {}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = deformer.deform(garment, body, motion)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)) / motion.n_frames, out
+        for on in (True, False):
+            deformer.skips = frozenset(SKIPS) if on else parse_no_skip(["all"])
+            t0 = time.perf_counter()
+            out[on] = deformer.deform(garment, body, motion)
+            times[on].append(time.perf_counter() - t0)
+            if on:
+                scene = deformer.scene
+    deformer.scene = scene
+    return (float(np.median(times[True])) / motion.n_frames, out[True],
+            float(np.median(times[False])) / motion.n_frames, out[False])
 
 
 def main(argv=None) -> None:
@@ -73,25 +80,24 @@ def main(argv=None) -> None:
         garment = read_obj(path)
         lbs = LBSDeformer()
         lbs.prepare(garment, body)
-        t_on, a = timed(lbs, garment, body, long, on, args.repeats)
+        lbs.deform(garment, body, long)  # warm-up
+        t_on, a, t_off, b = timed_ab(lbs, garment, body, long, args.repeats)
         used = lbs.scene["joints"]["used"]
-        t_off, b = timed(lbs, garment, body, long, off, args.repeats)
         model.prepare(garment, body)
-        m_on, c = timed(model, garment, body, walk, on, 2)
+        model.deform(garment, body, walk)  # warm-up
+        m_on, c, m_off, d = timed_ab(model, garment, body, walk, args.repeats)
         m_used = model.scene["joints"]["used"]
-        m_off, d = timed(model, garment, body, walk, off, 2)
         joint_rows.append([path.stem, garment.n_vertices, f"{used} / {m_used}", f"{t_on * 1e3:.3f}",
                            f"{t_off * 1e3:.3f}", f"{t_off / t_on:.2f}x", f"{np.abs(a - b).max() * 1e3:.4f}",
                            f"{m_on * 1e3:.1f}", f"{m_off * 1e3:.1f}", f"{m_off / m_on:.2f}x",
                            f"{np.abs(c - d).max() * 1e3:.4f}"])
         sim = SimDeformer(options=SimOptions())
         sim.prepare(garment, body)
-        s_on, e = timed(sim, garment, body, short, on, 1)
+        s_on, e, s_off, f = timed_ab(sim, garment, body, short, 1)
         kept = sim.scene["body-faces"]["kept_faces"]
-        s_off, f = timed(sim, garment, body, short, off, 1)
-        # Output-frame time from the simulator's own report (settling excluded) of the last run and this one.
         face_rows.append([path.stem, garment.n_vertices, f"{kept:,} / {len(body.faces):,}", f"{s_on:.2f}",
-                          f"{s_off:.2f}", f"{s_off / s_on:.2f}x", f"{np.abs(e - f).max() * 1e3:.2f}"])
+                          f"{s_off:.2f}", f"{s_off / s_on:.2f}x", f"{np.abs(e - f).max() * 1e3:.2f}",
+                          f"{np.linalg.norm(e - f, axis=-1).mean() * 1e3:.2f}"])
         print(path.stem, joint_rows[-1], face_rows[-1], flush=True)
     contact_rows = []
     for mpath in sorted((ROOT / "examples").glob("*.npz")):
@@ -117,14 +123,15 @@ def main(argv=None) -> None:
         "Skip on vs off in the same run (`bake --no-skip all` is off).\n\n"
         "## joints (LBS, and the shipped model)\n\n"
         f"LBS on examples/walk.npz repeated to {long.n_frames} frames (median of {args.repeats}); the model on "
-        f"the {walk.n_frames}-frame walk. Joints used: LBS / model, of {body.n_joints}.\n\n"
+        f"the {walk.n_frames}-frame walk; skip on and off alternate run by run. Joints used: LBS / model, of "
+        f"{body.n_joints}.\n\n"
         + markdown_table(["garment", "vertices", "joints used", "LBS ms/frame skip", "LBS ms/frame all",
                           "LBS saving", "LBS max diff mm", "model ms/frame skip", "model ms/frame all",
                           "model saving", "model max diff mm"], joint_rows)
         + f"\n## body-faces (sim)\n\nThe simulator (10 substeps, no self-contact) on the first {args.frames} frames "
           "of the walk, seconds per output frame including settling, one run each.\n\n"
         + markdown_table(["garment", "vertices", "collider faces", "s/frame skip", "s/frame whole body", "saving",
-                          "max diff mm"], face_rows)
+                          "max diff mm", "mean diff mm"], face_rows)
         + "\n## self-contact (sim --self-contact)\n\nThe decision per garment and motion (keep: distant parts of "
           "the garment come within 5 cm in the LBS preview at that frame) and the analysis time.\n\n"
         + markdown_table(["motion", "frames", *[p.stem for p in paths]], contact_rows)
