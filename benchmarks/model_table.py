@@ -55,8 +55,17 @@ class Row:
     values: dict
 
 
-def test_items(manifest: dict) -> list[dict]:
-    """The test-split items of a dataset manifest, each with its evaluation group."""
+#: Group of every item of a --held-out-data dataset: garments of the trained families no model saw.
+IN_RANGE_GROUP = "held-out garments in range"
+
+
+def test_items(manifest: dict, group: str | None = None) -> list[dict]:
+    """The test-split items of a dataset manifest, each with its evaluation group.
+
+    With `group`, every item of the manifest, all in that group (a dataset made only for evaluation).
+    """
+    if group is not None:
+        return [{**it, "group": group} for it in manifest["items"]]
     held = set(manifest["splits"]["held_out_garments"])
     out = []
     for it in manifest["items"]:
@@ -65,14 +74,15 @@ def test_items(manifest: dict) -> list[dict]:
     return out
 
 
-def evaluate(data: Path, methods: dict, self_every: int = 6, max_items: int | None = None) -> list[Row]:
+def evaluate(data: Path, methods: dict, self_every: int = 6, max_items: int | None = None,
+             group: str | None = None) -> list[Row]:
     manifest = read_manifest(data)
     if manifest is None:
         raise SystemExit(f"{data}: no manifest.json (expected a `garment dataset` directory)")
     body = default_body()
     inside = frames_inside(lambda p, v, f: points_inside_mesh(p, v, f, depth=PENETRATION_DEPTH_M))
     rows = []
-    items = [it for it in test_items(manifest) if sequence_path(data, it["id"]).exists()][:max_items]
+    items = [it for it in test_items(manifest, group) if sequence_path(data, it["id"]).exists()][:max_items]
     garments = {}
     for n, it in enumerate(items):
         seq = read_sequence(sequence_path(data, it["id"]))
@@ -104,7 +114,7 @@ def evaluate(data: Path, methods: dict, self_every: int = 6, max_items: int | No
 
 def summarise(rows: list[Row], order: list[str]) -> list[tuple[str, str, int, dict]]:
     out = []
-    for group in ("held-out motions", "held-out garment"):
+    for group in dict.fromkeys(r.group for r in rows):
         for method in ["simulator (reference)", *order]:
             sel = [r for r in rows if r.group == group and r.method == method]
             if sel:
@@ -116,10 +126,13 @@ def summarise(rows: list[Row], order: list[str]) -> list[tuple[str, str, int, di
 def write(out: Path, summary, rows, args) -> None:
     from formats.atomic import atomic_file
 
-    command = (f"python benchmarks/model_table.py --data {args.data} " + " ".join(f'--model "{m}"' for m in args.model)
-               + (" --push-out" if args.push_out else ""))
+    command = (f"python benchmarks/model_table.py --data {args.data} "
+               + "".join(f"--held-out-data {d} " for d in args.held_out_data)
+               + " ".join(f'--model "{m}"' for m in args.model) + (" --push-out" if args.push_out else "")
+               + (" --network-only" if args.network_only else ""))
     lines = ["# Learned model variants and LBS against the simulator (paper Table 1 layout)", "",
-             f"Data: `{args.data}` test split (held-out motions; the held-out garment separately). Made by "
+             f"Data: `{args.data}` test split (held-out motions; the held-out garment separately)"
+             + "".join(f"; every sequence of `{d}` ({IN_RANGE_GROUP})" for d in args.held_out_data) + ". Made by "
              f"`{command}`.", "",
              "E_verts in mm, normal errors in degrees, E_edge in %, E_curv in 1/m^2 (core.metrics); penetration: % "
              "of garment vertices > 2 mm inside the body; self-intersection: % of garment faces crossing another "
@@ -157,9 +170,13 @@ def main(argv=None) -> None:
     ap.add_argument("--data", type=Path, required=True, help="`garment dataset` directory")
     ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH", help="a trained model (repeatable)")
     ap.add_argument("--self-every", type=int, default=6, help="self-intersection on every Nth frame")
+    ap.add_argument("--held-out-data", type=Path, action="append", default=[],
+                    help=f"a `garment dataset` of garments no model was trained on: every sequence in '{IN_RANGE_GROUP}'")
     ap.add_argument("--max-items", type=int, default=None)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "model_table.md")
     ap.add_argument("--push-out", action="store_true", help="also each model with the penetration push-out")
+    ap.add_argument("--network-only", action="store_true",
+                    help="also each model without its contact guard (the network's raw output)")
     args = ap.parse_args(argv)
     methods = {"lbs": LBSDeformer()}
     for spec in args.model:
@@ -169,11 +186,15 @@ def main(argv=None) -> None:
         from core.model_deform import load_model_deformer
 
         methods[name] = load_model_deformer(path)
+        if args.network_only:
+            methods[f"{name} (network only)"] = load_model_deformer(path, contact_guard=False)
         if args.push_out:
             from core.pushout import PushOutDeformer
 
             methods[f"{name} +push-out"] = PushOutDeformer(load_model_deformer(path))
     rows = evaluate(args.data, methods, args.self_every, args.max_items)
+    for extra in args.held_out_data:
+        rows += evaluate(extra, methods, args.self_every, args.max_items, group=IN_RANGE_GROUP)
     summary = summarise(rows, list(methods))
     write(args.out, summary, rows, args)
     print(f"wrote {args.out}")

@@ -18,6 +18,7 @@ from core.body import Body
 from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment
+from core.geometry import outward_faces
 from core.model import (
     GarmentModel,
     body_distances,
@@ -27,6 +28,7 @@ from core.model import (
 )
 from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body
+from core.pushout import GUARD_MARGIN_M, GUARD_REACH_M, contact_anchors, guard_contact
 from core.scene import SceneAnalysis, scene_levels
 
 log = logging.getLogger(__name__)
@@ -81,7 +83,7 @@ class ModelDeformer(Deformer):
     name = "model"
 
     def __init__(self, model: GarmentModel, batch_frames: int = 8, cache_dir=None, model_name: str = "model",
-                 precision: str = "float32", coverage=None):
+                 precision: str = "float32", coverage=None, contact_guard: bool = True):
         super().__init__()
         if precision not in PRECISIONS:
             raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -93,6 +95,8 @@ class ModelDeformer(Deformer):
         #: Per joint, the largest share of a training garment's weight on it (None: not recorded).
         self.coverage = coverage
         self._garments: dict = {}
+        #: Keep vertices outside the body faces they rest on (`core.pushout.guard_contact`).
+        self.contact_guard = contact_guard
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         if body.n_joints != self.model.config.n_joints:
@@ -116,6 +120,11 @@ class ModelDeformer(Deformer):
         poses = poses_for_body(motion, body.n_joints)
         mf = motion_features(body, poses, motion.trans, betas, motion.fps)
         rest = shaped_rest(g, body, betas)
+        anchors = None
+        if self.contact_guard:
+            shaped_body, _ = body.shaped(betas)
+            anchors = contact_anchors(rest.numpy(), shaped_body, outward_faces(shaped_body, body.faces))
+        moved = []
         out = np.empty((motion.n_frames, garment.n_vertices, 3), dtype=np.float32)
         scene = SceneAnalysis(self.skips)
         used = (g.prior_weights > 0).any(0)
@@ -134,9 +143,21 @@ class ModelDeformer(Deformer):
                                                 skip_joints=scene.enabled("joints"))
                 out[s:s + len(fr)] = res.verts.float().numpy()
         t2 = time.perf_counter()
+        if anchors is not None:  # outside autocast: the body is posed in float32
+            for s in range(0, motion.n_frames, self.batch_frames):
+                fr = slice(s, min(s + self.batch_frames, motion.n_frames))
+                body_points, _ = body.pose(poses[fr], motion.trans[fr], betas)
+                out[fr], n = guard_contact(out[fr], body_points, anchors)
+                moved.append(n)
         self.report = {"method": self.name, "model": self.model_name, "batch_frames": self.batch_frames,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
                        "encode_seconds": t1 - t0, "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
+        if anchors is not None:
+            moved = np.concatenate(moved) if moved else np.zeros(1, dtype=np.int64)
+            self.report["seconds_per_frame_guard"] = (time.perf_counter() - t2) / max(motion.n_frames, 1)
+            self.report["contact_guard"] = {"margin_m": GUARD_MARGIN_M, "reach_m": GUARD_REACH_M,
+                                            "vertices_moved_per_frame_mean": float(moved.mean()),
+                                            "vertices_moved_per_frame_max": int(moved.max())}
         self.scene = scene.report
         return out
 

@@ -36,9 +36,10 @@ log = logging.getLogger(__name__)
 
 
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
-                  iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=()):
+                  iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=(),
+                  contact_guard=True):
     deformer = _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                precision)
+                                precision, contact_guard)
     deformer.skips = parse_no_skip(no_skip)
     if push_out:
         if method == "sim":
@@ -50,7 +51,7 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
 
 
 def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                     precision):
+                     precision, contact_guard=True):
     sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
                                       ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin))
                  if v is not None]
@@ -66,7 +67,8 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
         from formats.cache import default_cache_dir
 
         # Garment preprocessing is cached ($GARMENT_CACHE_DIR or ~/.cache/garment), as `garment preprocess` does.
-        return load_model_deformer(model_path, cache_dir=default_cache_dir(), precision=precision or "float32")
+        return load_model_deformer(model_path, cache_dir=default_cache_dir(), precision=precision or "float32",
+                                   contact_guard=contact_guard)
     if method == "sim":
         from core.sim import Material, SimDeformer, SimOptions, load_material
 
@@ -123,6 +125,7 @@ class BakeSpec:
     no_skip: tuple = ()
     threads: int = 0  # torch threads of a --workers process (0: torch's default)
     fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
+    contact_guard: bool = True  # model: keep vertices outside the body faces they rest on
 
 
 # Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
@@ -140,7 +143,7 @@ def _context(spec: BakeSpec):
             torch.set_num_threads(spec.threads)
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
-                                 spec.no_skip)
+                                 spec.no_skip, spec.contact_guard)
         garment = read_obj(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
@@ -211,6 +214,9 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--precision", type=click.Choice(["float32", "bfloat16"]), default=None,
               help="model: arithmetic of the network [default: float32].")
 @click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
+@click.option("--no-contact-guard", is_flag=True,
+              help="model: leave out the contact guard (on by default, about 1 ms/frame), which keeps each vertex "
+                   "outside the body face it rests on; the network's raw output.")
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
                    "on the garment, body faces out of its reach (sim), self-contact where distant parts never meet "
@@ -248,7 +254,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
-         budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1):
+         budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
+         no_contact_guard=False):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -266,8 +273,10 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                 raise click.UsageError(f"{name} applies to --quality auto only")
         explicit = method is not None
         method = method or "model"
+        if no_contact_guard and method != "model":
+            raise click.UsageError(f"--no-contact-guard applies to --method model only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip)
+                                 precision, push_out, no_skip, not no_contact_guard)
     elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
                                "--precision and --push-out")
@@ -301,7 +310,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if method != "model":
             model_path, precision = None, None
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip)
+                                 precision, push_out, no_skip, not no_contact_guard)
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
                                                    "features", "reason", "candidates")})
         click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
@@ -314,7 +323,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
-                    precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback)
+                    precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
+                    contact_guard=not no_contact_guard)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     t_start = time.perf_counter()
     total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)

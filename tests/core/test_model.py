@@ -151,6 +151,11 @@ def test_model_deformer_bakes_a_motion(body, tmp_path):
     out = d.deform(Garment(v, f), body, Motion(poses=poses, trans=trans, fps=30.0))
     assert out.shape == (7, len(v), 3) and out.dtype == np.float32 and np.isfinite(out).all()
     assert d.report["method"] == "model" and d.report["precision"] == "float32"
+    # The contact guard is on by default and reported; the untrained model is LBS, which it (almost) never lifts.
+    assert d.report["contact_guard"]["vertices_moved_per_frame_max"] >= 0
+    raw = load_model_deformer(path, contact_guard=False)
+    unguarded = raw.deform(Garment(v, f), body, Motion(poses=poses, trans=trans, fps=30.0))
+    assert "contact_guard" not in raw.report and np.abs(unguarded - out).max() < 1e-3
     # bfloat16 network (autocast) but float32 skinning weights and world coordinates: the untrained model (LBS)
     # gives float32's result to float32 rounding (bfloat16 coordinates would be off by millimetres).
     motion = Motion(poses=poses, trans=trans, fps=30.0)

@@ -1,9 +1,10 @@
-"""Penetration push-out: vertices inside or within the margin of the body end `margin` outside; others stay."""
+"""Penetration post-processes: the push-out (vertices inside or within the margin of the body end `margin`
+outside; others stay) and the model's contact guard (against a vertex-by-vertex reference)."""
 
 import numpy as np
 
-from core.geometry import TriangleMesh
-from core.pushout import PushOutDeformer, push_out
+from core.geometry import TriangleMesh, closest_point_on_triangles, outward_faces, outward_offsets
+from core.pushout import PushOutDeformer, contact_anchors, guard_contact, push_out
 from tests.meshes import icosphere, points_around, tiny_body
 
 
@@ -44,3 +45,67 @@ def test_push_out_deformer_wraps_any_method_and_reports():
     assert all(i.mean() > 0.9 for i in inside)
     assert all((TriangleMesh(bp[t], body.faces).signed_distance(pushed[t]) > 0).all() for t in range(3))
     assert wrapped.name == "lbs" and wrapped.report["push_out"]["vertices_moved_per_frame_max"] > 0
+
+
+def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach):
+    """Vertex by vertex: the rest body's closest face (exhaustive), then its plane in each posed frame."""
+    out = np.array(points, dtype=np.float64)
+    tris = rest_body[body_faces]
+    for i, p in enumerate(np.asarray(rest, dtype=np.float64)):
+        cps, barys = closest_point_on_triangles(p[None], tris[:, 0], tris[:, 1], tris[:, 2])  # every face
+        k = int(np.argmin(np.linalg.norm(cps - p, axis=1)))
+        f, bary, cp = body_faces[k], barys[k], cps[k]
+        n0 = np.cross(rest_body[f[1]] - rest_body[f[0]], rest_body[f[2]] - rest_body[f[0]])
+        floor = min(margin, float(np.dot(p - cp, n0 / np.linalg.norm(n0))))
+        for t in range(len(out)):
+            tri = body_points[t][f].astype(np.float64)
+            q = bary @ tri
+            n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+            n /= np.linalg.norm(n)
+            along = np.dot(out[t, i] - q, n)
+            if along < floor and np.linalg.norm(out[t, i] - q - along * n) < reach:
+                out[t, i] += (floor - along) * n
+    return out
+
+
+def test_contact_guard_matches_a_vertex_by_vertex_reference_and_only_lifts():
+    body = tiny_body()
+    rest_body = body.v_template.astype(np.float64)
+    faces = outward_faces(rest_body, body.faces)
+    rng = np.random.default_rng(0)
+    # A garment around the body at 0-3 cm (some authored closer than the margin), then frames of a posed body
+    # with the garment pushed in and out along random directions.
+    # Off the body's vertices and edges (face centres), so that each has one closest face.
+    centres = rest_body[faces[::2]].mean(axis=1)
+    _, cp, out_dir = outward_offsets(centres, rest_body, faces)
+    rest = cp + out_dir * rng.uniform(0.0, 0.03, len(cp))[:, None]
+    poses = rng.normal(0, 0.3, (3, body.n_joints, 3)).astype(np.float32)
+    body_points, _ = body.pose(poses, np.zeros((3, 3), np.float32), None)
+    skinned = body_points[:, faces[::2]].mean(axis=2) + rng.normal(0, 0.01, (3, len(rest), 3))
+    anchors = contact_anchors(rest, rest_body, faces, margin=0.002)
+    got, moved = guard_contact(skinned.astype(np.float32), body_points, anchors, reach=0.05)
+    want = _naive_guard(skinned, body_points, faces, rest, rest_body, 0.002, 0.05)
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    lifted = np.linalg.norm(got - skinned, axis=-1) > 1e-7
+    assert moved.tolist() == lifted.sum(axis=1).tolist() and 0 < lifted.mean() < 1
+    # Only along each anchor face's outward normal: a lifted vertex ends farther from the body's centre.
+    centre = body_points.mean(axis=1, keepdims=True)
+    grew = np.linalg.norm(got - centre, axis=-1) > np.linalg.norm(skinned - centre, axis=-1)
+    assert grew[lifted].mean() > 0.9
+
+
+def test_contact_guard_leaves_the_rest_pose_and_far_vertices_alone():
+    body = tiny_body()
+    rest_body = body.v_template.astype(np.float64)
+    faces = outward_faces(rest_body, body.faces)
+    _, cp, out_dir = outward_offsets(rest_body[::2], rest_body, faces)
+    rest = cp + 0.02 * out_dir
+    anchors = contact_anchors(rest, rest_body, faces)
+    same, moved = guard_contact(rest[None].astype(np.float32), rest_body[None], anchors)
+    assert moved.tolist() == [0]
+    np.testing.assert_array_equal(same[0], rest.astype(np.float32))
+    # Deep inside but far along the plane from the anchor (beyond the reach): left alone.
+    far = (rest - 0.05 * out_dir + 0.3 * np.cross(out_dir, [0.0, 0.0, 1.0]))[None].astype(np.float32)
+    kept, _ = guard_contact(far, rest_body[None], anchors, reach=0.1)
+    lateral = np.linalg.norm(0.3 * np.cross(out_dir, [0.0, 0.0, 1.0]), axis=1)
+    np.testing.assert_array_equal(kept[0][lateral > 0.1], far[0][lateral > 0.1])

@@ -274,3 +274,29 @@ def test_scene_skips_leave_the_simulation_unchanged_and_are_reported():
     d = SimDeformer(options=dataclasses.replace(options, self_contact=True))
     d.deform(garment, body, motion)
     assert d.scene["self-contact"]["skipped_work"] and d.scene["self-contact"]["pairs"] == 0
+
+
+def test_self_contact_ignores_cloth_that_crosses_itself_as_authored():
+    """Two sheets modelled crossing each other (as trouser legs at a crotch): with self-contact, the contacts
+    they start in would pull them apart; pairs closer than `self_contact_rest_exclusion_m` at rest are ignored."""
+    from dataclasses import replace
+
+    from core.garment import mesh_edges
+
+    bv, bf = box()
+    a, fa = cloth(0.5)
+    b, fb = cloth(0.0)
+    tilt = np.radians(20.0)
+    b = b @ np.array([[1, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]]).T + [0, 0, 0.5]
+    cv, cf = np.concatenate([a, b]), np.concatenate([fa, fb + len(a)])
+    edges = mesh_edges(cf)
+    rest = np.linalg.norm(cv[edges[:, 0]] - cv[edges[:, 1]], axis=1)
+    strain = {}
+    for exclusion in (0.0, Material().self_contact_rest_exclusion_m):
+        sim = ClothSim(cv, cf, bv, bf, replace(Material(), self_contact_rest_exclusion_m=exclusion), self_contact=True,
+                       iterations=10, bounds=np.array([[-1, -1, -1], [1, 1, 2.0]]))
+        for _ in range(5):  # falling freely above the box: only the contacts can strain the sheets
+            x = sim.advance(bv, bv, 1 / FPS, 10)
+        assert np.isfinite(x).all()
+        strain[exclusion] = np.abs(np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1) / rest - 1).max()
+    assert strain[0.0] > 1e-4 and strain[Material().self_contact_rest_exclusion_m] < 1e-5, strain

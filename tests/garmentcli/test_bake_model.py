@@ -76,6 +76,23 @@ def test_model_option_needs_method_model(tmp_path):
     assert not any(tmp_path.iterdir())
 
 
+def test_contact_guard_is_the_default_and_can_be_left_out(tmp_path):
+    dress = ROOT / "examples" / "dress.obj"
+    guarded, summary, _ = _bake(dress, tmp_path / "guarded")
+    raw, raw_summary, _ = _bake(dress, tmp_path / "raw", "--no-contact-guard")
+    assert "contact_guard" in summary["deformer"] and "contact_guard" not in raw_summary["deformer"]
+    lifted = np.linalg.norm(guarded - raw, axis=-1)
+    # The guard lifts some vertices where the network put them into the body, leaves the rest as they were, and
+    # what it lifts ends outside: fewer vertices inside the body than in the network's raw output.
+    moved = summary["deformer"]["contact_guard"]["vertices_moved_per_frame_mean"]
+    assert moved > 0 and 0 < (lifted > 1e-6).mean() < 0.2
+    assert summary["penetration"]["mean_percent"] < raw_summary["penetration"]["mean_percent"]
+    r = invoke(["bake", dress, ROOT / "examples" / "walk.npz", "--method", "lbs", "--no-contact-guard",
+                "--out", tmp_path / "bad"])
+    assert r.exit_code != 0 and "--no-contact-guard applies to --method model only" in r.output
+    assert not (tmp_path / "bad").exists()
+
+
 def test_missing_default_model_is_one_clear_line(tmp_path, monkeypatch):
     import core.model_deform
 
