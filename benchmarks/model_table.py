@@ -129,7 +129,7 @@ def write(out: Path, summary, rows, args) -> None:
     command = (f"python benchmarks/model_table.py --data {args.data} "
                + "".join(f"--held-out-data {d} " for d in args.held_out_data)
                + " ".join(f'--model "{m}"' for m in args.model) + (" --push-out" if args.push_out else "")
-               + (" --network-only" if args.network_only else ""))
+               + "".join(f' --network-only "{n}"' for n in args.network_only) + f" --self-every {args.self_every}")
     lines = ["# Learned model variants and LBS against the simulator (paper Table 1 layout)", "",
              f"Data: `{args.data}` test split (held-out motions; the held-out garment separately)"
              + "".join(f"; every sequence of `{d}` ({IN_RANGE_GROUP})" for d in args.held_out_data) + ". Made by "
@@ -175,8 +175,8 @@ def main(argv=None) -> None:
     ap.add_argument("--max-items", type=int, default=None)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "model_table.md")
     ap.add_argument("--push-out", action="store_true", help="also each model with the penetration push-out")
-    ap.add_argument("--network-only", action="store_true",
-                    help="also each model without its contact guard (the network's raw output)")
+    ap.add_argument("--network-only", action="append", default=[], metavar="NAME",
+                    help="also the --model NAME without its contact guard (the network's raw output; repeatable)")
     args = ap.parse_args(argv)
     methods = {"lbs": LBSDeformer()}
     for spec in args.model:
@@ -186,7 +186,7 @@ def main(argv=None) -> None:
         from core.model_deform import load_model_deformer
 
         methods[name] = load_model_deformer(path)
-        if args.network_only:
+        if name in args.network_only:
             methods[f"{name} (network only)"] = load_model_deformer(path, contact_guard=False)
         if args.push_out:
             from core.pushout import PushOutDeformer
