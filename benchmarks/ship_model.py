@@ -69,7 +69,8 @@ def main(argv=None) -> None:
     ck = load_checkpoint(args.model)
     run = json.loads(args.model.with_name(args.model.name + ".json").read_text())
     table = json.loads(args.table.read_text())
-    metrics = {group: {m: v for m, v in rows.items() if m in ("lbs", args.name, "simulator (reference)")}
+    keep = ("lbs", args.name, f"{args.name} (network only)", "simulator (reference)")
+    metrics = {group: {m: v for m, v in rows.items() if m in keep}
                for group, rows in table["summary"].items()}
     if not all(args.name in rows for rows in metrics.values()):
         raise SystemExit(f"{args.table}: no rows named {args.name!r}")
