@@ -5,7 +5,8 @@
 Garment: the example dress remeshed at a finer spacing (about 4,000 vertices). Motion: the held-out
 `walk_brisk` of the motion library at 30 fps (repeated to 1,800 frames for LBS). Measured, all on one
 machine in one run: LBS frames per second; the model's frames per second at several batch sizes in
-float32 and bfloat16 (median of --repeats after a warm-up); the simulator's seconds per output frame
+float32 and bfloat16 (median of --repeats after a warm-up; the contact guard included, its share
+reported); the simulator's seconds per output frame
 (10 substeps, no self-contact, settling excluded); a `bake` of four motions through the CLI with
 --workers 1 and 2 (frames per second including writing); and a profile of one model batch.
 Writes benchmarks/results/throughput.md (or --out). Nothing here is asserted by the tests.
@@ -107,7 +108,7 @@ def main(argv=None) -> None:
     lbs_fps = long.n_frames / t
     rows.append(["lbs", "-", f"{1e3 / lbs_fps:.3f}", f"{lbs_fps:,.0f}"])
     print(rows[-1], flush=True)
-    model_fps = {}
+    model_fps, guard_ms = {}, []
     for precision in ("float32", "bfloat16"):
         for batch in (8, 32):
             d = load_model_deformer(cache_dir=default_cache_dir(), precision=precision)
@@ -118,6 +119,7 @@ def main(argv=None) -> None:
             t = median_seconds(lambda: d.deform(garment, body, motion), args.repeats)
             fps = motion.n_frames / t
             model_fps[(precision, batch)] = fps
+            guard_ms.append(1e3 * d.report.get("seconds_per_frame_guard", 0.0))
             rows.append([f"model {precision}", batch, f"{1e3 / fps:.1f}", f"{fps:.1f}"])
             print(rows[-1], flush=True)
     sim_s = None
@@ -161,6 +163,7 @@ def main(argv=None) -> None:
         "",
         f"- model (default: float32, batch 8) vs LBS: {lbs_fps / default:.0f}x slower; fastest model configuration "
         f"{best:.1f} frames/s.",
+        f"- the model's rows include its contact guard (on by default): {np.median(guard_ms):.1f} ms/frame of them.",
     ]
     if sim_s is not None:
         lines.append(f"- model (default) vs simulator: {sim_s * default:.0f}x faster per frame; fastest configuration "
