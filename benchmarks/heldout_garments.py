@@ -29,7 +29,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.body import default_body  # noqa: E402
-from core.garmentgen import _ease_per_joint, _levels, _offset_garment, _RestBody, _tube_garment, _below, _above  # noqa: E402,E501
+from core.garmentgen import (  # noqa: E402
+    _above, _below, _ease_per_joint, _levels, _offset_garment, _RestBody, _tube_garment,
+)
 from core.motiongen import MOTION_LIBRARY  # noqa: E402
 from formats.motion import save_motion  # noqa: E402
 from formats.obj import write_obj  # noqa: E402
