@@ -43,7 +43,12 @@ def test_tradeoff_writes_table_plot_and_json(scene, model_file):
     assert [row["config"] for row in rows] == [c.name for c in configurations({"tiny": str(model_file)})]
     by = {row["config"]: row for row in rows}
     ref = by["sim 10 substeps +self-contact"]
-    assert float(ref["e_verts"]) == 0.0 and ref["reference"] == "True" and ref["pareto"] == "True"
+    assert float(ref["e_verts"]) == 0.0 and ref["reference"] == "True"
+    # The reference has no error; it, or the faster of the configurations that equal it, is on the front (the scene
+    # analysis may switch self-contact off on this small scene: the two 10-substep rows are then one simulation
+    # and either may time faster).
+    exact = [row for row in rows if float(row["e_verts"]) == 0.0]
+    assert min(exact, key=lambda row: float(row["seconds_per_frame"]))["pareto"] == "True"
     assert float(by["lbs"]["e_verts"]) > 0 and float(by["sim 5 substeps"]["e_verts"]) > 0
     for row in rows:
         assert float(row["seconds_per_frame"]) > 0 and np.isfinite(float(row["e_verts"]))
