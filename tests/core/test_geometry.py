@@ -172,3 +172,14 @@ def test_self_intersecting_faces_matches_the_naive_loop_and_known_cases():
     rng = np.random.default_rng(3)
     crumpled = v + rng.normal(scale=0.03, size=v.shape)
     np.testing.assert_array_equal(self_intersecting_faces(crumpled, f), _naive_self_intersections(crumpled, f))
+
+
+def test_bincount_rows_matches_add_at():
+    from core.geometry import _bincount_rows
+
+    rng = np.random.default_rng(0)
+    index = rng.integers(0, 7, 50)
+    values = rng.normal(size=(50, 3))
+    want = np.zeros((9, 3))
+    np.add.at(want, index, values)  # the naive scatter-add it replaces
+    np.testing.assert_allclose(_bincount_rows(index, values, 9), want, atol=1e-12)
