@@ -96,5 +96,6 @@ def main(argv=None) -> None:
     if any(p.wait() for p in procs):
         raise SystemExit("a simulation failed (see its output above)")
 
+
 if __name__ == "__main__":
     main()

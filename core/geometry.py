@@ -356,9 +356,7 @@ def outward_offsets(points: np.ndarray, verts: np.ndarray, faces: np.ndarray,
     direction *= np.where(signed < 0, -1.0, 1.0)[:, None]
     flat = length[:, 0] <= 1e-12
     if flat.any():
-        tri = mesh.verts[mesh.faces[res.face_index[flat]]]
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        direction[flat] = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        direction[flat] = face_normals(mesh.verts, mesh.faces[res.face_index[flat]])
     return signed, res.closest, direction
 
 

@@ -155,7 +155,8 @@ class ModelDeformer(Deformer):
         if anchors is not None:
             moved = np.concatenate(moved) if moved else np.zeros(1, dtype=np.int64)
             self.report["seconds_per_frame_guard"] = (time.perf_counter() - t2) / max(motion.n_frames, 1)
-            self.report["contact_guard"] = {"margin_m": GUARD_MARGIN_M, "reach_m": GUARD_REACH_M, "depth_m": GUARD_DEPTH_M,
+            self.report["contact_guard"] = {"margin_m": GUARD_MARGIN_M, "reach_m": GUARD_REACH_M,
+                                            "depth_m": GUARD_DEPTH_M,
                                             "vertices_moved_per_frame_mean": float(moved.mean()),
                                             "vertices_moved_per_frame_max": int(moved.max())}
         self.scene = scene.report

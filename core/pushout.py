@@ -10,9 +10,9 @@ body point of every vertex in every frame (about 2-4x the model's own time).
 Contact guard (`ContactAnchors`, `guard_contact`; on by default for `--method model`): each garment
 vertex is tied once, on the rest pose, to the body face closest to it; in every frame the vertex is kept
 on the outer side of that face's plane, at no less than min(margin, its rest offset), wherever it lies
-within GUARD_REACH_M of the face's point along the plane and no deeper than GUARD_DEPTH_M behind it. The face is posed exactly (it is the body's
-own), so this undoes what the network adds on top of skinning (blend shapes pushing cloth into the body,
-learned weights that drift from the body's) at about 1 ms/frame; it cannot see a vertex that slides
+within GUARD_REACH_M of the face's point along the plane and no deeper than GUARD_DEPTH_M behind it.
+The face is posed exactly (it is the body's own), so this undoes what the network adds on top of skinning (blend shapes pushing cloth into the body,
+learned weights that drift from the body's) at about 1.5 ms/frame; it cannot see a vertex that slides
 over to another body part, which the exact push-out does.
 """
 
@@ -25,7 +25,7 @@ import numpy as np
 from core.body import Body
 from core.deform import Deformer
 from core.garment import Garment
-from core.geometry import TriangleMesh, normalise, outward_offsets
+from core.geometry import TriangleMesh, face_normals, outward_offsets
 from core.motion import Motion, poses_for_body
 
 #: Distance outside the body a pushed vertex ends at (metres): within the 2 mm depth the penetration
@@ -40,6 +40,12 @@ GUARD_MARGIN_M = 0.001
 #: stands for the body: further out (a hem swung far away) the guard leaves the vertex alone. On the
 #: held-out test sequences 5 cm left twice the penetration of 10 cm; 20 cm and more changed nothing further.
 GUARD_REACH_M = 0.1
+
+#: Deepest (metres) a vertex may be behind its face's plane and still be lifted: deeper, the plane no longer
+#: stands for the body there (an anchor on an arm that swung away from the torso's cloth), so the vertex stays.
+#: The shipped model pushes some vertices 3-5 cm in; on the held-out test sequences a cap of 3 cm left 0.14 %
+#: of vertices inside, 5 cm 0.12 %, none 0.11 % but lifted single vertices by up to 14 cm.
+GUARD_DEPTH_M = 0.05
 
 
 def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
@@ -59,13 +65,6 @@ def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray
     return out, moved
 
 
-#: Deepest (metres) a vertex may be behind its face's plane and still be lifted: deeper, the plane no longer
-#: stands for the body there (an anchor on an arm that swung away from the torso's cloth), so the vertex stays.
-#: The shipped model pushes some vertices 3-5 cm in; on the held-out test sequences a cap of 3 cm left 0.14 %
-#: of vertices inside, 5 cm 0.12 %, none 0.11 % but lifted single vertices by up to 14 cm.
-GUARD_DEPTH_M = 0.05
-
-
 @dataclass(frozen=True)
 class ContactAnchors:
     """Per garment vertex (V of them): the body face closest to it on the rest pose as body vertex ids
@@ -75,11 +74,6 @@ class ContactAnchors:
     faces: np.ndarray
     barycentric: np.ndarray
     floor: np.ndarray
-
-
-def _unit_normals(tri: np.ndarray) -> np.ndarray:
-    """Unit normals (..., 3) of triangles (..., 3 corners, 3), right-handed in corner order."""
-    return normalise(np.cross(tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :]))
 
 
 def contact_anchors(rest: np.ndarray, body_verts: np.ndarray, body_faces: np.ndarray,
@@ -92,7 +86,7 @@ def contact_anchors(rest: np.ndarray, body_verts: np.ndarray, body_faces: np.nda
     verts = np.asarray(body_verts, dtype=np.float64)
     res = TriangleMesh(verts, body_faces).closest(rest, exact=False)
     faces = np.asarray(body_faces, dtype=np.int64)[res.face_index]
-    offset = np.einsum("vc,vc->v", rest - res.closest, _unit_normals(verts[faces]))
+    offset = np.einsum("vc,vc->v", rest - res.closest, face_normals(verts, faces))
     return ContactAnchors(faces, res.barycentric, np.minimum(margin, offset))
 
 
@@ -103,9 +97,9 @@ def guard_contact(points: np.ndarray, body_points: np.ndarray, anchors: ContactA
     points: (T, V, 3) garment; body_points: (T, Vb, 3) the posed body. Returns (points (T, V, 3) float32,
     moved (T,) vertex counts).
     """
-    tri = np.asarray(body_points, dtype=np.float64)[:, anchors.faces]  # (T, V, 3, 3)
-    point = np.einsum("tvkc,vk->tvc", tri, anchors.barycentric)
-    normal = _unit_normals(tri)
+    body_points = np.asarray(body_points, dtype=np.float64)
+    point = np.einsum("tvkc,vk->tvc", body_points[:, anchors.faces], anchors.barycentric)
+    normal = face_normals(body_points, anchors.faces)  # (T, V, 3)
     rel = np.asarray(points, dtype=np.float64) - point
     along = np.einsum("tvc,tvc->tv", rel, normal)
     lateral = np.linalg.norm(rel - along[..., None] * normal, axis=-1)
