@@ -194,10 +194,12 @@ def render_worst_frame_heatmap(pred_seq, gt_seq, result: MetricsResult, path: st
 
 def plot_pareto(names: list[str], seconds_per_frame: list[float], errors_mm: list[float], front: list[bool],
                 path: str | os.PathLike, title: str = "", dpi: int = 100) -> Path:
-    """Error (mm, linear) against seconds per frame (log scale), one labelled point per configuration,
-    the Pareto front joined by a line. The reference (error 0) sits on the x axis. Writes a PNG."""
+    """Error (mm, linear) against seconds per frame (log scale), one numbered point per configuration with its
+    name in a key beside the axes (names written at the points overlap where configurations cluster), the
+    Pareto front joined by a line. The reference (error 0) sits on the x axis. Writes a PNG."""
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    fig, (ax, key_ax) = plt.subplots(1, 2, figsize=(10.5, max(4.8, 0.16 * len(names) + 1.2)),
+                                     gridspec_kw={"width_ratios": [2.2, 1]})
     x = np.maximum(np.asarray(seconds_per_frame, dtype=np.float64), 1e-7)
     y = np.asarray(errors_mm, dtype=np.float64)
     on = np.asarray(front, dtype=bool)
@@ -205,12 +207,16 @@ def plot_pareto(names: list[str], seconds_per_frame: list[float], errors_mm: lis
     ax.scatter(x[on], y[on], color="#c0503f", s=36, label="Pareto front", zorder=4)
     order = np.argsort(x[on])
     ax.plot(x[on][order], y[on][order], color="#c0503f", lw=1, zorder=2)
-    for n, xi, yi in zip(names, x, y):
-        ax.annotate(n, (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    for i, (xi, yi) in enumerate(zip(x, y)):
+        ax.annotate(str(i + 1), (xi, yi), textcoords="offset points", xytext=(3, 3), fontsize=7)
+    key = "\n".join(f"{i + 1:>2}  {n}" + ("  *" if f else "") for i, (n, f) in enumerate(zip(names, on)))
+    key_ax.axis("off")
+    key_ax.text(0.0, 0.5, key + "\n\n* on the Pareto front", fontsize=7, family="monospace", va="center",
+                transform=key_ax.transAxes)
     ax.set_xscale("log")
     ax.set_xlabel("seconds per frame (log scale)")
     ax.set_ylabel("E_verts against the reference (mm)")
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8, loc="upper right")
+    ax.legend(fontsize=8, loc="lower left")
     return _save_figure(plt, fig, path, dpi)
