@@ -67,9 +67,12 @@ def _parse_phases(text: str) -> tuple:
               help="Where to train: cpu, cuda or cuda:N. The model is initialised on the CPU from the seed either way.")
 @click.option("--time-limit", type=click.FloatRange(min=0, min_open=True), default=None, metavar="MINUTES",
               help="Stop after this many minutes of training (checkpoint and model written); continue with --resume.")
+@click.option("--init", "init_path", type=click.Path(dir_okay=False), default=None, metavar="MODEL",
+              help="Start from this model's weights and network config (fine-tuning it on --data, e.g. the "
+              "default model on simulations with self-contact); a 'model' section in --config is then an error.")
 @input_errors_as_click
 def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-          sequences_per_step=1, device="cpu", time_limit=None):
+          sequences_per_step=1, device="cpu", time_limit=None, init_path=None):
     """Train the garment model on a simulator dataset (phases switch on validation plateaus).
 
     Under `torchrun --nproc_per_node N` it trains with DistributedDataParallel (gloo on CPU); only
@@ -85,7 +88,7 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
     try:
         _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
                sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None,
-               dev, time_limit)
+               dev, time_limit, init_path)
     finally:
         if torchrun_env() is not None:
             import torch.distributed as dist
@@ -112,7 +115,8 @@ def _parse_device(text: str):
 
 
 def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-           sequences_per_step, rank, world, parallel_trainer, device=torch.device("cpu"), time_limit=None):
+           sequences_per_step, rank, world, parallel_trainer, device=torch.device("cpu"), time_limit=None,
+           init_path=None):
     import os
 
     from core.model_data import ModelDataset
@@ -125,6 +129,13 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     ckpt_path, csv_path, json_path = (out.with_name(out.name + s) for s in (".ckpt", ".csv", ".json"))
     model_values, train_values = _read_config(config_path)
     body = load_body_option(body_path)
+    init = None
+    if init_path is not None:
+        if model_values:
+            raise click.BadParameter(f"'{init_path}' fixes the network; expected no 'model' section in --config "
+                                     f"'{config_path}', got {sorted(model_values)}", param_hint="--init")
+        init = load_checkpoint(init_path)
+        model_values = dict(init["config"])
     model_values.setdefault("n_joints", body.n_joints)
     overrides = {"phases": list(_parse_phases(phases))}
     for key, val in (("steps", steps), ("seed", seed), ("checkpoint_every", checkpoint_every)):
@@ -141,6 +152,8 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         trainer = Trainer(data, model_cfg, train_cfg, device=device)
     else:
         trainer = parallel_trainer(data, model_cfg, train_cfg, sequences_per_rank=sequences_per_step, device=device)
+    if init is not None:  # before --resume: a checkpoint's weights replace these
+        trainer.model.load_state_dict(init["model"])
     main = rank == 0
     rows = []
     if resume:
@@ -154,7 +167,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     if main:
         out.parent.mkdir(parents=True, exist_ok=True)
         json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
-                                         "data": str(data_dir), "processes": world,
+                                         "data": str(data_dir), "init": init_path, "processes": world,
                                          "device": str(device), "sequences_per_step": sequences_per_step}, indent=2))
     # Only rank 0 writes: the others log into the null device.
     with (open(csv_path, "w", newline="") if main else open(os.devnull, "w")) as fh:
@@ -186,12 +199,15 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         bar.close()
         checkpoint(trainer)
     last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
-    meta = {"train_config": dataclasses.asdict(train_cfg), "data": str(data_dir),
+    coverage = joint_coverage([g.inputs.prior_weights.numpy() for g in data.garments.values()])
+    if init is not None and init.get("meta", {}).get("joint_coverage") is not None:  # it has seen both datasets
+        coverage = [max(a, b) for a, b in zip(coverage, init["meta"]["joint_coverage"])]
+    meta = {"train_config": dataclasses.asdict(train_cfg), "data": str(data_dir), "init": init_path,
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
             "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name,
             # What the model has seen: per joint, the largest share of a training garment's weight on it.
-            "joint_coverage": joint_coverage([g.inputs.prior_weights.numpy() for g in data.garments.values()])}
+            "joint_coverage": coverage}
     if not main:
         return
     save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)

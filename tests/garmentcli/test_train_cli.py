@@ -119,3 +119,40 @@ def test_train_bad_inputs(setup):
     r = CliRunner().invoke(cli, ["bake", str(root / "g.obj"), str(root / "walk.npz"), "--method", "model", "--model",
                                  str(junk), "--body", str(body), "--out", str(root / "b2")])
     assert r.exit_code != 0 and "junk.pt" in r.output
+
+
+def test_train_init_starts_from_a_model(setup):
+    root, data, body, cfg = setup
+    from formats.checkpoint import load_checkpoint
+
+    base = root / "base.pt"
+    r = _train(root, data, body, cfg, base, "--steps", "3", "--seed", "2")
+    assert r.exit_code == 0, r.output
+    # With a vanishing learning rate one step leaves the weights where they started: the base model's
+    # (a run without --init starts from the seed's initialisation instead).
+    tiny_lr = root / "tiny_lr.json"
+    tiny_lr.write_text(json.dumps({"train": {**json.loads(cfg.read_text())["train"], "lr": 1e-12}}))
+    tuned = root / "tuned.pt"
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(tuned), "--body", str(body), "--config",
+                                 str(tiny_lr), "--init", str(base), "--steps", "1", "--seed", "1"])
+    assert r.exit_code == 0, r.output
+    b, t = load_checkpoint(base), load_checkpoint(tuned)
+    assert t["config"] == b["config"]
+    assert all(torch.allclose(t["model"][k], b["model"][k], atol=1e-9) for k in b["model"])
+    assert t["meta"]["init"] == str(base) and json.loads((root / "tuned.pt.json").read_text())["init"] == str(base)
+    # the base was trained on the same garments: the coverage is the data's either way
+    assert t["meta"]["joint_coverage"] == pytest.approx(b["meta"]["joint_coverage"])
+    fresh = root / "fresh.pt"
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(fresh), "--body", str(body), "--config",
+                                 str(cfg), "--steps", "1", "--seed", "1"])
+    assert r.exit_code == 0, r.output
+    f = load_checkpoint(fresh)["model"]
+    assert any(not torch.allclose(f[k], b["model"][k], atol=1e-6) for k in f)
+    # The network comes from --init: a model section in --config is refused, as is a file that is no model.
+    r = _train(root, data, body, cfg, root / "t3.pt", "--init", str(base))
+    assert r.exit_code != 0 and "--init" in r.output and "'model' section" in r.output
+    junk = root / "junk_init.pt"
+    junk.write_bytes(b"junk")
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(root / "t4.pt"), "--body", str(body),
+                                 "--init", str(junk)])
+    assert r.exit_code != 0 and "junk_init.pt" in r.output and not (root / "t4.pt").exists()
