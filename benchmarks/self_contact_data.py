@@ -57,7 +57,12 @@ def main() -> None:
     from core.distributed import run_items
     from core.provenance import software_versions
     from core.sim import Material, SimOptions
-    from formats.dataset import copy_garment_template, read_manifest, sequence_path, write_manifest
+    from formats.dataset import (
+        copy_garment_template,
+        read_manifest,
+        sequence_path,
+        write_manifest,
+    )
 
     src = Path(args.like)
     old = read_manifest(src)
