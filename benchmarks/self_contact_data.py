@@ -10,6 +10,11 @@ again with self-contact, and writes a dataset in the same format that `garment t
 
 Items are taken motion by motion in the order of --motions (default: the source's train motions, walks and
 runs first), every garment of a motion in turn, so a run cut short by --minutes still covers every garment.
+An evaluation set of the source's held-out motions:
+
+    python benchmarks/self_contact_data.py --like data/sim_v1 --out data/sim_sc1_test --motions none \
+        --val-motions none --test-motions walk_brisk,turn_right_wide,arm_swing_fast,kick_right
+
 It resumes: finished sequences are kept. The manifest lists only the finished items, so the result is a
 complete dataset whenever the run stops (rerun with --minutes 0 to only rewrite the manifest).
 """
@@ -29,11 +34,13 @@ PRIORITY = ["walk", "run", "walk_fast", "turn", "run_jog", "walk_slow", "twist",
             "bend_side_left", "bend_side_right", "sit_down_slow", "jump_high", "arms_raise_half", "bend_forward_deep"]
 
 
-def select_items(manifest: dict, garments: list[str], motions: list[str], val_motions: list[str]) -> list[dict]:
-    """The source items of `garments` on `motions` (train) and `val_motions` (val), in run order."""
+def select_items(manifest: dict, garments: list[str], motions: list[str], val_motions: list[str],
+                 test_motions: list[str] = ()) -> list[dict]:
+    """The source items of `garments` on `motions` (train), `val_motions` (val) and `test_motions` (test), in
+    run order (validation first, then motion by motion)."""
     items = [it for it in manifest["items"] if it["garment"] in garments]
     order = []
-    for split, names in (("val", val_motions), ("train", motions)):
+    for split, names in (("val", val_motions), ("test", test_motions), ("train", motions)):
         for m in names:
             found = [it for it in items if it["motion"] == m and it["split"] == split]
             if not found:
@@ -47,8 +54,11 @@ def main() -> None:
     ap.add_argument("--like", required=True, help="source dataset (its items, bodies, material and solver)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--garments", default="dress,skirt,trousers")
-    ap.add_argument("--motions", default=None, help="comma-separated train motions (default: all, walks first)")
-    ap.add_argument("--val-motions", default="turn_left_sharp")
+    ap.add_argument("--motions", default=None,
+                    help="comma-separated train motions (default: all, walks first; 'none' for no train items)")
+    ap.add_argument("--val-motions", default="turn_left_sharp", help="comma-separated ('none': no val items)")
+    ap.add_argument("--test-motions", default="none",
+                    help="comma-separated test motions, e.g. the source's test split for an evaluation set")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--minutes", type=float, default=None, help="start no item after this many minutes")
     args = ap.parse_args()
@@ -70,9 +80,9 @@ def main() -> None:
         raise SystemExit(f"--like: no manifest in '{src}'")
     garments = args.garments.split(",")
     train_motions = old["splits"]["motions"]["train"]
-    motions = args.motions.split(",") if args.motions else (
+    motions = _names(args.motions) if args.motions else (
         [m for m in PRIORITY if m in train_motions] + [m for m in train_motions if m not in PRIORITY])
-    chosen = select_items(old, garments, motions, args.val_motions.split(",") if args.val_motions else [])
+    chosen = select_items(old, garments, motions, _names(args.val_motions), _names(args.test_motions))
 
     settings = copy.deepcopy(old["settings"])
     settings["solver"]["self_contact"] = True
@@ -125,6 +135,10 @@ def main() -> None:
                 write()
     man = write()
     print(f"{out}: {man['totals']['items']} sequences ({man['totals']['frames_per_split']})")
+
+
+def _names(text: str) -> list[str]:
+    return [] if text in ("", "none") else text.split(",")
 
 
 def _gated(deadline, call):
