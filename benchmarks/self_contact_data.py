@@ -6,7 +6,7 @@ script takes items of an existing dataset (same garment, motion clip, body shape
 again with self-contact, and writes a dataset in the same format that `garment train --init` fine-tunes on.
 
     python benchmarks/self_contact_data.py --like data/sim_v1 --out data/sim_sc1 --workers 2 \
-        --garments dress,skirt,trousers --val-motions turn_left_sharp --minutes 70
+        --garments dress,skirt --minutes 40
 
 Items are taken motion by motion in the order of --motions (default: the source's train motions, walks and
 runs first), every garment of a motion in turn, so a run cut short by --minutes still covers every garment.
