@@ -82,7 +82,9 @@ def main() -> None:
     train_motions = old["splits"]["motions"]["train"]
     motions = _names(args.motions) if args.motions else (
         [m for m in PRIORITY if m in train_motions] + [m for m in train_motions if m not in PRIORITY])
-    chosen = select_items(old, garments, motions, _names(args.val_motions), _names(args.test_motions))
+    fields = DatasetItem.__dataclass_fields__
+    chosen = [DatasetItem(**{k: it[k] for k in fields})
+              for it in select_items(old, garments, motions, _names(args.val_motions), _names(args.test_motions))]
 
     settings = copy.deepcopy(old["settings"])
     settings["solver"]["self_contact"] = True
@@ -94,7 +96,6 @@ def main() -> None:
         copy_garment_template(out, src / "garments" / f"{g}.obj", g)
     garment_paths = [str(out / "garments" / f"{g}.obj") for g in garments]
     betas = np.asarray(old["betas"]["per_body"], dtype=np.float64)
-    fields = DatasetItem.__dataclass_fields__
 
     old_out = read_manifest(out) or {}
     stats = dict(old_out.get("item_stats", {}))
@@ -102,7 +103,7 @@ def main() -> None:
 
     def write() -> dict:
         """The manifest of the finished items (a complete dataset whenever the run stops)."""
-        items = [DatasetItem(**{k: it[k] for k in fields}) for it in chosen if sequence_path(out, it["id"]).is_file()]
+        items = [it for it in chosen if sequence_path(out, it.id).is_file()]
         splits = {"motions": {s: sorted({it.motion for it in items if it.split == s}) for s in ("train", "val", "test")},
                   "garments": {s: sorted({it.garment for it in items if it.split == s}) for s in ("train", "val", "test")},
                   "held_out_garments": []}
@@ -116,15 +117,14 @@ def main() -> None:
         return man
 
     write()
-    todo = [it for it in chosen if not sequence_path(out, it["id"]).is_file() and it["id"] not in failed]
+    todo = [it for it in chosen if not sequence_path(out, it.id).is_file() and it.id not in failed]
     print(f"{out}: {len(chosen)} items chosen, {len(chosen) - len(todo)} done, {len(todo)} to simulate", flush=True)
     if args.minutes != 0 and todo:
         init = (garment_paths, [], bool(settings["library"]), None, float(settings["fps"]), material, options)
         t0 = time.time()
         deadline = None if args.minutes is None else t0 + 60 * args.minutes
-        calls = [(deadline, (init, DatasetItem(**{k: it[k] for k in fields}), betas[it["body"]],
-                             int(settings["settle"]), out, settings["body"])) for it in todo]
-        for iid, res in run_items(_gated, calls, [it["id"] for it in todo], workers=args.workers):
+        calls = [(deadline, (init, it, betas[it.body], int(settings["settle"]), out, settings["body"])) for it in todo]
+        for iid, res in run_items(_gated, calls, [it.id for it in todo], workers=args.workers):
             if isinstance(res, str):
                 failed[iid] = res
                 print(f"{time.time() - t0:7.0f} s  {iid}: FAILED {res}", flush=True)

@@ -5,9 +5,9 @@
 #
 # MOTION: a motion file, default the held-out walk_brisk of the motion library (written to
 # data/heldout/ by this script); FRAMES: source frames (60 fps source: 0:60 is one second at 30 fps).
-# Models: the shipped one, its self-contact fine-tune, and the 0/1/2-level variants of benchmarks/train_variants.py (phase 1,
-# same steps) when data/models has them. One torch thread, so each row's time does not depend on
-# what else the machine runs. Results: benchmarks/results/tradeoff/<garment>_<motion>/.
+# Models: the shipped one, and when data/models has them its self-contact fine-tune and the 0/1/2-level
+# variants of benchmarks/train_variants.py (phase 1, same steps). One torch thread, so each row's time
+# does not depend on what else the machine runs. Results: benchmarks/results/tradeoff/<garment>_<motion>/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MOTION=${1:-data/heldout/walk_brisk.npz}

@@ -11,9 +11,9 @@ Contact guard (`ContactAnchors`, `guard_contact`; on by default for `--method mo
 vertex is tied once, on the rest pose, to the body face closest to it; in every frame the vertex is kept
 on the outer side of that face's plane, at no less than min(margin, its rest offset), wherever it lies
 within GUARD_REACH_M of the face's point along the plane and no deeper than GUARD_DEPTH_M behind it.
-The face is posed exactly (it is the body's own), so this undoes what the network adds on top of skinning (blend shapes pushing cloth into the body,
-learned weights that drift from the body's) at about 1.5 ms/frame; it cannot see a vertex that slides
-over to another body part, which the exact push-out does.
+The face is posed exactly (it is the body's own), so this undoes what the network adds on top of
+skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at about
+1.5 ms/frame; it cannot see a vertex that slides over to another body part, which the exact push-out does.
 """
 
 from __future__ import annotations
