@@ -137,6 +137,10 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         init = load_checkpoint(init_path)
         model_values = dict(init["config"])
     model_values.setdefault("n_joints", body.n_joints)
+    if model_values["n_joints"] != body.n_joints:
+        hint, src = ("--init", f"'{init_path}'") if init is not None else ("--config", f"config '{config_path}'")
+        raise click.BadParameter(f"{src}: expected a network of the body's {body.n_joints} joints, got "
+                                 f"{model_values['n_joints']} joints (pass the --body it was made for)", param_hint=hint)
     overrides = {"phases": list(_parse_phases(phases))}
     for key, val in (("steps", steps), ("seed", seed), ("checkpoint_every", checkpoint_every)):
         if val is not None:

@@ -156,3 +156,17 @@ def test_train_init_starts_from_a_model(setup):
     r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(root / "t4.pt"), "--body", str(body),
                                  "--init", str(junk)])
     assert r.exit_code != 0 and "junk_init.pt" in r.output and not (root / "t4.pt").exists()
+    # A network made for another skeleton is refused up front, from --init as from --config.
+    other = load_checkpoint(base)
+    other["config"]["n_joints"] += 1
+    other_path = root / "other_skeleton.pt"
+    torch.save(other, other_path)
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(root / "t5.pt"), "--body", str(body),
+                                 "--init", str(other_path)])
+    assert r.exit_code != 0 and "--init" in r.output and "joints" in r.output and not (root / "t5.pt").exists()
+    other_cfg = root / "other_skeleton.json"
+    values = json.loads(cfg.read_text())
+    values["model"]["n_joints"] = other["config"]["n_joints"]
+    other_cfg.write_text(json.dumps(values))
+    r = _train(root, data, body, other_cfg, root / "t6.pt")
+    assert r.exit_code != 0 and "--config" in r.output and "joints" in r.output and "Traceback" not in r.output
