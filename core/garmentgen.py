@@ -51,6 +51,11 @@ MIN_VERTICES = 2000
 MAX_VERTICES = 8000
 #: Vertex count the offset garments (t-shirt, trousers, jumpsuit) are refined towards.
 TARGET_VERTICES = 3000
+#: Offset garments: tries of halving the ease where the garment passes through itself, how far (edges) around
+#: the crossing faces the ease is reduced, and the smallest ease left (metres).
+UNTANGLE_TRIES = 8
+UNTANGLE_RINGS = 2
+SNUG_EASE_M = 0.003
 
 _J = {name: i for i, name in enumerate(SMPL_JOINT_NAMES[:22])}
 _ARM_JOINTS = ("left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist")
@@ -437,6 +442,46 @@ def _gap_limited_ease(rest: _RestBody, points: np.ndarray, normals: np.ndarray, 
     return out
 
 
+def _offset_surface(rest: _RestBody, points: np.ndarray, normals: np.ndarray, ease: np.ndarray, faces: np.ndarray,
+                    smooth_iterations: int) -> np.ndarray:
+    """The body-surface patch `points` (N, 3) moved `ease` (N,) metres along `normals`, smoothed, kept outside the body."""
+    garment = points + normals * ease[:, None]
+    clearance = np.maximum(0.6 * ease, 0.002)
+    for _ in range(3):
+        garment = _taubin(garment, faces, smooth_iterations)
+        garment = rest.push_out(garment, clearance)
+    return garment
+
+
+def _untangled_offset(rest: _RestBody, name: str, points: np.ndarray, normals: np.ndarray, ease: np.ndarray,
+                      faces: np.ndarray, smooth_iterations: int) -> np.ndarray:
+    """`_offset_surface` with the ease halved, try by try, where the result passes through itself.
+
+    Offsetting a concave region (the crotch, an armpit) by more than its radius of curvature folds the
+    surface over itself; a garment authored that way starts the simulation tangled (with self-contact
+    on, crossing cloth is pushed apart or locked). Each try finds the self-intersecting faces
+    (`core.geometry.self_intersecting_faces`) and halves the ease (down to SNUG_EASE_M) of their
+    vertices and of every vertex within UNTANGLE_RINGS edges of them.
+    """
+    from core.geometry import self_intersecting_faces
+
+    adjacency = _neighbour_matrix(faces, len(points))[0]
+    ease = ease.copy()
+    for _ in range(UNTANGLE_TRIES):
+        garment = _offset_surface(rest, points, normals, ease, faces, smooth_iterations)
+        crossing = self_intersecting_faces(garment, faces)
+        if not crossing.any():
+            return garment
+        near = np.zeros(len(points))
+        near[faces[crossing].ravel()] = 1.0
+        for _ in range(UNTANGLE_RINGS):
+            near = near + adjacency @ near
+        ease[near > 0] = np.maximum(0.5 * ease[near > 0], SNUG_EASE_M)
+    log.warning("%s: %d faces still pass through others after %d tries of reducing the ease", name,
+                int(crossing.sum()), UNTANGLE_TRIES)
+    return garment
+
+
 def _ease_per_joint(n_joints: int, torso: float, arms: float, legs: float, neck: float) -> np.ndarray:
     ease = np.full(n_joints, arms)
     for name in ("pelvis", "spine1", "spine2", "spine3"):
@@ -479,11 +524,7 @@ def _offset_garment(rest: _RestBody, name: str, fields: list[Callable[[np.ndarra
         log.warning("%s: %d vertices on this body, above the %d aimed for", name, len(points), MAX_VERTICES)
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     ease = _gap_limited_ease(rest, points, normals, weights @ ease_per_joint)
-    garment = points + normals * ease[:, None]
-    clearance = np.maximum(0.6 * ease, 0.002)
-    for _ in range(3):
-        garment = _taubin(garment, faces, smooth_iterations)
-        garment = rest.push_out(garment, clearance)
+    garment = _untangled_offset(rest, name, points, normals, ease, faces, smooth_iterations)
     u, v = _cylindrical_uvs(garment, rest.joint("pelvis"))
     uvs, face_uvs = _seamed_uvs(u, v, faces)
     return _finish(rest, name, garment, faces, uvs, face_uvs)
