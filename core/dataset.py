@@ -9,7 +9,7 @@ Pure computation; `formats.dataset` stores what this produces and
 - Splits share no motion: the motions are shuffled (seed) and dealt into train /
   val / test (fractions 0.7 / 0.15 / 0.15, at least one motion each when there are
   three or more). With two or more garments, one garment (chosen with the seed) is
-  held out: it appears only in the test split, which uses every garment.
+  held out unless asked otherwise: it appears only in the test split, which uses every garment.
 - Each motion is cut into clips of at most `frames_per_clip` frames (at the
   dataset's fps); every clip gets `settle_frames` blend frames from the rest pose
   (`core.motion.settle`), stored and flagged by `n_settle`.
@@ -76,9 +76,14 @@ def split_motions(motion_names: list[str], seed: int = 0, fractions=SPLIT_FRACTI
     return dict(zip(order, splits))
 
 
-def held_out_garments(garment_names: list[str], seed: int = 0, chosen: str | None = None) -> list[str]:
-    """Garments used only in the test split: one of two or more (`chosen`, else drawn with the seed), none of one."""
+def held_out_garments(garment_names: list[str], seed: int = 0, chosen: str | bool | None = None) -> list[str]:
+    """Garments used only in the test split: one of two or more (`chosen`, else drawn with the seed), none of one.
+
+    chosen: a garment name, None (drawn with the seed) or False (none: every garment is trained on).
+    """
     names = sorted(garment_names)
+    if chosen is False:
+        return []
     if chosen is not None:
         if chosen not in names:
             raise InputError(f"--held-out: expected one of the garments ({', '.join(names)}), got '{chosen}'")
@@ -103,7 +108,7 @@ def clip_ranges(n_frames: int, frames_per_clip: int | None) -> list[tuple[int, i
 def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies: int,
                frames_per_clip: int | None = None, seed: int = 0,
                max_clips_per_motion: int | None = None, bodies_per_clip: int | None = None,
-               held_out: str | None = None) -> tuple[list[DatasetItem], dict]:
+               held_out: str | bool | None = None) -> tuple[list[DatasetItem], dict]:
     """Items over garments x motion clips x bodies and the split description.
 
     motion_frames: motion name -> frame count at the dataset's fps.
@@ -111,7 +116,7 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
     bodies_per_clip: simulate each (garment, clip) on this many of the bodies, taken in turn
       (body k, k+1, ... modulo n_bodies, k counting the pairs in motion/clip/garment order), so every
       body shape appears at a fraction of the cost; None: every body.
-    held_out: the garment kept for the test split (None: drawn with the seed).
+    held_out: the garment kept for the test split (None: drawn with the seed; False: none).
     Returns (items sorted by id, {"motions": {split: [...]}, "garments": {split: [...]}, "held_out_garments": [...]}).
     """
     if len(set(garment_names)) != len(garment_names):

@@ -108,6 +108,11 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
               help="Simulate each garment x clip on this many body shapes, taken in turn (default: all of --bodies).")
 @click.option("--held-out", "held_out", default=None, metavar="GARMENT",
               help="Garment (file stem) kept for the test split only (default: one drawn with --seed).")
+@click.option("--no-held-out", is_flag=True,
+              help="Train on every garment: none is kept for the test split only (the test split still has every "
+                   "garment, on the test motions).")
+@click.option("--dry-run", is_flag=True,
+              help="Write the plan (OUT/manifest.json, OUT/garments) and print its size; simulate nothing.")
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=10, show_default=True,
               help="Blend frames from the rest pose prepended to every clip (stored, flagged by n_settle).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of body shapes and splits.")
@@ -121,7 +126,8 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 @input_errors_as_click
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
-            pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None):
+            pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None, no_held_out=False,
+            dry_run=False):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
@@ -138,6 +144,11 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     from formats.obj import read_obj
     from garmentcli.common import load_body_option
 
+    if no_held_out:
+        if held_out is not None:
+            raise click.BadParameter(f"expected either --held-out or --no-held-out, got both (--held-out {held_out})",
+                                     param_hint="--no-held-out")
+        held_out = False
     out = Path(out_dir)
     material = load_material(material_path) if material_path else Material()
     options = SimOptions(substeps=substeps, iterations=iterations, self_contact=self_contact, pin=pin)
@@ -181,6 +192,10 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                f"{len(todo)} to simulate; splits: " +
                ", ".join(f"{s} {len(m)} motions" for s, m in splits["motions"].items()) +
                (f"; held-out garment(s): {', '.join(splits['held_out_garments'])}" if splits["held_out_garments"] else ""))
+    if dry_run:
+        for split, names in splits["motions"].items():
+            click.echo(f"{split}: {', '.join(names) or '-'} (garments: {', '.join(splits['garments'][split]) or '-'})")
+        return
     stats = {}
     task_out = out
     init = (list(garment_paths), list(motion_paths), library, body_path, fps, material, options)

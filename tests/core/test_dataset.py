@@ -109,3 +109,5 @@ def test_bodies_per_clip_takes_the_bodies_in_turn_and_held_out_is_chosen():
     assert len(two) == 2 * len({(it.garment, it.motion) for it in two})
     with pytest.raises(InputError, match="--held-out"):
         plan_items(["a", "b"], motions, 1, held_out="z")
+    every, splits = plan_items(["a", "b", "c"], motions, 1, held_out=False)
+    assert splits["held_out_garments"] == [] and {it.garment for it in every if it.split == "train"} == {"a", "b", "c"}

@@ -127,7 +127,31 @@ def test_dataset_needs_motions_and_library_loads(scene):
     assert r.exit_code != 0 and "--library" in r.output and not (scene["dir"] / "d").exists()
     r = run("dataset", "--garments", scene["garment"], "--library", "--held-out", "nosuch", "--out", scene["dir"] / "d")
     assert r.exit_code != 0 and "--held-out" in r.output and "nosuch" in r.output and not (scene["dir"] / "d").exists()
+    r = run("dataset", "--garments", scene["garment"], "--library", "--held-out", "shell", "--no-held-out",
+            "--out", scene["dir"] / "d")
+    assert r.exit_code != 0 and "--no-held-out" in r.output and "both" in r.output and not (scene["dir"] / "d").exists()
     from garmentcli.dataset import _load_motions
 
     motions = _load_motions([], True, 30.0)
     assert len(motions) >= 24 and all(m.fps == 30.0 for m in motions.values())
+
+
+def test_dataset_dry_run_writes_the_plan_only_and_no_held_out_trains_every_garment(scene):
+    a, b = still_motions(scene["dir"])
+    second = scene["dir"] / "second.obj"
+    second.write_bytes(Path(scene["garment"]).read_bytes())
+    base = ["dataset", "--garments", scene["garment"], "--garments", second, "--motions", a, "--motions", b,
+            "--body", scene["body"], "--settle", 1, "--dry-run"]
+    r = run(*base, "--out", scene["dir"] / "held")
+    assert r.exit_code == 0, r.output
+    held = json.loads((scene["dir"] / "held" / "manifest.json").read_text())
+    assert len(held["splits"]["held_out_garments"]) == 1
+    r = run(*base, "--no-held-out", "--out", scene["dir"] / "all")
+    assert r.exit_code == 0, r.output
+    m = json.loads((scene["dir"] / "all" / "manifest.json").read_text())
+    assert m["splits"]["held_out_garments"] == [] and m["settings"]["held_out"] is False
+    assert set(m["splits"]["garments"]["train"]) == {"shell", "second"}
+    assert "train: " in r.output and "test: " in r.output  # the plan's motions per split
+    # Nothing simulated: the plan and the garment templates only.
+    assert sorted(p.name for p in (scene["dir"] / "all" / "garments").iterdir()) == ["second.obj", "shell.obj"]
+    assert not list((scene["dir"] / "all").glob("sequences/*.npz"))
