@@ -26,7 +26,10 @@ from core.garment import Garment
 from core.motion import Motion, poses_for_body
 
 #: Simulator substeps per frame of the two settings; the finest, with self-contact, is the reference.
-SIM_SUBSTEPS = (5, 10)
+#: VBD (10 iterations a substep) keeps converging with substeps: on the example skirt (walk_brisk, 15
+#: frames) 10 and 20 substeps are 22 mm apart (mean edge strain 1.9 % and 0.8 %), 20 and 40 substeps
+#: 20 mm (0.4 %); 20 is the finest a CPU affords for every example garment, 5 was no reference at all.
+SIM_SUBSTEPS = (10, 20)
 PENETRATION_DEPTH_M = 0.002
 METRIC_COLUMNS = ("e_verts", "e_vnorm", "e_fnorm", "e_edge", "e_curv", "penetration_pct")
 

@@ -16,9 +16,9 @@ def test_configurations_cover_methods_precisions_push_out_and_sim_settings():
     assert [r.name for r in rows][:5] == ["lbs", "m float32", "m float32 +push-out", "m bfloat16",
                                           "m bfloat16 +push-out"]
     sims = [r for r in rows if r.method == "sim"]
-    assert {(r.options["substeps"], r.options["self_contact"]) for r in sims} == {(5, False), (5, True), (10, False),
-                                                                                 (10, True)}
-    assert [r.name for r in rows if r.reference] == ["sim 10 substeps +self-contact"]
+    assert {(r.options["substeps"], r.options["self_contact"]) for r in sims} == {(10, False), (10, True), (20, False),
+                                                                                 (20, True)}
+    assert [r.name for r in rows if r.reference] == ["sim 20 substeps +self-contact"]
 
 
 def test_pareto_front_naive():
@@ -42,14 +42,14 @@ def test_tradeoff_writes_table_plot_and_json(scene, model_file):
     rows = list(csv.DictReader(open(d / "tradeoff.csv")))
     assert [row["config"] for row in rows] == [c.name for c in configurations({"tiny": str(model_file)})]
     by = {row["config"]: row for row in rows}
-    ref = by["sim 10 substeps +self-contact"]
+    ref = by["sim 20 substeps +self-contact"]
     assert float(ref["e_verts"]) == 0.0 and ref["reference"] == "True"
     # The reference has no error; it, or the faster of the configurations that equal it, is on the front (the scene
-    # analysis may switch self-contact off on this small scene: the two 10-substep rows are then one simulation
+    # analysis may switch self-contact off on this small scene: the two 20-substep rows are then one simulation
     # and either may time faster).
     exact = [row for row in rows if float(row["e_verts"]) == 0.0]
     assert min(exact, key=lambda row: float(row["seconds_per_frame"]))["pareto"] == "True"
-    assert float(by["lbs"]["e_verts"]) > 0 and float(by["sim 5 substeps"]["e_verts"]) > 0
+    assert float(by["lbs"]["e_verts"]) > 0 and float(by["sim 10 substeps"]["e_verts"]) > 0
     for row in rows:
         assert float(row["seconds_per_frame"]) > 0 and np.isfinite(float(row["e_verts"]))
         assert float(row["peak_memory_mb"]) >= 0
@@ -100,19 +100,19 @@ def _fake_measure(fail):
 def test_a_failing_configuration_is_a_row_that_says_so(scene, monkeypatch):
     import garmentcli.tradeoff
 
-    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: c.name == "sim 5 substeps"))
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: c.name == "sim 10 substeps"))
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4",
                 "--out", scene["out"]])
     assert r.exit_code == 0, r.output
-    assert "sim 5 substeps: failed (sim: frame 3" in r.output
+    assert "sim 10 substeps: failed (sim: frame 3" in r.output
     d = scene["out"] / "shell_walk"
     rows = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
-    assert rows["sim 5 substeps"]["failed"].startswith("sim: frame 3") and rows["sim 5 substeps"]["e_verts"] == ""
+    assert rows["sim 10 substeps"]["failed"].startswith("sim: frame 3") and rows["sim 10 substeps"]["e_verts"] == ""
     assert rows["lbs"]["failed"] == "" and np.isclose(float(rows["lbs"]["e_verts"]), 10 * np.sqrt(3), atol=0.01)
-    assert "`sim 5 substeps` failed: sim: frame 3" in (d / "tradeoff.md").read_text()
+    assert "`sim 10 substeps` failed: sim: frame 3" in (d / "tradeoff.md").read_text()
     # The reference failing leaves nothing to compare with: one clear line, nothing written.
     monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: c.reference))
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4",
                 "--out", scene["out"] / "second"])
-    assert r.exit_code != 0 and "reference configuration 'sim 10 substeps +self-contact' failed" in r.output
+    assert r.exit_code != 0 and "reference configuration 'sim 20 substeps +self-contact' failed" in r.output
     assert "Traceback" not in r.output and not (scene["out"] / "second").exists()
