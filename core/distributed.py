@@ -3,9 +3,10 @@
 `run_items(task, calls, names, ...)` calls `task(*args)` once per item and yields
 `(name, result)` as items finish, whichever engine runs them:
 
-- locally in this process (`workers=1`), or in `workers` processes
-  (`concurrent.futures.ProcessPoolExecutor`); the first exception propagates,
-  as a plain loop would;
+- locally in this process (`workers=1`; the first exception propagates, as a
+  plain loop would), or in `workers` processes
+  (`concurrent.futures.ProcessPoolExecutor`; an item that raises is logged at
+  once and the others go on, as on a cluster);
 - on an existing `dask.distributed` cluster (`scheduler='tcp://host:port'`):
   one Dask task per item, resubmitted up to `retries` times when it raises
   (`Client.submit(..., retries=N)`); a worker process that dies is handled by the
@@ -42,8 +43,7 @@ class ItemsFailed(Exception):
         self.failures, self.total = failures, total
         name, exc = failures[0]
         first = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
-        super().__init__(f"{len(failures)} of {total} items failed after retries; first: '{name}': "
-                         f"{type(exc).__name__}: {first}")
+        super().__init__(f"{len(failures)} of {total} items failed; first: '{name}': {type(exc).__name__}: {first}")
 
 
 def dask_available() -> bool:
@@ -79,7 +79,8 @@ def run_items(task: Callable[..., Any], calls: Sequence[tuple], names: Sequence[
     workers: local processes when `scheduler` is None (1: in this process).
     retries: re-runs of a Dask task that raised (local runs do not retry).
     client: an already connected `distributed.Client` to use instead of `scheduler` (not closed here).
-    Raises ItemsFailed (cluster) after every other item has finished, or the task's exception (local).
+    Raises ItemsFailed after every other item has finished (cluster, local processes), or the task's own
+    exception (in this process).
     """
     if len(calls) != len(names):
         raise ValueError(f"expected one name per call, got {len(names)} names for {len(calls)} calls")
@@ -105,10 +106,18 @@ def _run_local(task, calls, names, workers: int):
         return
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    failures = []
     with ProcessPoolExecutor(max_workers=workers) as pool:
         futures = {pool.submit(task, *args): name for name, args in zip(names, calls)}
         for fut in as_completed(futures):
-            yield futures[fut], fut.result()
+            exc = fut.exception()
+            if exc is not None:  # said now, raised when the others have finished (they are kept)
+                log.warning("item '%s' failed: %s: %s", futures[fut], type(exc).__name__, exc)
+                failures.append((futures[fut], exc))
+            else:
+                yield futures[fut], fut.result()
+    if failures:
+        raise ItemsFailed(failures, len(calls))
 
 
 def _run_dask(client, task, calls, names, retries: int):

@@ -429,8 +429,6 @@ def _bake_in_workers(spec: BakeSpec, motions, scheduler: str | None, retries: in
                     _echo_done(target_of[name], summary, spec.method, spec.fps)
     except ItemsFailed as exc:
         raise click.ClickException(f"bake: {exc}; rerun with --skip-existing to resume") from None
-    except FloatingPointError as exc:  # local workers raise the task's own error
-        raise click.ClickException(f"bake: {exc}") from None
     finally:
         if client is not None:
             client.close()

@@ -53,6 +53,24 @@ def test_local_engine_in_process_and_in_order(tmp_path):
         list(run_items(abs, [(1,)], []))
 
 
+def _square_but_not_one(x):
+    if x == 1:
+        raise ValueError("one is broken")
+    return x * x
+
+
+def test_local_processes_keep_going_past_a_failed_item(caplog):
+    """In local processes, a failing item is said at once and the others still finish (a long dataset run used to
+    wait silently for every other item before its error surfaced)."""
+    got = {}
+    with pytest.raises(ItemsFailed, match="1 of 5 items failed; first: 'i1': ValueError: one is broken") as info:
+        for name, value in run_items(_square_but_not_one, [(x,) for x in range(5)], [f"i{x}" for x in range(5)],
+                                     workers=2):
+            got[name] = value
+    assert got == {"i0": 0, "i2": 4, "i3": 9, "i4": 16} and info.value.total == 5
+    assert "item 'i1' failed: ValueError: one is broken" in caplog.text
+
+
 def test_cluster_retries_failed_and_killed_tasks(client, tmp_path):
     task = make_task(tmp_path)
     calls = [(x,) for x in range(6)]
