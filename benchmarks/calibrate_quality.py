@@ -6,8 +6,10 @@
 Each test sequence is one calibration scene: its features (`core.quality.scene_features`: the garment's
 looseness on the sequence's body shape, the motion's joint speed) and, per configuration (lbs, the model,
 the model with push-out), its E_verts against the simulator and its cost per frame per 1,000 vertices.
-The simulator is the reference (its cost from benchmarks/results/sim_report.md's measured 0.64 s per
-frame per 1,000 vertices on two shared cores). `garment tradeoff --calibrate` adds scenes the same way.
+The simulator, with the dataset's solver settings, is the reference; its cost is the sequence's own, as
+the dataset run measured it (`item_stats` of the manifest; without them, benchmarks/results/sim_report.md's
+0.64 s per frame per 1,000 vertices at 10 substeps, scaled by the substeps). `garment tradeoff
+--calibrate` adds scenes the same way.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 from core.body import default_body  # noqa: E402
 from core.motion import Motion  # noqa: E402
 from core.quality import Calibration, add_scene, scene_features  # noqa: E402
-from formats.dataset import read_sequence, sequence_path  # noqa: E402
+from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
 from formats.obj import read_obj  # noqa: E402
 
 SIM_SECONDS_PER_FRAME_PER_KVERT = 0.64
@@ -41,6 +43,11 @@ def main(argv=None) -> None:
              args.model_row: ("model float32", "model", {"precision": "float32", "push_out": False}),
              f"{args.model_row} +push-out": ("model float32 +push-out", "model",
                                              {"precision": "float32", "push_out": True})}
+    manifest = read_manifest(args.data)
+    substeps = int(manifest["settings"]["solver"]["substeps"])
+    self_contact = bool(manifest["settings"]["solver"]["self_contact"])
+    sim_name = f"sim {substeps} substeps" + (" +self-contact" if self_contact else "")
+    stats = manifest.get("item_stats", {})
     body = default_body()
     cal = Calibration({})
     garments = {}
@@ -51,9 +58,10 @@ def main(argv=None) -> None:
         motion = Motion(poses=seq.poses[seq.n_settle:], trans=seq.trans[seq.n_settle:], fps=seq.fps,
                         betas=seq.betas)
         features = scene_features(garments[seq.garment], body, motion)
-        scene = [{"config": "sim 10 substeps", "method": "sim", "reference": True, "e_verts": 0.0,
-                  "seconds_per_frame": SIM_SECONDS_PER_FRAME_PER_KVERT * features["vertices"] / 1000.0,
-                  "options": {"substeps": 10, "self_contact": False}}]
+        sim_seconds = stats.get(item, {}).get("seconds_per_frame",
+                                              SIM_SECONDS_PER_FRAME_PER_KVERT * substeps / 10 * features["vertices"] / 1e3)
+        scene = [{"config": sim_name, "method": "sim", "reference": True, "e_verts": 0.0,
+                  "seconds_per_frame": sim_seconds, "options": {"substeps": substeps, "self_contact": self_contact}}]
         for r in rows:
             if r["item"] == item and r["method"] in names and r["e_verts"]:
                 config, method, options = names[r["method"]]
