@@ -11,10 +11,11 @@ meshes of the trained families, built by the same generator with other cuts, len
 - shorts: a one-piece offset garment from the waist to above the knees, looser at the legs than the
   example trousers.
 
-Each is simulated (reference settings of `data/sim_v1`: no self-contact, 10 substeps, 6 settle frames,
-54-frame clips, 3 body shapes, one per clip) on the dataset's held-out test motions with `garment
-dataset` (one dataset per garment, under --out). Evaluate with `python benchmarks/model_table.py --data
-data/sim_v1 --held-out-data data/heldout_garments/mini_dress --held-out-data data/heldout_garments/shorts ...`. Heavy output (the sequences) stays out of git.
+Each is simulated with the settings of the dataset the model was trained on (--like, default `data/sim_v1`:
+substeps, self-contact, settle frames, clip length, body shapes) on that dataset's held-out test motions
+with `garment dataset` (one dataset per garment, under --out). Evaluate with `python
+benchmarks/model_table.py --data data/sim_v1 --held-out-data data/heldout_garments/mini_dress
+--held-out-data data/heldout_garments/shorts ...`. Heavy output (the sequences) stays out of git.
 """
 
 from __future__ import annotations
@@ -56,18 +57,27 @@ def shorts(rest: _RestBody):
 GARMENTS = {"mini_dress": mini_dress, "shorts": shorts}
 
 
-def test_motions() -> list[str]:
-    manifest = ROOT / "data" / "sim_v1" / "manifest.json"
+#: The settings of data/sim_v1, used when no --like manifest is there.
+SIM_V1 = {"frames_per_clip": 54, "settle": 6, "bodies": 3, "seed": 0, "solver": {"substeps": 10, "self_contact": False}}
+
+
+def like_settings(like: Path) -> tuple[dict, list[str]]:
+    """(settings, test motions) of the dataset at `like` (those of data/sim_v1 when it has no manifest)."""
+    manifest = like / "manifest.json"
     if manifest.exists():
-        return list(json.loads(manifest.read_text())["splits"]["motions"]["test"])
-    return list(TEST_MOTIONS)
+        m = json.loads(manifest.read_text())
+        return m["settings"], list(m["splits"]["motions"]["test"])
+    return SIM_V1, list(TEST_MOTIONS)
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=ROOT / "data" / "heldout_garments")
     ap.add_argument("--inputs-only", action="store_true", help="write the garments and motions, simulate nothing")
+    ap.add_argument("--like", type=Path, default=ROOT / "data" / "sim_v1",
+                    help="the training dataset whose settings and test motions to use")
     args = ap.parse_args(argv)
+    settings, motions = like_settings(args.like)
     rest = _RestBody(default_body())
     inputs = args.out / "inputs"
     inputs.mkdir(parents=True, exist_ok=True)
@@ -78,7 +88,7 @@ def main(argv=None) -> None:
         write_obj(garment_paths[-1], g.vertices, g.faces, g.uvs, g.face_uvs)
         print(f"{name}: {g.n_vertices} vertices, {len(g.faces)} faces")
     motion_paths = []
-    for name in test_motions():
+    for name in motions:
         motion_paths.append(inputs / f"{name}.npz")
         save_motion(motion_paths[-1], MOTION_LIBRARY[name](fps=30.0))
     if args.inputs_only:
@@ -89,8 +99,11 @@ def main(argv=None) -> None:
     for g in garment_paths:
         cmd = [sys.executable, "-m", "garmentcli.main", "dataset", "--garments", str(g),
                *[a for p in motion_paths for a in ("--motions", str(p))],
-               "--bodies", "3", "--bodies-per-clip", "1", "--frames-per-clip", "54", "--max-clips-per-motion", "1",
-               "--settle", "6", "--seed", "0", "--out", str(args.out / g.stem)]
+               "--bodies", str(settings["bodies"]), "--bodies-per-clip", "1",
+               "--frames-per-clip", str(settings["frames_per_clip"]), "--max-clips-per-motion", "1",
+               "--settle", str(settings["settle"]), "--seed", str(settings["seed"]),
+               "--substeps", str(settings["solver"]["substeps"]),
+               *(["--self-contact"] if settings["solver"]["self_contact"] else []), "--out", str(args.out / g.stem)]
         print(" ".join(cmd), flush=True)
         procs.append(subprocess.Popen(cmd, cwd=ROOT))
     if any(p.wait() for p in procs):

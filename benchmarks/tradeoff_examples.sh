@@ -5,8 +5,8 @@
 #
 # MOTION: a motion file, default the held-out walk_brisk of the motion library (written to
 # data/heldout/ by this script); FRAMES: source frames (60 fps source: 0:60 is one second at 30 fps).
-# Models: the shipped one, and when data/models has them its self-contact fine-tune and the 0/1/2-level
-# variants of benchmarks/train_variants.py (phase 1, same steps). One torch thread, so each row's time
+# Models: the shipped one, and when data/models has them the model shipped before it (model_v1.pt, trained on
+# data/sim_v1) and the 0/1/2-level variants of benchmarks/train_variants.py (phase 1). One torch thread, so each row's time
 # does not depend on what else the machine runs. Results: benchmarks/results/tradeoff/<garment>_<motion>/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,8 +21,8 @@ if [ ! -f "$MOTION" ]; then
 save_motion(sys.argv[1], MOTION_LIBRARY['walk_brisk'](fps=60.0))" "$MOTION"
 fi
 MODELS=(--model shipped=core/assets/default_model.pt)
-# The shipped model fine-tuned on simulations with self-contact (README: `garment train --init`), when made.
-[ -f data/models/model_sc1.pt ] && MODELS+=(--model "self-contact tuned=data/models/model_sc1.pt")
+# The model shipped before (trained on 10-substep simulations of three lower-body garments), when kept.
+[ -f data/models/model_v1.pt ] && MODELS+=(--model "sim_v1 model=data/models/model_v1.pt")
 for L in 0 1 2; do
     f=data/models/pool_structure_L${L}_p1.pt
     [ -f "$f" ] && MODELS+=(--model "L${L}-phase1=$f")
