@@ -65,6 +65,7 @@ def main(argv=None) -> None:
     ap.add_argument("--name", required=True, help="the model's row name in the table")
     ap.add_argument("--train-command", default="python benchmarks/train_variants.py --data data/sim_v1 "
                     "--models-dir data/models --minutes 92 --only model_p123 model_p1")
+    ap.add_argument("--dataset-command", default="see README 'Training data' (garment dataset ... --held-out tshirt ...)")
     args = ap.parse_args(argv)
     ck = load_checkpoint(args.model)
     run = json.loads(args.model.with_name(args.model.name + ".json").read_text())
@@ -77,7 +78,7 @@ def main(argv=None) -> None:
     card = {
         "model": DEFAULT_MODEL.name,
         "source": str(args.model),
-        "command": {"dataset": "see README 'Training data' (garment dataset ... --held-out tshirt ...)",
+        "command": {"dataset": args.dataset_command,
                     "train": args.train_command,
                     "evaluate": table.get("command", ""),
                     "ship": "python " + " ".join([Path(__file__).relative_to(ROOT).as_posix(), *map(str, argv or sys.argv[1:])])},
