@@ -7,7 +7,9 @@
 # data/heldout/ by this script); FRAMES: source frames (60 fps source: 0:60 is one second at 30 fps).
 # Models: the shipped one, and when data/models has them the model shipped before it (model_v1.pt, trained on
 # data/sim_v1) and the 0/1/2-level variants of benchmarks/train_variants.py (phase 1). One torch thread, so each row's time
-# does not depend on what else the machine runs. Results: benchmarks/results/tradeoff/<garment>_<motion>/.
+# does not depend on what else the machine runs. Results: benchmarks/results/tradeoff/<garment>_<motion>/, and
+# summary.md over every scene (benchmarks/tradeoff_summary.py). REUSE_SIM=1 takes the simulator rows from the
+# previous run of each scene where nothing they depend on changed (garment tradeoff --reuse-sim).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MOTION=${1:-data/heldout/walk_brisk.npz}
@@ -29,6 +31,9 @@ for L in 0 1 2; do
 done
 export OMP_NUM_THREADS=1
 for g in "${GARMENTS[@]}"; do
+    scene=benchmarks/results/tradeoff/$(basename "$g" .obj)_$(basename "$MOTION" .npz)
+    if [ "${REUSE_SIM:-0}" = 1 ] && [ -d "$scene/simulations" ]; then KEEP=--reuse-sim; else KEEP=--overwrite; fi
     garment tradeoff "$g" "$MOTION" --frames "$FRAMES" "${MODELS[@]}" --repeats 2 \
-        --out benchmarks/results/tradeoff --overwrite
+        --out benchmarks/results/tradeoff "$KEEP"
 done
+python benchmarks/tradeoff_summary.py

@@ -143,6 +143,54 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
     return Measurement(config, points, statistics.median(times) / motion.n_frames, prep, mem.peak_mb, runs)
 
 
+def simulation_key(config: Config, garment: Garment, body: Body, motion: Motion) -> str:
+    """sha256 of everything a simulator row's result depends on: the garment, the body posed over the motion,
+    the frame rate, the configuration's options, the simulator's default material and solver settings, its
+    source file and the versions of Newton and Warp."""
+    import hashlib
+    import json
+    from importlib.metadata import PackageNotFoundError, version
+    from pathlib import Path
+
+    import core.sim
+    from core.sim import Material, SimOptions
+
+    def _version(pkg):
+        try:
+            return version(pkg)
+        except PackageNotFoundError:
+            return None
+
+    h = hashlib.sha256()
+    body_pts, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
+    for a in (garment.vertices, garment.faces, body_pts, body.faces):
+        h.update(np.ascontiguousarray(a).tobytes())
+    h.update(Path(core.sim.__file__).read_bytes())
+    h.update(json.dumps({"fps": motion.fps, "options": config.options, "material": repr(Material()),
+                         "solver": repr(SimOptions()), "newton": _version("newton"), "warp": _version("warp-lang")},
+                        sort_keys=True).encode())
+    return h.hexdigest()
+
+
+def save_simulation(path, m: Measurement, key: str) -> None:
+    """Store a simulator row (points and timings) for `load_simulation`."""
+    np.savez_compressed(path, points=m.points.astype(np.float32), key=key, seconds_per_frame=m.seconds_per_frame,
+                        seconds_prepare=m.seconds_prepare, peak_memory_mb=m.peak_memory_mb, runs=m.runs)
+
+
+def load_simulation(path, config: Config, key: str) -> Measurement | None:
+    """The stored row of `config` when `path` holds one made with the same `key` (else None)."""
+    from pathlib import Path
+
+    if not Path(path).is_file():
+        return None
+    with np.load(path) as d:
+        if str(d["key"]) != key:
+            return None
+        return Measurement(config, np.array(d["points"]), float(d["seconds_per_frame"]),
+                           float(d["seconds_prepare"]), float(d["peak_memory_mb"]), int(d["runs"]))
+
+
 def compare(measurements: list[Measurement], garment: Garment, body: Body, motion: Motion) -> None:
     """Fill each measurement's metrics against the reference configuration's points (in place)."""
     from core.geometry import points_inside_mesh
@@ -163,3 +211,28 @@ def pareto_front(points: list[tuple[float, float]]) -> list[bool]:
     for i, (c, e) in enumerate(points):
         out.append(not any((c2 <= c and e2 <= e) and (c2 < c or e2 < e) for j, (c2, e2) in enumerate(points) if j != i))
     return out
+
+
+def scene_summary(result: dict, model: str) -> dict:
+    """One scene's line of the cross-garment summary from its tradeoff.json `result`: LBS, the model row
+    `model` (float32, no push-out) and the fastest simulator row; E_verts against the reference, ms per
+    frame, the model's error as a share of LBS's, and whether the time order lbs < model < sim holds
+    (slowest LBS row faster than the fastest model row, slowest model row faster than the fastest simulator)."""
+    rows = {r["config"]: r for r in result["rows"]}
+    ref = next(r["config"] for r in result["rows"] if r["reference"])
+    lbs, mdl = rows["lbs"], rows.get(f"{model} float32")
+    if mdl is None:
+        raise KeyError(f"{result['garment']}: no row '{model} float32' (rows: {', '.join(rows)})")
+    by_method = {m: [r["seconds_per_frame"] for r in result["rows"] if r["method"] == m and not r.get("failed")]
+                 for m in ("lbs", "model", "sim")}
+    sims = [r for r in result["rows"] if r["method"] == "sim" and not r["reference"] and not r.get("failed")]
+    closest_sim = min(sims, key=lambda r: r["e_verts"]) if sims else None
+    return {"garment": result["garment"], "vertices": result["vertices"], "frames": result["frames"],
+            "reference": ref, "lbs_mm": lbs["e_verts"], "model_mm": mdl["e_verts"],
+            "model_share_of_lbs": mdl["e_verts"] / lbs["e_verts"] if lbs["e_verts"] > 0 else float("nan"),
+            "closest_sim": closest_sim["config"] if closest_sim else "", "closest_sim_mm":
+            closest_sim["e_verts"] if closest_sim else float("nan"),
+            "lbs_ms": 1e3 * lbs["seconds_per_frame"], "model_ms": 1e3 * mdl["seconds_per_frame"],
+            "sim_s": min(by_method["sim"]) if by_method["sim"] else float("nan"),
+            "time_ordered": bool(by_method["sim"]) and max(by_method["lbs"]) < min(by_method["model"])
+            and max(by_method["model"]) < min(by_method["sim"])}

@@ -16,7 +16,16 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from core.tradeoff import METRIC_COLUMNS, compare, configurations, measure, pareto_front
+from core.tradeoff import (
+    METRIC_COLUMNS,
+    compare,
+    configurations,
+    load_simulation,
+    measure,
+    pareto_front,
+    save_simulation,
+    simulation_key,
+)
 from garmentcli.common import (
     body_option,
     frames_option,
@@ -27,6 +36,14 @@ from garmentcli.common import (
 
 COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "seconds_prepare", "peak_memory_mb",
            *METRIC_COLUMNS, "pareto")
+
+
+#: Subdirectory of a scene's results holding its simulator rows (points, timings, key) for --reuse-sim.
+SIMULATIONS = "simulations"
+
+
+def _sim_file(config) -> str:
+    return config.name.replace(" ", "_").replace("+", "") + ".npz"
 
 
 def _models(specs: tuple) -> dict:
@@ -56,12 +73,16 @@ def _models(specs: tuple) -> dict:
 @click.option("--repeats", type=click.IntRange(min=1), default=3, show_default=True,
               help="Timed runs per configuration after a warm-up (the median counts); the simulator runs once.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing result directory.")
+@click.option("--reuse-sim", is_flag=True,
+              help="Take the simulator rows from the earlier run in the result directory where it simulated the same "
+                   "scene (garment, body, motion, frames, fps, simulator settings), so adding a model re-simulates "
+                   "nothing; replaces that directory.")
 @click.option("--calibrate", "calibration_path", type=click.Path(dir_okay=False), default=None, metavar="FILE",
               help="Also add this scene to the --quality auto calibration FILE (created if missing), e.g. "
                    "<model>.calibration.json beside the model.")
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
-             calibration_path=None):
+             reuse_sim=False, calibration_path=None):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each model in float32 and bfloat16, with and without penetration push-out; the
@@ -79,16 +100,26 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     except ImportError:
         raise click.ClickException("tradeoff needs the reference simulator: pip install 'garment[sim]'") from None
     target = Path(out_dir) / f"{Path(garment_path).stem}_{Path(motion_path).stem}"
-    if target.exists() and not overwrite:
-        raise click.ClickException(f"output '{target}' exists: pass --overwrite to replace it")
+    if target.exists() and not (overwrite or reuse_sim):
+        raise click.ClickException(f"output '{target}' exists: pass --overwrite to replace it (or --reuse-sim to "
+                                   "keep its simulations)")
+    if reuse_sim and not (target / SIMULATIONS).is_dir():
+        raise click.ClickException(f"--reuse-sim: '{target / SIMULATIONS}' does not exist: no earlier run to reuse")
     garment = read_obj(garment_path)
     body = load_body_option(body_path)
     motion, _ = prepare_motion(motion_path, fps, frames, 0)
     from formats.cache import default_cache_dir
 
     rows = configurations(models)
-    results, failed = [], []
+    results, failed, reused = [], [], []
     for config in tqdm(rows, desc="tradeoff", unit="config", disable=None):
+        if config.method == "sim" and reuse_sim:
+            stored = load_simulation(target / SIMULATIONS / _sim_file(config), config,
+                                     simulation_key(config, garment, body, motion))
+            if stored is not None:
+                results.append(stored)
+                reused.append(config.name)
+                continue
         try:
             results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
         except FloatingPointError as exc:  # an unstable configuration (e.g. too few substeps) is a result too
@@ -111,6 +142,11 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     try:
         _write(tmp, table, garment_path, motion_path, motion, garment)
+        (tmp / SIMULATIONS).mkdir()
+        for m in results:
+            if m.config.method == "sim":
+                save_simulation(tmp / SIMULATIONS / _sim_file(m.config), m,
+                                simulation_key(m.config, garment, body, motion))
         if target.exists():
             shutil.rmtree(target)
         tmp.rename(target)
@@ -126,6 +162,9 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         cal.save(calibration_path)
         click.echo(f"{calibration_path}: added the scene (looseness {features['looseness_m'] * 100:.1f} cm, "
                    f"speed {features['speed_m_s']:.2f} m/s)")
+    if reuse_sim:
+        click.echo(f"--reuse-sim: {len(reused)} of {sum(c.method == 'sim' for c in rows)} simulator rows taken from "
+                   f"the earlier run" + (f" ({', '.join(reused)})" if reused else ""))
     best = min((r for r in table if r["method"] == "model" and not r["failed"]), key=lambda r: r["e_verts"], default=None)
     lbs = next(r for r in table if r["method"] == "lbs")
     click.echo(f"{target}: {len(table)} configurations on {motion.n_frames} frames; lbs {lbs['e_verts']:.1f} mm at "

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from core.tradeoff import configurations, pareto_front
+from core.tradeoff import configurations, pareto_front, scene_summary
 from tests.core.model_fixtures import TINY_CONFIG, perturbed_model
 from tests.garmentcli.cli import invoke
 
@@ -25,6 +25,29 @@ def test_pareto_front_naive():
     pts = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 0.0), (2.0, 3.0)]
     # (3, 4) is beaten by (2, 3); the two equal (2, 3) do not beat each other.
     assert pareto_front(pts) == [True, True, False, True, True]
+
+
+def _row(config, method, s, mm, reference=False, failed=""):
+    return {"config": config, "method": method, "seconds_per_frame": s, "e_verts": mm, "reference": reference,
+            "failed": failed}
+
+
+def test_scene_summary_shares_and_time_order():
+    result = {"garment": "g.obj", "vertices": 10, "frames": 3, "rows": [
+        _row("lbs", "lbs", 1e-4, 40.0), _row("m float32", "model", 0.02, 10.0), _row("m bfloat16", "model", 0.03, 11.0),
+        _row("sim 10 substeps", "sim", 1.0, 8.0), _row("sim 20 substeps", "sim", 2.0, 5.0),
+        _row("sim 20 substeps +self-contact", "sim", 4.0, 0.0, reference=True)]}
+    s = scene_summary(result, "m")
+    assert (s["lbs_mm"], s["model_mm"], s["model_share_of_lbs"]) == (40.0, 10.0, 0.25)
+    assert (s["closest_sim"], s["closest_sim_mm"], s["sim_s"]) == ("sim 20 substeps", 5.0, 1.0)
+    assert s["reference"] == "sim 20 substeps +self-contact" and s["time_ordered"]
+    # a model row slower than the fastest simulator breaks the order; a failed row does not count
+    result["rows"].append(_row("slow float32", "model", 1.5, 9.0))
+    assert not scene_summary(result, "m")["time_ordered"]
+    result["rows"][-1]["failed"] = "out of range"
+    assert scene_summary(result, "m")["time_ordered"]
+    with pytest.raises(KeyError, match="no row 'x float32'"):
+        scene_summary(result, "x")
 
 
 @pytest.fixture
@@ -116,3 +139,37 @@ def test_a_failing_configuration_is_a_row_that_says_so(scene, monkeypatch):
                 "--out", scene["out"] / "second"])
     assert r.exit_code != 0 and "reference configuration 'sim 20 substeps +self-contact' failed" in r.output
     assert "Traceback" not in r.output and not (scene["out"] / "second").exists()
+
+
+def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkeypatch):
+    import garmentcli.tradeoff
+
+    base = ["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]]
+    r = invoke([*base, "--reuse-sim", "--frames", "0:4"])
+    assert r.exit_code != 0 and "no earlier run to reuse" in r.output and not (scene["out"] / "shell_walk").exists()
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: False))
+    assert invoke([*base, "--frames", "0:4"]).exit_code == 0
+    d = scene["out"] / "shell_walk"
+    first = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
+    assert len(list((d / "simulations").glob("*.npz"))) == 4
+    measured = []
+    fake = _fake_measure(lambda c: False)
+
+    def counting(config, *args, **kwargs):
+        measured.append(config.name)
+        return fake(config, *args, **kwargs)
+
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", counting)
+    r = invoke([*base, "--reuse-sim", "--frames", "0:4"])
+    assert r.exit_code == 0, r.output
+    assert "4 of 4 simulator rows taken from the earlier run" in r.output
+    assert measured and not any(name.startswith("sim") for name in measured)
+    again = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
+    for name in ("sim 10 substeps", "lbs"):
+        assert float(again[name]["e_verts"]) == pytest.approx(float(first[name]["e_verts"]), abs=1e-6)
+    assert again["sim 10 substeps"]["seconds_per_frame"] == first["sim 10 substeps"]["seconds_per_frame"]
+    # Other frames (the 60 fps source is baked at 30 fps: 0:6 is three frames, 0:4 two): every simulator row runs again.
+    measured.clear()
+    r = invoke([*base, "--reuse-sim", "--frames", "0:6"])
+    assert r.exit_code == 0, r.output
+    assert "0 of 4 simulator rows" in r.output and sum(name.startswith("sim") for name in measured) == 4
