@@ -31,31 +31,50 @@ def _bake(garment, out, *extra):
     return read_usd(d / f"{garment.stem}_run.usd").tracks["garment"].points, summary, r.output
 
 
+def _restricted_model(tmp_path, joints=("shoulder", "elbow", "wrist", "hand", "collar", "neck", "head")):
+    """The shipped model as if no training garment had covered the arms, shoulders, neck and head."""
+    from core.body import SMPL_JOINT_NAMES
+    from formats.checkpoint import load_checkpoint, save_checkpoint
+
+    data = load_checkpoint(DEFAULT_MODEL)
+    meta = dict(data["meta"])
+    meta["joint_coverage"] = [0.0 if any(j in name for j in joints) else c
+                              for name, c in zip(SMPL_JOINT_NAMES, meta["joint_coverage"])]
+    return save_checkpoint(tmp_path / "lower_body.pt", data["config"], data["model"], meta)
+
+
 @pytest.mark.parametrize("garment", EXAMPLES, ids=lambda p: p.stem)
-def test_model_on_every_example_garment_and_by_default_within_its_training_range(garment, tmp_path):
+def test_model_on_every_example_garment_within_its_training_range(garment, tmp_path):
     assert len(EXAMPLES) == 5
-    # The shipped model was trained on lower-body garments: the arms and shoulders of these are new to it.
-    outside = garment.stem in ("tshirt", "jumpsuit")
     default, summary, out = _bake(garment, tmp_path / "default")
     lbs, _, _ = _bake(garment, tmp_path / "lbs", "--method", "lbs")
-    if outside:
-        assert summary["method"] == "lbs" and summary["method_fallback"]["to"] == "lbs"
-        assert summary["method_fallback"]["uncovered_share"] > 0.05 and "baking with lbs instead" in out
-        np.testing.assert_allclose(default, lbs, atol=1e-6)
-        model, summary, out = _bake(garment, tmp_path / "model", "--method", "model")
-        assert "warning:" in out and "worse than lbs" in out
-    else:
-        model = default
-        assert "method_fallback" not in summary
     assert summary["method"] == "model" and Path(summary["deformer"]["model"]) == DEFAULT_MODEL
-    assert summary["deformer"]["training_range"]["within"] == (not outside)
-    assert model.shape == lbs.shape and np.isfinite(model).all()
-    gap = np.linalg.norm(model - lbs, axis=-1)
+    assert "method_fallback" not in summary and summary["deformer"]["training_range"]["within"]
+    assert default.shape == lbs.shape and np.isfinite(default).all()
+    gap = np.linalg.norm(default - lbs, axis=-1)
     extent = float(np.ptp(lbs[0], axis=0).max())
     # The network corrects LBS (it is not LBS: trained blend shapes and weights move vertices) and stays
     # bounded: on average within a tenth of the garment's size of the LBS garment, no vertex further than half.
     assert 1e-3 < gap.mean() < 0.1 * extent, (gap.mean(), extent)
     assert gap.max() < 0.5 * extent, (gap.max(), extent)
+
+
+def test_garment_outside_the_training_range_is_baked_with_lbs_unless_the_model_is_asked_for(tmp_path):
+    """A model whose training garments never covered the arms: a t-shirt is baked with lbs, with one line saying
+    why; --method model runs the model anyway, with a warning; a skirt stays with the model."""
+    model = _restricted_model(tmp_path)
+    tshirt = ROOT / "examples" / "tshirt.obj"
+    default, summary, out = _bake(tshirt, tmp_path / "default", "--model", model)
+    lbs, _, _ = _bake(tshirt, tmp_path / "lbs", "--method", "lbs")
+    assert summary["method"] == "lbs" and summary["method_fallback"]["to"] == "lbs"
+    assert summary["method_fallback"]["uncovered_share"] > 0.05 and "baking with lbs instead" in out
+    np.testing.assert_allclose(default, lbs, atol=1e-6)
+    forced, summary, out = _bake(tshirt, tmp_path / "model", "--method", "model", "--model", model)
+    assert "warning:" in out and "worse than lbs" in out
+    assert summary["method"] == "model" and not summary["deformer"]["training_range"]["within"]
+    assert np.abs(forced - lbs).max() > 1e-3
+    _, summary, _ = _bake(ROOT / "examples" / "skirt.obj", tmp_path / "skirt", "--model", model)
+    assert summary["method"] == "model" and "method_fallback" not in summary
 
 
 def test_training_range_shares():
