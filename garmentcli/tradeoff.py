@@ -112,7 +112,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
 
     rows = configurations(models)
     results, failed, reused = [], [], []
-    for config in tqdm(rows, desc="tradeoff", unit="config", disable=None):
+    bar = tqdm(rows, desc="tradeoff", unit="config", disable=None)
+    for i, config in enumerate(bar, 1):
         if config.method == "sim" and reuse_sim:
             stored = load_simulation(target / SIMULATIONS / _sim_file(config), config,
                                      simulation_key(config, garment, body, motion))
@@ -122,6 +123,9 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                 continue
         try:
             results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
+            if bar.disable:  # no terminal (a log file, a batch job): one line per configuration
+                click.echo(f"tradeoff: {i}/{len(rows)} {config.name}: "
+                           f"{results[-1].seconds_per_frame:.4g} s/frame", err=True)
         except FloatingPointError as exc:  # an unstable configuration (e.g. too few substeps) is a result too
             if config.reference:
                 raise click.ClickException(f"tradeoff: the reference configuration '{config.name}' failed: {exc}")

@@ -163,6 +163,8 @@ def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkey
     r = invoke([*base, "--reuse-sim", "--frames", "0:4"])
     assert r.exit_code == 0, r.output
     assert "4 of 4 simulator rows taken from the earlier run" in r.output
+    # without a terminal, one line per measured configuration (a log shows how far a long run is)
+    assert "tradeoff: 1/9 lbs: " in r.output and "tradeoff: 6/9 sim" not in r.output
     assert measured and not any(name.startswith("sim") for name in measured)
     again = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
     for name in ("sim 10 substeps", "lbs"):
