@@ -191,11 +191,16 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             if main:
                 save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(), train=tr.state())
 
+        # What the model has seen: per joint, the largest share of a training garment's weight on it.
+        coverage = joint_coverage([g.inputs.prior_weights.numpy() for g in data.garments.values()])
+        if init is not None and init.get("meta", {}).get("joint_coverage") is not None:  # it has seen both datasets
+            coverage = [max(a, b) for a, b in zip(coverage, init["meta"]["joint_coverage"])]
+
         def snapshot(tr, phase):
             if main:  # the model at the end of `phase`, e.g. MODEL.phase1.pt
                 save_checkpoint(out.with_name(f"{out.stem}.phase{phase}{out.suffix}"), model_cfg,
                                 {k: v.cpu() for k, v in tr.model.state_dict().items()},
-                                meta={"steps": tr.step, "phase": phase, "of": out.name})
+                                meta={"steps": tr.step, "phase": phase, "of": out.name, "joint_coverage": coverage})
 
         trainer.progress = progress
         trainer.on_switch = snapshot
@@ -203,15 +208,10 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         bar.close()
         checkpoint(trainer)
     last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
-    coverage = joint_coverage([g.inputs.prior_weights.numpy() for g in data.garments.values()])
-    if init is not None and init.get("meta", {}).get("joint_coverage") is not None:  # it has seen both datasets
-        coverage = [max(a, b) for a, b in zip(coverage, init["meta"]["joint_coverage"])]
     meta = {"train_config": dataclasses.asdict(train_cfg), "data": str(data_dir), "init": init_path,
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
-            "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name,
-            # What the model has seen: per joint, the largest share of a training garment's weight on it.
-            "joint_coverage": coverage}
+            "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name, "joint_coverage": coverage}
     if not main:
         return
     save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)

@@ -62,6 +62,8 @@ def test_train_writes_model_log_and_resumes(setup):
     assert ended == [1]  # (val every 2 steps, patience 1: phase 1 ends at step 4, phase 2 runs on)
     snap = load_checkpoint(root / "full.phase1.pt")
     assert snap["meta"]["phase"] == 1 and phase_at[snap["meta"]["steps"]] == 1
+    # it is a model bake can guard like the final one: it knows its training garments' joints
+    assert snap["meta"]["joint_coverage"] == load_checkpoint(full)["meta"]["joint_coverage"]
     assert not (root / "full.phase2.pt").exists()
     final = load_checkpoint(full)["model"]
     snap1 = load_checkpoint(root / "full.phase1.pt")["model"]
