@@ -143,32 +143,34 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
     return Measurement(config, points, statistics.median(times) / motion.n_frames, prep, mem.peak_mb, runs)
 
 
-def simulation_key(config: Config, garment: Garment, body: Body, motion: Motion) -> str:
-    """sha256 of everything a simulator row's result depends on: the garment, the body posed over the motion,
-    the frame rate, the configuration's options, the simulator's default material and solver settings, its
-    source file and the versions of Newton and Warp."""
+def simulation_scene(garment: Garment, body: Body, motion: Motion):
+    """sha256 state of what every simulator row of a scene depends on: the garment, the body posed over the
+    motion, the frame rate, the simulator's default material and solver settings, its source file and the
+    software versions (`core.provenance`). Made once per scene; `simulation_key` adds a row's options."""
     import hashlib
     import json
-    from importlib.metadata import PackageNotFoundError, version
     from pathlib import Path
 
     import core.sim
+    from core.provenance import software_versions
     from core.sim import Material, SimOptions
 
-    def _version(pkg):
-        try:
-            return version(pkg)
-        except PackageNotFoundError:
-            return None
-
-    h = hashlib.sha256()
+    h = hashlib.sha256(garment.content_hash().encode())
     body_pts, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
-    for a in (garment.vertices, garment.faces, body_pts, body.faces):
+    for a in (body_pts, body.faces):
         h.update(np.ascontiguousarray(a).tobytes())
     h.update(Path(core.sim.__file__).read_bytes())
-    h.update(json.dumps({"fps": motion.fps, "options": config.options, "material": repr(Material()),
-                         "solver": repr(SimOptions()), "newton": _version("newton"), "warp": _version("warp-lang")},
-                        sort_keys=True).encode())
+    h.update(json.dumps({"fps": motion.fps, "material": repr(Material()), "solver": repr(SimOptions()),
+                         **software_versions("newton", "warp-lang")}, sort_keys=True).encode())
+    return h
+
+
+def simulation_key(config: Config, scene) -> str:
+    """The key of a simulator row: its scene's `simulation_scene` and the configuration's options."""
+    import json
+
+    h = scene.copy()
+    h.update(json.dumps(config.options, sort_keys=True).encode())
     return h.hexdigest()
 
 

@@ -25,6 +25,7 @@ from core.tradeoff import (
     pareto_front,
     save_simulation,
     simulation_key,
+    simulation_scene,
 )
 from garmentcli.common import (
     body_option,
@@ -111,12 +112,12 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     from formats.cache import default_cache_dir
 
     rows = configurations(models)
+    scene = simulation_scene(garment, body, motion)
     results, failed, reused = [], [], []
     bar = tqdm(rows, desc="tradeoff", unit="config", disable=None)
     for i, config in enumerate(bar, 1):
         if config.method == "sim" and reuse_sim:
-            stored = load_simulation(target / SIMULATIONS / _sim_file(config), config,
-                                     simulation_key(config, garment, body, motion))
+            stored = load_simulation(target / SIMULATIONS / _sim_file(config), config, simulation_key(config, scene))
             if stored is not None:
                 results.append(stored)
                 reused.append(config.name)
@@ -149,8 +150,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         (tmp / SIMULATIONS).mkdir()
         for m in results:
             if m.config.method == "sim":
-                save_simulation(tmp / SIMULATIONS / _sim_file(m.config), m,
-                                simulation_key(m.config, garment, body, motion))
+                save_simulation(tmp / SIMULATIONS / _sim_file(m.config), m, simulation_key(m.config, scene))
         if target.exists():
             shutil.rmtree(target)
         tmp.rename(target)
