@@ -44,7 +44,8 @@ class TrainConfig:
     phases: enabled phases, (1,), (1, 2) or (1, 2, 3). frames_per_step: frames of one sequence per step.
     val_every: steps between validations (phase switches happen there). val_frames: frames per val sequence.
     patience, tolerance: plateau detection (relative improvement). checkpoint_every: steps (0 = only at end).
-    grad_clip: max gradient norm (0 = off).
+    grad_clip: max gradient norm (0 = off). lr_final: when set, the learning rate follows a cosine from lr at
+    step 0 to lr_final at `steps` (a function of the step alone, so a resumed run follows the same curve).
     """
 
     steps: int = 20000
@@ -58,6 +59,14 @@ class TrainConfig:
     tolerance: float = 1e-3
     checkpoint_every: int = 1000
     grad_clip: float = 1.0
+    lr_final: float | None = None
+
+    def lr_at(self, step: int) -> float:
+        """Learning rate of the optimiser step taken after `step` steps."""
+        if self.lr_final is None:
+            return self.lr
+        t = min(step / self.steps, 1.0)
+        return self.lr_final + 0.5 * (self.lr - self.lr_final) * (1.0 + math.cos(math.pi * t))
 
     def validate(self, source: str = "train config") -> None:
         if tuple(self.phases) not in ((1,), (1, 2), (1, 2, 3)):
@@ -67,6 +76,8 @@ class TrainConfig:
                 raise InputError(f"{source}: expected {name} >= 1, got {getattr(self, name)!r}")
         if not (self.lr > 0 and self.tolerance >= 0 and self.checkpoint_every >= 0 and self.grad_clip >= 0):
             raise InputError(f"{source}: expected lr > 0 and tolerance, checkpoint_every, grad_clip >= 0")
+        if self.lr_final is not None and not 0 <= self.lr_final <= self.lr:
+            raise InputError(f"{source}: expected 0 <= lr_final <= lr ({self.lr}), got {self.lr_final!r}")
 
 
 def train_config_from_dict(values: dict, source: str = "train config") -> TrainConfig:
@@ -182,6 +193,8 @@ class Trainer:
                 p.grad = None
         if self.config.grad_clip > 0:
             torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
+        for group in self.optimizer.param_groups:
+            group["lr"] = self.config.lr_at(self.step)
         self.optimizer.step()
         self.step += 1
 

@@ -89,6 +89,10 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
         _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
                sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None,
                dev, time_limit, init_path)
+        if world > 1:
+            import torch.distributed as dist
+
+            dist.barrier()  # no rank tears the process group down while another still uses it
     finally:
         if torchrun_env() is not None:
             import torch.distributed as dist

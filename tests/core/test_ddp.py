@@ -44,6 +44,7 @@ def _ddp_worker(rank: int, world: int, port: int, root: str, out: str) -> None:
             params = torch.cat([p.detach().reshape(-1) for p in tr.model.parameters()]).tolist()
             with open(out, "w") as fh:
                 json.dump({"rows": tr.rows, "params": params}, fh)
+        dist.barrier()  # neither rank tears gloo down while the other still uses it (a SIGABRT otherwise)
     finally:
         dist.destroy_process_group()
 

@@ -76,8 +76,9 @@ def test_phase_switches_on_forced_plateau(data):
     assert tr2.phase.phase == 2
 
 
-def test_resume_is_bitwise_exact(data, tmp_path):
-    cfg = TrainConfig(steps=10, frames_per_step=2, val_every=3, patience=1, tolerance=1.0, seed=3)
+@pytest.mark.parametrize("lr_final", [None, 1e-5])
+def test_resume_is_bitwise_exact(data, tmp_path, lr_final):
+    cfg = TrainConfig(steps=10, frames_per_step=2, val_every=3, patience=1, tolerance=1.0, seed=3, lr_final=lr_final)
     full = Trainer(data, TINY_CONFIG, cfg)
     full.run()
     part = Trainer(data, TINY_CONFIG, cfg)
@@ -92,6 +93,19 @@ def test_resume_is_bitwise_exact(data, tmp_path):
     assert full.phase.switches == resumed.phase.switches and full.phase.switches  # switches crossed the checkpoint
     for a, b in zip(full.model.state_dict().values(), resumed.model.state_dict().values()):
         assert torch.equal(a, b)
+
+
+def test_cosine_learning_rate_reaches_lr_final_at_the_last_step(data):
+    cfg = TrainConfig(steps=4, lr=1e-2, lr_final=1e-3, frames_per_step=2, val_every=100, phases=(1,))
+    lrs = [cfg.lr_at(s) for s in range(5)]
+    assert lrs[0] == pytest.approx(1e-2) and lrs[2] == pytest.approx(5.5e-3) and lrs[4] == pytest.approx(1e-3)
+    assert all(a > b for a, b in zip(lrs, lrs[1:]))
+    assert TrainConfig(lr=1e-2).lr_at(3) == 1e-2  # no lr_final: constant
+    tr = Trainer(data, TINY_CONFIG, cfg)
+    tr.run()
+    assert tr.optimizer.param_groups[0]["lr"] == pytest.approx(lrs[3])  # the last step used lr_at(3)
+    with pytest.raises(InputError, match="lr_final"):
+        train_config_from_dict({"lr": 1e-3, "lr_final": 1e-2})
 
 
 def test_same_seed_same_run(data):
