@@ -77,7 +77,7 @@ def _models(specs: tuple) -> dict:
 @click.option("--reuse-sim", is_flag=True,
               help="Take the simulator rows from the earlier run in the result directory where it simulated the same "
                    "scene (garment, body, motion, frames, fps, simulator settings), so adding a model re-simulates "
-                   "nothing; replaces that directory.")
+                   "nothing; replaces that directory. Also takes the rows an interrupted run finished.")
 @click.option("--calibrate", "calibration_path", type=click.Path(dir_okay=False), default=None, metavar="FILE",
               help="Also add this scene to the --quality auto calibration FILE (created if missing), e.g. "
                    "<model>.calibration.json beside the model.")
@@ -104,8 +104,14 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     if target.exists() and not (overwrite or reuse_sim):
         raise click.ClickException(f"output '{target}' exists: pass --overwrite to replace it (or --reuse-sim to "
                                    "keep its simulations)")
-    if reuse_sim and not (target / SIMULATIONS).is_dir():
+    # Every simulator row is kept here as soon as it is done, so an interrupted run loses none (--reuse-sim).
+    staged = target.parent / f".{target.name}.{SIMULATIONS}"
+    if reuse_sim and not ((target / SIMULATIONS).is_dir() or staged.is_dir()):
         raise click.ClickException(f"--reuse-sim: '{target / SIMULATIONS}' does not exist: no earlier run to reuse")
+    if not reuse_sim and staged.is_dir():
+        click.echo(f"tradeoff: discarding the simulator rows an interrupted run left in '{staged}' (--reuse-sim "
+                   "would take them)", err=True)
+        shutil.rmtree(staged)
     garment = read_obj(garment_path)
     body = load_body_option(body_path)
     motion, _ = prepare_motion(motion_path, fps, frames, 0)
@@ -117,19 +123,26 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     bar = tqdm(rows, desc="tradeoff", unit="config", disable=None)
     for i, config in enumerate(bar, 1):
         if config.method == "sim" and reuse_sim:
-            stored = load_simulation(target / SIMULATIONS / _sim_file(config), config, simulation_key(config, scene))
+            key = simulation_key(config, scene)
+            stored = (load_simulation(target / SIMULATIONS / _sim_file(config), config, key)
+                      or load_simulation(staged / _sim_file(config), config, key))
             if stored is not None:
                 results.append(stored)
                 reused.append(config.name)
                 continue
         try:
             results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
+            if config.method == "sim":
+                staged.mkdir(parents=True, exist_ok=True)
+                save_simulation(staged / _sim_file(config), results[-1], simulation_key(config, scene))
             if bar.disable:  # no terminal (a log file, a batch job): one line per configuration
                 click.echo(f"tradeoff: {i}/{len(rows)} {config.name}: "
                            f"{results[-1].seconds_per_frame:.4g} s/frame", err=True)
         except FloatingPointError as exc:  # an unstable configuration (e.g. too few substeps) is a result too
             if config.reference:
-                raise click.ClickException(f"tradeoff: the reference configuration '{config.name}' failed: {exc}")
+                kept = (f" (the finished simulator rows are kept in '{staged}' for --reuse-sim)"
+                        if staged.is_dir() else "")
+                raise click.ClickException(f"tradeoff: the reference configuration '{config.name}' failed: {exc}{kept}")
             click.echo(f"{config.name}: failed ({exc})", err=True)
             failed.append((config, str(exc)))
     compare(results, garment, body, motion)
@@ -154,6 +167,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         if target.exists():
             shutil.rmtree(target)
         tmp.rename(target)
+        shutil.rmtree(staged, ignore_errors=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     if calibration_path:

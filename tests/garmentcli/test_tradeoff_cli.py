@@ -138,7 +138,8 @@ def test_a_failing_configuration_is_a_row_that_says_so(scene, monkeypatch):
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4",
                 "--out", scene["out"] / "second"])
     assert r.exit_code != 0 and "reference configuration 'sim 20 substeps +self-contact' failed" in r.output
-    assert "Traceback" not in r.output and not (scene["out"] / "second").exists()
+    assert "Traceback" not in r.output and not (scene["out"] / "second" / "shell_walk").exists()
+    assert "finished simulator rows are kept in" in r.output  # hidden, for --reuse-sim
 
 
 def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkeypatch):
@@ -175,3 +176,35 @@ def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkey
     r = invoke([*base, "--reuse-sim", "--frames", "0:6"])
     assert r.exit_code == 0, r.output
     assert "0 of 4 simulator rows" in r.output and sum(name.startswith("sim") for name in measured) == 4
+
+
+def test_an_interrupted_run_keeps_its_finished_simulator_rows_for_reuse_sim(scene, monkeypatch):
+    import garmentcli.tradeoff
+
+    base = ["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
+            "--frames", "0:4"]
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: c.reference))
+    r = invoke(base)
+    assert r.exit_code != 0 and not (scene["out"] / "shell_walk").exists()
+    staged = scene["out"] / ".shell_walk.simulations"
+    assert len(list(staged.glob("*.npz"))) == 3  # every simulator row but the failed reference
+    measured = []
+    fake = _fake_measure(lambda c: False)
+
+    def counting(config, *args, **kwargs):
+        measured.append(config.name)
+        return fake(config, *args, **kwargs)
+
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", counting)
+    r = invoke([*base, "--reuse-sim"])
+    assert r.exit_code == 0, r.output
+    assert "3 of 4 simulator rows taken from the earlier run" in r.output
+    assert [n for n in measured if n.startswith("sim")] == ["sim 20 substeps +self-contact"]
+    assert len(list((scene["out"] / "shell_walk" / "simulations").glob("*.npz"))) == 4 and not staged.exists()
+    # a fresh run (no --reuse-sim) says it discards what an interrupted run left
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: c.reference))
+    assert invoke([*base, "--overwrite"]).exit_code != 0 and staged.is_dir()
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", fake)
+    r = invoke([*base, "--overwrite"])
+    assert r.exit_code == 0 and "discarding the simulator rows an interrupted run left" in r.output
+    assert not staged.exists()
