@@ -120,6 +120,17 @@ def _fake_measure(fail):
     return measure
 
 
+def _counting_measure(measured: list):
+    """`_fake_measure` (nothing fails) that appends each measured configuration's name to `measured`."""
+    fake = _fake_measure(lambda c: False)
+
+    def measure(config, *args, **kwargs):
+        measured.append(config.name)
+        return fake(config, *args, **kwargs)
+
+    return measure
+
+
 def test_a_failing_configuration_is_a_row_that_says_so(scene, monkeypatch):
     import garmentcli.tradeoff
 
@@ -154,13 +165,7 @@ def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkey
     first = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
     assert len(list((d / "simulations").glob("*.npz"))) == 4
     measured = []
-    fake = _fake_measure(lambda c: False)
-
-    def counting(config, *args, **kwargs):
-        measured.append(config.name)
-        return fake(config, *args, **kwargs)
-
-    monkeypatch.setattr(garmentcli.tradeoff, "measure", counting)
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
     r = invoke([*base, "--reuse-sim", "--frames", "0:4"])
     assert r.exit_code == 0, r.output
     assert "4 of 4 simulator rows taken from the earlier run" in r.output
@@ -189,13 +194,7 @@ def test_an_interrupted_run_keeps_its_finished_simulator_rows_for_reuse_sim(scen
     staged = scene["out"] / ".shell_walk.simulations"
     assert len(list(staged.glob("*.npz"))) == 3  # every simulator row but the failed reference
     measured = []
-    fake = _fake_measure(lambda c: False)
-
-    def counting(config, *args, **kwargs):
-        measured.append(config.name)
-        return fake(config, *args, **kwargs)
-
-    monkeypatch.setattr(garmentcli.tradeoff, "measure", counting)
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
     r = invoke([*base, "--reuse-sim"])
     assert r.exit_code == 0, r.output
     assert "3 of 4 simulator rows taken from the earlier run" in r.output
@@ -204,7 +203,7 @@ def test_an_interrupted_run_keeps_its_finished_simulator_rows_for_reuse_sim(scen
     # a fresh run (no --reuse-sim) says it discards what an interrupted run left
     monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: c.reference))
     assert invoke([*base, "--overwrite"]).exit_code != 0 and staged.is_dir()
-    monkeypatch.setattr(garmentcli.tradeoff, "measure", fake)
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: False))
     r = invoke([*base, "--overwrite"])
     assert r.exit_code == 0 and "discarding the simulator rows an interrupted run left" in r.output
     assert not staged.exists()
