@@ -9,7 +9,8 @@
 # data/sim_v1) and the 0/1/2-level variants of benchmarks/train_variants.py (phase 1). One torch thread, so each row's time
 # does not depend on what else the machine runs. Results: benchmarks/results/tradeoff/<garment>_<motion>/, and
 # summary.md over every scene (benchmarks/tradeoff_summary.py). REUSE_SIM=1 takes the simulator rows from the
-# previous run of each scene where nothing they depend on changed (garment tradeoff --reuse-sim).
+# previous run of each scene where nothing they depend on changed, or those an interrupted run finished
+# (garment tradeoff --reuse-sim).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MOTION=${1:-data/heldout/walk_brisk.npz}
@@ -31,8 +32,14 @@ for L in 0 1 2; do
 done
 export OMP_NUM_THREADS=1
 for g in "${GARMENTS[@]}"; do
-    scene=benchmarks/results/tradeoff/$(basename "$g" .obj)_$(basename "$MOTION" .npz)
-    if [ "${REUSE_SIM:-0}" = 1 ] && [ -d "$scene/simulations" ]; then KEEP=--reuse-sim; else KEEP=--overwrite; fi
+    name=$(basename "$g" .obj)_$(basename "$MOTION" .npz)
+    scene=benchmarks/results/tradeoff/$name
+    # a finished run's simulations, or those an interrupted run kept
+    if [ "${REUSE_SIM:-0}" = 1 ] && { [ -d "$scene/simulations" ] || [ -d "benchmarks/results/tradeoff/.$name.simulations" ]; }; then
+        KEEP=--reuse-sim
+    else
+        KEEP=--overwrite
+    fi
     garment tradeoff "$g" "$MOTION" --frames "$FRAMES" "${MODELS[@]}" --repeats 2 \
         --out benchmarks/results/tradeoff "$KEEP"
 done
