@@ -205,11 +205,11 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
     ref = next(r["config"] for r in table if r["reference"])
     done = [r for r in table if not r["failed"]]
     md = [f"# Speed against accuracy: `{Path(garment_path).name}` on `{Path(motion_path).name}`", "",
-          f"{motion.n_frames} frames at {motion.fps:g} fps, {garment.n_vertices} garment vertices. Errors against "
-          f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
-          "run); preparation (binding, preprocessing, simulator build) apart; peak memory: the largest rise of "
-          "resident memory during the timed runs. E_verts mm, E_vnorm / E_fnorm degrees, E_edge %, penetration: "
-          "% of vertices > 2 mm inside the body.", "",
+          (f"{motion.n_frames} frames at {motion.fps:g} fps, {garment.n_vertices} garment vertices. Errors against "
+           f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
+           "run); preparation (binding, preprocessing, simulator build) apart; peak memory: the largest rise of "
+           "resident memory during the timed runs. E_verts mm, E_vnorm / E_fnorm degrees, E_edge %, penetration: "
+           "% of vertices > 2 mm inside the body."), "",
           markdown_table(["config", "s/frame", "fps", "prepare s", "peak MB", *METRIC_COLUMNS, "Pareto"],
                          [[r["config"], r["seconds_per_frame"], r["frames_per_second"], r["seconds_prepare"],
                            r["peak_memory_mb"], *[r[k] for k in METRIC_COLUMNS], "yes" if r["pareto"] else ""]

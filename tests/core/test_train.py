@@ -1,5 +1,7 @@
 """The hybrid trainer end to end on a tiny synthetic dataset: learns, switches phase, resumes exactly."""
 
+import itertools
+
 import numpy as np
 import pytest
 import torch
@@ -99,7 +101,7 @@ def test_cosine_learning_rate_reaches_lr_final_at_the_last_step(data):
     cfg = TrainConfig(steps=4, lr=1e-2, lr_final=1e-3, frames_per_step=2, val_every=100, phases=(1,))
     lrs = [cfg.lr_at(s) for s in range(5)]
     assert lrs[0] == pytest.approx(1e-2) and lrs[2] == pytest.approx(5.5e-3) and lrs[4] == pytest.approx(1e-3)
-    assert all(a > b for a, b in zip(lrs, lrs[1:]))
+    assert all(a > b for a, b in itertools.pairwise(lrs))
     assert TrainConfig(lr=1e-2).lr_at(3) == 1e-2  # no lr_final: constant
     tr = Trainer(data, TINY_CONFIG, cfg)
     tr.run()
