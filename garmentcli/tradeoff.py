@@ -122,8 +122,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     results, failed, reused = [], [], []
     bar = tqdm(rows, desc="tradeoff", unit="config", disable=None)
     for i, config in enumerate(bar, 1):
-        if config.method == "sim" and reuse_sim:
-            key = simulation_key(config, scene)
+        key = simulation_key(config, scene) if config.method == "sim" else None
+        if key is not None and reuse_sim:
             stored = (load_simulation(target / SIMULATIONS / _sim_file(config), config, key)
                       or load_simulation(staged / _sim_file(config), config, key))
             if stored is not None:
@@ -132,9 +132,9 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                 continue
         try:
             results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
-            if config.method == "sim":
+            if key is not None:
                 staged.mkdir(parents=True, exist_ok=True)
-                save_simulation(staged / _sim_file(config), results[-1], simulation_key(config, scene))
+                save_simulation(staged / _sim_file(config), results[-1], key)
             if bar.disable:  # no terminal (a log file, a batch job): one line per configuration
                 click.echo(f"tradeoff: {i}/{len(rows)} {config.name}: "
                            f"{results[-1].seconds_per_frame:.4g} s/frame", err=True)
