@@ -66,7 +66,7 @@ class _ShardLoss(nn.Module):
         losses, terms_sum = [], {}
         for seq, frames in samples:
             terms = frame_losses(self.model, tr.data, seq, frames, phase, frozen)
-            losses.append(total_loss(terms, phase))
+            losses.append(total_loss(terms, phase, tr.config.loss_scale))
             for k in LOSS_COLUMNS:
                 if k in terms:
                     terms_sum[k] = terms_sum.get(k, 0.0) + terms[k].detach()

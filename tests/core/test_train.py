@@ -110,6 +110,27 @@ def test_cosine_learning_rate_reaches_lr_final_at_the_last_step(data):
         train_config_from_dict({"lr": 1e-3, "lr_final": 1e-2})
 
 
+def test_loss_scale_multiplies_each_term_on_top_of_its_paper_weight(data):
+    from core.train import total_loss
+
+    terms = {k: torch.tensor(v) for k, v in {"vert": 1.0, "edge": 2.0, "normal": 4.0, "penetration": 8.0,
+                                              "self_collision": 16.0}.items()}
+    assert float(total_loss(terms, 2)) == pytest.approx(0.05 * 7.0 + 24.0)
+    assert float(total_loss(terms, 2, {"vert": 10.0, "self_collision": 0.5})) == pytest.approx(0.05 * 16.0 + 16.0)
+    # Every active term scaled to zero: no gradient, so the step leaves the weights where they were.
+    cfg = TrainConfig(steps=2, frames_per_step=2, val_every=100, phases=(1,),
+                      loss_scale={"vert": 0.0, "edge": 0.0, "normal": 0.0})
+    tr = Trainer(data, TINY_CONFIG, cfg)
+    before = [p.detach().clone() for p in tr.model.parameters()]
+    tr.run()
+    assert all(torch.equal(a, b) for a, b in zip(before, tr.model.parameters()))
+    assert tr.rows[-1]["vert"] > 0  # the logged terms keep their paper weight
+    with pytest.raises(InputError, match="loss_scale: unknown term 'verts'"):
+        train_config_from_dict({"loss_scale": {"verts": 2.0}})
+    with pytest.raises(InputError, match="loss_scale: expected a finite factor >= 0 for 'edge'"):
+        train_config_from_dict({"loss_scale": {"edge": -1}})
+
+
 def test_same_seed_same_run(data):
     cfg = TrainConfig(steps=3, frames_per_step=2, val_every=100, seed=7)
     a, b = Trainer(data, TINY_CONFIG, cfg), Trainer(data, TINY_CONFIG, cfg)
