@@ -127,8 +127,8 @@ def write(out: Path, rows: list[dict], command: str) -> None:
     methods = [k for k in rows[0] if k not in ("item", "garment")] if rows else []
     garments = sorted({r["garment"] for r in rows})
     lines = ["# How much of the simulator's deviation from LBS a rest-frame blend shape can take back", "",
-             f"Made by `{command}`. E_verts in mm on the test split (settle frames excluded), mean over "
-             "sequences; see the script's docstring for each row.", "",
+             (f"Made by `{command}`. E_verts in mm on the test split (settle frames excluded), mean over "
+              "sequences; see the script's docstring for each row."), "",
              "| method | all | " + " | ".join(garments) + " |", "|---|" + "---:|" * (len(garments) + 1)]
     for m in methods:
         vals = [np.mean([r[m] for r in rows if m in r])]

@@ -87,7 +87,7 @@ class TrainConfig:
         for term, factor in self.loss_scale.items():
             if term not in LOSS_COLUMNS:
                 raise InputError(f"{source}: loss_scale: unknown term {term!r} (expected one of {', '.join(LOSS_COLUMNS)})")
-            if not (isinstance(factor, (int, float)) and math.isfinite(factor) and factor >= 0):
+            if isinstance(factor, bool) or not (isinstance(factor, (int, float)) and math.isfinite(factor) and factor >= 0):
                 raise InputError(f"{source}: loss_scale: expected a finite factor >= 0 for {term!r}, got {factor!r}")
 
 

@@ -129,6 +129,10 @@ def test_loss_scale_multiplies_each_term_on_top_of_its_paper_weight(data):
         train_config_from_dict({"loss_scale": {"verts": 2.0}})
     with pytest.raises(InputError, match="loss_scale: expected a finite factor >= 0 for 'edge'"):
         train_config_from_dict({"loss_scale": {"edge": -1}})
+    with pytest.raises(InputError, match="loss_scale: expected a finite factor >= 0 for 'normal', got True"):
+        train_config_from_dict({"loss_scale": {"normal": True}})
+    with pytest.raises(InputError, match="loss_scale: expected a mapping"):
+        train_config_from_dict({"loss_scale": [2.0]})
 
 
 def test_same_seed_same_run(data):
