@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 from core.body import default_body  # noqa: E402
 from core.model_data import PRIOR_SMOOTH_ITERATIONS  # noqa: E402
 from core.motion import Motion, poses_for_body  # noqa: E402
-from core.skinning import bind_garment  # noqa: E402
+from core.skinning import bind_garment, shaped_garment  # noqa: E402
 from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
 from formats.obj import read_obj  # noqa: E402
 
@@ -83,7 +83,7 @@ def load_offsets(data: Path, split: str, manifest: dict, body, bindings: dict, g
         keep = slice(seq.n_settle, None)
         M = blended_transforms(body, b.weights, poses_for_body(motion, body.n_joints)[keep], motion.trans[keep],
                                betas)
-        rest = garments[name].vertices + np.einsum("vcs,s->vc", b.shapedirs, betas)
+        rest = shaped_garment(garments[name].vertices, b, betas)
         gt = seq.positions[keep].astype(np.float64)
         out.append((it["id"], name, M, gt, rest, unskin(M, gt) - rest))
     return out

@@ -26,7 +26,7 @@ from core.scene import (
     active_joints,
     restrict_weights,
 )
-from core.skinning import bind_garment
+from core.skinning import bind_garment, shaped_garment
 
 
 class Deformer(ABC):
@@ -89,7 +89,7 @@ class LBSDeformer(Deformer):
         self.prepare(garment, body)
         binding = self._bindings[(garment.content_hash(), id(body))]
         betas = body.fit_betas(motion.betas)
-        rest = garment.vertices + np.einsum("vcs,s->vc", binding.shapedirs, betas)
+        rest = shaped_garment(garment.vertices, binding, betas)
         poses = poses_for_body(motion, body.n_joints)
         A = body.skinning_transforms(poses, motion.trans, betas)
         scene = SceneAnalysis(self.skips)

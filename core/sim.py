@@ -456,6 +456,8 @@ class SimDeformer(Deformer):
         _warp()
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
+        from core.skinning import shaped_garment
+
         o, m = self.options, self.material
         t_start = time.perf_counter()
         self.prepare(garment, body)
@@ -477,7 +479,7 @@ class SimDeformer(Deformer):
         body_pts, _, transforms = body.pose_with_transforms(all_poses, all_trans, betas)
         faces_b = outward_faces(body_pts[0], body.faces)  # Newton expects outward normals
         A = body.skinning_transforms(rest_pose, motion.trans[:1], betas)[0, 0]
-        shaped = garment.vertices + np.einsum("vcs,s->vc", binding.shapedirs, betas)
+        shaped = shaped_garment(garment.vertices, binding, betas)
         # The waistband follows the body by skinning: (frames, P, 3) targets of the pinned particles.
         pins = skin_points(torch.from_numpy(shaped[pinned].astype(np.float32)),
                            torch.from_numpy(binding.weights[pinned]),

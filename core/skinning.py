@@ -62,6 +62,11 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
     return GarmentBinding(weights=weights, shapedirs=shapedirs, body_distance=hit.distance.astype(np.float32))
 
 
+def shaped_garment(vertices: np.ndarray, binding: GarmentBinding, betas: np.ndarray) -> np.ndarray:
+    """The garment's rest vertices (V, 3) moved with the body's shape: betas (S,) as `Body.fit_betas` gives them."""
+    return vertices + np.einsum("vcs,s->vc", binding.shapedirs, betas)
+
+
 def smooth_over_graph(values: np.ndarray, faces: np.ndarray, iterations: int, strength: float = 0.5) -> np.ndarray:
     """Uniform-Laplacian smoothing of per-vertex values over the mesh edge graph.
 
