@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.body import default_body  # noqa: E402
-from core.motion import Motion  # noqa: E402
+from core.motion import sequence_motion  # noqa: E402
 from core.quality import Calibration, add_scene, scene_features  # noqa: E402
 from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
 from formats.obj import read_obj  # noqa: E402
@@ -55,8 +55,7 @@ def main(argv=None) -> None:
         seq = read_sequence(sequence_path(args.data, item))
         if seq.garment not in garments:
             garments[seq.garment] = read_obj(args.data / "garments" / f"{seq.garment}.obj")
-        motion = Motion(poses=seq.poses[seq.n_settle:], trans=seq.trans[seq.n_settle:], fps=seq.fps,
-                        betas=seq.betas)
+        motion = sequence_motion(seq, item, drop_settle=True)
         features = scene_features(garments[seq.garment], body, motion)
         sim_seconds = stats.get(item, {}).get("seconds_per_frame",
                                               SIM_SECONDS_PER_FRAME_PER_KVERT * substeps / 10 * features["vertices"] / 1e3)

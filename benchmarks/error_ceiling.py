@@ -30,13 +30,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import torch
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from core.body import default_body  # noqa: E402
+from core.body import blend_transforms, default_body  # noqa: E402
 from core.model_data import PRIOR_SMOOTH_ITERATIONS  # noqa: E402
-from core.motion import Motion, poses_for_body  # noqa: E402
+from core.motion import poses_for_body, sequence_motion  # noqa: E402
 from core.skinning import bind_garment, shaped_garment  # noqa: E402
 from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
 from formats.obj import read_obj  # noqa: E402
@@ -47,7 +48,7 @@ PCA_RANKS = (8, 32, 128)
 def blended_transforms(body, weights: np.ndarray, poses, trans, betas) -> np.ndarray:
     """(T, V, 3, 4) float64: each vertex's LBS blend of the body's skinning transforms."""
     A = body.skinning_transforms(poses, trans, betas).astype(np.float64)
-    return np.einsum("vj,tjab->tvab", weights.astype(np.float64), A[:, :, :3, :])
+    return blend_transforms(torch.from_numpy(np.asarray(weights, dtype=np.float64)), torch.from_numpy(A)).numpy()
 
 
 def skin(M: np.ndarray, rest: np.ndarray) -> np.ndarray:
@@ -77,8 +78,7 @@ def load_offsets(data: Path, split: str, manifest: dict, body, bindings: dict, g
             garments[name] = read_obj(data / "garments" / f"{name}.obj")
             bindings[name] = bind_garment(garments[name], body, PRIOR_SMOOTH_ITERATIONS, 0.5)
         b = bindings[name]
-        motion = Motion(poses=seq.poses, trans=seq.trans, fps=seq.fps, betas=seq.betas, n_settle=seq.n_settle,
-                        name=it["id"])
+        motion = sequence_motion(seq, it["id"])
         betas = body.fit_betas(motion.betas)
         keep = slice(seq.n_settle, None)
         M = blended_transforms(body, b.weights, poses_for_body(motion, body.n_joints)[keep], motion.trans[keep],

@@ -37,7 +37,7 @@ from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
 from core.geometry import points_inside_mesh  # noqa: E402
 from core.metrics import compute_metrics, frames_inside, self_intersection_pct  # noqa: E402
-from core.motion import Motion, poses_for_body  # noqa: E402
+from core.motion import poses_for_body, sequence_motion  # noqa: E402
 from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
 from formats.obj import read_obj  # noqa: E402
 
@@ -89,8 +89,7 @@ def evaluate(data: Path, methods: dict, self_every: int = 6, max_items: int | No
         if seq.garment not in garments:
             garments[seq.garment] = read_obj(data / "garments" / f"{seq.garment}.obj")
         garment = garments[seq.garment]
-        motion = Motion(poses=seq.poses, trans=seq.trans, fps=seq.fps, betas=seq.betas, n_settle=seq.n_settle,
-                        name=it["id"])
+        motion = sequence_motion(seq, it["id"])
         keep = slice(seq.n_settle, None)
         gt = seq.positions[keep]
         body_pts, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)

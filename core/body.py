@@ -224,15 +224,23 @@ def skinning_transforms(rot: torch.Tensor, joints_rest: torch.Tensor, parents: t
     return A, transforms[..., :3, 3]
 
 
+def blend_transforms(weights: torch.Tensor, A: torch.Tensor) -> torch.Tensor:
+    """Each point's blend of the per-joint transforms, M_v = sum_j w_vj A_j[:3]: (B, V, 3, 4).
+
+    weights: (V, J); A: (B, J, 4, 4). One (V, J) @ (J, 12) product per frame.
+    """
+    B, J = A.shape[:2]
+    return torch.matmul(weights, A[..., :3, :].reshape(B, J, 12)).reshape(B, -1, 3, 4)
+
+
 def skin_points(points: torch.Tensor, weights: torch.Tensor, A: torch.Tensor) -> torch.Tensor:
     """Blend per-joint transforms: x' = sum_j w_j A_j [x, 1].
 
     points: (V, 3) or (B, V, 3) rest positions, metres; weights: (V, J); A: (B, J, 4, 4).
     Returns (B, V, 3).
     """
-    # Blend the 3x4 matrices first (one (V, J) @ (J, 12) product per frame), then apply once per point.
-    B, J = A.shape[:2]
-    M = torch.matmul(weights, A[..., :3, :].reshape(B, J, 12)).reshape(B, -1, 3, 4)  # (B, V, 3, 4)
+    # Blend the 3x4 matrices first, then apply once per point.
+    M = blend_transforms(weights, A)
     x = points if points.dim() == 3 else points.unsqueeze(0)
     return (M[..., :3] * x.unsqueeze(-2)).sum(-1) + M[..., 3]
 

@@ -70,6 +70,14 @@ class Motion:
         return (self.n_frames - 1) / self.fps
 
 
+def sequence_motion(seq, name: str = "motion", drop_settle: bool = False) -> Motion:
+    """The Motion of a stored simulation (`formats.dataset.read_sequence`): its poses, translation, frame rate,
+    body shape and settle frames; drop_settle: without the settle frames (the motion as the user gave it)."""
+    k = seq.n_settle if drop_settle else 0
+    return Motion(poses=seq.poses[k:], trans=seq.trans[k:], fps=seq.fps, betas=seq.betas,
+                  n_settle=seq.n_settle - k, name=name)
+
+
 def poses_for_body(motion: Motion, n_body_joints: int) -> np.ndarray:
     """The motion's poses in the joint layout of a body with `n_body_joints` joints.
 

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.motion import Motion, parse_frame_range, poses_for_body, resample, select_frames, settle, validate_motion_values
+from core.motion import (Motion, parse_frame_range, poses_for_body, resample, select_frames, sequence_motion, settle,
+                         validate_motion_values)
 from core.rotations import axis_angle_to_matrix, axis_angle_to_quat, quat_to_axis_angle
 
 AXIS = np.array([0.48, 0.6, 0.64])  # unit axis
@@ -212,3 +213,23 @@ def test_settle_frames_survive_selection_and_resampling():
     assert select_frames(s, 4, None).n_settle == 6
     assert select_frames(s, 12, None).n_settle == 0
     assert resample(s, 30.0).n_settle == 3
+
+
+def test_sequence_motion_round_trips_a_stored_sequence_with_and_without_its_settle_frames(tmp_path):
+    from formats.dataset import Sequence, read_sequence, write_sequence
+
+    rng = np.random.default_rng(3)
+    T, n_settle = 7, 3
+    stored = Sequence(positions=rng.normal(size=(T, 5, 3)), poses=rng.normal(size=(T, 24, 3)),
+                      trans=rng.normal(size=(T, 3)), betas=rng.normal(size=10), fps=30.0, n_settle=n_settle,
+                      garment="skirt", garment_sha256="0" * 64, body="default")
+    write_sequence(tmp_path / "s.npz", stored)
+    seq = read_sequence(tmp_path / "s.npz")
+    whole = sequence_motion(seq, "item")
+    assert (whole.name, whole.n_frames, whole.n_settle, whole.fps) == ("item", T, n_settle, 30.0)
+    np.testing.assert_allclose(whole.poses, stored.poses, atol=1e-6)
+    np.testing.assert_allclose(whole.betas, stored.betas, atol=1e-6)
+    given = sequence_motion(seq, drop_settle=True)
+    assert (given.n_frames, given.n_settle) == (T - n_settle, 0)
+    np.testing.assert_allclose(given.poses, stored.poses[n_settle:], atol=1e-6)
+    np.testing.assert_allclose(given.trans, stored.trans[n_settle:], atol=1e-6)
