@@ -78,13 +78,11 @@ def load_offsets(data: Path, split: str, manifest: dict, body, bindings: dict, g
             garments[name] = read_obj(data / "garments" / f"{name}.obj")
             bindings[name] = bind_garment(garments[name], body, PRIOR_SMOOTH_ITERATIONS, 0.5)
         b = bindings[name]
-        motion = sequence_motion(seq, it["id"])
+        motion = sequence_motion(seq, it["id"], drop_settle=True)
         betas = body.fit_betas(motion.betas)
-        keep = slice(seq.n_settle, None)
-        M = blended_transforms(body, b.weights, poses_for_body(motion, body.n_joints)[keep], motion.trans[keep],
-                               betas)
+        M = blended_transforms(body, b.weights, poses_for_body(motion, body.n_joints), motion.trans, betas)
         rest = shaped_garment(garments[name].vertices, b, betas)
-        gt = seq.positions[keep].astype(np.float64)
+        gt = seq.positions[seq.n_settle:].astype(np.float64)
         out.append((it["id"], name, M, gt, rest, unskin(M, gt) - rest))
     return out
 
