@@ -38,15 +38,21 @@ import torch
 from core.body import Body, skin_points
 from core.deform import Deformer
 from core.errors import InputError
-from core.garment import Garment, mesh_edges
+from core.garment import Garment, boundary_loops, mesh_edges
 from core.geometry import TriangleMesh, outward_faces
 from core.motion import Motion, poses_for_body, settle
 from core.provenance import package_version
 from core.scene import SceneAnalysis, analyse_collisions, lbs_preview
+from core.skinning import bind_garment, shaped_garment
 
 log = logging.getLogger(__name__)
 
 GRAVITY_M_S2 = 9.81
+#: The simulator's behaviour, declared: stored simulations (`garment tradeoff --reuse-sim`) are keyed on it, not
+#: on this file's bytes, so a refactor keeps them. Bump it with any change that moves the simulated cloth (this
+#: module, the pins' binding in core.skinning, material or solver defaults); tests/core/test_sim.py checks a
+#: golden simulation made with this version (GARMENT_UPDATE_GOLDENS=1 remakes it after a bump).
+SIMULATOR_VERSION = 1
 #: Depth below the body surface at which a garment vertex counts as penetrating (as in core.bake).
 PENETRATION_DEPTH_M = 0.002
 
@@ -274,8 +280,6 @@ def waistband_vertices(garment: Garment, body: Body, band_m: float = 0.02) -> np
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
 
-    from core.garment import boundary_loops
-
     verts = np.asarray(garment.vertices, dtype=np.float64)
     if body.n_joints < 13:
         return np.zeros(0, dtype=np.int64)
@@ -446,8 +450,6 @@ class SimDeformer(Deformer):
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         """Bind the garment to the body (shape blend shapes, distance check); imports warp early."""
-        from core.skinning import bind_garment
-
         key = (garment.content_hash(), id(body))
         if key not in self._bindings:
             pinned = (waistband_vertices(garment, body, self.options.pin_band_m) if self.options.pin == "auto"
@@ -456,8 +458,6 @@ class SimDeformer(Deformer):
         _warp()
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
-        from core.skinning import shaped_garment
-
         o, m = self.options, self.material
         t_start = time.perf_counter()
         self.prepare(garment, body)

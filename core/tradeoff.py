@@ -145,22 +145,21 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
 
 def simulation_scene(garment: Garment, body: Body, motion: Motion):
     """sha256 state of what every simulator row of a scene depends on: the garment, the body posed over the
-    motion, the frame rate, the simulator's default material and solver settings, its source file and the
-    software versions (`core.provenance`). Made once per scene; `simulation_key` adds a row's options."""
+    motion, the frame rate, the simulator's default material and solver settings, its declared behaviour
+    version (`core.sim.SIMULATOR_VERSION`, held to a golden simulation by the tests) and the software versions
+    (`core.provenance`). Made once per scene; `simulation_key` adds a row's options."""
     import hashlib
     import json
-    from pathlib import Path
 
-    import core.sim
     from core.provenance import software_versions
-    from core.sim import Material, SimOptions
+    from core.sim import SIMULATOR_VERSION, Material, SimOptions
 
     h = hashlib.sha256(garment.content_hash().encode())
     body_pts, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
     for a in (body_pts, body.faces):
         h.update(np.ascontiguousarray(a).tobytes())
-    h.update(Path(core.sim.__file__).read_bytes())
     h.update(json.dumps({"fps": motion.fps, "material": repr(Material()), "solver": repr(SimOptions()),
+                         "simulator_version": SIMULATOR_VERSION,
                          **software_versions("newton", "warp-lang")}, sort_keys=True).encode())
     return h
 

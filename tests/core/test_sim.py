@@ -123,6 +123,46 @@ def _shell_scene():
     return body, garment, motion
 
 
+#: The golden simulation of `SIMULATOR_VERSION` (test_simulator_behaviour_matches_its_declared_version).
+GOLDEN_SIM = Path(__file__).resolve().parents[1] / "regression" / "golden" / "sim_shell_walk.npz"
+#: Largest vertex difference from the golden (metres): repeated runs here agree exactly; a 0.1 change of
+#: friction moves vertices by up to 7 cm, a 10x bending stiffness by 1.5 mm.
+GOLDEN_SIM_TOLERANCE_M = 1e-4
+
+
+def _golden_sim(material=Material()):
+    """The shell carried 15 cm sideways over 5 frames while the hips swing, with self-contact on."""
+    body, garment, _ = _shell_scene()
+    T = 5
+    poses = np.zeros((T, 24, 3), np.float32)
+    poses[:, 0] = [np.pi / 2, 0, 0]
+    poses[:, 1, 0], poses[:, 2, 0] = np.linspace(0, 0.6, T), -np.linspace(0, 0.6, T)
+    trans = np.zeros((T, 3), np.float32)
+    trans[:, 0] = np.linspace(0, 0.15, T)
+    motion = Motion(poses=poses, trans=trans, fps=FPS, name="golden", n_settle=1)
+    return SimDeformer(material, SimOptions(settle_s=0.1, self_contact=True)).deform(garment, body, motion)
+
+
+def test_simulator_behaviour_matches_its_declared_version():
+    """Stored simulations are keyed on SIMULATOR_VERSION: a change that moves the cloth must bump it."""
+    from core.sim import SIMULATOR_VERSION
+
+    out = _golden_sim()
+    if os.environ.get("GARMENT_UPDATE_GOLDENS", "") not in ("", "0"):
+        np.savez_compressed(GOLDEN_SIM, points=out, simulator_version=SIMULATOR_VERSION)
+    with np.load(GOLDEN_SIM) as g:
+        golden, version = g["points"], int(g["simulator_version"])
+    remake = "GARMENT_UPDATE_GOLDENS=1 python -m pytest tests/core/test_sim.py -k declared_version"
+    assert version == SIMULATOR_VERSION, (f"{GOLDEN_SIM.name} was made with SIMULATOR_VERSION {version}, the code "
+                                          f"declares {SIMULATOR_VERSION}: remake it ({remake})")
+    moved = float(np.abs(out - golden).max())
+    assert moved <= GOLDEN_SIM_TOLERANCE_M, (
+        f"the simulated cloth moved by up to {moved * 1e3:.2f} mm from {GOLDEN_SIM.name}: if the simulator's "
+        f"behaviour changed on purpose, bump core.sim.SIMULATOR_VERSION and remake the golden ({remake})")
+    # The tolerance is far below what a material change does.
+    assert np.abs(_golden_sim(dataclasses.replace(Material(), friction=0.2)) - golden).max() > 10 * GOLDEN_SIM_TOLERANCE_M
+
+
 def test_sim_deformer_on_a_tiny_body_reports_checks():
     body, garment, motion = _shell_scene()
     d = SimDeformer(options=SimOptions(settle_s=0.1))
