@@ -192,6 +192,37 @@ def render_worst_frame_heatmap(pred_seq, gt_seq, result: MetricsResult, path: st
     return write_png(path, img)
 
 
+#: Candidate places of a point's number, in points from the point (lower-left corner of the text), nearest first.
+LABEL_OFFSETS = [(3, 3), (3, -10), (-4, 3), (-4, -10)] + [(dx, dy) for r in (1, 2, 3, 4) for dy in (9 * r + 3, -9 * r - 10)
+                                                          for dx in (3, -4)]
+
+
+def label_offsets(points: np.ndarray, n_chars: list[int], char_w: float = 4.5, height: float = 7.0):
+    """Where to write each point's label so no two labels overlap: ((dx, dy) in points, moved_far) per point.
+
+    points: (N, 2) point positions in points. Labels are boxes n_chars * char_w wide and `height` tall with
+    their lower-left corner at point + offset (offsets left of the point are shifted by the label's width).
+    Greedy, most crowded point first; each takes the nearest offset of LABEL_OFFSETS whose box overlaps
+    no label placed so far, or the last one when all do. moved_far: beyond the first ring (draw a leader).
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(pts) == 0:
+        return []
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+    order = np.argsort(-(d < 12.0).sum(1), kind="stable")
+    boxes, out = [], [None] * len(pts)
+    for i in order:
+        w = n_chars[i] * char_w
+        for k, (dx, dy) in enumerate(LABEL_OFFSETS):
+            dx = dx - w if dx < 0 else dx
+            x0, y0 = pts[i, 0] + dx, pts[i, 1] + dy
+            if all(x0 + w <= a or b <= x0 or y0 + height <= c or e <= y0 for a, c, b, e in boxes):
+                break
+        boxes.append((x0, y0, x0 + w, y0 + height))
+        out[i] = ((dx, dy), k >= 4)
+    return out
+
+
 def plot_pareto(names: list[str], seconds_per_frame: list[float], errors_mm: list[float], front: list[bool],
                 path: str | os.PathLike, title: str = "", dpi: int = 100) -> Path:
     """Error (mm, linear) against seconds per frame (log scale), one numbered point per configuration with its
@@ -207,13 +238,16 @@ def plot_pareto(names: list[str], seconds_per_frame: list[float], errors_mm: lis
     ax.scatter(x[on], y[on], color="#c0503f", s=36, label="Pareto front", zorder=4)
     order = np.argsort(x[on])
     ax.plot(x[on][order], y[on][order], color="#c0503f", lw=1, zorder=2)
-    for i, (xi, yi) in enumerate(zip(x, y)):
-        ax.annotate(str(i + 1), (xi, yi), textcoords="offset points", xytext=(3, 3), fontsize=7)
+    ax.set_xscale("log")
+    ax.autoscale_view()
+    points_px = ax.transData.transform(np.c_[x, y]) * 72.0 / fig.dpi  # display pixels -> points
+    for i, (off, far) in enumerate(label_offsets(points_px, [len(str(i + 1)) for i in range(len(x))])):
+        ax.annotate(str(i + 1), (x[i], y[i]), textcoords="offset points", xytext=off, fontsize=7,
+                    arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "0.5"} if far else None)
     key = "\n".join(f"{i + 1:>2}  {n}" + ("  *" if f else "") for i, (n, f) in enumerate(zip(names, on)))
     key_ax.axis("off")
     key_ax.text(0.0, 0.5, key + "\n\n* on the Pareto front", fontsize=7, family="monospace", va="center",
                 transform=key_ax.transAxes)
-    ax.set_xscale("log")
     ax.set_xlabel("seconds per frame (log scale)")
     ax.set_ylabel("E_verts against the reference (mm)")
     ax.set_title(title, fontsize=10)

@@ -55,3 +55,29 @@ def test_report_without_sequences_has_curves_only(tmp_path):
     paths = plots.write_plot_report(compute_metrics(pred, gt, f), tmp_path)
     assert not (tmp_path / plots.HISTOGRAMS_PNG).exists()
     assert (tmp_path / plots.PER_FRAME_PNG) in paths
+
+
+def _boxes(points, placed, n_chars, char_w=4.5, height=7.0):
+    return [(p[0] + dx, p[1] + dy, p[0] + dx + n * char_w, p[1] + dy + height)
+            for p, ((dx, dy), _), n in zip(points, placed, n_chars)]
+
+
+def test_pareto_labels_of_clustered_points_do_not_overlap(tmp_path):
+    rng = np.random.default_rng(0)
+    # a cluster of 9 points within a few points of each other (the model rows), and two lone ones
+    pts = np.r_[rng.normal(100.0, 2.0, (9, 2)), [[10.0, 10.0], [300.0, 200.0]]]
+    n_chars = [len(str(i + 1)) for i in range(len(pts))]
+    placed = plots.label_offsets(pts, n_chars)
+    boxes = _boxes(pts, placed, n_chars)
+    for i in range(len(boxes)):
+        for j in range(i):
+            a, b = boxes[i], boxes[j]
+            assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (i, j)
+    assert placed[9] == ((3, 3), False) and placed[10] == ((3, 3), False)  # lone points keep the default place
+    assert any(far for _, far in placed[:9])  # the crowd needs leaders
+    # labels to the left of a point end where it starts: a two-digit label is shifted by its width
+    left = [((dx, dy), n) for ((dx, dy), _), n in zip(placed, n_chars) if dx < 0]
+    assert all(dx == -4 - 4.5 * n for (dx, _), n in left)
+    path = plots.plot_pareto([f"c{i}" for i in range(len(pts))], list(np.geomspace(1e-3, 1.0, len(pts))),
+                             list(pts[:, 1] / 10), [i % 2 == 0 for i in range(len(pts))], tmp_path / "p.png")
+    assert read_png(path).shape[0] > 100
