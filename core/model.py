@@ -22,7 +22,11 @@ Per frame, from a window of m frames:
   root frame) -> LSTM E^t2 -> per-joint codes spread to garment vertices by W,
   plus a global code, combined with X^fuse -> multi-scale GAT U-Net over the
   pooling hierarchy -> blend shapes B (Eq. 4, rest frame, metres; output layer
-  zero-initialised);
+  zero-initialised); two inputs beyond the paper (ModelConfig.shape_input,
+  pose_codes; off in the models up to model_v5): per-joint codes from E^t1
+  too, and each vertex's displacement by the body's shape, because a per-garment
+  linear regression on pose and shape beat the network without them
+  (benchmarks/results/error_ceiling.md);
   garment = LBS of T + B with W and the body's skinning transforms (Eq. 1-2).
 
 Graph attention is PyG's GATv2Conv (its parameters); `GATv2` evaluates it on
@@ -60,6 +64,10 @@ MAX_BLEND_FRACTION = 0.2
 #: foot peaks near 20): a teleport or a broken frame reads as very fast motion, not as an input the
 #: network never saw by orders of magnitude.
 MAX_SPEED_M_S = 20.0
+#: The shape displacement input (ModelConfig.shape_input) in centimetres (a body's shape moves the garment's
+#: rest by 2-10 cm): its layer starts at zero and Adam moves each weight by about the learning rate per step,
+#: so in decimetres the input took hundreds of steps to reach the features (weights 0.06 after 300 steps).
+SHAPE_INPUT_SCALE = 100.0
 
 
 @dataclass(frozen=True)
@@ -76,6 +84,14 @@ class ModelConfig:
     pooling: "structure" (the paper's structure-preserving hierarchy, precomputed per garment) or a
       learned baseline pooling of PyTorch Geometric, for the comparison of paper section 5: "topk"
       (TopKPooling), "sag" (SAGPooling), "asap" (ASAPooling), each keeping half the nodes per level.
+    shape_input: 1 feeds each vertex's displacement by the body's shape (shaped rest - authored rest,
+      rest frame) into the per-frame features through a zero-initialised layer, so the blend shapes see
+      the body under each vertex directly and not only through the global code C^bs; 0 (the models up
+      to model_v5) leaves it out. A network can gain it when fine-tuned (`train --init`): it starts as
+      the network it came from.
+    pose_codes: 1 adds per-joint codes from the pose encoder E^t1 to those of E^t2 (zero-initialised), so
+      the blend shapes see each joint's pose and not only the body's velocities (the pose reached them only
+      through the skinning weights); 0 (up to model_v5) leaves them out. Added by fine-tuning as shape_input.
     """
 
     n_joints: int = 24
@@ -92,6 +108,8 @@ class ModelConfig:
     n_eigenvalues: int = 16
     n_landmarks: int = 64
     pooling: str = "structure"
+    shape_input: int = 0
+    pose_codes: int = 0
 
     def validate(self, source: str = "model config") -> None:
         for name in ("n_joints", "hidden", "heads", "window", "lstm_hidden", "inducing_points",
@@ -101,6 +119,9 @@ class ModelConfig:
         for name in ("encoder_layers", "level_layers", "bottom_layers", "levels"):
             if int(getattr(self, name)) < 0:
                 raise InputError(f"{source}: expected {name} >= 0, got {getattr(self, name)!r}")
+        for name in ("shape_input", "pose_codes"):
+            if getattr(self, name) not in (0, 1):
+                raise InputError(f"{source}: expected {name} 0 or 1, got {getattr(self, name)!r}")
         if self.pooling not in POOLINGS:
             raise InputError(f"{source}: expected pooling among {', '.join(POOLINGS)}, got {self.pooling!r}")
         if self.hidden % self.heads or self.hidden % self.attention_heads:
@@ -575,6 +596,14 @@ class GarmentModel(nn.Module):
         self.joint_codes = nn.Linear(cfg.lstm_hidden, h * S)
         self.global_code = nn.Linear(cfg.lstm_hidden, h)
         self.combine = nn.Linear(2 * h, h)
+        if cfg.shape_input:
+            self.shape_code = nn.Linear(3, h)
+            nn.init.zeros_(self.shape_code.weight)
+            nn.init.zeros_(self.shape_code.bias)
+        if cfg.pose_codes:
+            self.pose_codes = nn.Linear(cfg.lstm_hidden, h * S)
+            nn.init.zeros_(self.pose_codes.weight)
+            nn.init.zeros_(self.pose_codes.bias)
         self.unet = GraphUNet(cfg) if cfg.pooling == "structure" else LearnedPoolUNet(cfg)
 
     def check_inputs(self, g: GarmentInputs) -> None:
@@ -615,13 +644,18 @@ class GarmentModel(nn.Module):
         weights = torch.softmax(logits.float() + torch.log(g.prior_weights + PRIOR_FLOOR)[None], dim=-1)  # Eq. 3
         _, (h2, _) = self.temporal_velocity(vel_win)
         codes = self.joint_codes(h2[-1]).view(B, S, h)
+        if self.config.pose_codes:
+            codes = codes + self.pose_codes(h1[-1]).view(B, S, h)
         used = (g.prior_weights > 0).any(0) if skip_joints else None
         w_used = weights if used is None else weights[..., used]
         if used is not None:
             codes, transforms = codes[:, used], transforms[:, used]
         per_vertex = torch.einsum("bvs,bsc->bvc", w_used, codes)
-        x = F.silu(self.combine(torch.cat([fused[None].expand(B, -1, -1), per_vertex], dim=-1))
-                   + self.global_code(h2[-1])[:, None])
+        pre = (self.combine(torch.cat([fused[None].expand(B, -1, -1), per_vertex], dim=-1))
+               + self.global_code(h2[-1])[:, None])
+        if self.config.shape_input:
+            pre = pre + self.shape_code(SHAPE_INPUT_SCALE * (rest - g.rest).to(pre.dtype))[None]
+        x = F.silu(pre)
         cap = torch.clamp(MAX_BLEND_FRACTION * (rest.amax(0) - rest.amin(0)).max(), max=MAX_BLEND_M).detach()
         blend = cap * torch.tanh(self.unet(x, g).float() / cap)  # Eq. 4, bounded
         with torch.autocast(device_type=blend.device.type, enabled=False):  # world coordinates in float32

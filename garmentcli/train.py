@@ -22,6 +22,10 @@ from core.model import ModelConfig, config_from_dict
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
 from garmentcli.common import input_errors_as_click, load_body_option
 
+#: ModelConfig inputs a --config may add to an --init network, and the prefixes of the zero-initialised layers
+#: they bring (absent from the --init weights).
+ADDABLE_INPUTS = {"shape_input", "pose_codes"}
+ADDED_INPUT_LAYERS = ("shape_code.", "pose_codes.")
 CSV_COLUMNS = ("step", "phase", "item", "loss", *LOSS_COLUMNS, "val_verts_mm", "val_collision")
 
 
@@ -135,11 +139,12 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     body = load_body_option(body_path)
     init = None
     if init_path is not None:
-        if model_values:
+        if set(model_values) - ADDABLE_INPUTS:
             raise click.BadParameter(f"'{init_path}' fixes the network; expected no 'model' section in --config "
-                                     f"'{config_path}', got {sorted(model_values)}", param_hint="--init")
+                                     f"'{config_path}' (or only {', '.join(sorted(ADDABLE_INPUTS))}), got "
+                                     f"{sorted(model_values)}", param_hint="--init")
         init = load_checkpoint(init_path)
-        model_values = dict(init["config"])
+        model_values = {**init["config"], **model_values}
     model_values.setdefault("n_joints", body.n_joints)
     if model_values["n_joints"] != body.n_joints:
         hint, src = ("--init", f"'{init_path}'") if init is not None else ("--config", f"config '{config_path}'")
@@ -161,7 +166,12 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     else:
         trainer = parallel_trainer(data, model_cfg, train_cfg, sequences_per_rank=sequences_per_step, device=device)
     if init is not None:  # before --resume: a checkpoint's weights replace these
-        trainer.model.load_state_dict(init["model"])
+        missing, unexpected = trainer.model.load_state_dict(init["model"], strict=False)
+        # Only the zero-initialised layers of an input added in --config may be missing: the network
+        # then starts as the one it came from.
+        if unexpected or any(not k.startswith(ADDED_INPUT_LAYERS) for k in missing):
+            raise click.BadParameter(f"'{init_path}': its weights do not match its config (missing "
+                                     f"{sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})", param_hint="--init")
     main = rank == 0
     rows = []
     if resume:

@@ -1,5 +1,7 @@
 """The network of core/model.py: GATv2 fast path vs PyG, shapes, unseen garments, LBS at initialisation."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -61,17 +63,45 @@ def test_neighbour_table_naive():
     assert nbr[:, 0].tolist() == [0, 1, 2, 3]
 
 
-def _run(model, body, gd, T=6, B=4):
+def _run(model, body, gd, T=6, B=4, betas=None):
     rng = np.random.default_rng(1)
     poses = (rng.normal(size=(T, 24, 3)) * 0.1).astype(np.float32)
     trans = np.zeros((T, 3), np.float32)
-    mf = motion_features(body, poses, trans, None, 30.0)
+    mf = motion_features(body, poses, trans, betas, 30.0)
     g = gd.inputs
     fr = torch.arange(T - B, T)
     win = window_index(fr, model.config.window)
-    fused = model.encode(g, body_distances(body, None))
-    return model.forward_frames(fused, g, shaped_rest(g, body, None), mf.pose[win], mf.velocity[win],
+    fused = model.encode(g, body_distances(body, betas))
+    return model.forward_frames(fused, g, shaped_rest(g, body, betas), mf.pose[win], mf.velocity[win],
                                 mf.transforms[fr]), mf, fr
+
+
+def test_added_inputs_start_as_the_network_they_extend_then_see_shape_and_pose(body):
+    base = perturbed_model(TINY_CONFIG, 0.05)
+    added = GarmentModel(dataclasses.replace(TINY_CONFIG, shape_input=1, pose_codes=1))
+    missing, unexpected = added.load_state_dict(base.state_dict(), strict=False)
+    assert sorted(missing) == ["pose_codes.bias", "pose_codes.weight", "shape_code.bias", "shape_code.weight"]
+    assert not unexpected
+    gd = _garment(body, 12, 6)
+    betas = np.full(10, 1.5, np.float32)
+
+    def moved(b=None):
+        return (_run(added, body, gd, betas=b)[0].verts - _run(base, body, gd, betas=b)[0].verts).abs().max()
+
+    with torch.no_grad():
+        assert moved(betas) == 0.0
+        added.shape_code.weight.normal_()
+        # The shape input is the garment's displacement by the body's shape: none for the mean shape ...
+        assert moved() == 0.0
+        # ... and a different garment for another body.
+        assert moved(betas) > 1e-4
+        added.shape_code.weight.zero_()
+        added.pose_codes.weight.normal_()
+        assert moved() > 1e-4  # the pose codes reach the blend shapes
+    with pytest.raises(InputError, match="shape_input 0 or 1"):
+        config_from_dict({"shape_input": 2})
+    with pytest.raises(InputError, match="pose_codes 0 or 1"):
+        config_from_dict({"pose_codes": -1})
 
 
 def test_shapes_float32_and_starts_as_lbs(body):

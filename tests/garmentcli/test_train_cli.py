@@ -150,6 +150,19 @@ def test_train_init_starts_from_a_model(setup):
     assert r.exit_code == 0, r.output
     f = load_checkpoint(fresh)["model"]
     assert any(not torch.allclose(f[k], b["model"][k], atol=1e-6) for k in f)
+    # --config may add the shape input and pose codes to an --init network: it starts as that network
+    # (zero-initialised layers).
+    add_shape = root / "add_shape.json"
+    add_shape.write_text(json.dumps({"model": {"shape_input": 1, "pose_codes": 1},
+                                     "train": json.loads(tiny_lr.read_text())["train"]}))
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(root / "shape.pt"), "--body", str(body),
+                                 "--config", str(add_shape), "--init", str(base), "--steps", "1", "--seed", "1"])
+    assert r.exit_code == 0, r.output
+    s = load_checkpoint(root / "shape.pt")
+    assert s["config"] == {**b["config"], "shape_input": 1, "pose_codes": 1}
+    assert all(torch.allclose(s["model"][k], b["model"][k], atol=1e-9) for k in b["model"])
+    assert sorted(set(s["model"]) - set(b["model"])) == ["pose_codes.bias", "pose_codes.weight", "shape_code.bias",
+                                                          "shape_code.weight"]
     # The network comes from --init: a model section in --config is refused, as is a file that is no model.
     r = _train(root, data, body, cfg, root / "t3.pt", "--init", str(base))
     assert r.exit_code != 0 and "--init" in r.output and "'model' section" in r.output
