@@ -73,8 +73,8 @@ def unskin(M: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def pose_shape_features(poses: np.ndarray, trans: np.ndarray, betas: np.ndarray, fps: float) -> np.ndarray:
-    """(T, F) per-frame regressors of the linear baseline: per joint R - I (9 numbers), its rate (/10 per
-    second), the root's velocity and acceleration in the root's frame (x0.3), the betas (x0.3), and 1.
+    """(T, F) per-frame regressors of the linear baseline: per joint R - I (9 numbers), its rate per second
+    (x0.1), the root's velocity and acceleration in the root's frame (x0.3), the betas (x0.3), and 1.
 
     poses: (T, J, 3) axis-angles, root first; trans: (T, 3); betas: (n,). Scales put each group near 1.
     """
@@ -112,10 +112,10 @@ def load_offsets(data: Path, split: str, manifest: dict, body, bindings: dict, g
         b = bindings[name]
         motion = sequence_motion(seq, it["id"], drop_settle=True)
         betas = body.fit_betas(motion.betas)
-        M = blended_transforms(body, b.weights, poses_for_body(motion, body.n_joints), motion.trans, betas)
+        poses = poses_for_body(motion, body.n_joints)
+        M = blended_transforms(body, b.weights, poses, motion.trans, betas)
         rest = shaped_garment(garments[name].vertices, b, betas)
         gt = seq.positions[seq.n_settle:].astype(np.float64)
-        poses = poses_for_body(motion, body.n_joints)
         X = pose_shape_features(poses.astype(np.float64), motion.trans.astype(np.float64), betas, motion.fps)
         out.append((it["id"], name, M, gt, rest, unskin(M, gt) - rest, X))
     return out

@@ -193,30 +193,33 @@ def render_worst_frame_heatmap(pred_seq, gt_seq, result: MetricsResult, path: st
 
 
 #: Candidate places of a point's number, in points from the point (lower-left corner of the text), nearest first.
-LABEL_OFFSETS = [(3, 3), (3, -10), (-4, 3), (-4, -10)] + [(dx, dy) for r in (1, 2, 3, 4) for dy in (9 * r + 3, -9 * r - 10)
-                                                          for dx in (3, -4)]
+#: The first four touch the point (above or below, right or left); the others step away 9 points at a time.
+LABEL_OFFSETS = [(3, 3), (3, -10), (-4, 3), (-4, -10)] + [
+    (dx, dy) for r in (1, 2, 3, 4) for dy in (9 * r + 3, -9 * r - 10) for dx in (3, -4)]
 
 
-def label_offsets(points: np.ndarray, n_chars: list[int], char_w: float = 4.5, height: float = 7.0):
+def label_offsets(points: np.ndarray, n_chars: list[int], char_w: float = 4.5, height: float = 7.0,
+                  crowd: float = 12.0):
     """Where to write each point's label so no two labels overlap: ((dx, dy) in points, moved_far) per point.
 
     points: (N, 2) point positions in points. Labels are boxes n_chars * char_w wide and `height` tall with
     their lower-left corner at point + offset (offsets left of the point are shifted by the label's width).
-    Greedy, most crowded point first; each takes the nearest offset of LABEL_OFFSETS whose box overlaps
-    no label placed so far, or the last one when all do. moved_far: beyond the first ring (draw a leader).
+    Greedy, the point with most neighbours within `crowd` points first; each takes the nearest offset of
+    LABEL_OFFSETS whose box overlaps no label placed so far, or the last one when all do. moved_far:
+    beyond the first four places (draw a leader line).
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if len(pts) == 0:
         return []
     d = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
-    order = np.argsort(-(d < 12.0).sum(1), kind="stable")
+    order = np.argsort(-(d < crowd).sum(1), kind="stable")
     boxes, out = [], [None] * len(pts)
     for i in order:
         w = n_chars[i] * char_w
         for k, (dx, dy) in enumerate(LABEL_OFFSETS):
             dx = dx - w if dx < 0 else dx
             x0, y0 = pts[i, 0] + dx, pts[i, 1] + dy
-            if all(x0 + w <= a or b <= x0 or y0 + height <= c or e <= y0 for a, c, b, e in boxes):
+            if all(x0 + w <= bx0 or bx1 <= x0 or y0 + height <= by0 or by1 <= y0 for bx0, by0, bx1, by1 in boxes):
                 break
         boxes.append((x0, y0, x0 + w, y0 + height))
         out[i] = ((dx, dy), k >= 4)
