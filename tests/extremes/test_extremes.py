@@ -60,14 +60,15 @@ def still(n, J=24):
 
 
 def perturbed_model_deformer(cache_dir, seed=0, scale=0.3):
-    """A ModelDeformer over a small GarmentModel whose every parameter got N(0, scale^2) noise."""
+    """A ModelDeformer over a small GarmentModel whose every parameter got N(0, scale^2) noise, with the
+    shipped model's inputs (shape displacement, pose codes: betas of +-5 move the garment by decimetres)."""
     from core.model import ModelConfig
     from core.model_deform import ModelDeformer
     from tests.core.model_fixtures import perturbed_model
 
     model = perturbed_model(ModelConfig(hidden=16, heads=1, encoder_layers=1, level_layers=1, bottom_layers=1,
                                         levels=2, window=5, lstm_hidden=16, inducing_points=4, attention_heads=1,
-                                        n_eigenvalues=8, n_landmarks=16), scale, seed)
+                                        n_eigenvalues=8, n_landmarks=16, shape_input=1, pose_codes=1), scale, seed)
     return ModelDeformer(model, batch_frames=64, cache_dir=cache_dir, model_name="perturbed")
 
 
