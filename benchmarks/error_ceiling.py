@@ -81,9 +81,12 @@ def pose_shape_features(poses: np.ndarray, trans: np.ndarray, betas: np.ndarray,
     T = len(poses)
     R = axis_angle_to_matrix(poses.reshape(-1, 3)).reshape(T, -1, 3, 3)
     pose = (R - np.eye(3)).reshape(T, -1)
-    rate = np.gradient(pose, axis=0) * fps if T > 1 else np.zeros_like(pose)
-    vel = np.gradient(trans, axis=0) * fps if T > 1 else np.zeros_like(trans)
-    acc = np.gradient(vel, axis=0) * fps if T > 1 else np.zeros_like(trans)
+
+    def per_second(a):  # finite-difference rate; none for a single frame
+        return np.gradient(a, axis=0) * fps if T > 1 else np.zeros_like(a)
+
+    rate, vel = per_second(pose), per_second(trans)
+    acc = per_second(vel)
     root = np.einsum("tji,tj->ti", R[:, 0], vel), np.einsum("tji,tj->ti", R[:, 0], acc)  # R0^T v
     return np.concatenate([pose, 0.1 * rate, 0.3 * root[0], 0.3 * root[1],
                            0.3 * np.broadcast_to(betas, (T, len(betas))), np.ones((T, 1))], axis=1)

@@ -68,6 +68,9 @@ MAX_SPEED_M_S = 20.0
 #: rest by 2-10 cm): its layer starts at zero and Adam moves each weight by about the learning rate per step,
 #: so in decimetres the input took hundreds of steps to reach the features (weights 0.06 after 300 steps).
 SHAPE_INPUT_SCALE = 100.0
+#: ModelConfig inputs that a fine-tune may add to a trained network (`train --init` with them in --config),
+#: each with the module of zero-initialised weights it brings: the network starts as the one it came from.
+ADDABLE_INPUTS = {"shape_input": "shape_code", "pose_codes": "pose_codes"}
 
 
 @dataclass(frozen=True)
@@ -387,6 +390,14 @@ class GATBlock(nn.Module):
         return x + F.silu(self.gat(x, nbr, mask))
 
 
+def zero_linear(a: int, b: int) -> nn.Linear:
+    """nn.Linear(a, b) with zero weights and bias: a head or added input that starts by changing nothing."""
+    layer = nn.Linear(a, b)
+    nn.init.zeros_(layer.weight)
+    nn.init.zeros_(layer.bias)
+    return layer
+
+
 def mlp(sizes: list[int]) -> nn.Sequential:
     layers = []
     for a, b in zip(sizes[:-1], sizes[1:]):
@@ -451,9 +462,7 @@ class GraphUNet(nn.Module):
         self.merge = nn.ModuleList(nn.Linear(2 * h, h) for _ in range(L))
         self.up = nn.ModuleList(nn.ModuleList(GATBlock(h, cfg.heads) for _ in range(cfg.level_layers))
                                 for _ in range(L))
-        self.out = nn.Linear(h, 3)
-        nn.init.zeros_(self.out.weight)
-        nn.init.zeros_(self.out.bias)
+        self.out = zero_linear(h, 3)
 
     def forward(self, x: torch.Tensor, g: GarmentInputs) -> torch.Tensor:
         skips = []
@@ -505,9 +514,7 @@ class LearnedPoolUNet(nn.Module):
         self.coarse, self.coarse_up = coarse(), coarse()
         self.bottom = nn.ModuleList(GATv2Conv(h, h // cfg.heads, heads=cfg.heads) for _ in range(cfg.bottom_layers))
         self.merge = nn.ModuleList(nn.Linear(2 * h, h) for _ in range(L))
-        self.out = nn.Linear(h, 3)
-        nn.init.zeros_(self.out.weight)
-        nn.init.zeros_(self.out.bias)
+        self.out = zero_linear(h, 3)
 
     def _pool(self, l: int, x: torch.Tensor, edge_index: torch.Tensor):
         if self.kind == "asap":
@@ -589,21 +596,15 @@ class GarmentModel(nn.Module):
         h, S = cfg.hidden, cfg.n_joints
         self.rest_pose = RestPoseModule(cfg)
         self.temporal_pose = nn.LSTM(cfg.pose_features, cfg.lstm_hidden, batch_first=True)
-        self.skinning = nn.Linear(cfg.lstm_hidden, h * S)
-        nn.init.zeros_(self.skinning.weight)
-        nn.init.zeros_(self.skinning.bias)
+        self.skinning = zero_linear(cfg.lstm_hidden, h * S)
         self.temporal_velocity = nn.LSTM(cfg.velocity_features, cfg.lstm_hidden, batch_first=True)
         self.joint_codes = nn.Linear(cfg.lstm_hidden, h * S)
         self.global_code = nn.Linear(cfg.lstm_hidden, h)
         self.combine = nn.Linear(2 * h, h)
         if cfg.shape_input:
-            self.shape_code = nn.Linear(3, h)
-            nn.init.zeros_(self.shape_code.weight)
-            nn.init.zeros_(self.shape_code.bias)
+            self.shape_code = zero_linear(3, h)
         if cfg.pose_codes:
-            self.pose_codes = nn.Linear(cfg.lstm_hidden, h * S)
-            nn.init.zeros_(self.pose_codes.weight)
-            nn.init.zeros_(self.pose_codes.bias)
+            self.pose_codes = zero_linear(cfg.lstm_hidden, h * S)
         self.unet = GraphUNet(cfg) if cfg.pooling == "structure" else LearnedPoolUNet(cfg)
 
     def check_inputs(self, g: GarmentInputs) -> None:

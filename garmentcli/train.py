@@ -18,14 +18,10 @@ import torch
 from tqdm import tqdm
 
 from core.errors import InputError
-from core.model import ModelConfig, config_from_dict
+from core.model import ADDABLE_INPUTS, ModelConfig, config_from_dict
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
 from garmentcli.common import input_errors_as_click, load_body_option
 
-#: ModelConfig inputs a --config may add to an --init network, and the prefixes of the zero-initialised layers
-#: they bring (absent from the --init weights).
-ADDABLE_INPUTS = {"shape_input", "pose_codes"}
-ADDED_INPUT_LAYERS = ("shape_code.", "pose_codes.")
 CSV_COLUMNS = ("step", "phase", "item", "loss", *LOSS_COLUMNS, "val_verts_mm", "val_collision")
 
 
@@ -139,7 +135,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     body = load_body_option(body_path)
     init = None
     if init_path is not None:
-        if set(model_values) - ADDABLE_INPUTS:
+        if set(model_values) - set(ADDABLE_INPUTS):
             raise click.BadParameter(f"'{init_path}' fixes the network; expected no 'model' section in --config "
                                      f"'{config_path}' (or only {', '.join(sorted(ADDABLE_INPUTS))}), got "
                                      f"{sorted(model_values)}", param_hint="--init")
@@ -167,9 +163,11 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         trainer = parallel_trainer(data, model_cfg, train_cfg, sequences_per_rank=sequences_per_step, device=device)
     if init is not None:  # before --resume: a checkpoint's weights replace these
         missing, unexpected = trainer.model.load_state_dict(init["model"], strict=False)
-        # Only the zero-initialised layers of an input added in --config may be missing: the network
+        # Only the zero-initialised layers of an input this --config adds may be missing: the network
         # then starts as the one it came from.
-        if unexpected or any(not k.startswith(ADDED_INPUT_LAYERS) for k in missing):
+        added = tuple(f"{module}." for name, module in ADDABLE_INPUTS.items()
+                      if getattr(model_cfg, name) and not init["config"].get(name))
+        if unexpected or any(not k.startswith(added) for k in missing):
             raise click.BadParameter(f"'{init_path}': its weights do not match its config (missing "
                                      f"{sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})", param_hint="--init")
     main = rank == 0

@@ -163,6 +163,15 @@ def test_train_init_starts_from_a_model(setup):
     assert all(torch.allclose(s["model"][k], b["model"][k], atol=1e-9) for k in b["model"])
     assert sorted(set(s["model"]) - set(b["model"])) == ["pose_codes.bias", "pose_codes.weight", "shape_code.bias",
                                                           "shape_code.weight"]
+    # Weights may be missing only for an input this --config adds: a network that claims the shape input
+    # but lacks its layer is refused.
+    broken = load_checkpoint(root / "shape.pt")
+    del broken["model"]["shape_code.weight"]
+    torch.save(broken, root / "broken_shape.pt")
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(root / "t7.pt"), "--body", str(body),
+                                 "--init", str(root / "broken_shape.pt"), "--steps", "1"])
+    assert r.exit_code != 0 and "--init" in r.output and "shape_code.weight" in r.output
+    assert not (root / "t7.pt").exists()
     # The network comes from --init: a model section in --config is refused, as is a file that is no model.
     r = _train(root, data, body, cfg, root / "t3.pt", "--init", str(base))
     assert r.exit_code != 0 and "--init" in r.output and "'model' section" in r.output
