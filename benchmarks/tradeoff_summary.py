@@ -6,7 +6,8 @@ Reads every RESULTS/<garment>_<motion>/tradeoff.json (`core.tradeoff.scene_summa
 RESULTS/summary.md: E_verts of LBS, of the model (float32, contact guard, no push-out) and of the
 closest non-reference simulator row against the reference, the model's error as a share of LBS's,
 milliseconds per frame of LBS and the model, the fastest simulator row's seconds per frame, and whether
-every row keeps the time order lbs < model < sim.
+every row keeps the time order lbs < model < sim; for runs with `--spread`, the reference's spread and the share
+of LBS's error above it that the model removes.
 """
 
 from __future__ import annotations
@@ -34,17 +35,22 @@ def main(argv=None) -> None:
     scenes = sorted(a.results.glob("*/tradeoff.json"))
     if not scenes:
         sys.exit(f"{a.results}: no */tradeoff.json")
+    summaries = [(f.parent.name, scene_summary(json.loads(f.read_text()), a.model)) for f in scenes]
+    with_spread = any(s["spread_mm"] == s["spread_mm"] for _, s in summaries)  # some run had --spread
+    headers = (*HEADERS, "reference spread mm", "gap closed") if with_spread else HEADERS
     rows, refs = [], set()
-    for f in scenes:
-        s = scene_summary(json.loads(f.read_text()), a.model)
+    for name, s in summaries:
         refs.add(s["reference"])
-        rows.append((f.parent.name, s["vertices"], s["frames"], s["lbs_mm"], s["model_mm"],
-                     f"{100 * s['model_share_of_lbs']:.0f} %", s["closest_sim"], s["closest_sim_mm"], s["lbs_ms"],
-                     s["model_ms"], s["sim_s"], "yes" if s["time_ordered"] else "no"))
+        row = (name, s["vertices"], s["frames"], s["lbs_mm"], s["model_mm"], f"{100 * s['model_share_of_lbs']:.0f} %",
+               s["closest_sim"], s["closest_sim_mm"], s["lbs_ms"], s["model_ms"], s["sim_s"],
+               "yes" if s["time_ordered"] else "no")
+        if with_spread:
+            row += (s["spread_mm"], f"{100 * s['gap_closed']:.0f} %" if s["gap_closed"] == s["gap_closed"] else "")
+        rows.append(row)
     text = (f"# Speed against accuracy: every scene\n\nE_verts (mm) against the reference ({', '.join(sorted(refs))}); "
             f"model: the `{a.model}` row in float32 (contact guard on, no push-out). Made by "
             f"`python benchmarks/tradeoff_summary.py` from each scene's `tradeoff.json`.\n\n"
-            + markdown_table(HEADERS, rows, digits=4))
+            + markdown_table(headers, rows, digits=4))
     (a.results / "summary.md").write_text(text)
     print(text)
 

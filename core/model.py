@@ -390,6 +390,15 @@ class GATBlock(nn.Module):
         return x + F.silu(self.gat(x, nbr, mask))
 
 
+def _last_state(lstm: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
+    """The last layer's final hidden state of `lstm` over the (B, window, features) sequence `x`, in the weights'
+    precision even under bfloat16 autocast: oneDNN has no bfloat16 LSTM on CPUs without native bfloat16 (it raised "could not
+    create a primitive descriptor" on an AMD EPYC with AVX2 only), and the two LSTMs are a sliver of the cost."""
+    with torch.autocast(device_type=x.device.type, enabled=False):
+        _, (h, _) = lstm(x.to(lstm.weight_ih_l0.dtype))
+    return h[-1]
+
+
 def zero_linear(a: int, b: int) -> nn.Linear:
     """nn.Linear(a, b) with zero weights and bias: a head or added input that starts by changing nothing."""
     layer = nn.Linear(a, b)
@@ -635,25 +644,25 @@ class GarmentModel(nn.Module):
         """
         B = pose_win.shape[0]
         S, h = self.config.n_joints, self.config.hidden
-        _, (h1, _) = self.temporal_pose(pose_win)
-        M = self.skinning(h1[-1]).view(B, h, S)
+        h1 = _last_state(self.temporal_pose, pose_win)
+        M = self.skinning(h1).view(B, h, S)
         logits = torch.einsum("vc,bcs->bvs", fused, M) / math.sqrt(h)
         # Only joints with transferred (prior) weight at a vertex may move it: joints that do not influence a
         # region are never computed into it, and no learned weights can carry a vertex to a distant bone.
         logits = logits.masked_fill((g.prior_weights <= 0)[None], float("-inf"))
         # In float32 also under bfloat16 autocast: rounded weights would move vertices by millimetres.
         weights = torch.softmax(logits.float() + torch.log(g.prior_weights + PRIOR_FLOOR)[None], dim=-1)  # Eq. 3
-        _, (h2, _) = self.temporal_velocity(vel_win)
-        codes = self.joint_codes(h2[-1]).view(B, S, h)
+        h2 = _last_state(self.temporal_velocity, vel_win)
+        codes = self.joint_codes(h2).view(B, S, h)
         if self.config.pose_codes:
-            codes = codes + self.pose_codes(h1[-1]).view(B, S, h)
+            codes = codes + self.pose_codes(h1).view(B, S, h)
         used = (g.prior_weights > 0).any(0) if skip_joints else None
         w_used = weights if used is None else weights[..., used]
         if used is not None:
             codes, transforms = codes[:, used], transforms[:, used]
         per_vertex = torch.einsum("bvs,bsc->bvc", w_used, codes)
         pre = (self.combine(torch.cat([fused[None].expand(B, -1, -1), per_vertex], dim=-1))
-               + self.global_code(h2[-1])[:, None])
+               + self.global_code(h2)[:, None])
         if self.config.shape_input:
             pre = pre + self.shape_code(SHAPE_INPUT_SCALE * (rest - g.rest).to(pre.dtype))[None]
         x = F.silu(pre)

@@ -442,10 +442,16 @@ class SimDeformer(Deformer):
 
     name = "sim"
 
-    def __init__(self, material: Material = Material(), options: SimOptions = SimOptions()):
+    def __init__(self, material: Material = Material(), options: SimOptions = SimOptions(), jitter_m: float = 0.0):
+        """jitter_m: standard deviation (metres) of a seeded random displacement of the garment's starting
+        positions, 0 for none: the same scene started a hair apart (`garment tradeoff --spread`), to measure
+        how far two equally valid simulations of a chaotic cloth drift apart."""
         super().__init__()
+        if not (np.isfinite(jitter_m) and jitter_m >= 0):
+            raise InputError(f"sim: expected jitter_m >= 0, got {jitter_m}")
         self.material = material
         self.options = options
+        self.jitter_m = float(jitter_m)
         self._bindings: dict = {}
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
@@ -491,6 +497,8 @@ class SimDeformer(Deformer):
         origin = all_trans.astype(np.float64)
         local_body = body_pts - origin[:, None]
         start = shaped @ A[:3, :3].T + A[:3, 3] - origin[0]
+        if self.jitter_m > 0:
+            start = start + np.random.default_rng(0).normal(0.0, self.jitter_m, start.shape)
         template = garment.vertices @ A[:3, :3].T + A[:3, 3] - origin[0]  # rest lengths: the garment as authored
         pins = pins - origin[:, None].astype(np.float32)
         bounds = np.stack([local_body.reshape(-1, 3).min(0), local_body.reshape(-1, 3).max(0)])
@@ -577,6 +585,7 @@ class SimDeformer(Deformer):
             "method": self.name,
             "material": asdict(m),
             "options": asdict(o),
+            "start_jitter_m": self.jitter_m,
             "solver": {"engine": "newton SolverVBD", "device": sim.device, "newton": package_version("newton"),
                        "warp": package_version("warp-lang"), "dt_s": frame_dt / o.substeps},
             "pinned_vertices": len(pinned),

@@ -30,6 +30,11 @@ from core.motion import Motion, poses_for_body
 #: frames) 10 and 20 substeps are 22 mm apart (mean edge strain 1.9 % and 0.8 %), 20 and 40 substeps
 #: 20 mm (0.4 %); 20 is the finest a CPU affords for every example garment, 5 was no reference at all.
 SIM_SUBSTEPS = (10, 20)
+#: Starting-position jitter (metres, standard deviation) of the reference's rerun that measures its spread: about
+#: ten float32 roundings of a position. Cloth is chaotic: on the example skirt (walk_brisk, 15 frames, 20
+#: substeps with self-contact) a 1 um start moves the result 8.1 mm (5 mm after the settling, 11 mm by the
+#: last frame); no method can be expected nearer the reference than this.
+SPREAD_JITTER_M = 1e-6
 PENETRATION_DEPTH_M = 0.002
 METRIC_COLUMNS = ("e_verts", "e_vnorm", "e_fnorm", "e_edge", "e_curv", "penetration_pct")
 
@@ -42,10 +47,12 @@ class Config:
     method: str
     options: dict = field(default_factory=dict)
     reference: bool = False
+    spread: bool = False  # the reference rerun from jittered starting positions (`SPREAD_JITTER_M`)
 
 
-def configurations(models: dict, with_sim: bool = True) -> list[Config]:
-    """The rows of a tradeoff run. models: name -> checkpoint path (None: the shipped model)."""
+def configurations(models: dict, with_sim: bool = True, spread: bool = False) -> list[Config]:
+    """The rows of a tradeoff run. models: name -> checkpoint path (None: the shipped model). spread: add the
+    reference rerun from starting positions jittered by `SPREAD_JITTER_M` (its error is the reference's spread)."""
     rows = [Config("lbs", "lbs")]
     for name, path in models.items():
         for precision in ("float32", "bfloat16"):
@@ -58,6 +65,10 @@ def configurations(models: dict, with_sim: bool = True) -> list[Config]:
                 rows.append(Config(f"sim {substeps} substeps" + (" +self-contact" if contact else ""), "sim",
                                    {"substeps": substeps, "self_contact": contact},
                                    reference=contact and substeps == max(SIM_SUBSTEPS)))
+        if spread:
+            rows.append(Config(f"reference +{SPREAD_JITTER_M * 1e6:g} um jitter", "sim",
+                               {"substeps": max(SIM_SUBSTEPS), "self_contact": True, "jitter_m": SPREAD_JITTER_M},
+                               spread=True))
     return rows
 
 
@@ -78,7 +89,8 @@ def make_deformer(config: Config, cache_dir=None) -> Deformer:
         from core.sim import Material, SimDeformer, SimOptions
 
         return SimDeformer(Material(), SimOptions(substeps=config.options["substeps"],
-                                                  self_contact=config.options["self_contact"]))
+                                                  self_contact=config.options["self_contact"]),
+                           jitter_m=config.options.get("jitter_m", 0.0))
     raise ValueError(f"unknown method {config.method!r}")
 
 
@@ -173,6 +185,11 @@ def simulation_key(config: Config, scene) -> str:
     return h.hexdigest()
 
 
+def sim_file_name(config: Config) -> str:
+    """The file name a simulator row is stored under (`save_simulation`) in a results directory."""
+    return config.name.replace(" ", "_").replace("+", "") + ".npz"
+
+
 def save_simulation(path, m: Measurement, key: str) -> None:
     """Store a simulator row (points and timings) for `load_simulation`."""
     np.savez_compressed(path, points=m.points.astype(np.float32), key=key, seconds_per_frame=m.seconds_per_frame,
@@ -218,19 +235,25 @@ def scene_summary(result: dict, model: str) -> dict:
     """One scene's line of the cross-garment summary from its tradeoff.json `result`: LBS, the model row
     `model` (float32, no push-out) and the fastest simulator row; E_verts against the reference, ms per
     frame, the model's error as a share of LBS's, and whether the time order lbs < model < sim holds
-    (slowest LBS row faster than the fastest model row, slowest model row faster than the fastest simulator)."""
+    (slowest LBS row faster than the fastest model row, slowest model row faster than the fastest simulator).
+    Where the run measured the reference's spread (`--spread`): `spread_mm`, and `gap_closed`, the share of
+    LBS's error above that floor the model removes, (LBS - model) / (LBS - spread); else both NaN."""
     rows = {r["config"]: r for r in result["rows"]}
     ref = next(r["config"] for r in result["rows"] if r["reference"])
     lbs, mdl = rows["lbs"], rows.get(f"{model} float32")
     if mdl is None:
         raise KeyError(f"{result['garment']}: no row '{model} float32' (rows: {', '.join(rows)})")
-    by_method = {m: [r["seconds_per_frame"] for r in result["rows"] if r["method"] == m and not r.get("failed")]
+    done = [r for r in result["rows"] if not r.get("failed")]
+    spread = next((r["e_verts"] for r in done if r.get("spread")), float("nan"))
+    by_method = {m: [r["seconds_per_frame"] for r in done if r["method"] == m and not r.get("spread")]
                  for m in ("lbs", "model", "sim")}
-    sims = [r for r in result["rows"] if r["method"] == "sim" and not r["reference"] and not r.get("failed")]
+    sims = [r for r in done if r["method"] == "sim" and not r["reference"] and not r.get("spread")]
     closest_sim = min(sims, key=lambda r: r["e_verts"]) if sims else None
+    above = lbs["e_verts"] - spread
     return {"garment": result["garment"], "vertices": result["vertices"], "frames": result["frames"],
             "reference": ref, "lbs_mm": lbs["e_verts"], "model_mm": mdl["e_verts"],
             "model_share_of_lbs": mdl["e_verts"] / lbs["e_verts"] if lbs["e_verts"] > 0 else float("nan"),
+            "spread_mm": spread, "gap_closed": (lbs["e_verts"] - mdl["e_verts"]) / above if above > 0 else float("nan"),
             "closest_sim": closest_sim["config"] if closest_sim else "", "closest_sim_mm":
             closest_sim["e_verts"] if closest_sim else float("nan"),
             "lbs_ms": 1e3 * lbs["seconds_per_frame"], "model_ms": 1e3 * mdl["seconds_per_frame"],

@@ -227,10 +227,12 @@ def label_offsets(points: np.ndarray, n_chars: list[int], char_w: float = 4.5, h
 
 
 def plot_pareto(names: list[str], seconds_per_frame: list[float], errors_mm: list[float], front: list[bool],
-                path: str | os.PathLike, title: str = "", dpi: int = 100) -> Path:
+                path: str | os.PathLike, title: str = "", dpi: int = 100,
+                floor: tuple[float, str] | None = None) -> Path:
     """Error (mm, linear) against seconds per frame (log scale), one numbered point per configuration with its
     name in a key beside the axes (names written at the points overlap where configurations cluster), the
-    Pareto front joined by a line. The reference (error 0) sits on the x axis. Writes a PNG."""
+    Pareto front joined by a line. The reference (error 0) sits on the x axis. floor: (mm, label) of a dashed
+    horizontal line (the reference's own spread). Writes a PNG."""
     plt = _pyplot()
     fig, (ax, key_ax) = plt.subplots(1, 2, figsize=(10.5, max(4.8, 0.16 * len(names) + 1.2)),
                                      gridspec_kw={"width_ratios": [2.2, 1]})
@@ -241,6 +243,8 @@ def plot_pareto(names: list[str], seconds_per_frame: list[float], errors_mm: lis
     ax.scatter(x[on], y[on], color="#c0503f", s=36, label="Pareto front", zorder=4)
     order = np.argsort(x[on])
     ax.plot(x[on][order], y[on][order], color="#c0503f", lw=1, zorder=2)
+    if floor is not None:
+        ax.axhline(floor[0], color="#3f6fc0", ls="--", lw=1, label=f"{floor[1]}: {floor[0]:.1f} mm", zorder=1)
     ax.set_xscale("log")
     ax.autoscale_view()
     points_px = ax.transData.transform(np.c_[x, y]) * 72.0 / fig.dpi  # display pixels -> points

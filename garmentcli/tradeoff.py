@@ -18,12 +18,14 @@ from tqdm import tqdm
 
 from core.tradeoff import (
     METRIC_COLUMNS,
+    SPREAD_JITTER_M,
     compare,
     configurations,
     load_simulation,
     measure,
     pareto_front,
     save_simulation,
+    sim_file_name,
     simulation_key,
     simulation_scene,
 )
@@ -41,10 +43,6 @@ COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "second
 
 #: Subdirectory of a scene's results holding its simulator rows (points, timings, key) for --reuse-sim.
 SIMULATIONS = "simulations"
-
-
-def _sim_file(config) -> str:
-    return config.name.replace(" ", "_").replace("+", "") + ".npz"
 
 
 def _models(specs: tuple) -> dict:
@@ -81,9 +79,13 @@ def _models(specs: tuple) -> dict:
 @click.option("--calibrate", "calibration_path", type=click.Path(dir_okay=False), default=None, metavar="FILE",
               help="Also add this scene to the --quality auto calibration FILE (created if missing), e.g. "
                    "<model>.calibration.json beside the model.")
+@click.option("--spread", is_flag=True,
+              help="Also run the reference once more from starting positions moved by 1 um (seeded): how far apart "
+                   "two equally valid simulations of the scene end up (cloth is chaotic), the floor under every "
+                   "row's error. A row of the table and a dashed line in the plot; one more reference run of time.")
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
-             reuse_sim=False, calibration_path=None):
+             reuse_sim=False, calibration_path=None, spread=False):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each model in float32 and bfloat16, with and without penetration push-out; the
@@ -117,15 +119,15 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     motion, _ = prepare_motion(motion_path, fps, frames, 0)
     from formats.cache import default_cache_dir
 
-    rows = configurations(models)
+    rows = configurations(models, spread=spread)
     scene = simulation_scene(garment, body, motion)
     results, failed, reused = [], [], []
     bar = tqdm(rows, desc="tradeoff", unit="config", disable=None)
     for i, config in enumerate(bar, 1):
         key = simulation_key(config, scene) if config.method == "sim" else None
         if key is not None and reuse_sim:
-            stored = (load_simulation(target / SIMULATIONS / _sim_file(config), config, key)
-                      or load_simulation(staged / _sim_file(config), config, key))
+            stored = (load_simulation(target / SIMULATIONS / sim_file_name(config), config, key)
+                      or load_simulation(staged / sim_file_name(config), config, key))
             if stored is not None:
                 results.append(stored)
                 reused.append(config.name)
@@ -134,7 +136,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
             results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
             if key is not None:
                 staged.mkdir(parents=True, exist_ok=True)
-                save_simulation(staged / _sim_file(config), results[-1], key)
+                save_simulation(staged / sim_file_name(config), results[-1], key)
             if bar.disable:  # no terminal (a log file, a batch job): one line per configuration
                 click.echo(f"tradeoff: {i}/{len(rows)} {config.name}: "
                            f"{results[-1].seconds_per_frame:.4g} s/frame", err=True)
@@ -146,16 +148,18 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
             click.echo(f"{config.name}: failed ({exc})", err=True)
             failed.append((config, str(exc)))
     compare(results, garment, body, motion)
-    front = pareto_front([(m.seconds_per_frame, m.metrics["e_verts"]) for m in results])
+    # The spread row is the reference again, not a configuration to choose: outside the front and the calibration.
+    front = iter(pareto_front([(m.seconds_per_frame, m.metrics["e_verts"]) for m in results if not m.config.spread]))
     table = []
-    for m, on in zip(results, front):
+    for m in results:
+        on = False if m.config.spread else next(front)
         table.append({"config": m.config.name, "method": m.config.method, "seconds_per_frame": m.seconds_per_frame,
                       "frames_per_second": 1.0 / m.seconds_per_frame, "seconds_prepare": m.seconds_prepare,
                       "peak_memory_mb": m.peak_memory_mb, **m.metrics, "pareto": on,
-                      "reference": m.config.reference, "runs": m.runs, "failed": ""})
+                      "reference": m.config.reference, "spread": m.config.spread, "runs": m.runs, "failed": ""})
     for config, reason in failed:
-        table.append({"config": config.name, "method": config.method, "pareto": False, "reference": False, "runs": 0,
-                      "failed": reason})
+        table.append({"config": config.name, "method": config.method, "pareto": False, "reference": False,
+                      "spread": config.spread, "runs": 0, "failed": reason})
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     try:
@@ -163,7 +167,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         (tmp / SIMULATIONS).mkdir()
         for m in results:
             if m.config.method == "sim":
-                save_simulation(tmp / SIMULATIONS / _sim_file(m.config), m, simulation_key(m.config, scene))
+                save_simulation(tmp / SIMULATIONS / sim_file_name(m.config), m, simulation_key(m.config, scene))
         if target.exists():
             shutil.rmtree(target)
         tmp.rename(target)
@@ -176,7 +180,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         cal = Calibration.load(calibration_path) if Path(calibration_path).is_file() else Calibration({})
         features = scene_features(garment, body, motion)
         add_scene(cal, features, [{**r, "options": {k: v for k, v in m.config.options.items() if k != "path"}}
-                                  for r, m in zip(table, results)])
+                                  for r, m in zip(table, results) if not m.config.spread])
         cal.save(calibration_path)
         click.echo(f"{calibration_path}: added the scene (looseness {features['looseness_m'] * 100:.1f} cm, "
                    f"speed {features['speed_m_s']:.2f} m/s)")
@@ -188,7 +192,9 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     click.echo(f"{target}: {len(table)} configurations on {motion.n_frames} frames; lbs {lbs['e_verts']:.1f} mm at "
                f"{lbs['seconds_per_frame'] * 1e3:.2f} ms/frame"
                + (f", best model row '{best['config']}' {best['e_verts']:.1f} mm at "
-                  f"{best['seconds_per_frame'] * 1e3:.1f} ms/frame" if best else ""))
+                  f"{best['seconds_per_frame'] * 1e3:.1f} ms/frame" if best else "")
+               + "".join(f"; the reference's spread {r['e_verts']:.1f} mm" for r in table
+                         if r["spread"] and not r["failed"]))
 
 
 def _write(directory: Path, table: list[dict], garment_path, motion_path, motion, garment) -> None:
@@ -196,7 +202,7 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
     from formats.report import markdown_table
 
     with open(directory / "tradeoff.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=[*COLUMNS, "reference", "runs", "failed"])
+        w = csv.DictWriter(fh, fieldnames=[*COLUMNS, "reference", "spread", "runs", "failed"])
         w.writeheader()
         w.writerows(table)
     (directory / "tradeoff.json").write_text(json.dumps(
@@ -204,18 +210,24 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
          "vertices": garment.n_vertices, "rows": table}, indent=1))
     ref = next(r["config"] for r in table if r["reference"])
     done = [r for r in table if not r["failed"]]
+    spread = next((r for r in done if r["spread"]), None)
     md = [f"# Speed against accuracy: `{Path(garment_path).name}` on `{Path(motion_path).name}`", "",
           (f"{motion.n_frames} frames at {motion.fps:g} fps, {garment.n_vertices} garment vertices. Errors against "
            f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
            "run); preparation (binding, preprocessing, simulator build) apart; peak memory: the largest rise of "
            "resident memory during the timed runs. E_verts mm, E_vnorm / E_fnorm degrees, E_edge %, penetration: "
-           "% of vertices > 2 mm inside the body."), "",
+           "% of vertices > 2 mm inside the body.")
+          + (f" `{spread['config']}`: the reference run again from starting positions moved by a seeded "
+             f"{SPREAD_JITTER_M * 1e6:g} um; its error, {spread['e_verts']:.1f} mm, is how far two equally valid "
+             "simulations of this scene end up apart, the floor under every row's error." if spread else ""), "",
           markdown_table(["config", "s/frame", "fps", "prepare s", "peak MB", *METRIC_COLUMNS, "Pareto"],
                          [[r["config"], r["seconds_per_frame"], r["frames_per_second"], r["seconds_prepare"],
                            r["peak_memory_mb"], *[r[k] for k in METRIC_COLUMNS], "yes" if r["pareto"] else ""]
                           for r in done])]
     md += [f"\n`{r['config']}` failed: {r['failed']}" for r in table if r["failed"]]
     (directory / "tradeoff.md").write_text("\n".join(md))
-    plot_pareto([r["config"] for r in done], [r["seconds_per_frame"] for r in done],
-                [r["e_verts"] for r in done], [r["pareto"] for r in done], directory / "tradeoff.png",
-                title=f"{Path(garment_path).stem} on {Path(motion_path).stem}: error against time per frame")
+    rows = [r for r in done if not r["spread"]]
+    plot_pareto([r["config"] for r in rows], [r["seconds_per_frame"] for r in rows],
+                [r["e_verts"] for r in rows], [r["pareto"] for r in rows], directory / "tradeoff.png",
+                title=f"{Path(garment_path).stem} on {Path(motion_path).stem}: error against time per frame",
+                floor=(spread["e_verts"], "reference's spread (started 1 um apart)") if spread else None)

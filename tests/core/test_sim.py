@@ -292,6 +292,12 @@ def test_sim_options_reject_an_unknown_pin_mode():
         SimOptions(pin="waist")
 
 
+@pytest.mark.parametrize("jitter", [-1e-6, float("nan"), float("inf")])
+def test_sim_rejects_a_negative_or_non_finite_start_jitter(jitter):
+    with pytest.raises(InputError, match="expected jitter_m >= 0"):
+        SimDeformer(jitter_m=jitter)
+
+
 def test_scene_skips_leave_the_simulation_unchanged_and_are_reported():
     from core.scene import parse_no_skip
     from tests.core.model_fixtures import tube

@@ -19,6 +19,12 @@ def test_configurations_cover_methods_precisions_push_out_and_sim_settings():
     assert {(r.options["substeps"], r.options["self_contact"]) for r in sims} == {(10, False), (10, True), (20, False),
                                                                                  (20, True)}
     assert [r.name for r in rows if r.reference] == ["sim 20 substeps +self-contact"]
+    assert not any(r.spread for r in rows)
+    # --spread: the reference once more, from jittered starting positions; not itself the reference
+    spread = configurations({"m": "m.pt"}, spread=True)
+    assert spread[:-1] == rows and spread[-1].spread and not spread[-1].reference
+    assert spread[-1].options == {"substeps": 20, "self_contact": True, "jitter_m": 1e-6}
+    assert not any(r.spread for r in configurations({"m": "m.pt"}, with_sim=False, spread=True))
 
 
 def test_pareto_front_naive():
@@ -48,6 +54,13 @@ def test_scene_summary_shares_and_time_order():
     assert scene_summary(result, "m")["time_ordered"]
     with pytest.raises(KeyError, match="no row 'x float32'"):
         scene_summary(result, "x")
+    assert np.isnan(s["spread_mm"]) and np.isnan(s["gap_closed"])
+    # The reference's spread: the floor under the errors; LBS is 40 - 4 = 36 mm above it, the model removes 30 of
+    # them. The spread row (as slow as the reference) is neither the closest simulator row nor the fastest.
+    result["rows"].append({**_row("reference +1 um jitter", "sim", 0.5, 4.0), "spread": True})
+    s = scene_summary(result, "m")
+    assert s["spread_mm"] == 4.0 and s["gap_closed"] == pytest.approx(30.0 / 36.0)
+    assert (s["closest_sim"], s["sim_s"]) == ("sim 20 substeps", 1.0)
 
 
 @pytest.fixture
@@ -59,20 +72,22 @@ def model_file(tmp_path):
 
 def test_tradeoff_writes_table_plot_and_json(scene, model_file):
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--model", f"tiny={model_file}",
-                "--repeats", 1, "--frames", "0:4", "--out", scene["out"]])
+                "--repeats", 1, "--frames", "0:4", "--out", scene["out"], "--spread"])
     assert r.exit_code == 0, r.output
     d = scene["out"] / "shell_walk"
     rows = list(csv.DictReader(open(d / "tradeoff.csv")))
-    assert [row["config"] for row in rows] == [c.name for c in configurations({"tiny": str(model_file)})]
+    assert [row["config"] for row in rows] == [c.name for c in configurations({"tiny": str(model_file)}, spread=True)]
     by = {row["config"]: row for row in rows}
     ref = by["sim 20 substeps +self-contact"]
     assert float(ref["e_verts"]) == 0.0 and ref["reference"] == "True"
     # The reference has no error; it, or the faster of the configurations that equal it, is on the front (the scene
     # analysis may switch self-contact off on this small scene: the two 20-substep rows are then one simulation
     # and either may time faster).
-    exact = [row for row in rows if float(row["e_verts"]) == 0.0]
+    exact = [row for row in rows if float(row["e_verts"]) == 0.0 and row["spread"] == "False"]
     assert min(exact, key=lambda row: float(row["seconds_per_frame"]))["pareto"] == "True"
     assert float(by["lbs"]["e_verts"]) > 0 and float(by["sim 10 substeps"]["e_verts"]) > 0
+    # The jittered rerun of the reference lands near it but not on it.
+    assert 0 < float(by["reference +1 um jitter"]["e_verts"]) < float(by["lbs"]["e_verts"])
     for row in rows:
         assert float(row["seconds_per_frame"]) > 0 and np.isfinite(float(row["e_verts"]))
         assert float(row["peak_memory_mb"]) >= 0
@@ -207,3 +222,24 @@ def test_an_interrupted_run_keeps_its_finished_simulator_rows_for_reuse_sim(scen
     r = invoke([*base, "--overwrite"])
     assert r.exit_code == 0 and "discarding the simulator rows an interrupted run left" in r.output
     assert not staged.exists()
+
+
+def test_spread_is_a_row_a_line_and_no_choice(scene, monkeypatch, tmp_path):
+    import garmentcli.tradeoff
+
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: False))
+    cal = tmp_path / "cal.json"
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4",
+                "--out", scene["out"], "--spread", "--calibrate", cal])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "shell_walk"
+    rows = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
+    row = rows["reference +1 um jitter"]
+    assert row["spread"] == "True" and row["reference"] == "False" and row["pareto"] == "False"
+    assert float(row["e_verts"]) == pytest.approx(10 * np.sqrt(3), abs=0.01)  # the fake's 1 cm shift
+    assert "the reference's spread 17.3 mm" in r.output
+    assert "floor under every row's error" in (d / "tradeoff.md").read_text()
+    assert len(list((d / "simulations").glob("*.npz"))) == 5
+    # the calibration --quality auto chooses from holds every configuration but the spread
+    configs = json.loads(cal.read_text())["configs"]
+    assert "sim 20 substeps" in configs and "reference +1 um jitter" not in configs
