@@ -270,3 +270,17 @@ def test_tensors_to_moves_every_tensor_and_keeps_the_rest(body):
                 if isinstance(t, torch.Tensor):
                     assert t.device.type == "meta", name
     assert len(moved.inputs.nbr) == len(gd.inputs.nbr) and gd.inputs.rest.device.type == "cpu"
+
+
+def test_temporal_encoders_run_in_the_weights_precision_under_bfloat16_autocast():
+    # oneDNN has no bfloat16 LSTM on CPUs without native bfloat16 (AVX2-only AMD EPYC: "could not create a
+    # primitive descriptor"): the LSTMs run outside autocast, in their weights' precision, float64 included.
+    from core.model import _last_state
+
+    torch.manual_seed(0)
+    lstm, x = torch.nn.LSTM(5, 8, batch_first=True), torch.randn(3, 4, 5)
+    plain = _last_state(lstm, x)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        h = _last_state(lstm, x)
+    assert h.shape == (3, 8) and h.dtype == torch.float32 and torch.equal(h, plain)
+    assert _last_state(lstm.double(), x).dtype == torch.float64
