@@ -32,8 +32,9 @@ from core.motion import Motion, poses_for_body
 SIM_SUBSTEPS = (10, 20)
 #: Starting-position jitter (metres, standard deviation) of the reference's rerun that measures its spread: about
 #: ten float32 roundings of a position. Cloth is chaotic: on the example skirt (walk_brisk, 15 frames, 20
-#: substeps with self-contact) a 1 um start moves the result 8.1 mm (5 mm after the settling, 11 mm by the
-#: last frame); no method can be expected nearer the reference than this.
+#: substeps with self-contact) a 1 um start moves the result 8.3 mm (4.7 mm in the first output frame, after
+#: the settling, 10.8 mm in the last; the dress 8.2 mm: benchmarks/results/reference_spread.md); no method
+#: can be expected nearer the reference than this.
 SPREAD_JITTER_M = 1e-6
 PENETRATION_DEPTH_M = 0.002
 METRIC_COLUMNS = ("e_verts", "e_vnorm", "e_fnorm", "e_edge", "e_curv", "penetration_pct")
