@@ -33,11 +33,16 @@ os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" 
 
 from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
+from core.model_deform import load_model_deformer, native_bfloat16  # noqa: E402
 from core.motion import Motion, resample  # noqa: E402
 from formats.report import markdown_table  # noqa: E402
 
 #: Spacing (metres) of the remeshed example dress: about 4,000 vertices (the shipped dress: 0.018, 3,240).
 SPACING_4K_M = 0.0149
+
+
+def _yes_no(flag: bool | None) -> str:
+    return {True: "yes", False: "no"}.get(flag, "unknown")
 
 
 def dress_4k(body):
@@ -90,7 +95,6 @@ def main(argv=None) -> None:
     ap.add_argument("--no-cli", action="store_true")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "throughput.md")
     args = ap.parse_args(argv)
-    from core.model_deform import load_model_deformer
     from core.motiongen import MOTION_LIBRARY
     from formats.cache import default_cache_dir
     from formats.motion import save_motion
@@ -155,7 +159,9 @@ def main(argv=None) -> None:
         "# Throughput on a 4k-vertex garment",
         "",
         f"Made by `python benchmarks/throughput.py --sim-frames {args.sim_frames}` on {platform.machine()} "
-        f"({os.cpu_count()} cores, {torch.get_num_threads()} torch threads, model on {args.device}), torch "
+        f"({os.cpu_count()} cores, {torch.get_num_threads()} torch threads, CPU vector unit "
+        f"{torch.backends.cpu.get_cpu_capability()}, native bfloat16: {_yes_no(native_bfloat16())}, model on "
+        f"{args.device}), torch "
         f"{torch.__version__}. Garment: the example dress remeshed to {garment.n_vertices:,} vertices. Motion: "
         f"walk_brisk (held out from training), {motion.n_frames} frames at 30 fps ({long.n_frames} for LBS).",
         "",

@@ -38,6 +38,26 @@ DEFAULT_MODEL = Path(__file__).resolve().parent / "assets" / "default_model.pt"
 PRECISIONS = ("float32", "bfloat16")
 
 
+def native_bfloat16(cpuinfo: str | None = None) -> bool | None:
+    """Whether this CPU does bfloat16 arithmetic natively (x86: avx512_bf16 or amx_bf16; Arm: bf16), from
+    /proc/cpuinfo (or the text `cpuinfo`); None where that cannot be told (no /proc/cpuinfo). Without it oneDNN
+    emulates bfloat16: on an AVX2-only AMD EPYC the network ran 2.1x slower in bfloat16 than in float32
+    (91 against 43 ms/frame, 3,960 vertices, one thread, 2026-12-02)."""
+    if cpuinfo is None:
+        try:
+            cpuinfo = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            return None
+    flags = set()
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() in ("flags", "Features"):
+            flags.update(value.split())
+    if not flags:
+        return None
+    return bool(flags & {"avx512_bf16", "amx_bf16", "bf16"})
+
+
 #: A joint counts as covered by training when some training garment puts at least this share of its
 #: skinning weight on it.
 COVERED_JOINT_SHARE = 0.01
@@ -152,6 +172,8 @@ class ModelDeformer(Deformer):
         self.report = {"method": self.name, "model": self.model_name, "batch_frames": self.batch_frames,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
                        "encode_seconds": t1 - t0, "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
+        if self.precision == "bfloat16":
+            self.report["native_bfloat16"] = native_bfloat16()
         if anchors is not None:
             moved = np.concatenate(moved) if moved else np.zeros(1, dtype=np.int64)
             self.report["seconds_per_frame_guard"] = (time.perf_counter() - t2) / max(motion.n_frames, 1)

@@ -321,6 +321,13 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if fallback:
             method, model_path, precision = "lbs", None, None
             deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
+    if method == "model" and precision == "bfloat16":
+        from core.model_deform import native_bfloat16
+
+        if native_bfloat16() is False:
+            click.echo("warning: --precision bfloat16: this CPU has no native bfloat16 arithmetic (no avx512_bf16, "
+                       "amx_bf16 or bf16 flag), so the network runs emulated and slower than in float32 (2.1x on an "
+                       "AVX2-only CPU)", err=True)
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,

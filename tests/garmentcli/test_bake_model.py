@@ -126,3 +126,24 @@ def test_shipped_model_is_small_and_documented():
     card = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
     for key in ("command", "dataset", "training", "metrics"):
         assert key in card, key
+
+
+@pytest.mark.parametrize("native", [False, True])
+def test_bfloat16_on_a_cpu_without_native_bfloat16_warns_and_is_recorded(tmp_path, monkeypatch, native):
+    import core.model_deform
+
+    monkeypatch.setattr(core.model_deform, "native_bfloat16", lambda cpuinfo=None: native)
+    points, summary, output = _bake(ROOT / "examples" / "skirt.obj", tmp_path, "--precision", "bfloat16")
+    assert summary["deformer"]["precision"] == "bfloat16" and summary["deformer"]["native_bfloat16"] is native
+    assert ("no native bfloat16 arithmetic" in output) is not native and np.isfinite(points).all()
+
+
+def test_native_bfloat16_reads_the_cpu_flags():
+    from core.model_deform import native_bfloat16
+
+    assert native_bfloat16("processor : 0\nflags\t\t: fpu sse2 avx2 fma\n") is False  # AVX2-only x86
+    assert native_bfloat16("flags : avx2 avx512f avx512_bf16\n") is True
+    assert native_bfloat16("flags : avx2 amx_bf16 amx_tile\n") is True
+    assert native_bfloat16("Features\t: fp asimd sve bf16 i8mm\n") is True  # Arm
+    assert native_bfloat16("Features : fp asimd\n") is False
+    assert native_bfloat16("model name : something\n") is None  # no flags line: unknown
