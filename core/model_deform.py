@@ -24,6 +24,7 @@ from core.model import (
     body_distances,
     motion_features,
     shaped_rest,
+    tensors_to,
     window_index,
 )
 from core.model_data import prepare_garment
@@ -96,8 +97,8 @@ def training_range(weights, coverage, joint_names=None) -> dict:
 class ModelDeformer(Deformer):
     """The paper's network. model: a GarmentModel; batch_frames: frames per forward pass.
 
-    precision: "float32", or "bfloat16" (the network under CPU autocast; skinning weights and the final
-    world-space skinning stay float32).
+    precision: "float32", or "bfloat16" (the network under autocast; skinning weights and the final
+    world-space skinning stay float32). The network runs on the device of `model`'s parameters.
     """
 
     name = "model"
@@ -135,15 +136,17 @@ class ModelDeformer(Deformer):
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
         self.prepare(garment, body)
-        g = self._garments[(garment.content_hash(), id(body))].inputs
+        # Inputs on the network's device (a GPU where the model was moved to one); results come back as numpy.
+        device = next(self.model.parameters()).device
+        g = tensors_to(self._garments[(garment.content_hash(), id(body))].inputs, device)
         betas = body.fit_betas(motion.betas)
         poses = poses_for_body(motion, body.n_joints)
-        mf = motion_features(body, poses, motion.trans, betas, motion.fps)
+        mf = tensors_to(motion_features(body, poses, motion.trans, betas, motion.fps), device)
         rest = shaped_rest(g, body, betas)
         anchors = None
         if self.contact_guard:
             shaped_body, _ = body.shaped(betas)
-            anchors = contact_anchors(rest.numpy(), shaped_body, outward_faces(shaped_body, body.faces))
+            anchors = contact_anchors(rest.cpu().numpy(), shaped_body, outward_faces(shaped_body, body.faces))
         moved = []
         out = np.empty((motion.n_frames, garment.n_vertices, 3), dtype=np.float32)
         scene = SceneAnalysis(self.skips)
@@ -153,15 +156,16 @@ class ModelDeformer(Deformer):
         scene.report["levels"] = {**levels, "model": self.model.config.levels,
                                   "matches": levels["suggested"] == self.model.config.levels}
         t0 = time.perf_counter()
-        with torch.inference_mode(), torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.precision == "bfloat16"):
-            fused = self.model.encode(g, body_distances(body, betas))
+        with torch.inference_mode(), torch.autocast(device.type, dtype=torch.bfloat16,
+                                                    enabled=self.precision == "bfloat16"):
+            fused = self.model.encode(g, body_distances(body, betas).to(device))
             t1 = time.perf_counter()
             for s in range(0, motion.n_frames, self.batch_frames):
-                fr = torch.arange(s, min(s + self.batch_frames, motion.n_frames))
-                win = window_index(fr, self.model.config.window)
+                fr = torch.arange(s, min(s + self.batch_frames, motion.n_frames), device=device)
+                win = window_index(fr.cpu(), self.model.config.window).to(device)
                 res = self.model.forward_frames(fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr],
                                                 skip_joints=scene.enabled("joints"))
-                out[s:s + len(fr)] = res.verts.float().numpy()
+                out[s:s + len(fr)] = res.verts.float().cpu().numpy()
         t2 = time.perf_counter()
         if anchors is not None:  # outside autocast: the body is posed in float32
             for s in range(0, motion.n_frames, self.batch_frames):
