@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -36,7 +37,7 @@ def main(argv=None) -> None:
     if not scenes:
         sys.exit(f"{a.results}: no */tradeoff.json")
     summaries = [(f.parent.name, scene_summary(json.loads(f.read_text()), a.model)) for f in scenes]
-    with_spread = any(s["spread_mm"] == s["spread_mm"] for _, s in summaries)  # some run had --spread
+    with_spread = any(not math.isnan(s["spread_mm"]) for _, s in summaries)  # some run had --spread
     headers = (*HEADERS, "reference spread mm", "gap closed") if with_spread else HEADERS
     rows, refs = [], set()
     for name, s in summaries:
@@ -45,7 +46,7 @@ def main(argv=None) -> None:
                s["closest_sim"], s["closest_sim_mm"], s["lbs_ms"], s["model_ms"], s["sim_s"],
                "yes" if s["time_ordered"] else "no")
         if with_spread:
-            row += (s["spread_mm"], f"{100 * s['gap_closed']:.0f} %" if s["gap_closed"] == s["gap_closed"] else "")
+            row += (s["spread_mm"], "" if math.isnan(s["gap_closed"]) else f"{100 * s['gap_closed']:.0f} %")
         rows.append(row)
     text = (f"# Speed against accuracy: every scene\n\nE_verts (mm) against the reference ({', '.join(sorted(refs))}); "
             f"model: the `{a.model}` row in float32 (contact guard on, no push-out). Made by "

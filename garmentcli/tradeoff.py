@@ -230,4 +230,5 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
     plot_pareto([r["config"] for r in rows], [r["seconds_per_frame"] for r in rows],
                 [r["e_verts"] for r in rows], [r["pareto"] for r in rows], directory / "tradeoff.png",
                 title=f"{Path(garment_path).stem} on {Path(motion_path).stem}: error against time per frame",
-                floor=(spread["e_verts"], "reference's spread (started 1 um apart)") if spread else None)
+                floor=(spread["e_verts"], f"reference's spread (started {SPREAD_JITTER_M * 1e6:g} um apart)")
+                if spread else None)
