@@ -27,7 +27,8 @@ def as_float(verts: np.ndarray) -> np.ndarray:
 def face_cross(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(v1 - v0) x (v2 - v0) per face: (..., F, 3), norm = twice the face area."""
     faces = np.asarray(faces, dtype=np.int64)
-    v0, v1, v2 = verts[..., faces[:, 0], :], verts[..., faces[:, 1], :], verts[..., faces[:, 2], :]
+    # np.take along the vertex axis: several times faster than fancy indexing with an ellipsis
+    v0, v1, v2 = (np.take(verts, faces[:, k], axis=-2) for k in range(3))
     return np.cross(v1 - v0, v2 - v0)
 
 
@@ -35,6 +36,11 @@ def normalise(vectors: np.ndarray) -> np.ndarray:
     """Unit vectors along the last axis; vectors with norm below _EPS become zero vectors."""
     norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
     return np.where(norm > _EPS, vectors / np.where(norm > _EPS, norm, 1.0), 0.0).astype(vectors.dtype)
+
+
+def _dot3_soa(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Dot product of (3, ...) arrays (coordinates first)."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 def _incidence(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
@@ -91,47 +97,73 @@ def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
 
     p, a, b, c: (..., 3) broadcastable float64. Returns (closest (..., 3), barycentric (..., 3)).
     """
+    closest, bary = _closest_on_triangles_soa(*(np.moveaxis(np.asarray(x, dtype=np.float64), -1, 0)
+                                                for x in (p, a, b, c)))
+    return np.moveaxis(closest, 0, -1), np.moveaxis(bary, 0, -1)
+
+
+def _closest_on_triangles_soa(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):
+    """`closest_point_on_triangles` with the coordinate axis first: p, a, b, c (3, ...) broadcastable ->
+    (closest (3, ...), barycentric (3, ...)). Coordinates first, every operation runs over long rows (with
+    them last, numpy steps through rows of three: several times slower)."""
     ab, ac, ap = b - a, c - a, p - a
-    d1 = np.einsum("...i,...i", ab, ap)
-    d2 = np.einsum("...i,...i", ac, ap)
+    d1 = _dot3_soa(ab, ap)
+    d2 = _dot3_soa(ac, ap)
     bp = p - b
-    d3 = np.einsum("...i,...i", ab, bp)
-    d4 = np.einsum("...i,...i", ac, bp)
+    d3 = _dot3_soa(ab, bp)
+    d4 = _dot3_soa(ac, bp)
     cp = p - c
-    d5 = np.einsum("...i,...i", ab, cp)
-    d6 = np.einsum("...i,...i", ac, cp)
+    d5 = _dot3_soa(ab, cp)
+    d6 = _dot3_soa(ac, cp)
     va = d3 * d6 - d5 * d4
     vb = d5 * d2 - d1 * d6
     vc = d1 * d4 - d3 * d2
 
-    shape = np.broadcast_shapes(d1.shape, d3.shape, d5.shape)
-    bary = np.zeros(shape + (3,))
-    done = np.zeros(shape, dtype=bool)
-
-    def assign(mask, w0, w1, w2):
-        m = mask & ~done
-        bary[m, 0] = np.broadcast_to(w0, shape)[m]
-        bary[m, 1] = np.broadcast_to(w1, shape)[m]
-        bary[m, 2] = np.broadcast_to(w2, shape)[m]
-        done[m] = True
-
-    one, zero = np.ones(shape), np.zeros(shape)
+    # Each region's barycentric coordinates, selected with np.where from the lowest priority (interior) to the
+    # highest (vertex a): where several region tests hold (degenerate triangles), Ericson's first test wins.
     with np.errstate(divide="ignore", invalid="ignore"):
-        assign((d1 <= 0) & (d2 <= 0), one, zero, zero)  # vertex a
-        assign((d3 >= 0) & (d4 <= d3), zero, one, zero)  # vertex b
-        assign((d6 >= 0) & (d5 <= d6), zero, zero, one)  # vertex c
-        v = d1 / (d1 - d3)
-        assign((vc <= 0) & (d1 >= 0) & (d3 <= 0), 1 - v, v, zero)  # edge ab
-        w = d2 / (d2 - d6)
-        assign((vb <= 0) & (d2 >= 0) & (d6 <= 0), 1 - w, zero, w)  # edge ac
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        assign((va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0), zero, 1 - w, w)  # edge bc
         denom = va + vb + vc
         denom = np.where(np.abs(denom) < _EPS, _EPS, denom)
-        assign(np.ones(shape, dtype=bool), va / denom, vb / denom, vc / denom)  # interior
-    bary = np.nan_to_num(bary, nan=1.0 / 3.0)
-    closest = bary[..., :1] * a + bary[..., 1:2] * b + bary[..., 2:3] * c
+        w0, w1, w2 = va / denom, vb / denom, vc / denom  # interior
+        e43, e56 = d4 - d3, d5 - d6
+        w = e43 / (e43 + e56)
+        regions = [((va <= 0) & (e43 >= 0) & (e56 >= 0), 0.0, 1 - w, w)]  # edge bc
+        w = d2 / (d2 - d6)
+        regions.append(((vb <= 0) & (d2 >= 0) & (d6 <= 0), 1 - w, 0.0, w))  # edge ac
+        v = d1 / (d1 - d3)
+        regions.append(((vc <= 0) & (d1 >= 0) & (d3 <= 0), 1 - v, v, 0.0))  # edge ab
+        regions.append(((d6 >= 0) & (d5 <= d6), 0.0, 0.0, 1.0))  # vertex c
+        regions.append(((d3 >= 0) & (d4 <= d3), 0.0, 1.0, 0.0))  # vertex b
+        regions.append(((d1 <= 0) & (d2 <= 0), 1.0, 0.0, 0.0))  # vertex a
+        for mask, r0, r1, r2 in regions:
+            w0, w1, w2 = np.where(mask, r0, w0), np.where(mask, r1, w1), np.where(mask, r2, w2)
+    bary = np.nan_to_num(np.stack(np.broadcast_arrays(w0, w1, w2)), nan=1.0 / 3.0)
+    # denom = |ab x ac|^2: a triangle with (nearly) no area has no interior, and rounding can leave a point of
+    # it in none of the edge regions, where the interior formula divides by ~0. Its closest point is then
+    # the nearest of its three edges.
+    flat = np.broadcast_to(np.abs(va + vb + vc) <= 1e-9 * _dot3_soa(ab, ab) * _dot3_soa(ac, ac), bary.shape[1:])
+    if flat.any():
+        bary[:, flat] = _closest_on_edges(*(np.broadcast_to(x, bary.shape)[:, flat] for x in (p, a, b, c)))
+    closest = bary[0] * a + bary[1] * b + bary[2] * c
     return closest, bary
+
+
+def _closest_on_edges(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (3, N) of the nearest point to p on the three edges of triangles abc ((3, N) each)."""
+    best_d, best = np.full(p.shape[1], np.inf), np.zeros((3,) + p.shape[1:])
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        u, v = (a, b, c)[i], (a, b, c)[j]
+        e = v - u
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.nan_to_num(np.clip(_dot3_soa(p - u, e) / _dot3_soa(e, e), 0.0, 1.0))
+        off = u + t * e - p
+        d = _dot3_soa(off, off)
+        take = d < best_d
+        best_d = np.where(take, d, best_d)
+        w = np.zeros_like(best)
+        w[i], w[j] = 1.0 - t, t
+        best = np.where(take, w, best)
+    return best
 
 
 def _subtriangle_centroids(n: int) -> np.ndarray:
@@ -196,6 +228,12 @@ def _bincount_rows(index: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
     return np.stack([np.bincount(index, values[:, c], minlength=n) for c in range(values.shape[1])], axis=1)
 
 
+def _kd_tree(points: np.ndarray) -> cKDTree:
+    """A KD-tree for one mesh pose's queries: unbalanced and without shrunk node boxes, it builds faster and,
+    on a posed body's face centroids, also answers 16-nearest queries faster (15 ms against 21 for a dress)."""
+    return cKDTree(points, balanced_tree=False, compact_nodes=False)
+
+
 class TriangleMesh:
     """A triangle mesh prepared for repeated closest-point and signed-distance queries.
 
@@ -206,7 +244,12 @@ class TriangleMesh:
     def __init__(self, verts: np.ndarray, faces: np.ndarray):
         self.verts = np.asarray(verts, dtype=np.float64)
         self.faces = np.asarray(faces, dtype=np.int64)
-        self.centroids = self.verts[self.faces].mean(axis=1)
+        # Coordinates first (see _closest_on_triangles_soa): vertices (3, V), corner k of every face (3, F).
+        self._verts_soa = np.ascontiguousarray(self.verts.T)
+        self._corners_soa = [self._verts_soa.take(self.faces[:, k], axis=1) for k in range(3)]
+        c = self._corners_soa
+        self._centroids_soa = (c[0] + c[1] + c[2]) / 3.0
+        self.centroids = self._centroids_soa.T  # (F, 3), what verts[faces].mean(axis=1) gives
         self._trees: dict = {}
         self._pseudo = None
 
@@ -219,10 +262,10 @@ class TriangleMesh:
         meshes whose triangle sizes vary a lot.
         """
         if exact not in self._trees:
-            tri = self.verts[self.faces]
-            radius = np.linalg.norm(tri - self.centroids[:, None], axis=-1).max(axis=1)
+            radius = np.max([np.sqrt(_dot3_soa(x - self._centroids_soa, x - self._centroids_soa))
+                             for x in self._corners_soa], axis=0)  # (F,) farthest corner from the centroid
             if not exact:
-                self._trees[exact] = (cKDTree(self.centroids), np.arange(len(self.faces)), float(radius.max(initial=0)))
+                self._trees[exact] = (_kd_tree(self.centroids), np.arange(len(self.faces)), float(radius.max(initial=0)))
             else:
                 cover = max(float(np.median(radius)) if len(radius) else 0.0, 1e-9)
                 n_sub = np.clip(np.ceil(radius / cover), 1, 16).astype(np.int64)
@@ -230,10 +273,10 @@ class TriangleMesh:
                 for n in np.unique(n_sub[n_sub > 1]):
                     fi = np.flatnonzero(n_sub == n)
                     w = _subtriangle_centroids(int(n))  # (S, 3) barycentric
-                    samples.append(np.einsum("sk,fkc->fsc", w, tri[fi]).reshape(-1, 3))
+                    samples.append(np.einsum("sk,fkc->fsc", w, self.verts[self.faces[fi]]).reshape(-1, 3))
                     owner.append(np.repeat(fi, len(w)))
                 cover_radius = float((radius / n_sub).max()) if len(radius) else 0.0
-                self._trees[exact] = (cKDTree(np.concatenate(samples)), np.concatenate(owner), cover_radius)
+                self._trees[exact] = (_kd_tree(np.concatenate(samples)), np.concatenate(owner), cover_radius)
         return self._trees[exact]
 
     def closest(self, points: np.ndarray, k: int = 16, exact: bool = True) -> ClosestPoints:
@@ -262,15 +305,17 @@ class TriangleMesh:
                 idx = todo[s:s + step]
                 cd, si = tree.query(points[idx], k=k, workers=-1)
                 cd, ci = cd.reshape(len(idx), k), sample_face[si.reshape(len(idx), k)]
-                tri = self.verts[self.faces[ci]]  # (n, k, 3, 3)
-                c, b = closest_point_on_triangles(points[idx, None], tri[:, :, 0], tri[:, :, 1], tri[:, :, 2])
-                d = np.linalg.norm(c - points[idx, None], axis=-1)
+                corner = self.faces.take(ci, axis=0)  # (n, k, 3)
+                p = points[idx].T[:, :, None]  # (3, n, 1): coordinates first, see _closest_on_triangles_soa
+                c, b = _closest_on_triangles_soa(p, *(self._verts_soa.take(corner[..., j], axis=1) for j in range(3)))
+                off = c - p
+                d = np.sqrt(_dot3_soa(off, off))  # (n, k)
                 best = np.argmin(d, axis=1)
                 rows = np.arange(len(idx))
                 better = d[rows, best] < dist[idx]
                 upd = idx[better]
                 dist[upd], face[upd] = d[rows, best][better], ci[rows, best][better]
-                bary[upd], cp[upd] = b[rows, best][better], c[rows, best][better]
+                bary[upd], cp[upd] = b[:, rows, best].T[better], c[:, rows, best].T[better]
                 kth[s:s + step] = cd[:, -1]
             if k >= S or not exact:
                 break
@@ -292,20 +337,28 @@ class TriangleMesh:
         return ClosestPoints(dist, face, bary, cp)
 
     def _pseudo_normals(self):
-        """Angle-weighted vertex normals, edge normals (sum of adjacent faces) and face normals."""
+        """(angle-weighted vertex normals (V, 3), edge normals (E, 3: sum of the adjacent faces' normals), each
+        face's edge opposite each corner (F, 3) into them, face normals (F, 3))."""
         if self._pseudo is None:
-            v, f = self.verts, self.faces
-            fn = face_normals(v, f)
-            vn = np.zeros_like(v)
-            for k in range(3):
-                e1 = v[f[:, (k + 1) % 3]] - v[f[:, k]]
-                e2 = v[f[:, (k + 2) % 3]] - v[f[:, k]]
-                cosang = np.einsum("ij,ij->i", e1, e2) / np.maximum(
-                    np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), _EPS)
-                vn += _bincount_rows(f[:, k], fn * np.arccos(np.clip(cosang, -1, 1))[:, None], len(v))
-            n_edges, inv = _face_edge_index(f)
-            en = _bincount_rows(inv, np.repeat(fn, 3, axis=0), n_edges)
-            self._pseudo = (vn, en[inv].reshape(len(f), 3, 3), fn)
+            f = self.faces
+            # Coordinates first (see _closest_on_triangles_soa): corners (3, F) each, edge k from corner k to k + 1.
+            c = self._corners_soa
+            e = [c[1] - c[0], c[2] - c[1], c[0] - c[2]]
+            u, w = e[0], c[2] - c[0]
+            cross = np.stack([u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]])
+            norm = np.sqrt(_dot3_soa(cross, cross))
+            fn = np.where(norm > _EPS, cross / np.where(norm > _EPS, norm, 1.0), 0.0)  # (3, F); zero-area: 0
+            # The angle at corner k, between its outgoing edge k and the reversed incoming edge k - 1.
+            length = [np.sqrt(_dot3_soa(x, x)) for x in e]
+            angle = np.stack([np.arccos(np.clip(-_dot3_soa(e[k], e[k - 1]) / np.maximum(length[k] * length[k - 1], _EPS),
+                                                -1, 1)) for k in range(3)])  # (3 corners, F)
+            corner_vertex = f.T.reshape(-1)  # corner-major, like angle.reshape(-1)
+            vn = np.stack([np.bincount(corner_vertex, (fn[i] * angle).reshape(-1), minlength=len(self.verts))
+                           for i in range(3)], axis=1)
+            n_edges, inv = _face_edge_index(f)  # face-major: face f's edges at 3f, 3f + 1, 3f + 2
+            en = np.stack([np.bincount(inv, np.repeat(fn[i], 3), minlength=n_edges) for i in range(3)], axis=1)
+            fn = fn.T
+            self._pseudo = (vn, en, inv.reshape(len(f), 3), fn)
         return self._pseudo
 
     def signed_distance(self, points: np.ndarray, exact: bool = True) -> np.ndarray:
@@ -321,7 +374,7 @@ class TriangleMesh:
         return res, res.distance * self._sign(np.asarray(points, dtype=np.float64).reshape(-1, 3), res)
 
     def _sign(self, points: np.ndarray, res: ClosestPoints) -> np.ndarray:
-        vn, en, fn = self._pseudo_normals()
+        vn, en, face_edge, fn = self._pseudo_normals()
         b = res.barycentric
         tol = 1e-9
         zero = b < tol  # (N, 3) which barycentric coordinates vanish
@@ -330,7 +383,7 @@ class TriangleMesh:
         # On an edge: one coordinate zero, the edge opposite that corner.
         on_edge = n_zero == 1
         corner = np.argmax(zero, axis=1)
-        normal[on_edge] = en[res.face_index[on_edge], corner[on_edge]]
+        normal[on_edge] = en[face_edge[res.face_index[on_edge], corner[on_edge]]]
         # At a vertex: two coordinates zero, the corner with the remaining weight.
         on_vertex = n_zero >= 2
         vid = self.faces[res.face_index, np.argmax(b, axis=1)]

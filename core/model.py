@@ -356,24 +356,21 @@ class GATv2(nn.Module):
     def forward(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         B, n, _ = x.shape
         H, C = self.heads, self.channels
+        K = nbr.shape[1]
+        # In place when no gradient is taken (inference): two (B, n, K, H, C) temporaries fewer.
+        inplace = not torch.is_grad_enabled()
         xl = self.conv.lin_l(x).view(B, n, H, C)
         xr = self.conv.lin_r(x).view(B, n, H, C)
-        xj = xl[:, nbr]  # (B, n, K, H, C)
-        K = xj.shape[2]
-        e = xj + xr[:, :, None]
-        # In place when no gradient is taken (inference): one (B, n, K, H, C) temporary fewer.
-        e = F.leaky_relu(e, self.conv.negative_slope, inplace=not torch.is_grad_enabled())
-        if H == 1:  # matrix products instead of broadcast-and-sum: no permuted copies
+        xj = xl.index_select(1, nbr.reshape(-1)).view(B, n, K, H, C)  # index_select: ~2x faster than xl[:, nbr]
+        e = F.leaky_relu(xj + xr[:, :, None], self.conv.negative_slope, inplace=inplace)
+        if H == 1:  # a matrix product instead of broadcast-and-sum: no permuted copies
             score = (e.view(B, n, K, C) @ self.conv.att.view(C, 1)).view(B, n, K, 1)
         else:
             score = (e * self.conv.att.view(1, 1, 1, H, C)).sum(-1)  # (B, n, K, H)
         score = score.masked_fill(~mask[None, :, :, None], float("-inf"))
-        alpha = torch.softmax(score, dim=2)
-        if H == 1:
-            out = (alpha.view(B * n, 1, K) @ xj.view(B * n, K, C)).view(B, n, C)
-        else:
-            out = torch.einsum("bnkh,bnkhc->bnhc", alpha, xj).reshape(B, n, H * C)
-        return out + self.conv.bias
+        alpha = torch.softmax(score, dim=2)[..., None]  # (B, n, K, H, 1)
+        weighted = torch.mul(alpha, xj, out=e) if inplace else alpha * xj
+        return weighted.sum(2).reshape(B, n, H * C) + self.conv.bias
 
     def reference(self, x: torch.Tensor, edge_index: torch.Tensor) -> torch.Tensor:
         return self.conv(x, edge_index)
@@ -479,11 +476,13 @@ class GraphUNet(nn.Module):
             for blk in self.down[l]:
                 x = blk(x, g.nbr[l], g.mask[l])
             skips.append(x)
-            x = x[:, g.pool_index[l]]
+            x = x.index_select(1, g.pool_index[l])
         for blk in self.bottom:
             x = blk(x, g.nbr[self.levels], g.mask[self.levels])
         for l in reversed(range(self.levels)):
-            x = torch.einsum("bnkc,nk->bnc", x[:, g.unpool_index[l]], g.unpool_weight[l])
+            idx = g.unpool_index[l]
+            x = (x.index_select(1, idx.reshape(-1)).view(x.shape[0], *idx.shape, -1)
+                 * g.unpool_weight[l][None, :, :, None].to(x.dtype)).sum(2)
             x = F.silu(self.merge[l](torch.cat([x, skips[l]], dim=-1)))
             for blk in self.up[l]:
                 x = blk(x, g.nbr[l], g.mask[l])
@@ -671,7 +670,8 @@ class GarmentModel(nn.Module):
         with torch.autocast(device_type=blend.device.type, enabled=False):  # world coordinates in float32
             shaped = rest[None] + blend  # Eq. 2
             Mx = torch.einsum("bvs,bsrc->bvrc", w_used, transforms[:, :, :3, :])
-            verts = torch.einsum("bvrc,bvc->bvr", Mx[..., :3], shaped) + Mx[..., 3]  # Eq. 1
+            # Eq. 1; multiply-and-sum: as einsum it was a batched product of B * V 3x3 matrices (slow on a CPU)
+            verts = (Mx[..., :3] * shaped[:, :, None, :]).sum(-1) + Mx[..., 3]
         return ModelOutput(verts=verts, weights=weights, blend=blend)
 
 

@@ -1,3 +1,5 @@
+import itertools
+
 import numpy as np
 
 from core.geometry import (
@@ -42,6 +44,28 @@ def test_closest_point_on_triangle_matches_dense_sampling():
         assert np.linalg.norm(cp - p) >= d_dense - 5e-3
         assert bary.min() >= -1e-12 and abs(bary.sum() - 1) < 1e-9
         np.testing.assert_allclose(bary @ np.stack([a, b, c]), cp, atol=1e-12)
+
+
+def test_closest_point_on_degenerate_triangles_is_on_an_edge():
+    """Zero-area faces (collinear corners, repeated corners) occur in real meshes: the closest point is the
+    nearest point of the three edges, found by dense sampling of the segments. Rounding used to leave points of
+    such faces in the interior case, whose division by ~0 gave barycentric coordinates summing to 0.01."""
+    rng = np.random.default_rng(2)
+    t = np.linspace(0, 1, 2001)[:, None]
+    for kind in ("collinear", "two corners equal", "one point"):
+        for _ in range(30):
+            a, b = rng.normal(size=(2, 3))
+            c = {"collinear": 2 * b - a, "two corners equal": b.copy(), "one point": a.copy()}[kind]
+            if kind == "one point":
+                b = a.copy()
+            samples = np.concatenate([u + t * (v - u) for u, v in ((a, b), (a, c), (b, c))])
+            for p in rng.normal(size=(5, 3)) * 2:
+                d_dense = np.linalg.norm(samples - p, axis=1).min()
+                for order in itertools.permutations((a, b, c)):  # the degenerate corner in every position
+                    cp, bary = closest_point_on_triangles(p, *order)
+                    assert d_dense - 5e-3 <= np.linalg.norm(cp - p) <= d_dense + 1e-12, kind
+                    assert bary.min() >= -1e-12 and abs(bary.sum() - 1) < 1e-9, (kind, bary)
+                    np.testing.assert_allclose(bary @ np.stack(order), cp, atol=1e-12)
 
 
 def test_closest_points_exact_against_brute_force():
