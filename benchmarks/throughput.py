@@ -98,7 +98,7 @@ def cli_bake_fps(garment_path: Path, motions: list[Path], workers: int) -> float
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sim-frames", type=int, default=20)
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--device", default="cpu", help="the model's device (cuda where there is one)")
     ap.add_argument("--no-sim", action="store_true")
     ap.add_argument("--no-cli", action="store_true")

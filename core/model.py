@@ -288,7 +288,7 @@ def _pooled_vertex_moments(body: Body, betas: np.ndarray | None) -> tuple[np.nda
     verts, _ = body.shaped(betas)
     w = np.asarray(body.weights, dtype=np.float64)
     xh = np.concatenate([verts.astype(np.float64), np.ones((len(verts), 1))], axis=1)
-    P = np.einsum("vj,vk,vc->jkc", w, w, xh, optimize=True)
+    P = np.stack([(w * xh[:, c:c + 1]).T @ w for c in range(4)], axis=-1)  # einsum "vj,vk,vc->jkc": 60x slower
     return P.astype(np.float32), np.maximum(w.sum(0), 1e-8).astype(np.float32)
 
 
