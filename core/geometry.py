@@ -353,10 +353,9 @@ class TriangleMesh:
             angle = np.stack([np.arccos(np.clip(-_dot3_soa(e[k], e[k - 1]) / np.maximum(length[k] * length[k - 1], _EPS),
                                                 -1, 1)) for k in range(3)])  # (3 corners, F)
             corner_vertex = f.T.reshape(-1)  # corner-major, like angle.reshape(-1)
-            vn = np.stack([np.bincount(corner_vertex, (fn[i] * angle).reshape(-1), minlength=len(self.verts))
-                           for i in range(3)], axis=1)
+            vn = _bincount_rows(corner_vertex, (fn[:, None] * angle).reshape(3, -1).T, len(self.verts))
             n_edges, inv = _face_edge_index(f)  # face-major: face f's edges at 3f, 3f + 1, 3f + 2
-            en = np.stack([np.bincount(inv, np.repeat(fn[i], 3), minlength=n_edges) for i in range(3)], axis=1)
+            en = _bincount_rows(inv, np.repeat(fn, 3, axis=1).T, n_edges)
             fn = fn.T
             self._pseudo = (vn, en, inv.reshape(len(f), 3), fn)
         return self._pseudo
