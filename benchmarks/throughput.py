@@ -179,8 +179,7 @@ def main(argv=None) -> None:
         markdown_table(["method", "batch frames", "ms/frame", "frames/s"], rows),
         "",
         f"- model (default: float32, batch {default_batch}) vs LBS: {lbs_fps / default:.0f}x slower; fastest model "
-        f"configuration "
-        f"{best:.1f} frames/s.",
+        f"configuration {best:.1f} frames/s.",
         f"- the model's rows include its contact guard (on by default): {np.median(guard_ms):.1f} ms/frame of them.",
     ]
     if sim_s is not None:

@@ -344,19 +344,15 @@ class TriangleMesh:
             # Coordinates first (see _closest_on_triangles_soa): corners (3, F) each, edge k from corner k to k + 1.
             c = self._corners_soa
             e = [c[1] - c[0], c[2] - c[1], c[0] - c[2]]
-            u, w = e[0], c[2] - c[0]
-            cross = np.stack([u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]])
-            norm = np.sqrt(_dot3_soa(cross, cross))
-            fn = np.where(norm > _EPS, cross / np.where(norm > _EPS, norm, 1.0), 0.0)  # (3, F); zero-area: 0
+            fn = face_normals(self.verts, f)  # (F, 3)
             # The angle at corner k, between its outgoing edge k and the reversed incoming edge k - 1.
             length = [np.sqrt(_dot3_soa(x, x)) for x in e]
             angle = np.stack([np.arccos(np.clip(-_dot3_soa(e[k], e[k - 1]) / np.maximum(length[k] * length[k - 1], _EPS),
                                                 -1, 1)) for k in range(3)])  # (3 corners, F)
             corner_vertex = f.T.reshape(-1)  # corner-major, like angle.reshape(-1)
-            vn = _bincount_rows(corner_vertex, (fn[:, None] * angle).reshape(3, -1).T, len(self.verts))
+            vn = _bincount_rows(corner_vertex, (fn.T[:, None] * angle).reshape(3, -1).T, len(self.verts))
             n_edges, inv = _face_edge_index(f)  # face-major: face f's edges at 3f, 3f + 1, 3f + 2
-            en = _bincount_rows(inv, np.repeat(fn, 3, axis=1).T, n_edges)
-            fn = fn.T
+            en = _bincount_rows(inv, np.repeat(fn, 3, axis=0), n_edges)
             self._pseudo = (vn, en, inv.reshape(len(f), 3), fn)
         return self._pseudo
 

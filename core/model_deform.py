@@ -7,6 +7,7 @@ computed once per (garment, body shape), frames are evaluated in batches.
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from pathlib import Path
@@ -39,15 +40,23 @@ DEFAULT_MODEL = Path(__file__).resolve().parent / "assets" / "default_model.pt"
 PRECISIONS = ("float32", "bfloat16")
 
 
+@functools.cache
+def _cpuinfo() -> str | None:
+    """/proc/cpuinfo, read once per process (a bfloat16 bake asks twice: the CLI's warning and the report)."""
+    try:
+        return Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return None
+
+
 def native_bfloat16(cpuinfo: str | None = None) -> bool | None:
     """Whether this CPU does bfloat16 arithmetic natively (x86: avx512_bf16 or amx_bf16; Arm: bf16), from
     /proc/cpuinfo (or the text `cpuinfo`); None where that cannot be told (no /proc/cpuinfo). Without it oneDNN
     emulates bfloat16: on an AVX2-only AMD EPYC the network ran 2.1x slower in bfloat16 than in float32
     (91 against 43 ms/frame, 3,960 vertices, one thread, 2026-12-02)."""
     if cpuinfo is None:
-        try:
-            cpuinfo = Path("/proc/cpuinfo").read_text()
-        except OSError:
+        cpuinfo = _cpuinfo()
+        if cpuinfo is None:
             return None
     flags = set()
     for line in cpuinfo.splitlines():
@@ -74,12 +83,12 @@ MAX_UNCOVERED_SHARE = 0.05
 DEFAULT_BATCH_FRAMES = {"cpu": 2}
 
 
-#: Frames the contact guard poses the body for at once (posing 2 at a time cost 2.3 ms/frame, 16 at a time 1.3).
-GUARD_CHUNK_FRAMES = 16
-
-
 def default_batch_frames(device: torch.device | str) -> int:
     return DEFAULT_BATCH_FRAMES.get(torch.device(device).type, 8)
+
+
+#: Frames the contact guard poses the body for at once (posing 2 at a time cost 2.3 ms/frame, 16 at a time 1.3).
+GUARD_CHUNK_FRAMES = 16
 
 
 def joint_shares(weights) -> np.ndarray:

@@ -326,7 +326,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
 
         if native_bfloat16() is False:
             click.echo("warning: --precision bfloat16: this CPU has no native bfloat16 arithmetic (no avx512_bf16, "
-                       "amx_bf16 or bf16 flag), so the network runs emulated and slower than in float32 (2.1x on an "
+                       "amx_bf16 or bf16 flag), so the network runs emulated and slower than in float32 (2-5x on an "
                        "AVX2-only CPU)", err=True)
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
