@@ -29,10 +29,13 @@ Per frame, from a window of m frames:
   (benchmarks/results/error_ceiling.md);
   garment = LBS of T + B with W and the body's skinning transforms (Eq. 1-2).
 
-Graph attention is PyG's GATv2Conv (its parameters); `GATv2` evaluates it on
-a padded (V, K) neighbour table with gather + masked softmax, which FACTS.md
-measured about 2x faster on CPU and which batches frames; tests check it
-against `GATv2Conv.forward`.
+Graph attention is PyG's GATv2Conv: `GATv2Weights` holds its parameters under
+its names and initialisation (checkpoints load either way), so that the model
+loads without importing torch_geometric (whose import pulls in torch._dynamo,
+about a third of the command's start-up); `GATv2` evaluates it on a padded
+(V, K) neighbour table with gather + masked softmax, which FACTS.md measured
+about 2x faster on CPU and which batches frames; tests check it against
+`GATv2Conv.forward` and its initialisation against GATv2Conv's.
 """
 
 from __future__ import annotations
@@ -46,7 +49,6 @@ import scipy.sparse as sp
 import torch
 import torch.nn.functional as F
 from torch import nn
-from torch_geometric.nn import GATv2Conv
 
 from core.body import Body
 from core.errors import InputError
@@ -347,6 +349,45 @@ def gather_rows(x: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     return x.index_select(1, index.reshape(-1)).view(x.shape[0], *index.shape, *x.shape[2:])
 
 
+def _glorot_(t: torch.Tensor) -> None:
+    """PyG's `glorot`: uniform in +-sqrt(6 / (size(-2) + size(-1)))."""
+    bound = math.sqrt(6.0 / (t.size(-2) + t.size(-1)))
+    with torch.no_grad():
+        t.uniform_(-bound, bound)
+
+
+class GATv2Weights(nn.Module):
+    """The parameters of PyG's `GATv2Conv(in_features, channels, heads=heads)` (concatenated heads, bias, no
+    edge features, no residual, no shared weights): the same names (lin_l, lin_r, att, bias), shapes and
+    initialisation, random numbers drawn in the same order (the same values after the same seed)."""
+
+    negative_slope = 0.2
+
+    def __init__(self, in_features: int, channels: int, heads: int):
+        super().__init__()
+        self.lin_l = nn.Linear(in_features, heads * channels)
+        self.lin_r = nn.Linear(in_features, heads * channels)
+        self.att = nn.Parameter(torch.empty(1, heads, channels))
+        self.bias = nn.Parameter(torch.empty(heads * channels))
+        self.reset_parameters()
+
+    def reset_parameters(self) -> None:
+        for lin in (self.lin_l, self.lin_r):  # PyG's Linear(weight_initializer="glorot"): bias +-1/sqrt(fan-in)
+            _glorot_(lin.weight)
+            with torch.no_grad():
+                lin.bias.uniform_(-1.0 / math.sqrt(lin.in_features), 1.0 / math.sqrt(lin.in_features))
+        _glorot_(self.att)
+        nn.init.zeros_(self.bias)
+
+    def pyg(self):
+        """A torch_geometric GATv2Conv holding these parameters (the reference of the tests)."""
+        from torch_geometric.nn import GATv2Conv
+
+        conv = GATv2Conv(self.lin_l.in_features, self.att.shape[2], heads=self.att.shape[1], concat=True)
+        conv.load_state_dict(self.state_dict())
+        return conv.to(self.att.device)
+
+
 class GATv2(nn.Module):
     """PyG's GATv2Conv (concatenated heads, self loops) evaluated on a padded neighbour table, batched.
 
@@ -357,7 +398,7 @@ class GATv2(nn.Module):
     def __init__(self, in_features: int, out_features: int, heads: int = 1):
         super().__init__()
         self.heads, self.channels = heads, out_features // heads
-        self.conv = GATv2Conv(in_features, self.channels, heads=heads, concat=True)
+        self.conv = GATv2Weights(in_features, self.channels, heads)
 
     def forward(self, x: torch.Tensor, nbr: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         B, n, _ = x.shape
@@ -379,7 +420,7 @@ class GATv2(nn.Module):
         return weighted.sum(2).reshape(B, n, H * C) + self.conv.bias
 
     def reference(self, x: torch.Tensor, edge_index: torch.Tensor) -> torch.Tensor:
-        return self.conv(x, edge_index)
+        return self.conv.pyg()(x, edge_index)
 
 
 class GATBlock(nn.Module):
@@ -505,7 +546,7 @@ class LearnedPoolUNet(nn.Module):
 
     def __init__(self, cfg: ModelConfig):
         super().__init__()
-        from torch_geometric.nn import ASAPooling, SAGPooling, TopKPooling
+        from torch_geometric.nn import ASAPooling, GATv2Conv, SAGPooling, TopKPooling
 
         h, L = cfg.hidden, cfg.levels
         self.levels = L

@@ -30,7 +30,8 @@ from core.model import (
 )
 from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body
-from core.pushout import GUARD_DEPTH_M, GUARD_MARGIN_M, GUARD_REACH_M, contact_anchors, guard_contact
+from core.pushout import (GUARD_DEPTH_FADE_M, GUARD_DEPTH_M, GUARD_MARGIN_M, GUARD_REACH_FADE_M, GUARD_REACH_M,
+                          contact_anchors, guard_contact)
 from core.scene import SceneAnalysis, scene_levels
 
 log = logging.getLogger(__name__)
@@ -207,7 +208,8 @@ class ModelDeformer(Deformer):
             moved = np.concatenate(moved) if moved else np.zeros(1, dtype=np.int64)
             self.report["seconds_per_frame_guard"] = (time.perf_counter() - t2) / max(motion.n_frames, 1)
             self.report["contact_guard"] = {"margin_m": GUARD_MARGIN_M, "reach_m": GUARD_REACH_M,
-                                            "depth_m": GUARD_DEPTH_M,
+                                            "depth_m": GUARD_DEPTH_M, "reach_fade_m": GUARD_REACH_FADE_M,
+                                            "depth_fade_m": GUARD_DEPTH_FADE_M,
                                             "vertices_moved_per_frame_mean": float(moved.mean()),
                                             "vertices_moved_per_frame_max": int(moved.max())}
         self.scene = scene.report

@@ -10,7 +10,9 @@ body point of every vertex in every frame (about 2-4x the model's own time).
 Contact guard (`ContactAnchors`, `guard_contact`; on by default for `--method model`): each garment
 vertex is tied once, on the rest pose, to the body face closest to it; in every frame the vertex is kept
 on the outer side of that face's plane, at no less than min(margin, its rest offset), wherever it lies
-within GUARD_REACH_M of the face's point along the plane and no deeper than GUARD_DEPTH_M behind it.
+within GUARD_REACH_M of the face's point along the plane and no deeper than GUARD_DEPTH_M behind it; over
+bands beyond both bounds (GUARD_REACH_FADE_M, GUARD_DEPTH_FADE_M) the lift fades linearly to none, so that
+it changes continuously as a vertex crosses a bound (a cut-off made cloth pop by up to 5 cm in one frame).
 The face is posed exactly (it is the body's own), so this undoes what the network adds on top of
 skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at about
 1.5 ms/frame; it cannot see a vertex that slides over to another body part, which the exact push-out does.
@@ -46,6 +48,19 @@ GUARD_REACH_M = 0.1
 #: The shipped model pushes some vertices 3-5 cm in; on the held-out test sequences a cap of 3 cm left 0.14 %
 #: of vertices inside, 5 cm 0.12 %, none 0.11 % but lifted single vertices by up to 14 cm.
 GUARD_DEPTH_M = 0.05
+
+#: Widths (metres) of the bands beyond GUARD_REACH_M and GUARD_DEPTH_M over which the lift fades from full to
+#: none. The lift, depth x weight, stays at most GUARD_DEPTH_M (the depth fade is narrower than the depth), and
+#: what is left behind the plane grows with the depth, so the guard keeps the order of vertices along a normal.
+GUARD_REACH_FADE_M = 0.05
+GUARD_DEPTH_FADE_M = 0.03
+
+
+def _fade(x: np.ndarray, bound: float, width: float) -> np.ndarray:
+    """1 up to `bound`, falling linearly to 0 at `bound + width` (a step at `bound` when width is 0)."""
+    if width <= 0:
+        return (x <= bound).astype(np.float64)
+    return np.clip((bound + width - x) / width, 0.0, 1.0)
 
 
 def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
@@ -90,21 +105,30 @@ def contact_anchors(rest: np.ndarray, body_verts: np.ndarray, body_faces: np.nda
     return ContactAnchors(faces, res.barycentric, np.minimum(margin, offset))
 
 
-def guard_contact(points: np.ndarray, body_points: np.ndarray, anchors: ContactAnchors,
-                  reach: float = GUARD_REACH_M, depth: float = GUARD_DEPTH_M) -> tuple[np.ndarray, np.ndarray]:
-    """Keep each vertex outside its posed anchor face's plane (see the module's docstring).
-
-    points: (T, V, 3) garment; body_points: (T, Vb, 3) the posed body. Returns (points (T, V, 3) float32,
-    moved (T,) vertex counts).
-    """
+def anchor_offsets(points: np.ndarray, body_points: np.ndarray,
+                   anchors: ContactAnchors) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where each vertex lies against its posed anchor face: (behind (T, V), its depth below the guard's floor,
+    0 where it is above; lateral (T, V), its distance from the face's point along the plane; the face's unit
+    normal (T, V, 3)), metres. points: (T, V, 3); body_points: (T, Vb, 3)."""
     body_points = np.asarray(body_points, dtype=np.float64)
     point = np.einsum("tvkc,vk->tvc", body_points[:, anchors.faces], anchors.barycentric)
     normal = face_normals(body_points, anchors.faces)  # (T, V, 3)
     rel = np.asarray(points, dtype=np.float64) - point
     along = np.einsum("tvc,tvc->tv", rel, normal)
     lateral = np.linalg.norm(rel - along[..., None] * normal, axis=-1)
-    lift = np.clip(anchors.floor[None] - along, 0.0, None)
-    lift = np.where((lateral < reach) & (lift < depth), lift, 0.0)
+    return np.clip(anchors.floor[None] - along, 0.0, None), lateral, normal
+
+
+def guard_contact(points: np.ndarray, body_points: np.ndarray, anchors: ContactAnchors,
+                  reach: float = GUARD_REACH_M, depth: float = GUARD_DEPTH_M, reach_fade: float = GUARD_REACH_FADE_M,
+                  depth_fade: float = GUARD_DEPTH_FADE_M) -> tuple[np.ndarray, np.ndarray]:
+    """Keep each vertex outside its posed anchor face's plane (see the module's docstring).
+
+    points: (T, V, 3) garment; body_points: (T, Vb, 3) the posed body. Fades of 0 cut the lift off at the
+    bounds. Returns (points (T, V, 3) float32, moved (T,) vertex counts).
+    """
+    behind, lateral, normal = anchor_offsets(points, body_points, anchors)
+    lift = behind * _fade(behind, depth, depth_fade) * _fade(lateral, reach, reach_fade)
     out = (points + lift[..., None] * normal).astype(np.float32)
     return out, (lift > 0).sum(axis=1)
 

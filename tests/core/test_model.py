@@ -1,6 +1,8 @@
 """The network of core/model.py: GATv2 fast path vs PyG, shapes, unseen garments, LBS at initialisation."""
 
 import dataclasses
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -8,7 +10,7 @@ import torch
 
 from core.body import skin_points
 from core.errors import InputError
-from core.model import (GATv2, GarmentModel, ModelConfig, body_distances, config_from_dict, count_parameters,
+from core.model import (GATv2, GarmentModel, GATv2Weights, ModelConfig, body_distances, config_from_dict, count_parameters,
                         motion_features, neighbour_table, shaped_rest, window_index)
 from core.model_data import prepare_garment
 from tests.core.model_fixtures import TINY_CONFIG, perturbed_model, sequence, tube
@@ -53,6 +55,24 @@ def test_gatv2_fast_path_matches_pyg():
         assert torch.allclose(layer(x, nbr, mask), ref, atol=1e-5)
         with torch.no_grad():  # the inference path (in-place activation)
             assert torch.allclose(layer(x, nbr, mask), ref, atol=1e-5)
+
+
+def test_gatv2_weights_are_gatv2conv_parameters_and_the_model_loads_without_pyg():
+    from torch_geometric.nn import GATv2Conv
+
+    for in_features, channels, heads in ((16, 4, 2), (64, 64, 1), (7, 3, 4)):
+        torch.manual_seed(0)
+        ours = GATv2Weights(in_features, channels, heads).state_dict()
+        after_ours = torch.rand(3)
+        torch.manual_seed(0)
+        pyg = GATv2Conv(in_features, channels, heads=heads).state_dict()
+        # The same names, shapes and values after the same seed, and the same random numbers drawn.
+        assert ours.keys() == pyg.keys() and all(torch.equal(ours[k], pyg[k]) for k in pyg)
+        assert torch.equal(after_ours, torch.rand(3))
+    # The command and the model import without torch_geometric (its import pulls in torch._dynamo, seconds).
+    code = ("import sys, garmentcli.main, core.model, core.model_deform; "
+            "sys.exit(any(m.startswith(('torch_geometric', 'torch._dynamo')) for m in sys.modules))")
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 
 
 def test_neighbour_table_naive():

@@ -3,7 +3,7 @@ outside; others stay) and the model's contact guard (against a vertex-by-vertex 
 
 import numpy as np
 
-from core.geometry import TriangleMesh, closest_point_on_triangles, outward_faces, outward_offsets
+from core.geometry import TriangleMesh, closest_point_on_triangles, face_normals, outward_faces, outward_offsets
 from core.pushout import PushOutDeformer, contact_anchors, guard_contact, push_out
 from tests.meshes import icosphere, points_around, tiny_body
 
@@ -47,7 +47,14 @@ def test_push_out_deformer_wraps_any_method_and_reports():
     assert wrapped.name == "lbs" and wrapped.report["push_out"]["vertices_moved_per_frame_max"] > 0
 
 
-def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach):
+def _naive_weight(x, bound, fade):
+    """1 up to the bound, then a straight line down to 0 at bound + fade (a cut-off at the bound when fade is 0)."""
+    if x <= bound:
+        return 1.0
+    return 0.0 if x >= bound + fade else 1.0 - (x - bound) / fade
+
+
+def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach, depth, reach_fade, depth_fade):
     """Vertex by vertex: the rest body's closest face (exhaustive), then its plane in each posed frame."""
     out = np.array(points, dtype=np.float64)
     tris = rest_body[body_faces]
@@ -63,8 +70,10 @@ def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach
             n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
             n /= np.linalg.norm(n)
             along = np.dot(out[t, i] - q, n)
-            if along < floor and np.linalg.norm(out[t, i] - q - along * n) < reach:
-                out[t, i] += (floor - along) * n
+            lateral = np.linalg.norm(out[t, i] - q - along * n)
+            if along < floor:
+                behind = floor - along
+                out[t, i] += behind * _naive_weight(behind, depth, depth_fade) * _naive_weight(lateral, reach, reach_fade) * n
     return out
 
 
@@ -83,11 +92,18 @@ def test_contact_guard_matches_a_vertex_by_vertex_reference_and_only_lifts():
     body_points, _ = body.pose(poses, np.zeros((3, 3), np.float32), None)
     skinned = body_points[:, faces[::2]].mean(axis=2) + rng.normal(0, 0.01, (3, len(rest), 3))
     anchors = contact_anchors(rest, rest_body, faces, margin=0.002)
-    got, moved = guard_contact(skinned.astype(np.float32), body_points, anchors, reach=0.05)
-    want = _naive_guard(skinned, body_points, faces, rest, rest_body, 0.002, 0.05)
-    np.testing.assert_allclose(got, want, atol=1e-5)
-    lifted = np.linalg.norm(got - skinned, axis=-1) > 1e-7
-    assert moved.tolist() == lifted.sum(axis=1).tolist() and 0 < lifted.mean() < 1
+    # Bounds and fades at the scale of the offsets, so that every band holds vertices; fades of 0 cut off.
+    outputs = []
+    for bounds in ({"reach": 0.05, "depth": 0.01, "reach_fade": 0.02, "depth_fade": 0.005},
+                   {"reach": 0.05, "depth": 0.01, "reach_fade": 0.0, "depth_fade": 0.0}):
+        got, moved = guard_contact(skinned.astype(np.float32), body_points, anchors, **bounds)
+        want = _naive_guard(skinned, body_points, faces, rest, rest_body, 0.002, **bounds)
+        np.testing.assert_allclose(got, want, atol=1e-5)
+        lifted = np.linalg.norm(got - skinned, axis=-1) > 1e-7
+        assert moved.tolist() == lifted.sum(axis=1).tolist() and 0 < lifted.mean() < 1
+        outputs.append(got)
+    # The fades reach vertices the cut-off leaves alone.
+    assert (np.abs(outputs[0] - outputs[1]).max(axis=-1) > 1e-4).sum() >= 10
     # Only along each anchor face's outward normal: a lifted vertex ends farther from the body's centre.
     centre = body_points.mean(axis=1, keepdims=True)
     grew = np.linalg.norm(got - centre, axis=-1) > np.linalg.norm(skinned - centre, axis=-1)
@@ -106,6 +122,38 @@ def test_contact_guard_leaves_the_rest_pose_and_far_vertices_alone():
     np.testing.assert_array_equal(same[0], rest.astype(np.float32))
     # Deep inside but far along the plane from the anchor (beyond the reach): left alone.
     far = (rest - 0.05 * out_dir + 0.3 * np.cross(out_dir, [0.0, 0.0, 1.0]))[None].astype(np.float32)
-    kept, _ = guard_contact(far, rest_body[None], anchors, reach=0.1)
+    kept, _ = guard_contact(far, rest_body[None], anchors, reach=0.1, reach_fade=0.05)
     lateral = np.linalg.norm(0.3 * np.cross(out_dir, [0.0, 0.0, 1.0]), axis=1)
-    np.testing.assert_array_equal(kept[0][lateral > 0.1], far[0][lateral > 0.1])
+    np.testing.assert_array_equal(kept[0][lateral > 0.15], far[0][lateral > 0.15])
+
+
+def test_contact_guard_lift_is_continuous_across_its_bounds():
+    """A vertex swept ever deeper behind its face, and ever farther along the plane: the lift never jumps (a
+    cut-off at the bounds moved cloth by the whole depth in one step), it is never more than the depth bound,
+    and what is left behind the plane grows with the depth (the guard keeps vertices in order)."""
+    body = tiny_body()
+    rest_body = body.v_template.astype(np.float64)
+    faces = outward_faces(rest_body, body.faces)
+    _, cp, out_dir = outward_offsets(rest_body[:1], rest_body, faces)
+    anchors = contact_anchors(cp + 0.01 * out_dir, rest_body, faces)
+    n = face_normals(rest_body, anchors.faces)[0]
+    side = np.cross(n, [0.0, 0.0, 1.0])
+    side /= np.linalg.norm(side)
+    anchor = anchors.barycentric[0] @ rest_body[anchors.faces[0]]
+    bounds = {"reach": 0.1, "depth": 0.05, "reach_fade": 0.05, "depth_fade": 0.03}
+    step = 1e-4
+    behind = np.arange(0.0, 0.1, step)
+    lateral = np.arange(0.0, 0.2, step)
+    sweeps = {"depth": anchor + (anchors.floor[0] - behind)[:, None] * n,
+              "lateral": anchor - 0.02 * n + lateral[:, None] * side}
+    lifts = {}
+    for name, pts in sweeps.items():
+        got, _ = guard_contact(pts[:, None], np.repeat(rest_body[None], len(pts), 0), anchors, **bounds)
+        lifts[name] = np.linalg.norm(got[:, 0] - pts, axis=1)
+        # Slope at most 1 + depth / depth_fade (depth sweep) or 2 cm / reach_fade (lateral): no jump.
+        assert np.abs(np.diff(lifts[name])).max() < step * (1 + 0.05 / 0.03) + 1e-5, name
+        assert lifts[name].max() <= 0.05 + 1e-5 and lifts[name][-1] < 1e-6, name  # none beyond the fade
+    np.testing.assert_allclose(lifts["depth"][behind < 0.05], behind[behind < 0.05], atol=1e-5)
+    np.testing.assert_allclose(lifts["lateral"][lateral < 0.1], 0.02 + anchors.floor[0], atol=1e-5)
+    assert np.all(np.diff(behind - lifts["depth"]) > -1e-5)
+
