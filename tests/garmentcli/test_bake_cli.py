@@ -193,3 +193,14 @@ def test_bake_workers_equal_one_process_and_report_throughput(scene):
         np.testing.assert_allclose(outs[2][name], outs[1][name], atol=1e-6)
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--workers", 0])
     assert_one_line_error(r, "--workers")
+
+
+def test_bake_suggests_push_out_where_much_of_the_garment_is_inside_the_body(scene):
+    d = scene["dir"]
+    write_shell_obj(d / "tight.obj", scene["tiny"], offset=-0.01)  # authored 1 cm inside the body
+    for extra, hinted in (([], True), (["--push-out"], False)):
+        r = run(["bake", d / "tight.obj", scene["motion"], "--body", scene["body"], "--out", scene["out"],
+                 "--method", "lbs", "--overwrite", *extra])
+        assert r.exit_code == 0, r.output
+        line = [ln for ln in r.output.splitlines() if "penetration mean" in ln][0]
+        assert ("--push-out moves them outside" in line) == hinted, line
