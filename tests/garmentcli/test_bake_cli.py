@@ -204,3 +204,16 @@ def test_bake_suggests_push_out_where_much_of_the_garment_is_inside_the_body(sce
         assert r.exit_code == 0, r.output
         line = [ln for ln in r.output.splitlines() if "penetration mean" in ln][0]
         assert ("--push-out moves them outside" in line) == hinted, line
+
+
+def test_the_command_gives_numpy_one_blas_thread_unless_told_otherwise():
+    """More OpenBLAS threads than free cores made numpy products 14-400x slower under --workers."""
+    import os
+    import subprocess
+    import sys
+
+    code = "import garmentcli, os, numpy; print(os.environ['OPENBLAS_NUM_THREADS'])"
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    assert subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True).stdout.strip() == "1"
+    env["OPENBLAS_NUM_THREADS"] = "3"
+    assert subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True).stdout.strip() == "3"
