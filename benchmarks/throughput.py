@@ -95,6 +95,14 @@ def cli_bake_fps(garment_path: Path, motions: list[Path], workers: int) -> float
     return float(re.search(r"([\d.]+) frames/s", res.stdout).group(1))
 
 
+def startup_seconds(repeats: int = 3) -> float:
+    """Median wall time of `garment --help` in a new process: Python, torch and every subcommand imported."""
+    def once():
+        subprocess.run([sys.executable, "-m", "garmentcli.main", "--help"], cwd=ROOT, capture_output=True, check=True)
+
+    return median_seconds(once, repeats)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sim-frames", type=int, default=20)
@@ -162,6 +170,7 @@ def main(argv=None) -> None:
             for workers in (1, 2):
                 cli_rows.append([workers, f"{cli_bake_fps(gpath, motions, workers):.1f}"])
                 print(cli_rows[-1], flush=True)
+            startup = startup_seconds()
     d = load_model_deformer(cache_dir=default_cache_dir())
     d.prepare(garment, body)
     d.deform(garment, body, motion)
@@ -190,7 +199,9 @@ def main(argv=None) -> None:
                   f"{cli_frames:,} frames in all; model, USD and summary written, penetration checked on up to 60 "
                   "frames of each), frames per second of the whole command after its own start-up (with 2 workers "
                   "including theirs: each imports and loads the model and preprocesses the garment):", "",
-                  markdown_table(["--workers", "frames/s"], cli_rows)]
+                  markdown_table(["--workers", "frames/s"], cli_rows), "",
+                  f"The command's start-up (`garment --help` in a new process: Python, torch and every subcommand "
+                  f"imported), median of 3: {startup:.2f} s."]
     lines += ["", f"Profile of one model bake (float32, batch {default_batch}), operators by self CPU time:", "",
               markdown_table(["operator", "calls", "self ms", "%"], prof)]
     args.out.parent.mkdir(parents=True, exist_ok=True)
