@@ -190,7 +190,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
 
 
 #: Mean share (%) of garment vertices inside the body above which `bake` suggests --push-out (the model's contact
-#: guard leaves 0-0.4 % on the example dress, skirt and trousers, 1-3 % on the t-shirt and jumpsuit).
+#: guard leaves 0-0.75 % on the example dress, skirt and trousers, 1-3 % on the t-shirt and jumpsuit:
+#: benchmarks/results/contact_guard.md).
 PUSH_OUT_HINT_PERCENT = 1.0
 
 

@@ -2,11 +2,11 @@
 
 import os
 
-# One OpenBLAS thread per process, as the command sets (garmentcli/__init__.py), before numpy loads: two xdist
-# workers with two BLAS threads each on two cores made numpy products 14-400x slower.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+import pytest
 
-import pytest  # noqa: E402
+# One OpenBLAS thread per process before numpy loads, as for the command (garmentcli/__init__.py sets it): two
+# xdist workers with two BLAS threads each on two cores made numpy products 14-400x slower.
+import garmentcli  # noqa: F401
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -10,8 +10,8 @@ import torch
 
 from core.body import skin_points
 from core.errors import InputError
-from core.model import (GATv2, GarmentModel, GATv2Weights, ModelConfig, body_distances, config_from_dict, count_parameters,
-                        motion_features, neighbour_table, shaped_rest, window_index)
+from core.model import (GATv2, GarmentModel, GATv2Weights, ModelConfig, body_distances, config_from_dict,
+                        count_parameters, motion_features, neighbour_table, shaped_rest, window_index)
 from core.model_data import prepare_garment
 from tests.core.model_fixtures import TINY_CONFIG, perturbed_model, sequence, tube
 from tests.meshes import tiny_body

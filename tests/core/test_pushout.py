@@ -73,7 +73,8 @@ def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach
             lateral = np.linalg.norm(out[t, i] - q - along * n)
             if along < floor:
                 behind = floor - along
-                out[t, i] += behind * _naive_weight(behind, depth, depth_fade) * _naive_weight(lateral, reach, reach_fade) * n
+                weight = _naive_weight(behind, depth, depth_fade) * _naive_weight(lateral, reach, reach_fade)
+                out[t, i] += behind * weight * n
     return out
 
 
