@@ -28,6 +28,8 @@ import dataclasses
 import json
 import logging
 import os
+import sys
+import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -309,12 +311,38 @@ def waistband_vertices(garment: Garment, body: Body, band_m: float = 0.02) -> np
     return np.flatnonzero(dist <= band_m).astype(np.int64)
 
 
+#: What warp's native library writes to stderr at init on a machine without an NVIDIA driver (every CPU-only
+#: run; the simulator then runs on the CPU, which its report records): dropped, anything else passes.
+NO_CUDA_DRIVER_NOTICE = b"Could not find or load the NVIDIA CUDA driver"
+
+
+def filter_native_stderr(fn, drop: bytes):
+    """Call fn() with file descriptor 2 captured (C code writes there, not to sys.stderr); then write back
+    every captured line that does not contain `drop`. Returns fn's result."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with tempfile.TemporaryFile() as capture:
+            os.dup2(capture.fileno(), 2)
+            try:
+                return fn()
+            finally:
+                os.dup2(saved, 2)
+                capture.seek(0)
+                kept = b"".join(line for line in capture.read().splitlines(keepends=True) if drop not in line)
+                if kept:
+                    os.write(2, kept)
+    finally:
+        os.close(saved)
+
+
 def _warp():
     os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" / "warp"))
     import warp as wp
 
     # warp 1.19 logs every kernel module load at INFO; users should see warnings only.
     wp.config.log_level = wp.LOG_WARNING
+    filter_native_stderr(wp.init, NO_CUDA_DRIVER_NOTICE)
     return wp
 
 
