@@ -41,6 +41,7 @@ from core.body import Body, skin_points
 from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment, boundary_loops, mesh_edges
+from core.geodesic import geodesic_graph, geodesic_neighbourhood
 from core.geometry import TriangleMesh, outward_faces
 from core.motion import Motion, poses_for_body, settle
 from core.provenance import package_version
@@ -54,7 +55,7 @@ GRAVITY_M_S2 = 9.81
 #: on this file's bytes, so a refactor keeps them. Bump it with any change that moves the simulated cloth (this
 #: module, the pins' binding in core.skinning, material or solver defaults); tests/core/test_sim.py checks a
 #: golden simulation made with this version (GARMENT_UPDATE_GOLDENS=1 remakes it after a bump).
-SIMULATOR_VERSION = 1
+SIMULATOR_VERSION = 2  # 2: self-contact candidates filtered along the surface (`self_contact_filters`)
 #: Depth below the body surface at which a garment vertex counts as penetrating (as in core.bake).
 PENETRATION_DEPTH_M = 0.002
 
@@ -90,6 +91,65 @@ def self_contact_gap(material: "Material", speed_m_s: float, dt_s: float) -> flo
     margin = material.self_contact_distance_m
     need = SELF_CONTACT_SPEED_MARGIN * speed_m_s * dt_s / (0.5 * DAT_RELAXATION) - margin
     return float(min(max(need, margin), MAX_SELF_CONTACT_GAP_M))
+
+
+#: Most vertices (at the mesh's mean density) in the surface disc of `self_contact_filter_radius`.
+SELF_CONTACT_FILTER_MAX_VERTICES = 128
+
+
+def self_contact_filters(rest_vertices: np.ndarray, tri_indices: np.ndarray, edge_ends: np.ndarray,
+                         radius_m: float) -> tuple[dict[int, list[int]], dict[int, list[int]]]:
+    """Self-contact pairs that are one stretch of cloth: within `radius_m` of each other along the rest surface.
+
+    rest_vertices (V, 3) metres (the garment as authored); tri_indices (F, 3); edge_ends (E, 2) vertex indices
+    of the solver's edges. Returns (vertex -> triangles, edge -> edges) for Newton's external contact
+    filtering maps: triangle t is filtered for vertex v when a corner of t lies within `radius_m` of v
+    (surface geodesic, `core.geodesic`); edges e and f when an end of e lies within it of an end of f.
+
+    Newton's own filter works in mesh rings (2: the triangles around a vertex's neighbours), a distance
+    that shrinks with the mesh's edge length, while the detection distance (`self_contact_gap`) grows
+    with the motion's speed: with a 2.3 cm detection distance on the example trousers (15 mm edges), 86 %
+    of the vertices carried 13 pairs each with their own stretch of cloth, 17-30 mm away along it, that
+    only a fold that deep could bring into contact; checking them every iteration made self-contact 7x
+    slower than none (70 s per frame at 20 substeps, against 25 s with this filter, 2026-12-03).
+    """
+    import scipy.sparse as sp
+
+    V = len(rest_vertices)
+    near = geodesic_neighbourhood(rest_vertices, geodesic_graph(rest_vertices, tri_indices), radius_m,
+                                  distances=False).astype(np.float32)
+    near = (near + sp.identity(V, dtype=np.float32, format="csr")).tocsr()
+
+    def incidence(cells: np.ndarray) -> sp.csr_matrix:  # (V, cells) with a 1 where a vertex is a corner or end
+        n, k = cells.shape
+        return sp.csr_matrix((np.ones(n * k, np.float32), (cells.reshape(-1), np.repeat(np.arange(n), k))),
+                             shape=(V, n))
+
+    def rows(m: sp.csr_matrix) -> dict[int, list[int]]:
+        m = m.tocsr()
+        return {i: m.indices[m.indptr[i]:m.indptr[i + 1]].tolist() for i in range(m.shape[0])}
+
+    tris = incidence(np.asarray(tri_indices, dtype=np.int64))
+    ends = incidence(np.asarray(edge_ends, dtype=np.int64))
+    return rows(near @ tris), rows(ends.T @ (near @ ends))
+
+
+def self_contact_filter_radius(rest_vertices: np.ndarray, tri_indices: np.ndarray, detection_m: float) -> float:
+    """Surface radius of `self_contact_filters` for a detection distance of `detection_m` metres: that distance,
+    capped where a disc of it would hold more than SELF_CONTACT_FILTER_MAX_VERTICES vertices at the mesh's
+    mean density (on a fine mesh the filter grows with the square of the radius; pairs beyond the cap are
+    checked as before).
+
+    A larger radius (the detection distance plus the median edge) made the example trousers' self-contact
+    another 2x faster, but let folds up to that deep pass through themselves: the skirt on walk_brisk had
+    twice the self-intersecting faces (0.81 % against 0.40 % before the filter; 0.36 % with this radius).
+    """
+    v = np.asarray(rest_vertices, dtype=np.float64)
+    tri = np.asarray(tri_indices, dtype=np.int64)
+    area = 0.5 * float(np.linalg.norm(np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]]),
+                                      axis=1).sum()) if len(tri) else 0.0
+    cap = np.sqrt(SELF_CONTACT_FILTER_MAX_VERTICES * area / max(len(v), 1) / np.pi)
+    return float(min(detection_m, cap))
 
 
 def cloth_speed_limit(material: "Material", gap_m: float, dt_s: float) -> float:
@@ -362,7 +422,7 @@ class ClothSim:
                  collider_faces: np.ndarray, material: Material = Material(), self_contact: bool = False,
                  iterations: int = 10, start_vertices: np.ndarray | None = None, bounds: np.ndarray | None = None,
                  pinned: np.ndarray | None = None, device: str | None = None,
-                 self_contact_gap_m: float | None = None):
+                 self_contact_gap_m: float | None = None, contact_filter: bool = True):
         wp = _warp()
         import newton
 
@@ -392,11 +452,23 @@ class ClothSim:
         self.model.soft_contact_mu = m.friction
         self.pipeline = newton.CollisionPipeline(self.model, soft_contact_gap=m.contact_gap_m)
         kwargs = {}
+        #: With self-contact: the surface radius of `self_contact_filters` and the pairs it filters.
+        self.contact_filter = None
         if self_contact:
             gap = m.self_contact_distance_m if self_contact_gap_m is None else self_contact_gap_m
             kwargs = dict(particle_enable_self_contact=True, particle_self_contact_margin=m.self_contact_distance_m,
                           particle_self_contact_gap=gap, dat_conservative_bound_relaxation=DAT_RELAXATION,
                           particle_rest_shape_contact_exclusion_radius=m.self_contact_rest_exclusion_m)
+            if contact_filter:  # pairs one stretch of cloth apart along its surface are no contact candidates
+                tri = self.model.tri_indices.numpy()
+                ends = self.model.edge_indices.numpy()[:, 2:4]
+                radius = self_contact_filter_radius(rest, tri, m.self_contact_distance_m + gap)
+                vt, ee = self_contact_filters(rest.astype(np.float64), tri, ends, radius)
+                self.contact_filter = {"surface_radius_m": radius,
+                                       "vertex_triangle_pairs": sum(map(len, vt.values())),
+                                       "edge_edge_pairs": sum(map(len, ee.values()))}
+                kwargs.update(particle_external_vertex_contact_filtering_map=vt,
+                              particle_external_edge_contact_filtering_map=ee)
         self.solver = newton.solvers.SolverVBD(self.model, iterations=iterations, collision_pipeline=self.pipeline,
                                                **kwargs)
         self.state_0 = self.model.state()
@@ -408,6 +480,14 @@ class ClothSim:
             bounds = np.stack([cv.min(0), cv.max(0)])
         self.set_collider_bounds(bounds)
         self.n_particles = rest.shape[0]
+
+    def contact_pairs(self) -> dict | None:
+        """Cloth-cloth pairs of the last self-contact detection: {"vertex_triangle": n, "edge_edge": m} (None: off)."""
+        if not self.solver.particle_enable_self_contact:
+            return None
+        info = self.solver.trimesh_collision_info
+        return {"vertex_triangle": int(info.vertex_colliding_triangles_count.numpy().sum()),
+                "edge_edge": int(info.edge_colliding_edges_count.numpy().sum())}
 
     def set_collider_bounds(self, bounds: np.ndarray, pad_m: float = 0.1) -> None:
         """Set the collider's collision AABB to `bounds` (2, 3) metres (plus `pad_m`): it must contain the moving mesh."""
@@ -555,7 +635,9 @@ class SimDeformer(Deformer):
         gap = self_contact_gap(m, speed, frame_dt / o.substeps)
         sim = ClothSim(template, garment.faces, collider[0], collider_f, m, self_contact, o.iterations,
                        start_vertices=start, bounds=bounds, pinned=pinned,
-                       self_contact_gap_m=gap)
+                       self_contact_gap_m=gap, contact_filter=scene.enabled("self-contact"))
+        if self_contact:  # None: --no-skip self-contact checks every pair in reach
+            scene.report["self-contact"]["filtered_along_surface"] = sim.contact_filter
         t_built = time.perf_counter()
         # Phase 1: settle on the static rest body.
         n_settle_steps = int(round(o.settle_s * motion.fps))
@@ -618,7 +700,9 @@ class SimDeformer(Deformer):
                        "warp": package_version("warp-lang"), "dt_s": frame_dt / o.substeps},
             "pinned_vertices": len(pinned),
             "self_contact": ({"detection_gap_m": gap, "relative_speed_max_m_s": speed,
-                              "cloth_speed_limit_m_s": cloth_speed_limit(m, gap, frame_dt / o.substeps)}
+                              "cloth_speed_limit_m_s": cloth_speed_limit(m, gap, frame_dt / o.substeps),
+                              "filtered_along_surface": sim.contact_filter,
+                              "pairs_last_frame": sim.contact_pairs()}
                              if self_contact else None),
             "settle_frames_internal": n_settle_steps, "blend_frames_internal": len(pre),
             "seconds": {"build": t_built - t_start, "settle": t_pre - t_built, "frames": t_end - t_pre},

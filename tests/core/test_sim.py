@@ -376,6 +376,80 @@ def test_self_contact_detection_distance_follows_the_cloth_speed():
     assert abs(free - expected) < 0.02 * expected, (drop, expected)
 
 
+def test_self_contact_filters_match_a_naive_search():
+    """Vertex-triangle and edge-edge pairs within the radius along the surface (all-pairs Dijkstra on the
+    same graph, corner by corner); a second sheet close above is another stretch of cloth: never filtered."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from core.garment import mesh_edges
+    from core.geodesic import geodesic_graph
+    from core.sim import self_contact_filters
+
+    a, fa = cloth(0.0, n=7, size=0.14)
+    b, fb = cloth(0.01, n=7, size=0.14)
+    v, f = np.concatenate([a, b]), np.concatenate([fa, fb + len(a)])
+    e = mesh_edges(f)
+    radius = 0.045
+    vt, ee = self_contact_filters(v, f, e, radius)
+    d = dijkstra(geodesic_graph(v, f), directed=True)
+    near = d <= radius
+    want_vt = {i: {t for t in range(len(f)) if near[i, f[t]].any()} for i in range(len(v))}
+    want_ee = {i: {j for j in range(len(e)) if near[np.ix_(e[i], e[j])].any()} for i in range(len(e))}
+    assert {i: set(x) for i, x in vt.items()} == want_vt
+    assert {i: set(x) for i, x in ee.items()} == want_ee
+    # Filtered: some pairs, none across the sheets (which lie 1 cm apart, inside any detection distance).
+    assert 0 < sum(map(len, vt.values())) < len(v) * len(f)
+    assert all((np.asarray(x) < len(fa)).all() == (i < len(a)) for i, x in vt.items() if x)
+
+
+def test_self_contact_checks_no_pair_along_one_sheet_but_keeps_those_between_sheets():
+    """With a 2 cm detection gap on a 1.5 cm grid, Newton's ring filter alone leaves each vertex paired
+    with triangles of its own sheet; the surface filter leaves none, while two sheets 1 cm apart stay paired."""
+    from core.sim import self_contact_filter_radius
+
+    bv, bf = box()
+    single, fs = cloth(1.0, n=12, size=0.18)
+    a, fa = cloth(1.0, n=12, size=0.18)
+    b, fb = cloth(1.01, n=12, size=0.18)
+    pairs = {}
+    for name, (cv, cf) in {"one sheet": (single, fs),
+                           "two sheets": (np.concatenate([a, b]), np.concatenate([fa, fb + len(a)]))}.items():
+        sim = ClothSim(cv, cf, bv, bf, self_contact=True, iterations=2, bounds=np.array([[-1, -1, -1], [1, 1, 2.0]]),
+                       self_contact_gap_m=0.02)
+        sim.advance(bv, bv, 1 / FPS, 1)
+        pairs[name] = tuple(sim.contact_pairs().values())
+        assert sim.contact_filter["surface_radius_m"] == pytest.approx(self_contact_filter_radius(cv, cf, 0.023))
+    assert pairs["one sheet"] == (0, 0), pairs
+    assert min(pairs["two sheets"]) > len(a), pairs
+
+
+def test_self_contact_surface_filter_is_reported_and_no_skip_turns_it_off(monkeypatch):
+    import core.scene
+    from core.scene import parse_no_skip
+
+    body, garment, motion = _shell_scene()
+    # The shell's parts never meet: say they do, so the analysis keeps self-contact on.
+    monkeypatch.setattr(core.scene, "distant_parts_meet", lambda *a: {"meet": True, "frame": 0, "pairs": 1})
+    d = SimDeformer(options=SimOptions(settle_s=0.05, self_contact=True))
+    d.deform(garment, body, motion)
+    kept = d.scene["self-contact"]["filtered_along_surface"]
+    assert kept["surface_radius_m"] > Material().self_contact_distance_m and kept["vertex_triangle_pairs"] > 0
+    assert d.report["self_contact"]["filtered_along_surface"] == kept
+    d.skips = parse_no_skip(["self-contact"])
+    d.deform(garment, body, motion)
+    assert d.scene["self-contact"]["filtered_along_surface"] is None and d.scene["self-contact"]["overridden"]
+
+
+def test_self_contact_filter_radius_is_the_detection_distance_capped_on_fine_meshes():
+    from core.sim import SELF_CONTACT_FILTER_MAX_VERTICES, self_contact_filter_radius
+
+    v, f = cloth(0.0, n=10, size=0.2)  # 2 cm edges
+    assert self_contact_filter_radius(v, f, 0.023) == 0.023
+    v, f = cloth(0.0, n=200, size=0.2)  # 1 mm edges: a disc of the cap holds the capped number of vertices
+    r = self_contact_filter_radius(v, f, 0.023)
+    assert r < 0.023 and np.pi * r**2 / (0.2**2 / 201**2) == pytest.approx(SELF_CONTACT_FILTER_MAX_VERTICES)
+
+
 def test_self_contact_gap_allows_the_speed_with_margin_within_bounds():
     from core.sim import MAX_SELF_CONTACT_GAP_M, SELF_CONTACT_SPEED_MARGIN, cloth_speed_limit, self_contact_gap
 
