@@ -242,7 +242,7 @@ class SimOptions:
 
     substeps: solver steps per output frame (dt = 1 / (fps * substeps)).
     iterations: VBD iterations per substep.
-    self_contact: cloth-cloth contact (about 4-5x slower).
+    self_contact: cloth-cloth contact (about 3-10x slower; README "Reference physics").
     settle_s: seconds the garment hangs on the static rest body before the motion.
     blend_frames: frames blending rest pose -> frame 0 when the motion has no settle frames (not output).
     max_retries: re-runs of a failing frame, each with twice the substeps of the previous try.

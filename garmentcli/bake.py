@@ -241,7 +241,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="sim: cloth material JSON (fields of core.sim.Material; unknown keys are rejected).")
-@click.option("--self-contact", is_flag=True, help="sim: cloth-cloth contact (about 4-5x slower).")
+@click.option("--self-contact", is_flag=True, help="sim: cloth-cloth contact (about 3-10x slower).")
 @click.option("--substeps", type=click.IntRange(min=1), default=None, help="sim: solver steps per frame [default: 10].")
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
               help="sim: VBD iterations per substep [default: 10].")

@@ -118,7 +118,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of body shapes and splits.")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="Cloth material JSON (fields of core.sim.Material).")
-@click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 4-5x slower).")
+@click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 3-10x slower).")
 @click.option("--substeps", type=click.IntRange(min=1), default=10, show_default=True)
 @click.option("--iterations", type=click.IntRange(min=1), default=10, show_default=True)
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default="auto", show_default=True, help=PIN_HELP)
