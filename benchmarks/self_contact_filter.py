@@ -2,8 +2,8 @@
 
     python benchmarks/self_contact_filter.py [--garments dress skirt ...] [--quality-garments skirt dress]
 
-On the held-out `walk_brisk` (the tradeoff scene: source frames 0:30, 15 frames at 30 fps), the simulator at 20 substeps with
-self-contact, the filter on (the default) and off (`bake --no-skip self-contact`):
+On the held-out `walk_brisk` (the tradeoff scene: source frames 0:30, 15 frames at 30 fps), the simulator at
+20 substeps with self-contact, the filter on (the default) and off (`bake --no-skip self-contact`):
 - speed, every example garment: seconds per simulated frame and the cloth-cloth pairs the detector keeps,
   over the first SETTLE_FRAMES frames of the settling (the garment hanging on the rest body; the detection
   distance is sized for the walk). Without the filter the larger garments take minutes per frame, so the
@@ -136,8 +136,9 @@ def main() -> None:
     text = [
         "# Self-contact: the surface filter\n",
         f"Made by `python benchmarks/self_contact_filter.py` on {platform.machine()} ({os.cpu_count()} cores), "
-        f"{time.strftime('%Y-%m-%d')}, {args.workers} garments at a time. Scene: the held-out `walk_brisk`, source frames {args.frames} at 30 fps "
-        f"({motion.n_frames} frames), {SUBSTEPS} substeps with self-contact. Filter off: `--no-skip self-contact`.\n",
+        f"{time.strftime('%Y-%m-%d')}, {args.workers} garments at a time. Scene: the held-out `walk_brisk`, "
+        f"source frames {args.frames} at 30 fps ({motion.n_frames} frames), {SUBSTEPS} substeps with self-contact. "
+        "Filter off: `--no-skip self-contact`.\n",
         "## Speed\n",
         f"Median seconds per simulated frame over the first {SETTLE_FRAMES} frames of the settling (the detection "
         "distance already sized for the walk); pairs: vertex-triangle and edge-edge pairs the detector keeps, per "

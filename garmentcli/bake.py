@@ -229,7 +229,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
                    "on the garment, body faces out of its reach (sim), self-contact where distant parts never meet, "
-                   "and self-contact checks between points of one stretch of cloth (sim). Every skip is reported in summary.json under 'scene'.")
+                   "and self-contact checks between points of one stretch of cloth (sim). Every skip is reported in "
+                   "summary.json under 'scene'.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_bake", show_default=True,
               help="Output directory; one sub-directory per motion.")
 @body_option
