@@ -74,6 +74,16 @@ def first_frames(n: int):
         core.sim.ClothSim.advance = original
 
 
+def tradeoff_motion(frames: str):
+    """The tradeoff scene's motion: the held-out `walk_brisk` (60 fps; written to data/heldout when missing),
+    source `frames` (a slice) at 30 fps."""
+    motion_path = ROOT / "data/heldout/walk_brisk.npz"
+    if not motion_path.is_file():
+        motion_path.parent.mkdir(parents=True, exist_ok=True)
+        save_motion(motion_path, MOTION_LIBRARY["walk_brisk"](fps=60.0))
+    return prepare_motion(str(motion_path), 30.0, frames, 0)[0]
+
+
 def deformer(filtered: bool, self_contact: bool = True, jitter_m: float = 0.0) -> SimDeformer:
     d = SimDeformer(options=SimOptions(substeps=SUBSTEPS, self_contact=self_contact), jitter_m=jitter_m)
     if not filtered:
@@ -119,11 +129,7 @@ def main() -> None:
     ap.add_argument("--frames", default="0:30", help="source frames of walk_brisk (60 fps)")
     ap.add_argument("--workers", type=int, default=2, help="processes (timings: each on its own core)")
     args = ap.parse_args()
-    motion_path = ROOT / "data/heldout/walk_brisk.npz"
-    if not motion_path.is_file():
-        motion_path.parent.mkdir(parents=True, exist_ok=True)
-        save_motion(motion_path, MOTION_LIBRARY["walk_brisk"](fps=60.0))
-    motion, _ = prepare_motion(str(motion_path), 30.0, args.frames, 0)
+    motion = tradeoff_motion(args.frames)
     body = default_body()
     garments = {g: read_obj(ROOT / "examples" / f"{g}.obj") for g in {*args.garments, *args.quality_garments}}
     # The longest runs first, one process per worker (Warp's CPU kernels use one core each).

@@ -18,6 +18,10 @@ output frame is simulated and checked (NaN/Inf, share of garment vertices more t
 the previous frame's state with twice the substeps (up to `max_retries` times); a
 frame that still fails hard raises `SimulationError` naming the frame.
 
+With self-contact, Newton stores the cloth-cloth pairs each detection finds in buffers of a fixed number of
+pairs per vertex and per edge, and drops any beyond them; a step whose detections overflowed is re-run from
+its start with larger buffers (`ContactBuffers`), so no pair in reach is left out below a memory cap.
+
 Warp compiles its kernels on first use (about a minute on a CPU) into
 `WARP_CACHE_PATH` (default here: ~/.cache/garment/warp).
 """
@@ -56,7 +60,8 @@ GRAVITY_M_S2 = 9.81
 #: on this file's bytes, so a refactor keeps them. Bump it with any change that moves the simulated cloth (this
 #: module, the pins' binding in core.skinning, material or solver defaults); tests/core/test_sim.py checks a
 #: golden simulation made with this version (GARMENT_UPDATE_GOLDENS=1 remakes it after a bump).
-SIMULATOR_VERSION = 2  # 2: self-contact candidates filtered along the surface (`self_contact_filters`)
+SIMULATOR_VERSION = 3  # 2: self-contact candidates filtered along the surface (`self_contact_filters`); 3: no
+# self-contact pair dropped for want of buffer room (`ContactBuffers`)
 #: Depth below the body surface at which a garment vertex counts as penetrating (as in core.bake).
 PENETRATION_DEPTH_M = 0.002
 
@@ -96,6 +101,14 @@ def self_contact_gap(material: "Material", speed_m_s: float, dt_s: float) -> flo
 
 #: Most vertices (at the mesh's mean density) in the surface disc of `self_contact_filter_radius`.
 SELF_CONTACT_FILTER_MAX_VERTICES = 128
+
+#: Self-contact pairs Newton stores per cloth vertex (vertex-triangle) and per edge (edge-edge) at the start
+#: (Newton's defaults). Newton drops the pairs a detection finds beyond them, silently and in the order its BVH
+#: meets them (not the nearest last): on the example trousers (2.3 cm detection distance, the legs' panels
+#: close at the crotch) 85 vertices found up to 98 and 130 edges up to 163 from the first frame, so the
+#: simulator doubles them when a detection overflows and re-runs the frame (`ContactBuffers`), up to
+#: `SimOptions.contact_buffer_mb`.
+CONTACT_BUFFERS = (32, 64)
 
 
 def self_contact_filters(rest_vertices: np.ndarray, tri_indices: np.ndarray, edge_ends: np.ndarray,
@@ -261,6 +274,9 @@ class SimOptions:
     pin: "auto" pins the garment's waistband (see `waistband_vertices`) to the body, as the
       elastic of a real skirt, pair of trousers or strapless dress holds it; "none" pins nothing.
     pin_band_m: width of the pinned band below the waistband's edge, metres along the surface.
+    contact_buffer_mb: most memory (MiB) the self-contact pair buffers may grow to (`ContactBuffers`: a step
+      whose detection found more pairs at a vertex or edge than they hold is re-run with larger ones); at the
+      cap the pairs beyond are left out, logged and reported. 0 keeps Newton's fixed CONTACT_BUFFERS.
     """
 
     substeps: int = 10
@@ -277,6 +293,7 @@ class SimOptions:
     fail_off_body_m: float = 0.25
     pin: str = "auto"
     pin_band_m: float = 0.02
+    contact_buffer_mb: float = 512.0
 
     def __post_init__(self):
         if self.retry_depth_m < 0:
@@ -286,6 +303,8 @@ class SimOptions:
                              f"{self.iterations}")
         if self.max_retries < 0 or self.blend_frames < 0 or self.settle_s < 0:
             raise InputError("sim options: expected non-negative max_retries, blend_frames and settle_s")
+        if not (np.isfinite(self.contact_buffer_mb) and self.contact_buffer_mb >= 0):
+            raise InputError(f"sim option contact_buffer_mb: expected a number >= 0, got {self.contact_buffer_mb}")
         if self.pin not in PIN_MODES:
             raise InputError(f"sim option pin: expected one of {', '.join(PIN_MODES)}, got {self.pin!r}")
 
@@ -419,7 +438,8 @@ class ClothSim:
                  collider_faces: np.ndarray, material: Material = Material(), self_contact: bool = False,
                  iterations: int = 10, start_vertices: np.ndarray | None = None, bounds: np.ndarray | None = None,
                  pinned: np.ndarray | None = None, device: str | None = None,
-                 self_contact_gap_m: float | None = None, contact_filter: bool = True):
+                 self_contact_gap_m: float | None = None, contact_filter: bool = True,
+                 contact_buffers: tuple[int, int] = CONTACT_BUFFERS):
         wp = _warp()
         import newton
 
@@ -447,7 +467,6 @@ class ClothSim:
         self.model.soft_contact_ke = m.contact_stiffness_n_m
         self.model.soft_contact_kd = m.contact_damping
         self.model.soft_contact_mu = m.friction
-        self.pipeline = newton.CollisionPipeline(self.model, soft_contact_gap=m.contact_gap_m)
         kwargs = {}
         #: With self-contact: the surface radius of `self_contact_filters` and the pairs it filters.
         self.contact_filter = None
@@ -466,8 +485,11 @@ class ClothSim:
                                        "edge_edge_pairs": sum(map(len, ee.values()))}
                 kwargs.update(particle_external_vertex_contact_filtering_map=vt,
                               particle_external_edge_contact_filtering_map=ee)
-        self.solver = newton.solvers.SolverVBD(self.model, iterations=iterations, collision_pipeline=self.pipeline,
-                                               **kwargs)
+        self._solver_kwargs = dict(iterations=iterations, **kwargs)
+        #: Self-contact pairs stored per vertex (vertex-triangle) and per edge (edge-edge); see CONTACT_BUFFERS.
+        self.contact_buffers = tuple(int(b) for b in contact_buffers)
+        self.n_particles = rest.shape[0]
+        self._build_solver()
         self.state_0 = self.model.state()
         self.state_1 = self.model.state()
         self.control = self.model.control()
@@ -476,7 +498,56 @@ class ClothSim:
         if bounds is None:
             bounds = np.stack([cv.min(0), cv.max(0)])
         self.set_collider_bounds(bounds)
-        self.n_particles = rest.shape[0]
+
+    def _build_solver(self) -> None:
+        """(Re)make the collision pipeline and the VBD solver over the model (the states are the model's: kept)."""
+        import newton
+
+        self.pipeline = newton.CollisionPipeline(self.model, soft_contact_gap=self.material.contact_gap_m)
+        vt, ee = self.contact_buffers
+        self.solver = newton.solvers.SolverVBD(self.model, collision_pipeline=self.pipeline,
+                                               particle_vertex_contact_buffer_size=vt,
+                                               particle_edge_contact_buffer_size=ee, **self._solver_kwargs)
+
+    def contact_overflow(self) -> dict | None:
+        """Whether a self-contact detection since the last call found more pairs than the buffers hold (those are
+        dropped), with the largest pair counts of the last detection; resets the overflow flags. None: no
+        self-contact."""
+        if not self.solver.particle_enable_self_contact:
+            return None
+        from newton._src.geometry.kernels import (
+            EDGE_COLLISION_BUFFER_OVERFLOW_INDEX,
+            VERTEX_COLLISION_BUFFER_OVERFLOW_INDEX,
+        )
+
+        flags_array = self.pipeline._soft_self_contact_detector.resize_flags  # newton 1.8: sticky until reset
+        flags = flags_array.numpy().copy()  # on a CPU, a view of the array zeroed below
+        flags_array.zero_()
+        info = self.solver.trimesh_collision_info
+        return {"vertex_triangle": bool(flags[int(VERTEX_COLLISION_BUFFER_OVERFLOW_INDEX)]),
+                "edge_edge": bool(flags[int(EDGE_COLLISION_BUFFER_OVERFLOW_INDEX)]),
+                "vertex_triangle_max": int(info.vertex_colliding_triangles_count.numpy().max(initial=0)),
+                "edge_edge_max": int(info.edge_colliding_edges_count.numpy().max(initial=0))}
+
+    def contact_buffer_bytes(self, buffers: tuple[int, int]) -> int:
+        """Bytes of the self-contact pair buffers at `buffers` pairs per vertex and per edge (two int32 a pair)."""
+        return 8 * (self.n_particles * buffers[0] + self.model.edge_count * buffers[1])
+
+    def grow_contact_buffers(self, overflow: dict, max_bytes: float) -> bool:
+        """Double each buffer `overflow` (from `contact_overflow`) says overflowed, or more up to the last
+        detection's largest count, and remake the solver; the cloth's state is kept. False (nothing changed)
+        when that would take more than `max_bytes`."""
+        grown = []
+        for kind, size in zip(("vertex_triangle", "edge_edge"), self.contact_buffers):
+            if overflow[kind]:
+                size = max(2 * size, int(2 ** np.ceil(np.log2(max(overflow[f"{kind}_max"], 1)))))
+            grown.append(size)
+        grown = tuple(grown)
+        if grown == self.contact_buffers or self.contact_buffer_bytes(grown) > max_bytes:
+            return False
+        self.contact_buffers = grown
+        self._build_solver()
+        return True
 
     def contact_pairs(self) -> dict | None:
         """Cloth-cloth pairs of the last self-contact detection: {"vertex_triangle": n, "edge_edge": m} (None: off)."""
@@ -540,6 +611,45 @@ class ClothSim:
             self.state_0, self.state_1 = self.state_1, self.state_0
         return self.state_0.particle_q.numpy().copy()
 
+
+
+class ContactBuffers:
+    """Advances a ClothSim so that no self-contact pair is dropped for want of buffer room: a step whose
+    detections overflowed Newton's buffers is re-run from its start state with larger ones
+    (`ClothSim.grow_contact_buffers`), and where they cannot grow any more the step is kept, its dropped pairs
+    logged once and reported."""
+
+    def __init__(self, sim: ClothSim, max_mb: float = SimOptions.contact_buffer_mb):
+        self.sim, self.max_bytes = sim, max_mb * 2**20
+        self.start = sim.contact_buffers
+        self.grown: list[dict] = []
+        self.dropped: list[str] = []
+
+    def advance(self, label: str, *args) -> np.ndarray:
+        """`ClothSim.advance(*args)`, whole; `label` names the step in the report ("frame 3")."""
+        saved = self.sim.get_state()
+        while True:
+            points = self.sim.advance(*args)
+            over = self.sim.contact_overflow()
+            if over is None or not (over["vertex_triangle"] or over["edge_edge"]):
+                return points
+            if not self.sim.grow_contact_buffers(over, self.max_bytes):
+                if not self.dropped:
+                    log.warning("sim: self-contact found more pairs at a cloth vertex or edge than buffers of %s "
+                                "pairs leave room for (contact_buffer_mb %g), from %s on; those pairs are left out",
+                                self.sim.contact_buffers, self.max_bytes / 2**20, label)
+                self.dropped.append(label)
+                return points
+            self.grown.append({"at": label, "pairs_per_vertex": self.sim.contact_buffers[0],
+                               "pairs_per_edge": self.sim.contact_buffers[1]})
+            log.info("sim: self-contact buffers grown to %s pairs at %s; re-running it",
+                     self.sim.contact_buffers, label)
+            self.sim.set_state(*saved)
+
+    def report(self) -> dict:
+        return {"start": {"pairs_per_vertex": self.start[0], "pairs_per_edge": self.start[1]},
+                "end": {"pairs_per_vertex": self.sim.contact_buffers[0], "pairs_per_edge": self.sim.contact_buffers[1]},
+                "grown": self.grown, "pairs_dropped_at": self.dropped}
 
 
 class SimDeformer(Deformer):
@@ -636,13 +746,14 @@ class SimDeformer(Deformer):
         if self_contact:  # None: --no-skip self-contact checks every pair in reach
             scene.report["self-contact"]["filtered_along_surface"] = sim.contact_filter
         t_built = time.perf_counter()
+        buffers = ContactBuffers(sim, o.contact_buffer_mb)
         # Phase 1: settle on the static rest body.
         n_settle_steps = int(round(o.settle_s * motion.fps))
-        for _ in range(n_settle_steps):
-            sim.advance(collider[0], collider[0], frame_dt, o.substeps, pins[0], pins[0])
+        for i in range(n_settle_steps):
+            buffers.advance(f"settle {i}", collider[0], collider[0], frame_dt, o.substeps, pins[0], pins[0])
         # Phase 2: internal blend into frame 0.
         for i in range(len(pre)):
-            sim.advance(collider[i], collider[i + 1], frame_dt, o.substeps, pins[i], pins[i + 1])
+            buffers.advance(f"blend {i}", collider[i], collider[i + 1], frame_dt, o.substeps, pins[i], pins[i + 1])
         t_pre = time.perf_counter()
         # Phase 3: the output frames, checked and retried.
         offset = 1 + len(pre)
@@ -660,7 +771,8 @@ class SimDeformer(Deformer):
                 if attempt:
                     sim.set_state(*saved)
                     substeps *= 2
-                points = sim.advance(prev, collider[offset + t], frame_dt, substeps, pins[offset + t - 1], pins[offset + t])
+                points = buffers.advance(f"frame {t}", prev, collider[offset + t], frame_dt, substeps,
+                                         pins[offset + t - 1], pins[offset + t])
                 points = points + origin[offset + t].astype(np.float32)  # back into the world
                 check = frame_checks(points, cur, faces_b, edges, rest_length, tunnel_depth=o.retry_depth_m)
                 check["substeps"] = substeps
@@ -699,7 +811,7 @@ class SimDeformer(Deformer):
             "self_contact": ({"detection_gap_m": gap, "relative_speed_max_m_s": speed,
                               "cloth_speed_limit_m_s": cloth_speed_limit(m, gap, frame_dt / o.substeps),
                               "filtered_along_surface": sim.contact_filter,
-                              "pairs_last_frame": sim.contact_pairs()}
+                              "pairs_last_frame": sim.contact_pairs(), "buffers": buffers.report()}
                              if self_contact else None),
             "settle_frames_internal": n_settle_steps, "blend_frames_internal": len(pre),
             "seconds": {"build": t_built - t_start, "settle": t_pre - t_built, "frames": t_end - t_pre},

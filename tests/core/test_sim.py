@@ -292,6 +292,12 @@ def test_sim_options_reject_an_unknown_pin_mode():
         SimOptions(pin="waist")
 
 
+@pytest.mark.parametrize("mb", [-1.0, float("nan")])
+def test_sim_options_reject_a_negative_or_non_finite_contact_buffer_cap(mb):
+    with pytest.raises(InputError, match=r"contact_buffer_mb: expected a number >= 0, got"):
+        SimOptions(contact_buffer_mb=mb)
+
+
 @pytest.mark.parametrize("jitter", [-1e-6, float("nan"), float("inf")])
 def test_sim_rejects_a_negative_or_non_finite_start_jitter(jitter):
     with pytest.raises(InputError, match="expected jitter_m >= 0"):
@@ -435,9 +441,58 @@ def test_self_contact_surface_filter_is_reported_and_no_skip_turns_it_off(monkey
     kept = d.scene["self-contact"]["filtered_along_surface"]
     assert kept["surface_radius_m"] > Material().self_contact_distance_m and kept["vertex_triangle_pairs"] > 0
     assert d.report["self_contact"]["filtered_along_surface"] == kept
+    assert d.report["self_contact"]["buffers"]["start"] == {"pairs_per_vertex": 32, "pairs_per_edge": 64}
+    assert d.report["self_contact"]["buffers"]["pairs_dropped_at"] == []
     d.skips = parse_no_skip(["self-contact"])
     d.deform(garment, body, motion)
     assert d.scene["self-contact"]["filtered_along_surface"] is None and d.scene["self-contact"]["overridden"]
+
+
+def _stacked_sheets(gap_m=0.005, n=20, size=0.18):
+    """Two 9 mm grids `gap_m` apart under a 2 cm detection gap: each vertex finds about 40 triangles of the
+    other sheet, more than Newton's 32 pairs a vertex (and its edges more than 64 edges)."""
+    bv, bf = box()
+    a, fa = cloth(1.0, n=n, size=size)
+    b, fb = cloth(1.0 + gap_m, n=n, size=size)
+    sim = ClothSim(np.concatenate([a, b]), np.concatenate([fa, fb + len(a)]), bv, bf, self_contact=True,
+                   iterations=2, bounds=np.array([[-1, -1, -1], [1, 1, 2.0]]), self_contact_gap_m=0.02)
+    return sim, bv
+
+
+def test_self_contact_buffers_grow_until_no_pair_is_dropped():
+    from core.sim import CONTACT_BUFFERS, ContactBuffers
+
+    sim, bv = _stacked_sheets()
+    assert sim.contact_buffers == CONTACT_BUFFERS
+    steps = ContactBuffers(sim)
+    before = sim.get_state()[0]
+    points = steps.advance("frame 0", bv, bv, 1 / FPS, 1)
+    found = sim.contact_overflow()  # the last detection, with the grown buffers
+    assert not found["vertex_triangle"] and not found["edge_edge"]
+    assert CONTACT_BUFFERS[0] < found["vertex_triangle_max"] <= sim.contact_buffers[0]
+    assert CONTACT_BUFFERS[1] < found["edge_edge_max"] <= sim.contact_buffers[1]
+    rep = steps.report()
+    assert rep["grown"] and rep["grown"][0]["at"] == "frame 0" and rep["pairs_dropped_at"] == []
+    assert rep["end"] == {"pairs_per_vertex": sim.contact_buffers[0], "pairs_per_edge": sim.contact_buffers[1]}
+    # The step was re-run from its start with the new buffers: one step of the cloth, not two.
+    rerun, _ = _stacked_sheets()
+    rerun.contact_buffers = sim.contact_buffers
+    rerun._build_solver()
+    np.testing.assert_allclose(points, rerun.advance(bv, bv, 1 / FPS, 1), atol=1e-6)
+    assert np.abs(points - before).max() < 0.01
+
+
+def test_self_contact_buffers_stop_at_their_memory_cap_and_report_the_dropped_pairs(caplog):
+    from core.sim import CONTACT_BUFFERS, ContactBuffers
+
+    sim, bv = _stacked_sheets()
+    steps = ContactBuffers(sim, sim.contact_buffer_bytes(CONTACT_BUFFERS) / 2**20)
+    with caplog.at_level("WARNING", logger="core.sim"):
+        for t in range(2):
+            assert np.isfinite(steps.advance(f"frame {t}", bv, bv, 1 / FPS, 1)).all()
+    assert sim.contact_buffers == CONTACT_BUFFERS
+    assert steps.report()["pairs_dropped_at"] == ["frame 0", "frame 1"] and steps.report()["grown"] == []
+    assert len(caplog.records) == 1 and "from frame 0 on" in caplog.records[0].getMessage()
 
 
 def test_self_contact_filter_radius_is_the_detection_distance_capped_on_fine_meshes():
