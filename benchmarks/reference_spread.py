@@ -32,6 +32,7 @@ os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" 
 
 from core.body import default_body  # noqa: E402
 from core.metrics import e_verts  # noqa: E402
+from core.sim import SIMULATOR_VERSION  # noqa: E402
 from core.tradeoff import (  # noqa: E402
     SIM_SUBSTEPS,
     Config,
@@ -48,7 +49,7 @@ from formats.report import markdown_table  # noqa: E402
 from garmentcli.common import prepare_motion  # noqa: E402
 
 RESULTS = ROOT / "benchmarks/results/reference_spread"
-HEADERS = ("scene", "vertices", "frames", "spread mm", "finer sim mm", "LBS mm", "model mm", "model / LBS",
+HEADERS = ("scene", "simulator", "vertices", "frames", "spread mm", "finer sim mm", "LBS mm", "model mm", "model / LBS",
            "gap closed", "LBS vs finer", "model vs finer", "reference vs finer")
 
 
@@ -89,7 +90,8 @@ def run_scene(garment_path: Path, motion_path: Path, frames: str, model_path: st
     def err(a: str, b: str) -> float:
         return float(e_verts(points[a], points[b]).mean())
 
-    result = {"scene": name, "vertices": garment.n_vertices, "frames": motion.n_frames, "reference": ref,
+    result = {"scene": name, "simulator_version": SIMULATOR_VERSION, "vertices": garment.n_vertices,
+              "frames": motion.n_frames, "reference": ref,
               "finer": finer_name, "against_reference_mm": {c: err(c, ref) for c in points},
               "against_finer_mm": {c: err(c, finer_name) for c in points} if finer else {}, "roles": roles}
     (directory / "result.json").write_text(json.dumps(result, indent=1))
@@ -100,7 +102,8 @@ def table_row(r: dict) -> tuple:
     ref, fin, roles = r["against_reference_mm"], r["against_finer_mm"], r["roles"]
     spread, lbs, model = ref[roles["spread"]], ref[roles["lbs"]], ref[roles["model"]]
     nan = float("nan")
-    return (r["scene"], r["vertices"], r["frames"], spread, ref[r["finer"]] if r["finer"] else nan, lbs, model,
+    return (r["scene"], r["simulator_version"], r["vertices"], r["frames"], spread,
+            ref[r["finer"]] if r["finer"] else nan, lbs, model,
             f"{100 * model / lbs:.0f} %", f"{100 * (lbs - model) / (lbs - spread):.0f} %",
             fin.get(roles["lbs"], nan), fin.get(roles["model"], nan), fin.get(r["reference"], nan))
 
@@ -113,7 +116,8 @@ def write_summary() -> str:
             "simulations of the scene end up (the floor under any method's error against the reference). `finer "
             "sim`: the simulator at 40 substeps with self-contact against the reference (where run). `gap closed`: "
             "(LBS - model) / (LBS - spread), the share of LBS's error above the floor that the model removes. The "
-            "last three columns measure against the finer simulation instead. Made by "
+            "last three columns measure against the finer simulation instead. `simulator`: "
+            "`core.sim.SIMULATOR_VERSION` of the scene's simulations. Made by "
             "`python benchmarks/reference_spread.py`.\n\n" + markdown_table(HEADERS, [table_row(r) for r in results],
                                                                            digits=3))
     (ROOT / "benchmarks/results/reference_spread.md").write_text(text)
