@@ -613,6 +613,11 @@ class ClothSim:
 
 
 
+def _buffer_sizes(buffers: tuple[int, int]) -> dict:
+    """A (vertex-triangle, edge-edge) buffer pair as the report writes it."""
+    return {"pairs_per_vertex": buffers[0], "pairs_per_edge": buffers[1]}
+
+
 class ContactBuffers:
     """Advances a ClothSim so that no self-contact pair is dropped for want of buffer room: a step whose
     detections overflowed Newton's buffers is re-run from its start state with larger ones
@@ -640,15 +645,13 @@ class ContactBuffers:
                                 self.sim.contact_buffers, self.max_bytes / 2**20, label)
                 self.dropped.append(label)
                 return points
-            self.grown.append({"at": label, "pairs_per_vertex": self.sim.contact_buffers[0],
-                               "pairs_per_edge": self.sim.contact_buffers[1]})
+            self.grown.append({"at": label, **_buffer_sizes(self.sim.contact_buffers)})
             log.info("sim: self-contact buffers grown to %s pairs at %s; re-running it",
                      self.sim.contact_buffers, label)
             self.sim.set_state(*saved)
 
     def report(self) -> dict:
-        return {"start": {"pairs_per_vertex": self.start[0], "pairs_per_edge": self.start[1]},
-                "end": {"pairs_per_vertex": self.sim.contact_buffers[0], "pairs_per_edge": self.sim.contact_buffers[1]},
+        return {"start": _buffer_sizes(self.start), "end": _buffer_sizes(self.sim.contact_buffers),
                 "grown": self.grown, "pairs_dropped_at": self.dropped}
 
 

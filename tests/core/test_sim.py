@@ -448,14 +448,14 @@ def test_self_contact_surface_filter_is_reported_and_no_skip_turns_it_off(monkey
     assert d.scene["self-contact"]["filtered_along_surface"] is None and d.scene["self-contact"]["overridden"]
 
 
-def _stacked_sheets(gap_m=0.005, n=20, size=0.18):
+def _stacked_sheets(gap_m=0.005, n=20, size=0.18, **kwargs):
     """Two 9 mm grids `gap_m` apart under a 2 cm detection gap: each vertex finds about 40 triangles of the
     other sheet, more than Newton's 32 pairs a vertex (and its edges more than 64 edges)."""
     bv, bf = box()
     a, fa = cloth(1.0, n=n, size=size)
     b, fb = cloth(1.0 + gap_m, n=n, size=size)
     sim = ClothSim(np.concatenate([a, b]), np.concatenate([fa, fb + len(a)]), bv, bf, self_contact=True,
-                   iterations=2, bounds=np.array([[-1, -1, -1], [1, 1, 2.0]]), self_contact_gap_m=0.02)
+                   iterations=2, bounds=np.array([[-1, -1, -1], [1, 1, 2.0]]), self_contact_gap_m=0.02, **kwargs)
     return sim, bv
 
 
@@ -475,9 +475,7 @@ def test_self_contact_buffers_grow_until_no_pair_is_dropped():
     assert rep["grown"] and rep["grown"][0]["at"] == "frame 0" and rep["pairs_dropped_at"] == []
     assert rep["end"] == {"pairs_per_vertex": sim.contact_buffers[0], "pairs_per_edge": sim.contact_buffers[1]}
     # The step was re-run from its start with the new buffers: one step of the cloth, not two.
-    rerun, _ = _stacked_sheets()
-    rerun.contact_buffers = sim.contact_buffers
-    rerun._build_solver()
+    rerun, _ = _stacked_sheets(contact_buffers=sim.contact_buffers)
     np.testing.assert_allclose(points, rerun.advance(bv, bv, 1 / FPS, 1), atol=1e-6)
     assert np.abs(points - before).max() < 0.01
 
