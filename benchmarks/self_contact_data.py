@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import copy
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -66,7 +67,7 @@ def main() -> None:
     from core.dataset import DatasetItem, build_manifest
     from core.distributed import run_items
     from core.provenance import software_versions
-    from core.sim import Material, SimOptions
+    from core.sim import SIMULATOR_VERSION, Material, SimOptions
     from formats.dataset import (
         copy_garment_template,
         read_manifest,
@@ -91,6 +92,8 @@ def main() -> None:
     settings["resimulated_from"] = {"dataset": str(src), "plan_key": old["plan_key"]}
     material = Material(**settings["material"])
     options = SimOptions(**settings["solver"])
+    settings["solver"] = asdict(options)  # the options this run uses, fields added since the source included
+    settings["simulator_version"] = SIMULATOR_VERSION  # re-simulated with this code, whatever the source's was
     out = Path(args.out)
     for g in garments:
         copy_garment_template(out, src / "garments" / f"{g}.obj", g)

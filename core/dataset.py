@@ -169,6 +169,20 @@ def plan_key(settings: dict) -> str:
     return hashlib.sha256(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:16]
 
 
+def settings_difference(old: dict, new: dict, limit: int = 3) -> str:
+    """The settings that differ between two manifests' `settings`, as "key: old -> new" (dotted keys, at most `limit`)."""
+    def flat(d, prefix=""):
+        out = {}
+        for k, v in d.items():
+            out.update(flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+        return out
+
+    a, b = flat(old), flat(new)
+    keys = sorted(k for k in a.keys() | b.keys() if a.get(k, "absent") != b.get(k, "absent"))
+    parts = [f"{k}: {a.get(k, 'absent')} -> {b.get(k, 'absent')}" for k in keys[:limit]]
+    return "; ".join(parts) + (f"; {len(keys) - limit} more" if len(keys) > limit else "")
+
+
 def build_manifest(settings: dict, items: list[DatasetItem], splits: dict, betas: np.ndarray, inputs: dict,
                    software: dict) -> dict:
     """The manifest's content: settings (incl. material and solver), inputs' hashes, software, splits, items."""

@@ -133,8 +133,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
     items), OUT/garments/*.obj and OUT/sequences/<item>.npz.
     """
-    from core.dataset import build_manifest, plan_items, sample_betas
-    from core.sim import Material, SimOptions, load_material
+    from core.dataset import build_manifest, plan_items, sample_betas, settings_difference
+    from core.sim import SIMULATOR_VERSION, Material, SimOptions, load_material
     from formats.dataset import (
         copy_garment_template,
         read_manifest,
@@ -168,6 +168,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 "bodies_per_clip": bodies_per_clip, "held_out": held_out,
                 "betas_range": betas_range, "seed": seed, "body": body_id, "material": asdict(material),
                 "solver": asdict(options),
+                # The simulator's behaviour keys it as well: one dataset never mixes two versions' cloth.
+                "simulator_version": SIMULATOR_VERSION,
                 # Garment meshes key the plan too: resuming after a garment was edited must not keep its old sequences.
                 "garment_meshes": {k: g.content_hash() for k, g in sorted(garments.items())}}
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
@@ -179,8 +181,9 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     manifest = build_manifest(settings, items, splits, betas, inputs, software_versions("garment", "newton", "warp-lang", "numpy", "torch"))
     old = read_manifest(out)
     if old is not None and old.get("plan_key") != manifest["plan_key"]:
+        diff = settings_difference(old.get("settings", {}), manifest["settings"])
         raise click.ClickException(f"output '{out}' holds a dataset made with other settings or inputs "
-                                   f"(plan {old.get('plan_key')} != {manifest['plan_key']}): use another --out")
+                                   f"({diff or 'plan ' + str(old.get('plan_key'))}): use another --out")
     from core.distributed import ItemsFailed, connect, run_items
 
     client = connect(scheduler) if scheduler else None  # before writing anything: an unreachable cluster fails fast

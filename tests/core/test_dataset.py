@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from core.dataset import clip_ranges, plan_items, sample_betas, split_motions
+from core.dataset import clip_ranges, plan_items, sample_betas, settings_difference, split_motions
 from core.errors import InputError
 from formats.dataset import Sequence, read_sequence, write_sequence
 
@@ -111,3 +111,12 @@ def test_bodies_per_clip_takes_the_bodies_in_turn_and_held_out_is_chosen():
         plan_items(["a", "b"], motions, 1, held_out="z")
     every, splits = plan_items(["a", "b", "c"], motions, 1, held_out=False)
     assert splits["held_out_garments"] == [] and {it.garment for it in every if it.split == "train"} == {"a", "b", "c"}
+
+
+def test_settings_difference_names_nested_added_and_removed_keys():
+    old = {"seed": 0, "solver": {"substeps": 10, "pin": "auto"}, "gone": 1}
+    new = {"seed": 0, "solver": {"substeps": 20, "pin": "auto", "contact_buffer_mb": 512}}
+    assert settings_difference(old, new) == ("gone: 1 -> absent; solver.contact_buffer_mb: absent -> 512; "
+                                             "solver.substeps: 10 -> 20")
+    assert settings_difference(old, new, limit=1) == "gone: 1 -> absent; 2 more"
+    assert settings_difference(new, new) == ""

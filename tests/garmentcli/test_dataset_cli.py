@@ -26,7 +26,7 @@ def still_motions(d):
     return d / "a.npz", d / "b.npz"
 
 
-def test_dataset_builds_resumes_and_refuses_other_settings(scene):
+def test_dataset_builds_resumes_and_refuses_other_settings(scene, monkeypatch):
     a, b = still_motions(scene["dir"])
     out = scene["dir"] / "data"
     args = ["dataset", "--garments", scene["garment"], "--motions", a, "--motions", b, "--body", scene["body"],
@@ -73,6 +73,15 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene):
     # Other settings into the same directory: refused with one line.
     r = run(*args[:-2], "--seed", 3, "--out", out)
     assert r.exit_code != 0 and "other settings" in r.output and "Traceback" not in r.output
+    assert "(seed: 0 -> 3)" in r.output  # the refusal names what differs
+    # Another simulator version is another plan: one dataset never mixes two versions' cloth.
+    import core.sim
+
+    assert m["settings"]["simulator_version"] == core.sim.SIMULATOR_VERSION
+    monkeypatch.setattr(core.sim, "SIMULATOR_VERSION", core.sim.SIMULATOR_VERSION + 1)
+    r = run(*args)
+    assert r.exit_code != 0 and f"simulator_version: {m['settings']['simulator_version']} -> " in r.output
+    monkeypatch.undo()
     # An edited garment (same file name) is another plan too: its old sequences are not kept.
     garment = Path(scene["garment"])
     lines = garment.read_text().splitlines()
@@ -82,6 +91,7 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene):
     garment.write_text("\n".join(lines) + "\n")
     r = run(*args)
     assert r.exit_code != 0 and "other settings" in r.output and "Traceback" not in r.output
+    assert "garment_meshes.shell: " in r.output
 
 
 def _tiny_config(directory):
