@@ -8,6 +8,7 @@ between the legs) do not tear between neighbouring joints.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,8 +19,22 @@ from core.errors import InputError
 from core.garment import Garment, mesh_edges
 from core.geometry import TriangleMesh
 
+log = logging.getLogger(__name__)
+
 #: A garment whose median distance to the rest body exceeds this is not authored on it.
 MAX_MEDIAN_BODY_DISTANCE_M = 0.25
+#: A garment vertex this far inside the rest body counts as inside (the bake's penetration depth).
+REST_INSIDE_DEPTH_M = 0.002
+#: More of a garment's vertices than this inside the rest body: warned (the example garments: none).
+REST_INSIDE_WARN_SHARE = 0.02
+#: A garment this much inside the rest body, that one of `FRAME_FIXES` puts on it (at most
+#: REST_INSIDE_WARN_SHARE inside), is refused with that fix: it is in another frame (the example garments
+#: turned by one of them: 6-27 % inside).
+REST_INSIDE_FRAME_SHARE = 0.05
+#: A fix puts a garment on the body when its median distance to the rest surface is at most this (the example
+#: garments: 1.6-5 cm; the wrong fixes of the examples turned or lifted: 17 cm or more) and at most
+#: REST_INSIDE_WARN_SHARE of it is inside.
+FRAME_FIX_MEDIAN_M = 0.10
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,13 +60,8 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
     Raises InputError when the garment is not near the body's rest surface.
     """
     mesh = TriangleMesh(body.v_template, body.faces)
-    hit = mesh.closest(garment.vertices)
-    median = float(np.median(hit.distance))
-    if median > MAX_MEDIAN_BODY_DISTANCE_M:
-        name = source or garment.name
-        raise InputError(
-            f"garment mesh '{name}': expected a garment authored on the body's rest pose (Y-up, T-pose, within "
-            f"{MAX_MEDIAN_BODY_DISTANCE_M * 100:.0f} cm of its surface), got a median distance of {median:.2f} m")
+    hit, signed = mesh.signed_closest(garment.vertices)
+    check_rest_fit(garment, body, mesh, signed, source or garment.name)
     corners = body.faces[hit.face_index]  # (V, 3)
     b = hit.barycentric.astype(np.float32)[..., None]  # (V, 3, 1)
     weights = np.einsum("vk,vkj->vj", hit.barycentric, body.weights[corners]).astype(np.float32)
@@ -60,6 +70,63 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
         weights = smooth_over_graph(weights, garment.faces, smooth_iterations, smooth_strength)
     weights /= np.maximum(weights.sum(axis=1, keepdims=True), 1e-12)
     return GarmentBinding(weights=weights, shapedirs=shapedirs, body_distance=hit.distance.astype(np.float32))
+
+
+_TURNS = (("rotated -90 degrees about X (Z-up to Y-up)", ((1, 0, 0), (0, 0, 1), (0, -1, 0))),
+          ("rotated +90 degrees about X", ((1, 0, 0), (0, 0, -1), (0, 1, 0))),
+          ("turned 180 degrees about Y (it faces backwards)", ((-1, 0, 0), (0, 1, 0), (0, 0, -1))))
+_DROP = "moved down by {drop:.2f} m (authored on a body standing at y = 0)"
+#: Frame mix-ups a garment file can come with: (the fix, as told to the user; rotation applied to the file's
+#: vertices; whether the body it was authored on stood on the floor, soles at y = 0, so the fix lowers it to
+#: this body's soles).
+FRAME_FIXES = (tuple((what, rotation, False) for what, rotation in _TURNS)
+               + tuple((f"{what}, then {_DROP}", rotation, True) for what, rotation in _TURNS)
+               + ((_DROP, ((1, 0, 0), (0, 1, 0), (0, 0, 1)), True),))
+
+
+def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.ndarray, name: str) -> None:
+    """Refuse a garment that is not on the body's rest surface, warn about one partly inside it.
+
+    mesh: the body's rest surface; signed: (V,) signed distances of the garment's vertices to it (metres,
+    negative inside). Raises InputError, naming the fix when one of `FRAME_FIXES` puts the garment on the body,
+    when the median distance exceeds MAX_MEDIAN_BODY_DISTANCE_M or more than REST_INSIDE_FRAME_SHARE of the
+    vertices are inside and a fix explains it; logs a warning above REST_INSIDE_WARN_SHARE otherwise.
+    """
+    median = float(np.median(np.abs(signed)))
+    inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
+    far = median > MAX_MEDIAN_BODY_DISTANCE_M
+    if not far and inside <= REST_INSIDE_WARN_SHARE:
+        return
+    fix = _frame_fix(garment.vertices, body, mesh) if far or inside > REST_INSIDE_FRAME_SHARE else None
+    hint = f"; {fix}" if fix else ""
+    expected = "expected a garment authored on the body's rest pose (Y-up, T-pose, metres"
+    if far:
+        raise InputError(f"garment mesh '{name}': {expected}, within {MAX_MEDIAN_BODY_DISTANCE_M * 100:.0f} cm of its "
+                         f"surface), got a median distance of {median:.2f} m{hint}")
+    if fix:
+        raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
+                         f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body{hint}")
+    log.warning("garment mesh '%s': %.1f %% of its vertices lie more than %.0f mm inside the body's rest surface "
+                "(authored on another body shape or pose? pass that body with --body); expect them inside the body "
+                "(--push-out moves them out)", name, inside * 100, REST_INSIDE_DEPTH_M * 1e3)
+
+
+def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh) -> str | None:
+    """The first of `FRAME_FIXES` that puts the garment on the body (median distance at most
+    FRAME_FIX_MEDIAN_M, at most REST_INSIDE_WARN_SHARE of it inside), as "it fits when ...", or None."""
+    v = np.asarray(vertices, dtype=np.float64)
+    soles = -float(body.v_template[:, 1].min())  # how far the body's soles are below its origin
+    for what, rotation, on_floor in FRAME_FIXES:
+        if on_floor and soles <= 0.0:
+            continue  # a body standing on y = 0 itself: no floor to take off
+        moved = v @ np.asarray(rotation, dtype=np.float64).T
+        drop = soles if on_floor else 0.0
+        moved[:, 1] -= drop
+        signed = mesh.signed_distance(moved, exact=False)
+        if (np.median(np.abs(signed)) <= FRAME_FIX_MEDIAN_M
+                and np.mean(signed < -REST_INSIDE_DEPTH_M) <= REST_INSIDE_WARN_SHARE):
+            return "it fits when " + what.format(drop=drop)
+    return None
 
 
 def shaped_garment(vertices: np.ndarray, binding: GarmentBinding, betas: np.ndarray) -> np.ndarray:

@@ -113,6 +113,53 @@ def test_garment_far_from_body_is_rejected():
         LBSDeformer().deform(far, body, still_motion())
 
 
+@pytest.fixture(scope="module")
+def trousers_on_body():
+    """The example trousers and the embedded default body they were authored on."""
+    from pathlib import Path
+
+    from core.body import default_body
+    from formats.obj import read_obj
+
+    return read_obj(Path(__file__).resolve().parents[2] / "examples" / "trousers.obj"), default_body()
+
+
+def test_example_garment_on_its_rest_body_binds_without_a_warning(trousers_on_body, caplog):
+    g, body = trousers_on_body
+    with caplog.at_level(logging.WARNING):
+        bind_garment(g, body)
+    assert "inside the body" not in caplog.text
+
+
+@pytest.mark.parametrize("fix", range(7))
+def test_garment_in_another_frame_is_refused_naming_the_fix(trousers_on_body, fix):
+    """The trousers written in each frame mix-up of FRAME_FIXES (Z-up, backwards, standing on y = 0, ...) are
+    refused, and the error names the fix that puts them back, not another."""
+    from core.skinning import FRAME_FIXES
+
+    g, body = trousers_on_body
+    what, rotation, on_floor = FRAME_FIXES[fix]
+    drop = -float(body.v_template[:, 1].min()) if on_floor else 0.0
+    v = (g.vertices.astype(np.float64) + [0.0, drop, 0.0]) @ np.asarray(rotation, dtype=np.float64)  # undo the fix
+    moved = Garment(v.astype(np.float32), g.faces, name="moved.obj")
+    with pytest.raises(InputError, match="moved.obj") as err:
+        bind_garment(moved, body)
+    assert str(err.value).endswith("it fits when " + what.format(drop=drop))
+    assert ("0.90 m" in str(err.value)) == on_floor  # the default body's soles are 0.90 m below its origin
+
+
+def test_garment_partly_inside_without_a_fix_warns_and_far_off_is_refused_without_one(trousers_on_body, caplog):
+    g, body = trousers_on_body
+    aside = Garment(g.vertices + np.float32([0.3, 0.0, 0.0]), g.faces, name="aside.obj")  # 9 % inside
+    with caplog.at_level(logging.WARNING):
+        bind_garment(aside, body)
+    assert "aside.obj" in caplog.text and "inside the body's rest surface" in caplog.text and "--body" in caplog.text
+    far = Garment(g.vertices + np.float32([2.0, 0.0, 0.0]), g.faces, name="far.obj")
+    with pytest.raises(InputError, match="far.obj.*median distance") as err:
+        bind_garment(far, body)
+    assert "it fits when" not in str(err.value)
+
+
 def test_betas_count_mismatch_warns(caplog):
     body = tiny_body(n_betas=4)
     with caplog.at_level(logging.WARNING):

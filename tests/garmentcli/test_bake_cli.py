@@ -155,6 +155,20 @@ def test_bake_garment_in_centimetres_or_far_away(scene):
                           "far.obj", "rest pose")
 
 
+def test_bake_garment_written_z_up_is_refused_naming_the_rotation(scene):
+    """The example trousers on the default body, their file written Z-up: one line naming the fix, nothing written."""
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[2] / "examples" / "trousers.obj"
+    lines = [f"v {x} {-float(z)} {y}" if tag == "v" else line
+             for line in src.read_text().splitlines()
+             for tag, x, y, z in [(line.split() + ["", "", "", ""])[:4]]]
+    (scene["dir"] / "zup.obj").write_text("\n".join(lines) + "\n")
+    r = run(["bake", scene["dir"] / "zup.obj", scene["motion"], "--method", "lbs", "--out", scene["out"]])
+    assert_one_line_error(r, "zup.obj", "inside the body", "it fits when rotated -90 degrees about X (Z-up to Y-up)")
+    assert not scene["out"].exists() or not any(scene["out"].iterdir())
+
+
 def test_bad_body_file(scene):
     d = scene["dir"]
     np.savez(d / "broken_body.npz", v_template=np.zeros((10, 3)))
