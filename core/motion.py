@@ -172,6 +172,38 @@ def settle(motion: Motion, n_frames: int) -> Motion:
     return replace(motion, poses=poses, trans=trans, n_settle=motion.n_settle + n_frames)
 
 
+#: A motion whose body points its head along world +Y (cosine above this) in Y_UP_SHARE of its frames
+#: and along world +Z in none looks Y-up.
+Y_UP_COSINE = 0.8
+Y_UP_SHARE = 0.9
+
+
+def body_up_share(motion: Motion) -> dict:
+    """How the body's own up axis (rest +Y, turned by the root orientation) lies in the world, per frame.
+
+    Returns {"z": share of frames with it within 37 degrees of world +Z (standing in a Z-up world),
+    "y": share within 37 degrees of world +Y}.
+    """
+    from core.rotations import axis_angle_to_matrix
+
+    up = axis_angle_to_matrix(motion.poses[:, 0].astype(np.float64))[:, :, 1]  # (T, 3): R @ (0, 1, 0)
+    return {"z": float(np.mean(up[:, 2] > Y_UP_COSINE)), "y": float(np.mean(up[:, 1] > Y_UP_COSINE))}
+
+
+def warn_if_y_up(motion: Motion, source: str) -> bool:
+    """Log a warning when the body stands along world +Y (Y_UP_SHARE of the frames, never along +Z): a Y-up
+    motion read as Z-up lies on its back, and the simulator's gravity pulls along its body. Returns whether it
+    warned."""
+    share = body_up_share(motion)
+    if share["y"] < Y_UP_SHARE or share["z"] > 0.0:
+        return False
+    log.warning("motion '%s': the body stands along world +Y in %.0f %% of its frames and along +Z in none: it "
+                "looks Y-up, but motions are read "
+                "as AMASS's Z-up world, where it lies on its back and gravity pulls along the body; turn its root "
+                "orientation and translation +90 degrees about X", source, share["y"] * 100)
+    return True
+
+
 def validate_motion_values(motion: Motion, source: str) -> None:
     """Reject NaN/Inf in poses or translation, naming the first bad frame."""
     for key in ("poses", "trans"):

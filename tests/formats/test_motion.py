@@ -272,3 +272,29 @@ def test_object_array_gender_is_skipped_but_object_poses_are_an_error(tmp_path, 
     with pytest.raises(InputError) as info:
         load_motion(path)
     _assert_one_line(info, "o.npz", "'poses'")
+
+
+def test_a_y_up_motion_warns_and_a_z_up_one_or_one_lying_down_does_not(tmp_path, caplog):
+    """A library walk (Z-up) with its root turned -90 degrees about X (what a Y-up exporter writes) warns,
+    naming the file; the walk itself and a Z-up body lying on its back for most of a clip do not."""
+    from dataclasses import replace
+
+    from core.motiongen import MOTION_LIBRARY
+    from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+    walk = MOTION_LIBRARY["walk_brisk"](fps=30.0)
+    to_y_up = axis_angle_to_matrix(np.array([-np.pi / 2, 0.0, 0.0]))
+    roots = axis_angle_to_matrix(walk.poses[:, 0].astype(np.float64))
+    poses = walk.poses.copy()
+    poses[:, 0] = matrix_to_axis_angle(to_y_up @ roots)
+    lying = walk.poses.copy()
+    lying[: int(0.8 * len(lying)), 0] = 0.0  # rest frame unturned: on its back in the Z-up world, head along +Y
+    for name, motion in (("walk", walk), ("yup", replace(walk, poses=poses, trans=walk.trans @ to_y_up.T)),
+                         ("lying", replace(walk, poses=lying))):
+        save_motion(tmp_path / f"{name}.npz", motion)
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            load_motion(tmp_path / f"{name}.npz")
+        assert ("looks Y-up" in caplog.text) == (name == "yup"), (name, caplog.text)
+        if name == "yup":
+            assert "yup.npz" in caplog.text and "+90 degrees about X" in caplog.text
