@@ -204,6 +204,26 @@ def warn_if_y_up(motion: Motion, source: str) -> bool:
     return True
 
 
+#: Root translation beyond these (median over the frames) is not metres: the fastest sprinters reach 12 m/s,
+#: and AMASS's capture volumes sit within a few metres of the origin (a centimetre pelvis stands 90-110 high).
+TRANS_SPEED_LIMIT_M_S = 20.0
+TRANS_DISTANCE_LIMIT_M = 50.0
+
+
+def warn_if_not_metres(motion: Motion, source: str) -> bool:
+    """Log a warning when `trans` looks like centimetres or millimetres (its median speed or median distance
+    from the origin beyond TRANS_SPEED_LIMIT_M_S / TRANS_DISTANCE_LIMIT_M). Returns whether it warned."""
+    trans = motion.trans.astype(np.float64)
+    distance = float(np.median(np.linalg.norm(trans, axis=1)))
+    speed = float(np.median(np.linalg.norm(np.diff(trans, axis=0), axis=1))) * motion.fps if len(trans) > 1 else 0.0
+    if speed <= TRANS_SPEED_LIMIT_M_S and distance <= TRANS_DISTANCE_LIMIT_M:
+        return False
+    log.warning("motion '%s': trans moves the body at %.3g m/s and keeps it %.3g m from the origin (median): "
+                "expected metres; is it in centimetres (scale it by 0.01) or millimetres (0.001)?",
+                source, speed, distance)
+    return True
+
+
 def validate_motion_values(motion: Motion, source: str) -> None:
     """Reject NaN/Inf in poses or translation, naming the first bad frame."""
     for key in ("poses", "trans"):

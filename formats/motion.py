@@ -18,7 +18,7 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS
 from core.errors import InputError
-from core.motion import Motion, validate_motion_values, warn_if_y_up
+from core.motion import Motion, validate_motion_values, warn_if_not_metres, warn_if_y_up
 from formats.atomic import atomic_file
 
 log = logging.getLogger(__name__)
@@ -107,6 +107,7 @@ def load_motion(path, fps: float | None = None) -> Motion:
     motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem)
     validate_motion_values(motion, str(path))
     warn_if_y_up(motion, str(path))
+    warn_if_not_metres(motion, str(path))
     return motion
 
 

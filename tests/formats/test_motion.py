@@ -298,3 +298,25 @@ def test_a_y_up_motion_warns_and_a_z_up_one_or_one_lying_down_does_not(tmp_path,
         assert ("looks Y-up" in caplog.text) == (name == "yup"), (name, caplog.text)
         if name == "yup":
             assert "yup.npz" in caplog.text and "+90 degrees about X" in caplog.text
+
+
+def test_trans_in_centimetres_warns_and_metres_or_a_teleport_do_not(tmp_path, caplog):
+    """A walk's trans in centimetres (fast and far) or a standing motion's (far) warns; the walk in metres,
+    and one 10 m root teleport in it, do not."""
+    from dataclasses import replace
+
+    from core.motiongen import MOTION_LIBRARY
+
+    walk = MOTION_LIBRARY["walk_brisk"](fps=30.0)
+    teleport = walk.trans.copy()
+    teleport[len(teleport) // 2:, 0] += 10.0
+    standing = np.repeat(walk.trans[:1], len(walk.trans), axis=0)
+    cases = {"metres": walk.trans, "teleport": teleport, "cm": walk.trans * 100, "standing_cm": standing * 100}
+    for name, trans in cases.items():
+        save_motion(tmp_path / f"{name}.npz", replace(walk, trans=trans))
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            load_motion(tmp_path / f"{name}.npz")
+        assert ("centimetres" in caplog.text) == name.endswith("cm"), (name, caplog.text)
+        if name == "cm":
+            assert "cm.npz" in caplog.text and "scale it by 0.01" in caplog.text
