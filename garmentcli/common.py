@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import functools
+import logging
+from contextlib import contextmanager
 
 import click
 
@@ -25,6 +27,38 @@ def input_errors_as_click(func):
             return func(*args, **kwargs)
         except InputError as exc:
             raise click.ClickException(str(exc)) from None
+
+    return wrapper
+
+
+class _WarningList(logging.Handler):
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@contextmanager
+def collected_warnings():
+    """Within the block, the messages of every WARNING (and worse) log record, in a list (for the reports)."""
+    handler = _WarningList()
+    root = logging.getLogger()
+    root.addHandler(handler)
+    try:
+        yield handler.messages
+    finally:
+        root.removeHandler(handler)
+
+
+def with_collected_warnings(func):
+    """Decorator: the command runs within `collected_warnings`, the list passed to it as `warned`."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        with collected_warnings() as warned:
+            return func(*args, warned=warned, **kwargs)
 
     return wrapper
 

@@ -231,3 +231,19 @@ def test_the_command_gives_numpy_one_blas_thread_unless_told_otherwise():
     assert subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True).stdout.strip() == "1"
     env["OPENBLAS_NUM_THREADS"] = "3"
     assert subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True).stdout.strip() == "3"
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_summary_records_the_warnings_of_its_own_inputs(scene, workers):
+    """A Y-up motion's warning lands in its own summary.json, not in that of the other motion of the batch
+    (baked here or in worker processes)."""
+    d = scene["dir"]
+    poses = np.zeros((12, 72), np.float32)  # root unturned: the body stands along world +Y
+    write_motion(d / "yup.npz", poses=poses)
+    r = run(["bake", scene["garment"], scene["motion"], d / "yup.npz", "--body", scene["body"], "--method", "lbs",
+             "--out", scene["out"], "--no-obj", "--workers", workers])
+    assert r.exit_code == 0, r.output
+    yup = json.loads((scene["out"] / "shell_yup" / "summary.json").read_text())["warnings"]
+    walk = json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())["warnings"]
+    assert len(yup) == 1 and "yup.npz" in yup[0] and "looks Y-up" in yup[0]
+    assert walk == []
