@@ -160,6 +160,22 @@ def test_garment_partly_inside_without_a_fix_warns_and_far_off_is_refused_withou
     assert "it fits when" not in str(err.value)
 
 
+def test_garment_mostly_far_from_the_body_but_resting_on_it_binds(trousers_on_body):
+    """A hoop skirt's hem may stand far from the legs (median distance over 25 cm) while its waist rests on the
+    body: bound, not refused. The trousers' legs pushed out 2.5x around the legs' axis stand in for one."""
+    from core.skinning import MAX_MEDIAN_BODY_DISTANCE_M
+
+    g, body = trousers_on_body
+    v = g.vertices.astype(np.float64)
+    legs = v[:, 1] < np.percentile(v[:, 1], 80)  # all but the waist
+    side = np.sign(v[:, 0])
+    centre = np.stack([side * 0.1, np.zeros_like(side), np.full_like(side, 0.01)], axis=1)
+    v[legs] = centre[legs] + (v[legs] - centre[legs]) * [6.0, 1.0, 6.0]
+    hoop = Garment(v.astype(np.float32), g.faces, name="hoop.obj")
+    binding = bind_garment(hoop, body)
+    assert np.median(binding.body_distance) > MAX_MEDIAN_BODY_DISTANCE_M
+
+
 def test_betas_count_mismatch_warns(caplog):
     body = tiny_body(n_betas=4)
     with caplog.at_level(logging.WARNING):
