@@ -269,8 +269,9 @@ class SimOptions:
       (the best try) and recorded in the report. These catch explosions: a single edge pinched
       between two body parts (an arm against the torso) can stretch far without the cloth failing,
       so the largest edge strain is reported, not used to stop.
-    fail_off_body_m: a frame whose median garment-to-body distance exceeds this (the garment fell
-      or slid off the body) raises SimulationError: no retry can fix the garment's fit.
+    fail_off_body_m: a frame whose median garment-to-body distance exceeds the garment's own at rest by
+      more than this (the garment fell or slid off the body) raises SimulationError: no retry can fix the
+      garment's fit. (Measured from the rest distance: a hoop skirt may stand 25 cm from the legs at rest.)
     pin: "auto" pins the garment's waistband (see `waistband_vertices`) to the body, as the
       elastic of a real skirt, pair of trousers or strapless dress holds it; "none" pins nothing.
     pin_band_m: width of the pinned band below the waistband's edge, metres along the surface.
@@ -704,6 +705,7 @@ class SimDeformer(Deformer):
         faces_b = outward_faces(body_pts[0], body.faces)  # Newton expects outward normals
         A = body.skinning_transforms(rest_pose, motion.trans[:1], betas)[0, 0]
         shaped = shaped_garment(garment.vertices, binding, betas)
+        rest_median = float(np.median(binding.body_distance))  # fail_off_body_m counts from here
         # The waistband follows the body by skinning: (frames, P, 3) targets of the pinned particles.
         pins = skin_points(torch.from_numpy(shaped[pinned].astype(np.float32)),
                            torch.from_numpy(binding.weights[pinned]),
@@ -791,7 +793,7 @@ class SimDeformer(Deformer):
                 sim.set_state(*state)
             if (not check["finite"] or check["tunnelled_share"] > o.fail_penetration_share
                     or check["mean_strain"] > o.fail_mean_strain
-                    or check["median_body_distance_m"] > o.fail_off_body_m):
+                    or check["median_body_distance_m"] > o.fail_off_body_m + rest_median):
                 raise SimulationError(
                     f"sim: frame {t} of motion '{motion.name}' failed after {o.max_retries + 1} tries "
                     f"(up to {substeps} substeps): {_describe(check, o.retry_depth_m)}")
