@@ -66,12 +66,8 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
     hit, signed = mesh.signed_closest(garment.vertices)
     check_rest_fit(garment, body, mesh, signed, source or garment.name)
     corners = body.faces[hit.face_index]  # (V, 3)
-    b = hit.barycentric.astype(np.float32)[..., None]  # (V, 3, 1)
-    weights = np.einsum("vk,vkj->vj", hit.barycentric, body.weights[corners]).astype(np.float32)
-    shapedirs = np.einsum("vk,vkcs->vcs", b[..., 0], body.shapedirs[corners]).astype(np.float32)
-    if smooth_iterations > 0:
-        weights = smooth_over_graph(weights, garment.faces, smooth_iterations, smooth_strength)
-    weights /= np.maximum(weights.sum(axis=1, keepdims=True), 1e-12)
+    weights = transfer_weights(hit, body, garment.faces, smooth_iterations, smooth_strength)
+    shapedirs = np.einsum("vk,vkcs->vcs", hit.barycentric.astype(np.float32), body.shapedirs[corners]).astype(np.float32)
     return GarmentBinding(weights=weights, shapedirs=shapedirs, body_distance=hit.distance.astype(np.float32))
 
 
@@ -85,6 +81,18 @@ _DROP = "moved down by {drop:.2f} m (authored on a body standing at y = 0)"
 FRAME_FIXES = (tuple((what, rotation, False) for what, rotation in _TURNS)
                + tuple((f"{what}, then {_DROP}", rotation, True) for what, rotation in _TURNS)
                + ((_DROP, ((1, 0, 0), (0, 1, 0), (0, 0, 1)), True),))
+
+
+def transfer_weights(hit, body: Body, faces: np.ndarray, smooth_iterations: int = 0,
+                     smooth_strength: float = 0.5) -> np.ndarray:
+    """(V, J) float32 skinning weights, rows summing to 1: each point's barycentric blend of the body's weights at
+    its closest surface point (`hit`, a `ClosestPoints` on the body's faces), then `smooth_iterations` passes of
+    `smooth_over_graph` over the garment's `faces`."""
+    corners = body.faces[hit.face_index]  # (V, 3)
+    weights = np.einsum("vk,vkj->vj", hit.barycentric, body.weights[corners]).astype(np.float32)
+    if smooth_iterations > 0:
+        weights = smooth_over_graph(weights, faces, smooth_iterations, smooth_strength)
+    return weights / np.maximum(weights.sum(axis=1, keepdims=True), 1e-12)
 
 
 def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.ndarray, name: str) -> None:
@@ -111,8 +119,8 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
         raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
                          f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body{hint}")
     log.warning("garment mesh '%s': %.1f %% of its vertices lie more than %.0f mm inside the body's rest surface "
-                "(authored on another body shape or pose? pass that body with --body); expect them inside the body "
-                "(--push-out moves them out)", name, inside * 100, REST_INSIDE_DEPTH_M * 1e3)
+                "(authored on another body shape? pass that body with --body; in another pose, an A-pose? "
+                "`garment unpose`); expect them inside the body (--push-out moves them out)", name, inside * 100, REST_INSIDE_DEPTH_M * 1e3)
 
 
 def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh) -> str | None:

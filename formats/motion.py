@@ -29,11 +29,12 @@ _OPTIONAL_KEYS = ("gender", "dmpls", "marker_data", "surface_model_type")
 _EXPECTED = "72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X)"
 
 
-def load_motion(path, fps: float | None = None) -> Motion:
+def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Motion:
     """Read an AMASS-style .npz motion.
 
     path: file path. fps: frame rate in Hz that overrides (or replaces a missing)
-    `mocap_framerate` / `mocap_frame_rate`.
+    `mocap_framerate` / `mocap_frame_rate`. world_checks: warn when the motion looks Y-up or its
+    translation not in metres (off for a file read for its joint rotations only).
     Returns a Motion: poses (T, 24|52|55, 3) float32 axis-angle radians, trans
     (T, 3) float32 metres (Z-up world), fps, betas (S,) float32 or None, gender.
     Raises InputError (one line naming the file) for any unreadable or invalid content.
@@ -106,8 +107,9 @@ def load_motion(path, fps: float | None = None) -> Motion:
     gender = _read_gender(arrays.get("gender"))
     motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem)
     validate_motion_values(motion, str(path))
-    warn_if_y_up(motion, str(path))
-    warn_if_not_metres(motion, str(path))
+    if world_checks:
+        warn_if_y_up(motion, str(path))
+        warn_if_not_metres(motion, str(path))
     return motion
 
 

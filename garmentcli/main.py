@@ -6,7 +6,18 @@ import logging
 
 import click
 
-from garmentcli import attribute, bake, dataset, examples, make_body, metrics, preprocess, render, tradeoff
+from garmentcli import (
+    attribute,
+    bake,
+    dataset,
+    examples,
+    make_body,
+    metrics,
+    preprocess,
+    render,
+    tradeoff,
+    unpose,
+)
 from garmentcli import train as train_cmd
 
 
@@ -29,6 +40,7 @@ cli.add_command(preprocess.preprocess)
 cli.add_command(train_cmd.train)
 cli.add_command(attribute.attribute)
 cli.add_command(tradeoff.tradeoff)
+cli.add_command(unpose.unpose)
 
 
 if __name__ == "__main__":  # python -m garmentcli.main ...

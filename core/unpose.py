@@ -1,0 +1,94 @@
+"""Bring a garment authored on a posed body (an A-pose, a scan's pose) back to the body's rest pose.
+
+Every other command expects the garment on the rest pose (T-pose). Many garments are modelled on an
+avatar standing in an A-pose instead: baked as they are, their sleeves cut through the torso. Here each
+garment vertex takes the skinning weights of its closest point on the body posed like the garment
+(smoothed over the garment as `bind_garment` smooths them), and is moved by the inverse of its blended
+skinning transform: the inverse of the linear blend skinning that `lbs` applies, so that skinning the
+result with the same weights and pose gives the input back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from core.body import Body
+from core.errors import InputError
+from core.garment import Garment
+from core.geometry import TriangleMesh
+from core.skinning import transfer_weights
+
+#: The A-pose's default: each upper arm lowered this far from the T-pose (degrees, about the body's forward axis).
+A_POSE_ARM_DEGREES = 45.0
+#: Weight smoothing of the transfer (passes over the garment graph), as the model's prior binding smooths.
+UNPOSE_SMOOTH_ITERATIONS = 10
+#: Passes that re-take the weights from the rest body at the unposed points and solve again, so that skinning
+#: the result as `bake` does (weights from the rest body) gives the input back: on the example t-shirt in an
+#: A-pose, the 99th percentile of the round trip's error falls from 9.0 mm (none) to 2.6 mm (3).
+UNPOSE_REFINE_PASSES = 3
+#: A blended transform whose smallest singular value is below this cannot be inverted: weights blend joints
+#: turned nearly opposite ways.
+MIN_SINGULAR_VALUE = 0.05
+
+
+def a_pose(body: Body, arm_degrees: float = A_POSE_ARM_DEGREES) -> np.ndarray:
+    """(J, 3) axis-angle pose of `body`: the rest pose with both shoulders lowered by `arm_degrees`.
+
+    The shoulders are SMPL joints 16 (left, arm along +X) and 17 (right), turned about the body's forward
+    axis (+Z in the Y-up rest frame). Raises InputError for a body of another joint layout.
+    """
+    if body.layout is None:  # SMPL, SMPL+H and SMPL-X share the body joints 0-21
+        raise InputError(f"--pose apose: expected an SMPL, SMPL+H or SMPL-X body (24, 52 or 55 joints; joints 16 and "
+                         f"17 the shoulders), got body '{body.name}' with {body.n_joints} joints")
+    if not (np.isfinite(arm_degrees) and -90.0 <= arm_degrees <= 90.0):
+        raise InputError(f"--arm-angle: expected degrees in [-90, 90], got {arm_degrees}")
+    pose = np.zeros((body.n_joints, 3), dtype=np.float32)
+    angle = np.radians(arm_degrees)
+    pose[16, 2] = -angle  # left arm: +X towards -Y
+    pose[17, 2] = angle  # right arm: -X towards -Y
+    return pose
+
+
+def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.ndarray | None = None,
+                   smooth_iterations: int = UNPOSE_SMOOTH_ITERATIONS, source: str | None = None) -> tuple[Garment, dict]:
+    """The garment moved from `body` in `pose` (shaped by `betas`) to the body's rest pose, mean shape.
+
+    garment: vertices in the body's frame (Y-up, metres) on the posed body; pose: (J, 3) axis-angle radians
+    (the root's rotation is ignored: the garment is in the body's frame); betas: (S',) or None.
+    Returns (the garment on the rest pose, same faces and UVs; a report: the posed body's fit, the largest
+    vertex move, the largest distance between the input and the result skinned back into `pose`). Raises
+    InputError naming `source` when a vertex's blended transform cannot be inverted.
+    """
+    name = source or garment.name
+    pose = np.asarray(pose, dtype=np.float32).reshape(body.n_joints, 3).copy()
+    pose[0] = 0.0
+    posed, _, A = body.pose_with_transforms(pose[None], None, betas)
+    A = A[0, :, :3, :].astype(np.float64)  # (J, 3, 4)
+    target = garment.vertices.astype(np.float64)
+    shaped, _ = body.shaped(betas)
+    hit, signed = TriangleMesh(posed[0], body.faces).signed_closest(target)
+    rest_mesh = TriangleMesh(shaped, body.faces)
+    for refine in range(UNPOSE_REFINE_PASSES + 1):
+        if refine:  # the weights `bake` will use: from the (shaped) rest body, at the unposed points
+            hit = rest_mesh.closest(rest)
+        M = np.einsum("vj,jrc->vrc", transfer_weights(hit, body, garment.faces, smooth_iterations), A)  # (V, 3, 4)
+        bad = np.linalg.svd(M[:, :, :3], compute_uv=False)[:, -1] < MIN_SINGULAR_VALUE
+        if bad.any():
+            raise InputError(f"garment mesh '{name}': cannot unpose {int(bad.sum())} vertices (e.g. vertex "
+                             f"{int(np.argmax(bad))}): their closest body parts turn nearly opposite ways in this pose")
+        rest = np.linalg.solve(M[:, :, :3], (target - M[:, :, 3])[..., None])[..., 0]
+    # The round trip as `bake` makes it: weights taken once more at the result, skinned into `pose`.
+    M = np.einsum("vj,jrc->vrc", transfer_weights(rest_mesh.closest(rest), body, garment.faces, smooth_iterations), A)
+    reposed = np.einsum("vrc,vc->vr", M[:, :, :3], rest) + M[:, :, 3]
+    if betas is not None:  # back to the mean shape the rest body has
+        corners = body.faces[hit.face_index]
+        shapedirs = np.einsum("vk,vkcs->vcs", hit.barycentric, body.shapedirs[corners])
+        rest = rest - np.einsum("vcs,s->vc", shapedirs, body.fit_betas(betas).astype(np.float64))
+    moved = np.linalg.norm(rest - target, axis=1)
+    report = {"posed_median_distance_m": float(np.median(np.abs(signed))),
+              "posed_inside_share": float(np.mean(signed < -0.002)),
+              "max_move_m": float(moved.max(initial=0.0)), "moved_over_1cm": int(np.sum(moved > 0.01)),
+              "reposed_max_error_m": float(np.linalg.norm(reposed - target, axis=1).max(initial=0.0))}
+    return replace(garment, vertices=rest.astype(np.float32)), report

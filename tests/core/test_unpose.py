@@ -1,0 +1,81 @@
+"""`core.unpose`: a garment authored on a posed body back to the rest pose, against forward skinning."""
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from core.body import default_body, skin_points
+from core.errors import InputError
+from core.garment import Garment
+from core.skinning import bind_garment
+from core.unpose import UNPOSE_SMOOTH_ITERATIONS, a_pose, unpose_garment
+from formats.obj import read_obj
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+@pytest.fixture(scope="module")
+def tshirt():
+    return read_obj(EXAMPLES / "tshirt.obj"), default_body()
+
+
+def _posed(garment, body, pose, betas=None):
+    """The garment skinned forward into `pose` (its body shaped by `betas`), with the weights unpose transfers."""
+    binding = bind_garment(garment, body, UNPOSE_SMOOTH_ITERATIONS)
+    rest = garment.vertices + (0 if betas is None else np.einsum("vcs,s->vc", binding.shapedirs, body.fit_betas(betas)))
+    A = body.skinning_transforms(pose[None], None, betas)
+    out = skin_points(torch.from_numpy(rest.astype(np.float32)), torch.from_numpy(binding.weights), torch.from_numpy(A))
+    return Garment(out[0].numpy(), garment.faces, garment.uvs, garment.face_uvs, name="posed")
+
+
+def test_a_pose_lowers_both_arms_symmetrically(tshirt):
+    _, body = tshirt
+    _, joints = body.pose(a_pose(body, 45.0)[None])
+    _, rest = body.pose(np.zeros((1, body.n_joints, 3), np.float32))
+    for shoulder, wrist in ((16, 20), (17, 21)):
+        arm = rest[0, wrist] - rest[0, shoulder]
+        down = joints[0, wrist] - joints[0, shoulder]
+        assert down[1] == pytest.approx(-np.hypot(arm[0], arm[1]) * np.sin(np.radians(45.0)), abs=0.02)
+    np.testing.assert_allclose(joints[0, 20] * [-1, 1, 1], joints[0, 21], atol=0.03)  # mirror images
+    with pytest.raises(InputError, match="--arm-angle"):
+        a_pose(body, 120.0)
+
+
+def test_unposing_an_a_posed_tshirt_gives_the_rest_tshirt_back(tshirt, caplog):
+    garment, body = tshirt
+    posed = _posed(garment, body, a_pose(body))
+    assert np.linalg.norm(posed.vertices - garment.vertices, axis=1).max() > 0.1  # the sleeves moved 10 cm+
+    rest, report = unpose_garment(posed, body, a_pose(body))
+    err = np.linalg.norm(rest.vertices - garment.vertices, axis=1)
+    assert err.mean() < 1e-3 and np.percentile(err, 99) < 5e-3  # where weights differ on the posed body: the armpits
+    assert report["max_move_m"] > 0.1 and report["posed_inside_share"] == 0.0
+    assert 1e-4 < report["reposed_max_error_m"] < 0.01  # skinned back with the weights bake takes at the result
+    np.testing.assert_array_equal(rest.faces, garment.faces)
+    np.testing.assert_array_equal(rest.uvs, garment.uvs)
+    with caplog.at_level(logging.WARNING):
+        bind_garment(rest, body)
+    assert "inside the body" not in caplog.text
+    with caplog.at_level(logging.WARNING):  # the posed one, baked as it is, is warned about, naming unpose
+        bind_garment(posed, body)
+    assert "garment unpose" in caplog.text
+
+
+def test_unposing_from_a_shaped_body_returns_the_mean_shape(tshirt):
+    garment, body = tshirt
+    betas = np.linspace(-2.0, 2.0, body.n_betas).astype(np.float32)
+    pose = a_pose(body, 30.0)
+    rest, _ = unpose_garment(_posed(garment, body, pose, betas), body, pose, betas)
+    err = np.linalg.norm(rest.vertices - garment.vertices, axis=1)
+    assert err.mean() < 2e-3
+    rest_unshaped, _ = unpose_garment(_posed(garment, body, pose, betas), body, pose)  # the shape left in
+    assert np.linalg.norm(rest_unshaped.vertices - garment.vertices, axis=1).mean() > 5 * err.mean()
+
+
+def test_a_transform_that_cannot_be_inverted_is_refused(tshirt, monkeypatch):
+    garment, body = tshirt
+    monkeypatch.setattr("core.unpose.MIN_SINGULAR_VALUE", 2.0)  # rotations have singular values 1: all refused
+    with pytest.raises(InputError, match=r"'shirt.obj': cannot unpose 6698 vertices"):
+        unpose_garment(garment, body, a_pose(body), source="shirt.obj")

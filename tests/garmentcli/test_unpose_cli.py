@@ -1,0 +1,86 @@
+"""`garment unpose`: an A-posed garment to the rest pose, written as an OBJ that `bake` takes; bad input."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from formats.obj import read_obj, write_obj
+from tests.garmentcli.cli import invoke
+from tests.garmentcli.conftest import write_motion
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+@pytest.fixture(scope="module")
+def a_posed(tmp_path_factory):
+    """The example t-shirt skinned into the A-pose (what a garment modelled on an A-posed avatar looks like)."""
+    from tests.core.test_unpose import _posed
+
+    from core.body import default_body
+    from core.unpose import a_pose
+
+    body = default_body()
+    g = read_obj(EXAMPLES / "tshirt.obj")
+    path = tmp_path_factory.mktemp("unpose") / "shirt.obj"
+    posed = _posed(g, body, a_pose(body))
+    write_obj(path, posed.vertices, posed.faces, posed.uvs, posed.face_uvs)
+    return path, g
+
+
+def test_unpose_writes_the_rest_garment_that_bake_takes(a_posed, tmp_path):
+    path, rest = a_posed
+    out = tmp_path / "rest.obj"
+    r = invoke(["unpose", path, "--pose", "apose", "--out", out])
+    assert r.exit_code == 0, r.output
+    assert "6698 vertices moved to the rest pose from A-pose, arms lowered 45 degrees" in r.output
+    g = read_obj(out)
+    assert np.percentile(np.linalg.norm(g.vertices - rest.vertices, axis=1), 99) < 5e-3
+    assert g.uvs is not None and np.array_equal(g.face_uvs, rest.face_uvs)
+    r = invoke(["bake", out, EXAMPLES / "walk.npz", "--frames", "0:3", "--out", tmp_path / "bake"])
+    assert r.exit_code == 0, r.output
+    # The default output sits beside the input; a second run is refused without --overwrite, nothing touched.
+    r = invoke(["unpose", path, "--pose", "apose"])
+    assert r.exit_code == 0 and (path.parent / "shirt_rest.obj").is_file()
+    before = (path.parent / "shirt_rest.obj").stat().st_mtime_ns
+    r = invoke(["unpose", path, "--pose", "apose"])
+    assert r.exit_code != 0 and "exists: pass --overwrite" in r.output
+    assert (path.parent / "shirt_rest.obj").stat().st_mtime_ns == before
+
+
+def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
+    """A pose file holding the A-pose at frame 1 (root turned into the Z-up world, as AMASS writes) gives the
+    same garment as --pose apose."""
+    from core.body import default_body
+    from core.unpose import a_pose
+
+    path, _ = a_posed
+    poses = np.zeros((2, 24, 3), np.float32)
+    poses[1] = a_pose(default_body())
+    poses[:, 0] = [np.pi / 2, 0, 0]
+    write_motion(tmp_path / "apose.npz", n_frames=2, poses=poses.reshape(2, 72))
+    r = invoke(["unpose", path, "--pose", tmp_path / "apose.npz", "--frame", 1, "--out", tmp_path / "a.obj"])
+    assert r.exit_code == 0, r.output
+    r = invoke(["unpose", path, "--pose", "apose", "--out", tmp_path / "b.obj"])
+    assert r.exit_code == 0, r.output
+    np.testing.assert_allclose(read_obj(tmp_path / "a.obj").vertices, read_obj(tmp_path / "b.obj").vertices,
+                               atol=1e-5)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--pose", "bpose"], "expected 'apose' or an AMASS-style .npz file, got 'bpose'"),
+    (["--pose", "nope.npz"], "'nope.npz': no such file"),
+    (["--pose", "apose", "--frame", 2], "--frame applies to a POSE.npz file only"),
+    (["--pose", "apose", "--arm-angle", 200], "--arm-angle: expected degrees in [-90, 90], got 200.0"),
+    (["--pose", str(EXAMPLES / "walk.npz"), "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
+    (["--pose", str(EXAMPLES / "walk.npz"), "--frame", 9999], "expected a frame in 0..180"),
+    (["--pose", "apose", "--out", "SELF"], "is GARMENT itself"),
+])
+def test_unpose_bad_input_one_line_nothing_written(a_posed, args, needle):
+    path, _ = a_posed
+    args = [str(path) if a == "SELF" else a for a in args]
+    before = sorted(p.name for p in path.parent.iterdir())
+    r = invoke(["unpose", path, *args])
+    assert r.exit_code != 0 and needle in r.output.strip().splitlines()[-1], r.output
+    assert "Traceback" not in r.output
+    assert sorted(p.name for p in path.parent.iterdir()) == before
