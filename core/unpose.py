@@ -18,7 +18,7 @@ from core.body import Body
 from core.errors import InputError
 from core.garment import Garment
 from core.geometry import TriangleMesh
-from core.skinning import transfer_weights
+from core.skinning import REST_INSIDE_DEPTH_M, transfer_weights
 
 #: The A-pose's default: each upper arm lowered this far from the T-pose (degrees, about the body's forward axis).
 A_POSE_ARM_DEGREES = 45.0
@@ -70,17 +70,21 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     shaped, _ = body.shaped(betas)
     hit, signed = TriangleMesh(posed[0], body.faces).signed_closest(target)
     rest_mesh = TriangleMesh(shaped, body.faces)
+
+    def blended(at) -> np.ndarray:  # (V, 3, 4): each vertex's blend of the joints' transforms, weights from `at`
+        return np.einsum("vj,jrc->vrc", transfer_weights(at, body, garment.faces, smooth_iterations), A)
+
     for refine in range(UNPOSE_REFINE_PASSES + 1):
         if refine:  # the weights `bake` will use: from the (shaped) rest body, at the unposed points
             hit = rest_mesh.closest(rest)
-        M = np.einsum("vj,jrc->vrc", transfer_weights(hit, body, garment.faces, smooth_iterations), A)  # (V, 3, 4)
+        M = blended(hit)
         bad = np.linalg.svd(M[:, :, :3], compute_uv=False)[:, -1] < MIN_SINGULAR_VALUE
         if bad.any():
             raise InputError(f"garment mesh '{name}': cannot unpose {int(bad.sum())} vertices (e.g. vertex "
                              f"{int(np.argmax(bad))}): their closest body parts turn nearly opposite ways in this pose")
         rest = np.linalg.solve(M[:, :, :3], (target - M[:, :, 3])[..., None])[..., 0]
     # The round trip as `bake` makes it: weights taken once more at the result, skinned into `pose`.
-    M = np.einsum("vj,jrc->vrc", transfer_weights(rest_mesh.closest(rest), body, garment.faces, smooth_iterations), A)
+    M = blended(rest_mesh.closest(rest))
     reposed = np.einsum("vrc,vc->vr", M[:, :, :3], rest) + M[:, :, 3]
     if betas is not None:  # back to the mean shape the rest body has
         corners = body.faces[hit.face_index]
@@ -88,7 +92,7 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
         rest = rest - np.einsum("vcs,s->vc", shapedirs, body.fit_betas(betas).astype(np.float64))
     moved = np.linalg.norm(rest - target, axis=1)
     report = {"posed_median_distance_m": float(np.median(np.abs(signed))),
-              "posed_inside_share": float(np.mean(signed < -0.002)),
+              "posed_inside_share": float(np.mean(signed < -REST_INSIDE_DEPTH_M)),
               "max_move_m": float(moved.max(initial=0.0)), "moved_over_1cm": int(np.sum(moved > 0.01)),
               "reposed_max_error_m": float(np.linalg.norm(reposed - target, axis=1).max(initial=0.0))}
     return replace(garment, vertices=rest.astype(np.float32)), report
