@@ -25,7 +25,10 @@ log = logging.getLogger(__name__)
 
 FRAMERATE_KEYS = ("mocap_framerate", "mocap_frame_rate")
 _VALUES_PER_FRAME = {3 * n: n for n in LAYOUT_JOINTS.values()}  # 72, 156, 165 -> joints
-_OPTIONAL_KEYS = ("gender", "dmpls", "marker_data", "surface_model_type")
+_SPLIT_KEYS = ("root_orient", "pose_body", "pose_jaw", "pose_eye", "pose_hand")
+#: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
+#: needs allow_pickle) are left unread.
+_READ_KEYS = ("poses", *_SPLIT_KEYS, "trans", "betas", *FRAMERATE_KEYS, "gender")
 _EXPECTED = "72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X)"
 
 
@@ -56,16 +59,19 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
     arrays = {}
     with data:
-        for key in data.files:
+        files = list(data.files)
+        for key in files:
+            if key not in _READ_KEYS:  # e.g. AMASS SMPL-X's markers_latent_vids, a pickled dict: never read
+                continue
             try:
                 arrays[key] = data[key]
             except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
-                if key in _OPTIONAL_KEYS:  # e.g. an object-array gender or dmpls: not needed
+                if key == "gender":  # e.g. an object array: not needed
                     log.warning("%s: skipping unreadable key '%s' (%s)", src, key, _short(exc))
                     continue
                 raise InputError(f"{src}: could not read array '{key}' ({_short(exc)})") from None
 
-    poses = _read_poses(arrays, src)
+    poses = _read_poses(arrays, src, files)
     T = poses.shape[0]
     if T < 1:
         raise InputError(f"{src}: expected at least 1 frame, got 0")
@@ -133,8 +139,8 @@ def save_motion(path, motion: Motion) -> None:
         np.savez(f, **arrays)
 
 
-def _read_poses(arrays: dict, src: str) -> np.ndarray:
-    """(T, J, 3) float32 poses from `poses` or the SMPL-X split keys."""
+def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:
+    """(T, J, 3) float32 poses from `poses` or the SMPL-X split keys; files: every key of the archive."""
     if "poses" in arrays:
         poses = _float_array(arrays["poses"], "poses", src)
         if poses.ndim == 1:  # a single frame stored flat
@@ -152,12 +158,12 @@ def _read_poses(arrays: dict, src: str) -> np.ndarray:
     if "root_orient" in arrays and "pose_body" in arrays:
         return _split_poses(arrays, src)
     raise InputError(f"{src}: expected a 'poses' array or SMPL-X 'root_orient' + 'pose_body', "
-                     f"found keys {sorted(arrays)}")
+                     f"found keys {sorted(files)}")
 
 
 def _split_poses(arrays: dict, src: str) -> np.ndarray:
     """Assemble (T, 22|55, 3) poses from SMPL-X split keys (no hands/jaw/eyes -> SMPL-X with zeros)."""
-    widths = {"root_orient": 3, "pose_body": 63, "pose_jaw": 3, "pose_eye": 6, "pose_hand": 90}
+    widths = dict(zip(_SPLIT_KEYS, (3, 63, 3, 6, 90)))
     parts = {}
     for key, width in widths.items():
         if key not in arrays:

@@ -320,3 +320,21 @@ def test_trans_in_centimetres_warns_and_metres_or_a_teleport_do_not(tmp_path, ca
         assert ("centimetres" in caplog.text) == name.endswith("cm"), (name, caplog.text)
         if name == "cm":
             assert "cm.npz" in caplog.text and "scale it by 0.01" in caplog.text
+
+
+def test_amass_smplx_stageii_file_with_a_pickled_marker_dict(tmp_path):
+    """AMASS's SMPL-X (stage II) archives hold `markers_latent_vids`, a dict pickled into an object array that
+    cannot be read without allow_pickle: the loader leaves it, and every other key it does not use, unread."""
+    T = 4
+    path = tmp_path / "A5_-_pick_up_box_stageii.npz"
+    poses = np.zeros((T, 165), np.float32)
+    poses[:, 0] = np.pi / 2
+    np.savez(path, gender=np.array("female"), surface_model_type=np.array("smplx"),
+             mocap_frame_rate=np.array(120.0), mocap_time_length=np.array(T / 120.0),
+             markers_latent=np.zeros((53, 3)), latent_labels=np.array(["C7", "CLAV"] * 26 + ["LFHD"]),
+             markers_latent_vids=np.array({"C7": 3832, "CLAV": 5533}, dtype=object),
+             trans=np.zeros((T, 3)), poses=poses, betas=np.zeros(16), num_betas=np.array(16),
+             root_orient=poses[:, :3], pose_body=poses[:, 3:66], pose_hand=poses[:, 75:], pose_jaw=poses[:, 66:69],
+             pose_eye=poses[:, 69:75])
+    m = load_motion(path)
+    assert m.poses.shape == (T, 55, 3) and m.fps == 120.0 and m.gender == "female"
