@@ -1,6 +1,6 @@
 """Wavefront OBJ: reading a garment mesh, writing meshes and animation frames.
 
-`read_obj` turns a user's OBJ (triangles and quads, any of the `v`, `v/vt`,
+`read_obj` turns a user's OBJ (triangles, quads and larger polygons, any of the `v`, `v/vt`,
 `v//vn`, `v/vt/vn` face forms, negative indices, several objects or groups)
 into one cleaned, validated `core.garment.Garment`. `parse_obj` and
 `triangulate` are the raw layers under it, used as they are by the OBJ
@@ -24,6 +24,9 @@ from core.garment import Garment, validate_garment
 
 log = logging.getLogger(__name__)
 
+#: Faces of up to this many vertices are read (5 or more split by `ear_clip`); larger ones are refused.
+MAX_POLYGON_VERTICES = 256
+
 #: Statement keywords that carry nothing a garment needs (materials, smoothing, grouping).
 _IGNORED = frozenset({"vn", "o", "g", "s", "usemtl", "mtllib", "vp", "l", "p",
                       "cstype", "deg", "curv", "curv2", "surf", "parm", "trim", "hole",
@@ -36,7 +39,8 @@ class ObjPolygons:
     """The geometry of an OBJ file as written, before triangulation or cleaning.
 
     vertices: (V, 3) float64, file units. polygons: (P, 4) int64, 0-based vertex
-    indices, -1 in the last column of a triangle. uvs: (U, 2) float64 or None;
+    indices, -1 in the last column of a triangle; a face of more than 4 corners is already split into
+    triangles (`ear_clip`), its first in the face's row, the others after the file's faces. uvs: (U, 2) float64 or None;
     polygon_uvs: (P, 4) int64 like `polygons` but into `uvs`, or None unless
     every face gave texture indices. `face_lines`: the file's face lines as
     written; `n_uv_rows`: its number of `vt` lines; `relative`: whether any face
@@ -105,15 +109,15 @@ def _index(tok: str, count: int, lineno: int, kind: str, label: str, path: Path)
 
 def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
               like: ObjPolygons | None = None) -> ObjPolygons:
-    """Read an OBJ's vertices, texture coordinates and triangle/quad faces as written.
+    """Read an OBJ's vertices, texture coordinates and triangle/quad faces as written (larger polygons split).
 
     Nothing is cleaned or validated beyond syntax and index ranges. `label` starts
     every error message ("garment mesh 'dress.obj': ..."). `like`: a previously
     parsed file (e.g. frame 0 of a sequence); when this file's face lines are the
     same, its polygon arrays are reused instead of parsed again.
     Raises InputError for a missing file, a directory, an unparseable number or
-    index, an index out of range, a face with fewer than 3 or more than 4
-    vertices, no vertices, or no faces.
+    index, an index out of range, a face with fewer than 3 or more than
+    MAX_POLYGON_VERTICES vertices or one that `ear_clip` cannot split, no vertices, or no faces.
     """
     path = Path(path)
     text = _read_text(path, label)
@@ -165,6 +169,7 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
                            like.polygon_uvs, like.face_lines, like.n_uv_rows, False)
 
     n_faces = len(f_lines)
+    ngons = []  # (face, corners, corner uvs) of the faces with more than 4 vertices
     polygons = np.full((n_faces, 4), -1, dtype=np.int64)
     polygon_uvs = np.full((n_faces, 4), -1, dtype=np.int64)
     all_uv = True
@@ -172,11 +177,14 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
         parts = line.split()
         lineno = f_numbers[k]
         n = len(parts) - 1
-        if n < 3 or n > 4:
-            raise InputError(f"{label} '{path}': expected triangles or quads, got a face with {n} vertices "
-                             f"(face {k + 1}, line {lineno})")
+        if n < 3 or n > MAX_POLYGON_VERTICES:
+            raise InputError(f"{label} '{path}': expected faces of 3 to {MAX_POLYGON_VERTICES} vertices, got a face "
+                             f"with {n} vertices (face {k + 1}, line {lineno})")
         nv, nvt = f_nv[k], f_nvt[k]
         row, row_uv = polygons[k], polygon_uvs[k]
+        if n > 4:  # an n-gon: its corners now, its triangles once every index is known to be in range
+            row, row_uv = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
+            ngons.append((k, row, row_uv))
         for j in range(n):
             tok = parts[j + 1]
             if "/" in tok:
@@ -191,22 +199,107 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
                 all_uv = False
 
     n_v = vertices.shape[0]
-    bad = (polygons >= n_v).any(axis=1)
-    if bad.any():
-        k = int(np.argmax(bad))
-        i = int(polygons[k].max()) + 1
-        raise InputError(f"{label} '{path}': vertex index {i} out of range on line {f_numbers[k]}, "
-                         f"the file has {n_v} vertices")
+    checks = [("vertex", polygons, n_v, 1, "vertices")]
     if all_uv:
-        bad = (polygon_uvs >= uvs.shape[0]).any(axis=1)
+        checks.append(("texture coordinate", polygon_uvs, uvs.shape[0], 2, "texture coordinates"))
+    for what, rows, count, column, plural in checks:
+        largest = rows.max(axis=1)
+        for ngon in ngons:
+            largest[ngon[0]] = ngon[column].max()
+        bad = largest >= count
         if bad.any():
             k = int(np.argmax(bad))
-            i = int(polygon_uvs[k].max()) + 1
-            raise InputError(f"{label} '{path}': texture coordinate index {i} out of range on line "
-                             f"{f_numbers[k]}, the file has {uvs.shape[0]} texture coordinates")
+            raise InputError(f"{label} '{path}': {what} index {int(largest[k]) + 1} out of range on line "
+                             f"{f_numbers[k]}, the file has {count} {plural}")
+    if ngons:
+        polygons, polygon_uvs = _split_ngons(vertices, polygons, polygon_uvs, ngons, f_numbers, label, path)
     relative = any("-" in line for line in f_lines)
     return ObjPolygons(vertices, polygons, uvs if all_uv else None, polygon_uvs if all_uv else None,
                        tuple(f_lines), len(vt_rows), relative)
+
+
+def _split_ngons(vertices, polygons, polygon_uvs, ngons, f_numbers, label, path):
+    """Polygons and polygon uvs with each n-gon's row replaced by its first triangle, the others appended.
+
+    ngons: (face, corners (n,), corner uvs (n,)); triangles by `ear_clip` in the polygon's plane. Raises
+    InputError naming the line of an n-gon that crosses itself or has no area.
+    """
+    rows, uv_rows = [polygons], [polygon_uvs]
+    for k, corners, corner_uvs in ngons:
+        tris = ear_clip(vertices[corners])
+        if tris is None:
+            raise InputError(f"{label} '{path}': cannot split the face with {len(corners)} vertices on line "
+                             f"{f_numbers[k]} into triangles: it crosses itself or has no area")
+        tri_rows = np.full((len(tris), 4), -1, dtype=np.int64)
+        tri_rows[:, :3] = corners[tris]
+        tri_uvs = np.full((len(tris), 4), -1, dtype=np.int64)
+        tri_uvs[:, :3] = corner_uvs[tris]
+        polygons[k], polygon_uvs[k] = tri_rows[0], tri_uvs[0]
+        rows.append(tri_rows[1:])
+        uv_rows.append(tri_uvs[1:])
+    log.info("%s '%s': split %d faces of more than 4 vertices into triangles", label, path, len(ngons))
+    return np.concatenate(rows), np.concatenate(uv_rows)
+
+
+def ear_clip(points: np.ndarray) -> np.ndarray | None:
+    """Triangles (n - 2, 3) of corner indices of a simple polygon (n, 3), in its winding, or None.
+
+    The polygon is projected onto its plane (Newell's normal) and ears are cut from it; None when it has
+    no area or two of its edges cross (or touch anywhere but at a shared corner).
+    """
+    p = np.asarray(points, dtype=np.float64)
+    n = len(p)
+    nxt = np.roll(p, -1, axis=0)
+    normal = np.array([np.sum((p[:, 1] - nxt[:, 1]) * (p[:, 2] + nxt[:, 2])),
+                       np.sum((p[:, 2] - nxt[:, 2]) * (p[:, 0] + nxt[:, 0])),
+                       np.sum((p[:, 0] - nxt[:, 0]) * (p[:, 1] + nxt[:, 1]))])  # twice the vector area
+    size = float(np.ptp(p, axis=0).max())
+    if np.linalg.norm(normal) <= 1e-12 * size * size:
+        return None
+    drop = int(np.argmax(np.abs(normal)))
+    q = p[:, [(drop + 1) % 3, (drop + 2) % 3]]  # right-handed with the dropped axis: (y, z), (z, x), (x, y)
+    if normal[drop] < 0:  # counter-clockwise in the projection
+        q = q[:, ::-1]
+    if _edges_cross(q):
+        return None
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    eps = 1e-12 * size * size
+    left = list(range(n))
+    tris = []
+    while len(left) > 3:
+        for j in range(len(left)):
+            a, b, c = left[j - 1], left[j], left[(j + 1) % len(left)]
+            if cross(q[a], q[b], q[c]) <= eps:
+                continue  # reflex or flat corner: not an ear
+            inside = [m for m in left if m not in (a, b, c) and cross(q[a], q[b], q[m]) >= -eps
+                      and cross(q[b], q[c], q[m]) >= -eps and cross(q[c], q[a], q[m]) >= -eps]
+            if not inside:
+                tris.append((a, b, c))
+                del left[j]
+                break
+        else:
+            return None
+    tris.append(tuple(left))
+    return np.array(tris, dtype=np.int64)
+
+
+def _edges_cross(q: np.ndarray) -> bool:
+    """Whether two edges of the closed 2-D polygon q (n, 2) that share no corner meet."""
+    n = len(q)
+    a, b = q, np.roll(q, -1, axis=0)
+    i, j = np.triu_indices(n, k=2)
+    keep = ~((i == 0) & (j == n - 1))  # the first and last edges share corner 0
+    i, j = i[keep], j[keep]
+
+    def side(p, r, s):  # sign of the turn p -> r -> s
+        return np.sign((r[:, 0] - p[:, 0]) * (s[:, 1] - p[:, 1]) - (r[:, 1] - p[:, 1]) * (s[:, 0] - p[:, 0]))
+
+    d1, d2 = side(a[i], b[i], a[j]), side(a[i], b[i], b[j])
+    d3, d4 = side(a[j], b[j], a[i]), side(a[j], b[j], b[i])
+    return bool(np.any((d1 * d2 <= 0) & (d3 * d4 <= 0)))
 
 
 def _numbers(rows: list, width: int) -> np.ndarray | None:
@@ -319,7 +412,7 @@ def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None,
 def read_obj(path: str | os.PathLike) -> Garment:
     """Read a garment mesh from an OBJ file into a validated `Garment`.
 
-    Triangles and quads (quads split along the shorter diagonal); all objects,
+    Triangles, quads (split along the shorter diagonal) and larger polygons (`ear_clip`); all objects,
     groups and components form one mesh. Degenerate faces (a repeated vertex or
     zero area), duplicate faces (same vertex set) and unused vertices are
     removed with a logged warning. `uvs`/`face_uvs` are set only when every

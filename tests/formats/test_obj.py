@@ -184,8 +184,12 @@ def test_write_read_round_trip(tmp_path, with_uvs):
 
 @pytest.mark.parametrize("text, message", [
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 2 2 0\nv 3 1 0\nv 3 0 0\nf 1 2 3 4 5 6 7\n",
-     "expected triangles or quads, got a face with 7 vertices (face 1, line 8)"),
-    ("v 0 0 0\nv 1 0 0\nf 1 2 3\nf 1 2\n", "expected triangles or quads, got a face with 2 vertices (face 2, line 4)"),
+     "cannot split the face with 7 vertices on line 8 into triangles: it crosses itself or has no area"),
+    ("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nv 4 0 0\nf 1 2 3 4 5\n",
+     "cannot split the face with 5 vertices on line 6 into triangles: it crosses itself or has no area"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3 4 9\n", "vertex index 9 out of range on line 5, the file has 4 vertices"),
+    ("v 0 0 0\nv 1 0 0\nf 1 2 3\nf 1 2\n",
+     "expected faces of 3 to 256 vertices, got a face with 2 vertices (face 2, line 4)"),
     ("v 0 0 0\nv 1 abc 0\nv 0 1 0\nf 1 2 3\n", "expected a number in the vertex on line 2, got 'abc'"),
     ("v 0 0 0\nv 1 0\n", "expected 3 coordinates on the vertex on line 2, got 2"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 x\nf 1 2 3\n", "expected a number in the texture coordinate on line 4, got 'x'"),
@@ -215,3 +219,46 @@ def test_missing_file_and_directory(tmp_path):
         read_obj(tmp_path / "nope.obj")
     with pytest.raises(InputError, match=r"garment mesh '.*': expected an OBJ file, got a directory"):
         read_obj(tmp_path)
+
+
+def test_ear_clip_covers_simple_polygons_exactly_in_their_winding():
+    """Star-shaped polygons (random radii at sorted angles, concave ones among them) on a tilted plane, both
+    windings: n - 2 triangles whose areas sum to the polygon's (shoelace), every one turning as the polygon
+    turns, none holding another corner inside."""
+    from formats.obj import ear_clip
+
+    rng = np.random.default_rng(3)
+    basis = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    for n in (5, 6, 9, 17, 40):
+        for flip in (False, True):
+            angles = np.sort(rng.uniform(0, 2 * np.pi, n))
+            flat = np.stack([np.cos(angles), np.sin(angles)], 1) * rng.uniform(0.3, 1.0, (n, 1))
+            flat = flat[::-1] if flip else flat
+            pts = np.c_[flat, np.zeros(n)] @ basis.T + [0.5, -1.0, 2.0]
+            tris = ear_clip(pts)
+            assert tris is not None and tris.shape == (n - 2, 3) and set(tris.ravel()) == set(range(n))
+            area = 0.5 * np.sum(flat[:, 0] * np.roll(flat[:, 1], -1) - np.roll(flat[:, 0], -1) * flat[:, 1])
+            a, b, c = (flat[tris[:, k]] for k in range(3))
+            tri_area = 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+            assert np.all(np.sign(tri_area) == np.sign(area)) and tri_area.sum() == pytest.approx(area)
+            for t in tris:
+                for m in set(range(n)) - set(t):
+                    bary = np.linalg.solve(np.vstack([flat[t].T, np.ones(3)]), np.r_[flat[m], 1.0])
+                    assert bary.min() < 1e-9  # not strictly inside
+
+
+def test_read_obj_splits_polygons_of_more_than_four_corners(tmp_path):
+    """A concave L hexagon with UVs and a pentagon in one file: 4 + 3 triangles, UVs carried, the faces' normals
+    along the polygons' (+Z), every corner used."""
+    text = ("v 0 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\n"
+            "v 3 0 0\nv 4 0 0\nv 4 1 0\nv 3.5 1.5 0\nv 3 1 0\n"
+            + "".join(f"vt {u} {v}\n" for u, v in [(0, 0), (1, 0), (1, .5), (.5, .5), (.5, 1), (0, 1)] * 2)
+            + "f 1/1 2/2 3/3 4/4 5/5 6/6\nf 7/7 8/8 9/9 10/10 11/11\n")
+    (tmp_path / "ngon.obj").write_text(text)
+    g = read_obj(tmp_path / "ngon.obj")
+    assert g.n_faces == 7 and g.n_vertices == 11 and set(g.faces.ravel()) == set(range(11))
+    tri = g.vertices[g.faces]
+    assert np.all(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 2] > 0)
+    assert g.face_uvs is not None and np.array_equal(g.face_uvs, g.faces)  # corner k took vt k
+    areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    assert areas[:4].sum() == pytest.approx(3.0)  # the L, not its convex hull

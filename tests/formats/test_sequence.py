@@ -160,9 +160,9 @@ def test_obj_frames_with_differing_topology(tmp_path):
     write_obj(tmp_path / "frame_0002.obj", points[2, :-1], faces[faces.max(axis=1) < 15])
     with pytest.raises(InputError, match=r"got 15 vertices, 16 faces in frame_0002.obj"):
         read_sequence(tmp_path)
-    (tmp_path / "frame_0003.obj").write_text("v 0 0 0\nf 1 2 3 4 5\n")
+    (tmp_path / "frame_0003.obj").write_text("v 0 0 0\nf 1 2\n")
     (tmp_path / "frame_0002.obj").unlink()
-    with pytest.raises(InputError, match=r"'.*frame_0003.obj': expected triangles or quads, got a face with 5"):
+    with pytest.raises(InputError, match=r"'.*frame_0003.obj': expected faces of 3 to 256 vertices, got a face with 2"):
         read_sequence(tmp_path)
 
 
@@ -201,3 +201,18 @@ def test_corrupt_npz(tmp_path):
     path.write_bytes(b"not a zip")
     with pytest.raises(InputError, match=r"cannot be read as .npz"):
         read_sequence(path)
+
+
+def test_obj_frames_with_a_polygon_of_five_corners_keep_frame_0s_triangles(tmp_path):
+    """Each frame a pentagon, its corners moving (frame 2 makes it concave elsewhere): every frame gets frame 0's
+    three triangles, so vertex and face numbering hold through the sequence."""
+    base = np.array([[0, 0, 0], [2, 0, 0], [2.5, 1, 0], [1, 2, 0], [-0.5, 1, 0]], float)
+    for t in range(3):
+        pts = base + [0, 0, 0.1 * t]
+        if t == 2:
+            pts[1] = [1, 1.2, 0.2]  # a dent: frame 2 alone would be split differently
+        (tmp_path / f"frame_{t:04d}.obj").write_text(
+            "".join(f"v {x} {y} {z}\n" for x, y, z in pts) + "f 1 2 3 4 5\n")
+    seq = read_sequence(tmp_path)
+    assert seq.points.shape == (3, 5, 3) and seq.faces.shape == (3, 3)
+    np.testing.assert_allclose(seq.points[2, 1], [1, 1.2, 0.2])

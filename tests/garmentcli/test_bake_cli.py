@@ -102,7 +102,7 @@ BAD_CASES = {
     "missing motion": (lambda s: ["bake", s["garment"], s["dir"] / "gone.npz"], ["gone.npz"]),
     "missing body": (lambda s: ["bake", s["garment"], s["motion"], "--body", s["dir"] / "nobody.npz"], ["nobody.npz"]),
     "7-gon face": (lambda s: ["bake", bad_obj(s["dir"], "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 2 0\nv 1 2 0\nv 2 2 0\n"
-                                                  "f 1 2 3 4 5 6 7\n"), s["motion"]], ["bad.obj", "7 vertices"]),
+                                                  "f 1 2 3 4 5 6 7\n"), s["motion"]], ["bad.obj", "cannot split the face with 7 vertices"]),
     "obj no faces": (lambda s: ["bake", bad_obj(s["dir"], "v 0 0 0\nv 1 0 0\n"), s["motion"]], ["bad.obj", "faces"]),
     "obj nan": (lambda s: ["bake", bad_obj(s["dir"], "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), s["motion"]],
                 ["bad.obj"]),
