@@ -91,7 +91,7 @@ def validate_garment(garment: Garment, source: str) -> None:
     if v.shape[0] == 0:
         raise InputError(f"garment mesh '{source}': expected vertices, got an empty mesh")
     if f.shape[0] == 0:
-        raise InputError(f"garment mesh '{source}': expected faces, got none")
+        raise InputError(f"garment mesh '{source}': expected faces with an area, got no faces")
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
         raise InputError(f"garment mesh '{source}': expected finite coordinates, got NaN/Inf at vertex {int(np.argmax(bad))}")
