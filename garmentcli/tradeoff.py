@@ -30,6 +30,7 @@ from core.tradeoff import (
     simulation_scene,
 )
 from garmentcli.common import (
+    betas_option,
     body_option,
     frames_option,
     input_errors_as_click,
@@ -65,6 +66,7 @@ def _models(specs: tuple) -> dict:
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_tradeoff", show_default=True,
               help="Output directory; the scene's results go to OUT/<garment>_<motion>/.")
 @body_option
+@betas_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the scene is baked at.")
 @frames_option
 @click.option("--model", "model_specs", multiple=True, metavar="NAME=PATH",
@@ -85,7 +87,7 @@ def _models(specs: tuple) -> dict:
                    "row's error. A row of the table and a dashed line in the plot; one more reference run of time.")
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
-             reuse_sim=False, calibration_path=None, spread=False):
+             reuse_sim=False, calibration_path=None, spread=False, betas="motion"):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each model in float32 and bfloat16, with and without penetration push-out; the
@@ -116,7 +118,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         shutil.rmtree(staged)
     garment = read_obj(garment_path)
     body = load_body_option(body_path)
-    motion, _ = prepare_motion(motion_path, fps, frames, 0)
+    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas)
     from formats.cache import default_cache_dir
 
     rows = configurations(models, spread=spread)

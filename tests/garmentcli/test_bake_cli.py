@@ -247,3 +247,26 @@ def test_summary_records_the_warnings_of_its_own_inputs(scene, workers):
     walk = json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())["warnings"]
     assert len(yup) == 1 and "yup.npz" in yup[0] and "looks Y-up" in yup[0]
     assert walk == []
+
+
+def test_betas_option_sets_the_body_shape_and_rejects_garbage(scene):
+    """--betas mean bakes the mean body whatever the motion says; a list sets the coefficients (padded);
+    'motion' (default) keeps the motion's; summary.json records the option and the betas baked."""
+    d = scene["dir"]
+    write_motion(d / "shaped.npz", betas=np.full(16, 1.5, np.float32))
+    outs = {}
+    for option in ("motion", "mean", "0.5,-0.5"):
+        out = d / f"out_{option}"
+        r = run(["bake", scene["garment"], d / "shaped.npz", "--body", scene["body"], "--out", out, "--no-obj",
+                 "--betas", option])
+        assert r.exit_code == 0, r.output
+        summary = json.loads((out / "shell_shaped" / "summary.json").read_text())
+        assert summary["options"]["betas"] == option
+        outs[option] = summary["body"]["betas"]
+    n = len(outs["mean"])
+    assert outs["mean"] == [0.0] * n and outs["motion"] == [1.5] * n
+    assert outs["0.5,-0.5"] == [0.5, -0.5] + [0.0] * (n - 2)
+    for bad in ("tall", "1,nan"):
+        r = run(["bake", scene["garment"], d / "shaped.npz", "--body", scene["body"], "--out", d / "x", "--betas", bad])
+        assert_one_line_error(r, "--betas")
+        assert not (d / "x").exists()
