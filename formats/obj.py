@@ -24,6 +24,9 @@ from core.garment import Garment, validate_garment
 
 log = logging.getLogger(__name__)
 
+#: Vertices closer than this (and than 1 % of the median edge) are one vertex: seams of separately exported
+#: panels (Marvelous Designer, CLO) repeat every seam vertex once per panel, at the same position.
+WELD_DISTANCE_M = 1e-5
 #: Faces of up to this many vertices are read (5 or more split by `ear_clip`); larger ones are refused.
 MAX_POLYGON_VERTICES = 256
 
@@ -372,8 +375,44 @@ def triangulate(vertices: np.ndarray, polygons: np.ndarray, polygon_uvs: np.ndar
     return faces, face_uvs, split_ac
 
 
-def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None, label: str, path: Path):
-    """Drop degenerate and duplicate faces and unused vertices, logging what went."""
+def _weld(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path) -> tuple[np.ndarray, int]:
+    """(faces with every vertex that lies within WELD_DISTANCE_M, and 1 % of the median edge, of an earlier
+    used one replaced by the earliest, how many were); warns when any were. Vertices are left in place
+    (`_clean` drops the unused ones and the faces that collapsed)."""
+    from scipy.spatial import cKDTree
+
+    used = np.unique(faces)
+    used = used[np.isfinite(vertices[used]).all(axis=1)]  # NaN is validate_garment's to report
+    if len(used) < 2:
+        return faces, 0
+    edges = np.linalg.norm(vertices[faces] - vertices[np.roll(faces, 1, axis=1)], axis=2)
+    tol = min(WELD_DISTANCE_M, 0.01 * float(np.median(edges[np.isfinite(edges)])))
+    pairs = cKDTree(vertices[used]).query_pairs(tol, output_type="ndarray")
+    if not len(pairs):
+        return faces, 0
+    parent = np.arange(len(vertices))
+    for a, b in used[np.sort(pairs, axis=1)]:  # union-find onto the smallest index of each cluster
+        ra, rb = a, b
+        while parent[ra] != ra:
+            ra = parent[ra]
+        while parent[rb] != rb:
+            rb = parent[rb]
+        parent[max(ra, rb)] = min(ra, rb)
+    root = parent.copy()
+    for _ in range(64):  # flatten: every vertex to its cluster's root
+        nxt = root[root]
+        if np.array_equal(nxt, root):
+            break
+        root = nxt
+    n = int(np.sum(root[used] != used))
+    log.warning("%s '%s': welded %d vertices onto others at the same position (within %.2g mm; the seams of "
+                "separately exported panels)", label, path, n, tol * 1e3)
+    return root[faces], n
+
+
+def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None, label: str, path: Path,
+           welded: int = 0):
+    """Drop degenerate and duplicate faces and unused vertices, logging what went (not the `welded` ones)."""
     repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
     finite = np.isfinite(vertices).all(axis=1)
     used = np.unique(faces)
@@ -402,7 +441,8 @@ def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None,
     used[faces.ravel()] = True
     n_unused = int((~used).sum())
     if n_unused and len(faces):
-        log.warning("%s '%s': removed %d unused vertices", label, path, n_unused)
+        if n_unused > welded:
+            log.warning("%s '%s': removed %d unused vertices", label, path, n_unused - welded)
         remap = np.cumsum(used) - 1
         vertices = vertices[used]
         faces = remap[faces]
@@ -413,7 +453,8 @@ def read_obj(path: str | os.PathLike) -> Garment:
     """Read a garment mesh from an OBJ file into a validated `Garment`.
 
     Triangles, quads (split along the shorter diagonal) and larger polygons (`ear_clip`); all objects,
-    groups and components form one mesh. Degenerate faces (a repeated vertex or
+    groups and components form one mesh; vertices at one position (the seams of panels exported
+    separately) are welded into one (`WELD_DISTANCE_M`, warned). Degenerate faces (a repeated vertex or
     zero area), duplicate faces (same vertex set) and unused vertices are
     removed with a logged warning. `uvs`/`face_uvs` are set only when every
     face has texture indices. Normals, materials, groups and smoothing are ignored.
@@ -426,7 +467,8 @@ def read_obj(path: str | os.PathLike) -> Garment:
     label = "garment mesh"
     obj = parse_obj(path, label)
     faces, face_uvs, _ = triangulate(obj.vertices, obj.polygons, obj.polygon_uvs)
-    vertices, faces, face_uvs = _clean(obj.vertices, faces, face_uvs, label, path)
+    faces, welded = _weld(obj.vertices, faces, label, path)
+    vertices, faces, face_uvs = _clean(obj.vertices, faces, face_uvs, label, path, welded)
     uvs = None
     if face_uvs is not None and len(faces):
         used_uv = np.unique(face_uvs)

@@ -262,3 +262,64 @@ def test_read_obj_splits_polygons_of_more_than_four_corners(tmp_path):
     assert g.face_uvs is not None and np.array_equal(g.face_uvs, g.faces)  # corner k took vt k
     areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     assert areas[:4].sum() == pytest.approx(3.0)  # the L, not its convex hull
+
+
+def _panels(tmp_path, name="panels.obj", gap=0.0):
+    """The example skirt cut into 4 panels exported separately: every seam vertex repeated once per panel,
+    `gap` metres apart along x (0: at the same position). Returns (path, the skirt as read)."""
+    from pathlib import Path
+
+    skirt = read_obj(Path(__file__).resolve().parents[2] / "examples" / "skirt.obj")
+    v, f = skirt.vertices, skirt.faces
+    centre = v[f].mean(axis=1)
+    panel = (((np.arctan2(centre[:, 0], centre[:, 2]) + np.pi) / (np.pi / 2)).astype(int)) % 4
+    verts, faces = [], np.zeros_like(f)
+    for p in range(4):
+        rows = np.flatnonzero(panel == p)
+        used = np.unique(f[rows])
+        remap = np.full(len(v), -1)
+        remap[used] = len(verts) + np.arange(len(used))
+        verts.extend(v[used] + [gap * p, 0, 0])
+        faces[rows] = remap[f[rows]]
+    write_obj(tmp_path / name, np.array(verts), faces)
+    return tmp_path / name, skirt
+
+
+def test_panels_exported_separately_are_welded_at_their_seams(tmp_path, caplog):
+    from core.garment import mesh_edges
+    from core.graph import connected_components
+
+    path, skirt = _panels(tmp_path)
+    with caplog.at_level(logging.WARNING):
+        g = read_obj(path)
+    assert "welded 112 vertices onto others at the same position" in caplog.text
+    assert "unused" not in caplog.text  # the welded copies are not reported a second time
+    assert g.n_vertices == skirt.n_vertices and g.n_faces == skirt.n_faces
+    assert connected_components(mesh_edges(g.faces), g.n_vertices)[0] == 1  # one garment, not 4 loose panels
+    np.testing.assert_allclose(np.sort(g.vertices, axis=0), np.sort(skirt.vertices, axis=0), atol=1e-6)
+
+
+def test_vertices_apart_by_more_than_the_weld_distance_stay_apart(tmp_path, caplog):
+    path, skirt = _panels(tmp_path, gap=1e-4)  # 0.1 mm: a real gap, 10x the weld distance
+    with caplog.at_level(logging.WARNING):
+        g = read_obj(path)
+    assert "welded" not in caplog.text and g.n_vertices == skirt.n_vertices + 112
+
+
+def test_welding_keeps_uv_seams():
+    """Two quads sharing an edge through repeated vertices, each with its own UV island: one edge, two UVs."""
+    import tempfile
+    from pathlib import Path
+
+    text = ("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 1 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\n"
+            "vt 0 0\nvt .4 0\nvt .4 1\nvt 0 1\nvt .6 0\nvt 1 0\nvt 1 1\nvt .6 1\n"
+            "f 1/1 2/2 3/3 4/4\nf 5/5 6/6 7/7 8/8\n")
+    with tempfile.TemporaryDirectory() as d:
+        (Path(d) / "two.obj").write_text(text)
+        g = read_obj(Path(d) / "two.obj")
+    assert g.n_vertices == 6 and g.uvs.shape == (8, 2)
+    shared = np.intersect1d(g.faces[:2], g.faces[2:])
+    assert len(shared) == 2  # the seam edge's two vertices
+    for vertex in shared:
+        uv = {tuple(g.uvs[g.face_uvs[k, j]]) for k, j in zip(*np.nonzero(g.faces == vertex))}
+        assert len(uv) == 2  # one UV on each side of the seam
