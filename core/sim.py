@@ -35,6 +35,7 @@ import os
 import sys
 import tempfile
 import time
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -423,6 +424,14 @@ def _warp():
     return wp
 
 
+def non_manifold_edge_count(faces: np.ndarray) -> int:
+    """How many edges of the triangle mesh `faces` (F, 3) are shared by more than two faces."""
+    f = np.asarray(faces, dtype=np.int64)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return int(np.sum(counts > 2))
+
+
 class ClothSim:
     """One garment (cloth) and one triangle-mesh collider whose points move, on Newton's VBD solver.
 
@@ -455,11 +464,20 @@ class ClothSim:
         self.collider = newton.Mesh(cv, np.asarray(collider_faces, dtype=np.int32).reshape(-1), compute_inertia=False)
         self.shape = builder.add_shape_mesh(-1, mesh=self.collider, cfg=cfg)
         rest = np.asarray(rest_vertices, dtype=np.float32)
-        builder.add_cloth_mesh(pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0, vel=wp.vec3(0.0, 0.0, 0.0),
-                               vertices=[wp.vec3(*p) for p in rest], indices=np.asarray(faces, dtype=np.int32).reshape(-1),
-                               density=m.density_kg_m2, tri_ke=m.shear_stiffness_n_m, tri_ka=m.stretch_stiffness_n_m,
-                               tri_kd=m.stretch_damping_s, edge_ke=m.bending_stiffness_n_m, edge_kd=m.bending_damping_s,
-                               particle_radius=m.contact_distance_m)
+        #: Edges shared by more than two faces (a pocket sewn on along one edge): Newton bends the cloth across
+        #: the first two faces of each only, and warns once per edge; said here once.
+        self.non_manifold_edges = non_manifold_edge_count(faces)
+        if self.non_manifold_edges:
+            log.warning("sim: %d garment edges are shared by more than two faces (non-manifold): the cloth bends "
+                        "across the first two faces of each only", self.non_manifold_edges)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Detected non-manifold edge")
+            builder.add_cloth_mesh(pos=wp.vec3(0.0, 0.0, 0.0), rot=wp.quat_identity(), scale=1.0,
+                                   vel=wp.vec3(0.0, 0.0, 0.0), vertices=[wp.vec3(*p) for p in rest],
+                                   indices=np.asarray(faces, dtype=np.int32).reshape(-1), density=m.density_kg_m2,
+                                   tri_ke=m.shear_stiffness_n_m, tri_ka=m.stretch_stiffness_n_m,
+                                   tri_kd=m.stretch_damping_s, edge_ke=m.bending_stiffness_n_m,
+                                   edge_kd=m.bending_damping_s, particle_radius=m.contact_distance_m)
         self.pinned = np.zeros(0, dtype=np.int64) if pinned is None else np.asarray(pinned, dtype=np.int64)
         for i in self.pinned:  # zero mass: VBD leaves the particle where the state puts it
             builder.particle_mass[int(i)] = 0.0
@@ -813,6 +831,7 @@ class SimDeformer(Deformer):
             "solver": {"engine": "newton SolverVBD", "device": sim.device, "newton": package_version("newton"),
                        "warp": package_version("warp-lang"), "dt_s": frame_dt / o.substeps},
             "pinned_vertices": len(pinned),
+            "non_manifold_edges": sim.non_manifold_edges,
             "self_contact": ({"detection_gap_m": gap, "relative_speed_max_m_s": speed,
                               "cloth_speed_limit_m_s": cloth_speed_limit(m, gap, frame_dt / o.substeps),
                               "filtered_along_surface": sim.contact_filter,

@@ -9,6 +9,7 @@ Warp compiles its kernels once (about a minute on CPU) into the shared cache.
 
 import dataclasses
 import json
+import logging
 import os
 from pathlib import Path
 
@@ -608,3 +609,26 @@ def test_starting_the_simulator_prints_no_cuda_driver_warning_on_a_cpu_machine()
                          cwd=Path(__file__).resolve().parents[2])
     assert run.returncode == 0, run.stderr
     assert "NVIDIA CUDA driver" not in run.stderr
+
+
+def test_non_manifold_edges_are_counted_and_said_once(caplog):
+    """A grid with three flaps sewn on along one of its edges each: three edges shared by three faces. One warning
+    of ours with the count, none of Newton's per-edge ones."""
+    import warnings
+
+    from core.sim import non_manifold_edge_count
+
+    bv, bf = box()
+    v, f = cloth(1.0, n=6, size=0.1)
+    flaps = [f[k][[0, 2]] for k in (0, 10, 20)]  # each quad's diagonal: already shared by its two triangles
+    extra_v = np.array([(v[a] + v[b]) / 2 + [0, 0, 0.01] for a, b in flaps])
+    extra_f = np.array([[a, b, len(v) + i] for i, (a, b) in enumerate(flaps)])
+    faces = np.concatenate([f, extra_f])
+    assert non_manifold_edge_count(f) == 0 and non_manifold_edge_count(faces) == 3
+    with caplog.at_level(logging.WARNING), warnings.catch_warnings(record=True) as raised:
+        warnings.simplefilter("always")
+        sim = ClothSim(np.concatenate([v, extra_v]), faces, bv, bf, iterations=2,
+                       bounds=np.array([[-1, -1, -1], [1, 1, 2.0]]))
+    assert sim.non_manifold_edges == 3
+    assert caplog.text.count("3 garment edges are shared by more than two faces") == 1
+    assert not [w for w in raised if "non-manifold" in str(w.message)]
