@@ -5,7 +5,7 @@ frame (or the same as a (T, J, 3) array), or, when `poses` is absent, the SMPL-X
 split keys `root_orient (T,3)`, `pose_body (T,63)` and optional `pose_jaw (T,3)`,
 `pose_eye (T,6)`, `pose_hand (T,90)`. Also read: `trans (T,3)` metres Z-up (zeros,
 with a warning, when missing), `betas` (any length), `mocap_framerate` or
-`mocap_frame_rate` (Hz), `gender`.
+`mocap_frame_rate` (Hz; or `mocap_fps`, `fps`, `framerate`, `frame_rate`), `gender`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ from formats.atomic import atomic_file
 
 log = logging.getLogger(__name__)
 
-FRAMERATE_KEYS = ("mocap_framerate", "mocap_frame_rate")
+#: Where a frame rate is found (AMASS's two spellings first, then those of other SMPL pipelines).
+FRAMERATE_KEYS = ("mocap_framerate", "mocap_frame_rate", "mocap_fps", "fps", "framerate", "frame_rate")
 _VALUES_PER_FRAME = {3 * n: n for n in LAYOUT_JOINTS.values()}  # 72, 156, 165 -> joints
 _SPLIT_KEYS = ("root_orient", "pose_body", "pose_jaw", "pose_eye", "pose_hand")
 #: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
@@ -97,8 +98,9 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     if fps is None:
         key = next((k for k in FRAMERATE_KEYS if k in arrays), None)
         if key is None:
-            raise InputError(f"{src}: expected a frame rate under 'mocap_framerate' or 'mocap_frame_rate', "
-                             f"found neither (pass an explicit fps to override)")
+            raise InputError(f"{src}: expected a frame rate under 'mocap_framerate' or 'mocap_frame_rate' (or "
+                             f"{', '.join(repr(k) for k in FRAMERATE_KEYS[2:])}), found none: pass the motion's "
+                             f"frame rate with --source-fps")
         raw = arrays[key]
         try:
             fps = float(np.asarray(raw, dtype=np.float64).reshape(-1)[0])

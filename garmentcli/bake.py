@@ -32,6 +32,7 @@ from garmentcli.common import (
     load_body_option,
     prepare_motion,
     scheduler_options,
+    source_fps_option,
     with_collected_warnings,
 )
 
@@ -243,6 +244,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="Output directory; one sub-directory per motion.")
 @body_option
 @betas_option
+@source_fps_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Output frame rate (any ratio to the source).")
 @frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
@@ -275,7 +277,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
-         no_contact_guard=False, betas="motion", warned=()):
+         no_contact_guard=False, betas="motion", source_fps=None, warned=()):
     """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -318,7 +320,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if existing:
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
-    motions = [(prepare_motion(m, fps, frames, settle_frames, betas), m, target) for m, target in targets]
+    motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps), m, target) for m, target in targets]
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,

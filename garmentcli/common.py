@@ -74,11 +74,13 @@ def load_body_option(body_path: str | None) -> Body:
     return load_body(body_path)
 
 
-def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None):
-    """Read a motion file and apply --betas, --frames (source frames), --fps and --settle, in that order."""
+def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
+                   source_fps: float | None = None):
+    """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas, --frames
+    (source frames), --fps and --settle, in that order."""
     from formats.motion import load_motion
 
-    motion = load_motion(path)
+    motion = load_motion(path, fps=source_fps)
     if betas is not None and betas != "motion":
         motion = replace(motion, betas=None if betas == "mean" else parse_betas(betas))
     source_fps = motion.fps
@@ -111,6 +113,13 @@ def betas_option(command):
     return click.option("--betas", default="motion", show_default=True, metavar="motion|mean|B0,B1,...",
                         callback=_check_betas, help="Body shape: the motion file's betas, the body's mean shape, or these shape "
                              "coefficients (missing ones 0; the body's own basis, e.g. the embedded body's 10).")(command)
+
+
+def source_fps_option(command):
+    """--source-fps HZ: the motion files' frame rate, for files that carry none (or a wrong one)."""
+    return click.option("--source-fps", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
+                        help="The motions' own frame rate, overriding the file's (needed for files that carry "
+                             "none).")(command)
 
 
 def scheduler_options(task: str, note: str = ""):

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from core.errors import InputError
-from garmentcli.common import betas_option, input_errors_as_click
+from garmentcli.common import betas_option, input_errors_as_click, source_fps_option
 
 _FORMATS = {"json": ("json",), "csv": ("csv",), "md": ("md",), "all": ("json", "csv", "md")}
 
@@ -27,7 +27,8 @@ def _inside_fn(depth_m: float):
     return frames_inside(lambda points, verts, faces: points_inside_mesh(points, verts, faces, depth=depth_m))
 
 
-def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="motion"):
+def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="motion",
+                         source_fps=None):
     """The body posed by the motion exactly as `garment bake` prepares it, as a Sequence-like record."""
     from types import SimpleNamespace
 
@@ -35,7 +36,7 @@ def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_f
     from garmentcli.common import load_body_option, prepare_motion
 
     body = load_body_option(None if body_file is None else str(body_file))
-    motion, _ = prepare_motion(str(motion_file), fps, frames, settle_frames, betas)
+    motion, _ = prepare_motion(str(motion_file), fps, frames, settle_frames, betas, source_fps)
     if motion.n_frames != n_frames:
         raise InputError(f"--motion '{motion_file}': expected {n_frames} frames like PRED, got {motion.n_frames} "
                          f"at --fps {fps:g} (pass the --fps, --frames and --settle of the bake)")
@@ -67,6 +68,7 @@ def _default_depth_mm() -> float:
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="With --motion: the settle frames of the bake.")
 @betas_option
+@source_fps_option
 @click.option("--depth-mm", type=click.FloatRange(min=0.0), default=None,
               help="A garment vertex counts as penetrating when more than this inside the body "
                    "[default: as garment bake, 2 mm].")
@@ -77,7 +79,7 @@ def _default_depth_mm() -> float:
 @input_errors_as_click
 def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Path | None,
             motion_file: Path | None, fps: float, frames: str | None, settle_frames: int, depth_mm: float | None,
-            overwrite: bool, plots: bool = False, betas: str = "motion") -> None:
+            overwrite: bool, plots: bool = False, betas: str = "motion", source_fps: float | None = None) -> None:
     """Compare a predicted garment sequence PRED with a ground truth GT.
 
     PRED and GT are OBJ-sequence directories, USD files or .npz sequences of the
@@ -106,7 +108,8 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
 
     body = next((s for s in (p_seq, g_seq) if s.body_points is not None and s.body_faces is not None), None)
     if motion_file is not None:
-        body = _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, p_seq.points.shape[0], betas)
+        body = _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, p_seq.points.shape[0], betas,
+                                    source_fps)
     if depth_mm is None:
         depth_mm = _default_depth_mm()
     inside_fn = _inside_fn(depth_mm * 1e-3) if body is not None else None

@@ -36,6 +36,7 @@ from garmentcli.common import (
     input_errors_as_click,
     load_body_option,
     prepare_motion,
+    source_fps_option,
 )
 
 COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "seconds_prepare", "peak_memory_mb",
@@ -67,6 +68,7 @@ def _models(specs: tuple) -> dict:
               help="Output directory; the scene's results go to OUT/<garment>_<motion>/.")
 @body_option
 @betas_option
+@source_fps_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the scene is baked at.")
 @frames_option
 @click.option("--model", "model_specs", multiple=True, metavar="NAME=PATH",
@@ -87,7 +89,7 @@ def _models(specs: tuple) -> dict:
                    "row's error. A row of the table and a dashed line in the plot; one more reference run of time.")
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
-             reuse_sim=False, calibration_path=None, spread=False, betas="motion"):
+             reuse_sim=False, calibration_path=None, spread=False, betas="motion", source_fps=None):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each model in float32 and bfloat16, with and without penetration push-out; the
@@ -118,7 +120,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         shutil.rmtree(staged)
     garment = read_obj(garment_path)
     body = load_body_option(body_path)
-    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas)
+    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps)
     from formats.cache import default_cache_dir
 
     rows = configurations(models, spread=spread)

@@ -45,8 +45,8 @@ def test_load_tjx3_poses(tmp_path):
     np.testing.assert_array_equal(m.poses, poses)
 
 
-@pytest.mark.parametrize("key", ["mocap_framerate", "mocap_frame_rate"])
-def test_both_framerate_spellings(tmp_path, key):
+@pytest.mark.parametrize("key", ["mocap_framerate", "mocap_frame_rate", "mocap_fps", "fps", "framerate", "frame_rate"])
+def test_every_framerate_spelling(tmp_path, key):
     m = load_motion(_write(tmp_path, poses=_poses(3, 72), trans=_trans(3), **{key: np.array(59.94)}))
     assert m.fps == pytest.approx(59.94)
 
@@ -57,6 +57,7 @@ def test_fps_override_and_missing_framerate(tmp_path):
         load_motion(path)
     msg = str(info.value)
     assert "mocap_framerate" in msg and "mocap_frame_rate" in msg and str(path) in msg and "\n" not in msg
+    assert "--source-fps" in msg
     assert load_motion(path, fps=50.0).fps == 50.0
     path2 = _write(tmp_path, "n.npz", poses=_poses(3, 72), trans=_trans(3), mocap_framerate=120.0)
     assert load_motion(path2, fps=25).fps == 25.0

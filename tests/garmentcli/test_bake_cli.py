@@ -270,3 +270,19 @@ def test_betas_option_sets_the_body_shape_and_rejects_garbage(scene):
         r = run(["bake", scene["garment"], d / "shaped.npz", "--body", scene["body"], "--out", d / "x", "--betas", bad])
         assert_one_line_error(r, "--betas")
         assert not (d / "x").exists()
+
+
+def test_a_motion_without_a_frame_rate_bakes_with_source_fps(scene):
+    d = scene["dir"]
+    poses = np.zeros((12, 72), np.float32)
+    poses[:, 0] = np.pi / 2
+    np.savez(d / "norate.npz", poses=poses, trans=np.zeros((12, 3), np.float32))
+    r = run(["bake", scene["garment"], d / "norate.npz", "--body", scene["body"], "--out", scene["out"]])
+    assert_one_line_error(r, "norate.npz", "found none: pass the motion's frame rate with --source-fps")
+    r = run(["bake", scene["garment"], d / "norate.npz", "--body", scene["body"], "--out", scene["out"], "--no-obj",
+             "--source-fps", 60])
+    assert r.exit_code == 0, r.output
+    summary = json.loads((scene["out"] / "shell_norate" / "summary.json").read_text())
+    assert summary["source_fps"] == 60.0 and summary["frames"] == 6  # 12 frames at 60 fps baked at 30
+    r = run(["bake", scene["garment"], d / "norate.npz", "--out", scene["out"], "--source-fps", 0])
+    assert_one_line_error(r, "--source-fps")
