@@ -247,7 +247,9 @@ def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points:
     """Raise InputError unless two sequences share a topology and a frame count.
 
     pred_points, gt_points: (T, V, 3). pred_faces, gt_faces: (F, 3) int.
-    Nothing is trimmed or resampled: mismatches are the user's to resolve.
+    Nothing is trimmed or resampled: mismatches are the user's to resolve. Faces that differ only in order,
+    winding or the diagonals that split quads (`same_surface`: a quad mesh triangulated by two tools) are one
+    topology; the metrics use the prediction's faces for both.
     """
     for name, pts in ((pred_name, pred_points), (gt_name, gt_points)):
         if np.ndim(pts) != 3 or np.shape(pts)[-1] != 3:
@@ -257,7 +259,7 @@ def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points:
         raise InputError(f"'{pred_name}' has {Vp} vertices, '{gt_name}' has {Vg}: "
                          "expected the same garment mesh (same vertices and faces)")
     pf, gf = np.asarray(pred_faces), np.asarray(gt_faces)
-    if pf.shape != gf.shape or not np.array_equal(pf, gf):
+    if pf.shape != gf.shape or not (np.array_equal(pf, gf) or same_surface(pf, gf, Vp)):
         detail = (f"{pf.shape[0]} vs {gf.shape[0]} faces" if pf.shape != gf.shape
                   else f"first difference at face {int(np.argmax(np.any(pf != gf, axis=-1)))}")
         raise InputError(f"'{pred_name}' and '{gt_name}' have different faces ({detail}): "
@@ -266,6 +268,40 @@ def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points:
     if Tp != Tg:
         raise InputError(f"'{pred_name}' has {Tp} frames, '{gt_name}' has {Tg}: expected the same "
                          "frame count (trim or resample one of them to match)")
+
+
+def _edge_keys(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Sorted unique undirected edges of triangles (F, 3), each as a * V + b with a < b."""
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1).astype(np.int64)
+    return np.unique(e[:, 0] * n_vertices + e[:, 1])
+
+
+def _flipped_edges(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """The other diagonal of every quad two triangles of `faces` form across an edge they share: (b, d) for
+    the edge (a, c) of triangles (a, b, c) and (a, c, d); as keys like `_edge_keys`."""
+    f = np.asarray(faces, dtype=np.int64)
+    corner = np.concatenate([f[:, [0, 1, 2]], f[:, [1, 2, 0]], f[:, [2, 0, 1]]])  # edge (u, v), opposite w
+    key = np.minimum(corner[:, 0], corner[:, 1]) * n_vertices + np.maximum(corner[:, 0], corner[:, 1])
+    order = np.argsort(key, kind="stable")
+    key, opposite = key[order], corner[order, 2]
+    pair = np.flatnonzero(key[1:] == key[:-1])  # consecutive equal keys: two triangles on one edge
+    b, d = opposite[pair], opposite[pair + 1]
+    return np.unique(np.minimum(b, d) * n_vertices + np.maximum(b, d))
+
+
+def same_surface(faces_a: np.ndarray, faces_b: np.ndarray, n_vertices: int) -> bool:
+    """Whether two triangulations of one vertex set are one surface: the same number of triangles and of edges,
+    and every edge of one either an edge of the other or the other diagonal of a quad it forms (two tools
+    splitting a quad mesh along different diagonals, in any order and winding)."""
+    a, b = np.asarray(faces_a, dtype=np.int64), np.asarray(faces_b, dtype=np.int64)
+    if a.shape != b.shape:
+        return False
+    ea, eb = _edge_keys(a, n_vertices), _edge_keys(b, n_vertices)
+    if len(ea) != len(eb):
+        return False
+    only_a, only_b = np.setdiff1d(ea, eb), np.setdiff1d(eb, ea)
+    return bool(np.isin(only_a, _flipped_edges(b, n_vertices)).all()
+                and np.isin(only_b, _flipped_edges(a, n_vertices)).all())
 
 
 def _check_points(points: np.ndarray, name: str) -> np.ndarray:

@@ -354,11 +354,38 @@ def test_check_comparable_rejects_different_faces():
     v, f = wavy_grid()
     seq = v[None]
     f2 = f.copy()
-    f2[5] = f2[5, ::-1]
+    f2[5] = [0, f.max(), f.max() // 2]  # a face across the sheet: another surface
     with pytest.raises(InputError, match=r"different faces \(first difference at face 5\)"):
         check_comparable(seq, f, seq, f2, "a", "b")
     with pytest.raises(InputError, match=r"different faces \(50 vs 49 faces\)"):
         check_comparable(seq, f, seq, f[:-1], "a", "b")
+
+
+def test_check_comparable_accepts_the_same_quads_split_by_other_diagonals():
+    """A quad grid triangulated by two tools: each quad split along either diagonal, faces in another order and
+    one winding reversed. One surface: compared, with the prediction's faces for both."""
+    from core.metrics import check_comparable, compute_metrics, same_surface
+
+    n = 6
+    idx = np.arange(n * n).reshape(n, n)
+    quads = np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]], -1).reshape(-1, 4)
+    xy = np.stack(np.meshgrid(np.arange(n), np.arange(n), indexing="ij"), -1).reshape(-1, 2) * 0.1
+    v = np.c_[xy, np.sin(xy[:, 0] * 3) * 0.05]
+    a = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])  # every quad along a-c
+    flip = np.random.default_rng(0).random(len(quads)) < 0.5
+    b = np.concatenate([np.where(flip[:, None], quads[:, [0, 1, 3]], quads[:, [0, 1, 2]]),
+                        np.where(flip[:, None], quads[:, [1, 2, 3]], quads[:, [0, 2, 3]])])
+    b = b[np.random.default_rng(1).permutation(len(b))]
+    b[0] = b[0, ::-1]
+    assert flip.any() and not np.array_equal(a, b)
+    assert same_surface(a, b, len(v)) and same_surface(b, a, len(v))
+    check_comparable(v[None], a, v[None] + 0.01, b, "pred", "gt")
+    assert compute_metrics(v[None], v[None] + 0.01, a).overall["e_verts"] == pytest.approx(np.sqrt(3) * 10)
+    c = a.copy()
+    c[0] = [0, 7, 35]  # one triangle across the grid instead: another surface
+    assert not same_surface(a, c, len(v))
+    with pytest.raises(InputError, match="different faces"):
+        check_comparable(v[None], a, v[None], c, "pred", "gt")
 
 
 def test_self_intersection_pct_counts_faces_per_frame():
