@@ -203,10 +203,13 @@ def _triangles(counts: np.ndarray, indices: np.ndarray):
     return indices[corners].astype(np.int64), corners
 
 
-def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str) -> MeshTrack:
+def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str, to_world: np.ndarray | None = None) -> MeshTrack:
+    """The mesh's points at every time sample, placed by its transforms (each sample's local-to-world matrix)
+    and then by `to_world` (4, 4), the stage's units and up axis into metres Z-up (None: as they are)."""
     points_attr = mesh.GetPointsAttr()
     times = points_attr.GetTimeSamples()
-    frames = [points_attr.Get(Usd.TimeCode(t)) for t in times] if times else [points_attr.Get()]
+    codes = [Usd.TimeCode(t) for t in times] if times else [Usd.TimeCode.Default()]
+    frames = [points_attr.Get(code) for code in codes]
     if not frames or frames[0] is None:
         raise InputError(f"{where}: mesh '{name}' has no points")
     sizes = {len(f) for f in frames}
@@ -214,6 +217,13 @@ def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str) -> MeshTrack:
         raise InputError(f"{where}: mesh '{name}' expected the same point count at every time sample, "
                          f"got {sorted(sizes)}")
     points = np.stack([np.asarray(f, dtype=np.float32) for f in frames]).reshape(len(frames), -1, 3)
+    xform = UsdGeom.Xformable(mesh.GetPrim())
+    for k, code in enumerate(codes):
+        m = np.array(xform.ComputeLocalToWorldTransform(code), dtype=np.float64)  # row vectors: p' = [p, 1] M
+        if to_world is not None:
+            m = m @ to_world
+        if not np.allclose(m, np.eye(4)):
+            points[k] = (points[k].astype(np.float64) @ m[:3, :3] + m[3, :3]).astype(np.float32)
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], dtype=np.int64)
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], dtype=np.int64)
     if counts.sum() != len(indices):
@@ -241,8 +251,9 @@ def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str) -> MeshTrack:
 def read_usd(path: str | os.PathLike) -> UsdSequence:
     """Read every UsdGeom.Mesh of a stage as a `MeshTrack` keyed by prim name.
 
-    Points are all time samples of each mesh in time order (T, V, 3) float32 in
-    stage units (a stage that is not Z-up or metres is read as it is); faces
+    Points are all time samples of each mesh in time order (T, V, 3) float32, placed by the mesh's
+    transforms and converted from the stage's authored units (`metersPerUnit`) and up axis (a Y-up stage
+    is turned +90 degrees about X) into this tool's world, metres Z-up (unauthored: read as metres Z-up); faces
     are fan-triangulated (F, 3) int64; uvs the face-varying `st` primvar per
     triangle corner. Returns UsdSequence(tracks, fps = timeCodesPerSecond,
     start_frame = startTimeCode or the first sample, metadata = customLayerData).
@@ -266,6 +277,12 @@ def read_usd(path: str | os.PathLike) -> UsdSequence:
     if stage is None:
         raise InputError(f"{where}: cannot be opened as USD")
 
+    # Only authored metadata counts: USD's fallbacks (centimetres, Y-up) would turn a stage written without
+    # them, as simple exporters write, into something it did not mean.
+    unit = UsdGeom.GetStageMetersPerUnit(stage) if stage.HasAuthoredMetadata("metersPerUnit") else 1.0
+    to_world = np.diag([unit] * 3 + [1.0])  # stage units -> metres
+    if stage.HasAuthoredMetadata("upAxis") and UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.y:
+        to_world = to_world @ np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
     tracks: dict[str, MeshTrack] = {}
     first_time = None
     for prim in stage.Traverse():
@@ -275,7 +292,7 @@ def read_usd(path: str | os.PathLike) -> UsdSequence:
         if name in tracks:
             name = str(prim.GetPath()).strip("/").replace("/", "_")
         mesh = UsdGeom.Mesh(prim)
-        tracks[name] = _read_mesh(mesh, name, where)
+        tracks[name] = _read_mesh(mesh, name, where, to_world)
         times = mesh.GetPointsAttr().GetTimeSamples()
         if times and (first_time is None or times[0] < first_time):
             first_time = times[0]

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from pxr import Sdf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from core.errors import InputError
 from formats.usd import MeshTrack, read_usd, read_usd_stage, write_usd_stage
@@ -109,6 +109,29 @@ def test_read_quads_fan_triangulated(tmp_path):
     cloth = seq.tracks["cloth"]
     assert cloth.points.shape == (1, 5, 3)
     np.testing.assert_array_equal(cloth.faces, [[0, 1, 2], [0, 2, 3], [1, 4, 2]])
+
+
+def test_a_y_up_centimetre_stage_with_transforms_reads_in_metres_z_up(tmp_path):
+    """Another tool's stage (Y-up, centimetres, the mesh under a moving Xform, as Houdini or Blender export it)
+    reads as the same mesh in this tool's world (metres, Z-up): what `metrics` compares a bake against."""
+    ours = np.array([[0.0, 0.0, 1.0], [0.5, 0.0, 1.0], [0.0, 0.2, 1.5]])  # metres, Z-up, two frames apart by t
+    path = tmp_path / "houdini.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    xf = UsdGeom.Xform.Define(stage, "/scene")
+    op = xf.AddTranslateOp()
+    mesh = UsdGeom.Mesh.Define(stage, "/scene/cloth")
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    for t in (0, 1):
+        world_yup_cm = (ours + [0.1 * t, 0, 0]) @ np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]) * 100  # Z-up -> Y-up
+        shift = np.array([30.0 * t, 0, 0])  # cm, along x: the Xform carries part of the motion
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray([Gf.Vec3f(*p) for p in (world_yup_cm - shift).tolist()]), t)
+        op.Set(Gf.Vec3d(*shift.tolist()), t)
+    stage.GetRootLayer().Save()
+    cloth = read_usd(path).tracks["cloth"]
+    np.testing.assert_allclose(cloth.points, [ours, ours + [0.1, 0, 0]], atol=1e-5)
 
 
 def test_bad_input(tmp_path):

@@ -132,8 +132,13 @@ def test_different_vertex_counts(tmp_path, seq):
 def test_different_faces(tmp_path, seq):
     pts, f = seq
     a = save_seq(tmp_path / "a.npz", pts, f)
-    b = save_seq(tmp_path / "b.npz", pts, f[:, ::-1])
+    other = f.copy()
+    other[0] = [0, 48, 24]  # a triangle across the grid: another surface
+    b = save_seq(tmp_path / "b.npz", pts, other)
     assert_clean_failure(run([a, b]), "a.npz", "b.npz", "different faces")
+    c = save_seq(tmp_path / "c.npz", pts, f[::-1, ::-1])  # the same triangles, reversed order and winding
+    r = run([a, c])
+    assert r.exit_code == 0 and "E_verts" in r.output
 
 
 def test_different_frame_counts(tmp_path, seq):
