@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
+import numpy as np
 
 from core.errors import InputError
 from garmentcli.common import betas_option, input_errors_as_click, source_fps_option
@@ -25,6 +26,26 @@ def _inside_fn(depth_m: float):
     from core.metrics import frames_inside
 
     return frames_inside(lambda points, verts, faces: points_inside_mesh(points, verts, faces, depth=depth_m))
+
+
+#: (what to tell, matrix applied to GT's points as row vectors): frame and unit mix-ups of another tool's output.
+_GT_FIXES = (("is Y-up: turned to Z-up", np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], dtype=np.float64)),
+             ("is in centimetres", np.eye(3) * 0.01),
+             ("is Y-up and in centimetres", np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], dtype=np.float64) * 0.01))
+
+
+def frame_hint(pred: np.ndarray, gt: np.ndarray) -> str:
+    """"" or, when one of `_GT_FIXES` brings GT's first frame 10x closer to PRED's and within 5 cm (mean vertex
+    distance), what it looks like: "looks as if it is Y-up: turned to Z-up, its first frame is 3.1 mm from
+    PRED's, not 1,204 mm: convert it ..."."""
+    pred, gt = np.asarray(pred, dtype=np.float64), np.asarray(gt, dtype=np.float64)
+    now = float(np.linalg.norm(pred - gt, axis=1).mean())
+    for what, m in _GT_FIXES:
+        fixed = float(np.linalg.norm(pred - gt @ m, axis=1).mean())
+        if fixed < 0.05 and fixed * 10 < now:
+            return (f"looks as if it {what}, its first frame is {fixed * 1e3:.1f} mm from PRED's, not "
+                    f"{now * 1e3:,.0f} mm: convert it to this tool's world (metres, Z-up)")
+    return ""
 
 
 def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="motion",
@@ -123,6 +144,10 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
         result.metadata.update({"body_from": str(pred if body is p_seq else gt), "penetration_depth_mm": depth_mm})
 
     click.echo(overall_markdown(result), nl=False)
+    hint = frame_hint(p_seq.points[0], g_seq.points[0])
+    if hint:
+        click.echo(f"warning: '{gt}' {hint}", err=True)
+        result.metadata["frame_hint"] = hint
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)  # an existing directory: write_report puts metrics.* inside
         for path in write_report(result, out_dir, formats):

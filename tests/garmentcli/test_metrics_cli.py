@@ -181,3 +181,22 @@ def test_body_from_motion_matches_bake_penetration(scene):
     assert_clean_failure(bad, "--motion", "frames")
     assert_clean_failure(run([d / "obj", d / "obj", "--body", scene["body"]]), "--body", "--motion")
 
+
+
+def test_a_ground_truth_in_another_frame_is_pointed_out(tmp_path, seq):
+    """GT written Y-up (or in centimetres) by another tool: the metrics are printed as they are, with one warning
+    naming the likely mix-up; a GT in this tool's world gets none."""
+    pts, f = seq
+    pts = pts + [0.0, 0.0, 1.0]  # a garment at waist height
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    to_y_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=np.float64)  # (x, y, z) -> (x, z, -y)
+    for name, gt, needle in (("yup.npz", pts @ to_y_up, "looks as if it is Y-up"),
+                             ("cm.npz", pts * 100, "looks as if it is in centimetres")):
+        b = save_seq(tmp_path / name, gt + 0.001, f)
+        r = run([a, b, "--out", tmp_path / name.replace(".npz", "")])
+        assert r.exit_code == 0 and "E_verts" in r.output
+        assert f"warning: '{b}' {needle}" in r.output and "convert it" in r.output
+        meta = json.loads((tmp_path / name.replace(".npz", "") / "metrics.json").read_text())["metadata"]
+        assert needle in meta["frame_hint"]
+    r = run([a, save_seq(tmp_path / "same.npz", pts + 0.001, f)])
+    assert r.exit_code == 0 and "warning" not in r.output
