@@ -111,9 +111,17 @@ def read_manifest(data_dir: str | os.PathLike) -> dict | None:
 
 
 def copy_garment_template(data_dir: str | os.PathLike, source: str | os.PathLike, name: str) -> Path:
-    """Copy a garment OBJ to DATA/garments/<name>.obj (atomically; an identical copy is left alone)."""
+    """Copy a garment OBJ to DATA/garments/<name>.obj (atomically; an identical copy is left alone); a USD
+    garment is written there as the OBJ of the garment it reads as."""
+    from formats.obj import USD_SUFFIXES, read_garment, write_obj
+
     source = Path(source)
     target = Path(data_dir) / "garments" / f"{name}.obj"
+    if source.suffix.lower() in USD_SUFFIXES:
+        g = read_garment(source)
+        with atomic_file(target) as tmp:
+            write_obj(tmp, g.vertices, g.faces, g.uvs, g.face_uvs, header=f"garment '{source.name}', read as OBJ")
+        return target
     if target.is_file() and target.read_bytes() == source.read_bytes():
         return target
     with atomic_file(target) as tmp:

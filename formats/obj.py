@@ -215,24 +215,25 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
             raise InputError(f"{label} '{path}': {what} index {int(largest[k]) + 1} out of range on line "
                              f"{f_numbers[k]}, the file has {count} {plural}")
     if ngons:
-        polygons, polygon_uvs = _split_ngons(vertices, polygons, polygon_uvs, ngons, f_numbers, label, path)
+        polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons,
+                                            lambda k: f"on line {f_numbers[k]}", label, path)
     relative = any("-" in line for line in f_lines)
     return ObjPolygons(vertices, polygons, uvs if all_uv else None, polygon_uvs if all_uv else None,
                        tuple(f_lines), len(vt_rows), relative)
 
 
-def _split_ngons(vertices, polygons, polygon_uvs, ngons, f_numbers, label, path):
+def split_ngons(vertices, polygons, polygon_uvs, ngons, where, label, path):
     """Polygons and polygon uvs with each n-gon's row replaced by its first triangle, the others appended.
 
-    ngons: (face, corners (n,), corner uvs (n,)); triangles by `ear_clip` in the polygon's plane. Raises
-    InputError naming the line of an n-gon that crosses itself or has no area.
+    ngons: (face, corners (n,), corner uvs (n,)); triangles by `ear_clip` in the polygon's plane. where(face):
+    how an error names the face ("on line 8"). Raises InputError for an n-gon that crosses itself or has no area.
     """
     rows, uv_rows = [polygons], [polygon_uvs]
     for k, corners, corner_uvs in ngons:
         tris = ear_clip(vertices[corners])
         if tris is None:
-            raise InputError(f"{label} '{path}': cannot split the face with {len(corners)} vertices on line "
-                             f"{f_numbers[k]} into triangles: it crosses itself or has no area")
+            raise InputError(f"{label} '{path}': cannot split the face with {len(corners)} vertices {where(k)} "
+                             f"into triangles: it crosses itself or has no area")
         tri_rows = np.full((len(tris), 4), -1, dtype=np.int64)
         tri_rows[:, :3] = corners[tris]
         tri_uvs = np.full((len(tris), 4), -1, dtype=np.int64)
@@ -449,6 +450,19 @@ def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None,
     return vertices, faces, face_uvs
 
 
+#: Garment files read as USD stages (`formats.usd.read_usd_garment`); every other is read as OBJ.
+USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
+
+
+def read_garment(path: str | os.PathLike) -> Garment:
+    """A garment file: a USD stage (by its suffix, `USD_SUFFIXES`) or else an OBJ (`read_obj`)."""
+    if Path(path).suffix.lower() in USD_SUFFIXES:
+        from formats.usd import read_usd_garment
+
+        return read_usd_garment(path)
+    return read_obj(path)
+
+
 def read_obj(path: str | os.PathLike) -> Garment:
     """Read a garment mesh from an OBJ file into a validated `Garment`.
 
@@ -466,20 +480,27 @@ def read_obj(path: str | os.PathLike) -> Garment:
     path = Path(path)
     label = "garment mesh"
     obj = parse_obj(path, label)
-    faces, face_uvs, _ = triangulate(obj.vertices, obj.polygons, obj.polygon_uvs)
-    faces, welded = _weld(obj.vertices, faces, label, path)
-    vertices, faces, face_uvs = _clean(obj.vertices, faces, face_uvs, label, path, welded)
-    uvs = None
+    return garment_from_polygons(obj.vertices, obj.polygons, obj.uvs, obj.polygon_uvs, label, path)
+
+
+def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
+                          polygon_uvs: np.ndarray | None, label: str, path: Path) -> Garment:
+    """The validated `Garment` of a file's polygons (see `ObjPolygons`): quads split, seams welded, degenerate
+    and duplicate faces and unused vertices and UVs dropped (each warned), named after the file's stem."""
+    faces, face_uvs, _ = triangulate(vertices, polygons, polygon_uvs)
+    faces, welded = _weld(vertices, faces, label, path)
+    vertices, faces, face_uvs = _clean(vertices, faces, face_uvs, label, path, welded)
+    garment_uvs = None
     if face_uvs is not None and len(faces):
         used_uv = np.unique(face_uvs)
-        uv_remap = np.full(len(obj.uvs), -1, dtype=np.int64)
+        uv_remap = np.full(len(uvs), -1, dtype=np.int64)
         uv_remap[used_uv] = np.arange(len(used_uv))
-        uvs = obj.uvs[used_uv].astype(np.float32)
+        garment_uvs = uvs[used_uv].astype(np.float32)
         face_uvs = uv_remap[face_uvs]
     else:
         face_uvs = None
     garment = Garment(vertices=vertices.astype(np.float32), faces=faces.astype(np.int64),
-                      uvs=uvs, face_uvs=face_uvs, name=path.stem)
+                      uvs=garment_uvs, face_uvs=face_uvs, name=path.stem)
     validate_garment(garment, source=str(path))
     return garment
 

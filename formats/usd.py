@@ -248,19 +248,11 @@ def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str, to_world: np.ndarray |
     return MeshTrack(name=name, points=points, faces=faces, uvs=uvs, color=color)
 
 
-def read_usd(path: str | os.PathLike) -> UsdSequence:
-    """Read every UsdGeom.Mesh of a stage as a `MeshTrack` keyed by prim name.
+#: Y-up to Z-up for row vectors, (x, y, z) -> (x, -z, y); its transpose turns Z-up to Y-up.
+_Y_TO_Z = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
 
-    Points are all time samples of each mesh in time order (T, V, 3) float32, placed by the mesh's
-    transforms and converted from the stage's authored units (`metersPerUnit`) and up axis (a Y-up stage
-    is turned +90 degrees about X) into this tool's world, metres Z-up (unauthored: read as metres Z-up); faces
-    are fan-triangulated (F, 3) int64; uvs the face-varying `st` primvar per
-    triangle corner. Returns UsdSequence(tracks, fps = timeCodesPerSecond,
-    start_frame = startTimeCode or the first sample, metadata = customLayerData).
-    Raises InputError for a missing or unreadable file or a stage without meshes.
-    """
-    path = Path(path)
-    where = f"USD stage '{path}'"
+
+def _open_stage(path: Path, where: str) -> Usd.Stage:
     if not path.exists():
         raise InputError(f"{where}: file not found")
     if path.is_dir():
@@ -276,13 +268,104 @@ def read_usd(path: str | os.PathLike) -> UsdSequence:
         raise InputError(f"{where}: cannot be opened as USD ({detail})") from None
     if stage is None:
         raise InputError(f"{where}: cannot be opened as USD")
+    return stage
 
-    # Only authored metadata counts: USD's fallbacks (centimetres, Y-up) would turn a stage written without
-    # them, as simple exporters write, into something it did not mean.
+
+def _stage_to(stage: Usd.Stage, up: str) -> np.ndarray:
+    """(4, 4) for row vectors: the stage's units to metres and its up axis to `up` ("Y" or "Z").
+
+    Only authored metadata counts: USD's fallbacks (centimetres, Y-up) would turn a stage written without
+    them, as simple exporters write, into something it did not mean; unauthored, a stage is metres in `up`.
+    """
     unit = UsdGeom.GetStageMetersPerUnit(stage) if stage.HasAuthoredMetadata("metersPerUnit") else 1.0
-    to_world = np.diag([unit] * 3 + [1.0])  # stage units -> metres
-    if stage.HasAuthoredMetadata("upAxis") and UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.y:
-        to_world = to_world @ np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
+    m = np.diag([unit] * 3 + [1.0])
+    if stage.HasAuthoredMetadata("upAxis"):
+        axis = "Y" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.y else "Z"
+        if axis != up:
+            m = m @ (_Y_TO_Z if up == "Z" else _Y_TO_Z.T)
+    return m
+
+
+def read_usd_garment(path: str | os.PathLike):
+    """A garment from a USD stage: its one mesh (or its mesh named 'garment', as a bake's stage has), at the
+    static value or else the first time sample, placed by its transforms, in the body's rest frame (metres,
+    Y-up: a stage that authors Z-up is turned, other units scaled). Quads and larger polygons split, seams
+    welded and the result cleaned as `formats.obj.read_obj` does; `st` (face-varying or per vertex) kept.
+    Raises InputError naming the file.
+    """
+    from formats.obj import MAX_POLYGON_VERTICES, garment_from_polygons, split_ngons
+
+    path = Path(path)
+    label = "garment mesh"
+    where = f"{label} '{path}'"
+    stage = _open_stage(path, where)
+    meshes = [UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+    named = [m for m in meshes if m.GetPrim().GetName() == "garment"]
+    if len(meshes) != 1 and len(named) != 1:
+        names = ", ".join(str(m.GetPath()) for m in meshes[:6]) or "none"
+        raise InputError(f"{where}: expected one mesh (or one named 'garment'), got {len(meshes)}: {names}")
+    mesh = meshes[0] if len(meshes) == 1 else named[0]
+    points_attr = mesh.GetPointsAttr()
+    times = points_attr.GetTimeSamples()
+    code = Usd.TimeCode.Default() if points_attr.Get(Usd.TimeCode.Default()) is not None or not times \
+        else Usd.TimeCode(times[0])
+    value = points_attr.Get(code)
+    if value is None or len(value) == 0:
+        raise InputError(f"{where}: mesh '{mesh.GetPath()}' has no points")
+    m = np.array(UsdGeom.Xformable(mesh.GetPrim()).ComputeLocalToWorldTransform(code), dtype=np.float64)
+    m = m @ _stage_to(stage, "Y")
+    vertices = np.asarray(value, dtype=np.float64).reshape(-1, 3) @ m[:3, :3] + m[3, :3]
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], dtype=np.int64)
+    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], dtype=np.int64)
+    if counts.sum() != len(indices):
+        raise InputError(f"{where}: expected {int(counts.sum())} face vertex indices, got {len(indices)}")
+    if len(indices) and (indices.min() < 0 or indices.max() >= len(vertices)):
+        raise InputError(f"{where}: face vertex index {int(indices.max())} out of range for {len(vertices)} points")
+    bad = (counts < 3) | (counts > MAX_POLYGON_VERTICES)
+    if bad.any():
+        raise InputError(f"{where}: expected faces of 3 to {MAX_POLYGON_VERTICES} vertices, got a face with "
+                         f"{int(counts[np.argmax(bad)])} vertices (face {int(np.argmax(bad))})")
+    uvs, uv_index = None, None
+    st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    if st and st.HasValue():
+        flat = st.ComputeFlattened(code)
+        if flat is not None and st.GetInterpolation() == UsdGeom.Tokens.faceVarying and len(flat) == len(indices):
+            uvs, uv_index = np.asarray(flat, dtype=np.float64).reshape(-1, 2), np.arange(len(indices))
+        elif flat is not None and st.GetInterpolation() in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) \
+                and len(flat) == len(vertices):
+            uvs, uv_index = np.asarray(flat, dtype=np.float64).reshape(-1, 2), indices
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    polygons = np.full((len(counts), 4), -1, dtype=np.int64)
+    polygon_uvs = np.full((len(counts), 4), -1, dtype=np.int64)
+    ngons = []
+    for k, (start, n) in enumerate(zip(starts.tolist(), counts.tolist())):
+        corners = indices[start:start + n]
+        corner_uvs = uv_index[start:start + n] if uv_index is not None else np.full(n, -1, dtype=np.int64)
+        if n <= 4:
+            polygons[k, :n], polygon_uvs[k, :n] = corners, corner_uvs
+        else:
+            ngons.append((k, corners, corner_uvs))
+    if ngons:
+        polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons, lambda k: f"(face {k})",
+                                            label, path)
+    return garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path)
+
+
+def read_usd(path: str | os.PathLike) -> UsdSequence:
+    """Read every UsdGeom.Mesh of a stage as a `MeshTrack` keyed by prim name.
+
+    Points are all time samples of each mesh in time order (T, V, 3) float32, placed by the mesh's
+    transforms and converted from the stage's authored units (`metersPerUnit`) and up axis (a Y-up stage
+    is turned +90 degrees about X) into this tool's world, metres Z-up (unauthored: read as metres Z-up); faces
+    are fan-triangulated (F, 3) int64; uvs the face-varying `st` primvar per
+    triangle corner. Returns UsdSequence(tracks, fps = timeCodesPerSecond,
+    start_frame = startTimeCode or the first sample, metadata = customLayerData).
+    Raises InputError for a missing or unreadable file or a stage without meshes.
+    """
+    path = Path(path)
+    where = f"USD stage '{path}'"
+    stage = _open_stage(path, where)
+    to_world = _stage_to(stage, "Z")
     tracks: dict[str, MeshTrack] = {}
     first_time = None
     for prim in stage.Traverse():

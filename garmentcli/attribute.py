@@ -59,13 +59,13 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     from core.model_data import prepare_garment
     from formats.atomic import atomic_dir
     from formats.checkpoint import load_model
-    from formats.obj import read_obj
+    from formats.obj import read_garment
 
     if not np.isfinite(fps) or fps <= 0:
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
     vertices = _read_vertices(vertices_path) if vertices_path else None
     model, _ = load_model(model_path)
-    garment = read_obj(garment_path)
+    garment = read_garment(garment_path)
     body = load_body_option(body_path)
     motion, _ = prepare_motion(motion_path, fps, None, 0)
     out = Path(out_dir or f"{Path(garment_path).stem}_{Path(motion_path).stem}_f{frame}_attribution")

@@ -141,7 +141,7 @@ _CONTEXT: dict = {}
 
 def _context(spec: BakeSpec):
     if spec not in _CONTEXT:
-        from formats.obj import read_obj
+        from formats.obj import read_garment
 
         _CONTEXT.clear()
         if spec.threads:
@@ -151,7 +151,7 @@ def _context(spec: BakeSpec):
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
                                  spec.no_skip, spec.contact_guard)
-        garment = read_obj(spec.garment_path)
+        garment = read_garment(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
         _CONTEXT[spec] = (garment, body, deformer)
@@ -278,12 +278,12 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="motion", source_fps=None, warned=()):
-    """Bake GARMENT (OBJ on the body's rest pose) over each MOTION (AMASS-style .npz).
+    """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
     time-sampled, Z-up, metres), obj/frame_NNNN.obj and summary.json.
     """
-    from formats.obj import read_obj
+    from formats.obj import read_garment
 
     if not np.isfinite(fps) or fps <= 0:
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
@@ -305,7 +305,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     for p in (garment_path, *motion_paths):
         if not Path(p).is_file():
             raise click.FileError(p, hint="no such file")
-    garment = read_obj(garment_path)
+    garment = read_garment(garment_path)
     body = load_body_option(body_path)
     out_dir = Path(out_dir)
     targets = [(m, out_dir / f"{Path(garment_path).stem}_{Path(m).stem}") for m in motion_paths]

@@ -42,10 +42,10 @@ def _load_motions(motion_paths, library: bool, fps: float) -> dict:
 
 def _worker_init(garment_paths, motion_paths, library, body_path, fps, material, options):
     from core.sim import SimDeformer
-    from formats.obj import read_obj
+    from formats.obj import read_garment
     from garmentcli.common import load_body_option
 
-    _W["garments"] = {Path(p).stem: read_obj(p) for p in garment_paths}
+    _W["garments"] = {Path(p).stem: read_garment(p) for p in garment_paths}
     _W["motions"] = _load_motions(motion_paths, library, fps)
     _W["body"] = load_body_option(body_path)
     _W["deformer"] = SimDeformer(material, options)
@@ -141,7 +141,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         sequence_path,
         write_manifest,
     )
-    from formats.obj import read_obj
+    from formats.obj import read_garment
     from garmentcli.common import load_body_option
 
     if no_held_out:
@@ -152,7 +152,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     out = Path(out_dir)
     material = load_material(material_path) if material_path else Material()
     options = SimOptions(substeps=substeps, iterations=iterations, self_contact=self_contact, pin=pin)
-    garments = {Path(p).stem: read_obj(p) for p in garment_paths}  # validates every garment before any work
+    garments = {Path(p).stem: read_garment(p) for p in garment_paths}  # validates every garment before any work
     if len(garments) != len(garment_paths):
         raise click.BadParameter("expected distinct file names (stems)", param_hint="--garments")
     if not motion_paths and not library:

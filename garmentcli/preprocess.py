@@ -45,19 +45,19 @@ def summary_lines(path: str, p: Preprocessed, cache_note: str) -> list[str]:
               help="Write OUT_DIR/<garment>_hierarchy.png with the levels side by side.")
 @input_errors_as_click
 def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache, render_dir):
-    """Preprocess each GARMENT (OBJ on the body's rest pose) for the learned model.
+    """Preprocess each GARMENT (OBJ or USD, on the body's rest pose) for the learned model.
 
     Builds vertex features, the pooling hierarchy, the Nystrom style descriptor
     and the self-collision near set, stores them in the cache (keyed by the
     mesh's content, the settings and the body) and prints a summary.
     """
     from formats.cache import cache_path, default_cache_dir
-    from formats.obj import read_obj
+    from formats.obj import read_garment
 
     body = load_body_option(body_path)
     directory = None if no_cache else Path(cache_dir) if cache_dir else default_cache_dir()
     for path in garment_paths:
-        garment = read_obj(path)
+        garment = read_garment(path)
         p = preprocess_garment(garment, body, levels=levels, n_landmarks=landmarks, cache_dir=directory)
         if directory is None:
             note = "cache off"

@@ -96,7 +96,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     simulator at two substep settings with and without self-contact. The finest simulation with
     self-contact is the reference the errors are measured against.
     """
-    from formats.obj import read_obj
+    from formats.obj import read_garment
 
     for p in (garment_path, motion_path):
         if not Path(p).is_file():
@@ -118,7 +118,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         click.echo(f"tradeoff: discarding the simulator rows an interrupted run left in '{staged}' (--reuse-sim "
                    "would take them)", err=True)
         shutil.rmtree(staged)
-    garment = read_obj(garment_path)
+    garment = read_garment(garment_path)
     body = load_body_option(body_path)
     motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps)
     from formats.cache import default_cache_dir

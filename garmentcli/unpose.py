@@ -25,7 +25,7 @@ from garmentcli.common import body_option, input_errors_as_click, load_body_opti
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 @input_errors_as_click
 def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite):
-    """Move GARMENT (OBJ), authored on the body in another pose, to the body's rest pose (T-pose).
+    """Move GARMENT (OBJ or USD), authored on the body in another pose, to the body's rest pose (T-pose).
 
     Each vertex follows the body part it lies on, by the inverse of the linear blend skinning that
     `bake --method lbs` applies. Writes an OBJ (UVs kept) that `bake` and the other commands accept.
@@ -35,7 +35,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     from core.unpose import a_pose, unpose_garment
     from formats.atomic import atomic_file
     from formats.motion import load_motion
-    from formats.obj import read_obj, write_obj
+    from formats.obj import read_garment, write_obj
 
     source = Path(garment_path)
     if not source.is_file():
@@ -67,7 +67,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
                                  param_hint="--pose")
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
-    garment = read_obj(source)
+    garment = read_garment(source)
     rest, report = unpose_garment(garment, body, pose, betas, source=str(source))
     bind_garment(rest, body, source=str(out))  # the result must be what bake accepts: refused or warned here
     with atomic_file(out) as tmp:

@@ -168,3 +168,53 @@ def test_write_rejects_bad_tracks(tmp_path):
     with pytest.raises(InputError, match=r"expected a .usd, .usda or .usdc file name, got '.abc'"):
         write_usd_stage(tmp_path / "x.abc", tracks, fps=30)
     assert not (tmp_path / "x.usd").exists()
+
+
+def test_a_usd_garment_reads_as_its_obj(tmp_path):
+    """The example skirt written by another tool as USD (Z-up, centimetres, under a translated Xform, UVs
+    face-varying) reads as the OBJ garment; `bake` takes it."""
+    from pathlib import Path
+
+    from formats.obj import read_garment, read_obj
+
+    skirt = read_obj(Path(__file__).resolve().parents[2] / "examples" / "skirt.obj")
+    path = tmp_path / "skirt.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    UsdGeom.Xform.Define(stage, "/set").AddTranslateOp().Set(Gf.Vec3d(10.0, 20.0, 30.0))
+    mesh = UsdGeom.Mesh.Define(stage, "/set/skirt_geo")
+    z_up_cm = skirt.vertices.astype(np.float64) @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]) * 100  # Y-up m -> Z-up cm
+    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in (z_up_cm - [10, 20, 30]).tolist()]))
+    mesh.CreateFaceVertexCountsAttr([3] * skirt.n_faces)
+    mesh.CreateFaceVertexIndicesAttr(skirt.faces.ravel().tolist())
+    st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                 UsdGeom.Tokens.faceVarying)
+    st.Set(Vt.Vec2fArray([Gf.Vec2f(*uv) for uv in skirt.uvs[skirt.face_uvs.ravel()].tolist()]))
+    stage.GetRootLayer().Save()
+    g = read_garment(path)
+    assert g.name == "skirt" and g.n_vertices == skirt.n_vertices
+    np.testing.assert_array_equal(g.faces, skirt.faces)
+    np.testing.assert_allclose(g.vertices, skirt.vertices, atol=1e-5)
+    np.testing.assert_allclose(g.uvs[g.face_uvs], skirt.uvs[skirt.face_uvs], atol=1e-6)
+    from tests.garmentcli.cli import invoke
+
+    motion = Path(__file__).resolve().parents[2] / "examples" / "walk.npz"
+    r = invoke(["bake", path, motion, "--frames", "0:4", "--out", tmp_path / "out", "--no-obj"])
+    assert r.exit_code == 0 and (tmp_path / "out" / "skirt_walk" / "summary.json").is_file(), r.output
+
+
+def test_a_usd_garment_with_several_meshes_is_refused_unless_one_is_the_garment(tmp_path):
+    from formats.obj import read_garment
+
+    path = tmp_path / "scene.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    for name in ("avatar", "shirt"):
+        mesh = UsdGeom.Mesh.Define(stage, f"/{name}")
+        mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0)])
+        mesh.CreateFaceVertexCountsAttr([3])
+        mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    stage.GetRootLayer().Save()
+    with pytest.raises(InputError, match=r"scene.usda': expected one mesh \(or one named 'garment'\), got 2: /avatar, "
+                                         r"/shirt"):
+        read_garment(path)
