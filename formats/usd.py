@@ -188,7 +188,27 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
         layer.Reload(True)
 
 
-def _triangles(counts: np.ndarray, indices: np.ndarray):
+def _triangles(counts: np.ndarray, indices: np.ndarray, points: np.ndarray | None = None):
+    """Triangulate polygons: a fan, and polygons of more than 4 corners by `formats.obj.ear_clip` in their
+    plane at `points` (V, 3) when given (a concave one's fan would leave it). Returns faces (F, 3) int64 and
+    the (F, 3) face-corner ids they use."""
+    faces, corners = _fan(counts, indices)
+    big = np.flatnonzero(counts > 4)
+    if points is not None and len(big):
+        from formats.obj import ear_clip
+
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        first = np.concatenate([[0], np.cumsum(np.maximum(counts - 2, 0))[:-1]]).astype(np.int64)
+        for k in big:  # ear clipping makes n - 2 triangles, as the fan: they take the fan's rows
+            local = ear_clip(points[indices[starts[k]:starts[k] + counts[k]]])
+            if local is not None:
+                rows = slice(first[k], first[k] + counts[k] - 2)
+                corners[rows] = starts[k] + local
+                faces[rows] = indices[corners[rows]]
+    return faces, corners
+
+
+def _fan(counts: np.ndarray, indices: np.ndarray):
     """Fan-triangulate polygons. Returns faces (F, 3) int64 and the (F, 3) face-corner ids they use."""
     counts = counts.astype(np.int64)
     if counts.size and (counts == 3).all():
@@ -229,7 +249,7 @@ def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str, to_world: np.ndarray |
     if counts.sum() != len(indices):
         raise InputError(f"{where}: mesh '{name}' expected {int(counts.sum())} face vertex indices, "
                          f"got {len(indices)}")
-    faces, corners = _triangles(counts, indices)
+    faces, corners = _triangles(counts, indices, points[0])
     if faces.size and (faces.min() < 0 or faces.max() >= points.shape[1]):
         raise InputError(f"{where}: mesh '{name}' face index {int(faces.max())} out of range for "
                          f"{points.shape[1]} points")

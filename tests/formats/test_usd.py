@@ -218,3 +218,20 @@ def test_a_usd_garment_with_several_meshes_is_refused_unless_one_is_the_garment(
     with pytest.raises(InputError, match=r"scene.usda': expected one mesh \(or one named 'garment'\), got 2: /avatar, "
                                          r"/shirt"):
         read_garment(path)
+
+
+def test_read_a_concave_polygon_split_inside_it(tmp_path):
+    """An L-shaped hexagon (concave): its four triangles cover the L (area 3), not its hull, as a fan from the
+    first corner would; the triangle before it keeps its row."""
+    path = tmp_path / "ell.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
+    mesh.CreatePointsAttr([(1, 1, 0), (1, 2, 0), (0, 2, 0), (0, 0, 0), (2, 0, 0), (2, 1, 0), (3, 0, 0)])
+    mesh.CreateFaceVertexCountsAttr([3, 6])
+    mesh.CreateFaceVertexIndicesAttr([4, 6, 5, 2, 3, 4, 5, 0, 1])  # from (0, 2): its fan crosses the notch
+    stage.GetRootLayer().Save()
+    cloth = read_usd(path).tracks["cloth"]
+    tri = cloth.points[0][cloth.faces]
+    area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 2]
+    np.testing.assert_array_equal(cloth.faces[0], [4, 6, 5])
+    assert len(cloth.faces) == 5 and np.all(area[1:] > 0) and area[1:].sum() == pytest.approx(3.0)
