@@ -11,7 +11,7 @@ import click
 from tqdm import tqdm
 
 from core.provenance import software_versions
-from garmentcli.common import PIN_CHOICES, PIN_HELP, input_errors_as_click, scheduler_options
+from garmentcli.common import PIN_CHOICES, PIN_HELP, input_errors_as_click, scheduler_options, source_fps_option
 
 
 def _sha256(path) -> str:
@@ -22,12 +22,13 @@ def _sha256(path) -> str:
 _W: dict = {}
 
 
-def _load_motions(motion_paths, library: bool, fps: float) -> dict:
-    """name -> Motion at `fps`: the files, plus the built-in library (core.motiongen.MOTION_LIBRARY) when asked."""
+def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | None = None) -> dict:
+    """name -> Motion at `fps`: the files (read at `source_fps` when given), plus the built-in library
+    (core.motiongen.MOTION_LIBRARY) when asked."""
     from core.motion import resample
     from formats.motion import load_motion
 
-    motions = {Path(p).stem: resample(load_motion(p), fps) for p in motion_paths}
+    motions = {Path(p).stem: resample(load_motion(p, fps=source_fps), fps) for p in motion_paths}
     if len(motions) != len(motion_paths):
         raise click.BadParameter("expected distinct file names (stems)", param_hint="--motions")
     if library:
@@ -40,13 +41,13 @@ def _load_motions(motion_paths, library: bool, fps: float) -> dict:
     return motions
 
 
-def _worker_init(garment_paths, motion_paths, library, body_path, fps, material, options):
+def _worker_init(garment_paths, motion_paths, library, body_path, fps, material, options, source_fps=None):
     from core.sim import SimDeformer
     from formats.obj import read_garment
     from garmentcli.common import load_body_option
 
     _W["garments"] = {Path(p).stem: read_garment(p) for p in garment_paths}
-    _W["motions"] = _load_motions(motion_paths, library, fps)
+    _W["motions"] = _load_motions(motion_paths, library, fps, source_fps)
     _W["body"] = load_body_option(body_path)
     _W["deformer"] = SimDeformer(material, options)
 
@@ -100,6 +101,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_dataset", show_default=True)
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Processes.")
 @click.option("--fps", type=click.FloatRange(min=1.0), default=30.0, show_default=True)
+@source_fps_option
 @click.option("--frames-per-clip", type=click.IntRange(min=2), default=None,
               help="Cut motions into clips of at most this many frames (default: whole motions).")
 @click.option("--max-clips-per-motion", type=click.IntRange(min=1), default=None,
@@ -127,7 +129,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
             pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None, no_held_out=False,
-            dry_run=False):
+            dry_run=False, source_fps=None):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
@@ -157,13 +159,13 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         raise click.BadParameter("expected distinct file names (stems)", param_hint="--garments")
     if not motion_paths and not library:
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
-    motions = _load_motions(motion_paths, library, fps)
+    motions = _load_motions(motion_paths, library, fps, source_fps)
     body = load_body_option(body_path)
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
     items, splits = plan_items(sorted(garments), {k: v.n_frames for k, v in motions.items()}, n_bodies,
                                frames_per_clip, seed, max_clips_per_motion, bodies_per_clip, held_out)
-    settings = {"library": library, "fps": fps, "frames_per_clip": frames_per_clip,
+    settings = {"library": library, "fps": fps, "source_fps": source_fps, "frames_per_clip": frames_per_clip,
                 "max_clips_per_motion": max_clips_per_motion, "settle": settle_frames, "bodies": n_bodies,
                 "bodies_per_clip": bodies_per_clip, "held_out": held_out,
                 "betas_range": betas_range, "seed": seed, "body": body_id, "material": asdict(material),
@@ -201,11 +203,11 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         return
     stats = {}
     task_out = out
-    init = (list(garment_paths), list(motion_paths), library, body_path, fps, material, options)
+    init = (list(garment_paths), list(motion_paths), library, body_path, fps, material, options, source_fps)
     if scheduler:  # workers run elsewhere: absolute paths (on the shared file system)
         task_out = out.resolve()
         init = ([str(Path(p).resolve()) for p in garment_paths], [str(Path(p).resolve()) for p in motion_paths],
-                library, str(Path(body_path).resolve()) if body_path else None, fps, material, options)
+                library, str(Path(body_path).resolve()) if body_path else None, fps, material, options, source_fps)
     calls = [(init, it, betas[it.body], settle_frames, task_out, body_id) for it in todo]
     frames_of = {it.id: it.n_frames + settle_frames for it in todo}
     failed, finished = None, 0

@@ -165,3 +165,21 @@ def test_dataset_dry_run_writes_the_plan_only_and_no_held_out_trains_every_garme
     # Nothing simulated: the plan and the garment templates only.
     assert sorted(p.name for p in (scene["dir"] / "all" / "garments").iterdir()) == ["second.obj", "shell.obj"]
     assert not list((scene["dir"] / "all").glob("sequences/*.npz"))
+
+
+def test_dataset_source_fps_reads_motions_without_a_frame_rate(scene):
+    """Motions without a frame-rate key: refused naming --source-fps; with it, planned at that rate (3 frames at
+    10 fps, 0.2 s, are 7 at the dataset's 30), and the rate keys the plan."""
+    d = scene["dir"]
+    poses = np.zeros((3, 72), np.float32)
+    poses[:, 0] = np.pi / 2
+    for name in ("a", "b"):
+        np.savez(d / f"{name}.npz", poses=poses, trans=np.zeros((3, 3), np.float32))
+    args = ["dataset", "--garments", scene["garment"], "--motions", d / "a.npz", "--motions", d / "b.npz",
+            "--body", scene["body"], "--settle", 0, "--dry-run", "--out", d / "plan"]
+    r = run(*args)
+    assert r.exit_code != 0 and "--source-fps" in r.output and not (d / "plan").exists()
+    r = run(*args, "--source-fps", 10)
+    assert r.exit_code == 0, r.output
+    m = json.loads((d / "plan" / "manifest.json").read_text())
+    assert m["settings"]["source_fps"] == 10.0 and {it["n_frames"] for it in m["items"]} == {7}
