@@ -632,3 +632,22 @@ def test_non_manifold_edges_are_counted_and_said_once(caplog):
     assert sim.non_manifold_edges == 3
     assert caplog.text.count("3 garment edges are shared by more than two faces") == 1
     assert not [w for w in raised if "non-manifold" in str(w.message)]
+
+
+def test_a_garment_down_to_the_soles_is_warned_that_no_floor_is_simulated(caplog):
+    """The shell wraps the tiny body 2 cm out, so it reaches 2 cm below its soles: warned, and the report says
+    how far; the same shell cut to the upper half is not."""
+    body, garment, motion = _shell_scene()
+    d = SimDeformer(options=SimOptions(settle_s=0.0, max_retries=0))
+    with caplog.at_level(logging.WARNING):
+        d.deform(garment, body, motion)
+    assert "below the body's soles at rest, and the simulator has no floor" in caplog.text
+    assert d.report["hem_above_soles_m"] == pytest.approx(garment.vertices[:, 1].min() - body.v_template[:, 1].min())
+    assert d.report["hem_above_soles_m"] < 0
+    upper = garment.faces[(garment.vertices[garment.faces][:, :, 1] > 0).all(axis=1)]
+    used = np.unique(upper)
+    top = Garment(garment.vertices[used], np.searchsorted(used, upper), name="top")
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        SimDeformer(options=SimOptions(settle_s=0.0, max_retries=0)).deform(top, body, motion)
+    assert "no floor" not in caplog.text
