@@ -286,3 +286,26 @@ def test_a_motion_without_a_frame_rate_bakes_with_source_fps(scene):
     assert summary["source_fps"] == 60.0 and summary["frames"] == 6  # 12 frames at 60 fps baked at 30
     r = run(["bake", scene["garment"], d / "norate.npz", "--out", scene["out"], "--source-fps", 0])
     assert_one_line_error(r, "--source-fps")
+
+
+def test_a_bake_too_big_for_the_free_memory_is_refused_before_any_work(scene, monkeypatch):
+    """With room for 2 frames free (psutil reports it), the 12-frame walk (60 fps, baked at 30: 6 frames) is
+    refused naming the motion, the memory and the --frames parts that fit (4 source frames); nothing is written.
+    With the real free memory it bakes."""
+    import types
+
+    import psutil
+
+    from formats.body import load_body
+    from formats.obj import read_obj
+    from garmentcli.bake import BAKE_COPIES
+
+    per_frame = (read_obj(scene["garment"]).n_vertices + load_body(scene["body"]).n_vertices) * 12 * BAKE_COPIES["lbs"]
+    monkeypatch.setattr(psutil, "virtual_memory", lambda: types.SimpleNamespace(available=int(2 * per_frame)))
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]])
+    assert_one_line_error(r, "walk.npz", "6 frames", "is free: bake it in parts of at most 4 source frames",
+                          "--frames START:STOP")
+    assert not scene["out"].exists()
+    monkeypatch.undo()
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
