@@ -404,6 +404,8 @@ def _check_memory(garment, body, motions, method, parallel: int) -> None:
     either, but says nothing. motions: (prepared motion, its source fps, path)."""
     import psutil
 
+    if not motions:  # --skip-existing found every one baked
+        return
     motion, source_fps, path = max(motions, key=lambda x: x[0].n_frames)
     longest = motion.n_frames
     at_once = max(1, min(parallel, len(motions)))

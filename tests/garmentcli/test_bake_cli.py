@@ -309,3 +309,13 @@ def test_a_bake_too_big_for_the_free_memory_is_refused_before_any_work(scene, mo
     monkeypatch.undo()
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]])
     assert r.exit_code == 0, r.output
+
+
+def test_skip_existing_with_every_motion_baked_does_nothing(scene):
+    args = ["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--no-obj"]
+    assert run(args).exit_code == 0
+    summary = scene["out"] / "shell_walk" / "summary.json"
+    before = summary.stat().st_mtime_ns
+    r = run([*args, "--skip-existing"])
+    assert r.exit_code == 0 and "1 of 1 motions already baked, skipped" in r.output, r.output
+    assert summary.stat().st_mtime_ns == before
