@@ -315,14 +315,14 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         done = [t for _, t in targets if t.exists()]
         targets = [(m, t) for m, t in targets if not t.exists()]
         click.echo(f"{out_dir}: {len(done)} of {len(done) + len(targets)} motions already baked, skipped")
+        if not targets:
+            return
     if not overwrite:
         existing = [str(t) for _, t in targets if t.exists()]
         if existing:
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
     motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps), m, target) for m, target in targets]
-    _check_memory(garment, body, [(mo, src_fps, m) for (mo, src_fps), m, _ in motions], method,
-                  workers if not scheduler else 1)
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,
@@ -339,6 +339,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                                                    "features", "reason", "candidates")})
         click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
         explicit = False
+    # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
+    _check_memory(garment, body, [(mo, src_fps, m) for (mo, src_fps), m, _ in motions], method,
+                  workers if not scheduler else 1)
     if method == "model":
         deformer.prepare(garment, body, source=garment_path)
         fallback = _training_range_guard(deformer, garment, body, garment_path, explicit)
@@ -409,7 +412,7 @@ def _check_memory(garment, body, motions, method, parallel: int) -> None:
     motion, source_fps, path = max(motions, key=lambda x: x[0].n_frames)
     longest = motion.n_frames
     at_once = max(1, min(parallel, len(motions)))
-    per_frame = (garment.n_vertices + body.n_vertices) * 12 * BAKE_COPIES.get(method or "model", 4.0)
+    per_frame = (garment.n_vertices + body.n_vertices) * 12 * BAKE_COPIES[method]
     need = longest * per_frame * at_once
     free = psutil.virtual_memory().available
     if need > free:

@@ -318,4 +318,6 @@ def test_skip_existing_with_every_motion_baked_does_nothing(scene):
     before = summary.stat().st_mtime_ns
     r = run([*args, "--skip-existing"])
     assert r.exit_code == 0 and "1 of 1 motions already baked, skipped" in r.output, r.output
+    r = run([*args, "--skip-existing", "--quality", "auto"])  # nothing left to choose a quality for
+    assert r.exit_code == 0 and "quality auto" not in r.output, r.output
     assert summary.stat().st_mtime_ns == before
