@@ -56,12 +56,17 @@ def mesh_edges(faces: np.ndarray) -> np.ndarray:
     return np.unique(e, axis=0)
 
 
-def boundary_edges(faces: np.ndarray) -> np.ndarray:
-    """Edges used by exactly one face: faces (F, 3) int -> (B, 2) int64, sorted rows."""
+def edge_face_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique undirected edges (E, 2) int64 (sorted rows, as `mesh_edges`) and how many faces use each (E,)."""
     faces = np.asarray(faces, dtype=np.int64)
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     e.sort(axis=1)
-    edges, counts = np.unique(e, axis=0, return_counts=True)
+    return np.unique(e, axis=0, return_counts=True)
+
+
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """Edges used by exactly one face: faces (F, 3) int -> (B, 2) int64, sorted rows."""
+    edges, counts = edge_face_counts(faces)
     return edges[counts == 1]
 
 

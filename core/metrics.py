@@ -271,9 +271,9 @@ def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points:
 
 
 def _edge_keys(faces: np.ndarray, n_vertices: int) -> np.ndarray:
-    """Sorted unique undirected edges of triangles (F, 3), each as a * V + b with a < b."""
-    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1).astype(np.int64)
-    return np.unique(e[:, 0] * n_vertices + e[:, 1])
+    """Sorted unique undirected edges of triangles (F, 3) (`mesh_edges`), each as a * V + b with a < b."""
+    e = mesh_edges(faces)
+    return e[:, 0] * n_vertices + e[:, 1]
 
 
 def _flipped_edges(faces: np.ndarray, n_vertices: int) -> np.ndarray:

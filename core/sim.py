@@ -46,7 +46,7 @@ import torch
 from core.body import Body, skin_points
 from core.deform import Deformer
 from core.errors import InputError
-from core.garment import Garment, boundary_loops, mesh_edges
+from core.garment import Garment, boundary_loops, edge_face_counts, mesh_edges
 from core.geodesic import geodesic_graph, geodesic_neighbourhood
 from core.geometry import TriangleMesh, face_cross, outward_faces
 from core.motion import Motion, poses_for_body, settle
@@ -431,10 +431,7 @@ FLOOR_WARN_M = 0.05
 
 def non_manifold_edge_count(faces: np.ndarray) -> int:
     """How many edges of the triangle mesh `faces` (F, 3) are shared by more than two faces."""
-    f = np.asarray(faces, dtype=np.int64)
-    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(edges, axis=0, return_counts=True)
-    return int(np.sum(counts > 2))
+    return int(np.sum(edge_face_counts(faces)[1] > 2))
 
 
 class ClothSim:

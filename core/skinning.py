@@ -65,9 +65,8 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
     mesh = TriangleMesh(body.v_template, body.faces)
     hit, signed = mesh.signed_closest(garment.vertices)
     check_rest_fit(garment, body, mesh, signed, source or garment.name)
-    corners = body.faces[hit.face_index]  # (V, 3)
     weights = transfer_weights(hit, body, garment.faces, smooth_iterations, smooth_strength)
-    shapedirs = np.einsum("vk,vkcs->vcs", hit.barycentric.astype(np.float32), body.shapedirs[corners]).astype(np.float32)
+    shapedirs = transfer_shapedirs(hit, body, np.float32).astype(np.float32)
     return GarmentBinding(weights=weights, shapedirs=shapedirs, body_distance=hit.distance.astype(np.float32))
 
 
@@ -93,6 +92,12 @@ def transfer_weights(hit, body: Body, faces: np.ndarray, smooth_iterations: int 
     if smooth_iterations > 0:
         weights = smooth_over_graph(weights, faces, smooth_iterations, smooth_strength)
     return weights / np.maximum(weights.sum(axis=1, keepdims=True), 1e-12)
+
+
+def transfer_shapedirs(hit, body: Body, dtype=np.float64) -> np.ndarray:
+    """(V, 3, S) shape blend shapes, metres per unit beta: each point's barycentric blend (weights in `dtype`) of
+    the body's at its closest surface point (`hit`, as in `transfer_weights`)."""
+    return np.einsum("vk,vkcs->vcs", hit.barycentric.astype(dtype), body.shapedirs[body.faces[hit.face_index]])
 
 
 def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.ndarray, name: str) -> None:

@@ -18,7 +18,7 @@ from core.body import Body
 from core.errors import InputError
 from core.garment import Garment
 from core.geometry import TriangleMesh
-from core.skinning import REST_INSIDE_DEPTH_M, transfer_weights
+from core.skinning import REST_INSIDE_DEPTH_M, transfer_shapedirs, transfer_weights
 
 #: The A-pose's default: each upper arm lowered this far from the T-pose (degrees, about the body's forward axis).
 A_POSE_ARM_DEGREES = 45.0
@@ -87,9 +87,7 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     M = blended(rest_mesh.closest(rest))
     reposed = np.einsum("vrc,vc->vr", M[:, :, :3], rest) + M[:, :, 3]
     if betas is not None:  # back to the mean shape the rest body has
-        corners = body.faces[hit.face_index]
-        shapedirs = np.einsum("vk,vkcs->vcs", hit.barycentric, body.shapedirs[corners])
-        rest = rest - np.einsum("vcs,s->vc", shapedirs, body.fit_betas(betas).astype(np.float64))
+        rest = rest - np.einsum("vcs,s->vc", transfer_shapedirs(hit, body), body.fit_betas(betas).astype(np.float64))
     moved = np.linalg.norm(rest - target, axis=1)
     report = {"posed_median_distance_m": float(np.median(np.abs(signed))),
               "posed_inside_share": float(np.mean(signed < -REST_INSIDE_DEPTH_M)),

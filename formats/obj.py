@@ -391,20 +391,11 @@ def _weld(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path) -> tu
     pairs = cKDTree(vertices[used]).query_pairs(tol, output_type="ndarray")
     if not len(pairs):
         return faces, 0
-    parent = np.arange(len(vertices))
-    for a, b in used[np.sort(pairs, axis=1)]:  # union-find onto the smallest index of each cluster
-        ra, rb = a, b
-        while parent[ra] != ra:
-            ra = parent[ra]
-        while parent[rb] != rb:
-            rb = parent[rb]
-        parent[max(ra, rb)] = min(ra, rb)
-    root = parent.copy()
-    for _ in range(64):  # flatten: every vertex to its cluster's root
-        nxt = root[root]
-        if np.array_equal(nxt, root):
-            break
-        root = nxt
+    from core.graph import connected_components
+
+    _, labels = connected_components(used[pairs], len(vertices))  # one cluster per position
+    _, first = np.unique(labels, return_index=True)  # each cluster's smallest vertex index
+    root = first[labels]
     n = int(np.sum(root[used] != used))
     log.warning("%s '%s': welded %d vertices onto others at the same position (within %.2g mm; the seams of "
                 "separately exported panels)", label, path, n, tol * 1e3)

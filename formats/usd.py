@@ -377,7 +377,7 @@ def read_usd(path: str | os.PathLike) -> UsdSequence:
     Points are all time samples of each mesh in time order (T, V, 3) float32, placed by the mesh's
     transforms and converted from the stage's authored units (`metersPerUnit`) and up axis (a Y-up stage
     is turned +90 degrees about X) into this tool's world, metres Z-up (unauthored: read as metres Z-up); faces
-    are fan-triangulated (F, 3) int64; uvs the face-varying `st` primvar per
+    (F, 3) int64 by `_triangles` (a fan, ear clipping above 4 corners); uvs the face-varying `st` primvar per
     triangle corner. Returns UsdSequence(tracks, fps = timeCodesPerSecond,
     start_frame = startTimeCode or the first sample, metadata = customLayerData).
     Raises InputError for a missing or unreadable file or a stage without meshes.
