@@ -13,6 +13,8 @@ show the work is useless), reported in `summary.json` under "scene", and can be 
 - ``self-contact``: cloth-cloth contact, when asked for, is switched off where no two garment points
   more than 10 cm apart along the rest surface (paper Eq. 6) come within `SELF_REACH_M` of each
   other in any frame of the LBS preview.
+- ``floor``: the simulator's ground (a plane at the lowest point the body reaches over the motion) is left
+  out where the garment's LBS preview stays more than `FLOOR_REACH_M` above it in every frame.
 - ``levels``: the pooling levels a garment's size and looseness call for (`suggested_levels`);
   reported next to the levels of the model in use (a checkpoint's levels are fixed by its training:
   pass `--model` with a checkpoint of the suggested levels, see `garment tradeoff`).
@@ -21,6 +23,7 @@ show the work is useless), reported in `summary.json` under "scene", and can be 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -31,13 +34,17 @@ from core.garment import Garment
 from core.motion import Motion
 
 #: Overridable skips (`bake --no-skip NAME`).
-SKIPS = ("joints", "body-faces", "self-contact")
+SKIPS = ("joints", "body-faces", "self-contact", "floor")
 #: A joint whose LBS weight stays below this on every garment vertex is left out of its skinning.
 JOINT_WEIGHT_EPS = 1e-4
 #: Body faces further than this from the garment's LBS preview in every frame are left out of the collider.
 BODY_REACH_M = 0.15
 #: Self-contact is needed when geodesically distant garment points come this close in the LBS preview.
 SELF_REACH_M = 0.05
+#: The ground is simulated where the garment's LBS preview comes within this of it in some frame (plus how far
+#: the garment moves between examined frames): the cloth hangs and swings below its LBS position by less, and
+#: its contact reaches 2.4 cm (the material's contact distance and gap).
+FLOOR_REACH_M = 0.10
 #: Frames of the LBS preview examined (evenly spaced; the gap between them widens the reach).
 PREVIEW_FRAMES = 200
 
@@ -168,12 +175,29 @@ def suggested_levels(n_vertices: int, looseness_m: float) -> int:
     return 2
 
 
-def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: np.ndarray, body_faces: np.ndarray,
-                       rest: np.ndarray, weights: np.ndarray, transforms: np.ndarray, self_contact: bool):
-    """The simulator's part: (collider face indices or None for all, self-contact on/off), recorded in `analysis`.
+class Collisions(NamedTuple):
+    """What the simulator collides: `analyse_collisions`'s answer."""
 
-    body_points: (T, Vb, 3) every simulated body frame; transforms: (T, J, 4, 4) the same frames;
-    rest: (V, 3) shaped garment; weights: (V, J) its LBS weights.
+    #: Indices of the body faces kept in the collider, or None for all.
+    body_faces: np.ndarray | None
+    #: Whether cloth-cloth contact is on.
+    self_contact: bool
+    #: World height (Z, metres) of the ground plane, or None for no ground.
+    ground_z: float | None
+
+
+def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: np.ndarray, body_faces: np.ndarray,
+                       rest: np.ndarray, weights: np.ndarray, transforms: np.ndarray, self_contact: bool,
+                       floor: bool = True) -> Collisions:
+    """The simulator's part (body faces, self-contact, ground), recorded in `analysis`.
+
+    body_points: (T, Vb, 3) every simulated body frame, the Z-up world; transforms: (T, J, 4, 4) the same
+    frames; rest: (V, 3) shaped garment; weights: (V, J) its LBS weights; self_contact: asked for; floor:
+    False leaves the ground out whatever the scene (`SimOptions.floor` "none").
+
+    The ground is the horizontal plane through the lowest point the body reaches in any frame: where a
+    motion's feet touch the floor (a walk, a run) that is the floor, without trusting the file's own origin
+    (AMASS datasets put the floor at various heights); it is never above a body point.
     """
     frames = preview_frames(len(body_points))
     preview = lbs_preview(rest, weights, transforms[frames])
@@ -201,7 +225,16 @@ def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: n
             contact = False
     else:
         analysis.record("self-contact", False, reason="self-contact not requested")
-    return faces, contact
+    ground = float(body_points[..., 2].min())
+    if floor:
+        lowest = float((preview[..., 2].min(axis=1) - slack_g).min()) - ground
+        not_reached = lowest > FLOOR_REACH_M
+        analysis.record("floor", not_reached, reach_m=FLOOR_REACH_M, ground_z_m=ground,
+                        garment_lowest_above_ground_m=lowest)
+        floor = not (not_reached and analysis.enabled("floor"))
+    else:
+        analysis.record("floor", False, reason="floor none")
+    return Collisions(faces, contact, ground if floor else None)
 
 
 def scene_levels(garment: Garment, body: Body, motion: Motion) -> dict:

@@ -6,7 +6,9 @@ positions and velocities) and a step function (`SolverVBD.step`). The body's
 collision mesh is re-posed every substep: its points are interpolated linearly
 between the posed bodies of consecutive frames and its per-vertex velocities are
 the finite difference over the frame, then its BVH is refitted. Gravity acts
-along world -Z (the motion's Z-up world, metres, seconds).
+along world -Z (the motion's Z-up world, metres, seconds). Where the garment comes near it
+(`core.scene`), the ground is a second mesh shape: a horizontal plane through the lowest point the body
+reaches in the run.
 
 A run has three phases: (1) the garment, shaped like the body (`core.skinning`
 shape blend shapes), hangs on the static rest body (T-pose, frame 0's root
@@ -61,14 +63,17 @@ GRAVITY_M_S2 = 9.81
 #: on this file's bytes, so a refactor keeps them. Bump it with any change that moves the simulated cloth (this
 #: module, the pins' binding in core.skinning, material or solver defaults); tests/core/test_sim.py checks a
 #: golden simulation made with this version (GARMENT_UPDATE_GOLDENS=1 remakes it after a bump).
-SIMULATOR_VERSION = 3  # 2: self-contact candidates filtered along the surface (`self_contact_filters`); 3: no
-# self-contact pair dropped for want of buffer room (`ContactBuffers`)
+SIMULATOR_VERSION = 4  # 2: self-contact candidates filtered along the surface (`self_contact_filters`); 3: no
+# self-contact pair dropped for want of buffer room (`ContactBuffers`); 4: a ground plane where the garment
+# comes near it (`SimOptions.floor`)
 #: Depth below the body surface at which a garment vertex counts as penetrating (as in core.bake).
 PENETRATION_DEPTH_M = 0.002
 
 
 #: Values of `SimOptions.pin`.
 PIN_MODES = ("auto", "none")
+#: Values of `SimOptions.floor`.
+FLOOR_MODES = ("auto", "none")
 #: A waistband's edge must lie on average within this distance of the rest body (metres).
 WAISTBAND_MAX_GAP_M = 0.03
 #: A loop encircles the body's vertical axis when no angular gap between its vertices exceeds this.
@@ -276,6 +281,9 @@ class SimOptions:
     pin: "auto" pins the garment's waistband (see `waistband_vertices`) to the body, as the
       elastic of a real skirt, pair of trousers or strapless dress holds it; "none" pins nothing.
     pin_band_m: width of the pinned band below the waistband's edge, metres along the surface.
+    floor: "auto" simulates the ground, a plane at the lowest point the body reaches in the run, where the
+      garment comes near it (`core.scene`'s `floor` skip); "none" never does (a motion whose lowest body point
+      is not on the ground: feet dangling from a seat for the whole clip).
     contact_buffer_mb: most memory (MiB) the self-contact pair buffers may grow to (`ContactBuffers`: a step
       whose detection found more pairs at a vertex or edge than they hold is re-run with larger ones); at the
       cap the pairs beyond are left out, logged and reported. 0 keeps Newton's fixed CONTACT_BUFFERS.
@@ -295,6 +303,7 @@ class SimOptions:
     fail_off_body_m: float = 0.25
     pin: str = "auto"
     pin_band_m: float = 0.02
+    floor: str = "auto"
     contact_buffer_mb: float = 512.0
 
     def __post_init__(self):
@@ -309,6 +318,8 @@ class SimOptions:
             raise InputError(f"sim option contact_buffer_mb: expected a number >= 0, got {self.contact_buffer_mb}")
         if self.pin not in PIN_MODES:
             raise InputError(f"sim option pin: expected one of {', '.join(PIN_MODES)}, got {self.pin!r}")
+        if self.floor not in FLOOR_MODES:
+            raise InputError(f"sim option floor: expected one of {', '.join(FLOOR_MODES)}, got {self.floor!r}")
 
 
 def edge_strain(points: np.ndarray, edges: np.ndarray, rest_length: np.ndarray) -> np.ndarray:
@@ -424,9 +435,11 @@ def _warp():
     return wp
 
 
-#: A garment whose lowest point at rest is less than this above the body's soles is warned about: no floor is
-#: simulated (the example trousers and jumpsuit end 11.3 cm above them, the dress 45 cm).
+#: With `SimOptions.floor` "none", a garment whose lowest point at rest is less than this above the body's soles
+#: is warned about (the example trousers and jumpsuit end 11.3 cm above them, the dress 45 cm).
 FLOOR_WARN_M = 0.05
+#: Half the side of the ground's square (metres), around the root in the simulation's moving frame.
+FLOOR_HALF_M = 10.0
 
 
 def non_manifold_edge_count(faces: np.ndarray) -> int:
@@ -443,7 +456,9 @@ class ClothSim:
     contains the collider during the whole run (its collision AABB); pinned: (P,) int indices of
     particles that do not move under the solver but follow targets given to `advance` (a waistband);
     self_contact_gap_m: self-contact detection distance beyond the material's self_contact_distance_m
-    (None: that distance again; see `self_contact_gap`).
+    (None: that distance again; see `self_contact_gap`); floor_z: (N,) metres, the heights the ground plane
+    (horizontal, `floor_half_m` either side of the origin, upward-facing) takes during the run, [0] at the start
+    (None: no ground); it moves with `advance`'s `floor`.
     """
 
     def __init__(self, rest_vertices: np.ndarray, faces: np.ndarray, collider_vertices: np.ndarray,
@@ -451,7 +466,8 @@ class ClothSim:
                  iterations: int = 10, start_vertices: np.ndarray | None = None, bounds: np.ndarray | None = None,
                  pinned: np.ndarray | None = None, device: str | None = None,
                  self_contact_gap_m: float | None = None, contact_filter: bool = True,
-                 contact_buffers: tuple[int, int] = CONTACT_BUFFERS):
+                 contact_buffers: tuple[int, int] = CONTACT_BUFFERS, floor_z: np.ndarray | None = None,
+                 floor_half_m: float = FLOOR_HALF_M):
         wp = _warp()
         import newton
 
@@ -465,6 +481,13 @@ class ClothSim:
         cv = np.asarray(collider_vertices, dtype=np.float32)
         self.collider = newton.Mesh(cv, np.asarray(collider_faces, dtype=np.int32).reshape(-1), compute_inertia=False)
         self.shape = builder.add_shape_mesh(-1, mesh=self.collider, cfg=cfg)
+        #: The ground: a mesh shape of its own (one open quad; the body's watertight mesh keeps its inside test).
+        self.floor = self.floor_shape = None
+        if floor_z is not None:
+            h, z = float(floor_half_m), float(floor_z[0])
+            quad = np.array([[-h, -h, z], [h, -h, z], [h, h, z], [-h, h, z]], dtype=np.float32)
+            self.floor = newton.Mesh(quad, np.array([0, 1, 2, 0, 2, 3], dtype=np.int32), compute_inertia=False)
+            self.floor_shape = builder.add_shape_mesh(-1, mesh=self.floor, cfg=cfg)
         rest = np.asarray(rest_vertices, dtype=np.float32)
         #: Edges shared by more than two faces (a pocket sewn on along one edge): Newton bends the cloth across
         #: the first two faces of each only, and warns once per edge; said here once.
@@ -519,6 +542,9 @@ class ClothSim:
         if bounds is None:
             bounds = np.stack([cv.min(0), cv.max(0)])
         self.set_collider_bounds(bounds)
+        if self.floor is not None:
+            self.set_collider_bounds(np.array([[-h, -h, np.min(floor_z)], [h, h, np.max(floor_z)]]),
+                                     shape=self.floor_shape)
 
     def _build_solver(self) -> None:
         """(Re)make the collision pipeline and the VBD solver over the model (the states are the model's: kept)."""
@@ -578,21 +604,30 @@ class ClothSim:
         return {"vertex_triangle": int(info.vertex_colliding_triangles_count.numpy().sum()),
                 "edge_edge": int(info.edge_colliding_edges_count.numpy().sum())}
 
-    def set_collider_bounds(self, bounds: np.ndarray, pad_m: float = 0.1) -> None:
-        """Set the collider's collision AABB to `bounds` (2, 3) metres (plus `pad_m`): it must contain the moving mesh."""
+    def set_collider_bounds(self, bounds: np.ndarray, pad_m: float = 0.1, shape: int | None = None) -> None:
+        """Set the collision AABB of the collider (or of `shape`, the ground) to `bounds` (2, 3) metres (plus
+        `pad_m`): it must contain the moving mesh."""
         b = np.asarray(bounds, dtype=np.float32)
+        shape = self.shape if shape is None else shape
         lo = self.model.shape_collision_aabb_lower.numpy()
         hi = self.model.shape_collision_aabb_upper.numpy()
-        lo[self.shape], hi[self.shape] = b[0] - pad_m, b[1] + pad_m
+        lo[shape], hi[shape] = b[0] - pad_m, b[1] + pad_m
         self.model.shape_collision_aabb_lower.assign(lo)
         self.model.shape_collision_aabb_upper.assign(hi)
 
-    def set_collider(self, points: np.ndarray, velocities: np.ndarray) -> None:
-        """Move the collider: points (Vb, 3) metres, velocities (Vb, 3) m/s; refits its BVH."""
-        wm = self.collider.mesh
+    def set_collider(self, points: np.ndarray, velocities: np.ndarray, mesh=None) -> None:
+        """Move the collider (or `mesh`, the ground): points (Vb, 3) metres, velocities (Vb, 3) m/s; refits its BVH."""
+        wm = (self.collider if mesh is None else mesh).mesh
         wm.points.assign(np.asarray(points, dtype=np.float32))
         wm.velocities.assign(np.asarray(velocities, dtype=np.float32))
         wm.refit()
+
+    def set_floor(self, height_m: float, velocity: np.ndarray) -> None:
+        """Move the ground plane to height `height_m` (metres), moving at `velocity` (3,) m/s (friction drags the
+        cloth lying on it along)."""
+        quad = self.floor.vertices.copy()
+        quad[:, 2] = height_m
+        self.set_collider(quad, np.broadcast_to(np.asarray(velocity, dtype=np.float32), quad.shape), mesh=self.floor)
 
     def get_state(self) -> tuple[np.ndarray, np.ndarray]:
         """(positions (V, 3), velocities (V, 3)) float32 copies."""
@@ -603,12 +638,14 @@ class ClothSim:
         self.state_0.particle_qd.assign(np.asarray(velocities, dtype=np.float32))
 
     def advance(self, body_from: np.ndarray, body_to: np.ndarray, duration_s: float, substeps: int,
-                pins_from: np.ndarray | None = None, pins_to: np.ndarray | None = None) -> np.ndarray:
+                pins_from: np.ndarray | None = None, pins_to: np.ndarray | None = None,
+                floor: tuple[float, float, np.ndarray] | None = None) -> np.ndarray:
         """Step `duration_s` seconds in `substeps` steps while the collider moves linearly body_from -> body_to.
 
         body_from, body_to: (Vb, 3) metres; pins_from, pins_to: (P, 3) metres, where the pinned
-        particles are at the start and the end (moved linearly too). Returns the cloth positions
-        (V, 3) float32 at the end.
+        particles are at the start and the end (moved linearly too); floor: (height at the start, at the end,
+        velocity (3,) m/s) of the ground plane, which moves linearly too (None: it stays). Returns the cloth
+        positions (V, 3) float32 at the end.
         """
         dt = duration_s / substeps
         a = np.asarray(body_from, dtype=np.float32)
@@ -622,6 +659,8 @@ class ClothSim:
             # The collider sits where the body is at the end of the substep, moving at the frame's velocity.
             s = (k + 1) / substeps
             self.set_collider(a + s * (b - a), vel)
+            if floor is not None and self.floor is not None:
+                self.set_floor(floor[0] + s * (floor[1] - floor[0]), floor[2])
             if pinning:
                 q, qd = self.get_state()
                 q[self.pinned] = pa + s * (pb - pa)
@@ -747,17 +786,17 @@ class SimDeformer(Deformer):
         keep = rest_length > 1e-9
         edges, rest_length = edges[keep], rest_length[keep].astype(np.float64)
 
-        # No floor is simulated: a garment whose hem reaches the soles drags through where the ground would be.
         hem_m = float(garment.vertices[:, 1].min() - body.v_template[:, 1].min())
-        if hem_m < FLOOR_WARN_M:
-            log.warning("sim: the garment reaches %.1f cm %s the body's soles at rest, and the simulator has no "
-                        "floor: cloth that would rest on the ground hangs through it", abs(hem_m) * 100,
+        if o.floor == "none" and hem_m < FLOOR_WARN_M:
+            log.warning("sim: the garment reaches %.1f cm %s the body's soles at rest, and the floor is off "
+                        "(floor none): cloth that would rest on the ground hangs through it", abs(hem_m) * 100,
                         "above" if hem_m >= 0 else "below")
         # Scene analysis: the collider keeps the body faces within reach of the garment; self-contact only
-        # where distant parts of the garment can meet.
+        # where distant parts of the garment can meet; the ground only where the garment comes near it.
         scene = SceneAnalysis(self.skips)
-        kept, self_contact = analyse_collisions(scene, garment, body_pts, faces_b, shaped, binding.weights,
-                                                np.asarray(transforms), o.self_contact)
+        kept, self_contact, ground_z = analyse_collisions(scene, garment, body_pts, faces_b, shaped, binding.weights,
+                                                          np.asarray(transforms), o.self_contact,
+                                                          floor=o.floor == "auto")
         collider_v, collider_f = np.arange(body.n_vertices), faces_b
         if kept is not None:
             collider_v = np.unique(faces_b[kept])
@@ -771,9 +810,20 @@ class SimDeformer(Deformer):
             speed = (_relative_lbs_speed(shaped, binding.weights, transforms, origin, motion.fps)
                      + float(np.linalg.norm(np.diff(frame_velocity, axis=0), axis=1).max(initial=0.0)))
         gap = self_contact_gap(m, speed, frame_dt / o.substeps)
+        # The ground, static in the world, moves against the frame: (height, its height one frame on, velocity).
+        floor_z = None if ground_z is None else ground_z - origin[:, 2]
+        lifted = 0
+        if floor_z is not None:  # cloth authored below the ground starts on it (the body never is below it)
+            low = start[:, 2] < floor_z[0] + m.contact_distance_m
+            lifted = int(low.sum())
+            start[low, 2] = floor_z[0] + m.contact_distance_m
+
+        def ground(i: int, j: int):
+            return None if floor_z is None else (floor_z[i], floor_z[j], -frame_velocity[j])
+
         sim = ClothSim(template, garment.faces, collider[0], collider_f, m, self_contact, o.iterations,
                        start_vertices=start, bounds=bounds, pinned=pinned,
-                       self_contact_gap_m=gap, contact_filter=scene.enabled("self-contact"))
+                       self_contact_gap_m=gap, contact_filter=scene.enabled("self-contact"), floor_z=floor_z)
         if self_contact:  # None: --no-skip self-contact checks every pair in reach
             scene.report["self-contact"]["filtered_along_surface"] = sim.contact_filter
         t_built = time.perf_counter()
@@ -781,10 +831,12 @@ class SimDeformer(Deformer):
         # Phase 1: settle on the static rest body.
         n_settle_steps = int(round(o.settle_s * motion.fps))
         for i in range(n_settle_steps):
-            buffers.advance(f"settle {i}", collider[0], collider[0], frame_dt, o.substeps, pins[0], pins[0])
+            buffers.advance(f"settle {i}", collider[0], collider[0], frame_dt, o.substeps, pins[0], pins[0],
+                            ground(0, 0))
         # Phase 2: internal blend into frame 0.
         for i in range(len(pre)):
-            buffers.advance(f"blend {i}", collider[i], collider[i + 1], frame_dt, o.substeps, pins[i], pins[i + 1])
+            buffers.advance(f"blend {i}", collider[i], collider[i + 1], frame_dt, o.substeps, pins[i], pins[i + 1],
+                            ground(i, i + 1))
         t_pre = time.perf_counter()
         # Phase 3: the output frames, checked and retried.
         offset = 1 + len(pre)
@@ -803,7 +855,7 @@ class SimDeformer(Deformer):
                     sim.set_state(*saved)
                     substeps *= 2
                 points = buffers.advance(f"frame {t}", prev, collider[offset + t], frame_dt, substeps,
-                                         pins[offset + t - 1], pins[offset + t])
+                                         pins[offset + t - 1], pins[offset + t], ground(offset + t - 1, offset + t))
                 points = points + origin[offset + t].astype(np.float32)  # back into the world
                 check = frame_checks(points, cur, faces_b, edges, rest_length, tunnel_depth=o.retry_depth_m)
                 check["substeps"] = substeps
@@ -841,6 +893,7 @@ class SimDeformer(Deformer):
             "pinned_vertices": len(pinned),
             "non_manifold_edges": sim.non_manifold_edges,
             "hem_above_soles_m": hem_m,
+            "floor": None if ground_z is None else {"ground_z_m": ground_z, "lifted_onto_it_at_start": lifted},
             "self_contact": ({"detection_gap_m": gap, "relative_speed_max_m_s": speed,
                               "cloth_speed_limit_m_s": cloth_speed_limit(m, gap, frame_dt / o.substeps),
                               "filtered_along_surface": sim.contact_filter,

@@ -22,6 +22,8 @@ from core.quality import DEFAULT_BUDGET_MM
 from core.scene import SKIPS, parse_no_skip
 from formats.atomic import atomic_dir
 from garmentcli.common import (
+    FLOOR_CHOICES,
+    FLOOR_HELP,
     PIN_CHOICES,
     PIN_HELP,
     betas_option,
@@ -41,9 +43,9 @@ log = logging.getLogger(__name__)
 
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
                   iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=(),
-                  contact_guard=True):
+                  contact_guard=True, floor=None):
     deformer = _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                precision, contact_guard)
+                                precision, contact_guard, floor)
     deformer.skips = parse_no_skip(no_skip)
     if push_out:
         if method == "sim":
@@ -55,9 +57,10 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
 
 
 def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                     precision, contact_guard=True):
+                     precision, contact_guard=True, floor=None):
     sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
-                                      ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin))
+                                      ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin),
+                                      ("--floor", floor))
                  if v is not None]
     if method != "sim" and sim_given:
         raise click.UsageError(f"{sim_given[0]} applies to --method sim only (got --method {method})")
@@ -79,7 +82,7 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
         material = load_material(material_path) if material_path else Material()
         defaults = SimOptions()
         options = SimOptions(substeps=substeps or defaults.substeps, iterations=iterations or defaults.iterations,
-                             self_contact=self_contact, pin=pin or defaults.pin)
+                             self_contact=self_contact, pin=pin or defaults.pin, floor=floor or defaults.floor)
         return SimDeformer(material, options)
     return DEFORMERS[method]()
 
@@ -131,6 +134,7 @@ class BakeSpec:
     fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
     contact_guard: bool = True  # model: keep vertices outside the body faces they rest on
     betas: str = "motion"  # --betas as given (the motions arrive with it applied), recorded in summary.json
+    floor: str | None = None  # sim: --floor (None: the default)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
 
@@ -150,7 +154,7 @@ def _context(spec: BakeSpec):
             torch.set_num_threads(spec.threads)
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
-                                 spec.no_skip, spec.contact_guard)
+                                 spec.no_skip, spec.contact_guard, spec.floor)
         garment = read_garment(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
@@ -238,7 +242,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
                    "on the garment, body faces out of its reach (sim), self-contact where distant parts never meet, "
-                   "and self-contact checks between points of one stretch of cloth (sim). Every skip is reported in "
+                   "self-contact checks between points of one stretch of cloth (sim), and the ground where the garment "
+                   "never comes near it (sim). Every skip is reported in "
                    "summary.json under 'scene'.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_bake", show_default=True,
               help="Output directory; one sub-directory per motion.")
@@ -258,6 +263,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--iterations", type=click.IntRange(min=1), default=None,
               help="sim: VBD iterations per substep [default: 10].")
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default=None, help=f"sim: {PIN_HELP} [default: auto]")
+@click.option("--floor", type=click.Choice(FLOOR_CHOICES), default=None, help=f"sim: {FLOOR_HELP} [default: auto]")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False), default=None,
               help="model: trained model checkpoint (from `garment train`). Default: the shipped model.")
 @click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
@@ -277,7 +283,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
-         no_contact_guard=False, betas="motion", source_fps=None, warned=()):
+         no_contact_guard=False, betas="motion", source_fps=None, floor=None, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
@@ -298,7 +304,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if no_contact_guard and method != "model":
             raise click.UsageError(f"--no-contact-guard applies to --method model only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip, not no_contact_guard)
+                                 precision, push_out, no_skip, not no_contact_guard, floor)
     elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
                                "--precision and --push-out")
@@ -334,7 +340,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if method != "model":
             model_path, precision = None, None
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip, not no_contact_guard)
+                                 precision, push_out, no_skip, not no_contact_guard, floor)
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
                                                    "features", "reason", "candidates")})
         click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
@@ -358,7 +364,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
-                    contact_guard=not no_contact_guard, betas=betas)
+                    contact_guard=not no_contact_guard, betas=betas, floor=floor)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()

@@ -18,6 +18,10 @@ from core.motion import parse_frame_range, resample, select_frames, settle
 PIN_CHOICES = ("auto", "none")
 PIN_HELP = ("auto: the waistband of a garment without shoulders (skirt, trousers, strapless dress) follows the "
             "body, as an elastic holds it; none: nothing pinned.")
+#: `--floor` values (core.sim.FLOOR_MODES).
+FLOOR_CHOICES = ("auto", "none")
+FLOOR_HELP = ("auto: the ground, a plane through the lowest point the body reaches in the motion, where the garment "
+              "comes near it (a long gown, sitting, kneeling); none: no ground (a body that never touches it).")
 
 
 def input_errors_as_click(func):

@@ -298,13 +298,16 @@ def test_waistband_is_the_top_opening_of_a_garment_hanging_from_the_waist():
     assert len(waistband_vertices(Garment((v + [0, 0, 0.2]).astype(np.float32), f), body)) == 0
 
 
-def test_sim_options_reject_an_unknown_pin_mode():
-    from core.sim import PIN_MODES
-    from garmentcli.common import PIN_CHOICES
+def test_sim_options_reject_an_unknown_pin_or_floor_mode():
+    from core.sim import FLOOR_MODES, PIN_MODES
+    from garmentcli.common import FLOOR_CHOICES, PIN_CHOICES
 
-    assert PIN_CHOICES == PIN_MODES  # the CLI's copy (it starts without importing the simulator)
+    # the CLI's copies (it starts without importing the simulator)
+    assert PIN_CHOICES == PIN_MODES and FLOOR_CHOICES == FLOOR_MODES
     with pytest.raises(InputError, match="pin"):
         SimOptions(pin="waist")
+    with pytest.raises(InputError, match="sim option floor: expected one of auto, none, got 'off'"):
+        SimOptions(floor="off")
 
 
 @pytest.mark.parametrize("mb", [-1.0, float("nan")])
@@ -552,7 +555,8 @@ def test_self_contact_does_not_hold_back_a_garment_riding_a_walking_body():
     Newton caps every vertex's move per substep when self-contact is on (0.77 m/s with the contact distance
     as the detection gap); the simulator runs in a frame that follows the root's translation, so the cap
     bounds motion relative to the body, and sizes the gap for that motion. The shell never touches itself:
-    with self-contact forced on, it must move as without."""
+    with self-contact forced on, it must move as without. (No ground: the shell reaches below the body's lowest
+    point, and a body sliding over the ground drags the cloth it pinches there.)"""
     from core.scene import parse_no_skip
 
     body, garment, _ = _shell_scene()
@@ -564,7 +568,7 @@ def test_self_contact_does_not_hold_back_a_garment_riding_a_walking_body():
     motion = Motion(poses=poses, trans=trans, fps=FPS, name="travel", n_settle=1)
     out = {}
     for contact in (False, True):
-        d = SimDeformer(options=SimOptions(settle_s=0.1, self_contact=contact))
+        d = SimDeformer(options=SimOptions(settle_s=0.1, self_contact=contact, floor="none"))
         d.skips = parse_no_skip(["all"])
         out[contact] = d.deform(garment, body, motion)
         assert not d.report["retries"]
@@ -634,20 +638,91 @@ def test_non_manifold_edges_are_counted_and_said_once(caplog):
     assert not [w for w in raised if "non-manifold" in str(w.message)]
 
 
-def test_a_garment_down_to_the_soles_is_warned_that_no_floor_is_simulated(caplog):
-    """The shell wraps the tiny body 2 cm out, so it reaches 2 cm below its soles: warned, and the report says
-    how far; the same shell cut to the upper half is not."""
+def _cut_above(garment: Garment, y_min: float, name: str) -> Garment:
+    """The faces of `garment` whose corners all lie above rest height `y_min` (metres, the body's Y-up)."""
+    kept = garment.faces[(garment.vertices[garment.faces][:, :, 1] > y_min).all(axis=1)]
+    used = np.unique(kept)
+    return Garment(garment.vertices[used], np.searchsorted(used, kept), name=name)
+
+
+def test_a_garment_down_to_the_soles_rests_on_the_ground(caplog):
+    """The shell wraps the tiny body 2 cm out, so it reaches 2 cm below its soles. With the floor (the default)
+    it stands on the ground, the plane through the body's lowest point: its lowest vertex, authored below it, is
+    lifted onto it at the start and nothing sinks more than the cloth's pinch under the body; with `floor none`
+    it hangs through (and is warned about). The shell's upper half never comes near the ground: skipped."""
+    from core.scene import parse_no_skip
+
     body, garment, motion = _shell_scene()
-    d = SimDeformer(options=SimOptions(settle_s=0.0, max_retries=0))
+    d = SimDeformer(options=SimOptions(settle_s=0.1, max_retries=0))
     with caplog.at_level(logging.WARNING):
-        d.deform(garment, body, motion)
-    assert "below the body's soles at rest, and the simulator has no floor" in caplog.text
+        out = d.deform(garment, body, motion)
+    ground = float(body.v_template[:, 1].min())  # the Y-up body turned Z-up, standing still at the origin
+    assert d.report["floor"]["ground_z_m"] == pytest.approx(ground, abs=1e-6)
+    assert d.report["floor"]["lifted_onto_it_at_start"] == int(np.sum(garment.vertices[:, 1] < ground + 0.004))
+    assert d.scene["floor"]["skipped_work"] is False
+    assert d.scene["floor"]["garment_lowest_above_ground_m"] < 0
+    # Below the ground: only the vertex pinched between it and the body's lowest point (on the vertical axis),
+    # pressed in by the body from above, less than a centimetre.
+    sunk = out[..., 2] < ground - 0.001
+    assert np.all(np.linalg.norm(out[..., :2], axis=-1)[sunk] < 0.01) and sunk.sum(axis=1).max() <= 1
+    assert out[..., 2].min() > ground - 0.01
+    assert "floor" not in caplog.text
     assert d.report["hem_above_soles_m"] == pytest.approx(garment.vertices[:, 1].min() - body.v_template[:, 1].min())
-    assert d.report["hem_above_soles_m"] < 0
-    upper = garment.faces[(garment.vertices[garment.faces][:, :, 1] > 0).all(axis=1)]
-    used = np.unique(upper)
-    top = Garment(garment.vertices[used], np.searchsorted(used, upper), name="top")
     caplog.clear()
+    d = SimDeformer(options=SimOptions(settle_s=0.1, max_retries=0, floor="none"))
     with caplog.at_level(logging.WARNING):
-        SimDeformer(options=SimOptions(settle_s=0.0, max_retries=0)).deform(top, body, motion)
-    assert "no floor" not in caplog.text
+        out = d.deform(garment, body, motion)
+    assert "2.0 cm below the body's soles at rest, and the floor is off" in caplog.text
+    assert d.report["floor"] is None and d.scene["floor"]["reason"] == "floor none"
+    assert out[..., 2].min() < ground - 0.03 and (out[..., 2] < ground - 0.001).sum(axis=1).min() >= 3
+    caplog.clear()
+    top = _cut_above(garment, 0.0, "top")
+    with caplog.at_level(logging.WARNING):
+        d = SimDeformer(options=SimOptions(settle_s=0.0, max_retries=0))
+        d.deform(top, body, motion)
+    assert d.scene["floor"]["skipped_work"] is True and d.report["floor"] is None
+    assert d.scene["floor"]["garment_lowest_above_ground_m"] > 0.7
+    assert "floor" not in caplog.text
+    d.skips = parse_no_skip(["floor"])  # the ground anyway
+    d.deform(top, body, motion)
+    assert d.scene["floor"]["overridden"] and not d.scene["floor"]["skipped_work"]
+    assert d.report["floor"] == {"ground_z_m": pytest.approx(ground, abs=1e-6), "lifted_onto_it_at_start": 0}
+
+
+def test_a_ground_the_cloth_does_not_touch_changes_nothing():
+    """The shell cut 2.5 cm above the soles (its lowest vertices 2.9 cm above them) comes within reach of the
+    ground (10 cm), so the ground is simulated, but the cloth never touches it: the same cloth as without."""
+    body, garment, motion = _shell_scene()
+    ground = float(body.v_template[:, 1].min())
+    skirt = _cut_above(garment, ground + 0.025, "long")
+    runs = {}
+    for floor in ("auto", "none"):
+        d = SimDeformer(options=SimOptions(settle_s=0.1, max_retries=0, floor=floor))
+        runs[floor] = d.deform(skirt, body, motion)
+        assert (d.report["floor"] is not None) == (floor == "auto")
+    assert np.abs(runs["auto"] - runs["none"]).max() < 1e-5
+
+
+def test_cloth_dropped_on_the_ground_lands_on_it_and_friction_carries_it_with_the_ground():
+    """ClothSim's ground plane: a cloth dropped 3 cm onto it stops at the contact distance above it; a ground
+    moving at 1 m/s (as in the simulator's moving frame) drags it along by friction, a still one does not."""
+    m = Material()
+    bv, bf = box(half=(0.05, 0.05, 0.05), center=(0.0, 0.0, 3.0))  # the body, far above
+    cv, cf = cloth(0.03, n=6, size=0.2)
+    bounds = np.array([[-1, -1, -1], [1, 1, 4.0]])
+    moved = {}
+    for speed in (0.0, 1.0):
+        sim = ClothSim(cv, cf, bv, bf, m, iterations=10, bounds=bounds, floor_z=np.zeros(2))
+        x = cv
+        for _ in range(15):  # 0.5 s: falls 3 cm in 0.08 s, then lies on the ground
+            x = sim.advance(bv, bv, 1 / FPS, 10, floor=(0.0, 0.0, np.zeros(3)))
+        assert np.abs(x[:, 2] - m.contact_distance_m).max() < 1.5e-3
+        start = x.copy()
+        for _ in range(6):
+            x = sim.advance(bv, bv, 1 / FPS, 10, floor=(0.0, 0.0, np.array([speed, 0.0, 0.0])))
+        moved[speed] = float(np.mean(x[:, 0] - start[:, 0]))
+        assert np.all(x[:, 2] > 0.0)
+    assert abs(moved[0.0]) < 1e-3
+    # Kinetic friction (0.3 g) brings the cloth up to the ground's speed within 0.34 s: over 0.2 s it moves
+    # 0.3 * 9.81 * 0.2^2 / 2 = 5.9 cm.
+    assert 0.03 < moved[1.0] < 0.2

@@ -124,11 +124,18 @@ def test_bake_method_sim_and_sim_options_rejected_for_lbs(scene):
     r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "sim", "--pin", "belt",
             "--out", scene["out"])
     assert r.exit_code != 0 and "--pin" in r.output and "belt" in r.output
-    r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "sim", "--substeps", 4, "--no-obj",
+    r = run("bake", scene["garment"], a, "--body", scene["body"], "--floor", "none", "--out", scene["out"])
+    assert r.exit_code != 0 and "--floor applies to --method sim only" in r.output
+    r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "sim", "--floor", "off",
             "--out", scene["out"])
+    assert r.exit_code != 0 and "--floor" in r.output and "'off' is not one of 'auto', 'none'" in r.output
+    r = run("bake", scene["garment"], a, "--body", scene["body"], "--method", "sim", "--substeps", 4, "--no-obj",
+            "--floor", "none", "--out", scene["out"])
     assert r.exit_code == 0, r.output
     summary = json.loads(next(scene["out"].glob("*/summary.json")).read_text())
     assert summary["method"] == "sim" and summary["deformer"]["options"]["substeps"] == 4
+    assert summary["deformer"]["options"]["floor"] == "none" and summary["deformer"]["floor"] is None
+    assert summary["scene"]["floor"] == {"skipped_work": False, "overridden": False, "reason": "floor none"}
     assert summary["deformer"]["checks"]["nan"] is False
 
 
