@@ -18,6 +18,11 @@ from scipy.spatial import cKDTree
 
 _EPS = 1e-12
 
+#: The turn from the body's Y-up rest frame to the motions' Z-up world (+90 degrees about X,
+#: `core.motion.Y_UP_TO_Z_UP`) as a matrix on column vectors: (x, y, z) -> (x, -z, y). Points stored as rows
+#: turn with `points @ Y_UP_TO_Z_UP_MATRIX.T`, and back with `points @ Y_UP_TO_Z_UP_MATRIX`.
+Y_UP_TO_Z_UP_MATRIX = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
 
 def as_float(verts: np.ndarray) -> np.ndarray:
     verts = np.asarray(verts)

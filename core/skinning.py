@@ -17,7 +17,7 @@ import scipy.sparse as sp
 from core.body import Body
 from core.errors import InputError
 from core.garment import Garment, mesh_edges
-from core.geometry import TriangleMesh
+from core.geometry import Y_UP_TO_Z_UP_MATRIX, TriangleMesh
 
 log = logging.getLogger(__name__)
 
@@ -70,8 +70,8 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
     return GarmentBinding(weights=weights, shapedirs=shapedirs, body_distance=hit.distance.astype(np.float32))
 
 
-_TURNS = (("rotated -90 degrees about X (Z-up to Y-up)", ((1, 0, 0), (0, 0, 1), (0, -1, 0))),
-          ("rotated +90 degrees about X", ((1, 0, 0), (0, 0, -1), (0, 1, 0))),
+_TURNS = (("rotated -90 degrees about X (Z-up to Y-up)", Y_UP_TO_Z_UP_MATRIX.T),
+          ("rotated +90 degrees about X", Y_UP_TO_Z_UP_MATRIX),
           ("turned 180 degrees about Y (it faces backwards)", ((-1, 0, 0), (0, 1, 0), (0, 0, -1))))
 _DROP = "moved down by {drop:.2f} m (authored on a body standing at y = 0)"
 #: Frame mix-ups a garment file can come with: (the fix, as told to the user; rotation applied to the file's

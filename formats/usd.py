@@ -18,6 +18,7 @@ import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
 
 from core.errors import InputError
+from core.geometry import Y_UP_TO_Z_UP_MATRIX
 from formats.atomic import atomic_file
 
 ROOT = "/Root"
@@ -188,6 +189,23 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
         layer.Reload(True)
 
 
+def _polygon_starts(counts: np.ndarray) -> np.ndarray:
+    """(P,) int64: where each polygon's corners begin in the face vertex indices, for (P,) corner `counts`."""
+    return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if len(counts) else np.zeros(0, np.int64)
+
+
+def _placed(points: np.ndarray, prim: Usd.Prim, code: Usd.TimeCode, to_frame: np.ndarray | None) -> np.ndarray:
+    """(V, 3) `points` of `prim` at `code` placed by its local-to-world transform and then by `to_frame` (4, 4)
+    for row vectors (the stage's units and up axis into ours; None: none); float64, or `points` itself when
+    nothing moves them."""
+    m = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(code), dtype=np.float64)  # p' = [p, 1] M
+    if to_frame is not None:
+        m = m @ to_frame
+    if np.allclose(m, np.eye(4)):
+        return points
+    return np.asarray(points, dtype=np.float64) @ m[:3, :3] + m[3, :3]
+
+
 def _triangles(counts: np.ndarray, indices: np.ndarray, points: np.ndarray | None = None):
     """Triangulate polygons: a fan, and polygons of more than 4 corners by `formats.obj.ear_clip` in their
     plane at `points` (V, 3) when given (a concave one's fan would leave it). Returns faces (F, 3) int64 and
@@ -197,8 +215,7 @@ def _triangles(counts: np.ndarray, indices: np.ndarray, points: np.ndarray | Non
     if points is not None and len(big):
         from formats.obj import ear_clip
 
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-        first = np.concatenate([[0], np.cumsum(np.maximum(counts - 2, 0))[:-1]]).astype(np.int64)
+        starts, first = _polygon_starts(counts), _polygon_starts(np.maximum(counts - 2, 0))
         for k in big:  # ear clipping makes n - 2 triangles, as the fan: they take the fan's rows
             local = ear_clip(points[indices[starts[k]:starts[k] + counts[k]]])
             if local is not None:
@@ -214,7 +231,7 @@ def _fan(counts: np.ndarray, indices: np.ndarray):
     if counts.size and (counts == 3).all():
         corners = np.arange(len(indices), dtype=np.int64).reshape(-1, 3)
         return indices.reshape(-1, 3).astype(np.int64), corners
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if counts.size else np.zeros(0, np.int64)
+    starts = _polygon_starts(counts)
     n_tri = np.maximum(counts - 2, 0)
     poly = np.repeat(np.arange(len(counts)), n_tri)
     k = np.arange(n_tri.sum()) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)  # 0..n-3 within a polygon
@@ -237,13 +254,8 @@ def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str, to_world: np.ndarray |
         raise InputError(f"{where}: mesh '{name}' expected the same point count at every time sample, "
                          f"got {sorted(sizes)}")
     points = np.stack([np.asarray(f, dtype=np.float32) for f in frames]).reshape(len(frames), -1, 3)
-    xform = UsdGeom.Xformable(mesh.GetPrim())
     for k, code in enumerate(codes):
-        m = np.array(xform.ComputeLocalToWorldTransform(code), dtype=np.float64)  # row vectors: p' = [p, 1] M
-        if to_world is not None:
-            m = m @ to_world
-        if not np.allclose(m, np.eye(4)):
-            points[k] = (points[k].astype(np.float64) @ m[:3, :3] + m[3, :3]).astype(np.float32)
+        points[k] = _placed(points[k], mesh.GetPrim(), code, to_world)
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], dtype=np.int64)
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], dtype=np.int64)
     if counts.sum() != len(indices):
@@ -268,8 +280,9 @@ def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str, to_world: np.ndarray |
     return MeshTrack(name=name, points=points, faces=faces, uvs=uvs, color=color)
 
 
-#: Y-up to Z-up for row vectors, (x, y, z) -> (x, -z, y); its transpose turns Z-up to Y-up.
-_Y_TO_Z = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=np.float64)
+#: Y-up to Z-up for row vectors (4 x 4), (x, y, z) -> (x, -z, y); its transpose turns Z-up to Y-up.
+_Y_TO_Z = np.eye(4)
+_Y_TO_Z[:3, :3] = Y_UP_TO_Z_UP_MATRIX.T
 
 
 def _open_stage(path: Path, where: str) -> Usd.Stage:
@@ -332,9 +345,8 @@ def read_usd_garment(path: str | os.PathLike):
     value = points_attr.Get(code)
     if value is None or len(value) == 0:
         raise InputError(f"{where}: mesh '{mesh.GetPath()}' has no points")
-    m = np.array(UsdGeom.Xformable(mesh.GetPrim()).ComputeLocalToWorldTransform(code), dtype=np.float64)
-    m = m @ _stage_to(stage, "Y")
-    vertices = np.asarray(value, dtype=np.float64).reshape(-1, 3) @ m[:3, :3] + m[3, :3]
+    vertices = _placed(np.asarray(value, dtype=np.float64).reshape(-1, 3), mesh.GetPrim(), code,
+                       _stage_to(stage, "Y"))
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], dtype=np.int64)
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], dtype=np.int64)
     if counts.sum() != len(indices):
@@ -354,7 +366,7 @@ def read_usd_garment(path: str | os.PathLike):
         elif flat is not None and st.GetInterpolation() in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) \
                 and len(flat) == len(vertices):
             uvs, uv_index = np.asarray(flat, dtype=np.float64).reshape(-1, 2), indices
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    starts = _polygon_starts(counts)
     polygons = np.full((len(counts), 4), -1, dtype=np.int64)
     polygon_uvs = np.full((len(counts), 4), -1, dtype=np.int64)
     ngons = []

@@ -8,6 +8,7 @@ import click
 import numpy as np
 
 from core.errors import InputError
+from core.geometry import Y_UP_TO_Z_UP_MATRIX
 from garmentcli.common import betas_option, input_errors_as_click, source_fps_option
 
 _FORMATS = {"json": ("json",), "csv": ("csv",), "md": ("md",), "all": ("json", "csv", "md")}
@@ -29,9 +30,9 @@ def _inside_fn(depth_m: float):
 
 
 #: (what to tell, matrix applied to GT's points as row vectors): frame and unit mix-ups of another tool's output.
-_GT_FIXES = (("is Y-up: turned to Z-up", np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], dtype=np.float64)),
+_GT_FIXES = (("is Y-up: turned to Z-up", Y_UP_TO_Z_UP_MATRIX.T),
              ("is in centimetres", np.eye(3) * 0.01),
-             ("is Y-up and in centimetres", np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], dtype=np.float64) * 0.01))
+             ("is Y-up and in centimetres", Y_UP_TO_Z_UP_MATRIX.T * 0.01))
 
 
 def frame_hint(pred: np.ndarray, gt: np.ndarray) -> str:
