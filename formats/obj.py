@@ -74,8 +74,25 @@ def _read_text(path: Path, label: str) -> str:
         data = path.read_bytes()
     except OSError as exc:
         raise InputError(f"{label} '{path}': cannot be read ({exc.strerror or exc})") from None
-    # Comments and material names in legacy encodings must not stop a read.
-    return data.decode("utf-8", errors="replace")
+    # Comments and material names in legacy encodings must not stop a read; a byte-order mark (Windows tools
+    # write one) must not hide the first line.
+    return data.decode("utf-8-sig", errors="replace")
+
+
+def _logical_lines(text: str):
+    """(line number, line) of an OBJ's text, a line ending in a backslash joined with the next (the format's
+    line continuation); a joined line is numbered by its last physical line. Comments are never continued: an
+    exporter's "# C:\\models\\" must not swallow the vertex after it."""
+    pending = ""
+    for lineno, line in enumerate(text.splitlines(), 1):
+        stripped = line.rstrip()
+        if stripped.endswith("\\") and not (pending + stripped).lstrip().startswith("#"):
+            pending += stripped[:-1] + " "
+            continue
+        yield lineno, pending + line
+        pending = ""
+    if pending:
+        yield lineno, pending
 
 
 def _floats(rows: list, line_numbers: list, width: int, what: str, label: str, path: Path) -> np.ndarray:
@@ -132,7 +149,7 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
     v_rows, v_lines, vt_rows, vt_lines = [], [], [], []
     f_lines, f_numbers, f_nv, f_nvt = [], [], [], []
     unknown = 0
-    for lineno, line in enumerate(text.splitlines(), 1):
+    for lineno, line in _logical_lines(text):
         parts = line.split()
         if not parts:
             continue
@@ -323,6 +340,8 @@ def _parse_like(text: str, like: ObjPolygons) -> ObjPolygons | None:
     Returns None whenever the file is not plainly `like` with other coordinates
     (different face lines, `v` lines with w or colours, ...); the full parser then decides.
     """
+    if "\\\n" in text or "\\\r" in text:
+        return None  # line continuations: the full parser joins them
     lines = text.splitlines()
     v_rows = [line[2:] for line in lines if line.startswith(("v ", "v\t"))]
     if len(v_rows) != like.vertices.shape[0]:

@@ -98,6 +98,28 @@ def test_read_mixed_features(tmp_path, caplog):
     assert "removed 2 unused vertices" in text
 
 
+def test_a_byte_order_mark_and_line_continuations_are_read(tmp_path):
+    """A UTF-8 byte-order mark (Windows exporters) does not hide the first vertex; a line ending in a backslash
+    continues on the next, except a comment (a Windows path ending in one must not swallow a vertex). Each
+    file reads as the plain one, also through a sequence frame's fast path."""
+    plain = parse_obj(_write(tmp_path, UV_OBJ, "plain.obj"))
+    lines = UV_OBJ.splitlines(keepends=True)
+    first_face = next(i for i, line in enumerate(lines) if line.startswith("f "))
+    a, b = lines[first_face].rsplit(" ", 1)  # "f 1/1 2/2 3/3", "4/4\n"
+    variants = {
+        "bom.obj": ("\ufeff" + UV_OBJ).encode("utf-8"),
+        "continued.obj": "".join(lines[:first_face] + [a + " \\\n", "   " + b] + lines[first_face + 1:]).encode(),
+        "comment.obj": ("# exported from C:\\garments\\\n" + UV_OBJ).encode(),
+    }
+    for name, data in variants.items():
+        (tmp_path / name).write_bytes(data)
+        for like in (None, plain):
+            got = parse_obj(tmp_path / name, like=like)
+            np.testing.assert_array_equal(got.vertices, plain.vertices, err_msg=name)
+            np.testing.assert_array_equal(got.polygons, plain.polygons, err_msg=name)
+            np.testing.assert_array_equal(got.polygon_uvs, plain.polygon_uvs, err_msg=name)
+
+
 def test_read_uvs_when_every_face_has_them(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="formats.obj"):
         g = read_obj(_write(tmp_path, UV_OBJ))
