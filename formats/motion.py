@@ -1,11 +1,13 @@
 """AMASS-style motion files (.npz): read them into a `core.motion.Motion`, write them back.
 
 Accepted layouts: `poses` with 72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X) values per
-frame (or the same as a (T, J, 3) array), or, when `poses` is absent, the SMPL-X
-split keys `root_orient (T,3)`, `pose_body (T,63)` and optional `pose_jaw (T,3)`,
-`pose_eye (T,6)`, `pose_hand (T,90)`. Also read: `trans (T,3)` metres Z-up (zeros,
-with a warning, when missing), `betas` (any length), `mocap_framerate` or
-`mocap_frame_rate` (Hz; or `mocap_fps`, `fps`, `framerate`, `frame_rate`), `gender`.
+frame, or 66 (the 22 body joints alone; the SMPL hands are then at rest), or the same
+as a (T, J, 3) array, or, when `poses` is absent, the SMPL-X split keys
+`root_orient (T,3)`, `pose_body (T,63)` and optional `pose_jaw (T,3)`, `pose_eye (T,6)`,
+`pose_hand (T,90)`. Also read: `trans (T,3)` metres Z-up (zeros, with a warning, when
+missing), `betas` (any length; per frame (T, S) as video fits write them: their mean),
+`mocap_framerate` or `mocap_frame_rate` (Hz; or `mocap_fps`, `fps`, `framerate`,
+`frame_rate`), `gender`.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.body import LAYOUT_JOINTS
+from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
 from core.errors import InputError
 from core.motion import Motion, validate_motion_values, warn_if_not_metres, warn_if_y_up
 from formats.atomic import atomic_file
@@ -26,11 +28,17 @@ log = logging.getLogger(__name__)
 #: Where a frame rate is found (AMASS's two spellings first, then those of other SMPL pipelines).
 FRAMERATE_KEYS = ("mocap_framerate", "mocap_frame_rate", "mocap_fps", "fps", "framerate", "frame_rate")
 _VALUES_PER_FRAME = {3 * n: n for n in LAYOUT_JOINTS.values()}  # 72, 156, 165 -> joints
+#: The body's 22 joints alone (the SMPL-H / SMPL-X body without hands, as root_orient + pose_body concatenated):
+#: read with the two SMPL hand joints at rest.
+_BODY_ONLY_JOINTS = N_BODY_JOINTS
+#: Per-frame betas (a shape estimated in every frame, as video-based fits write) further than this from their
+#: mean in some frame and coefficient are warned about: the motion is baked with the mean shape.
+BETAS_SPREAD_WARN = 0.1
 _SPLIT_KEYS = ("root_orient", "pose_body", "pose_jaw", "pose_eye", "pose_hand")
 #: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
 #: needs allow_pickle) are left unread.
 _READ_KEYS = ("poses", *_SPLIT_KEYS, "trans", "betas", *FRAMERATE_KEYS, "gender")
-_EXPECTED = "72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X)"
+_EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
 
 
 def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Motion:
@@ -89,11 +97,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         log.warning("%s: no 'trans' key, using zero translation", src)
         trans = np.zeros((T, 3), dtype=np.float32)
 
-    betas = None
-    if "betas" in arrays:
-        betas = _float_array(arrays["betas"], "betas", src).reshape(-1)
-        if betas.size and not np.all(np.isfinite(betas)):
-            raise InputError(f"{src}: betas contain NaN or Inf")
+    betas = _read_betas(arrays["betas"], T, src) if "betas" in arrays else None
 
     if fps is None:
         key = next((k for k in FRAMERATE_KEYS if k in arrays), None)
@@ -141,6 +145,29 @@ def save_motion(path, motion: Motion) -> None:
         np.savez(f, **arrays)
 
 
+def _read_betas(raw, n_frames: int, src: str) -> np.ndarray:
+    """(S,) float32 betas from (S,), (1, S) or per-frame (T, S) (their mean, warned about when the frames
+    disagree by more than BETAS_SPREAD_WARN)."""
+    betas = _float_array(raw, "betas", src)
+    if betas.size and not np.all(np.isfinite(betas)):
+        raise InputError(f"{src}: betas contain NaN or Inf")
+    if betas.ndim == 2 and betas.shape[0] == n_frames and n_frames > 1:
+        spread = float(np.abs(betas - betas.mean(axis=0)).max(initial=0.0))
+        if spread > BETAS_SPREAD_WARN:
+            log.warning("%s: betas are given per frame and differ by up to %.2f from their mean: the body's shape "
+                        "is held at their mean over the %d frames", src, spread, n_frames)
+        return betas.mean(axis=0).astype(np.float32)
+    if betas.ndim > 1 and (betas.ndim > 2 or betas.shape[0] != 1):
+        raise InputError(f"{src}: expected betas of shape (S,), (1, S) or one row per frame ({n_frames}, S), "
+                         f"got {tuple(betas.shape)}")
+    return betas.reshape(-1)
+
+
+def _body_only(poses: np.ndarray) -> np.ndarray:
+    """(T, 24, 3): 22-joint body poses with the SMPL hand joints (22, 23) at rest."""
+    return np.concatenate([poses, np.zeros((poses.shape[0], 2, 3), dtype=poses.dtype)], axis=1)
+
+
 def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:
     """(T, J, 3) float32 poses from `poses` or the SMPL-X split keys; files: every key of the archive."""
     if "poses" in arrays:
@@ -148,12 +175,16 @@ def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:
         if poses.ndim == 1:  # a single frame stored flat
             poses = poses[None]
         if poses.ndim == 3:
+            if poses.shape[2] == 3 and poses.shape[1] == _BODY_ONLY_JOINTS:
+                return _body_only(poses)
             if poses.shape[2] != 3 or poses.shape[1] * 3 not in _VALUES_PER_FRAME:
-                raise InputError(f"{src}: expected poses of shape (T, 24|52|55, 3), got {tuple(poses.shape)}")
+                raise InputError(f"{src}: expected poses of shape (T, 22|24|52|55, 3), got {tuple(poses.shape)}")
             return poses
         if poses.ndim != 2:
             raise InputError(f"{src}: expected poses of shape (T, 72|156|165), got {tuple(poses.shape)}")
         n = poses.shape[1]
+        if n == 3 * _BODY_ONLY_JOINTS:
+            return _body_only(poses.reshape(poses.shape[0], _BODY_ONLY_JOINTS, 3))
         if n not in _VALUES_PER_FRAME:
             raise InputError(f"{src}: expected {_EXPECTED} pose values per frame, got {n}")
         return poses.reshape(poses.shape[0], _VALUES_PER_FRAME[n], 3)

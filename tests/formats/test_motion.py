@@ -112,6 +112,43 @@ def test_gender_forms(tmp_path, raw, expected):
     assert m.gender == expected
 
 
+@pytest.mark.parametrize("shape", [(4, 66), (4, 22, 3)])
+def test_the_22_body_joints_alone_read_with_the_hands_at_rest(tmp_path, shape):
+    """root_orient + pose_body concatenated (66 values, or (T, 22, 3)): the SMPL layout, its two hand joints
+    (22, 23) at rest."""
+    poses = _poses(4, 66).reshape(shape)
+    m = load_motion(_write(tmp_path, poses=poses, trans=_trans(4), mocap_framerate=30))
+    assert m.poses.shape == (4, 24, 3) and m.layout == "smpl"
+    np.testing.assert_array_equal(m.poses[:, :22], poses.reshape(4, 22, 3))
+    assert not m.poses[:, 22:].any()
+
+
+def test_per_frame_betas_are_held_at_their_mean(tmp_path, caplog):
+    """Video-based fits write betas per frame (T, S): the body takes their mean (not the T x S values flattened,
+    as before), and frames that disagree by more than 0.1 are warned about; (1, S) is one row; another 2-D
+    shape is refused."""
+    rng = np.random.default_rng(1)
+    steady = np.ones((5, 10)) + rng.normal(scale=0.01, size=(5, 10))
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(_write(tmp_path, poses=_poses(5, 72), trans=_trans(5), mocap_framerate=30, betas=steady))
+    np.testing.assert_allclose(m.betas, steady.mean(axis=0), rtol=1e-6)
+    assert "per frame" not in caplog.text
+    drifting = steady.copy()
+    drifting[4, 3] += 0.5
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(_write(tmp_path, "d.npz", poses=_poses(5, 72), trans=_trans(5), mocap_framerate=30,
+                               betas=drifting))
+    spread = np.abs(drifting - drifting.mean(axis=0)).max()  # 0.4, give or take the noise
+    assert m.betas.shape == (10,) and f"betas are given per frame and differ by up to {spread:.2f}" in caplog.text
+    m = load_motion(_write(tmp_path, "o.npz", poses=_poses(5, 72), trans=_trans(5), mocap_framerate=30,
+                           betas=np.ones((1, 10))))
+    assert m.betas.shape == (10,)
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, "w.npz", poses=_poses(5, 72), trans=_trans(5), mocap_framerate=30,
+                           betas=np.ones((3, 10))))
+    _assert_one_line(info, "w.npz", "one row per frame (5, S)", "got (3, 10)")
+
+
 def test_betas_any_length_and_optional(tmp_path):
     m = load_motion(_write(tmp_path, poses=_poses(2, 72), trans=_trans(2), mocap_framerate=30, betas=np.ones(300)))
     assert m.betas.shape == (300,)
@@ -202,7 +239,7 @@ def test_missing_poses_keys(tmp_path):
     _assert_one_line(info, "m.npz", "poses", "root_orient")
 
 
-@pytest.mark.parametrize("n_values", [69, 63, 168, 3])
+@pytest.mark.parametrize("n_values", [69, 63, 168, 3, 64])
 def test_wrong_values_per_frame(tmp_path, n_values):
     with pytest.raises(InputError) as info:
         load_motion(_write(tmp_path, poses=_poses(3, n_values), trans=_trans(3), mocap_framerate=30))
