@@ -182,22 +182,25 @@ class Collisions(NamedTuple):
     body_faces: np.ndarray | None
     #: Whether cloth-cloth contact is on.
     self_contact: bool
-    #: World height (Z, metres) of the ground plane, or None for no ground.
-    ground_z: float | None
+    #: (T,) world height (Z, metres) of the ground plane in each body frame, or None for no ground.
+    floor_z: np.ndarray | None
 
 
 def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: np.ndarray, body_faces: np.ndarray,
                        rest: np.ndarray, weights: np.ndarray, transforms: np.ndarray, self_contact: bool,
-                       floor: bool = True) -> Collisions:
+                       floor: bool = True, motion_from: int = 0) -> Collisions:
     """The simulator's part (body faces, self-contact, ground), recorded in `analysis`.
 
     body_points: (T, Vb, 3) every simulated body frame, the Z-up world; transforms: (T, J, 4, 4) the same
     frames; rest: (V, 3) shaped garment; weights: (V, J) its LBS weights; self_contact: asked for; floor:
-    False leaves the ground out whatever the scene (`SimOptions.floor` "none").
+    False leaves the ground out whatever the scene (`SimOptions.floor` "none"); motion_from: body_points
+    [motion_from:] are the motion's own frames, those before it the simulator's lead-in (rest pose, blend).
 
-    The ground is the horizontal plane through the lowest point the body reaches in any frame: where a
-    motion's feet touch the floor (a walk, a run) that is the floor, without trusting the file's own origin
-    (AMASS datasets put the floor at various heights); it is never above a body point.
+    The ground is the horizontal plane through the lowest point the body reaches in the motion's frames: where
+    its feet touch the floor (a walk, a run) that is the floor, without trusting the file's own origin (AMASS
+    datasets put the floor at various heights). In a lead-in frame whose body reaches lower (the rest pose's
+    straight legs under a clip that starts crouching or seated) it is lowered to that frame's lowest point:
+    it is never above a body point.
     """
     frames = preview_frames(len(body_points))
     preview = lbs_preview(rest, weights, transforms[frames])
@@ -225,16 +228,18 @@ def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: n
             contact = False
     else:
         analysis.record("self-contact", False, reason="self-contact not requested")
-    ground = float(body_points[..., 2].min())
+    lowest_body = body_points[..., 2].min(axis=1)  # (T,)
+    ground = float(lowest_body[motion_from:].min())
+    floor_z = np.minimum(lowest_body, ground)
     if floor:
-        lowest = float((preview[..., 2].min(axis=1) - slack_g).min()) - ground
+        lowest = float((preview[..., 2].min(axis=1) - slack_g - floor_z[frames]).min())
         not_reached = lowest > FLOOR_REACH_M
         analysis.record("floor", not_reached, reach_m=FLOOR_REACH_M, ground_z_m=ground,
-                        garment_lowest_above_ground_m=lowest)
+                        lowered_in_lead_in_m=float(ground - floor_z.min()), garment_lowest_above_ground_m=lowest)
         floor = not (not_reached and analysis.enabled("floor"))
     else:
         analysis.record("floor", False, reason="floor none")
-    return Collisions(faces, contact, ground if floor else None)
+    return Collisions(faces, contact, floor_z if floor else None)
 
 
 def scene_levels(garment: Garment, body: Body, motion: Motion) -> dict:

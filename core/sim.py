@@ -794,9 +794,10 @@ class SimDeformer(Deformer):
         # Scene analysis: the collider keeps the body faces within reach of the garment; self-contact only
         # where distant parts of the garment can meet; the ground only where the garment comes near it.
         scene = SceneAnalysis(self.skips)
-        kept, self_contact, ground_z = analyse_collisions(scene, garment, body_pts, faces_b, shaped, binding.weights,
+        offset = 1 + len(pre)  # the first output frame among the simulated ones
+        kept, self_contact, floor_world = analyse_collisions(scene, garment, body_pts, faces_b, shaped, binding.weights,
                                                           np.asarray(transforms), o.self_contact,
-                                                          floor=o.floor == "auto")
+                                                          floor=o.floor == "auto", motion_from=offset)
         collider_v, collider_f = np.arange(body.n_vertices), faces_b
         if kept is not None:
             collider_v = np.unique(faces_b[kept])
@@ -810,8 +811,9 @@ class SimDeformer(Deformer):
             speed = (_relative_lbs_speed(shaped, binding.weights, transforms, origin, motion.fps)
                      + float(np.linalg.norm(np.diff(frame_velocity, axis=0), axis=1).max(initial=0.0)))
         gap = self_contact_gap(m, speed, frame_dt / o.substeps)
-        # The ground, static in the world, moves against the frame: (height, its height one frame on, velocity).
-        floor_z = None if ground_z is None else ground_z - origin[:, 2]
+        # The ground, static in the world (but lowered under a lead-in body that reaches below it), moves against
+        # the frame: (height, its height one frame on, velocity).
+        floor_z = None if floor_world is None else floor_world - origin[:, 2]
         lifted = 0
         if floor_z is not None:  # cloth authored below the ground starts on it (the body never is below it)
             low = start[:, 2] < floor_z[0] + m.contact_distance_m
@@ -819,7 +821,11 @@ class SimDeformer(Deformer):
             start[low, 2] = floor_z[0] + m.contact_distance_m
 
         def ground(i: int, j: int):
-            return None if floor_z is None else (floor_z[i], floor_z[j], -frame_velocity[j])
+            if floor_z is None:
+                return None
+            velocity = -frame_velocity[j]
+            velocity[2] = (floor_z[j] - floor_z[i]) * motion.fps
+            return floor_z[i], floor_z[j], velocity
 
         sim = ClothSim(template, garment.faces, collider[0], collider_f, m, self_contact, o.iterations,
                        start_vertices=start, bounds=bounds, pinned=pinned,
@@ -839,7 +845,6 @@ class SimDeformer(Deformer):
                             ground(i, i + 1))
         t_pre = time.perf_counter()
         # Phase 3: the output frames, checked and retried.
-        offset = 1 + len(pre)
         out = np.empty((T, garment.n_vertices, 3), dtype=np.float32)
         stats, retries = [], []
         for t in range(T):
@@ -893,7 +898,9 @@ class SimDeformer(Deformer):
             "pinned_vertices": len(pinned),
             "non_manifold_edges": sim.non_manifold_edges,
             "hem_above_soles_m": hem_m,
-            "floor": None if ground_z is None else {"ground_z_m": ground_z, "lifted_onto_it_at_start": lifted},
+            "floor": None if floor_world is None else {"ground_z_m": scene.report["floor"]["ground_z_m"],
+                                                       "lowest_z_m": float(floor_world.min()),
+                                                       "lifted_onto_it_at_start": lifted},
             "self_contact": ({"detection_gap_m": gap, "relative_speed_max_m_s": speed,
                               "cloth_speed_limit_m_s": cloth_speed_limit(m, gap, frame_dt / o.substeps),
                               "filtered_along_surface": sim.contact_filter,

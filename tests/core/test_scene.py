@@ -118,6 +118,51 @@ def test_distant_parts_meet_on_a_folded_strip_only():
     assert not distant_parts_meet(sub, folded[near_fold][None].astype(np.float32), 0.05)["meet"]
 
 
+def test_the_ground_is_the_motions_lowest_body_point_lowered_under_the_lead_in():
+    """analyse_collisions' ground: the lowest body point over the motion's frames (motion_from on); in a lead-in
+    frame whose body reaches lower, that frame's lowest point; kept where the garment's LBS preview comes within
+    FLOOR_REACH_M of it, skipped above, and left out with floor=False."""
+    from core.scene import FLOOR_REACH_M, analyse_collisions
+
+    body = tiny_body()
+    v, f = icosphere(2)
+    body_faces = body.faces
+    rest = body.v_template.astype(np.float64)
+    # The lead-in (31 frames) rises from 30 cm below the motion's lowest frame; 1 cm steps, so that the slack
+    # between frames (half a step) stays small.
+    lead_in = 31
+    lift = np.concatenate([np.linspace(-0.3, 0.0, lead_in), [0.0, 0.01, 0.02, 0.01]])
+    body_points = np.stack([rest + [0.0, 0.0, dz] for dz in lift]).astype(np.float32)
+    transforms = np.tile(np.eye(4, dtype=np.float32), (len(lift), body.n_joints, 1, 1))
+    for t, dz in enumerate(lift):
+        transforms[t, :, 2, 3] = dz
+    weights = np.full((len(v), body.n_joints), 1.0 / body.n_joints, np.float32)
+    lowest_body = rest[:, 2].min() + lift
+    for gap, kept in ((0.5 * FLOOR_REACH_M, True), (2.0 * FLOOR_REACH_M, False)):
+        # A small ball whose lowest point is `gap` above the ground in the motion's lowest frame.
+        ball = (v * 0.05 + [0.0, 0.0, lowest_body[lead_in:].min() + 0.05 + gap]).astype(np.float32)
+        garment = Garment(ball, f)
+        analysis = SceneAnalysis()
+        got = analyse_collisions(analysis, garment, body_points, body_faces, ball, weights, transforms, False,
+                                 motion_from=lead_in)
+        ground = float(lowest_body[lead_in:].min())
+        rec = analysis.report["floor"]
+        assert rec["ground_z_m"] == pytest.approx(ground, abs=1e-6)
+        assert rec["lowered_in_lead_in_m"] == pytest.approx(0.3, abs=1e-6)
+        assert rec["skipped_work"] is (not kept)
+        if kept:
+            np.testing.assert_allclose(got.floor_z, np.minimum(lowest_body, ground), atol=1e-6)
+        else:
+            assert got.floor_z is None
+        # The ball rides with the body, `gap` above the ground in every frame (the lead-in's lowered one too),
+        # less the slack of half a 1 cm step.
+        assert rec["garment_lowest_above_ground_m"] == pytest.approx(gap - 0.005, abs=1e-4)
+    off = SceneAnalysis()
+    assert analyse_collisions(off, garment, body_points, body_faces, ball, weights, transforms, False,
+                              floor=False, motion_from=lead_in).floor_z is None
+    assert off.report["floor"] == {"skipped_work": False, "overridden": False, "reason": "floor none"}
+
+
 def _faces_within(f, keep):
     idx = -np.ones(len(keep), np.int64)
     idx[keep] = np.arange(keep.sum())
