@@ -90,6 +90,10 @@ def boundary_loops(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
     return sorted(loops, key=lambda loop: int(loop[0]))
 
 
+#: Units a garment file too large for metres may be in, tried in this order: (name, scale to metres).
+UNIT_GUESSES = (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254))
+
+
 def validate_garment(garment: Garment, source: str) -> None:
     """Checks every garment must pass before it is deformed; raise InputError naming `source`."""
     v, f = garment.vertices, garment.faces
@@ -102,7 +106,11 @@ def validate_garment(garment: Garment, source: str) -> None:
         raise InputError(f"garment mesh '{source}': expected finite coordinates, got NaN/Inf at vertex {int(np.argmax(bad))}")
     extent = float(np.max(v[np.unique(f)].max(0) - v[np.unique(f)].min(0)))
     if extent > 10.0:
+        # The unit whose metres fit a garment (0.1-3 m): centimetres or millimetres (Marvelous Designer's and
+        # CLO's default export), else inches.
+        unit = next(((name, s) for name, s in UNIT_GUESSES if 0.1 <= extent * s <= 3.0), None)
+        hint = f"; is it in {unit[0]}? scale it by {unit[1]:g}" if unit else ""
         raise InputError(f"garment mesh '{source}': expected metres (a garment spans under 3 m), got an extent of "
-                         f"{extent:.1f} units; is it in centimetres? scale it by 0.01")
+                         f"{extent:.1f} units{hint}")
     if extent < 1e-3:
         raise InputError(f"garment mesh '{source}': expected metres, got an extent of {extent:.2e} units")

@@ -223,7 +223,9 @@ def test_write_read_round_trip(tmp_path, with_uvs):
      "texture coordinate index 2 out of range on line 5, the file has 1 texture coordinates"),
     ("# nothing\nf 1 2 3\n", "expected vertices ('v' lines), got none"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\n", "expected faces ('f' lines), got none"),
-    ("v 0 0 0\nv 100 0 0\nv 0 100 0\nf 1 2 3\n", "is it in centimetres?"),
+    ("v 0 0 0\nv 100 0 0\nv 0 100 0\nf 1 2 3\n", "is it in centimetres? scale it by 0.01"),
+    ("v 0 0 0\nv 1000 0 0\nv 0 1000 0\nf 1 2 3\n", "is it in millimetres? scale it by 0.001"),
+    ("v 0 0 0\nv 1e5 0 0\nv 0 1 0\nf 1 2 3\n", "got an extent of 100000.0 units"),  # no unit fits: no guess
     ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "expected finite coordinates, got NaN/Inf at vertex 1"),
     ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "got no faces"),
 ])
