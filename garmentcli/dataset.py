@@ -11,7 +11,15 @@ import click
 from tqdm import tqdm
 
 from core.provenance import software_versions
-from garmentcli.common import PIN_CHOICES, PIN_HELP, input_errors_as_click, scheduler_options, source_fps_option
+from garmentcli.common import (
+    FLOOR_CHOICES,
+    FLOOR_HELP,
+    PIN_CHOICES,
+    PIN_HELP,
+    input_errors_as_click,
+    scheduler_options,
+    source_fps_option,
+)
 
 
 def _sha256(path) -> str:
@@ -124,12 +132,13 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 @click.option("--substeps", type=click.IntRange(min=1), default=10, show_default=True)
 @click.option("--iterations", type=click.IntRange(min=1), default=10, show_default=True)
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default="auto", show_default=True, help=PIN_HELP)
+@click.option("--floor", type=click.Choice(FLOOR_CHOICES), default="auto", show_default=True, help=FLOOR_HELP)
 @scheduler_options("item", note=" --workers is then ignored.")
 @input_errors_as_click
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
             pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None, no_held_out=False,
-            dry_run=False, source_fps=None):
+            dry_run=False, source_fps=None, floor="auto"):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
@@ -153,7 +162,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         held_out = False
     out = Path(out_dir)
     material = load_material(material_path) if material_path else Material()
-    options = SimOptions(substeps=substeps, iterations=iterations, self_contact=self_contact, pin=pin)
+    options = SimOptions(substeps=substeps, iterations=iterations, self_contact=self_contact, pin=pin, floor=floor)
     garments = {Path(p).stem: read_garment(p) for p in garment_paths}  # validates every garment before any work
     if len(garments) != len(garment_paths):
         raise click.BadParameter("expected distinct file names (stems)", param_hint="--garments")

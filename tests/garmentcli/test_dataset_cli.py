@@ -74,6 +74,9 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene, monkeypatch):
     r = run(*args[:-2], "--seed", 3, "--out", out)
     assert r.exit_code != 0 and "other settings" in r.output and "Traceback" not in r.output
     assert "(seed: 0 -> 3)" in r.output  # the refusal names what differs
+    assert m["settings"]["solver"]["floor"] == "auto"
+    r = run(*args[:-2], "--floor", "none", "--out", out)
+    assert r.exit_code != 0 and "(solver.floor: auto -> none)" in r.output
     # Another simulator version is another plan: one dataset never mixes two versions' cloth.
     import core.sim
 
