@@ -100,7 +100,8 @@ def main(argv=None) -> None:
         f"Made by `python benchmarks/floor.py --frames {args.frames}` on {platform.machine()} ({os.cpu_count()} "
         "cores): each scene simulated with `--floor auto` (the default: the ground where the garment comes within "
         "10 cm of it in the LBS preview) and `--floor none`, 10 substeps, no self-contact, the embedded body. The "
-        "ground is the plane through the lowest point the body reaches in the run. Lowest point and sunk share over "
+        "ground is the plane through the lowest point the body reaches in the motion's frames (lowered under the "
+        "simulator's lead-in where the rest pose reaches lower: the crouch). Lowest point and sunk share over "
         f"the output frames, against that ground in both runs; sunk: more than {SUNK_M * 1e3:g} mm below it.\n\n"
         + markdown_table(["scene", "vertices", "--floor", "ground", "LBS preview's lowest above it, cm",
                           "s/frame", "lowest point, mm", "sunk, % of vertex-frames", "lifted at start",

@@ -727,3 +727,48 @@ def test_cloth_dropped_on_the_ground_lands_on_it_and_friction_carries_it_with_th
     # Kinetic friction (0.3 g) brings the cloth up to the ground's speed within 0.34 s: over 0.2 s it moves
     # 0.3 * 9.81 * 0.2^2 / 2 = 5.9 cm.
     assert 0.03 < moved[1.0] < 0.2
+
+
+def _with_patch(garment: Garment, centre, half=0.02, n=4) -> Garment:
+    """`garment` and a flat square patch (a pocket) of side 2 `half` in the XY plane at `centre`, not joined to it."""
+    v, f = grid(n, n, 2 * half)
+    v = v - [half, half, 0.0] + np.asarray(centre)
+    return Garment(np.concatenate([garment.vertices, v]).astype(np.float32),
+                   np.concatenate([garment.faces, f + garment.n_vertices]), name="patched")
+
+
+def test_small_pieces_are_the_detached_ones_under_two_percent_of_the_area():
+    from core.sim import small_pieces
+
+    big_v, big_f = grid(10, 10, 1.0)  # 1 m^2
+    cloth_ = Garment(big_v.astype(np.float32), big_f, name="sheet")
+    assert small_pieces(cloth_)[1].size == 0
+    patched = _with_patch(_with_patch(cloth_, (0.5, 0.5, 0.1), half=0.05), (0.5, 0.5, 0.2), half=0.2)
+    labels, small = small_pieces(patched)
+    assert labels.max() == 2  # three pieces
+    n = cloth_.n_vertices
+    np.testing.assert_array_equal(small, np.arange(n, n + 25))  # the 10 cm patch (1 %), not the 40 cm one (14 %)
+    assert small_pieces(patched, share=0.2)[1].size == 50
+
+
+def test_a_small_detached_piece_follows_the_body_or_falls_and_stops_the_bake(caplog):
+    """A 4 cm pocket modelled apart, 5 mm off the shell's chest: with pin auto it is pinned whole (said once, and
+    reported) and rides with the body; with pin none nothing holds it, it falls, and the bake stops naming the
+    piece (the garment's median distance alone never moves)."""
+    body, garment, motion = _shell_scene()
+    front = 0.15 * np.sqrt(1 - (0.3 / 0.8) ** 2) + 0.02 + 0.005
+    patched = _with_patch(garment, (0.0, 0.3, front))
+    patch = np.arange(garment.n_vertices, patched.n_vertices)
+    with caplog.at_level(logging.WARNING):
+        d = SimDeformer(options=SimOptions(settle_s=1.0, max_retries=0))
+        out = d.deform(patched, body, motion)
+    assert caplog.text.count("1 piece of the garment (25 vertices) is not joined to the rest of the cloth") == 1
+    assert d.report["pieces"] == {"count": 2, "small_pinned_vertices": 25}
+    assert d.report["pinned_vertices"] == 25  # the shell has no waistband
+    # Pinned, it stays where skinning puts it: on the chest, 2.5 cm off the body.
+    assert np.abs(out[:, patch, 2].mean(axis=1) - out[0, patch, 2].mean()).max() < 0.01
+    with pytest.raises(SimulationError, match=r"piece 2 of 2 \(25 vertices, not joined to the rest\) fell or slid "
+                                              r"off the body"):
+        # (No ground: the shell reaches below the soles, so the ground is simulated, and the pocket would land on it.)
+        SimDeformer(options=SimOptions(settle_s=1.0, max_retries=0, pin="none", floor="none")).deform(patched, body,
+                                                                                                    motion)
