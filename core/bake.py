@@ -73,7 +73,10 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
         "fps": float(motion.fps),
         "settle_frames": int(motion.n_settle),
         "garment": {"name": garment.name, "vertices": garment.n_vertices, "faces": garment.n_faces,
-                    "sha256": garment.content_hash()},
+                    "sha256": garment.content_hash(),
+                    # The outputs are written in the file's own mesh where it differs from the one deformed.
+                    "written_as_file": None if garment.source is None else {
+                        "vertices": garment.source.n_vertices, "polygons": int(len(garment.source.polygons))}},
         "body": {"name": body.name, "vertices": body.n_vertices, "joints": body.n_joints,
                  "betas": body.fit_betas(motion.betas).round(6).tolist()},
         "seconds_deform": t_deform,

@@ -16,11 +16,38 @@ from core.errors import InputError
 
 
 @dataclass(frozen=True, eq=False)
+class SourceMesh:
+    """The mesh as its file has it, where that differs from the triangle mesh deformed (quads, seams welded,
+    vertices or faces dropped): what the bake's outputs are written in, so that they keep the file's point
+    numbering and polygons.
+
+    vertex_of: (Vs,) int64, the garment vertex each of the file's vertices moves with (itself; the vertex it
+    was welded onto; for a vertex no face uses, the nearest one). polygons: (P, 4) int64 indices into the
+    file's vertices, -1 in the last column of a triangle (a face of more than 4 corners is written as the
+    triangles it was split into). uvs: (U, 2) float32 or None; polygon_uvs: (P, 4) int64 into uvs, or None.
+    """
+
+    vertex_of: np.ndarray
+    polygons: np.ndarray
+    uvs: np.ndarray | None = None
+    polygon_uvs: np.ndarray | None = None
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertex_of.shape[0])
+
+    def points(self, garment_points: np.ndarray) -> np.ndarray:
+        """(..., Vs, 3): the file's vertices where the garment's (..., V, 3) `garment_points` put them."""
+        return np.asarray(garment_points)[..., self.vertex_of, :]
+
+
+@dataclass(frozen=True, eq=False)
 class Garment:
     """A triangle mesh in the body's rest frame.
 
     vertices: (V, 3) float32, metres. faces: (F, 3) int64.
     uvs: (U, 2) float32 or None; face_uvs: (F, 3) int64 indices into uvs, or None.
+    source: the file's own mesh (`SourceMesh`) where it differs from this one (not part of `content_hash`).
     """
 
     vertices: np.ndarray
@@ -28,6 +55,7 @@ class Garment:
     uvs: np.ndarray | None = None
     face_uvs: np.ndarray | None = None
     name: str = "garment"
+    source: SourceMesh | None = None
 
     @property
     def n_vertices(self) -> int:

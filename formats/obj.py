@@ -14,13 +14,13 @@ from __future__ import annotations
 import logging
 import os
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from core.errors import InputError
-from core.garment import Garment, validate_garment
+from core.garment import Garment, SourceMesh, validate_garment
 
 log = logging.getLogger(__name__)
 
@@ -497,6 +497,7 @@ def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.nd
                           polygon_uvs: np.ndarray | None, label: str, path: Path) -> Garment:
     """The validated `Garment` of a file's polygons (see `ObjPolygons`): quads split, seams welded, degenerate
     and duplicate faces and unused vertices and UVs dropped (each warned), named after the file's stem."""
+    file_vertices = vertices
     faces, face_uvs, _ = triangulate(vertices, polygons, polygon_uvs)
     faces, welded = _weld(vertices, faces, label, path)
     vertices, faces, face_uvs = _clean(vertices, faces, face_uvs, label, path, welded)
@@ -512,7 +513,30 @@ def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.nd
     garment = Garment(vertices=vertices.astype(np.float32), faces=faces.astype(np.int64),
                       uvs=garment_uvs, face_uvs=face_uvs, name=path.stem)
     validate_garment(garment, source=str(path))
-    return garment
+    return replace(garment, source=source_mesh(file_vertices, polygons, uvs, polygon_uvs, garment))
+
+
+def source_mesh(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
+                polygon_uvs: np.ndarray | None, garment: Garment) -> SourceMesh | None:
+    """The file's mesh (`SourceMesh`) of `garment`, read from `vertices` (Vs, 3), `polygons` (P, 4) and their
+    UVs; None when it is the garment's own (triangles only, nothing welded or dropped)."""
+    from scipy.spatial import cKDTree
+
+    vertices = np.asarray(vertices, dtype=np.float64)
+    polygons = np.asarray(polygons, dtype=np.int64)
+    same_uvs = (polygon_uvs is None) == (garment.face_uvs is None)
+    if (len(vertices) == garment.n_vertices and (polygons[:, 3] < 0).all() and same_uvs
+            and np.array_equal(polygons[:, :3], garment.faces)
+            and np.array_equal(vertices.astype(np.float32), garment.vertices)):
+        return None
+    # Every used vertex is a garment vertex (distance 0), a welded one lies within the weld distance of its
+    # own, an unused one goes with the nearest (one with NaN coordinates, which no face uses, with any).
+    finite = np.isfinite(vertices).all(axis=1)
+    _, vertex_of = cKDTree(np.asarray(garment.vertices, dtype=np.float64)).query(
+        np.where(finite[:, None], vertices, 0.0))
+    return SourceMesh(vertex_of=np.asarray(vertex_of, dtype=np.int64), polygons=polygons,
+                      uvs=None if polygon_uvs is None else np.asarray(uvs, dtype=np.float32),
+                      polygon_uvs=None if polygon_uvs is None else np.asarray(polygon_uvs, dtype=np.int64))
 
 
 def obj_vertex_text(vertices: np.ndarray) -> str:
@@ -522,10 +546,13 @@ def obj_vertex_text(vertices: np.ndarray) -> str:
 
 
 def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None) -> str:
-    """`vt` and `f` lines for faces (F, 3) int 0-based; with uvs (U, 2) and face_uvs (F, 3), `f a/b` forms."""
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3) + 1
+    """`vt` and `f` lines for faces (F, 3) int 0-based; with uvs (U, 2) and face_uvs (F, 3), `f a/b` forms.
+    Faces (F, 4) with -1 in the last column of triangles (`ObjPolygons.polygons`) write quads as quads."""
     if (uvs is None) != (face_uvs is None):
         raise ValueError("uvs and face_uvs must be given together")
+    if np.asarray(faces).ndim == 2 and np.asarray(faces).shape[1] == 4:
+        return _polygon_text(np.asarray(faces, dtype=np.int64), uvs, face_uvs)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3) + 1
     if uvs is None:
         return ("f %d %d %d\n" * len(f)) % tuple(f.ravel().tolist())
     t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
@@ -535,6 +562,19 @@ def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np
     inter = np.stack([f, ft], axis=2).reshape(len(f), 6)
     return (("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
             + ("f %d/%d %d/%d %d/%d\n" * len(f)) % tuple(inter.ravel().tolist()))
+
+
+def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.ndarray | None) -> str:
+    """`vt` and `f` lines of (P, 4) polygons, -1 in the last column of a triangle (and their (P, 4) UV indices)."""
+    text = ""
+    corners = [row[row >= 0] + 1 for row in polygons]
+    if uvs is None:
+        return text + "".join("f " + " ".join(map(str, c.tolist())) + "\n" for c in corners)
+    t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
+    text += ("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
+    uv_corners = [row[row >= 0] + 1 for row in np.asarray(polygon_uvs, dtype=np.int64)]
+    return text + "".join("f " + " ".join(f"{a}/{b}" for a, b in zip(c.tolist(), u.tolist())) + "\n"
+                          for c, u in zip(corners, uv_corners))
 
 
 def _header_text(header: str | None) -> str:

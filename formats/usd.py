@@ -29,8 +29,9 @@ class MeshTrack:
     """One animated mesh of a stage.
 
     name: prim name (sanitised on write). points: (T, V, 3) float32, metres.
-    faces: (F, 3) int64, 0-based. uvs: (F*3, 2) float32, face-varying texture
-    coordinates in face-corner order, or None. color: (3,) float RGB in [0, 1] or None.
+    faces: (F, 3) int64, 0-based, or (F, 4) triangles and quads, -1 in the last column of a triangle.
+    uvs: (corners, 2) float32, face-varying texture coordinates in face-corner order (F*3 for triangles), or
+    None. color: (3,) float RGB in [0, 1] or None.
     """
 
     name: str
@@ -99,13 +100,15 @@ def _check_track(track: MeshTrack, n_frames: int | None) -> None:
     if n_frames is not None and p.shape[0] != n_frames:
         raise InputError(f"USD track '{track.name}': expected {n_frames} frames like the first track, "
                          f"got {p.shape[0]}")
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise InputError(f"USD track '{track.name}': expected faces (F, 3), got {f.shape}")
-    if f.size and (f.min() < 0 or f.max() >= p.shape[1]):
-        raise InputError(f"USD track '{track.name}': face index {int(f.max())} out of range for "
+    if f.ndim != 2 or f.shape[1] not in (3, 4) or (f.shape[1] == 4 and (f[:, :3] < 0).any()):
+        raise InputError(f"USD track '{track.name}': expected faces (F, 3), or (F, 4) with -1 closing triangles, "
+                         f"got {f.shape}")
+    corners = f[f >= 0]
+    if corners.size and corners.max() >= p.shape[1]:
+        raise InputError(f"USD track '{track.name}': face index {int(corners.max())} out of range for "
                          f"{p.shape[1]} points")
-    if track.uvs is not None and np.asarray(track.uvs).shape != (f.shape[0] * 3, 2):
-        raise InputError(f"USD track '{track.name}': expected uvs ({f.shape[0] * 3}, 2) face-varying, "
+    if track.uvs is not None and np.asarray(track.uvs).shape != (corners.size, 2):
+        raise InputError(f"USD track '{track.name}': expected uvs ({corners.size}, 2) face-varying, "
                          f"got {np.asarray(track.uvs).shape}")
 
 
@@ -114,8 +117,8 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
     """Write time-sampled meshes to a USD stage.
 
     meshes: tracks sharing T frames; each becomes /Root/<name> with points and
-    extent sampled at time codes start_frame .. start_frame + T - 1, triangle
-    topology, subdivisionScheme "none", doubleSided, a face-varying `st`
+    extent sampled at time codes start_frame .. start_frame + T - 1, its
+    triangles (and quads), subdivisionScheme "none", doubleSided, a face-varying `st`
     primvar when `uvs` is given and a constant displayColor when `color` is.
     fps: frames per second (> 0), stored as timeCodesPerSecond and
     framesPerSecond. up_axis: "Y" or "Z"; meters_per_unit: length of one stage
@@ -153,12 +156,13 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
 
     for track, prim_name in zip(meshes, _prim_names([m.name for m in meshes])):
         points = np.ascontiguousarray(track.points, dtype=np.float32)
-        faces = np.ascontiguousarray(track.faces, dtype=np.int32)
+        faces = np.asarray(track.faces, dtype=np.int32)
         mesh = UsdGeom.Mesh.Define(stage, f"{ROOT}/{prim_name}")
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
         mesh.CreateDoubleSidedAttr(True)
-        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, dtype=np.int32)))
-        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.ravel()))
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray((faces >= 0).sum(axis=1),
+                                                                                   dtype=np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(faces[faces >= 0])))
         points_attr = mesh.CreatePointsAttr()
         extent_attr = mesh.CreateExtentAttr()
         lo, hi = points.min(axis=1), points.max(axis=1)  # (T, 3) each

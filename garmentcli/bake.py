@@ -88,21 +88,26 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
 
 
 def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, write_obj: bool) -> None:
-    """USD stage (garment + body) and the OBJ sequence into `directory`."""
+    """USD stage (garment + body) and the OBJ sequence into `directory`. The garment is written as its file has
+    it (`garment.source`: its point numbering, quads and UV seams), where that differs from the mesh deformed."""
     from formats.sequence import write_obj_sequence
     from formats.usd import MeshTrack, write_usd_stage
 
     fps = result.summary["fps"]
+    points, faces, uvs, face_uvs = result.garment_points, garment.faces, garment.uvs, garment.face_uvs
+    if garment.source is not None:
+        src = garment.source
+        points, faces, uvs, face_uvs = src.points(points), src.polygons, src.uvs, src.polygon_uvs
     face_uv = None
-    if garment.uvs is not None and garment.face_uvs is not None:
-        face_uv = garment.uvs[garment.face_uvs].reshape(-1, 2)
-    tracks = [MeshTrack("garment", result.garment_points, garment.faces, uvs=face_uv, color=(0.80, 0.33, 0.25))]
+    if uvs is not None and face_uvs is not None:
+        face_uv = uvs[face_uvs[faces >= 0] if faces.shape[1] == 4 else face_uvs.ravel()].reshape(-1, 2)
+    tracks = [MeshTrack("garment", points, faces, uvs=face_uv, color=(0.80, 0.33, 0.25))]
     if result.body_points is not None:
         tracks.append(MeshTrack("body", result.body_points, body.faces, uvs=None, color=(0.75, 0.75, 0.78)))
     write_usd_stage(directory / f"{stem}.usd", tracks, fps=fps,
                     metadata={"garment_method": result.summary["method"], "garment_settle_frames": result.summary["settle_frames"]})
     if write_obj:
-        write_obj_sequence(directory / "obj", result.garment_points, garment.faces, garment.uvs, garment.face_uvs, fps=fps)
+        write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps)
 
 
 @dataclass(frozen=True)

@@ -321,3 +321,66 @@ def test_skip_existing_with_every_motion_baked_does_nothing(scene):
     r = run([*args, "--skip-existing", "--quality", "auto"])  # nothing left to choose a quality for
     assert r.exit_code == 0 and "quality auto" not in r.output, r.output
     assert summary.stat().st_mtime_ns == before
+
+
+def _two_panel_quad_tube(path, n_theta=16, n_rows=5):
+    """A tube of quads around the tiny body's torso, cut at its sides into two panels that each repeat the seam's
+    vertices, with per-panel UVs (as a pattern tool exports a garment). Returns (vertices, quads) as written."""
+    half = n_theta // 2
+    verts, uvs, quads = [], [], []
+    for panel in range(2):
+        first = len(verts)
+        for r, y in enumerate(np.linspace(-0.3, 0.1, n_rows)):
+            for c in range(half + 1):
+                t = 2 * np.pi * (panel * half + c) / n_theta
+                verts.append([0.3 * np.cos(t), y, 0.2 * np.sin(t)])
+                uvs.append([c / half, r / (n_rows - 1)])
+        for r in range(n_rows - 1):
+            for c in range(half):
+                a = first + r * (half + 1) + c
+                quads.append([a, a + half + 1, a + half + 2, a + 1])
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in verts] + [f"vt {u:.6f} {v:.6f}" for u, v in uvs]
+    lines += ["f " + " ".join(f"{i + 1}/{i + 1}" for i in q) for q in quads]
+    path.write_text("\n".join(lines) + "\n")
+    return np.array(verts), np.array(quads)
+
+
+def test_outputs_keep_the_files_points_quads_and_uv_seams(scene):
+    """A garment of quads in two panels (its seam's vertices repeated) is deformed welded and triangulated, but
+    written as its file has it: the same points in the same order (a seam's two copies at one position), its
+    quads, its UVs, in the OBJ sequence and the USD stage alike; the summary says so."""
+    from pxr import Usd, UsdGeom
+
+    path = scene["dir"] / "panels.obj"
+    verts, quads = _two_panel_quad_tube(path)
+    r = run(["bake", str(path), scene["motion"], "--body", scene["body"], "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "panels_walk"
+    summary = json.loads((d / "summary.json").read_text())
+    assert summary["garment"]["vertices"] == 80  # 16 x 5 after the seams' 10 repeats are welded
+    assert summary["garment"]["written_as_file"] == {"vertices": 90, "polygons": 64}
+    frame = (d / "obj" / "frame_0000.obj").read_text().splitlines()
+    faces = [line.split()[1:] for line in frame if line.startswith("f ")]
+    assert len([line for line in frame if line.startswith("v ")]) == 90 and len(faces) == 64
+    assert [[int(c.split("/")[0]) - 1 for c in f] for f in faces] == quads.tolist()
+    assert all(c.split("/")[0] == c.split("/")[1] for f in faces for c in f)  # each corner its own vt, as written
+    stage = Usd.Stage.Open(str(d / "panels_walk.usd"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/garment"))
+    assert list(mesh.GetFaceVertexCountsAttr().Get()) == [4] * 64
+    assert list(mesh.GetFaceVertexIndicesAttr().Get()) == quads.ravel().tolist()
+    st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
+    assert st.GetInterpolation() == UsdGeom.Tokens.faceVarying and len(st.Get()) == 256
+    written_uvs = np.array([[float(x) for x in line.split()[1:]] for line in frame if line.startswith("vt ")])
+    np.testing.assert_allclose(np.array(st.Get()), written_uvs[quads.ravel()], atol=1e-6)
+    points = np.array(mesh.GetPointsAttr().Get(3))
+    obj_points = np.array([[float(x) for x in line.split()[1:]]
+                           for line in (d / "obj" / "frame_0003.obj").read_text().splitlines() if line.startswith("v ")])
+    assert points.shape == (90, 3)
+    np.testing.assert_allclose(points, obj_points, atol=2e-6)
+    # The seam's two copies: one at each end of each panel's rows, where the other panel's row starts or ends.
+    cols = 9
+    for r in range(5):
+        a0, a8, b0, b8 = r * cols, r * cols + 8, 45 + r * cols, 45 + r * cols + 8
+        np.testing.assert_array_equal(points[a8], points[b0])
+        np.testing.assert_array_equal(points[a0], points[b8])
+    assert not np.allclose(points, verts)  # it moved
