@@ -48,6 +48,26 @@ def test_unpose_writes_the_rest_garment_that_bake_takes(a_posed, tmp_path):
     assert (path.parent / "shirt_rest.obj").stat().st_mtime_ns == before
 
 
+def test_unpose_writes_the_files_own_points(a_posed, tmp_path):
+    """A stray vertex no face uses (the file's last) is written back where its nearest vertex went: the output has
+    the input's points, in order."""
+    path, _ = a_posed
+    lines = path.read_text().splitlines()
+    last_v = max(i for i, line in enumerate(lines) if line.startswith("v "))
+    stray = tmp_path / "stray.obj"
+    stray.write_text("\n".join(lines[:last_v + 1] + ["v 0.0 0.1 0.0"] + lines[last_v + 1:]) + "\n")
+    out = tmp_path / "rest.obj"
+    r = invoke(["unpose", stray, "--pose", "apose", "--out", out])
+    assert r.exit_code == 0, r.output
+    written = [line for line in out.read_text().splitlines() if line.startswith("v ")]
+    assert len(written) == 6699
+    rest = np.array([[float(x) for x in line.split()[1:]] for line in written])
+    plain = read_obj(out)  # the stray dropped again on reading
+    assert plain.n_vertices == 6698
+    nearest = np.argmin(np.linalg.norm(read_obj(stray).vertices - [0.0, 0.1, 0.0], axis=1))
+    np.testing.assert_allclose(rest[-1], rest[nearest], atol=1e-6)
+
+
 def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
     """A pose file holding the A-pose at frame 1 (root turned into the Z-up world, as AMASS writes) gives the
     same garment as --pose apose."""
