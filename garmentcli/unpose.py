@@ -1,21 +1,31 @@
-"""`garment unpose GARMENT --pose apose|POSE.npz`: move a garment authored on a posed body to the rest pose."""
+"""`garment unpose GARMENT --pose tpose|apose|POSE.npz [--betas B0,...]`: move a garment authored on a posed or
+shaped body to the rest pose and mean shape."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import click
+import numpy as np
 
 from core.unpose import A_POSE_ARM_DEGREES
-from garmentcli.common import body_option, input_errors_as_click, load_body_option
+from garmentcli.common import body_option, input_errors_as_click, load_body_option, parse_betas
+
+
+def _check_shape(ctx, param, value):
+    return None if value is None else parse_betas(value)
 
 
 @click.command(name="unpose")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
-@click.option("--pose", "pose_spec", required=True, metavar="apose|POSE.npz",
-              help="The pose the garment was authored in: 'apose' (the arms lowered by --arm-angle), or an "
-                   "AMASS-style motion file (its --frame's joint rotations and betas; its root and trans are "
-                   "ignored: the garment is in the body's frame).")
+@click.option("--pose", "pose_spec", required=True, metavar="tpose|apose|POSE.npz",
+              help="The pose the garment was authored in: 'tpose' (the rest pose: only --betas is taken off), "
+                   "'apose' (the arms lowered by --arm-angle), or an AMASS-style motion file (its --frame's joint "
+                   "rotations and betas; its root and trans are ignored: the garment is in the body's frame).")
+@click.option("--betas", "betas_text", default=None, callback=_check_shape, metavar="B0,B1,...",
+              help="The body shape the garment was authored on (coefficients of the body's own basis, missing ones "
+                   "0), taken off as well: the result fits the mean shape that bake shapes to each motion's "
+                   "betas [default: a POSE.npz's betas, else the mean shape].")
 @click.option("--arm-angle", type=float, default=None,
               help=f"apose: degrees each arm is lowered from the T-pose [default: {A_POSE_ARM_DEGREES:g}].")
 @click.option("--frame", type=click.IntRange(min=0), default=None, help="POSE.npz: the frame to use [default: 0].")
@@ -24,8 +34,9 @@ from garmentcli.common import body_option, input_errors_as_click, load_body_opti
               help="Output OBJ [default: <garment>_rest.obj beside GARMENT].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 @input_errors_as_click
-def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite):
-    """Move GARMENT (OBJ or USD), authored on the body in another pose, to the body's rest pose (T-pose).
+def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite, betas_text=None):
+    """Move GARMENT (OBJ or USD), authored on the body in another pose or shape, to the body's rest pose (T-pose)
+    and mean shape.
 
     Each vertex follows the body part it lies on, by the inverse of the linear blend skinning that
     `bake --method lbs` applies. Writes an OBJ (UVs kept) that `bake` and the other commands accept.
@@ -45,14 +56,21 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         raise click.BadParameter(f"'{out}' is GARMENT itself: write the result elsewhere", param_hint="--out")
     body = load_body_option(body_path)
     betas = None
-    if pose_spec == "apose":
+    if arm_angle is not None and pose_spec != "apose":
+        raise click.UsageError(f"--arm-angle applies to --pose apose only (got --pose {pose_spec})")
+    if pose_spec == "tpose":
+        if frame is not None:
+            raise click.UsageError("--frame applies to a POSE.npz file only (got --pose tpose)")
+        if betas_text is None:
+            raise click.UsageError("--pose tpose takes off the body shape only: give it with --betas B0,B1,...")
+        pose = np.zeros((body.n_joints, 3), dtype=np.float32)
+        what = "the rest pose"
+    elif pose_spec == "apose":
         if frame is not None:
             raise click.UsageError("--frame applies to a POSE.npz file only (got --pose apose)")
         pose = a_pose(body, A_POSE_ARM_DEGREES if arm_angle is None else arm_angle)
         what = f"A-pose, arms lowered {A_POSE_ARM_DEGREES if arm_angle is None else arm_angle:g} degrees"
     elif pose_spec.endswith(".npz"):
-        if arm_angle is not None:
-            raise click.UsageError(f"--arm-angle applies to --pose apose only (got --pose {pose_spec})")
         if not Path(pose_spec).is_file():
             raise click.BadParameter(f"'{pose_spec}': no such file", param_hint="--pose")
         motion = load_motion(pose_spec, fps=30.0, world_checks=False)  # rotations only: no fps, root or trans
@@ -63,8 +81,11 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         pose, betas = poses_for_body(motion, body.n_joints)[k], motion.betas
         what = f"frame {k} of '{pose_spec}'"
     else:
-        raise click.BadParameter(f"expected 'apose' or an AMASS-style .npz file, got '{pose_spec}'",
+        raise click.BadParameter(f"expected 'tpose', 'apose' or an AMASS-style .npz file, got '{pose_spec}'",
                                  param_hint="--pose")
+    if betas_text is not None:
+        betas = betas_text
+        what += f", shape {','.join(f'{b:g}' for b in betas)}"
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     garment = read_garment(source)
@@ -77,7 +98,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         mesh = (src.points(rest.vertices), src.polygons, src.uvs, src.polygon_uvs)
     with atomic_file(out) as tmp:
         write_obj(tmp, *mesh, header=f"'{source.name}' unposed from {what} by `garment unpose` onto body '{body.name}'")
-    click.echo(f"{out}: {rest.n_vertices} vertices moved to the rest pose from {what} (largest move "
+    target = "the rest pose" + (" and mean shape" if betas is not None else "")
+    click.echo(f"{out}: {rest.n_vertices} vertices moved to {target} from {what} (largest move "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "
                f"mm from the input at most; on the posed body: median distance "
                f"{report['posed_median_distance_m'] * 100:.1f} cm, {report['posed_inside_share']:.1%} inside)")

@@ -68,6 +68,36 @@ def test_unpose_writes_the_files_own_points(a_posed, tmp_path):
     np.testing.assert_allclose(rest[-1], rest[nearest], atol=1e-6)
 
 
+def test_unpose_takes_off_the_body_shape_the_garment_was_authored_on(tmp_path):
+    """The example trousers shaped to betas (2, -1, 0.5) as bake shapes them (the garment authored on that body):
+    `--pose tpose --betas 2,-1,0.5` brings them back to the mean shape, within a few millimetres; the A-pose and
+    that shape together too."""
+    from core.body import default_body
+    from core.skinning import bind_garment, shaped_garment
+    from core.unpose import a_pose
+    from tests.core.test_unpose import _posed
+
+    body = default_body()
+    g = read_obj(EXAMPLES / "trousers.obj")
+    betas = np.array([2.0, -1.0, 0.5], np.float32)
+    shaped = shaped_garment(g.vertices, bind_garment(g, body), body.fit_betas(betas))
+    write_obj(tmp_path / "shaped.obj", shaped, g.faces)
+    assert np.linalg.norm(shaped - g.vertices, axis=1).max() > 0.02  # the shape moved it by centimetres
+    r = invoke(["unpose", tmp_path / "shaped.obj", "--pose", "tpose", "--betas", "2,-1,0.5",
+                "--out", tmp_path / "back.obj"])
+    assert r.exit_code == 0, r.output
+    assert "moved to the rest pose and mean shape from the rest pose, shape 2,-1,0.5" in r.output
+    err = np.linalg.norm(read_obj(tmp_path / "back.obj").vertices - g.vertices, axis=1)
+    assert np.percentile(err, 99) < 3e-3 and err.mean() < 1e-3
+    posed = _posed(g, body, a_pose(body), betas=betas)
+    write_obj(tmp_path / "both.obj", posed.vertices, posed.faces)
+    r = invoke(["unpose", tmp_path / "both.obj", "--pose", "apose", "--betas", "2,-1,0.5",
+                "--out", tmp_path / "back2.obj"])
+    assert r.exit_code == 0, r.output
+    err = np.linalg.norm(read_obj(tmp_path / "back2.obj").vertices - g.vertices, axis=1)
+    assert np.percentile(err, 99) < 5e-3
+
+
 def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
     """A pose file holding the A-pose at frame 1 (root turned into the Z-up world, as AMASS writes) gives the
     same garment as --pose apose."""
@@ -88,7 +118,11 @@ def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
 
 
 @pytest.mark.parametrize("args, needle", [
-    (["--pose", "bpose"], "expected 'apose' or an AMASS-style .npz file, got 'bpose'"),
+    (["--pose", "bpose"], "expected 'tpose', 'apose' or an AMASS-style .npz file, got 'bpose'"),
+    (["--pose", "tpose"], "--pose tpose takes off the body shape only: give it with --betas"),
+    (["--pose", "tpose", "--betas", "1,x"], "expected 'motion', 'mean' or comma-separated numbers, got '1,x'"),
+    (["--pose", "tpose", "--betas", "1", "--frame", 1], "--frame applies to a POSE.npz file only"),
+    (["--pose", "tpose", "--betas", "1", "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", "nope.npz"], "'nope.npz': no such file"),
     (["--pose", "apose", "--frame", 2], "--frame applies to a POSE.npz file only"),
     (["--pose", "apose", "--arm-angle", 200], "--arm-angle: expected degrees in [-90, 90], got 200.0"),
