@@ -83,12 +83,26 @@ def _check_points(points: np.ndarray, what: str, where: str) -> np.ndarray:
     return points.astype(np.float32)
 
 
+def bake_directory_sequence(directory: Path) -> Path | None:
+    """The sequence inside a `garment bake` output directory (`<garment>_<motion>/`): its one USD stage (garment
+    and body), else its `obj/` frames; None for a directory that holds OBJ frames itself, or neither."""
+    if any(p.suffix.lower() == ".obj" and p.is_file() for p in directory.iterdir()):
+        return None
+    stages = sorted(p for p in directory.iterdir() if p.suffix.lower() in USD_SUFFIXES and p.is_file())
+    if len(stages) == 1:
+        return stages[0]
+    if (directory / "obj").is_dir():
+        return directory / "obj"
+    return None
+
+
 def _read_obj_directory(directory: Path) -> Sequence:
     where = f"garment sequence '{directory}'"
     files = sorted((p for p in directory.iterdir() if p.suffix.lower() == ".obj" and p.is_file()),
                    key=lambda p: _natural_key(p.name))
     if not files:
-        raise InputError(f"{where}: expected OBJ frames (frame_0000.obj, ...), got a directory without .obj files")
+        raise InputError(f"{where}: expected OBJ frames (frame_0000.obj, ...) or a `garment bake` output (its "
+                         f".usd stage or obj/ frames), got a directory with neither")
     fps = None
     meta_path = directory / SEQUENCE_JSON
     if meta_path.is_file():
@@ -176,7 +190,8 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
     """Read a garment sequence from any supported form.
 
     path: a directory of OBJ frames (ordered by the number in their names; all
-    must share faces; fps from an optional `sequence.json` {"fps": 30}), an
+    must share faces; fps from an optional `sequence.json` {"fps": 30}), a `garment bake` output directory
+    (its USD stage, else its `obj/` frames: `bake_directory_sequence`), an
     `.npz` with `points (T, V, 3)`, `faces (F, 3)` and optional `fps`,
     `body_points (T, Vb, 3)`, `body_faces (Fb, 3)`, a USD stage
     (`.usd/.usda/.usdc`: the mesh named `track`, else the only mesh, plus a
@@ -189,7 +204,8 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
     if not path.exists():
         raise InputError(f"garment sequence '{path}': not found")
     if path.is_dir():
-        return _read_obj_directory(path)
+        inner = bake_directory_sequence(path)
+        return _read_obj_directory(path) if inner is None else read_sequence(inner, track)
     suffix = path.suffix.lower()
     if suffix == ".npz":
         return _read_npz(path)

@@ -123,6 +123,27 @@ def test_usd_garment_and_body(tmp_path, suffix):
     assert as_body.body_points is None
 
 
+def test_a_bake_directory_reads_as_its_stage_else_its_obj_frames(tmp_path):
+    """`garment metrics pred/ gt/` and `render` take a bake's own directory (<garment>_<motion>/): its USD stage
+    (with the body), or its obj/ frames when there is no stage; a directory with neither is refused."""
+    points, faces = _animated()
+    body_points, body_faces = _body()
+    d = tmp_path / "shirt_walk"
+    write_usd_stage(d / "shirt_walk.usd", [MeshTrack("garment", points, faces), MeshTrack("body", body_points,
+                                                                                          body_faces)], fps=30)
+    write_obj_sequence(d / "obj", points + 1.0, faces, fps=30)
+    (d / "summary.json").write_text("{}")
+    seq = read_sequence(d)
+    np.testing.assert_array_equal(seq.points, points)  # the stage, not the frames
+    np.testing.assert_array_equal(seq.body_points, body_points)
+    (d / "shirt_walk.usd").unlink()
+    np.testing.assert_allclose(read_sequence(d).points, points + 1.0, atol=1e-6)
+    (tmp_path / "neither").mkdir()
+    (tmp_path / "neither" / "summary.json").write_text("{}")
+    with pytest.raises(InputError, match=r"expected OBJ frames \(frame_0000.obj, ...\) or a `garment bake` output"):
+        read_sequence(tmp_path / "neither")
+
+
 def test_usd_only_mesh_and_ambiguous_tracks(tmp_path):
     points, faces = _animated()
     single = tmp_path / "single.usd"
