@@ -153,6 +153,45 @@ def read_json_report(path: str | os.PathLike) -> MetricsResult:
                          f"got an unreadable file ({type(exc).__name__}: {exc})") from None
 
 
+#: The summary files of a batch comparison (`garment metrics PRED_DIR GT_DIR`), beside each bake's own reports.
+BATCH_REPORT_NAMES = {"json": "metrics_batch.json", "csv": "metrics_batch.csv", "md": "metrics_batch.md"}
+#: The last row of a batch table: every frame of every bake.
+BATCH_ALL = "all (mean over every frame)"
+
+
+def batch_rows(results: dict[str, MetricsResult]) -> tuple[list[str], list[str], list[list]]:
+    """(metric names, column titles, rows): one row per bake (name, frames, overall values), then `BATCH_ALL`,
+    the mean over every frame of every bake (each bake's overall weighted by its frames). Every result must
+    have the same metrics (a metric some bakes lack is left out)."""
+    names = [n for n in _names(next(iter(results.values()))) if all(n in r.overall for r in results.values())]
+    rows = [[name, r.n_frames] + [r.overall[n] for n in names] for name, r in results.items()]
+    frames = np.array([r.n_frames for r in results.values()], dtype=np.float64)
+    rows.append([BATCH_ALL, int(frames.sum())]
+                + [float(np.average([r.overall[n] for r in results.values()], weights=frames)) for n in names])
+    return names, ["bake", "frames"] + [_title(n) for n in names], rows
+
+
+def write_batch_report(results: dict[str, MetricsResult], directory: str | os.PathLike,
+                       formats: Sequence[str] = REPORT_FORMATS, metadata: dict | None = None) -> list[Path]:
+    """Write the batch table (`batch_rows`) into `directory` as BATCH_REPORT_NAMES; returns the paths."""
+    names, titles, rows = batch_rows(results)
+    paths = []
+    for f in dict.fromkeys(formats):
+        path = Path(directory) / BATCH_REPORT_NAMES[f]
+        if f == "json":
+            write_json(path, {"metadata": dict(metadata or {}), "units": {n: METRICS.get(n, (n, ""))[1] for n in names},
+                              "bakes": {row[0]: {"frames": row[1], **dict(zip(names, map(float, row[2:])))}
+                                        for row in rows}})
+        elif f == "csv":
+            write_csv_rows(path, ["bake", "frames"] + names, rows)
+        else:
+            _atomic_write_text(path, "# Garment metrics, bake by bake\n\n"
+                               + "".join(f"- {k}: `{v}`\n" for k, v in (metadata or {}).items())
+                               + "\n" + markdown_table(titles, rows))
+        paths.append(path)
+    return paths
+
+
 def overall_markdown(result: MetricsResult) -> str:
     """One-row Markdown table of the overall values, columns titled with units (paper Table 1 layout)."""
     names = _names(result)

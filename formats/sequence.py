@@ -96,6 +96,20 @@ def bake_directory_sequence(directory: Path) -> Path | None:
     return None
 
 
+def bake_batch(directory: Path) -> dict[str, Path] | None:
+    """The bakes of a `garment bake --out` directory: {name: path} of its subdirectories that are bake outputs
+    (`bake_directory_sequence`), in name order; None when `directory` is not a directory, is a sequence itself
+    (OBJ frames, or one bake's output) or holds no bake."""
+    directory = Path(directory)
+    if not directory.is_dir() or bake_directory_sequence(directory) is not None:
+        return None
+    if any(p.suffix.lower() == ".obj" and p.is_file() for p in directory.iterdir()):
+        return None
+    bakes = {d.name: d for d in sorted(directory.iterdir())
+             if d.is_dir() and d.name != "obj" and bake_directory_sequence(d) is not None}
+    return bakes or None
+
+
 def _read_obj_directory(directory: Path) -> Sequence:
     where = f"garment sequence '{directory}'"
     files = sorted((p for p in directory.iterdir() if p.suffix.lower() == ".obj" and p.is_file()),

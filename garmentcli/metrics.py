@@ -104,14 +104,14 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
             overwrite: bool, plots: bool = False, betas: str = "motion", source_fps: float | None = None) -> None:
     """Compare a predicted garment sequence PRED with a ground truth GT.
 
-    PRED and GT are OBJ-sequence directories, USD files or .npz sequences of the
-    same garment mesh with the same number of frames. Prints E_verts (mm),
+    PRED and GT are bake output directories, OBJ-sequence directories, USD files or .npz sequences of the
+    same garment mesh with the same number of frames; or two `garment bake --out` directories, compared bake
+    by bake (those of the same name), with a table of every bake (metrics_batch.* with --out). Prints E_verts (mm),
     E_vnorm and E_fnorm (deg), E_edge (%), E_curv (1/m^2) (paper Eqs. 11-15),
     and the share of garment vertices inside the body when PRED (or GT)
     carries a body mesh.
     """
-    from core.metrics import check_comparable, compute_metrics
-    from formats.report import REPORT_NAMES, overall_markdown, write_report
+    from formats.report import BATCH_REPORT_NAMES, REPORT_NAMES, markdown_table, write_batch_report
 
     if body_file is not None and motion_file is None:
         raise click.BadParameter("needs --motion, the motion that posed the body", param_hint="--body")
@@ -119,10 +119,66 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
     if plots and out_dir is None:
         raise click.BadParameter("needs --out, the directory to write the pictures into", param_hint="--plots")
     formats = _FORMATS[fmt]
+    if depth_mm is None:
+        depth_mm = _default_depth_mm()
+    pairs = _bake_pairs(pred, gt)
+    if pairs is not None and motion_file is not None:
+        raise click.BadParameter("applies to one PRED and GT; the bakes' stages carry their bodies",
+                                 param_hint="--motion")
     if out_dir is not None and not overwrite:
-        existing = [out_dir / REPORT_NAMES[f] for f in formats if (out_dir / REPORT_NAMES[f]).exists()]
+        targets = [(out_dir, REPORT_NAMES)] if pairs is None else \
+            [(out_dir, BATCH_REPORT_NAMES)] + [(out_dir / name, REPORT_NAMES) for name in pairs]
+        existing = [d / names[f] for d, names in targets for f in formats if (d / names[f]).exists()]
         if existing:
             raise InputError(f"--out: '{existing[0]}' exists; pass --overwrite to replace it")
+    if pairs is None:
+        _compare(pred, gt, out_dir, formats, depth_mm, plots, body_file, motion_file, fps, frames, settle_frames,
+                 betas, source_fps)
+        return
+    results = {}
+    for name, (p, g) in pairs.items():
+        click.echo(f"{name}:", err=True)
+        results[name] = _compare(p, g, None if out_dir is None else out_dir / name, formats, depth_mm, plots,
+                                 quiet=True)
+    from formats.report import batch_rows
+
+    _, titles, rows = batch_rows(results)
+    click.echo(markdown_table(titles, rows), nl=False)
+    if out_dir is not None:
+        for path in write_batch_report(results, out_dir, formats, {"pred": str(pred), "gt": str(gt)}):
+            click.echo(f"wrote {path}", err=True)
+
+
+def _bake_pairs(pred: Path, gt: Path) -> dict | None:
+    """{bake name: (PRED's, GT's)} when PRED and GT are `garment bake --out` directories (each holding bake
+    directories `<garment>_<motion>/`), the bakes both hold; None when they are sequences. Bakes in one only are
+    warned about; none in common, or one a batch and the other not, is an InputError."""
+    from formats.sequence import bake_batch
+
+    batches = {path: bake_batch(path) for path in (pred, gt)}
+    if all(b is None for b in batches.values()):
+        return None
+    for path, other in ((pred, gt), (gt, pred)):
+        if batches[path] is None:
+            raise InputError(f"'{other}' holds bakes ({', '.join(sorted(batches[other])[:4])}...) but '{path}' is "
+                             f"one sequence: give both as bake output directories, or one bake each")
+    p, g = batches[pred], batches[gt]
+    common = sorted(set(p) & set(g))
+    if not common:
+        raise InputError(f"'{pred}' and '{gt}' hold no bake of the same name: PRED has {', '.join(sorted(p)[:4])}, "
+                         f"GT has {', '.join(sorted(g)[:4])}")
+    for name in sorted(set(p) ^ set(g)):
+        click.echo(f"warning: '{name}' is in {'PRED' if name in p else 'GT'} only: left out", err=True)
+    return {name: (p[name], g[name]) for name in common}
+
+
+def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: float, plots: bool, body_file=None,
+             motion_file=None, fps=30.0, frames=None, settle_frames=0, betas="motion", source_fps=None,
+             quiet: bool = False):
+    """Compare one PRED with one GT: print the overall table (unless `quiet`), write the reports (and plots) into
+    `out_dir` when given; returns the MetricsResult."""
+    from core.metrics import check_comparable, compute_metrics
+    from formats.report import overall_markdown, write_report
 
     p_seq = _read_sequence(pred)
     g_seq = _read_sequence(gt)
@@ -132,8 +188,6 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
     if motion_file is not None:
         body = _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, p_seq.points.shape[0], betas,
                                     source_fps)
-    if depth_mm is None:
-        depth_mm = _default_depth_mm()
     inside_fn = _inside_fn(depth_mm * 1e-3) if body is not None else None
     result = compute_metrics(p_seq.points, g_seq.points, p_seq.faces,
                              body_points=None if body is None else body.body_points,
@@ -144,7 +198,8 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
     if body is not None:
         result.metadata.update({"body_from": str(pred if body is p_seq else gt), "penetration_depth_mm": depth_mm})
 
-    click.echo(overall_markdown(result), nl=False)
+    if not quiet:
+        click.echo(overall_markdown(result), nl=False)
     hint = frame_hint(p_seq.points[0], g_seq.points[0])
     if hint:
         click.echo(f"warning: '{gt}' {hint}", err=True)
@@ -160,3 +215,4 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
             images = [("Per-vertex error (mm) on the worst frame", heatmap)] if heatmap is not None else []
             for path in write_plot_report(result, out_dir, p_seq.points, g_seq.points, p_seq.faces, images):
                 click.echo(f"wrote {path}", err=True)
+    return result

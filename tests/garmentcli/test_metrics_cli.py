@@ -200,3 +200,56 @@ def test_a_ground_truth_in_another_frame_is_pointed_out(tmp_path, seq):
         assert needle in meta["frame_hint"]
     r = run([a, save_seq(tmp_path / "same.npz", pts + 0.001, f)])
     assert r.exit_code == 0 and "warning" not in r.output
+
+
+def _bake_dir(root, name, points, faces):
+    """A `garment bake` output directory root/name/ holding its stage (the garment only) and a summary."""
+    from formats.usd import MeshTrack, write_usd_stage
+
+    d = root / name
+    write_usd_stage(d / f"{name}.usd", [MeshTrack("garment", points, faces)], fps=30)
+    (d / "summary.json").write_text("{}")
+    return d
+
+
+def test_two_bake_output_directories_are_compared_bake_by_bake(tmp_path, seq):
+    """`garment metrics pred/ gt/` with the --out directories of two bakes: each bake of the same name compared,
+    a bake in one only warned about and left out, one table with a row per bake and the mean over every frame
+    (each bake weighted by its frames); with --out each bake's reports in its own folder and the table beside."""
+    pts, f = seq
+    run_pts = np.concatenate([pts, pts])  # 6 frames
+    for root, walk_mm, run_mm in ((tmp_path / "pred", 1.0, 3.0), (tmp_path / "gt", 0.0, 0.0)):
+        _bake_dir(root, "shirt_walk", pts + [0, 0, walk_mm * 1e-3], f)
+        _bake_dir(root, "shirt_run", run_pts + [0, 0, run_mm * 1e-3], f)
+    _bake_dir(tmp_path / "gt", "shirt_jump", pts, f)
+    r = run([tmp_path / "pred", tmp_path / "gt", "--out", tmp_path / "m", "--format", "json"])
+    assert r.exit_code == 0, r.output
+    assert "warning: 'shirt_jump' is in GT only: left out" in r.output
+    doc = json.loads((tmp_path / "m" / "metrics_batch.json").read_text())
+    bakes = doc["bakes"]
+    assert list(bakes) == ["shirt_run", "shirt_walk", "all (mean over every frame)"]
+    assert bakes["shirt_walk"]["e_verts"] == pytest.approx(1.0, abs=1e-3) and bakes["shirt_walk"]["frames"] == 3
+    assert bakes["shirt_run"]["e_verts"] == pytest.approx(3.0, abs=1e-3) and bakes["shirt_run"]["frames"] == 6
+    assert bakes["all (mean over every frame)"]["e_verts"] == pytest.approx((3 * 1.0 + 6 * 3.0) / 9, abs=1e-3)
+    assert json.loads((tmp_path / "m" / "shirt_walk" / "metrics.json").read_text())["n_frames"] == 3
+    assert "| shirt_run " in r.output
+    # Again into the same --out: refused, naming the first file it would overwrite.
+    r = run([tmp_path / "pred", tmp_path / "gt", "--out", tmp_path / "m", "--format", "json"])
+    assert r.exit_code != 0 and "metrics_batch.json' exists; pass --overwrite" in error_line(r)
+
+
+def test_bake_directories_bad_pairs(tmp_path, seq):
+    pts, f = seq
+    _bake_dir(tmp_path / "pred", "shirt_walk", pts, f)
+    _bake_dir(tmp_path / "gt", "shirt_run", pts, f)
+    assert "hold no bake of the same name: PRED has shirt_walk, GT has shirt_run" in error_line(
+        run([tmp_path / "pred", tmp_path / "gt"]))
+    one = save_seq(tmp_path / "one.npz", pts, f)
+    assert "holds bakes (shirt_walk...) but" in error_line(run([tmp_path / "pred", one]))
+    # One bake's own directory against a sequence: read as its stage.
+    r = run([tmp_path / "pred" / "shirt_walk", one])
+    assert r.exit_code == 0, r.output
+    motion = tmp_path / "m.npz"
+    np.savez(motion, poses=np.zeros((3, 72)), trans=np.zeros((3, 3)), mocap_framerate=30.0)
+    _bake_dir(tmp_path / "gt", "shirt_walk", pts, f)
+    assert "--motion" in error_line(run([tmp_path / "pred", tmp_path / "gt", "--motion", motion]))
