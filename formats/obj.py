@@ -566,15 +566,14 @@ def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np
 
 def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.ndarray | None) -> str:
     """`vt` and `f` lines of (P, 4) polygons, -1 in the last column of a triangle (and their (P, 4) UV indices)."""
-    text = ""
     corners = [row[row >= 0] + 1 for row in polygons]
     if uvs is None:
-        return text + "".join("f " + " ".join(map(str, c.tolist())) + "\n" for c in corners)
+        return "".join("f " + " ".join(map(str, c.tolist())) + "\n" for c in corners)
     t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
-    text += ("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
     uv_corners = [row[row >= 0] + 1 for row in np.asarray(polygon_uvs, dtype=np.int64)]
-    return text + "".join("f " + " ".join(f"{a}/{b}" for a, b in zip(c.tolist(), u.tolist())) + "\n"
-                          for c, u in zip(corners, uv_corners))
+    return (("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
+            + "".join("f " + " ".join(f"{a}/{b}" for a, b in zip(c.tolist(), u.tolist())) + "\n"
+                      for c, u in zip(corners, uv_corners)))
 
 
 def _header_text(header: str | None) -> str:
