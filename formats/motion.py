@@ -31,6 +31,9 @@ _VALUES_PER_FRAME = {3 * n: n for n in LAYOUT_JOINTS.values()}  # 72, 156, 165 -
 #: The body's 22 joints alone (the SMPL-H / SMPL-X body without hands, as root_orient + pose_body concatenated):
 #: read with the two SMPL hand joints at rest.
 _BODY_ONLY_JOINTS = N_BODY_JOINTS
+#: Poses whose joint rotations exceed 2 pi radians (a full turn) in more than this share of the rotated joints are
+#: refused as degrees: axis-angle fits (AMASS, SMPL) stay within pi; in degrees, joints bent past 6.3 do.
+DEGREES_SHARE = 0.2
 #: Per-frame betas (a shape estimated in every frame, as video-based fits write) further than this from their
 #: mean in some frame and coefficient are warned about: the motion is baked with the mean shape.
 BETAS_SPREAD_WARN = 0.1
@@ -84,6 +87,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     T = poses.shape[0]
     if T < 1:
         raise InputError(f"{src}: expected at least 1 frame, got 0")
+    _refuse_degrees(poses, src)
 
     if "trans" in arrays:
         trans = _float_array(arrays["trans"], "trans", src)
@@ -161,6 +165,16 @@ def _read_betas(raw, n_frames: int, src: str) -> np.ndarray:
         raise InputError(f"{src}: expected betas of shape (S,), (1, S) or one row per frame ({n_frames}, S), "
                          f"got {tuple(betas.shape)}")
     return betas.reshape(-1)
+
+
+def _refuse_degrees(poses: np.ndarray, src: str) -> None:
+    """InputError when the (T, J, 3) axis-angle `poses` look like degrees (`DEGREES_SHARE`)."""
+    angle = np.linalg.norm(np.asarray(poses, dtype=np.float64), axis=-1)
+    angle = angle[np.isfinite(angle) & (angle > 1e-6)]
+    over = float(np.mean(angle > 2 * np.pi)) if angle.size else 0.0
+    if over > DEGREES_SHARE:
+        raise InputError(f"{src}: expected joint rotations as axis-angle radians, got {over:.0%} of them over a full "
+                         f"turn (2 pi; the largest {angle.max():.1f}): in degrees? multiply poses by pi / 180")
 
 
 def _body_only(poses: np.ndarray) -> np.ndarray:

@@ -149,6 +149,24 @@ def test_per_frame_betas_are_held_at_their_mean(tmp_path, caplog):
     _assert_one_line(info, "w.npz", "one row per frame (5, S)", "got (3, 10)")
 
 
+def test_poses_in_degrees_are_refused(tmp_path):
+    """The example walk with its rotations in degrees: refused in one line; in radians it reads, and so does a
+    motion whose root alone turns past 2 pi (an unnormalised axis-angle)."""
+    from pathlib import Path
+
+    walk = dict(np.load(Path(__file__).resolve().parents[2] / "examples" / "walk.npz"))
+    degrees = dict(walk, poses=walk["poses"] * 180 / np.pi)
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, "deg.npz", **degrees))
+    _assert_one_line(info, "deg.npz", "axis-angle radians", "in degrees? multiply poses by pi / 180")
+    load_motion(_write(tmp_path, "rad.npz", **walk))
+    turned = dict(walk, poses=walk["poses"].copy())
+    root = turned["poses"][:, :3]  # the root's rotation vector one full turn longer: the same rotation
+    root += 2 * np.pi * root / np.linalg.norm(root, axis=1, keepdims=True)
+    assert np.linalg.norm(root, axis=1).min() > 2 * np.pi
+    load_motion(_write(tmp_path, "turned.npz", **turned))
+
+
 def test_betas_any_length_and_optional(tmp_path):
     m = load_motion(_write(tmp_path, poses=_poses(2, 72), trans=_trans(2), mocap_framerate=30, betas=np.ones(300)))
     assert m.betas.shape == (300,)
