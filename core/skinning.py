@@ -109,6 +109,10 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     over MAX_NEAR_BODY_DISTANCE_M) or more than REST_INSIDE_FRAME_SHARE of its vertices are inside and a fix
     explains it; logs a warning above REST_INSIDE_WARN_SHARE otherwise.
     """
+    body_piece = _body_piece(garment, body, signed)
+    if body_piece:
+        raise InputError(f"garment mesh '{name}': expected the garment alone, got {body_piece}: the avatar exported "
+                         f"with the garment? export the garment without it")
     median, near = (float(d) for d in np.percentile(np.abs(signed), [50, 5]))
     inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
     far = median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M
@@ -129,6 +133,29 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     log.warning("garment mesh '%s': %.1f %% of its vertices lie more than %.0f mm inside the body's rest surface "
                 "(%s); expect them inside the body (--push-out moves them out)", name, inside * 100,
                 REST_INSIDE_DEPTH_M * 1e3, cause)
+
+
+#: A piece of the garment file (connected component) with at least half the body's vertices, this share of them
+#: within BODY_PIECE_SKIN_M of the rest body's surface, is the body itself (an avatar exported with the garment).
+BODY_PIECE_SHARE = 0.95
+BODY_PIECE_SKIN_M = 0.001
+
+
+def _body_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
+    """"" or, for a piece of a garment of several that is the body itself (`BODY_PIECE_SHARE`), what it is:
+    "piece 2 of 2 (6,890 vertices, 100 % of them on the body's skin)". A skin-tight garment covers less than half
+    the body; a garment of one piece on the skin (a second skin, as tests use) is left alone."""
+    from core.graph import connected_components
+
+    n, labels = connected_components(mesh_edges(garment.faces), garment.n_vertices)
+    if n < 2:
+        return ""
+    sizes = np.bincount(labels, minlength=n)
+    for k in np.flatnonzero(sizes >= 0.5 * body.n_vertices):
+        on_skin = float(np.mean(np.abs(signed[labels == k]) < BODY_PIECE_SKIN_M))
+        if on_skin >= BODY_PIECE_SHARE:
+            return f"piece {k + 1} of {n} ({sizes[k]:,} vertices, {on_skin:.0%} of them on the body's skin)"
+    return ""
 
 
 def _fits_unposed(garment: Garment, body: Body, mesh: TriangleMesh, inside: float, median: float) -> bool:

@@ -148,6 +148,22 @@ def test_garment_in_another_frame_is_refused_naming_the_fix(trousers_on_body, fi
     assert ("0.90 m" in str(err.value)) == on_floor  # the default body's soles are 0.90 m below its origin
 
 
+def test_a_garment_file_holding_the_body_itself_is_refused(trousers_on_body):
+    """The trousers and the rest body in one file (the avatar exported with the garment): refused, naming the
+    piece; with the body shrunk by 10 % instead (not on its skin) it is only warned about, as a garment partly
+    inside."""
+    g, body = trousers_on_body
+    v = np.concatenate([g.vertices, body.v_template.astype(np.float32)])
+    f = np.concatenate([g.faces, body.faces + g.n_vertices])
+    with pytest.raises(InputError) as err:
+        bind_garment(Garment(v, f, name="with_avatar.obj"), body)
+    assert f"expected the garment alone, got piece 2 of 2 ({body.n_vertices:,} vertices, 100% of them on the " \
+           "body's skin): the avatar exported with the garment?" in str(err.value)
+    centre = body.v_template.mean(axis=0)
+    shrunk = (centre + (body.v_template - centre) * 0.9).astype(np.float32)
+    bind_garment(Garment(np.concatenate([g.vertices, shrunk]), f, name="inner.obj"), body)  # warned as inside
+
+
 def test_garment_partly_inside_without_a_fix_warns_and_far_off_is_refused_without_one(trousers_on_body, caplog):
     g, body = trousers_on_body
     aside = Garment(g.vertices + np.float32([0.3, 0.0, 0.0]), g.faces, name="aside.obj")  # 9 % inside
