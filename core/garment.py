@@ -25,12 +25,21 @@ class SourceMesh:
     was welded onto; for a vertex no face uses, the nearest one). polygons: (P, 4) int64 indices into the
     file's vertices, -1 in the last column of a triangle (a face of more than 4 corners is written as the
     triangles it was split into). uvs: (U, 2) float32 or None; polygon_uvs: (P, 4) int64 into uvs, or None.
+    materials: (P,) str, each polygon's material (an OBJ's `usemtl`, "" for none), or None.
     """
 
     vertex_of: np.ndarray
     polygons: np.ndarray
     uvs: np.ndarray | None = None
     polygon_uvs: np.ndarray | None = None
+    materials: np.ndarray | None = None
+
+    def material_groups(self) -> dict[str, np.ndarray] | None:
+        """{material: its polygons' indices (sorted)} in order of first use, or None without materials."""
+        if self.materials is None:
+            return None
+        names = list(dict.fromkeys(self.materials.tolist()))
+        return {name: np.flatnonzero(self.materials == name) for name in names}
 
     @property
     def n_vertices(self) -> int:

@@ -58,6 +58,8 @@ class ObjPolygons:
     face_lines: tuple
     n_uv_rows: int
     relative: bool
+    #: (P,) the material (`usemtl`) of each polygon row ("" before any), or None when the file names none.
+    materials: np.ndarray | None = None
 
     def same_faces(self, face_lines, n_vertices: int, n_uv_rows: int) -> bool:
         """Whether a file with these face lines and counts has exactly this file's polygons."""
@@ -147,7 +149,8 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
             return fast
 
     v_rows, v_lines, vt_rows, vt_lines = [], [], [], []
-    f_lines, f_numbers, f_nv, f_nvt = [], [], [], []
+    f_lines, f_numbers, f_nv, f_nvt, f_materials = [], [], [], [], []
+    material = ""
     unknown = 0
     for lineno, line in _logical_lines(text):
         parts = line.split()
@@ -165,6 +168,9 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
             f_numbers.append(lineno)
             f_nv.append(len(v_rows))
             f_nvt.append(len(vt_rows))
+            f_materials.append(material)
+        elif key == "usemtl":
+            material = " ".join(parts[1:])
         elif key == "vt":
             if len(parts) < 2:
                 raise InputError(f"{label} '{path}': expected texture coordinates u v on line {lineno}, got none")
@@ -234,9 +240,12 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
     if ngons:
         polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons,
                                             lambda k: f"on line {f_numbers[k]}", label, path)
+        # An n-gon's triangles after its first go after the file's faces, in n-gon order: its material too.
+        f_materials += [f_materials[k] for k, corners, _ in ngons for _ in range(len(corners) - 3)]
     relative = any("-" in line for line in f_lines)
+    materials = np.array(f_materials, dtype=object) if any(f_materials) else None
     return ObjPolygons(vertices, polygons, uvs if all_uv else None, polygon_uvs if all_uv else None,
-                       tuple(f_lines), len(vt_rows), relative)
+                       tuple(f_lines), len(vt_rows), relative, materials)
 
 
 def split_ngons(vertices, polygons, polygon_uvs, ngons, where, label, path):
@@ -490,11 +499,12 @@ def read_obj(path: str | os.PathLike) -> Garment:
     path = Path(path)
     label = "garment mesh"
     obj = parse_obj(path, label)
-    return garment_from_polygons(obj.vertices, obj.polygons, obj.uvs, obj.polygon_uvs, label, path)
+    return garment_from_polygons(obj.vertices, obj.polygons, obj.uvs, obj.polygon_uvs, label, path, obj.materials)
 
 
 def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
-                          polygon_uvs: np.ndarray | None, label: str, path: Path) -> Garment:
+                          polygon_uvs: np.ndarray | None, label: str, path: Path,
+                          materials: np.ndarray | None = None) -> Garment:
     """The validated `Garment` of a file's polygons (see `ObjPolygons`): quads split, seams welded, degenerate
     and duplicate faces and unused vertices and UVs dropped (each warned), named after the file's stem."""
     file_vertices = vertices
@@ -513,19 +523,21 @@ def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.nd
     garment = Garment(vertices=vertices.astype(np.float32), faces=faces.astype(np.int64),
                       uvs=garment_uvs, face_uvs=face_uvs, name=path.stem)
     validate_garment(garment, source=str(path))
-    return replace(garment, source=source_mesh(file_vertices, polygons, uvs, polygon_uvs, garment))
+    return replace(garment, source=source_mesh(file_vertices, polygons, uvs, polygon_uvs, garment, materials))
 
 
 def source_mesh(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
-                polygon_uvs: np.ndarray | None, garment: Garment) -> SourceMesh | None:
-    """The file's mesh (`SourceMesh`) of `garment`, read from `vertices` (Vs, 3), `polygons` (P, 4) and their
-    UVs; None when it is the garment's own (triangles only, nothing welded or dropped)."""
+                polygon_uvs: np.ndarray | None, garment: Garment,
+                materials: np.ndarray | None = None) -> SourceMesh | None:
+    """The file's mesh (`SourceMesh`) of `garment`, read from `vertices` (Vs, 3), `polygons` (P, 4), their
+    UVs and their materials (P,); None when it is the garment's own (triangles only, nothing welded or dropped,
+    no materials named)."""
     from scipy.spatial import cKDTree
 
     vertices = np.asarray(vertices, dtype=np.float64)
     polygons = np.asarray(polygons, dtype=np.int64)
     same_uvs = (polygon_uvs is None) == (garment.face_uvs is None)
-    if (len(vertices) == garment.n_vertices and (polygons[:, 3] < 0).all() and same_uvs
+    if (materials is None and len(vertices) == garment.n_vertices and (polygons[:, 3] < 0).all() and same_uvs
             and np.array_equal(polygons[:, :3], garment.faces)
             and np.array_equal(vertices.astype(np.float32), garment.vertices)):
         return None
@@ -536,7 +548,8 @@ def source_mesh(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | No
         np.where(finite[:, None], vertices, 0.0))
     return SourceMesh(vertex_of=np.asarray(vertex_of, dtype=np.int64), polygons=polygons,
                       uvs=None if polygon_uvs is None else np.asarray(uvs, dtype=np.float32),
-                      polygon_uvs=None if polygon_uvs is None else np.asarray(polygon_uvs, dtype=np.int64))
+                      polygon_uvs=None if polygon_uvs is None else np.asarray(polygon_uvs, dtype=np.int64),
+                      materials=materials)
 
 
 def obj_vertex_text(vertices: np.ndarray) -> str:
@@ -545,13 +558,20 @@ def obj_vertex_text(vertices: np.ndarray) -> str:
     return ("v %.6f %.6f %.6f\n" * len(v)) % tuple(v.ravel().tolist())
 
 
-def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None) -> str:
+def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
+                  materials: np.ndarray | None = None) -> str:
     """`vt` and `f` lines for faces (F, 3) int 0-based; with uvs (U, 2) and face_uvs (F, 3), `f a/b` forms.
-    Faces (F, 4) with -1 in the last column of triangles (`ObjPolygons.polygons`) write quads as quads."""
+    Faces (F, 4) with -1 in the last column of triangles (`ObjPolygons.polygons`) write quads as quads, and
+    `materials` (F,) names, a `usemtl` line where the name changes."""
     if (uvs is None) != (face_uvs is None):
         raise ValueError("uvs and face_uvs must be given together")
-    if np.asarray(faces).ndim == 2 and np.asarray(faces).shape[1] == 4:
-        return _polygon_text(np.asarray(faces, dtype=np.int64), uvs, face_uvs)
+    if materials is not None or (np.asarray(faces).ndim == 2 and np.asarray(faces).shape[1] == 4):
+        faces = np.asarray(faces, dtype=np.int64)
+        if faces.shape[1] == 3:
+            faces = np.concatenate([faces, np.full((len(faces), 1), -1, dtype=np.int64)], axis=1)
+            face_uvs = None if face_uvs is None else np.concatenate(
+                [np.asarray(face_uvs, dtype=np.int64), np.full((len(faces), 1), -1, dtype=np.int64)], axis=1)
+        return _polygon_text(faces, uvs, face_uvs, materials)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3) + 1
     if uvs is None:
         return ("f %d %d %d\n" * len(f)) % tuple(f.ravel().tolist())
@@ -564,16 +584,27 @@ def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np
             + ("f %d/%d %d/%d %d/%d\n" * len(f)) % tuple(inter.ravel().tolist()))
 
 
-def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.ndarray | None) -> str:
-    """`vt` and `f` lines of (P, 4) polygons, -1 in the last column of a triangle (and their (P, 4) UV indices)."""
+def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.ndarray | None,
+                  materials: np.ndarray | None = None) -> str:
+    """`vt` and `f` lines of (P, 4) polygons, -1 in the last column of a triangle (and their (P, 4) UV indices),
+    a `usemtl` line before each run of polygons of one named material (`materials` (P,) or None)."""
     corners = [row[row >= 0] + 1 for row in polygons]
     if uvs is None:
-        return "".join("f " + " ".join(map(str, c.tolist())) + "\n" for c in corners)
-    t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
-    uv_corners = [row[row >= 0] + 1 for row in np.asarray(polygon_uvs, dtype=np.int64)]
-    return (("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
-            + "".join("f " + " ".join(f"{a}/{b}" for a, b in zip(c.tolist(), u.tolist())) + "\n"
-                      for c, u in zip(corners, uv_corners)))
+        lines = ["f " + " ".join(map(str, c.tolist())) + "\n" for c in corners]
+        head = ""
+    else:
+        uv_corners = [row[row >= 0] + 1 for row in np.asarray(polygon_uvs, dtype=np.int64)]
+        lines = ["f " + " ".join(f"{a}/{b}" for a, b in zip(c.tolist(), u.tolist())) + "\n"
+                 for c, u in zip(corners, uv_corners)]
+        t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
+        head = ("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
+    if materials is not None:
+        current = ""
+        for i, name in enumerate(materials.tolist()):
+            if name and name != current:
+                lines[i] = f"usemtl {name}\n" + lines[i]
+                current = name
+    return head + "".join(lines)
 
 
 def _header_text(header: str | None) -> str:
@@ -584,13 +615,14 @@ def _header_text(header: str | None) -> str:
 
 def write_obj(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray,
               uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
-              header: str | None = None) -> None:
+              header: str | None = None, materials: np.ndarray | None = None) -> None:
     """Write a triangle mesh as OBJ.
 
     vertices: (V, 3) float, metres (written with 6 decimals); faces: (F, 3) int,
     0-based; uvs: (U, 2) float and face_uvs: (F, 3) int 0-based, both or neither
     (then `vt` lines and `f a/b` faces are written); header: text written as
-    `#` comment lines at the top.
+    `#` comment lines at the top; materials: (F,) names, written as `usemtl` lines (faces (F, 4): quads, as
+    `obj_face_text`).
     """
-    text = _header_text(header) + obj_vertex_text(vertices) + obj_face_text(faces, uvs, face_uvs)
-    Path(path).write_bytes(text.encode("ascii"))
+    text = _header_text(header) + obj_vertex_text(vertices) + obj_face_text(faces, uvs, face_uvs, materials)
+    Path(path).write_bytes(text.encode("utf-8"))

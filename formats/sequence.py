@@ -233,11 +233,13 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
 
 def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: np.ndarray,
                        uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
-                       fps: float | None = None, prefix: str = "frame_") -> list[Path]:
+                       fps: float | None = None, prefix: str = "frame_",
+                       materials: np.ndarray | None = None) -> list[Path]:
     """Write one OBJ per frame, `<prefix>0000.obj` ..., and `sequence.json` into `directory`.
 
     points: (T, V, 3) float, metres; faces: (F, 3) int 0-based; uvs (U, 2) and
-    face_uvs (F, 3), both or neither; fps: frames per second or None. Frame
+    face_uvs (F, 3), both or neither (faces (F, 4): quads, as `formats.obj.obj_face_text`); materials: (F,)
+    names or None, written as `usemtl` lines; fps: frames per second or None. Frame
     numbers are zero padded to at least 4 digits. The face block is formatted
     once and shared by every frame. Returns the frame paths in order.
     """
@@ -248,7 +250,7 @@ def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: 
     directory.mkdir(parents=True, exist_ok=True)
     n_frames = points.shape[0]
     width = max(4, len(str(max(n_frames - 1, 0))))
-    face_block = obj_face_text(faces, uvs, face_uvs).encode("ascii")
+    face_block = obj_face_text(faces, uvs, face_uvs, materials).encode("utf-8")
     paths = []
     for t in range(n_frames):
         path = directory / f"{prefix}{t:0{width}d}.obj"

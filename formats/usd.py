@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
+from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 
 from core.errors import InputError
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
@@ -31,7 +31,8 @@ class MeshTrack:
     name: prim name (sanitised on write). points: (T, V, 3) float32, metres.
     faces: (F, 3) int64, 0-based, or (F, 4) triangles and quads, -1 in the last column of a triangle.
     uvs: (corners, 2) float32, face-varying texture coordinates in face-corner order (F*3 for triangles), or
-    None. color: (3,) float RGB in [0, 1] or None.
+    None. color: (3,) float RGB in [0, 1] or None. groups: {material name: face indices}, written as
+    GeomSubsets of the "materialBind" family (to bind a shader to each), or None.
     """
 
     name: str
@@ -39,6 +40,7 @@ class MeshTrack:
     faces: np.ndarray
     uvs: np.ndarray | None = None
     color: np.ndarray | None = None
+    groups: dict | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,6 +176,11 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
             st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
                                                          UsdGeom.Tokens.faceVarying)
             st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(track.uvs, dtype=np.float32)))
+        for (group, faces_of), subset_name in zip((track.groups or {}).items(),
+                                                  _prim_names([g or "unnamed" for g in (track.groups or {})])):
+            UsdGeom.Subset.CreateGeomSubset(mesh, subset_name, UsdGeom.Tokens.face,
+                                            Vt.IntArray.FromNumpy(np.asarray(faces_of, dtype=np.int32)),
+                                            UsdShade.Tokens.materialBind, UsdGeom.Tokens.nonOverlapping)
         if track.color is not None:
             color = np.asarray(track.color, dtype=np.float64).reshape(3)
             mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(

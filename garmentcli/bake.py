@@ -95,19 +95,22 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
 
     fps = result.summary["fps"]
     points, faces, uvs, face_uvs = result.garment_points, garment.faces, garment.uvs, garment.face_uvs
+    materials = None
     if garment.source is not None:
         src = garment.source
         points, faces, uvs, face_uvs = src.points(points), src.polygons, src.uvs, src.polygon_uvs
+        materials = src.materials
     face_uv = None
     if uvs is not None and face_uvs is not None:
         face_uv = uvs[face_uvs[faces >= 0] if faces.shape[1] == 4 else face_uvs.ravel()].reshape(-1, 2)
-    tracks = [MeshTrack("garment", points, faces, uvs=face_uv, color=(0.80, 0.33, 0.25))]
+    tracks = [MeshTrack("garment", points, faces, uvs=face_uv, color=(0.80, 0.33, 0.25),
+                        groups=None if garment.source is None else garment.source.material_groups())]
     if result.body_points is not None:
         tracks.append(MeshTrack("body", result.body_points, body.faces, uvs=None, color=(0.75, 0.75, 0.78)))
     write_usd_stage(directory / f"{stem}.usd", tracks, fps=fps,
                     metadata={"garment_method": result.summary["method"], "garment_settle_frames": result.summary["settle_frames"]})
     if write_obj:
-        write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps)
+        write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps, materials=materials)
 
 
 @dataclass(frozen=True)

@@ -92,12 +92,13 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     rest, report = unpose_garment(garment, body, pose, betas, source=str(source))
     bind_garment(rest, body, source=str(out))  # the result must be what bake accepts: refused or warned here
     # Written as the file has it (its points in order, its quads and UVs), as bake writes its outputs.
-    mesh = (rest.vertices, rest.faces, rest.uvs, rest.face_uvs)
+    mesh, materials = (rest.vertices, rest.faces, rest.uvs, rest.face_uvs), None
     if garment.source is not None:
         src = garment.source
-        mesh = (src.points(rest.vertices), src.polygons, src.uvs, src.polygon_uvs)
+        mesh, materials = (src.points(rest.vertices), src.polygons, src.uvs, src.polygon_uvs), src.materials
     with atomic_file(out) as tmp:
-        write_obj(tmp, *mesh, header=f"'{source.name}' unposed from {what} by `garment unpose` onto body '{body.name}'")
+        write_obj(tmp, *mesh, header=f"'{source.name}' unposed from {what} by `garment unpose` onto body '{body.name}'",
+                  materials=materials)
     target = "the rest pose" + (" and mean shape" if betas is not None else "")
     click.echo(f"{out}: {rest.n_vertices} vertices moved to {target} from {what} (largest move "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "

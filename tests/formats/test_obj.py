@@ -120,6 +120,26 @@ def test_a_byte_order_mark_and_line_continuations_are_read(tmp_path):
             np.testing.assert_array_equal(got.polygon_uvs, plain.polygon_uvs, err_msg=name)
 
 
+def test_materials_are_kept_per_polygon_and_written_back(tmp_path):
+    """`usemtl` names each polygon's material (an n-gon's extra triangles take its name); a file whose mesh is
+    otherwise the garment's keeps a source mesh for them; written back, each run of faces gets its usemtl."""
+    text = ("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 3 0.5 0\nv 2 1 0\n"
+            "usemtl cotton\nf 1 2 3 4\nusemtl silk lining\nf 2 5 6 7 3\n")
+    obj = parse_obj(_write(tmp_path, text, "m.obj"))
+    assert obj.materials.tolist() == ["cotton", "silk lining", "silk lining", "silk lining"]
+    g = read_obj(tmp_path / "m.obj")
+    assert g.source.materials.tolist() == obj.materials.tolist()
+    assert {k: v.tolist() for k, v in g.source.material_groups().items()} == {"cotton": [0], "silk lining": [1, 2, 3]}
+    tri = read_obj(_write(tmp_path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n", "t.obj"))
+    assert tri.source is not None and tri.source.materials.tolist() == ["a"]
+    assert read_obj(_write(tmp_path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "p.obj")).source is None
+    write_obj(tmp_path / "back.obj", g.source.points(g.vertices), g.source.polygons, materials=g.source.materials)
+    lines = [line for line in (tmp_path / "back.obj").read_text().splitlines() if not line.startswith("v ")]
+    # The quad, then the pentagon as its 3 triangles (ear clipping's), one usemtl before each run.
+    assert lines[:3] == ["usemtl cotton", "f 1 2 3 4", "usemtl silk lining"] and len(lines) == 6
+    assert parse_obj(tmp_path / "back.obj").materials.tolist() == obj.materials.tolist()
+
+
 def test_read_uvs_when_every_face_has_them(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="formats.obj"):
         g = read_obj(_write(tmp_path, UV_OBJ))

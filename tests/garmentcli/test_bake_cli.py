@@ -323,9 +323,10 @@ def test_skip_existing_with_every_motion_baked_does_nothing(scene):
     assert summary.stat().st_mtime_ns == before
 
 
-def _two_panel_quad_tube(path, n_theta=16, n_rows=5):
+def _two_panel_quad_tube(path, n_theta=16, n_rows=5, materials=("", "")):
     """A tube of quads around the tiny body's torso, cut at its sides into two panels that each repeat the seam's
-    vertices, with per-panel UVs (as a pattern tool exports a garment). Returns (vertices, quads) as written."""
+    vertices, with per-panel UVs (as a pattern tool exports a garment) and each panel's `usemtl` (none for "").
+    Returns (vertices, quads) as written."""
     half = n_theta // 2
     verts, uvs, quads = [], [], []
     for panel in range(2):
@@ -340,7 +341,11 @@ def _two_panel_quad_tube(path, n_theta=16, n_rows=5):
                 a = first + r * (half + 1) + c
                 quads.append([a, a + half + 1, a + half + 2, a + 1])
     lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in verts] + [f"vt {u:.6f} {v:.6f}" for u, v in uvs]
-    lines += ["f " + " ".join(f"{i + 1}/{i + 1}" for i in q) for q in quads]
+    per_panel = len(quads) // 2
+    for k, q in enumerate(quads):
+        if k % per_panel == 0 and materials[k // per_panel]:
+            lines.append(f"usemtl {materials[k // per_panel]}")
+        lines.append("f " + " ".join(f"{i + 1}/{i + 1}" for i in q))
     path.write_text("\n".join(lines) + "\n")
     return np.array(verts), np.array(quads)
 
@@ -352,7 +357,7 @@ def test_outputs_keep_the_files_points_quads_and_uv_seams(scene):
     from pxr import Usd, UsdGeom
 
     path = scene["dir"] / "panels.obj"
-    verts, quads = _two_panel_quad_tube(path)
+    verts, quads = _two_panel_quad_tube(path, materials=("front cotton", "back_lining"))
     r = run(["bake", str(path), scene["motion"], "--body", scene["body"], "--out", scene["out"]])
     assert r.exit_code == 0, r.output
     d = scene["out"] / "panels_walk"
@@ -364,10 +369,16 @@ def test_outputs_keep_the_files_points_quads_and_uv_seams(scene):
     assert len([line for line in frame if line.startswith("v ")]) == 90 and len(faces) == 64
     assert [[int(c.split("/")[0]) - 1 for c in f] for f in faces] == quads.tolist()
     assert all(c.split("/")[0] == c.split("/")[1] for f in faces for c in f)  # each corner its own vt, as written
+    # Each panel's material: a usemtl line before its first face, a GeomSubset of its faces for binding shaders.
+    body = [line for line in frame if line.startswith(("f ", "usemtl"))]
+    assert body[0] == "usemtl front cotton" and body[33] == "usemtl back_lining" and body.count("usemtl back_lining") == 1
     stage = Usd.Stage.Open(str(d / "panels_walk.usd"))
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/garment"))
     assert list(mesh.GetFaceVertexCountsAttr().Get()) == [4] * 64
     assert list(mesh.GetFaceVertexIndicesAttr().Get()) == quads.ravel().tolist()
+    subsets = {s.GetPrim().GetName(): list(s.GetIndicesAttr().Get())
+               for s in UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face, "materialBind")}
+    assert subsets == {"front_cotton": list(range(32)), "back_lining": list(range(32, 64))}
     st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
     assert st.GetInterpolation() == UsdGeom.Tokens.faceVarying and len(st.Get()) == 256
     written_uvs = np.array([[float(x) for x in line.split()[1:]] for line in frame if line.startswith("vt ")])
