@@ -24,6 +24,26 @@ def test_push_out_moves_inside_and_near_vertices_to_the_margin_only():
     np.testing.assert_allclose(np.linalg.norm(out[0] - pts, axis=1)[touched], margin - before[touched], atol=2e-5)
 
 
+def test_push_out_lifts_vertices_under_the_ground_straight_up():
+    """With a ground, vertices under it (a hem through the floor) end `margin` above it, moved along Z only, away
+    from the body; every vertex ends outside the body (which wins under its lowest point)."""
+    v, f = icosphere(3, radius=0.5)
+    rng = np.random.default_rng(3)
+    pts = np.concatenate([points_around(100, 0.1, 0.8), rng.uniform(-1, 1, (50, 3)) * [1.5, 1.5, 0.1]
+                          + [0, 0, -0.55]]).astype(np.float32)  # a sheet around the sphere's bottom (z -0.5)
+    margin, ground = 0.003, -0.5
+    plain, _ = push_out(pts[None], v[None], f, margin)
+    out, moved = push_out(pts[None], v[None], f, margin, ground_z=ground)
+    aside = np.linalg.norm(pts[:, :2], axis=1) > 0.3  # beyond the sphere's bottom: the ground alone
+    low = (pts[:, 2] < ground + margin) & aside
+    assert low.sum() > 10 and moved[0] >= low.sum()
+    np.testing.assert_allclose(out[0, low, 2], ground + margin, atol=1e-6)
+    np.testing.assert_array_equal(out[0, low, :2], pts[low, :2])
+    untouched = pts[:, 2] >= ground + margin
+    np.testing.assert_array_equal(out[0, untouched], plain[0, untouched])
+    assert (TriangleMesh(v, f).signed_distance(out[0]) > margin - 1e-4).all()
+
+
 def test_push_out_deformer_wraps_any_method_and_reports():
     from core.deform import LBSDeformer
     from core.garment import Garment
@@ -45,6 +65,7 @@ def test_push_out_deformer_wraps_any_method_and_reports():
     assert all(i.mean() > 0.9 for i in inside)
     assert all((TriangleMesh(bp[t], body.faces).signed_distance(pushed[t]) > 0).all() for t in range(3))
     assert wrapped.name == "lbs" and wrapped.report["push_out"]["vertices_moved_per_frame_max"] > 0
+    assert wrapped.report["push_out"]["ground_z_m"] == float(bp[..., 2].min())
 
 
 def _naive_weight(x, bound, fade):
