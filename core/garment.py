@@ -74,6 +74,15 @@ class Garment:
     def n_faces(self) -> int:
         return int(self.faces.shape[0])
 
+    def written(self, points: np.ndarray) -> tuple:
+        """How outputs write the garment at `points` (..., V, 3): (points (..., Vs, 3), faces (F, 3) or polygons
+        (P, 4), uvs, face or polygon uvs, materials (P,) or None), the file's own mesh (`source`) where it has
+        one, else this one."""
+        if self.source is None:
+            return points, self.faces, self.uvs, self.face_uvs, None
+        s = self.source
+        return s.points(points), s.polygons, s.uvs, s.polygon_uvs, s.materials
+
     def content_hash(self) -> str:
         """SHA-256 of vertices and faces (hex), the key for caches of derived data."""
         h = hashlib.sha256()

@@ -567,21 +567,25 @@ def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np
         raise ValueError("uvs and face_uvs must be given together")
     if materials is not None or (np.asarray(faces).ndim == 2 and np.asarray(faces).shape[1] == 4):
         faces = np.asarray(faces, dtype=np.int64)
-        if faces.shape[1] == 3:
-            faces = np.concatenate([faces, np.full((len(faces), 1), -1, dtype=np.int64)], axis=1)
-            face_uvs = None if face_uvs is None else np.concatenate(
-                [np.asarray(face_uvs, dtype=np.int64), np.full((len(faces), 1), -1, dtype=np.int64)], axis=1)
+        if faces.shape[1] == 3:  # triangles as polygons: -1 in the fourth column
+            faces = np.pad(faces, ((0, 0), (0, 1)), constant_values=-1)
+            face_uvs = None if face_uvs is None else np.pad(np.asarray(face_uvs, dtype=np.int64), ((0, 0), (0, 1)),
+                                                           constant_values=-1)
         return _polygon_text(faces, uvs, face_uvs, materials)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3) + 1
     if uvs is None:
         return ("f %d %d %d\n" * len(f)) % tuple(f.ravel().tolist())
-    t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
     ft = np.asarray(face_uvs, dtype=np.int64).reshape(-1, 3) + 1
     if ft.shape != f.shape:
         raise ValueError(f"face_uvs {ft.shape} must match faces {f.shape}")
     inter = np.stack([f, ft], axis=2).reshape(len(f), 6)
-    return (("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
-            + ("f %d/%d %d/%d %d/%d\n" * len(f)) % tuple(inter.ravel().tolist()))
+    return _vt_text(uvs) + ("f %d/%d %d/%d %d/%d\n" * len(f)) % tuple(inter.ravel().tolist())
+
+
+def _vt_text(uvs: np.ndarray) -> str:
+    """`vt u v` lines for uvs (U, 2) float (6 decimals)."""
+    t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
+    return ("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
 
 
 def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.ndarray | None,
@@ -596,8 +600,7 @@ def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.
         uv_corners = [row[row >= 0] + 1 for row in np.asarray(polygon_uvs, dtype=np.int64)]
         lines = ["f " + " ".join(f"{a}/{b}" for a, b in zip(c.tolist(), u.tolist())) + "\n"
                  for c, u in zip(corners, uv_corners)]
-        t = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
-        head = ("vt %.6f %.6f\n" * len(t)) % tuple(t.ravel().tolist())
+        head = _vt_text(uvs)
     if materials is not None:
         current = ""
         for i, name in enumerate(materials.tolist()):

@@ -83,10 +83,16 @@ def _check_points(points: np.ndarray, what: str, where: str) -> np.ndarray:
     return points.astype(np.float32)
 
 
+def _obj_files(directory: Path) -> list[Path]:
+    """The `.obj` files directly in `directory`, ordered by the numbers in their names (`_natural_key`)."""
+    return sorted((p for p in directory.iterdir() if p.suffix.lower() == ".obj" and p.is_file()),
+                  key=lambda p: _natural_key(p.name))
+
+
 def bake_directory_sequence(directory: Path) -> Path | None:
     """The sequence inside a `garment bake` output directory (`<garment>_<motion>/`): its one USD stage (garment
     and body), else its `obj/` frames; None for a directory that holds OBJ frames itself, or neither."""
-    if any(p.suffix.lower() == ".obj" and p.is_file() for p in directory.iterdir()):
+    if _obj_files(directory):
         return None
     stages = sorted(p for p in directory.iterdir() if p.suffix.lower() in USD_SUFFIXES and p.is_file())
     if len(stages) == 1:
@@ -101,9 +107,7 @@ def bake_batch(directory: Path) -> dict[str, Path] | None:
     (`bake_directory_sequence`), in name order; None when `directory` is not a directory, is a sequence itself
     (OBJ frames, or one bake's output) or holds no bake."""
     directory = Path(directory)
-    if not directory.is_dir() or bake_directory_sequence(directory) is not None:
-        return None
-    if any(p.suffix.lower() == ".obj" and p.is_file() for p in directory.iterdir()):
+    if not directory.is_dir() or _obj_files(directory) or bake_directory_sequence(directory) is not None:
         return None
     bakes = {d.name: d for d in sorted(directory.iterdir())
              if d.is_dir() and d.name != "obj" and bake_directory_sequence(d) is not None}
@@ -112,8 +116,7 @@ def bake_batch(directory: Path) -> dict[str, Path] | None:
 
 def _read_obj_directory(directory: Path) -> Sequence:
     where = f"garment sequence '{directory}'"
-    files = sorted((p for p in directory.iterdir() if p.suffix.lower() == ".obj" and p.is_file()),
-                   key=lambda p: _natural_key(p.name))
+    files = _obj_files(directory)
     if not files:
         raise InputError(f"{where}: expected OBJ frames (frame_0000.obj, ...) or a `garment bake` output (its "
                          f".usd stage or obj/ frames), got a directory with neither")

@@ -94,12 +94,7 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
     from formats.usd import MeshTrack, write_usd_stage
 
     fps = result.summary["fps"]
-    points, faces, uvs, face_uvs = result.garment_points, garment.faces, garment.uvs, garment.face_uvs
-    materials = None
-    if garment.source is not None:
-        src = garment.source
-        points, faces, uvs, face_uvs = src.points(points), src.polygons, src.uvs, src.polygon_uvs
-        materials = src.materials
+    points, faces, uvs, face_uvs, materials = garment.written(result.garment_points)
     face_uv = None
     if uvs is not None and face_uvs is not None:
         face_uv = uvs[face_uvs[faces >= 0] if faces.shape[1] == 4 else face_uvs.ravel()].reshape(-1, 2)

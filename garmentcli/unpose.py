@@ -91,11 +91,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     garment = read_garment(source)
     rest, report = unpose_garment(garment, body, pose, betas, source=str(source))
     bind_garment(rest, body, source=str(out))  # the result must be what bake accepts: refused or warned here
-    # Written as the file has it (its points in order, its quads and UVs), as bake writes its outputs.
-    mesh, materials = (rest.vertices, rest.faces, rest.uvs, rest.face_uvs), None
-    if garment.source is not None:
-        src = garment.source
-        mesh, materials = (src.points(rest.vertices), src.polygons, src.uvs, src.polygon_uvs), src.materials
+    # Written as the file has it (its points in order, its quads, UVs and materials), as bake writes its outputs.
+    *mesh, materials = garment.written(rest.vertices)
     with atomic_file(out) as tmp:
         write_obj(tmp, *mesh, header=f"'{source.name}' unposed from {what} by `garment unpose` onto body '{body.name}'",
                   materials=materials)
