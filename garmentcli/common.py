@@ -94,21 +94,28 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     return settle(motion, settle_frames), source_fps
 
 
-def parse_betas(text: str) -> np.ndarray:
-    """--betas: comma-separated numbers -> (S,) float32; raises click.BadParameter naming what it found."""
+def parse_betas(text: str, words: tuple[str, ...] = ()) -> np.ndarray:
+    """--betas: comma-separated numbers -> (S,) float32; raises click.BadParameter naming what it found.
+
+    words: the option's other accepted values, named in the message ('motion', 'mean' for bake's --betas)."""
     try:
         values = np.array([float(v) for v in text.split(",")], dtype=np.float32)
     except ValueError:
-        raise click.BadParameter(f"expected 'motion', 'mean' or comma-separated numbers, got '{text}'",
+        expected = "".join(f"'{w}', " for w in words[:-1]) + (f"'{words[-1]}' or " if words else "")
+        raise click.BadParameter(f"expected {expected}comma-separated numbers, got '{text}'",
                                  param_hint="--betas") from None
     if not np.all(np.isfinite(values)):
         raise click.BadParameter(f"expected finite numbers, got '{text}'", param_hint="--betas")
     return values
 
 
+#: bake's --betas values besides numbers.
+BETAS_WORDS = ("motion", "mean")
+
+
 def _check_betas(ctx, param, value: str) -> str:
-    if value not in ("motion", "mean"):
-        parse_betas(value)  # rejected before any work
+    if value not in BETAS_WORDS:
+        parse_betas(value, BETAS_WORDS)  # rejected before any work
     return value
 
 

@@ -270,6 +270,8 @@ def test_betas_option_sets_the_body_shape_and_rejects_garbage(scene):
         r = run(["bake", scene["garment"], d / "shaped.npz", "--body", scene["body"], "--out", d / "x", "--betas", bad])
         assert_one_line_error(r, "--betas")
         assert not (d / "x").exists()
+    assert "expected 'motion', 'mean' or comma-separated numbers, got 'tall'" in run(
+        ["bake", scene["garment"], d / "shaped.npz", "--out", d / "x", "--betas", "tall"]).output
 
 
 def test_a_motion_without_a_frame_rate_bakes_with_source_fps(scene):

@@ -120,7 +120,7 @@ def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
 @pytest.mark.parametrize("args, needle", [
     (["--pose", "bpose"], "expected 'tpose', 'apose' or an AMASS-style .npz file, got 'bpose'"),
     (["--pose", "tpose"], "--pose tpose takes off the body shape only: give it with --betas"),
-    (["--pose", "tpose", "--betas", "1,x"], "expected 'motion', 'mean' or comma-separated numbers, got '1,x'"),
+    (["--pose", "tpose", "--betas", "1,x"], "expected comma-separated numbers, got '1,x'"),
     (["--pose", "tpose", "--betas", "1", "--frame", 1], "--frame applies to a POSE.npz file only"),
     (["--pose", "tpose", "--betas", "1", "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", "nope.npz"], "'nope.npz': no such file"),
