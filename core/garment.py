@@ -22,9 +22,9 @@ class SourceMesh:
     numbering and polygons.
 
     vertex_of: (Vs,) int64, the garment vertex each of the file's vertices moves with (itself; the vertex it
-    was welded onto; for a vertex no face uses, the nearest one). polygons: (P, 4) int64 indices into the
-    file's vertices, -1 in the last column of a triangle (a face of more than 4 corners is written as the
-    triangles it was split into). uvs: (U, 2) float32 or None; polygon_uvs: (P, 4) int64 into uvs, or None.
+    was welded onto; for a vertex no face uses, the nearest one). polygons: (P, K) int64 indices into the
+    file's vertices, K >= 4 the most corners of a face, -1 after each face's last corner (triangles, quads
+    and n-gons as the file has them). uvs: (U, 2) float32 or None; polygon_uvs: (P, K) int64 into uvs, or None.
     materials: (P,) str, each polygon's material (an OBJ's `usemtl`, "" for none), or None.
     """
 
@@ -76,7 +76,7 @@ class Garment:
 
     def written(self, points: np.ndarray) -> tuple:
         """How outputs write the garment at `points` (..., V, 3): (points (..., Vs, 3), faces (F, 3) or polygons
-        (P, 4), uvs, face or polygon uvs, materials (P,) or None), the file's own mesh (`source`) where it has
+        (P, K), uvs, face or polygon uvs, materials (P,) or None), the file's own mesh (`source`) where it has
         one, else this one."""
         if self.source is None:
             return points, self.faces, self.uvs, self.face_uvs, None

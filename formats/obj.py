@@ -60,11 +60,36 @@ class ObjPolygons:
     relative: bool
     #: (P,) the material (`usemtl`) of each polygon row ("" before any), or None when the file names none.
     materials: np.ndarray | None = None
+    #: The file's faces as written where one has more than 4 corners (`FilePolygons`), else None (`polygons`).
+    written: FilePolygons | None = None
 
     def same_faces(self, face_lines, n_vertices: int, n_uv_rows: int) -> bool:
         """Whether a file with these face lines and counts has exactly this file's polygons."""
         return (not self.relative and n_vertices == self.vertices.shape[0] and n_uv_rows == self.n_uv_rows
                 and len(face_lines) == len(self.face_lines) and tuple(face_lines) == self.face_lines)
+
+
+@dataclass(frozen=True, eq=False)
+class FilePolygons:
+    """A file's faces as written, n-gons whole: polygons (P, K) int64 (K >= 4 the most corners of a face, -1
+    after a face's last), polygon_uvs (P, K) int64 into the file's uvs or None, materials (P,) or None."""
+
+    polygons: np.ndarray
+    polygon_uvs: np.ndarray | None
+    materials: np.ndarray | None
+
+
+def file_polygons(polygons: np.ndarray, polygon_uvs: np.ndarray, ngons: list,
+                  materials: np.ndarray | None = None) -> FilePolygons:
+    """The faces as written (`FilePolygons`) of (P, 4) `polygons` and `polygon_uvs` whose n-gons (`ngons`, as
+    `split_ngons` takes them) are not split yet: each n-gon's row gets all its corners."""
+    k = max([4] + [len(corners) for _, corners, _ in ngons])
+    rows = np.pad(polygons, ((0, 0), (0, k - 4)), constant_values=-1)
+    uv_rows = np.pad(polygon_uvs, ((0, 0), (0, k - 4)), constant_values=-1)
+    for face, corners, corner_uvs in ngons:
+        rows[face, :len(corners)] = corners
+        uv_rows[face, :len(corners)] = corner_uvs
+    return FilePolygons(rows, uv_rows, materials)
 
 
 def _read_text(path: Path, label: str) -> str:
@@ -237,15 +262,21 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
             k = int(np.argmax(bad))
             raise InputError(f"{label} '{path}': {what} index {int(largest[k]) + 1} out of range on line "
                              f"{f_numbers[k]}, the file has {count} {plural}")
+    named = any(f_materials)
+    written = None
     if ngons:
+        written = file_polygons(polygons, polygon_uvs, ngons,
+                                np.array(f_materials, dtype=object) if named else None)
+        if not all_uv:
+            written = replace(written, polygon_uvs=None)
         polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons,
                                             lambda k: f"on line {f_numbers[k]}", label, path)
         # An n-gon's triangles after its first go after the file's faces, in n-gon order: its material too.
         f_materials += [f_materials[k] for k, corners, _ in ngons for _ in range(len(corners) - 3)]
     relative = any("-" in line for line in f_lines)
-    materials = np.array(f_materials, dtype=object) if any(f_materials) else None
+    materials = np.array(f_materials, dtype=object) if named else None
     return ObjPolygons(vertices, polygons, uvs if all_uv else None, polygon_uvs if all_uv else None,
-                       tuple(f_lines), len(vt_rows), relative, materials)
+                       tuple(f_lines), len(vt_rows), relative, materials, written)
 
 
 def split_ngons(vertices, polygons, polygon_uvs, ngons, where, label, path):
@@ -499,14 +530,16 @@ def read_obj(path: str | os.PathLike) -> Garment:
     path = Path(path)
     label = "garment mesh"
     obj = parse_obj(path, label)
-    return garment_from_polygons(obj.vertices, obj.polygons, obj.uvs, obj.polygon_uvs, label, path, obj.materials)
+    return garment_from_polygons(obj.vertices, obj.polygons, obj.uvs, obj.polygon_uvs, label, path, obj.materials,
+                                 obj.written)
 
 
 def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
                           polygon_uvs: np.ndarray | None, label: str, path: Path,
-                          materials: np.ndarray | None = None) -> Garment:
+                          materials: np.ndarray | None = None, written: FilePolygons | None = None) -> Garment:
     """The validated `Garment` of a file's polygons (see `ObjPolygons`): quads split, seams welded, degenerate
-    and duplicate faces and unused vertices and UVs dropped (each warned), named after the file's stem."""
+    and duplicate faces and unused vertices and UVs dropped (each warned), named after the file's stem.
+    written: the file's faces as written where it has n-gons (its source mesh keeps them), else None."""
     file_vertices = vertices
     faces, face_uvs, _ = triangulate(vertices, polygons, polygon_uvs)
     faces, welded = _weld(vertices, faces, label, path)
@@ -523,13 +556,15 @@ def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.nd
     garment = Garment(vertices=vertices.astype(np.float32), faces=faces.astype(np.int64),
                       uvs=garment_uvs, face_uvs=face_uvs, name=path.stem)
     validate_garment(garment, source=str(path))
+    if written is not None:
+        polygons, polygon_uvs, materials = written.polygons, written.polygon_uvs, written.materials
     return replace(garment, source=source_mesh(file_vertices, polygons, uvs, polygon_uvs, garment, materials))
 
 
 def source_mesh(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
                 polygon_uvs: np.ndarray | None, garment: Garment,
                 materials: np.ndarray | None = None) -> SourceMesh | None:
-    """The file's mesh (`SourceMesh`) of `garment`, read from `vertices` (Vs, 3), `polygons` (P, 4), their
+    """The file's mesh (`SourceMesh`) of `garment`, read from `vertices` (Vs, 3), `polygons` (P, K >= 4), their
     UVs and their materials (P,); None when it is the garment's own (triangles only, nothing welded or dropped,
     no materials named)."""
     from scipy.spatial import cKDTree
@@ -537,7 +572,7 @@ def source_mesh(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | No
     vertices = np.asarray(vertices, dtype=np.float64)
     polygons = np.asarray(polygons, dtype=np.int64)
     same_uvs = (polygon_uvs is None) == (garment.face_uvs is None)
-    if (materials is None and len(vertices) == garment.n_vertices and (polygons[:, 3] < 0).all() and same_uvs
+    if (materials is None and len(vertices) == garment.n_vertices and (polygons[:, 3:] < 0).all() and same_uvs
             and np.array_equal(polygons[:, :3], garment.faces)
             and np.array_equal(vertices.astype(np.float32), garment.vertices)):
         return None
@@ -561,11 +596,11 @@ def obj_vertex_text(vertices: np.ndarray) -> str:
 def obj_face_text(faces: np.ndarray, uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
                   materials: np.ndarray | None = None) -> str:
     """`vt` and `f` lines for faces (F, 3) int 0-based; with uvs (U, 2) and face_uvs (F, 3), `f a/b` forms.
-    Faces (F, 4) with -1 in the last column of triangles (`ObjPolygons.polygons`) write quads as quads, and
+    Faces (F, K >= 4), -1 after each face's last corner (`SourceMesh.polygons`), write each polygon whole, and
     `materials` (F,) names, a `usemtl` line where the name changes."""
     if (uvs is None) != (face_uvs is None):
         raise ValueError("uvs and face_uvs must be given together")
-    if materials is not None or (np.asarray(faces).ndim == 2 and np.asarray(faces).shape[1] == 4):
+    if materials is not None or (np.asarray(faces).ndim == 2 and np.asarray(faces).shape[1] >= 4):
         faces = np.asarray(faces, dtype=np.int64)
         if faces.shape[1] == 3:  # triangles as polygons: -1 in the fourth column
             faces = np.pad(faces, ((0, 0), (0, 1)), constant_values=-1)
@@ -590,7 +625,7 @@ def _vt_text(uvs: np.ndarray) -> str:
 
 def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.ndarray | None,
                   materials: np.ndarray | None = None) -> str:
-    """`vt` and `f` lines of (P, 4) polygons, -1 in the last column of a triangle (and their (P, 4) UV indices),
+    """`vt` and `f` lines of (P, K) polygons, -1 after each one's last corner (and their (P, K) UV indices),
     a `usemtl` line before each run of polygons of one named material (`materials` (P,) or None)."""
     corners = [row[row >= 0] + 1 for row in polygons]
     if uvs is None:
@@ -624,7 +659,7 @@ def write_obj(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray,
     vertices: (V, 3) float, metres (written with 6 decimals); faces: (F, 3) int,
     0-based; uvs: (U, 2) float and face_uvs: (F, 3) int 0-based, both or neither
     (then `vt` lines and `f a/b` faces are written); header: text written as
-    `#` comment lines at the top; materials: (F,) names, written as `usemtl` lines (faces (F, 4): quads, as
+    `#` comment lines at the top; materials: (F,) names, written as `usemtl` lines (faces (F, K): polygons, as
     `obj_face_text`).
     """
     text = _header_text(header) + obj_vertex_text(vertices) + obj_face_text(faces, uvs, face_uvs, materials)

@@ -241,7 +241,7 @@ def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: 
     """Write one OBJ per frame, `<prefix>0000.obj` ..., and `sequence.json` into `directory`.
 
     points: (T, V, 3) float, metres; faces: (F, 3) int 0-based; uvs (U, 2) and
-    face_uvs (F, 3), both or neither (faces (F, 4): quads, as `formats.obj.obj_face_text`); materials: (F,)
+    face_uvs (F, 3), both or neither (faces (F, K): polygons, as `formats.obj.obj_face_text`); materials: (F,)
     names or None, written as `usemtl` lines; fps: frames per second or None. Frame
     numbers are zero padded to at least 4 digits. The face block is formatted
     once and shared by every frame. Returns the frame paths in order.

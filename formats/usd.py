@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ class MeshTrack:
     """One animated mesh of a stage.
 
     name: prim name (sanitised on write). points: (T, V, 3) float32, metres.
-    faces: (F, 3) int64, 0-based, or (F, 4) triangles and quads, -1 in the last column of a triangle.
+    faces: (F, 3) int64, 0-based, or (F, K) polygons of 3 to K corners, -1 after each one's last.
     uvs: (corners, 2) float32, face-varying texture coordinates in face-corner order (F*3 for triangles), or
     None. color: (3,) float RGB in [0, 1] or None. groups: {material name: face indices}, written as
     GeomSubsets of the "materialBind" family (to bind a shader to each), or None.
@@ -102,9 +102,9 @@ def _check_track(track: MeshTrack, n_frames: int | None) -> None:
     if n_frames is not None and p.shape[0] != n_frames:
         raise InputError(f"USD track '{track.name}': expected {n_frames} frames like the first track, "
                          f"got {p.shape[0]}")
-    if f.ndim != 2 or f.shape[1] not in (3, 4) or (f.shape[1] == 4 and (f[:, :3] < 0).any()):
-        raise InputError(f"USD track '{track.name}': expected faces (F, 3), or (F, 4) with -1 closing triangles, "
-                         f"got {f.shape}")
+    if f.ndim != 2 or f.shape[1] < 3 or (f[:, :3] < 0).any() or (np.diff((f < 0).astype(np.int8), axis=1) < 0).any():
+        raise InputError(f"USD track '{track.name}': expected faces (F, 3), or (F, K > 3) with -1 after each "
+                         f"face's last corner, got {f.shape}")
     corners = f[f >= 0]
     if corners.size and corners.max() >= p.shape[1]:
         raise InputError(f"USD track '{track.name}': face index {int(corners.max())} out of range for "
@@ -120,7 +120,7 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
 
     meshes: tracks sharing T frames; each becomes /Root/<name> with points and
     extent sampled at time codes start_frame .. start_frame + T - 1, its
-    triangles (and quads), subdivisionScheme "none", doubleSided, a face-varying `st`
+    polygons (triangles, quads, n-gons), subdivisionScheme "none", doubleSided, a face-varying `st`
     primvar when `uvs` is given and a constant displayColor when `color` is.
     fps: frames per second (> 0), stored as timeCodesPerSecond and
     framesPerSecond. up_axis: "Y" or "Z"; meters_per_unit: length of one stage
@@ -337,7 +337,7 @@ def read_usd_garment(path: str | os.PathLike):
     welded and the result cleaned as `formats.obj.read_obj` does; `st` (face-varying or per vertex) kept.
     Raises InputError naming the file.
     """
-    from formats.obj import MAX_POLYGON_VERTICES, garment_from_polygons, split_ngons
+    from formats.obj import MAX_POLYGON_VERTICES, file_polygons, garment_from_polygons, split_ngons
 
     path = Path(path)
     label = "garment mesh"
@@ -388,10 +388,15 @@ def read_usd_garment(path: str | os.PathLike):
             polygons[k, :n], polygon_uvs[k, :n] = corners, corner_uvs
         else:
             ngons.append((k, corners, corner_uvs))
+    written = None
     if ngons:
+        written = file_polygons(polygons, polygon_uvs, ngons)
+        if uvs is None:
+            written = replace(written, polygon_uvs=None)
         polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons, lambda k: f"(face {k})",
                                             label, path)
-    return garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path)
+    return garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path,
+                                 written=written)
 
 
 def read_usd(path: str | os.PathLike) -> UsdSequence:

@@ -97,7 +97,7 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
     points, faces, uvs, face_uvs, materials = garment.written(result.garment_points)
     face_uv = None
     if uvs is not None and face_uvs is not None:
-        face_uv = uvs[face_uvs[faces >= 0] if faces.shape[1] == 4 else face_uvs.ravel()].reshape(-1, 2)
+        face_uv = uvs[face_uvs[faces >= 0]].reshape(-1, 2)  # face-varying, in corner order
     tracks = [MeshTrack("garment", points, faces, uvs=face_uv, color=(0.80, 0.33, 0.25),
                         groups=None if garment.source is None else garment.source.material_groups())]
     if result.body_points is not None:

@@ -122,22 +122,42 @@ def test_a_byte_order_mark_and_line_continuations_are_read(tmp_path):
 
 def test_materials_are_kept_per_polygon_and_written_back(tmp_path):
     """`usemtl` names each polygon's material (an n-gon's extra triangles take its name); a file whose mesh is
-    otherwise the garment's keeps a source mesh for them; written back, each run of faces gets its usemtl."""
+    otherwise the garment's keeps a source mesh for them; written back, each run of faces gets its usemtl and
+    the pentagon is one face again."""
     text = ("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 3 0.5 0\nv 2 1 0\n"
             "usemtl cotton\nf 1 2 3 4\nusemtl silk lining\nf 2 5 6 7 3\n")
     obj = parse_obj(_write(tmp_path, text, "m.obj"))
     assert obj.materials.tolist() == ["cotton", "silk lining", "silk lining", "silk lining"]
+    assert obj.written.materials.tolist() == ["cotton", "silk lining"]
     g = read_obj(tmp_path / "m.obj")
-    assert g.source.materials.tolist() == obj.materials.tolist()
-    assert {k: v.tolist() for k, v in g.source.material_groups().items()} == {"cotton": [0], "silk lining": [1, 2, 3]}
+    assert g.source.materials.tolist() == ["cotton", "silk lining"]
+    assert g.source.polygons.tolist() == [[0, 1, 2, 3, -1], [1, 4, 5, 6, 2]]
+    assert {k: v.tolist() for k, v in g.source.material_groups().items()} == {"cotton": [0], "silk lining": [1]}
     tri = read_obj(_write(tmp_path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n", "t.obj"))
     assert tri.source is not None and tri.source.materials.tolist() == ["a"]
     assert read_obj(_write(tmp_path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "p.obj")).source is None
     write_obj(tmp_path / "back.obj", g.source.points(g.vertices), g.source.polygons, materials=g.source.materials)
     lines = [line for line in (tmp_path / "back.obj").read_text().splitlines() if not line.startswith("v ")]
-    # The quad, then the pentagon as its 3 triangles (ear clipping's), one usemtl before each run.
-    assert lines[:3] == ["usemtl cotton", "f 1 2 3 4", "usemtl silk lining"] and len(lines) == 6
+    assert lines == ["usemtl cotton", "f 1 2 3 4", "usemtl silk lining", "f 2 5 6 7 3"]
     assert parse_obj(tmp_path / "back.obj").materials.tolist() == obj.materials.tolist()
+
+
+def test_ngons_are_written_back_whole(tmp_path):
+    """A file of triangles and n-gons alone (nothing welded) keeps a source mesh, so its outputs have the
+    n-gons with their UVs: a concave L hexagon and a pentagon come back as the file's faces, point for point."""
+    text = ("v 0 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 3 0 0\nv 3 1 0\nv -1 1 0\n"
+            "vt 0 0\nvt 1 0\nvt 1 0.5\nvt 0.5 0.5\nvt 0.5 1\nvt 0 1\nvt 1 0.2\nvt 1 0.4\nvt 0 0.5\n"
+            "f 1/1 2/2 3/3 4/4 5/5 6/6\nf 2/2 7/7 8/8 3/3\nf 1/1 6/6 9/9\n")
+    g = read_obj(_write(tmp_path, text, "l.obj"))
+    assert g.n_faces == 4 + 2 + 1 and g.source is not None
+    assert g.source.polygons.shape == (3, 6) and (g.source.polygons >= 0).sum(axis=1).tolist() == [6, 4, 3]
+    write_obj(tmp_path / "back.obj", g.source.points(g.vertices), g.source.polygons, g.source.uvs,
+              g.source.polygon_uvs)
+    faces = [line for line in (tmp_path / "back.obj").read_text().splitlines() if line.startswith("f ")]
+    assert faces == ["f 1/1 2/2 3/3 4/4 5/5 6/6", "f 2/2 7/7 8/8 3/3", "f 1/1 6/6 9/9"]
+    back = read_obj(tmp_path / "back.obj")
+    np.testing.assert_array_equal(back.faces, g.faces)
+    np.testing.assert_array_equal(back.vertices, g.vertices)
 
 
 def test_read_uvs_when_every_face_has_them(tmp_path, caplog):

@@ -235,3 +235,25 @@ def test_read_a_concave_polygon_split_inside_it(tmp_path):
     area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 2]
     np.testing.assert_array_equal(cloth.faces[0], [4, 6, 5])
     assert len(cloth.faces) == 5 and np.all(area[1:] > 0) and area[1:].sum() == pytest.approx(3.0)
+
+
+def test_a_usd_garment_keeps_its_ngons_for_the_outputs(tmp_path):
+    """A garment stage's hexagon is deformed as triangles, but its source mesh (what the outputs write) has
+    the hexagon whole, after the triangle, and the file's face-varying UVs per corner."""
+    from formats.obj import read_garment
+
+    path = tmp_path / "ell.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
+    mesh.CreatePointsAttr([(1, 1, 0), (1, 2, 0), (0, 2, 0), (0, 0, 0), (2, 0, 0), (2, 1, 0), (3, 0, 0)])
+    mesh.CreateFaceVertexCountsAttr([3, 6])
+    mesh.CreateFaceVertexIndicesAttr([4, 6, 5, 2, 3, 4, 5, 0, 1])
+    st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                  UsdGeom.Tokens.faceVarying)
+    st.Set([(k / 10, k / 20) for k in range(9)])
+    stage.GetRootLayer().Save()
+    g = read_garment(path)
+    assert g.n_faces == 5
+    assert g.source.polygons.tolist() == [[4, 6, 5, -1, -1, -1], [2, 3, 4, 5, 0, 1]]
+    np.testing.assert_allclose(g.source.uvs[g.source.polygon_uvs[g.source.polygon_uvs >= 0]],
+                               [(k / 10, k / 20) for k in range(9)], atol=1e-6)

@@ -352,6 +352,32 @@ def _two_panel_quad_tube(path, n_theta=16, n_rows=5, materials=("", "")):
     return np.array(verts), np.array(quads)
 
 
+def test_outputs_keep_the_files_ngons(scene):
+    """Faces of more than 4 corners are simulated as triangles but written whole: the two-panel tube with each
+    pair of neighbouring quads as one hexagon comes back as those hexagons in the OBJ frames and the USD stage,
+    each corner with its UV."""
+    from pxr import Usd, UsdGeom
+
+    path = scene["dir"] / "hexes.obj"
+    _, quads = _two_panel_quad_tube(path)
+    hexes = [[a[0], a[1], a[2], b[2], b[3], a[3]] for a, b in zip(quads[0::2].tolist(), quads[1::2].tolist())]
+    lines = [line for line in path.read_text().splitlines() if not line.startswith("f ")]
+    path.write_text("\n".join(lines + ["f " + " ".join(f"{i + 1}/{i + 1}" for i in h) for h in hexes]) + "\n")
+    r = run(["bake", str(path), scene["motion"], "--body", scene["body"], "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "hexes_walk"
+    assert json.loads((d / "summary.json").read_text())["garment"]["written_as_file"] == {"vertices": 90,
+                                                                                         "polygons": 32}
+    frame = (d / "obj" / "frame_0002.obj").read_text().splitlines()
+    faces = [[[int(i) - 1 for i in c.split("/")] for c in line.split()[1:]] for line in frame if line.startswith("f ")]
+    assert [[c[0] for c in f] for f in faces] == hexes and all(c[0] == c[1] for f in faces for c in f)
+    stage = Usd.Stage.Open(str(d / "hexes_walk.usd"))  # kept: a prim outlives no stage
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/garment"))
+    assert list(mesh.GetFaceVertexCountsAttr().Get()) == [6] * 32
+    assert list(mesh.GetFaceVertexIndicesAttr().Get()) == np.ravel(hexes).tolist()
+    assert len(UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st").Get()) == 192
+
+
 def test_outputs_keep_the_files_points_quads_and_uv_seams(scene):
     """A garment of quads in two panels (its seam's vertices repeated) is deformed welded and triangulated, but
     written as its file has it: the same points in the same order (a seam's two copies at one position), its
