@@ -25,7 +25,8 @@ class SourceMesh:
     was welded onto; for a vertex no face uses, the nearest one). polygons: (P, K) int64 indices into the
     file's vertices, K >= 4 the most corners of a face, -1 after each face's last corner (triangles, quads
     and n-gons as the file has them). uvs: (U, 2) float32 or None; polygon_uvs: (P, K) int64 into uvs, or None.
-    materials: (P,) str, each polygon's material (an OBJ's `usemtl`, "" for none), or None.
+    materials: (P,) str, each polygon's material (an OBJ's `usemtl`, "" for none), or None. libraries: the
+    material library files (.mtl, absolute paths) that define them, as the OBJ's `mtllib` names them.
     """
 
     vertex_of: np.ndarray
@@ -33,6 +34,7 @@ class SourceMesh:
     uvs: np.ndarray | None = None
     polygon_uvs: np.ndarray | None = None
     materials: np.ndarray | None = None
+    libraries: tuple[str, ...] = ()
 
     def material_groups(self) -> dict[str, np.ndarray] | None:
         """{material: its polygons' indices (sorted)} in order of first use, or None without materials."""

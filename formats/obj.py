@@ -31,7 +31,7 @@ WELD_DISTANCE_M = 1e-5
 MAX_POLYGON_VERTICES = 256
 
 #: Statement keywords that carry nothing a garment needs (materials, smoothing, grouping).
-_IGNORED = frozenset({"vn", "o", "g", "s", "usemtl", "mtllib", "vp", "l", "p",
+_IGNORED = frozenset({"vn", "o", "g", "s", "vp", "l", "p",
                       "cstype", "deg", "curv", "curv2", "surf", "parm", "trim", "hole",
                       "end", "bmat", "step", "con", "mg", "lod", "shadow_obj", "trace_obj",
                       "ctech", "stech", "bevel", "c_interp", "d_interp", "maplib", "usemap"})
@@ -62,6 +62,8 @@ class ObjPolygons:
     materials: np.ndarray | None = None
     #: The file's faces as written where one has more than 4 corners (`FilePolygons`), else None (`polygons`).
     written: FilePolygons | None = None
+    #: The `mtllib` statements' arguments, as written.
+    libraries: tuple = ()
 
     def same_faces(self, face_lines, n_vertices: int, n_uv_rows: int) -> bool:
         """Whether a file with these face lines and counts has exactly this file's polygons."""
@@ -176,6 +178,7 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
     v_rows, v_lines, vt_rows, vt_lines = [], [], [], []
     f_lines, f_numbers, f_nv, f_nvt, f_materials = [], [], [], [], []
     material = ""
+    libraries = []
     unknown = 0
     for lineno, line in _logical_lines(text):
         parts = line.split()
@@ -196,6 +199,8 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
             f_materials.append(material)
         elif key == "usemtl":
             material = " ".join(parts[1:])
+        elif key == "mtllib":
+            libraries.append(" ".join(parts[1:]))
         elif key == "vt":
             if len(parts) < 2:
                 raise InputError(f"{label} '{path}': expected texture coordinates u v on line {lineno}, got none")
@@ -276,7 +281,7 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
     relative = any("-" in line for line in f_lines)
     materials = np.array(f_materials, dtype=object) if named else None
     return ObjPolygons(vertices, polygons, uvs if all_uv else None, polygon_uvs if all_uv else None,
-                       tuple(f_lines), len(vt_rows), relative, materials, written)
+                       tuple(f_lines), len(vt_rows), relative, materials, written, tuple(libraries))
 
 
 def split_ngons(vertices, polygons, polygon_uvs, ngons, where, label, path):
@@ -530,8 +535,29 @@ def read_obj(path: str | os.PathLike) -> Garment:
     path = Path(path)
     label = "garment mesh"
     obj = parse_obj(path, label)
-    return garment_from_polygons(obj.vertices, obj.polygons, obj.uvs, obj.polygon_uvs, label, path, obj.materials,
-                                 obj.written)
+    garment = garment_from_polygons(obj.vertices, obj.polygons, obj.uvs, obj.polygon_uvs, label, path, obj.materials,
+                                    obj.written)
+    if garment.source is None or garment.source.materials is None or not obj.libraries:
+        return garment
+    return replace(garment, source=replace(garment.source, libraries=material_libraries(path, obj.libraries)))
+
+
+def material_libraries(path: Path, statements) -> tuple[str, ...]:
+    """The material library files (absolute paths) an OBJ at `path` names in its `mtllib` statements, resolved
+    against its folder: the whole argument as one file name, else each of its names (several in one
+    statement); a library that is not there is warned about (its materials are then written by name only)."""
+    found = []
+    for statement in statements:
+        whole = path.parent / statement
+        names = [statement] if whole.is_file() else statement.split()
+        for name in names:
+            library = path.parent / name
+            if library.is_file():
+                found.append(str(library.resolve()))
+            else:
+                log.warning("garment mesh '%s': its material library '%s' is not there; the outputs name its "
+                            "materials only", path, name)
+    return tuple(dict.fromkeys(found))
 
 
 def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
@@ -651,16 +677,22 @@ def _header_text(header: str | None) -> str:
     return "".join(f"# {line}\n" for line in str(header).splitlines())
 
 
+def mtllib_text(libraries) -> str:
+    """The `mtllib` line naming material library files (relative to the OBJ), or "" for none."""
+    return f"mtllib {' '.join(libraries)}\n" if libraries else ""
+
+
 def write_obj(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray,
               uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
-              header: str | None = None, materials: np.ndarray | None = None) -> None:
+              header: str | None = None, materials: np.ndarray | None = None, libraries=()) -> None:
     """Write a triangle mesh as OBJ.
 
     vertices: (V, 3) float, metres (written with 6 decimals); faces: (F, 3) int,
     0-based; uvs: (U, 2) float and face_uvs: (F, 3) int 0-based, both or neither
     (then `vt` lines and `f a/b` faces are written); header: text written as
     `#` comment lines at the top; materials: (F,) names, written as `usemtl` lines (faces (F, K): polygons, as
-    `obj_face_text`).
+    `obj_face_text`); libraries: material library file names for an `mtllib` line.
     """
-    text = _header_text(header) + obj_vertex_text(vertices) + obj_face_text(faces, uvs, face_uvs, materials)
+    text = (_header_text(header) + mtllib_text(libraries) + obj_vertex_text(vertices)
+            + obj_face_text(faces, uvs, face_uvs, materials))
     Path(path).write_bytes(text.encode("utf-8"))

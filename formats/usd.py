@@ -32,7 +32,9 @@ class MeshTrack:
     faces: (F, 3) int64, 0-based, or (F, K) polygons of 3 to K corners, -1 after each one's last.
     uvs: (corners, 2) float32, face-varying texture coordinates in face-corner order (F*3 for triangles), or
     None. color: (3,) float RGB in [0, 1] or None. groups: {material name: face indices}, written as
-    GeomSubsets of the "materialBind" family (to bind a shader to each), or None.
+    GeomSubsets of the "materialBind" family (to bind a shader to each), or None. looks: {material name:
+    `formats.mtl.MtlMaterial`}: a group whose material is here gets a UsdPreviewSurface of its colour, opacity
+    and diffuse texture (read through `st`), bound to its subset.
     """
 
     name: str
@@ -41,6 +43,7 @@ class MeshTrack:
     uvs: np.ndarray | None = None
     color: np.ndarray | None = None
     groups: dict | None = None
+    looks: dict | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,9 +181,14 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
             st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(track.uvs, dtype=np.float32)))
         for (group, faces_of), subset_name in zip((track.groups or {}).items(),
                                                   _prim_names([g or "unnamed" for g in (track.groups or {})])):
-            UsdGeom.Subset.CreateGeomSubset(mesh, subset_name, UsdGeom.Tokens.face,
-                                            Vt.IntArray.FromNumpy(np.asarray(faces_of, dtype=np.int32)),
-                                            UsdShade.Tokens.materialBind, UsdGeom.Tokens.nonOverlapping)
+            subset = UsdGeom.Subset.CreateGeomSubset(mesh, subset_name, UsdGeom.Tokens.face,
+                                                     Vt.IntArray.FromNumpy(np.asarray(faces_of, dtype=np.int32)),
+                                                     UsdShade.Tokens.materialBind, UsdGeom.Tokens.nonOverlapping)
+            look = (track.looks or {}).get(group)
+            if look is not None:
+                material = _preview_material(stage, f"{ROOT}/Looks/{prim_name}_{subset_name}", look,
+                                             path.parent, textured=track.uvs is not None)
+                UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(material)
         if track.color is not None:
             color = np.asarray(track.color, dtype=np.float64).reshape(3)
             mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(
@@ -198,6 +206,35 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
     layer = Sdf.Layer.Find(str(path))
     if layer:
         layer.Reload(True)
+
+
+def _preview_material(stage: Usd.Stage, where: str, look, folder: Path, textured: bool) -> UsdShade.Material:
+    """A UsdPreviewSurface material at `where` of an OBJ material (`formats.mtl.MtlMaterial`): its diffuse colour
+    (grey without one), its opacity, and its diffuse texture when it exists and the mesh has `st` (`textured`),
+    by a path relative to `folder` (the stage's), as usdview, Houdini and Blender read it."""
+    material = UsdShade.Material.Define(stage, where)
+    surface = UsdShade.Shader.Define(stage, f"{where}/PreviewSurface")
+    surface.CreateIdAttr("UsdPreviewSurface")
+    surface.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.9)  # cloth: matte
+    diffuse = surface.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
+    diffuse.Set(Gf.Vec3f(*(look.diffuse if look.diffuse is not None else (0.8, 0.8, 0.8))))
+    if look.opacity is not None:
+        surface.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(float(look.opacity))
+    material.CreateSurfaceOutput().ConnectToSource(surface.ConnectableAPI(), "surface")
+    texture_path = look.diffuse_texture
+    if textured and texture_path is not None and Path(texture_path).is_file():
+        reader = UsdShade.Shader.Define(stage, f"{where}/stReader")
+        reader.CreateIdAttr("UsdPrimvarReader_float2")
+        reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")
+        texture = UsdShade.Shader.Define(stage, f"{where}/DiffuseTexture")
+        texture.CreateIdAttr("UsdUVTexture")
+        relative = os.path.relpath(Path(texture_path).resolve(), folder.resolve()).replace(os.sep, "/")
+        texture.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(relative))
+        texture.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(
+            reader.ConnectableAPI(), "result")
+        texture.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+        diffuse.ConnectToSource(texture.ConnectableAPI(), "rgb")
+    return material
 
 
 def _polygon_starts(counts: np.ndarray) -> np.ndarray:

@@ -46,6 +46,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     from core.unpose import a_pose, unpose_garment
     from formats.atomic import atomic_file
     from formats.motion import load_motion
+    from formats.mtl import copy_material_libraries
     from formats.obj import read_garment, write_obj
 
     source = Path(garment_path)
@@ -91,11 +92,20 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     garment = read_garment(source)
     rest, report = unpose_garment(garment, body, pose, betas, source=str(source))
     bind_garment(rest, body, source=str(out))  # the result must be what bake accepts: refused or warned here
-    # Written as the file has it (its points in order, its quads, UVs and materials), as bake writes its outputs.
+    # Written as the file has it (its points in order, its quads, UVs and materials), as bake writes its outputs;
+    # its material libraries beside it (where it is written elsewhere than GARMENT's folder).
     *mesh, materials = garment.written(rest.vertices)
+    libraries = () if garment.source is None else garment.source.libraries
+    copies = [lib for lib in libraries if (out.parent / Path(lib).name).resolve() != Path(lib).resolve()]
+    taken = [out.parent / Path(lib).name for lib in copies if (out.parent / Path(lib).name).exists()]
+    if taken and not overwrite:
+        raise click.ClickException(f"output '{taken[0]}' (GARMENT's material library, written beside the result) "
+                                   f"exists: pass --overwrite to replace it")
+    names = [Path(lib).name for lib in libraries if lib not in copies]
+    names += copy_material_libraries(copies, out.parent)
     with atomic_file(out) as tmp:
         write_obj(tmp, *mesh, header=f"'{source.name}' unposed from {what} by `garment unpose` onto body '{body.name}'",
-                  materials=materials)
+                  materials=materials, libraries=names)
     target = "the rest pose" + (" and mean shape" if betas is not None else "")
     click.echo(f"{out}: {rest.n_vertices} vertices moved to {target} from {what} (largest move "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "

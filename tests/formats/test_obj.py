@@ -387,3 +387,17 @@ def test_welding_keeps_uv_seams():
     for vertex in shared:
         uv = {tuple(g.uvs[g.face_uvs[k, j]]) for k, j in zip(*np.nonzero(g.faces == vertex))}
         assert len(uv) == 2  # one UV on each side of the seam
+
+
+def test_material_libraries_are_found_beside_the_file(tmp_path, caplog):
+    """`mtllib` names (one with a space, two in one statement) resolve against the OBJ's folder for its source
+    mesh; one that is not there is warned about; a file without `usemtl` keeps none."""
+    (tmp_path / "my shirt.mtl").write_text("newmtl a\n")
+    (tmp_path / "extra.mtl").write_text("newmtl b\n")
+    tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+    path = _write(tmp_path, "mtllib my shirt.mtl\nmtllib extra.mtl gone.mtl\n" + tri + "usemtl a\nf 1 2 3\n", "s.obj")
+    with caplog.at_level(logging.WARNING, logger="formats.obj"):
+        g = read_obj(path)
+    assert g.source.libraries == (str((tmp_path / "my shirt.mtl").resolve()), str((tmp_path / "extra.mtl").resolve()))
+    assert "material library 'gone.mtl' is not there" in caplog.text
+    assert read_obj(_write(tmp_path, "mtllib extra.mtl\n" + tri + "f 1 2 3\n", "n.obj")).source is None

@@ -352,6 +352,43 @@ def _two_panel_quad_tube(path, n_theta=16, n_rows=5, materials=("", "")):
     return np.array(verts), np.array(quads)
 
 
+def test_outputs_carry_the_files_material_library(scene):
+    """A garment whose materials come from an .mtl with a texture: the OBJ frames name a copy of the library in
+    obj/ whose texture path leads to the texture; the USD garment's subsets are bound to preview materials of
+    the library's colours, the textured one reading the texture (by a path relative to the stage) through st."""
+    from pxr import Usd, UsdShade
+
+    asset = scene["dir"] / "asset"
+    (asset / "tex").mkdir(parents=True)
+    (asset / "tex" / "weave.png").write_bytes(b"png")
+    (asset / "panels.mtl").write_text("newmtl front\nKd 0.2 0.4 0.6\nmap_Kd tex/weave.png\n"
+                                      "newmtl back\nKd 1 0 0\nd 0.5\n")
+    path = asset / "panels.obj"
+    _two_panel_quad_tube(path, materials=("front", "back"))
+    path.write_text("mtllib panels.mtl\n" + path.read_text())
+    r = run(["bake", str(path), scene["motion"], "--body", scene["body"], "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "panels_walk"
+    assert (d / "obj" / "frame_0000.obj").read_text().splitlines()[1] == "mtllib panels.mtl"
+    copy = (d / "obj" / "panels.mtl").read_text().splitlines()
+    texture_line = next(line for line in copy if line.startswith("map_Kd"))
+    assert (d / "obj" / texture_line.split()[1]).resolve() == (asset / "tex" / "weave.png").resolve()
+    stage = Usd.Stage.Open(str(d / "panels_walk.usd"))
+    looks = {}
+    for name in ("front", "back"):
+        subset = stage.GetPrimAtPath(f"/Root/garment/{name}")
+        material = UsdShade.MaterialBindingAPI(subset).GetDirectBinding().GetMaterial()
+        looks[name] = UsdShade.Shader(stage.GetPrimAtPath(f"{material.GetPath()}/PreviewSurface"))
+    back = looks["back"]
+    assert tuple(back.GetInput("diffuseColor").Get()) == (1, 0, 0) and back.GetInput("opacity").Get() == 0.5
+    source = looks["front"].GetInput("diffuseColor").GetConnectedSources()[0][0].source
+    texture = UsdShade.Shader(source.GetPrim())
+    assert texture.GetIdAttr().Get() == "UsdUVTexture"
+    assert (d / texture.GetInput("file").Get().path).resolve() == (asset / "tex" / "weave.png").resolve()
+    reader = UsdShade.Shader(texture.GetInput("st").GetConnectedSources()[0][0].source.GetPrim())
+    assert reader.GetInput("varname").Get() == "st"
+
+
 def test_outputs_keep_the_files_ngons(scene):
     """Faces of more than 4 corners are simulated as triangles but written whole: the two-panel tube with each
     pair of neighbouring quads as one hexagon comes back as those hexagons in the OBJ frames and the USD stage,

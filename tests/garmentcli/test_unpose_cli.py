@@ -48,6 +48,30 @@ def test_unpose_writes_the_rest_garment_that_bake_takes(a_posed, tmp_path):
     assert (path.parent / "shirt_rest.obj").stat().st_mtime_ns == before
 
 
+def test_unpose_keeps_the_material_library(a_posed, tmp_path):
+    """A garment naming a material library: written beside it, the result names the same library; written
+    elsewhere, a copy goes beside the result (its texture path leading to the texture), refused over an
+    existing file without --overwrite."""
+    path, _ = a_posed
+    folder = tmp_path / "asset"
+    folder.mkdir()
+    (folder / "t.png").write_bytes(b"png")
+    (folder / "shirt.mtl").write_text("newmtl cotton\nmap_Kd t.png\n")
+    shirt = folder / "shirt.obj"
+    shirt.write_text("mtllib shirt.mtl\nusemtl cotton\n" + path.read_text())
+    r = invoke(["unpose", shirt, "--pose", "apose"])
+    assert r.exit_code == 0, r.output
+    assert "mtllib shirt.mtl" in (folder / "shirt_rest.obj").read_text().splitlines()
+    out = tmp_path / "elsewhere" / "rest.obj"
+    r = invoke(["unpose", shirt, "--pose", "apose", "--out", out])
+    assert r.exit_code == 0, r.output
+    assert "mtllib shirt.mtl" in out.read_text().splitlines() and "usemtl cotton" in out.read_text()
+    assert (out.parent / "shirt.mtl").read_text().splitlines()[1] == "map_Kd ../asset/t.png"
+    out.unlink()
+    r = invoke(["unpose", shirt, "--pose", "apose", "--out", out])
+    assert r.exit_code != 0 and "shirt.mtl' (GARMENT's material library" in r.output and not out.exists()
+
+
 def test_unpose_writes_the_files_own_points(a_posed, tmp_path):
     """A stray vertex no face uses (the file's last) is written back where its nearest vertex went: the output has
     the input's points, in order."""
