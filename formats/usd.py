@@ -159,6 +159,7 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
     if metadata:
         stage.GetRootLayer().customLayerData = _to_vt(dict(metadata))
 
+    looks_made = set()  # /Root/Looks/<material>: named as the file names it (the mesh's name first on a clash)
     for track, prim_name in zip(meshes, _prim_names([m.name for m in meshes])):
         points = np.ascontiguousarray(track.points, dtype=np.float32)
         faces = np.asarray(track.faces, dtype=np.int32)
@@ -186,8 +187,10 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
                                                      UsdShade.Tokens.materialBind, UsdGeom.Tokens.nonOverlapping)
             look = (track.looks or {}).get(group)
             if look is not None:
-                material = _preview_material(stage, f"{ROOT}/Looks/{prim_name}_{subset_name}", look,
-                                             path.parent, textured=track.uvs is not None)
+                look_name = subset_name if subset_name not in looks_made else f"{prim_name}_{subset_name}"
+                looks_made.add(look_name)
+                material = _preview_material(stage, f"{ROOT}/Looks/{look_name}", look, path.parent,
+                                             textured=track.uvs is not None)
                 UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(material)
         if track.color is not None:
             color = np.asarray(track.color, dtype=np.float64).reshape(3)
