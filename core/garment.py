@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -75,6 +76,13 @@ class Garment:
     @property
     def n_faces(self) -> int:
         return int(self.faces.shape[0])
+
+    @cached_property
+    def pieces(self) -> tuple[int, np.ndarray]:
+        """(N, labels (V,) int64 0..N-1): the garment's connected pieces (computed once per garment)."""
+        from core.graph import connected_components
+
+        return connected_components(mesh_edges(self.faces), self.n_vertices)
 
     def written(self, points: np.ndarray) -> tuple:
         """How outputs write the garment at `points` (..., V, 3): (points (..., Vs, 3), faces (F, 3) or polygons

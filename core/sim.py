@@ -381,10 +381,8 @@ def small_pieces(garment: Garment, share: float | None = None) -> tuple[np.ndarr
     is under `share` (default SMALL_PIECE_AREA_SHARE) of the garment's): a pocket, a label or a button
     modelled apart from the cloth it sits on.
     """
-    from core.graph import connected_components
-
     share = SMALL_PIECE_AREA_SHARE if share is None else share
-    n, labels = connected_components(mesh_edges(garment.faces), garment.n_vertices)
+    n, labels = garment.pieces
     if n == 1:
         return labels, np.zeros(0, dtype=np.int64)
     area = 0.5 * np.linalg.norm(face_cross(np.asarray(garment.vertices, np.float64), garment.faces), axis=-1)

@@ -145,9 +145,7 @@ def _body_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
     """"" or, for a piece of a garment of several that is the body itself (`BODY_PIECE_SHARE`), what it is:
     "piece 2 of 2 (6,890 vertices, 100 % of them on the body's skin)". A skin-tight garment covers less than half
     the body; a garment of one piece on the skin (a second skin, as tests use) is left alone."""
-    from core.graph import connected_components
-
-    n, labels = connected_components(mesh_edges(garment.faces), garment.n_vertices)
+    n, labels = garment.pieces
     if n < 2:
         return ""
     sizes = np.bincount(labels, minlength=n)
