@@ -135,10 +135,12 @@ class ModelDataset:
     """A simulator dataset loaded for training: garments (shared) and sequences per split.
 
     root: dataset directory. body: the body the sequences were simulated on. splits: which to load.
-    cache_dir: preprocessing cache (None = compute).
+    cache_dir: preprocessing cache (None = compute). partial: load the sequences simulated so far of a dataset
+    whose `garment dataset` run has not finished (`missing` counts the others per split) instead of refusing it.
     """
 
-    def __init__(self, root, body: Body, config: ModelConfig, splits=("train", "val"), cache_dir=None):
+    def __init__(self, root, body: Body, config: ModelConfig, splits=("train", "val"), cache_dir=None,
+                 partial: bool = False):
         from dataclasses import asdict
 
         from formats.dataset import MANIFEST, read_manifest, read_sequence
@@ -158,9 +160,20 @@ class ModelDataset:
             raise InputError(f"dataset manifest '{mpath}': expected every item's 'split' to be train, val or test, "
                              f"got {unknown[0]!r}")
         missing = [i for i, rec in items.items() if rec["split"] in splits and not self._file(i, rec).is_file()]
-        if missing:
+        if missing and not partial:
             raise InputError(f"dataset '{self.root}': {len(missing)} of {len(items)} sequences are missing (e.g. "
-                             f"'{missing[0]}'); the `garment dataset` run has not finished: rerun it to resume")
+                             f"'{missing[0]}'); the `garment dataset` run has not finished: rerun it to resume "
+                             f"(or train on what it has simulated with --partial)")
+        self.missing = {split: sum(items[i]["split"] == split for i in missing) for split in splits}
+        if missing:
+            missing = set(missing)
+            for split in splits:
+                if self.missing[split] and all(i in missing for i, rec in items.items() if rec["split"] == split):
+                    raise InputError(f"dataset '{self.root}': expected sequences in its '{split}' split, got none "
+                                     f"simulated yet")
+            log.warning("dataset '%s': %d of its %s sequences are not simulated yet; training on the others",
+                        self.root, len(missing), "/".join(splits))
+            items = {i: rec for i, rec in items.items() if i not in missing}
         self.device = torch.device("cpu")
         self.body_faces = torch.as_tensor(np.asarray(body.faces), dtype=torch.long)
         self.garments: dict[str, GarmentData] = {}

@@ -70,9 +70,11 @@ def _parse_phases(text: str) -> tuple:
 @click.option("--init", "init_path", type=click.Path(dir_okay=False), default=None, metavar="MODEL",
               help="Start from this model's weights and network config (fine-tuning it on --data, e.g. the "
               "default model on simulations with self-contact); a 'model' section in --config is then an error.")
+@click.option("--partial", is_flag=True, help="Train on the sequences simulated so far of a dataset whose "
+              "`garment dataset` run has not finished (the model card records how many were missing).")
 @input_errors_as_click
 def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-          sequences_per_step=1, device="cpu", time_limit=None, init_path=None):
+          sequences_per_step=1, device="cpu", time_limit=None, init_path=None, partial=False):
     """Train the garment model on a simulator dataset (phases switch on validation plateaus).
 
     Under `torchrun --nproc_per_node N` it trains with DistributedDataParallel (gloo on CPU); only
@@ -88,7 +90,7 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
     try:
         _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
                sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None,
-               dev, time_limit, init_path)
+               dev, time_limit, init_path, partial)
         if world > 1:
             import torch.distributed as dist
 
@@ -120,7 +122,7 @@ def _parse_device(text: str):
 
 def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
            sequences_per_step, rank, world, parallel_trainer, device=torch.device("cpu"), time_limit=None,
-           init_path=None):
+           init_path=None, partial=False):
     import os
 
     from core.model_data import ModelDataset
@@ -156,7 +158,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     if not resume and ckpt_path.exists():
         raise click.ClickException(f"checkpoint '{ckpt_path}' exists: pass --resume to continue it, or remove it")
 
-    data = ModelDataset(data_dir, body, model_cfg, cache_dir=cache_dir)
+    data = ModelDataset(data_dir, body, model_cfg, cache_dir=cache_dir, partial=partial)
     if parallel_trainer is None:
         trainer = Trainer(data, model_cfg, train_cfg, device=device)
     else:
@@ -184,7 +186,8 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         out.parent.mkdir(parents=True, exist_ok=True)
         json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
                                          "data": str(data_dir), "init": init_path, "processes": world,
-                                         "device": str(device), "sequences_per_step": sequences_per_step}, indent=2))
+                                         "device": str(device), "sequences_per_step": sequences_per_step,
+                                         "sequences_missing": data.missing}, indent=2))
     # Only rank 0 writes: the others log into the null device.
     with (open(csv_path, "w", newline="") if main else open(os.devnull, "w")) as fh:
         writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
@@ -223,7 +226,9 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     meta = {"train_config": dataclasses.asdict(train_cfg), "data": str(data_dir), "init": init_path,
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
-            "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name, "joint_coverage": coverage}
+            "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name, "joint_coverage": coverage,
+            "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
+            "sequences_missing": data.missing}
     if not main:
         return
     save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)

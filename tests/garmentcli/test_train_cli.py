@@ -194,3 +194,26 @@ def test_train_init_starts_from_a_model(setup):
     other_cfg.write_text(json.dumps(values))
     r = _train(root, data, body, other_cfg, root / "t6.pt")
     assert r.exit_code != 0 and "--config" in r.output and "joints" in r.output and "Traceback" not in r.output
+
+
+def test_train_partial_uses_the_sequences_simulated_so_far(setup, tmp_path):
+    """A dataset whose run has not finished (a training sequence missing) is refused, naming --partial; with it
+    the model trains on the others and records what was missing; a split with nothing simulated is refused."""
+    import shutil
+
+    root, data, body, cfg = setup
+    part = tmp_path / "part"
+    shutil.copytree(data, part)
+    (part / "sequences" / "s1.npz").unlink()
+    r = _train(root, part, body, cfg, tmp_path / "m.pt", "--steps", "2")
+    assert r.exit_code != 0 and "1 of 3 sequences are missing (e.g. 's1')" in r.output and "--partial" in r.output
+    assert not (tmp_path / "m.pt").exists()
+    r = _train(root, part, body, cfg, tmp_path / "m.pt", "--steps", "2", "--partial")
+    assert r.exit_code == 0, r.output
+    from formats.checkpoint import load_checkpoint
+
+    meta = load_checkpoint(tmp_path / "m.pt")["meta"]
+    assert meta["sequences"] == {"train": 1, "val": 1} and meta["sequences_missing"] == {"train": 1, "val": 0}
+    (part / "sequences" / "s2.npz").unlink()
+    r = _train(root, part, body, cfg, tmp_path / "n.pt", "--steps", "2", "--partial")
+    assert r.exit_code != 0 and "expected sequences in its 'val' split, got none simulated yet" in r.output
