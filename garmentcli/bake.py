@@ -32,6 +32,8 @@ from garmentcli.common import (
     frames_option,
     input_errors_as_click,
     load_body_option,
+    motion_files,
+    motion_names,
     prepare_motion,
     scheduler_options,
     source_fps_option,
@@ -228,7 +230,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 
 @click.command(name="bake")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
-@click.argument("motion_paths", metavar="MOTION...", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("motion_paths", metavar="MOTION...", nargs=-1, required=True, type=click.Path())
 @click.option("--method", type=click.Choice(sorted(DEFORMERS)), default=None,
               help="Deformation method: model (the learned network; the default), lbs (linear blend skinning: "
                    "fastest, no cloth dynamics) or sim (reference physics: slowest).")
@@ -291,10 +293,12 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="motion", source_fps=None, floor=None, warned=()):
-    """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz).
+    """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz, or a directory:
+    every motion .npz under it).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
-    time-sampled, Z-up, metres), obj/frame_NNNN.obj and summary.json.
+    time-sampled, Z-up, metres), obj/frame_NNNN.obj and summary.json. Motions of one file name in different
+    folders are told apart by their folders' names (<garment>_<folder>_<motion>).
     """
     from formats.obj import read_garment
 
@@ -315,13 +319,14 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
                                "--precision and --push-out")
-    for p in (garment_path, *motion_paths):
-        if not Path(p).is_file():
-            raise click.FileError(p, hint="no such file")
+    if not Path(garment_path).is_file():
+        raise click.FileError(garment_path, hint="no such file")
+    motion_paths = motion_files(motion_paths)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
     out_dir = Path(out_dir)
-    targets = [(m, out_dir / f"{Path(garment_path).stem}_{Path(m).stem}") for m in motion_paths]
+    targets = [(m, out_dir / f"{Path(garment_path).stem}_{name}")
+               for m, name in zip(motion_paths, motion_names(motion_paths))]
     if overwrite and skip_existing:
         raise click.UsageError("--overwrite and --skip-existing exclude each other")
     if skip_existing:

@@ -6,6 +6,7 @@ import functools
 import logging
 from contextlib import contextmanager
 from dataclasses import replace
+from pathlib import Path
 
 import click
 import numpy as np
@@ -22,6 +23,57 @@ PIN_HELP = ("auto: the waistband of a garment without shoulders (skirt, trousers
 FLOOR_CHOICES = ("auto", "none")
 FLOOR_HELP = ("auto: the ground, a plane through the lowest point the body reaches in the motion, where the garment "
               "comes near it (a long gown, sitting, kneeling); none: no ground (a body that never touches it).")
+
+
+#: Keys of an archive that holds a motion (`formats.motion.load_motion`): AMASS's poses, SMPL-X's split keys.
+MOTION_KEYS = ("poses", "root_orient", "pose_body")
+
+
+def motion_files(args, hint: str = "MOTION") -> list[str]:
+    """MOTION arguments as motion files: a file as given; a directory, every `.npz` under it (recursively, in
+    sorted order) that holds poses (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold a body shape
+    only, are left out). A file given twice is taken once. Raises click errors for a path that is not there
+    and for a directory without motions."""
+    files: list[str] = []
+    for arg in args:
+        path = Path(arg)
+        if path.is_dir():
+            found = [str(f) for f in sorted(path.rglob("*.npz")) if f.is_file() and _holds_poses(f)]
+            if not found:
+                raise click.BadParameter(f"directory '{arg}': expected motion .npz files under it (with "
+                                         f"{' or '.join(repr(k) for k in MOTION_KEYS[:2])}), found none",
+                                         param_hint=hint)
+            files += found
+        elif path.is_file():
+            files.append(str(arg))
+        else:
+            raise click.FileError(str(arg), hint="no such file")
+    kept: dict = {}
+    for f in files:
+        kept.setdefault(Path(f).resolve(), f)
+    return list(kept.values())
+
+
+def _holds_poses(path: Path) -> bool:
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            return any(k in archive.files for k in MOTION_KEYS)
+    except Exception:  # not an archive numpy reads: named as a motion, it would be refused with the reason
+        return True
+
+
+def motion_names(paths) -> list[str]:
+    """A distinct name per motion file, for output directories and dataset items: its stem, and for files that
+    share one, the stem after as many of their folders' names as tell them apart
+    (a/walk.npz, b/walk.npz -> a_walk, b_walk)."""
+    parts = [Path(p).resolve().with_suffix("").parts for p in paths]
+    names = [Path(p).stem for p in paths]
+    for depth in range(2, max((len(q) for q in parts), default=0) + 1):
+        clashing = {n for n in names if names.count(n) > 1}
+        if not clashing:
+            break
+        names = ["_".join(q[-depth:]).lstrip("/") if n in clashing else n for n, q in zip(names, parts)]
+    return names
 
 
 def input_errors_as_click(func):

@@ -17,6 +17,8 @@ from garmentcli.common import (
     PIN_CHOICES,
     PIN_HELP,
     input_errors_as_click,
+    motion_files,
+    motion_names,
     scheduler_options,
     source_fps_option,
 )
@@ -36,9 +38,8 @@ def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | N
     from core.motion import resample
     from formats.motion import load_motion
 
-    motions = {Path(p).stem: resample(load_motion(p, fps=source_fps), fps) for p in motion_paths}
-    if len(motions) != len(motion_paths):
-        raise click.BadParameter("expected distinct file names (stems)", param_hint="--motions")
+    motions = {name: resample(load_motion(p, fps=source_fps), fps)
+               for name, p in zip(motion_names(motion_paths), motion_paths)}
     if library:
         from core.motiongen import generate_motion_library
 
@@ -96,8 +97,8 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 @click.command(name="dataset")
 @click.option("--garments", "garment_paths", multiple=True, required=True, type=click.Path(dir_okay=False, exists=True),
               help="Garment OBJ on the body's rest pose (repeat the option for several).")
-@click.option("--motions", "motion_paths", multiple=True, type=click.Path(dir_okay=False, exists=True),
-              help="AMASS-style motion .npz (repeat the option).")
+@click.option("--motions", "motion_paths", multiple=True, type=click.Path(exists=True),
+              help="AMASS-style motion .npz, or a directory: every motion .npz under it (repeat the option).")
 @click.option("--library", is_flag=True, help="Add the built-in motion library (30 generated clips: walks, runs, turns, "
               "jumps, arm swings, bends, kicks, sitting down).")
 @click.option("--bodies", "n_bodies", type=click.IntRange(min=1), default=3, show_default=True,
@@ -168,6 +169,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         raise click.BadParameter("expected distinct file names (stems)", param_hint="--garments")
     if not motion_paths and not library:
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
+    motion_paths = motion_files(motion_paths, "--motions")
     motions = _load_motions(motion_paths, library, fps, source_fps)
     body = load_body_option(body_path)
     body_id = Path(body_path).name if body_path else "default"
@@ -185,8 +187,9 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 "garment_meshes": {k: g.content_hash() for k, g in sorted(garments.items())}}
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
-              "motions": {Path(p).stem: {"path": str(p), "sha256": _sha256(p)} for p in motion_paths},
-              "motion_library": (sorted(set(motions) - {Path(p).stem for p in motion_paths}) if library else []),
+              "motions": {name: {"path": str(p), "sha256": _sha256(p)}
+                          for name, p in zip(motion_names(motion_paths), motion_paths)},
+              "motion_library": (sorted(set(motions) - set(motion_names(motion_paths))) if library else []),
               "body": {"path": str(body_path) if body_path else "embedded default (anny)",
                        "sha256": _sha256(body_path) if body_path else None}}
     manifest = build_manifest(settings, items, splits, betas, inputs, software_versions("garment", "newton", "warp-lang", "numpy", "torch"))

@@ -1,4 +1,5 @@
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -460,3 +461,31 @@ def test_outputs_keep_the_files_points_quads_and_uv_seams(scene):
         np.testing.assert_array_equal(points[a8], points[b0])
         np.testing.assert_array_equal(points[a0], points[b8])
     assert not np.allclose(points, verts)  # it moved
+
+
+def test_bake_motions_from_a_directory_tree_keep_one_output_each(scene):
+    """A directory of motions bakes every motion under it (AMASS's shape.npz left out); two motions of one file
+    name get one output each, named by their folders (one overwrote the other before); a motion named again
+    is baked once; a directory without motions is refused."""
+    tree = scene["dir"] / "mocap"
+    for subject in ("s1", "s2"):
+        (tree / subject).mkdir(parents=True)
+        (tree / subject / "walk.npz").write_bytes(Path(scene["motion"]).read_bytes())
+        np.savez(tree / subject / "shape.npz", betas=np.zeros(10), gender="male")
+    r = run(["bake", scene["garment"], tree, tree / "s1" / "walk.npz", "--body", scene["body"], "--method", "lbs",
+             "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in scene["out"].iterdir()) == ["shell_s1_walk", "shell_s2_walk"]
+    assert "of 2 motions" in r.output
+    (scene["dir"] / "empty").mkdir()
+    r = run(["bake", scene["garment"], scene["dir"] / "empty", "--body", scene["body"], "--out", scene["dir"] / "e"])
+    assert_one_line_error(r, "expected motion .npz files under it")
+    assert not (scene["dir"] / "e").exists()
+
+
+def test_motion_names_tell_files_of_one_name_apart():
+    from garmentcli.common import motion_names
+
+    assert motion_names(["/m/a/walk.npz", "/m/b/run.npz"]) == ["walk", "run"]
+    assert motion_names(["/m/a/walk.npz", "/m/b/walk.npz", "/m/run.npz"]) == ["a_walk", "b_walk", "run"]
+    assert motion_names(["/x/s/walk.npz", "/y/s/walk.npz"]) == ["x_s_walk", "y_s_walk"]

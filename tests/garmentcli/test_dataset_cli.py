@@ -193,3 +193,23 @@ def test_dataset_source_fps_reads_motions_without_a_frame_rate(scene):
     assert r.exit_code == 0, r.output
     m = json.loads((d / "plan" / "manifest.json").read_text())
     assert m["settings"]["source_fps"] == 10.0 and {it["n_frames"] for it in m["items"]} == {7}
+
+
+def test_dataset_motions_from_a_directory_tree(scene):
+    """--motions DIR takes every motion under it (AMASS's shape.npz, a body shape only, left out); two motions of
+    one file name in different folders are two items named by their folders."""
+    a, _ = still_motions(scene["dir"])
+    tree = scene["dir"] / "amass"
+    for subject in ("s1", "s2"):
+        (tree / subject).mkdir(parents=True)
+        (tree / subject / "walk_poses.npz").write_bytes(a.read_bytes())
+        np.savez(tree / subject / "shape.npz", betas=np.zeros(16), gender="female")
+    r = run("dataset", "--garments", scene["garment"], "--motions", tree, "--body", scene["body"], "--settle", 0,
+            "--dry-run", "--no-held-out", "--out", scene["dir"] / "tree")
+    assert r.exit_code == 0, r.output
+    m = json.loads((scene["dir"] / "tree" / "manifest.json").read_text())
+    assert sorted(m["inputs"]["motions"]) == ["s1_walk_poses", "s2_walk_poses"]
+    assert sorted({it["motion"] for it in m["items"]}) == ["s1_walk_poses", "s2_walk_poses"]
+    r = run("dataset", "--garments", scene["garment"], "--motions", tree / "s1" / "shape.npz", "--body",
+            scene["body"], "--dry-run", "--out", scene["dir"] / "shape")
+    assert r.exit_code != 0 and "shape.npz': expected a 'poses' array" in r.output
