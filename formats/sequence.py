@@ -237,13 +237,13 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
 def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: np.ndarray,
                        uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
                        fps: float | None = None, prefix: str = "frame_",
-                       materials: np.ndarray | None = None, libraries=()) -> list[Path]:
+                       materials: np.ndarray | None = None, libraries=(), start: int = 0) -> list[Path]:
     """Write one OBJ per frame, `<prefix>0000.obj` ..., and `sequence.json` into `directory`.
 
     points: (T, V, 3) float, metres; faces: (F, 3) int 0-based; uvs (U, 2) and
     face_uvs (F, 3), both or neither (faces (F, K): polygons, as `formats.obj.obj_face_text`); materials: (F,)
     names or None, written as `usemtl` lines; libraries: material library file names (in `directory`) for an
-    `mtllib` line; fps: frames per second or None. Frame
+    `mtllib` line; fps: frames per second or None; start: the first frame's number. Frame
     numbers are zero padded to at least 4 digits. The face block is formatted
     once and shared by every frame. Returns the frame paths in order.
     """
@@ -253,16 +253,16 @@ def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: 
         raise InputError(f"garment sequence '{directory}': expected points (T, V, 3), got {points.shape}")
     directory.mkdir(parents=True, exist_ok=True)
     n_frames = points.shape[0]
-    width = max(4, len(str(max(n_frames - 1, 0))))
+    width = max(4, len(str(max(start + n_frames - 1, 0))))
     face_block = obj_face_text(faces, uvs, face_uvs, materials).encode("utf-8")
     library_line = mtllib_text(libraries).encode("utf-8")
     paths = []
     for t in range(n_frames):
-        path = directory / f"{prefix}{t:0{width}d}.obj"
-        path.write_bytes(f"# frame {t}\n".encode("ascii") + library_line + obj_vertex_text(points[t]).encode("ascii")
+        path = directory / f"{prefix}{start + t:0{width}d}.obj"
+        path.write_bytes(f"# frame {start + t}\n".encode("ascii") + library_line + obj_vertex_text(points[t]).encode("ascii")
                          + face_block)
         paths.append(path)
-    meta = {"fps": None if fps is None else float(fps), "frames": int(n_frames), "prefix": prefix}
+    meta = {"fps": None if fps is None else float(fps), "frames": int(n_frames), "prefix": prefix, "start": int(start)}
     (directory / SEQUENCE_JSON).write_text(json.dumps(meta, indent=2) + "\n")
     return paths
 

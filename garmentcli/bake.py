@@ -89,7 +89,8 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
     return DEFORMERS[method]()
 
 
-def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, write_obj: bool) -> None:
+def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, write_obj: bool,
+                       start_frame: int = 0) -> None:
     """USD stage (garment + body) and the OBJ sequence into `directory`. The garment is written as its file has
     it (`garment.source`: its point numbering, quads and UV seams), where that differs from the mesh deformed."""
     from formats.mtl import copy_material_libraries, read_libraries
@@ -107,11 +108,11 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
                         looks=read_libraries(libraries))]
     if result.body_points is not None:
         tracks.append(MeshTrack("body", result.body_points, body.faces, uvs=None, color=(0.75, 0.75, 0.78)))
-    write_usd_stage(directory / f"{stem}.usd", tracks, fps=fps,
+    write_usd_stage(directory / f"{stem}.usd", tracks, fps=fps, start_frame=start_frame,
                     metadata={"garment_method": result.summary["method"], "garment_settle_frames": result.summary["settle_frames"]})
     if write_obj:  # the material libraries copied beside the frames, their textures' paths leading to them
         write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps, materials=materials,
-                           libraries=copy_material_libraries(libraries, directory / "obj"))
+                           libraries=copy_material_libraries(libraries, directory / "obj"), start=start_frame)
 
 
 @dataclass(frozen=True)
@@ -144,6 +145,7 @@ class BakeSpec:
     contact_guard: bool = True  # model: keep vertices outside the body faces they rest on
     betas: str = "motion"  # --betas as given (the motions arrive with it applied), recorded in summary.json
     floor: str | None = None  # sim: --floor (None: the default)
+    start_frame: int = 0  # --start-frame: the number of the first frame written (USD time code, OBJ file)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
 
@@ -189,7 +191,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         "inputs": {"garment": str(spec.garment_path), "motion": str(motion_path),
                    "body": str(spec.body_path) if spec.body_path else "embedded default (anny)"},
         "source_fps": source_fps,
-        "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames, "betas": spec.betas},
+        "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames, "betas": spec.betas,
+                    "start_frame": spec.start_frame},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
     })
@@ -200,7 +203,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
     if spec.push_out:
         result.summary["push_out"] = True
     with atomic_dir(target, spec.overwrite) as tmp:
-        write_bake_outputs(tmp, target.name, result, garment, body, write_obj=spec.write_obj)
+        write_bake_outputs(tmp, target.name, result, garment, body, write_obj=spec.write_obj,
+                           start_frame=spec.start_frame)
         result.summary["seconds_total"] = time.perf_counter() - t0
         (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2))
         if spec.render_video:  # inside the temporary directory: a failed render leaves nothing behind
@@ -275,6 +279,9 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--floor", type=click.Choice(FLOOR_CHOICES), default=None, help=f"sim: {FLOOR_HELP} [default: auto]")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False), default=None,
               help="model: trained model checkpoint (from `garment train`). Default: the shipped model.")
+@click.option("--start-frame", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
+              help="Number of the first frame written (USD time codes, OBJ frame files): e.g. 1 for Blender, 1001 "
+                   "for a VFX shot; with --settle S the motion's first frame is N + S.")
 @click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
 @click.option("--no-body", is_flag=True, help="Leave the body out of the USD stage.")
 @click.option("--render", "render_video", is_flag=True,
@@ -292,7 +299,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
-         no_contact_guard=False, betas="motion", source_fps=None, floor=None, warned=()):
+         no_contact_guard=False, betas="motion", source_fps=None, floor=None, start_frame=0, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz, or a directory:
     every motion .npz under it).
 
@@ -376,7 +383,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
-                    contact_guard=not no_contact_guard, betas=betas, floor=floor)
+                    contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()

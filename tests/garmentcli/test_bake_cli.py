@@ -489,3 +489,32 @@ def test_motion_names_tell_files_of_one_name_apart():
     assert motion_names(["/m/a/walk.npz", "/m/b/run.npz"]) == ["walk", "run"]
     assert motion_names(["/m/a/walk.npz", "/m/b/walk.npz", "/m/run.npz"]) == ["a_walk", "b_walk", "run"]
     assert motion_names(["/x/s/walk.npz", "/y/s/walk.npz"]) == ["x_s_walk", "y_s_walk"]
+
+
+def test_start_frame_numbers_the_usd_time_codes_and_obj_frames(scene):
+    """--start-frame 1001: the stage's time codes and the OBJ files start at 1001 (settle frames included), the
+    summary records it, and `metrics` pairs it frame by frame with a bake numbered from 0."""
+    from pxr import Usd
+
+    common = [scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs", "--settle", "2"]
+    r = run(["bake", *common, "--start-frame", "1001", "--out", scene["out"] / "shot"])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "shot" / "shell_walk"
+    summary = json.loads((d / "summary.json").read_text())
+    n = summary["frames"]
+    assert summary["options"]["start_frame"] == 1001
+    names = sorted(p.name for p in (d / "obj").glob("*.obj"))
+    assert names[0] == "frame_1001.obj" and names[-1] == f"frame_{1000 + n}.obj" and len(names) == n
+    assert json.loads((d / "obj" / "sequence.json").read_text())["start"] == 1001
+    stage = Usd.Stage.Open(str(d / "shell_walk.usd"))
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (1001, 1000 + n)
+    assert list(stage.GetPrimAtPath("/Root/garment").GetAttribute("points").GetTimeSamples()) == list(
+        range(1001, 1001 + n))
+    r = run(["bake", *common, "--out", scene["out"] / "zero"])
+    assert r.exit_code == 0, r.output
+    r = run(["metrics", d, scene["out"] / "zero" / "shell_walk"])
+    assert r.exit_code == 0, r.output
+    values = r.output.strip().splitlines()[-1].strip("|").split("|")
+    assert [float(v) for v in values[:5]] == [0.0] * 5  # E_verts ... E_curv: the same frames, paired by index
+    assert_one_line_error(run(["bake", *common, "--start-frame", "-1", "--out", scene["out"] / "neg"]),
+                          "--start-frame")
