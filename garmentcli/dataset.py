@@ -50,6 +50,14 @@ def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | N
     return motions
 
 
+def time_left(seconds: float) -> str:
+    """A duration for a progress line: '40 s', '12 min', '3 h 05 min'."""
+    if seconds < 60:
+        return f"{seconds:.0f} s"
+    minutes = int(round(seconds / 60))
+    return f"{minutes} min" if minutes < 60 else f"{minutes // 60} h {minutes % 60:02d} min"
+
+
 def _worker_init(garment_paths, motion_paths, library, body_path, fps, material, options, source_fps=None):
     from core.sim import SimDeformer
     from formats.obj import read_garment
@@ -223,7 +231,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     calls = [(init, it, betas[it.body], settle_frames, task_out, body_id) for it in todo]
     frames_of = {it.id: it.n_frames + settle_frames for it in todo}
     failed, finished = None, 0
-    with tqdm(total=sum(it.n_frames + settle_frames for it in todo), unit="frame", desc="dataset", disable=None) as bar:
+    total_frames, frames_done, t_start = sum(frames_of.values()), 0, time.perf_counter()
+    with tqdm(total=total_frames, unit="frame", desc="dataset", disable=None) as bar:
         try:
             for iid, res in run_items(dataset_task, calls, [it.id for it in todo], workers=workers, retries=retries,
                                       client=client):
@@ -232,9 +241,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                     stats[iid] = {"seconds_per_frame": sec / n, **checks}
                 bar.update(frames_of[iid])
                 finished += 1
+                frames_done += frames_of[iid]
                 if bar.disable:  # no terminal (a log file, a cluster job): one line per finished sequence
                     rate = f", {stats[iid]['seconds_per_frame']:.2f} s/frame" if iid in stats else ""
-                    click.echo(f"dataset: {finished}/{len(todo)} {iid}{rate}", err=True)
+                    left = time_left((time.perf_counter() - t_start) * (total_frames - frames_done) / frames_done)
+                    click.echo(f"dataset: {finished}/{len(todo)} {iid}{rate}"
+                               + (f"; about {left} left" if finished < len(todo) else ""), err=True)
         except ItemsFailed as exc:  # the finished items are kept (and recorded below): a rerun resumes
             failed = exc
         finally:

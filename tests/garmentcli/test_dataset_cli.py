@@ -50,6 +50,8 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene, monkeypatch):
     assert np.all(np.isfinite(s.positions))
     assert len(m["item_stats"]) == 4
     assert "dataset: 4/4 " in r.output and "s/frame" in r.output  # no terminal: one line per sequence
+    lines = [line for line in r.output.splitlines() if line.startswith("dataset: ")]
+    assert len(lines) == 4 and all(" left" in line for line in lines[:3]) and " left" not in lines[3]
     # Resume: nothing to do, files untouched.
     mtime = files[0].stat().st_mtime_ns
     r = run(*args)
@@ -213,3 +215,10 @@ def test_dataset_motions_from_a_directory_tree(scene):
     r = run("dataset", "--garments", scene["garment"], "--motions", tree / "s1" / "shape.npz", "--body",
             scene["body"], "--dry-run", "--out", scene["dir"] / "shape")
     assert r.exit_code != 0 and "shape.npz': expected a 'poses' array" in r.output
+
+
+def test_time_left_reads_as_a_person_would_say_it():
+    from garmentcli.dataset import time_left
+
+    assert [time_left(x) for x in (4.2, 59.4, 61, 719, 3500, 3599, 11100)] == [
+        "4 s", "59 s", "1 min", "12 min", "58 min", "1 h 00 min", "3 h 05 min"]
