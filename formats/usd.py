@@ -428,15 +428,36 @@ def read_usd_garment(path: str | os.PathLike):
             polygons[k, :n], polygon_uvs[k, :n] = corners, corner_uvs
         else:
             ngons.append((k, corners, corner_uvs))
+    materials = _face_materials(mesh, len(counts))
     written = None
     if ngons:
-        written = file_polygons(polygons, polygon_uvs, ngons)
+        written = file_polygons(polygons, polygon_uvs, ngons, materials)
         if uvs is None:
             written = replace(written, polygon_uvs=None)
         polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons, lambda k: f"(face {k})",
                                             label, path)
+        if materials is not None:  # an n-gon's triangles after its first take its material, as split_ngons orders them
+            materials = np.concatenate([materials, [materials[k] for k, corners, _ in ngons
+                                                    for _ in range(len(corners) - 3)]]).astype(object)
     return garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path,
-                                 written=written)
+                                 materials, written)
+
+
+def _face_materials(mesh: UsdGeom.Mesh, n_faces: int) -> np.ndarray | None:
+    """(P,) each face's material: the bound material's name of the face subset holding it (family materialBind,
+    or any face subset with a material bound; the subset's own name where none is bound), "" for a face in none;
+    None for a mesh without such subsets."""
+    materials = np.full(n_faces, "", dtype=object)
+    named = False
+    for subset in UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face):
+        bound = UsdShade.MaterialBindingAPI(subset.GetPrim()).GetDirectBinding().GetMaterial()
+        if subset.GetFamilyNameAttr().Get() != UsdShade.Tokens.materialBind and not bound:
+            continue
+        faces = np.asarray(subset.GetIndicesAttr().Get() or [], dtype=np.int64)
+        faces = faces[(faces >= 0) & (faces < n_faces)]
+        materials[faces] = bound.GetPrim().GetName() if bound else subset.GetPrim().GetName()
+        named = named or len(faces) > 0
+    return materials if named else None
 
 
 def read_usd(path: str | os.PathLike) -> UsdSequence:

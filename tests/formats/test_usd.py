@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from core.errors import InputError
 from formats.usd import MeshTrack, read_usd, read_usd_stage, write_usd_stage
@@ -257,3 +257,24 @@ def test_a_usd_garment_keeps_its_ngons_for_the_outputs(tmp_path):
     assert g.source.polygons.tolist() == [[4, 6, 5, -1, -1, -1], [2, 3, 4, 5, 0, 1]]
     np.testing.assert_allclose(g.source.uvs[g.source.polygon_uvs[g.source.polygon_uvs >= 0]],
                                [(k / 10, k / 20) for k in range(9)], atol=1e-6)
+
+
+def test_a_usd_garment_keeps_its_material_subsets(tmp_path):
+    """Face subsets of the materialBind family (named by their bound material, else their own name) become the
+    garment's materials, per polygon of its source mesh; a subset of another family without a binding does not."""
+    from formats.obj import read_garment
+
+    path = tmp_path / "panels.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (2, 1, 0), (3, 0.5, 0)])
+    mesh.CreateFaceVertexCountsAttr([4, 5])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3, 1, 4, 6, 5, 2])
+    front = UsdGeom.Subset.CreateGeomSubset(mesh, "front", UsdGeom.Tokens.face, [0], UsdShade.Tokens.materialBind)
+    UsdGeom.Subset.CreateGeomSubset(mesh, "back", UsdGeom.Tokens.face, [1], UsdShade.Tokens.materialBind)
+    UsdGeom.Subset.CreateGeomSubset(mesh, "selection", UsdGeom.Tokens.face, [0, 1], "userGroup")
+    UsdShade.MaterialBindingAPI.Apply(front.GetPrim()).Bind(UsdShade.Material.Define(stage, "/Looks/cotton"))
+    stage.GetRootLayer().Save()
+    g = read_garment(path)
+    assert g.source.materials.tolist() == ["cotton", "back"]
+    assert g.source.polygons.tolist() == [[0, 1, 2, 3, -1], [1, 4, 6, 5, 2]]
