@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import zipfile
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -58,8 +59,8 @@ def _holds_poses(path: Path) -> bool:
     try:
         with np.load(path, allow_pickle=False) as archive:
             return any(k in archive.files for k in MOTION_KEYS)
-    except Exception:  # not an archive numpy reads: named as a motion, it would be refused with the reason
-        return True
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):  # not an archive numpy reads: named as a
+        return True                                             # motion, it is refused with the reason
 
 
 def motion_names(paths) -> list[str]:

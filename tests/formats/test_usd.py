@@ -22,6 +22,16 @@ def _tracks(n_frames=4):
             MeshTrack("body", body_points, body_faces)]
 
 
+def _mesh_stage(path, points, counts, indices):
+    """A new stage at `path` with one mesh /cloth of these points and polygons: (stage, mesh), unsaved."""
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
+    mesh.CreatePointsAttr(points)
+    mesh.CreateFaceVertexCountsAttr(counts)
+    mesh.CreateFaceVertexIndicesAttr(indices)
+    return stage, mesh
+
+
 @pytest.mark.parametrize("suffix", [".usd", ".usda", ".usdc"])
 def test_round_trip(tmp_path, suffix):
     tracks = _tracks()
@@ -99,11 +109,8 @@ def test_rewrite_replaces_content(tmp_path):
 
 def test_read_quads_fan_triangulated(tmp_path):
     path = tmp_path / "quad.usda"
-    stage = Usd.Stage.CreateNew(str(path))
-    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
-    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0)])
-    mesh.CreateFaceVertexCountsAttr([4, 3])
-    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3, 1, 4, 2])
+    stage, _ = _mesh_stage(path, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0)], [4, 3],
+                              [0, 1, 2, 3, 1, 4, 2])
     stage.GetRootLayer().Save()
     seq = read_usd(path)
     cloth = seq.tracks["cloth"]
@@ -224,11 +231,8 @@ def test_read_a_concave_polygon_split_inside_it(tmp_path):
     """An L-shaped hexagon (concave): its four triangles cover the L (area 3), not its hull, as a fan from the
     first corner would; the triangle before it keeps its row."""
     path = tmp_path / "ell.usda"
-    stage = Usd.Stage.CreateNew(str(path))
-    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
-    mesh.CreatePointsAttr([(1, 1, 0), (1, 2, 0), (0, 2, 0), (0, 0, 0), (2, 0, 0), (2, 1, 0), (3, 0, 0)])
-    mesh.CreateFaceVertexCountsAttr([3, 6])
-    mesh.CreateFaceVertexIndicesAttr([4, 6, 5, 2, 3, 4, 5, 0, 1])  # from (0, 2): its fan crosses the notch
+    stage, _ = _mesh_stage(path, [(1, 1, 0), (1, 2, 0), (0, 2, 0), (0, 0, 0), (2, 0, 0), (2, 1, 0), (3, 0, 0)], [3, 6],
+                              [4, 6, 5, 2, 3, 4, 5, 0, 1])  # from (0, 2): its fan crosses the notch
     stage.GetRootLayer().Save()
     cloth = read_usd(path).tracks["cloth"]
     tri = cloth.points[0][cloth.faces]
@@ -243,11 +247,8 @@ def test_a_usd_garment_keeps_its_ngons_for_the_outputs(tmp_path):
     from formats.obj import read_garment
 
     path = tmp_path / "ell.usda"
-    stage = Usd.Stage.CreateNew(str(path))
-    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
-    mesh.CreatePointsAttr([(1, 1, 0), (1, 2, 0), (0, 2, 0), (0, 0, 0), (2, 0, 0), (2, 1, 0), (3, 0, 0)])
-    mesh.CreateFaceVertexCountsAttr([3, 6])
-    mesh.CreateFaceVertexIndicesAttr([4, 6, 5, 2, 3, 4, 5, 0, 1])
+    stage, mesh = _mesh_stage(path, [(1, 1, 0), (1, 2, 0), (0, 2, 0), (0, 0, 0), (2, 0, 0), (2, 1, 0), (3, 0, 0)], [3, 6],
+                              [4, 6, 5, 2, 3, 4, 5, 0, 1])
     st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
                                                   UsdGeom.Tokens.faceVarying)
     st.Set([(k / 10, k / 20) for k in range(9)])
@@ -265,11 +266,8 @@ def test_a_usd_garment_keeps_its_material_subsets(tmp_path):
     from formats.obj import read_garment
 
     path = tmp_path / "panels.usda"
-    stage = Usd.Stage.CreateNew(str(path))
-    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
-    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (2, 1, 0), (3, 0.5, 0)])
-    mesh.CreateFaceVertexCountsAttr([4, 5])
-    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3, 1, 4, 6, 5, 2])
+    stage, mesh = _mesh_stage(path, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (2, 1, 0), (3, 0.5, 0)], [4, 5],
+                              [0, 1, 2, 3, 1, 4, 6, 5, 2])
     front = UsdGeom.Subset.CreateGeomSubset(mesh, "front", UsdGeom.Tokens.face, [0], UsdShade.Tokens.materialBind)
     UsdGeom.Subset.CreateGeomSubset(mesh, "back", UsdGeom.Tokens.face, [1], UsdShade.Tokens.materialBind)
     UsdGeom.Subset.CreateGeomSubset(mesh, "selection", UsdGeom.Tokens.face, [0, 1], "userGroup")
