@@ -126,5 +126,6 @@ def _lazy(module: str, name: str) -> Callable[..., Deformer]:
 DEFORMERS: dict[str, Callable[..., Deformer]] = {
     "lbs": LBSDeformer,
     "model": _lazy("core.model_deform", "ModelDeformer"),
+    "psd": _lazy("core.psd", "PSDDeformer"),
     "sim": _lazy("core.sim", "SimDeformer"),
 }

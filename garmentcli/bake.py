@@ -45,9 +45,9 @@ log = logging.getLogger(__name__)
 
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
                   iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=(),
-                  contact_guard=True, floor=None):
+                  contact_guard=True, floor=None, fit_path=None):
     deformer = _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                precision, contact_guard, floor)
+                                precision, contact_guard, floor, fit_path)
     deformer.skips = parse_no_skip(no_skip)
     if push_out:
         if method == "sim":
@@ -59,7 +59,7 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
 
 
 def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                     precision, contact_guard=True, floor=None):
+                     precision, contact_guard=True, floor=None, fit_path=None):
     sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
                                       ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin),
                                       ("--floor", floor))
@@ -69,6 +69,15 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
     for name, v in (("--model", model_path), ("--precision", precision)):
         if method != "model" and v is not None:
             raise click.UsageError(f"{name} applies to --method model only (got --method {method})")
+    if method == "psd" and fit_path is None:
+        raise click.UsageError("--method psd needs --fit FILE (the garment's blend shapes, made by `garment fit`)")
+    if method != "psd" and fit_path is not None:
+        raise click.UsageError(f"--fit applies to --method psd only (got --method {method})")
+    if method == "psd":
+        from core.psd import PSDDeformer
+        from formats.psd import load_fit
+
+        return PSDDeformer(load_fit(fit_path), source=f"psd fit '{fit_path}'")
     if method == "lbs":
         return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth))
     if method == "model":
@@ -146,6 +155,7 @@ class BakeSpec:
     betas: str = "motion"  # --betas as given (the motions arrive with it applied), recorded in summary.json
     floor: str | None = None  # sim: --floor (None: the default)
     start_frame: int = 0  # --start-frame: the number of the first frame written (USD time code, OBJ file)
+    fit_path: str | None = None  # psd: --fit
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
 
@@ -165,7 +175,7 @@ def _context(spec: BakeSpec):
             torch.set_num_threads(spec.threads)
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
-                                 spec.no_skip, spec.contact_guard, spec.floor)
+                                 spec.no_skip, spec.contact_guard, spec.floor, spec.fit_path)
         garment = read_garment(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
@@ -237,7 +247,10 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.argument("motion_paths", metavar="MOTION...", nargs=-1, required=True, type=click.Path())
 @click.option("--method", type=click.Choice(sorted(DEFORMERS)), default=None,
               help="Deformation method: model (the learned network; the default), lbs (linear blend skinning: "
-                   "fastest, no cloth dynamics) or sim (reference physics: slowest).")
+                   "fastest, no cloth dynamics), psd (LBS plus this garment's blend shapes fitted to its "
+                   "simulations: --fit) or sim (reference physics: slowest).")
+@click.option("--fit", "fit_path", type=click.Path(dir_okay=False), default=None, metavar="FILE",
+              help="psd: the garment's fitted blend shapes (`garment fit`).")
 @click.option("--quality", type=click.Choice(["auto"]), default=None,
               help="auto: choose the cheapest method expected within --budget-mm from the scene (garment looseness, "
                    "motion speed) and the model's calibration; the choice is printed and kept in summary.json.")
@@ -299,7 +312,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
-         no_contact_guard=False, betas="motion", source_fps=None, floor=None, start_frame=0, warned=()):
+         no_contact_guard=False, betas="motion", source_fps=None, floor=None, start_frame=0, fit_path=None,
+         warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz, or a directory:
     every motion .npz under it).
 
@@ -322,10 +336,10 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if no_contact_guard and method != "model":
             raise click.UsageError(f"--no-contact-guard applies to --method model only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip, not no_contact_guard, floor)
-    elif method is not None or precision is not None or push_out:
+                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path)
+    elif method is not None or precision is not None or push_out or fit_path is not None:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
-                               "--precision and --push-out")
+                               "--fit, --precision and --push-out")
     if not Path(garment_path).is_file():
         raise click.FileError(garment_path, hint="no such file")
     motion_paths = motion_files(motion_paths)
@@ -383,7 +397,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
-                    contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame)
+                    contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame,
+                    fit_path=fit_path)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()
@@ -423,7 +438,7 @@ def _warnings_of(messages, motion_paths) -> tuple:
 #: and their copies while measured and written (a 3,620-frame bake of the 3,240-vertex dress on the 13,348-vertex
 #: body peaked 1.3 GB above the command's start-up, 1.8x its point arrays); the simulator keeps two more of the
 #: body (its moving collider, float64).
-BAKE_COPIES = {"lbs": 2.0, "model": 2.0, "sim": 4.0}
+BAKE_COPIES = {"lbs": 2.0, "model": 2.0, "psd": 2.0, "sim": 4.0}
 
 
 def _check_memory(garment, body, motions, method, parallel: int) -> None:

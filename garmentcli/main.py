@@ -11,6 +11,7 @@ from garmentcli import (
     bake,
     dataset,
     examples,
+    fit,
     make_body,
     metrics,
     preprocess,
@@ -41,6 +42,7 @@ cli.add_command(train_cmd.train)
 cli.add_command(attribute.attribute)
 cli.add_command(tradeoff.tradeoff)
 cli.add_command(unpose.unpose)
+cli.add_command(fit.fit)
 
 
 if __name__ == "__main__":  # python -m garmentcli.main ...

@@ -1,0 +1,81 @@
+"""`garment fit GARMENT --data DIR`: fit the garment's blend shapes to its simulations (`bake --method psd`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import numpy as np
+
+from garmentcli.common import body_option, input_errors_as_click, load_body_option
+
+
+@click.command(name="fit")
+@click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
+@click.option("--data", "data_dir", required=True, type=click.Path(file_okay=False),
+              help="A `garment dataset` directory that simulated GARMENT (the same mesh).")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None,
+              help="Fit file to write [default: <garment>.psd.npz beside GARMENT].")
+@click.option("--rank", type=click.IntRange(min=1), default=None, help="Principal offsets kept [default: 64].")
+@click.option("--ridge", type=click.FloatRange(min=0), default=None, help="Ridge weight [default: 10].")
+@body_option
+@click.option("--overwrite", is_flag=True, help="Replace an existing fit file.")
+@input_errors_as_click
+def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
+    """Fit GARMENT's blend shapes to its simulations in a `garment dataset` directory: LBS plus rest-frame
+    offsets linear in the pose, its rate, the root's motion and the body shape (pose-space deformation), fitted
+    on the training split and measured on the others. `bake --method psd --fit FILE` then bakes it at about
+    LBS's speed, near the simulator on motions like those of the dataset. The sequences simulated so far are
+    used (a dataset still running can be fitted)."""
+    from core.deform import LBSDeformer
+    from core.motion import sequence_motion
+    from core.psd import DEFAULT_RANK, DEFAULT_RIDGE, PSDDeformer, fit_psd
+    from formats.dataset import read_manifest, read_sequence, sequence_path
+    from formats.obj import read_garment, read_obj
+    from formats.psd import save_fit
+
+    source = Path(garment_path)
+    if not source.is_file():
+        raise click.FileError(str(source), hint="no such file")
+    out = Path(out_path) if out_path else source.with_name(f"{source.stem}.psd.npz")
+    if out.exists() and not overwrite:
+        raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
+    data = Path(data_dir)
+    manifest = read_manifest(data)
+    if manifest is None:
+        raise click.BadParameter(f"'{data}': expected a `garment dataset` directory (with manifest.json)",
+                                 param_hint="--data")
+    garment = read_garment(source)
+    body = load_body_option(body_path)
+    templates = sorted((data / "garments").glob("*.obj"))
+    names = [t.stem for t in templates if read_obj(t).content_hash() == garment.content_hash()]
+    if not names:
+        raise click.BadParameter(f"'{data}' did not simulate '{source.name}' (its garments: "
+                                 f"{', '.join(t.stem for t in templates) or 'none'}; the mesh must be the same)",
+                                 param_hint="--data")
+    splits: dict[str, list] = {"train": [], "val": [], "test": []}
+    for it in manifest.get("items", []):
+        path = sequence_path(data, it["id"])
+        if it.get("garment") in names and it.get("split") in splits and path.is_file():
+            seq = read_sequence(path)
+            splits[it["split"]].append((sequence_motion(seq, it["id"], drop_settle=True),
+                                        seq.positions[seq.n_settle:]))
+    if not splits["train"]:
+        raise click.BadParameter(f"'{data}': expected simulated training sequences of '{names[0]}', found none",
+                                 param_hint="--data")
+    result = fit_psd(garment, body, splits["train"], rank or DEFAULT_RANK,
+                     DEFAULT_RIDGE if ridge is None else ridge)
+    errors = {}
+    for split in ("val", "test"):
+        if splits[split]:
+            psd, lbs = PSDDeformer(result), LBSDeformer()
+            e = [[float(np.linalg.norm(d.deform(garment, body, motion) - gt, axis=-1).mean() * 1e3)
+                  for d in (psd, lbs)] for motion, gt in splits[split]]
+            errors[split] = {"sequences": len(e), "psd_mm": float(np.mean([a for a, _ in e])),
+                             "lbs_mm": float(np.mean([b for _, b in e]))}
+    result.meta.update({"data": str(data), "garment": names[0], "errors": errors})
+    save_fit(out, result)
+    measured = "; ".join(f"{split} ({v['sequences']} sequences): {v['psd_mm']:.1f} mm from the simulator, LBS "
+                         f"{v['lbs_mm']:.1f} mm" for split, v in errors.items()) or "no validation sequences yet"
+    click.echo(f"{out}: {result.rank} blend shapes of '{source.name}' fitted to {result.meta['sequences']} "
+               f"sequences ({result.meta['frames']} frames) of '{data}'; {measured}")

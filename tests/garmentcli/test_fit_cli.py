@@ -1,0 +1,77 @@
+"""`garment fit` and `bake --method psd` through click's CliRunner, on the tiny dataset of model_fixtures."""
+
+import json
+
+import numpy as np
+import pytest
+
+from formats.psd import load_fit
+from tests.core.model_fixtures import make_dataset, tube, write_obj
+from tests.garmentcli.cli import invoke
+from tests.garmentcli.conftest import write_motion
+from tests.meshes import tiny_body
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    root = tmp_path_factory.mktemp("fit")
+    data = make_dataset(root / "ds")
+    b = tiny_body()
+    body = root / "tiny_body.npz"
+    np.savez(body, v_template=b.v_template, shapedirs=b.shapedirs, J_regressor=b.J_regressor, weights=b.weights,
+             parents=b.parents, faces=b.faces)
+    garment = root / "a.obj"
+    garment.write_bytes((data / "garments" / "a.obj").read_bytes())
+    return root, data, body, garment
+
+
+def test_fit_then_bake_with_it(setup):
+    """The garment's two training sequences give a fit (written beside it by default) that `bake --method psd`
+    uses; the summary names it; the baked frames are finite and near LBS's (the fixture's offsets are small)."""
+    root, data, body, garment = setup
+    r = invoke(["fit", garment, "--data", data, "--body", body, "--rank", "8"])
+    assert r.exit_code == 0, r.output
+    fit_path = root / "a.psd.npz"
+    assert "8 blend shapes of 'a.obj' fitted to 2 sequences (24 frames)" in r.output
+    assert "no validation sequences yet" in r.output  # the fixture's val split is another garment's
+    fit = load_fit(fit_path)
+    assert fit.rank == 8 and fit.meta["garment"] == "a"
+    write_motion(root / "walk.npz", n_frames=6, fps=30.0)
+    r = invoke(["bake", garment, root / "walk.npz", "--method", "psd", "--fit", fit_path, "--body", body,
+                "--out", root / "out"])
+    assert r.exit_code == 0, r.output
+    summary = json.loads((root / "out" / "a_walk" / "summary.json").read_text())
+    assert summary["method"] == "psd"
+    r = invoke(["bake", garment, root / "walk.npz", "--method", "lbs", "--body", body, "--out", root / "lbs"])
+    assert r.exit_code == 0, r.output
+    from formats.sequence import read_sequence
+
+    psd, lbs = (read_sequence(root / d / "a_walk").points for d in ("out", "lbs"))
+    gap = np.linalg.norm(psd - lbs, axis=-1)
+    assert np.isfinite(psd).all() and 0 < gap.mean() < 0.03
+    r = invoke(["fit", garment, "--data", data, "--body", body])
+    assert r.exit_code != 0 and "exists: pass --overwrite" in r.output
+
+
+def test_fit_and_psd_bad_inputs(setup, tmp_path):
+    root, data, body, garment = setup
+    other = tmp_path / "other.obj"
+    write_obj(other, *tube(9, 4))
+    r = invoke(["fit", other, "--data", data, "--body", body, "--out", tmp_path / "o.npz"])
+    assert r.exit_code != 0 and "did not simulate 'other.obj' (its garments: a, b" in r.output
+    assert not (tmp_path / "o.npz").exists()
+    r = invoke(["fit", garment, "--data", tmp_path, "--body", body, "--out", tmp_path / "o.npz"])
+    assert r.exit_code != 0 and "expected a `garment dataset` directory" in r.output
+    write_motion(tmp_path / "walk.npz", n_frames=4, fps=30.0)
+    common = [garment, tmp_path / "walk.npz", "--body", body, "--out", tmp_path / "out"]
+    r = invoke(["bake", *common, "--method", "psd"])
+    assert r.exit_code != 0 and "--method psd needs --fit FILE" in r.output
+    r = invoke(["bake", *common, "--method", "lbs", "--fit", root / "a.psd.npz"])
+    assert r.exit_code != 0 and "--fit applies to --method psd only" in r.output
+    r = invoke(["bake", other, tmp_path / "walk.npz", "--body", body, "--out", tmp_path / "out", "--method", "psd",
+                "--fit", root / "a.psd.npz"])
+    assert r.exit_code != 0 and "fitted to another garment" in r.output
+    (tmp_path / "junk.npz").write_bytes(b"junk")
+    r = invoke(["bake", *common, "--method", "psd", "--fit", tmp_path / "junk.npz"])
+    assert r.exit_code != 0 and "junk.npz': cannot be read" in r.output
+    assert not (tmp_path / "out").exists()
