@@ -42,7 +42,7 @@ METRIC_COLUMNS = ("e_verts", "e_vnorm", "e_fnorm", "e_edge", "e_curv", "penetrat
 
 @dataclass(frozen=True)
 class Config:
-    """One row: name, method (lbs | model | sim), options of that method, whether it is the reference."""
+    """One row: name, method (lbs | psd | model | sim), options of that method, whether it is the reference."""
 
     name: str
     method: str
@@ -51,10 +51,12 @@ class Config:
     spread: bool = False  # the reference rerun from jittered starting positions (`SPREAD_JITTER_M`)
 
 
-def configurations(models: dict, with_sim: bool = True, spread: bool = False) -> list[Config]:
+def configurations(models: dict, with_sim: bool = True, spread: bool = False, fits: dict | None = None) -> list[Config]:
     """The rows of a tradeoff run. models: name -> checkpoint path (None: the shipped model). spread: add the
-    reference rerun from starting positions jittered by `SPREAD_JITTER_M` (its error is the reference's spread)."""
+    reference rerun from starting positions jittered by `SPREAD_JITTER_M` (its error is the reference's spread).
+    fits: name -> the garment's fitted blend shapes (`garment fit`), a `psd` row each."""
     rows = [Config("lbs", "lbs")]
+    rows += [Config(f"psd {name}", "psd", {"path": path}) for name, path in (fits or {}).items()]
     for name, path in models.items():
         for precision in ("float32", "bfloat16"):
             for push in (False, True):
@@ -77,6 +79,11 @@ def make_deformer(config: Config, cache_dir=None) -> Deformer:
     """The Deformer of a configuration."""
     if config.method == "lbs":
         return LBSDeformer()
+    if config.method == "psd":
+        from core.psd import PSDDeformer
+        from formats.psd import load_fit
+
+        return PSDDeformer(load_fit(config.options["path"]), source=f"psd fit '{config.options['path']}'")
     if config.method == "model":
         from core.model_deform import load_model_deformer
 

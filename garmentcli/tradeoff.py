@@ -48,15 +48,18 @@ SIMULATIONS = "simulations"
 
 
 def _models(specs: tuple) -> dict:
-    if not specs:
-        return {"model": None}  # the shipped model
+    return _named_files(specs, "--model", "model") if specs else {"model": None}  # None: the shipped model
+
+
+def _named_files(specs: tuple, option: str, what: str) -> dict:
+    """NAME=PATH specs of `option` -> {name: path}; BadParameter for a malformed one or a missing file."""
     out = {}
     for spec in specs:
         name, sep, path = spec.partition("=")
         if not sep or not name or not path:
-            raise click.BadParameter(f"expected NAME=PATH, got {spec!r}", param_hint="--model")
+            raise click.BadParameter(f"expected NAME=PATH, got {spec!r}", param_hint=option)
         if not Path(path).is_file():
-            raise click.BadParameter(f"model '{path}': no such file", param_hint="--model")
+            raise click.BadParameter(f"{what} '{path}': no such file", param_hint=option)
         out[name] = path
     return out
 
@@ -73,6 +76,9 @@ def _models(specs: tuple) -> dict:
 @frames_option
 @click.option("--model", "model_specs", multiple=True, metavar="NAME=PATH",
               help="Model checkpoints to compare (repeatable). Default: the shipped model.")
+@click.option("--fit", "fit_specs", multiple=True, metavar="NAME=PATH",
+              help="The garment's fitted blend shapes (`garment fit`) to compare as `psd NAME` rows (repeatable; "
+                   "left out of --calibrate: a fit belongs to one garment).")
 @click.option("--repeats", type=click.IntRange(min=1), default=3, show_default=True,
               help="Timed runs per configuration after a warm-up (the median counts); the simulator runs once.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing result directory.")
@@ -89,10 +95,10 @@ def _models(specs: tuple) -> dict:
                    "row's error. A row of the table and a dashed line in the plot; one more reference run of time.")
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
-             reuse_sim=False, calibration_path=None, spread=False, betas="motion", source_fps=None):
+             reuse_sim=False, calibration_path=None, spread=False, betas="motion", source_fps=None, fit_specs=()):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
-    Rows: lbs; each model in float32 and bfloat16, with and without penetration push-out; the
+    Rows: lbs; each --fit (psd); each model in float32 and bfloat16, with and without penetration push-out; the
     simulator at two substep settings with and without self-contact. The finest simulation with
     self-contact is the reference the errors are measured against.
     """
@@ -102,6 +108,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         if not Path(p).is_file():
             raise click.FileError(p, hint="no such file")
     models = _models(model_specs)
+    fits = _named_files(fit_specs, "--fit", "fit")
     try:
         import newton  # noqa: F401
     except ImportError:
@@ -123,7 +130,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps)
     from formats.cache import default_cache_dir
 
-    rows = configurations(models, spread=spread)
+    rows = configurations(models, spread=spread, fits=fits)
     scene = simulation_scene(garment, body, motion)
     results, failed, reused = [], [], []
     bar = tqdm(rows, desc="tradeoff", unit="config", disable=None)
@@ -184,7 +191,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         cal = Calibration.load(calibration_path) if Path(calibration_path).is_file() else Calibration({})
         features = scene_features(garment, body, motion)
         add_scene(cal, features, [{**r, "options": {k: v for k, v in m.config.options.items() if k != "path"}}
-                                  for r, m in zip(table, results) if not m.config.spread])
+                                  for r, m in zip(table, results) if not m.config.spread and m.config.method != "psd"])
         cal.save(calibration_path)
         click.echo(f"{calibration_path}: added the scene (looseness {features['looseness_m'] * 100:.1f} cm, "
                    f"speed {features['speed_m_s']:.2f} m/s)")

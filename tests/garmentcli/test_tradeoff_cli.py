@@ -243,3 +243,36 @@ def test_spread_is_a_row_a_line_and_no_choice(scene, monkeypatch, tmp_path):
     # the calibration --quality auto chooses from holds every configuration but the spread
     configs = json.loads(cal.read_text())["configs"]
     assert "sim 20 substeps" in configs and "reference +1 um jitter" not in configs
+
+
+def test_a_fit_is_a_psd_row_left_out_of_the_calibration(scene, monkeypatch, tmp_path):
+    """--fit NAME=PATH adds a `psd NAME` row after LBS, measured like the others; --calibrate leaves it out (a fit
+    belongs to one garment); a fit file that is not there is refused."""
+    import garmentcli.tradeoff
+    from core.deform import LBSDeformer
+    from core.motion import Motion
+    from core.psd import fit_psd
+    from formats.body import load_body
+    from formats.obj import read_obj
+    from formats.psd import save_fit
+
+    assert [(c.name, c.method) for c in configurations({"m": None}, fits={"g": "g.npz"})[:2]] == [
+        ("lbs", "lbs"), ("psd g", "psd")]
+    garment, body = read_obj(scene["garment"]), load_body(scene["body"])
+    motion = Motion(poses=np.zeros((3, 24, 3), np.float32), trans=np.zeros((3, 3), np.float32), fps=30.0)
+    fit = tmp_path / "shell.psd.npz"
+    save_fit(fit, fit_psd(garment, body, [(motion, LBSDeformer().deform(garment, body, motion))], rank=2))
+    from core.tradeoff import Config, make_deformer
+
+    psd = make_deformer(Config("psd mine", "psd", {"path": str(fit)}))
+    np.testing.assert_allclose(psd.deform(garment, body, motion), LBSDeformer().deform(garment, body, motion),
+                               atol=1e-5)
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: False))
+    base = ["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4"]
+    r = invoke([*base, "--fit", f"mine={fit}", "--out", scene["out"], "--calibrate", tmp_path / "cal.json"])
+    assert r.exit_code == 0, r.output
+    rows = [row["config"] for row in csv.DictReader(open(scene["out"] / "shell_walk" / "tradeoff.csv"))]
+    assert rows[:2] == ["lbs", "psd mine"]
+    assert "psd mine" not in json.loads((tmp_path / "cal.json").read_text())["configs"]
+    r = invoke([*base, "--fit", f"x={tmp_path / 'gone.npz'}", "--out", tmp_path / "o"])
+    assert r.exit_code != 0 and "fit '" in r.output and "gone.npz': no such file" in r.output
