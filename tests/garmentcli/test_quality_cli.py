@@ -54,6 +54,7 @@ def test_auto_picks_lbs_for_tight_and_slow_and_model_for_loose_and_fast(auto_sce
 
 @pytest.mark.parametrize("extra, needle", [(["--method", "lbs"], "leave out --method"),
                                            (["--push-out"], "leave out --method"),
+                                           (["--fit", "x.psd.npz"], "leave out --method, --fit"),
                                            (["--calibration", "nope.json"], "nope.json")])
 def test_auto_bad_combinations(auto_scene, extra, needle):
     r = _auto(auto_scene, "tight.obj", "slow.npz", *extra)
