@@ -45,14 +45,14 @@ sys.path.insert(0, str(ROOT))
 from core.body import blend_transforms, default_body  # noqa: E402
 from core.model_data import PRIOR_SMOOTH_ITERATIONS  # noqa: E402
 from core.motion import poses_for_body, sequence_motion  # noqa: E402
-from core.rotations import axis_angle_to_matrix  # noqa: E402
+from core.psd import DEFAULT_RIDGE, pose_features, ridge_solve  # noqa: E402
 from core.skinning import bind_garment, shaped_garment  # noqa: E402
 from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
 from formats.obj import read_obj  # noqa: E402
 
 PCA_RANKS = (8, 32, 128)
-#: Ridge weight of the linear baseline (features of order 1; 1 and 100 are 0.5 and 1.8 mm worse on the test split).
-RIDGE_LAMBDA = 10.0
+#: Ridge weight of the linear baseline (`core.psd`'s, which `garment fit` uses).
+RIDGE_LAMBDA = DEFAULT_RIDGE
 
 
 def blended_transforms(body, weights: np.ndarray, poses, trans, betas) -> np.ndarray:
@@ -70,31 +70,6 @@ def skin(M: np.ndarray, rest: np.ndarray) -> np.ndarray:
 def unskin(M: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The rest points that `skin(M, .)` maps to x (T, V, 3)."""
     return np.linalg.solve(M[..., :3], (x - M[..., 3])[..., None])[..., 0]
-
-
-def pose_shape_features(poses: np.ndarray, trans: np.ndarray, betas: np.ndarray, fps: float) -> np.ndarray:
-    """(T, F) per-frame regressors of the linear baseline: per joint R - I (9 numbers), its rate per second
-    (x0.1), the root's velocity and acceleration in the root's frame (x0.3), the betas (x0.3), and 1.
-
-    poses: (T, J, 3) axis-angles, root first; trans: (T, 3); betas: (n,). Scales put each group near 1.
-    """
-    T = len(poses)
-    R = axis_angle_to_matrix(poses.reshape(-1, 3)).reshape(T, -1, 3, 3)
-    pose = (R - np.eye(3)).reshape(T, -1)
-
-    def per_second(a):  # finite-difference rate; none for a single frame
-        return np.gradient(a, axis=0) * fps if T > 1 else np.zeros_like(a)
-
-    rate, vel = per_second(pose), per_second(trans)
-    acc = per_second(vel)
-    root = np.einsum("tji,tj->ti", R[:, 0], vel), np.einsum("tji,tj->ti", R[:, 0], acc)  # R0^T v
-    return np.concatenate([pose, 0.1 * rate, 0.3 * root[0], 0.3 * root[1],
-                           0.3 * np.broadcast_to(betas, (T, len(betas))), np.ones((T, 1))], axis=1)
-
-
-def ridge(X: np.ndarray, Y: np.ndarray, lam: float) -> np.ndarray:
-    """argmin_W |X W - Y|^2 + lam |W|^2: (F, D)."""
-    return np.linalg.solve(X.T @ X + lam * np.eye(X.shape[1]), X.T @ Y)
 
 
 def e_verts_mm(pred: np.ndarray, gt: np.ndarray) -> float:
@@ -119,7 +94,7 @@ def load_offsets(data: Path, split: str, manifest: dict, body, bindings: dict, g
         M = blended_transforms(body, b.weights, poses, motion.trans, betas)
         rest = shaped_garment(garments[name].vertices, b, betas)
         gt = seq.positions[seq.n_settle:].astype(np.float64)
-        X = pose_shape_features(poses.astype(np.float64), motion.trans.astype(np.float64), betas, motion.fps)
+        X = pose_features(poses, motion.trans, betas, motion.fps)
         out.append((it["id"], name, M, gt, rest, unskin(M, gt) - rest, X))
     return out
 
@@ -139,7 +114,7 @@ def evaluate(data: Path) -> list[dict]:
         O = np.concatenate([o for o, _ in pairs])
         mean = O.mean(axis=0)
         basis[name] = (mean, np.linalg.svd(O - mean, full_matrices=False)[2][:max(PCA_RANKS)])
-        linear[name] = ridge(np.concatenate([x for _, x in pairs]), O, RIDGE_LAMBDA)
+        linear[name] = ridge_solve(np.concatenate([x for _, x in pairs]), O, RIDGE_LAMBDA)
     rows = []
     for item, name, M, gt, rest, off, X in load_offsets(data, "test", manifest, body, bindings, garments):
         row = {"item": item, "garment": name, "lbs": e_verts_mm(skin(M, rest), gt)}

@@ -56,6 +56,11 @@ def pose_features(poses: np.ndarray, trans: np.ndarray, betas: np.ndarray, fps: 
     return np.concatenate([pose, 0.1 * rate, 0.3 * root_vel, 0.3 * root_acc, 0.3 * shape, np.ones((T, 1))], axis=1)
 
 
+def ridge_solve(X: np.ndarray, Y: np.ndarray, lam: float) -> np.ndarray:
+    """argmin_W |X W - Y|^2 + lam |W|^2: (F, D)."""
+    return np.linalg.solve(X.T @ X + lam * np.eye(X.shape[1]), X.T @ Y)
+
+
 @dataclass(frozen=True, eq=False)
 class PSDFit:
     """A garment's fitted blend shapes: offsets (T, V, 3) = (mean + (X W) basis) for features X (T, F).
@@ -119,7 +124,7 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
     k = max(1, min(rank, len(O) - 1))
     basis = np.linalg.svd(O - mean, full_matrices=False)[2][:k]
     C = (O - mean) @ basis.T
-    W = np.linalg.solve(X.T @ X + ridge * np.eye(X.shape[1]), X.T @ C)
+    W = ridge_solve(X, C, ridge)
     fitted = (mean + (X @ W) @ basis) - O
     residual = float(np.linalg.norm(fitted.reshape(len(O), -1, 3), axis=-1).mean())
     return PSDFit(garment_sha256=garment.content_hash(), body=body.name, n_joints=body.n_joints,

@@ -9,7 +9,7 @@ from core.deform import LBSDeformer
 from core.errors import InputError
 from core.garment import Garment
 from core.motion import Motion
-from core.psd import PSDDeformer, fit_psd, pose_features
+from core.psd import PSDDeformer, fit_psd, pose_features, ridge_solve
 from core.skinning import bind_garment, shaped_garment
 from formats.psd import load_fit, save_fit
 from tests.core.model_fixtures import tube
@@ -42,6 +42,35 @@ def test_pose_features_at_rest_are_the_shape_and_one():
     assert X.shape == (3, 24 * 9 * 2 + 6 + 2 + 1)
     np.testing.assert_allclose(X[:, -3:], [[0.3, -0.6, 1.0]] * 3)
     assert not X[:, :-3].any()
+
+
+def test_pose_features_and_ridge():
+    T, J, fps = 4, 3, 30.0
+    poses = np.zeros((T, J, 3))
+    poses[:, 0, 2] = np.pi / 2  # root turned 90 degrees about Z
+    poses[:, 1, 0] = np.linspace(0.0, 0.3, T)  # joint 1 bends at 3 rad/s about X (0.1 rad a frame)
+    trans = np.zeros((T, 3))
+    trans[:, 0] = np.arange(T) / fps  # 1 m/s along world X
+    betas = np.array([1.0, -2.0])
+    X = pose_features(poses, trans, betas, fps)
+    assert X.shape == (T, 9 * J * 2 + 6 + 2 + 1)
+    pose, rate = X[:, :9 * J].reshape(T, J, 3, 3), X[:, 9 * J:18 * J].reshape(T, J, 3, 3)
+    assert np.allclose(pose[:, 2], 0.0) and np.allclose(pose[0, 1], 0.0)
+    c, s = np.cos(0.2), np.sin(0.2)  # frame 2: 0.2 rad about X
+    assert np.allclose(pose[2, 1] + np.eye(3), [[1, 0, 0], [0, c, -s], [0, s, c]])
+    # d/dt (R - I) at angle a about X is 3 rad/s times [[0,0,0],[0,-sin,-cos],[0,cos,-sin]]; x0.1 scale, central difference
+    a = 0.1
+    assert np.allclose(rate[1, 1] / 0.1, 3.0 * np.array([[0, 0, 0], [0, -np.sin(a), -np.cos(a)], [0, np.cos(a), -np.sin(a)]]),
+                       atol=0.05)
+    # world +X seen from a root turned +90 degrees about Z is its -Y; no acceleration
+    assert np.allclose(X[:, 18 * J:18 * J + 3] / 0.3, [0.0, -1.0, 0.0], atol=1e-9)
+    assert np.allclose(X[:, 18 * J + 3:18 * J + 6], 0.0, atol=1e-9)
+    assert np.allclose(X[:, -3:-1] / 0.3, betas) and np.all(X[:, -1] == 1.0)
+    rng = np.random.default_rng(0)
+    A, Y = rng.normal(size=(20, 4)), rng.normal(size=(20, 3))
+    lam = 0.5  # the closed form against least squares on the stacked system [A; sqrt(lam) I]
+    stacked = np.linalg.lstsq(np.r_[A, np.sqrt(lam) * np.eye(4)], np.r_[Y, np.zeros((4, 3))], rcond=None)[0]
+    np.testing.assert_allclose(ridge_solve(A, Y, lam), stacked, atol=1e-10)
 
 
 def test_fit_recovers_blend_shapes_linear_in_the_features():

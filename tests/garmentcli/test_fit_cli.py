@@ -8,18 +8,15 @@ import pytest
 from formats.psd import load_fit
 from tests.core.model_fixtures import make_dataset, tube, write_obj
 from tests.garmentcli.cli import invoke
-from tests.garmentcli.conftest import write_motion
-from tests.meshes import tiny_body
+from tests.garmentcli.conftest import write_motion, write_tiny_body
 
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     root = tmp_path_factory.mktemp("fit")
     data = make_dataset(root / "ds")
-    b = tiny_body()
     body = root / "tiny_body.npz"
-    np.savez(body, v_template=b.v_template, shapedirs=b.shapedirs, J_regressor=b.J_regressor, weights=b.weights,
-             parents=b.parents, faces=b.faces)
+    write_tiny_body(body)
     garment = root / "a.obj"
     garment.write_bytes((data / "garments" / "a.obj").read_bytes())
     return root, data, body, garment
