@@ -109,11 +109,12 @@ class Calibration:
         return float(np.sum(w * pts[near, 2]) / np.sum(w))
 
 
-def choose(calibration: Calibration, features: dict, budget_mm: float) -> dict:
+def choose(calibration: Calibration, features: dict, budget_mm: float, extra=()) -> dict:
     """The cheapest configuration expected within `budget_mm`: {"config", "method", "options", "expected_mm",
-    "candidates": [{name, expected_mm, ms_per_frame}], "reason"}."""
+    "candidates": [{name, expected_mm, ms_per_frame}], "reason"}. extra: more candidates of that form (a
+    garment's fitted blend shapes: `psd_candidate`)."""
     kvert = features["vertices"] / 1000.0
-    cands = []
+    cands = list(extra)
     for name, c in calibration.configs.items():
         cands.append({"config": name, "method": c["method"], "options": c.get("options", {}),
                       "expected_mm": calibration.expected_error(name, features),
@@ -147,3 +148,22 @@ def add_scene(calibration: Calibration, features: dict, rows: list[dict]) -> Non
         c["ms_per_frame_per_kvert"] = (c["ms_per_frame_per_kvert"] * n + cost) / (n + 1)
         c["scenes"] = n + 1
         c["points"].append([features["looseness_m"], features["speed_m_s"], float(r["e_verts"])])
+
+
+#: psd's cost per frame against LBS's (the example trousers: 0.62-0.88 ms against 0.49).
+PSD_COST_OVER_LBS = 1.8
+
+
+def psd_candidate(calibration: Calibration, features: dict, fit_meta: dict) -> dict:
+    """A garment's fitted blend shapes as a `choose` candidate: expected at LBS's expected error on the scene
+    times the share of LBS's error the fit kept on its dataset's held-out motions (validation, else test; 1
+    without either), at PSD_COST_OVER_LBS times LBS's cost. Needs an 'lbs' configuration in the calibration."""
+    if "lbs" not in calibration.configs:
+        raise InputError("--quality auto with --fit: the calibration has no 'lbs' configuration to scale")
+    errors = fit_meta.get("errors", {})
+    held = errors.get("val") or errors.get("test")
+    share = float(held["psd_mm"] / held["lbs_mm"]) if held and held.get("lbs_mm") else 1.0
+    kvert = features["vertices"] / 1000.0
+    return {"config": "psd", "method": "psd", "options": {},
+            "expected_mm": share * calibration.expected_error("lbs", features),
+            "ms_per_frame": PSD_COST_OVER_LBS * float(calibration.configs["lbs"]["ms_per_frame_per_kvert"]) * kvert}

@@ -337,9 +337,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             raise click.UsageError(f"--no-contact-guard applies to --method model only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                  precision, push_out, no_skip, not no_contact_guard, floor, fit_path)
-    elif method is not None or precision is not None or push_out or fit_path is not None:
+    elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
-                               "--fit, --precision and --push-out")
+                               "--precision and --push-out")
     if not Path(garment_path).is_file():
         raise click.FileError(garment_path, hint="no such file")
     motion_paths = motion_files(motion_paths)
@@ -365,15 +365,17 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,
-                               DEFAULT_BUDGET_MM if budget_mm is None else budget_mm)
+                               DEFAULT_BUDGET_MM if budget_mm is None else budget_mm, fit_path)
         method, opts = pick["method"], pick["options"]
         precision, push_out = opts.get("precision"), bool(opts.get("push_out", False))
         substeps = opts.get("substeps", substeps)
         self_contact = bool(opts.get("self_contact", self_contact))
         if method != "model":
             model_path, precision = None, None
+        if method != "psd":
+            fit_path = None  # a fit given to --quality auto is one candidate; another method was chosen
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip, not no_contact_guard, floor)
+                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path)
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
                                                    "features", "reason", "candidates")})
         click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
@@ -487,8 +489,9 @@ def _training_range_guard(deformer, garment, body, garment_path, explicit: bool)
     return json.dumps({"from": "model", "to": "lbs", "model": inner.model_name, **rng})
 
 
-def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm) -> dict:
-    """--quality auto: the choice for the most demanding motion (the fastest) of the batch."""
+def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm, fit_path=None) -> dict:
+    """--quality auto: the choice for the most demanding motion (the fastest) of the batch; with --fit, the
+    garment's fitted blend shapes are a candidate too (`core.quality.psd_candidate`)."""
     from core.model_deform import DEFAULT_MODEL
     from core.quality import Calibration, choose, scene_features
 
@@ -503,7 +506,17 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
         raise click.BadParameter(f"'{calibration_path}': no such file", param_hint="--calibration")
     calibration = Calibration.load(calibration_path)
     features = max((scene_features(garment, body, m) for m in motions), key=lambda f: f["speed_m_s"])
-    pick = choose(calibration, features, budget_mm)
+    extra = []
+    if fit_path is not None:
+        from core.quality import psd_candidate
+        from formats.psd import load_fit
+
+        fit = load_fit(fit_path)
+        if fit.garment_sha256 != garment.content_hash():
+            raise click.BadParameter(f"'{fit_path}' was fitted to another garment: fit this one with `garment fit`",
+                                     param_hint="--fit")
+        extra.append(psd_candidate(calibration, features, fit.meta))
+    pick = choose(calibration, features, budget_mm, extra)
     if pick["method"] == "model" and model_path:
         pick["options"] = {**pick["options"], "path": str(model_path)}
     return pick

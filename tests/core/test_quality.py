@@ -73,3 +73,20 @@ def test_calibration_round_trip_and_bad_file(tmp_path):
                                        '"points": [[0.1, 1.0]]}}}')
     with pytest.raises(InputError, match="bad.json"):
         Calibration.load(tmp_path / "bad.json")
+
+
+def test_psd_candidate_scales_lbs_by_the_share_the_fit_kept():
+    from core.errors import InputError
+    from core.quality import PSD_COST_OVER_LBS, psd_candidate
+
+    cal = synthetic_calibration()
+    scene = {"looseness_m": 0.03, "speed_m_s": 1.0, "vertices": 2000}
+    lbs = cal.expected_error("lbs", scene)
+    c = psd_candidate(cal, scene, {"errors": {"test": {"psd_mm": 5.0, "lbs_mm": 20.0}}})
+    assert c["expected_mm"] == pytest.approx(0.25 * lbs) and c["method"] == "psd"
+    assert c["ms_per_frame"] == pytest.approx(PSD_COST_OVER_LBS * 0.1 * 2)  # LBS: 1e-4 s a frame per 1k vertices
+    both = {"val": {"psd_mm": 10.0, "lbs_mm": 20.0}, "test": {"psd_mm": 5.0, "lbs_mm": 20.0}}
+    assert psd_candidate(cal, scene, {"errors": both})["expected_mm"] == pytest.approx(0.5 * lbs)  # val first
+    assert psd_candidate(cal, scene, {})["expected_mm"] == pytest.approx(lbs)  # nothing measured: LBS's
+    with pytest.raises(InputError, match="no 'lbs' configuration"):
+        psd_candidate(Calibration({}), scene, {})

@@ -54,7 +54,6 @@ def test_auto_picks_lbs_for_tight_and_slow_and_model_for_loose_and_fast(auto_sce
 
 @pytest.mark.parametrize("extra, needle", [(["--method", "lbs"], "leave out --method"),
                                            (["--push-out"], "leave out --method"),
-                                           (["--fit", "x.psd.npz"], "leave out --method, --fit"),
                                            (["--calibration", "nope.json"], "nope.json")])
 def test_auto_bad_combinations(auto_scene, extra, needle):
     r = _auto(auto_scene, "tight.obj", "slow.npz", *extra)
@@ -70,3 +69,36 @@ def test_budget_without_auto_and_model_without_calibration(auto_scene):
     (s["dir"] / "tiny.calibration.json").unlink()
     r = _auto(s, "tight.obj", "slow.npz")
     assert r.exit_code != 0 and "tiny.calibration.json" in r.output and not s["out"].exists()
+
+
+def test_auto_with_a_fit_picks_it_where_it_is_expected_within_the_budget(auto_scene):
+    """--fit makes the garment's blend shapes a candidate, expected at LBS's expected error times the share the
+    fit kept on its held-out motions, at about LBS's cost: on the loose garment's fast motion (LBS over the
+    budget) a fit that kept 30 % is chosen before the model; one that kept 95 % is not; another garment's fit
+    is refused."""
+    from core.deform import LBSDeformer
+    from core.motion import Motion
+    from core.psd import fit_psd
+    from formats.body import load_body
+    from formats.obj import read_obj
+    from formats.psd import save_fit
+
+    s = auto_scene
+    garment, body = read_obj(s["dir"] / "loose.obj"), load_body(s["body"])
+    still = Motion(poses=np.zeros((3, 24, 3), np.float32), trans=np.zeros((3, 3), np.float32), fps=30.0)
+    fit = fit_psd(garment, body, [(still, LBSDeformer().deform(garment, body, still))], rank=2)
+    for share, name in ((0.3, "good"), (0.95, "poor")):
+        fit.meta["errors"] = {"val": {"sequences": 4, "psd_mm": 100 * share, "lbs_mm": 100.0}}
+        save_fit(s["dir"] / f"{name}.psd.npz", fit)
+    r = _auto(s, "loose.obj", "fast.npz", "--budget-mm", 250, "--fit", s["dir"] / "good.psd.npz")
+    assert r.exit_code == 0, r.output
+    summary = json.loads((s["out"] / "loose_fast" / "summary.json").read_text())
+    assert summary["method"] == "psd" and summary["quality"]["config"] == "psd"
+    lbs = next(c for c in summary["quality"]["candidates"] if c["config"] == "lbs")
+    assert summary["quality"]["expected_mm"] == pytest.approx(0.3 * lbs["expected_mm"]) and lbs["expected_mm"] > 250
+    assert summary["deformer"]["fit"]["rank"] == 2
+    r = _auto(s, "loose.obj", "fast.npz", "--budget-mm", 250, "--fit", s["dir"] / "poor.psd.npz", "--overwrite")
+    assert r.exit_code == 0, r.output
+    assert json.loads((s["out"] / "loose_fast" / "summary.json").read_text())["method"] == "model"
+    r = _auto(s, "tight.obj", "fast.npz", "--fit", s["dir"] / "good.psd.npz")
+    assert r.exit_code != 0 and "fitted to another garment" in r.output
