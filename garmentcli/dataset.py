@@ -125,6 +125,9 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
               help="Keep only the first N clips of each motion (default: all).")
 @click.option("--bodies-per-clip", type=click.IntRange(min=1), default=None,
               help="Simulate each garment x clip on this many body shapes, taken in turn (default: all of --bodies).")
+@click.option("--first", "first", multiple=True, metavar="GARMENT",
+              help="Simulate this garment's (file stem) sequences before the others' (repeatable, in order): "
+                   "`garment fit` and `garment train --partial` can start on it sooner. The plan is the same.")
 @click.option("--held-out", "held_out", default=None, metavar="GARMENT",
               help="Garment (file stem) kept for the test split only (default: one drawn with --seed).")
 @click.option("--no-held-out", is_flag=True,
@@ -147,7 +150,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
             pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None, no_held_out=False,
-            dry_run=False, source_fps=None, floor="auto"):
+            dry_run=False, source_fps=None, floor="auto", first=()):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
@@ -175,6 +178,10 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     garments = {Path(p).stem: read_garment(p) for p in garment_paths}  # validates every garment before any work
     if len(garments) != len(garment_paths):
         raise click.BadParameter("expected distinct file names (stems)", param_hint="--garments")
+    unknown = [g for g in first if g not in garments]
+    if unknown:
+        raise click.BadParameter(f"expected a garment of the plan ({', '.join(sorted(garments))}), got '{unknown[0]}'",
+                                 param_hint="--first")
     if not motion_paths and not library:
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
     motion_paths = motion_files(motion_paths, "--motions")
@@ -212,7 +219,9 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     for name, p in zip((Path(p).stem for p in garment_paths), garment_paths):
         copy_garment_template(out, p, name)
     write_manifest(out, manifest)
-    todo = [it for it in items if not sequence_path(out, it.id).is_file()]
+    rank = {g: k for k, g in enumerate(first)}
+    todo = sorted((it for it in items if not sequence_path(out, it.id).is_file()),
+                  key=lambda it: rank.get(it.garment, len(rank)))  # stable: the plan's order within each
     click.echo(f"{out}: {len(items)} items ({manifest['totals']['frames']} frames), {len(items) - len(todo)} done, "
                f"{len(todo)} to simulate; splits: " +
                ", ".join(f"{s} {len(m)} motions" for s, m in splits["motions"].items()) +

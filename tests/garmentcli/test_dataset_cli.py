@@ -222,3 +222,36 @@ def test_time_left_reads_as_a_person_would_say_it():
 
     assert [time_left(x) for x in (4.2, 59.4, 61, 719, 3500, 3599, 11100)] == [
         "4 s", "59 s", "1 min", "12 min", "58 min", "1 h 00 min", "3 h 05 min"]
+
+
+def test_first_simulates_a_garments_sequences_before_the_others(scene, monkeypatch):
+    """--first G: the items of the plan's last garment go to the workers before the other's (the plan, its key and
+    each garment's own order unchanged); a garment not in the plan is refused before anything is written."""
+    import core.distributed
+
+    a, b = still_motions(scene["dir"])
+    second = scene["dir"] / "second.obj"
+    second.write_bytes(Path(scene["garment"]).read_bytes())
+    sent = []
+
+    def run_items(task, calls, names, **kwargs):
+        sent.extend(names)
+        return iter([(name, None) for name in names])
+
+    monkeypatch.setattr(core.distributed, "run_items", run_items)
+    base = ["dataset", "--garments", scene["garment"], "--garments", second, "--motions", a, "--motions", b,
+            "--body", scene["body"], "--settle", 1, "--bodies", 1, "--no-held-out"]
+    r = run(*base, "--out", scene["dir"] / "plain")
+    assert r.exit_code == 0, r.output
+    plain = list(sent)
+    last = plain[-1].split("__")[0]  # the plan's last garment, asked for first
+    assert [n.split("__")[0] for n in plain[2:]] == [last, last]
+    sent.clear()
+    r = run(*base, "--first", last, "--out", scene["dir"] / "first")
+    assert r.exit_code == 0, r.output
+    assert sent == plain[2:] + plain[:2]
+    key = [json.loads((scene["dir"] / d / "manifest.json").read_text())["plan_key"] for d in ("plain", "first")]
+    assert key[0] == key[1]
+    r = run(*base, "--first", "coat", "--out", scene["dir"] / "bad")
+    assert r.exit_code != 0 and "--first" in r.output and "got 'coat'" in r.output
+    assert not (scene["dir"] / "bad").exists()
