@@ -37,15 +37,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import torch
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from core.body import blend_transforms, default_body  # noqa: E402
+from core.body import default_body  # noqa: E402
 from core.model_data import PRIOR_SMOOTH_ITERATIONS  # noqa: E402
 from core.motion import poses_for_body, sequence_motion  # noqa: E402
-from core.psd import DEFAULT_RIDGE, pose_features, ridge_solve  # noqa: E402
+from core.psd import DEFAULT_RIDGE, blended_transforms, pose_features, ridge_solve, unskin  # noqa: E402
 from core.skinning import bind_garment, shaped_garment  # noqa: E402
 from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
 from formats.obj import read_obj  # noqa: E402
@@ -55,21 +54,10 @@ PCA_RANKS = (8, 32, 128)
 RIDGE_LAMBDA = DEFAULT_RIDGE
 
 
-def blended_transforms(body, weights: np.ndarray, poses, trans, betas) -> np.ndarray:
-    """(T, V, 3, 4) float64: each vertex's LBS blend of the body's skinning transforms."""
-    A = body.skinning_transforms(poses, trans, betas).astype(np.float64)
-    return blend_transforms(torch.from_numpy(np.asarray(weights, dtype=np.float64)), torch.from_numpy(A)).numpy()
-
-
 def skin(M: np.ndarray, rest: np.ndarray) -> np.ndarray:
     """Apply blended transforms M (T, V, 3, 4) to rest points (V, 3) or (T, V, 3)."""
     r = np.broadcast_to(rest, M.shape[:2] + (3,))
     return np.einsum("tvab,tvb->tva", M[..., :3], r) + M[..., 3]
-
-
-def unskin(M: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """The rest points that `skin(M, .)` maps to x (T, V, 3)."""
-    return np.linalg.solve(M[..., :3], (x - M[..., 3])[..., None])[..., 0]
 
 
 def e_verts_mm(pred: np.ndarray, gt: np.ndarray) -> float:

@@ -92,6 +92,17 @@ class PSDFit:
         return (self.mean + coefficients @ self.basis).reshape(len(features), -1, 3)
 
 
+def blended_transforms(body: Body, weights: np.ndarray, poses, trans, betas) -> np.ndarray:
+    """(T, V, 3, 4) float64: each vertex's LBS blend of the body's skinning transforms."""
+    A = body.skinning_transforms(poses, trans, betas).astype(np.float64)
+    return blend_transforms(torch.from_numpy(np.asarray(weights, dtype=np.float64)), torch.from_numpy(A)).numpy()
+
+
+def unskin(M: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The rest points (T, V, 3) that the blended transforms M (T, V, 3, 4) map to x (T, V, 3): M^-1 x."""
+    return np.linalg.solve(M[..., :3], (x - M[..., 3])[..., None])[..., 0]
+
+
 def _motion_inputs(body: Body, motion: Motion):
     """(betas (S,), poses (T, J, 3), features (T, F)) of a motion on `body`."""
     betas = body.fit_betas(motion.betas)
@@ -111,11 +122,9 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
             raise InputError(f"psd fit: expected positions ({motion.n_frames}, {garment.n_vertices}, 3) for "
                              f"'{motion.name}', got {positions.shape}")
         betas, poses, X = _motion_inputs(body, motion)
-        A = torch.from_numpy(body.skinning_transforms(poses, motion.trans, betas).astype(np.float64))
-        M = blend_transforms(torch.from_numpy(binding.weights.astype(np.float64)), A).numpy()  # (T, V, 3, 4)
+        M = blended_transforms(body, binding.weights, poses, motion.trans, betas)
         rest = shaped_garment(garment.vertices, binding, betas).astype(np.float64)
-        pulled = np.linalg.solve(M[..., :3], (positions - M[..., 3])[..., None])[..., 0]  # M^-1 x
-        offsets.append((pulled - rest).reshape(len(pulled), -1))
+        offsets.append((unskin(M, positions) - rest).reshape(len(positions), -1))
         features.append(X)
     if not offsets:
         raise InputError("psd fit: expected simulated sequences of the garment, got none")
