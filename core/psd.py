@@ -160,14 +160,20 @@ class PSDDeformer(Deformer):
         key = (garment.content_hash(), id(body))
         if key in self._bindings:
             return
+        self.check(garment, body, source)
         fit = self.fit
-        if key[0] != fit.garment_sha256:
+        self._bindings[key] = bind_garment(garment, body, fit.smooth_iterations, fit.smooth_strength, source=source)
+
+    def check(self, garment: Garment, body: Body, source: str | None = None) -> None:
+        """InputError unless the fit belongs to this garment (its mesh) and a body of its joint and beta counts."""
+        fit = self.fit
+        sha = garment.content_hash()
+        if sha != fit.garment_sha256:
             raise InputError(f"{self.source}: fitted to another garment (mesh {fit.garment_sha256[:12]}), not "
-                             f"'{source or garment.name}' ({key[0][:12]}): fit it with `garment fit`")
+                             f"'{source or garment.name}' ({sha[:12]}): fit it with `garment fit`")
         if (body.n_joints, body.n_betas) != (fit.n_joints, fit.n_betas):
             raise InputError(f"{self.source}: fitted on body '{fit.body}' ({fit.n_joints} joints, {fit.n_betas} "
                              f"betas), got '{body.name}' ({body.n_joints}, {body.n_betas})")
-        self._bindings[key] = bind_garment(garment, body, fit.smooth_iterations, fit.smooth_strength, source=source)
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
         self.prepare(garment, body)

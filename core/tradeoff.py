@@ -80,10 +80,9 @@ def make_deformer(config: Config, cache_dir=None) -> Deformer:
     if config.method == "lbs":
         return LBSDeformer()
     if config.method == "psd":
-        from core.psd import PSDDeformer
-        from formats.psd import load_fit
+        from formats.psd import psd_deformer
 
-        return PSDDeformer(load_fit(config.options["path"]), source=f"psd fit '{config.options['path']}'")
+        return psd_deformer(config.options["path"])
     if config.method == "model":
         from core.model_deform import load_model_deformer
 

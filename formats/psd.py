@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from core.psd import PSDFit
+from core.psd import PSDDeformer, PSDFit
 from formats.atomic import atomic_file
 
 FORMAT = "garment-psd"
@@ -58,3 +58,8 @@ def load_fit(path: str | os.PathLike) -> PSDFit:
                   n_betas=int(header["n_betas"]), mean=mean, basis=basis, weights=weights,
                   smooth_iterations=int(header["smooth_iterations"]),
                   smooth_strength=float(header["smooth_strength"]), meta=dict(header.get("meta", {})))
+
+
+def psd_deformer(path: str | os.PathLike) -> PSDDeformer:
+    """The `psd` method of the fit at `path` (`load_fit`), its errors naming the file."""
+    return PSDDeformer(load_fit(path), source=f"psd fit '{path}'")

@@ -74,10 +74,9 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
     if method != "psd" and fit_path is not None:
         raise click.UsageError(f"--fit applies to --method psd only (got --method {method})")
     if method == "psd":
-        from core.psd import PSDDeformer
-        from formats.psd import load_fit
+        from formats.psd import psd_deformer
 
-        return PSDDeformer(load_fit(fit_path), source=f"psd fit '{fit_path}'")
+        return psd_deformer(fit_path)
     if method == "lbs":
         return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth))
     if method == "model":
@@ -365,7 +364,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,
-                               DEFAULT_BUDGET_MM if budget_mm is None else budget_mm, fit_path)
+                               DEFAULT_BUDGET_MM if budget_mm is None else budget_mm, fit_path, garment_path)
         method, opts = pick["method"], pick["options"]
         precision, push_out = opts.get("precision"), bool(opts.get("push_out", False))
         substeps = opts.get("substeps", substeps)
@@ -489,7 +488,8 @@ def _training_range_guard(deformer, garment, body, garment_path, explicit: bool)
     return json.dumps({"from": "model", "to": "lbs", "model": inner.model_name, **rng})
 
 
-def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm, fit_path=None) -> dict:
+def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm, fit_path=None,
+                    garment_path=None) -> dict:
     """--quality auto: the choice for the most demanding motion (the fastest) of the batch; with --fit, the
     garment's fitted blend shapes are a candidate too (`core.quality.psd_candidate`)."""
     from core.model_deform import DEFAULT_MODEL
@@ -509,13 +509,11 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
     extra = []
     if fit_path is not None:
         from core.quality import psd_candidate
-        from formats.psd import load_fit
+        from formats.psd import psd_deformer
 
-        fit = load_fit(fit_path)
-        if fit.garment_sha256 != garment.content_hash():
-            raise click.BadParameter(f"'{fit_path}' was fitted to another garment: fit this one with `garment fit`",
-                                     param_hint="--fit")
-        extra.append(psd_candidate(calibration, features, fit.meta))
+        psd = psd_deformer(fit_path)
+        psd.check(garment, body, source=str(garment_path))  # before it is offered as a candidate
+        extra.append(psd_candidate(calibration, features, psd.fit.meta))
     pick = choose(calibration, features, budget_mm, extra)
     if pick["method"] == "model" and model_path:
         pick["options"] = {**pick["options"], "path": str(model_path)}

@@ -66,9 +66,9 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     result = fit_psd(garment, body, splits["train"], rank or DEFAULT_RANK,
                      DEFAULT_RIDGE if ridge is None else ridge)
     errors = {}
+    psd, lbs = PSDDeformer(result), LBSDeformer()  # each binds the garment once, for every split
     for split in ("val", "test"):
         if splits[split]:
-            psd, lbs = PSDDeformer(result), LBSDeformer()
             e = [[float(np.linalg.norm(d.deform(garment, body, motion) - gt, axis=-1).mean() * 1e3)
                   for d in (psd, lbs)] for motion, gt in splits[split]]
             errors[split] = {"sequences": len(e), "psd_mm": float(np.mean([a for a, _ in e])),
