@@ -428,19 +428,15 @@ def read_usd_garment(path: str | os.PathLike):
             polygons[k, :n], polygon_uvs[k, :n] = corners, corner_uvs
         else:
             ngons.append((k, corners, corner_uvs))
-    materials = _face_materials(mesh, len(counts))
-    written = None
+    # The faces as written (n-gons whole) with their materials: what the outputs keep.
+    written = file_polygons(polygons, polygon_uvs, ngons, _face_materials(mesh, len(counts)))
+    if uvs is None:
+        written = replace(written, polygon_uvs=None)
     if ngons:
-        written = file_polygons(polygons, polygon_uvs, ngons, materials)
-        if uvs is None:
-            written = replace(written, polygon_uvs=None)
         polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons, lambda k: f"(face {k})",
                                             label, path)
-        if materials is not None:  # an n-gon's triangles after its first take its material, as split_ngons orders them
-            materials = np.concatenate([materials, [materials[k] for k, corners, _ in ngons
-                                                    for _ in range(len(corners) - 3)]]).astype(object)
     return garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path,
-                                 materials, written)
+                                 written=written)
 
 
 def _face_materials(mesh: UsdGeom.Mesh, n_faces: int) -> np.ndarray | None:

