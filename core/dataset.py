@@ -169,18 +169,36 @@ def plan_key(settings: dict) -> str:
     return hashlib.sha256(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:16]
 
 
+def _flat(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        out.update(_flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+    return out
+
+
+def differing_settings(old: dict, new: dict) -> dict[str, tuple]:
+    """{dotted key: (old value, new value)} of the settings that differ between two manifests' `settings`
+    ("absent" for a key only one of them has)."""
+    a, b = _flat(old), _flat(new)
+    return {k: (a.get(k, "absent"), b.get(k, "absent")) for k in sorted(a.keys() | b.keys())
+            if a.get(k, "absent") != b.get(k, "absent")}
+
+
 def settings_difference(old: dict, new: dict, limit: int = 3) -> str:
     """The settings that differ between two manifests' `settings`, as "key: old -> new" (dotted keys, at most `limit`)."""
-    def flat(d, prefix=""):
-        out = {}
-        for k, v in d.items():
-            out.update(flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
-        return out
+    diff = differing_settings(old, new)
+    parts = [f"{k}: {a} -> {b}" for k, (a, b) in list(diff.items())[:limit]]
+    return "; ".join(parts) + (f"; {len(diff) - limit} more" if len(diff) > limit else "")
 
-    a, b = flat(old), flat(new)
-    keys = sorted(k for k in a.keys() | b.keys() if a.get(k, "absent") != b.get(k, "absent"))
-    parts = [f"{k}: {a.get(k, 'absent')} -> {b.get(k, 'absent')}" for k in keys[:limit]]
-    return "; ".join(parts) + (f"; {len(keys) - limit} more" if len(keys) > limit else "")
+
+def only_stop_checks_differ(old: dict, new: dict) -> bool:
+    """Whether two manifests' `settings` differ, and only in the simulator's stop checks
+    (`core.sim.STOP_CHECK_OPTIONS`): the sequences simulated under the old ones stay valid, as a run that
+    completes gives the same cloth whatever they are, so such a dataset can be resumed."""
+    from core.sim import STOP_CHECK_OPTIONS
+
+    diff = differing_settings(old, new)
+    return bool(diff) and all(k.startswith("solver.") and k[len("solver."):] in STOP_CHECK_OPTIONS for k in diff)
 
 
 def build_manifest(settings: dict, items: list[DatasetItem], splits: dict, betas: np.ndarray, inputs: dict,

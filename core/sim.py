@@ -256,6 +256,11 @@ def load_material(path: str | os.PathLike) -> Material:
         raise InputError(f"material file '{path}': {exc}") from None
 
 
+#: SimOptions fields that only decide whether a run stops with SimulationError: a run that completes gives
+#: the same cloth whatever their values, so a dataset resumed with other values of them keeps its sequences.
+STOP_CHECK_OPTIONS = frozenset({"fail_penetration_share", "fail_mean_strain", "fail_off_body_m", "fail_off_place_m"})
+
+
 @dataclass(frozen=True)
 class SimOptions:
     """Solver settings of the `sim` method.

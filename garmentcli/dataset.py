@@ -156,7 +156,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
     items), OUT/garments/*.obj and OUT/sequences/<item>.npz.
     """
-    from core.dataset import build_manifest, plan_items, sample_betas, settings_difference
+    from core.dataset import build_manifest, plan_items, sample_betas, only_stop_checks_differ, settings_difference
     from core.sim import SIMULATOR_VERSION, Material, SimOptions, load_material
     from formats.dataset import (
         copy_garment_template,
@@ -211,8 +211,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     old = read_manifest(out)
     if old is not None and old.get("plan_key") != manifest["plan_key"]:
         diff = settings_difference(old.get("settings", {}), manifest["settings"])
-        raise click.ClickException(f"output '{out}' holds a dataset made with other settings or inputs "
-                                   f"({diff or 'plan ' + str(old.get('plan_key'))}): use another --out")
+        if only_stop_checks_differ(old.get("settings", {}), manifest["settings"]):
+            click.echo(f"{out}: resuming with other stop checks ({diff}); the sequences done keep the cloth they "
+                       "completed with, as those checks only stop failing runs", err=True)
+        else:
+            raise click.ClickException(f"output '{out}' holds a dataset made with other settings or inputs "
+                                       f"({diff or 'plan ' + str(old.get('plan_key'))}): use another --out")
     from core.distributed import ItemsFailed, connect, run_items
 
     client = connect(scheduler) if scheduler else None  # before writing anything: an unreachable cluster fails fast

@@ -79,6 +79,23 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene, monkeypatch):
     assert m["settings"]["solver"]["floor"] == "auto"
     r = run(*args[:-2], "--floor", "none", "--out", out)
     assert r.exit_code != 0 and "(solver.floor: auto -> none)" in r.output
+    # A dataset made before a stop check existed (its manifest without it) is resumed: its sequences are kept.
+    from core.dataset import plan_key
+
+    old = json.loads((out / "manifest.json").read_text())
+    del old["settings"]["solver"]["fail_off_place_m"]
+    old["plan_key"] = plan_key(old["settings"])
+    (out / "manifest.json").write_text(json.dumps(old))
+    mtime = files[0].stat().st_mtime_ns
+    r = run(*args)
+    assert r.exit_code == 0 and "resuming with other stop checks (solver.fail_off_place_m: absent -> 0.5)" in r.output
+    assert "0 to simulate" in r.output and files[0].stat().st_mtime_ns == mtime
+    assert json.loads((out / "manifest.json").read_text())["plan_key"] == m["plan_key"]
+    # ... but not when something that shapes the cloth changed with it.
+    (out / "manifest.json").write_text(json.dumps(old))
+    r = run(*args[:-2], "--floor", "none", "--out", out)
+    assert r.exit_code != 0 and "other settings" in r.output
+    (out / "manifest.json").write_text(json.dumps(m))
     # Another simulator version is another plan: one dataset never mixes two versions' cloth.
     import core.sim
 
