@@ -73,7 +73,6 @@ def main(argv=None) -> None:
     paths = sorted((ROOT / "examples").glob("*.obj"))
     if args.garments:
         paths = [p for p in paths if p.stem in args.garments]
-    on, off = frozenset(SKIPS), parse_no_skip(["all"])
     model = load_model_deformer()
     joint_rows, face_rows = [], []
     for path in paths:
