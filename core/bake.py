@@ -58,20 +58,24 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
     """Deform `garment` on `body` over `motion` and measure it.
 
     Returns the garment sequence (T, V, 3), the posed body (T, Vb, 3) when
-    `with_body` or `check_penetration`, and a summary dict: method, frames, fps,
+    `with_body` or `check_penetration` (both without the motion's lead frames, `Motion.n_lead`, which are
+    deformed and dropped), and a summary dict: method, frames, fps,
     seconds per frame of the deformation, penetration statistics, the deformer's report.
     """
     t0 = time.perf_counter()
     points = deformer.deform(garment, body, motion)
     t_deform = time.perf_counter() - t0
+    lead = motion.n_lead  # pre-roll: deformed, not kept
+    points = points[lead:]
     body_points = None
     if with_body or check_penetration:
-        body_points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
+        body_points, _ = body.pose(poses_for_body(motion, body.n_joints)[lead:], motion.trans[lead:], motion.betas)
     summary = {
         "method": deformer.name,
-        "frames": int(motion.n_frames),
+        "frames": int(motion.n_frames - lead),
         "fps": float(motion.fps),
         "settle_frames": int(motion.n_settle),
+        "preroll_frames": int(lead),
         "garment": {"name": garment.name, "vertices": garment.n_vertices, "faces": garment.n_faces,
                     "sha256": garment.content_hash(),
                     # The outputs are written in the file's own mesh where it differs from the one deformed.
@@ -80,7 +84,7 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
         "body": {"name": body.name, "vertices": body.n_vertices, "joints": body.n_joints,
                  "betas": body.fit_betas(motion.betas).round(6).tolist()},
         "seconds_deform": t_deform,
-        "seconds_per_frame": t_deform / motion.n_frames,
+        "seconds_per_frame": t_deform / motion.n_frames,  # per frame deformed, the pre-roll's included
         "deformer": deformer.report,
         "scene": deformer.scene,
     }

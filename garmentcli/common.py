@@ -14,7 +14,7 @@ import numpy as np
 
 from core.body import Body, default_body
 from core.errors import InputError
-from core.motion import parse_frame_range, resample, select_frames, settle
+from core.motion import parse_frame_range, preroll, resample, settle
 
 #: `--pin` values (core.sim.PIN_MODES; repeated here so the CLI starts without importing the simulator).
 PIN_CHOICES = ("auto", "none")
@@ -132,9 +132,10 @@ def load_body_option(body_path: str | None) -> Body:
 
 
 def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
-                   source_fps: float | None = None):
+                   source_fps: float | None = None, preroll_frames: int = 0):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas, --frames
-    (source frames), --fps and --settle, in that order."""
+    (source frames) with --preroll (source frames before them, deformed and not written: `Motion.n_lead`),
+    --fps and --settle, in that order."""
     from formats.motion import load_motion
 
     motion = load_motion(path, fps=source_fps)
@@ -142,7 +143,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
         motion = replace(motion, betas=None if betas == "mean" else parse_betas(betas))
     source_fps = motion.fps
     if frames:
-        motion = select_frames(motion, *parse_frame_range(frames))
+        motion = preroll(motion, *parse_frame_range(frames), preroll_frames)
     motion = resample(motion, fps)
     return settle(motion, settle_frames), source_fps
 

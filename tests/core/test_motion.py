@@ -233,3 +233,42 @@ def test_sequence_motion_round_trips_a_stored_sequence_with_and_without_its_sett
     assert (given.n_frames, given.n_settle) == (T - n_settle, 0)
     np.testing.assert_allclose(given.poses, stored.poses[n_settle:], atol=1e-6)
     np.testing.assert_allclose(given.trans, stored.trans[n_settle:], atol=1e-6)
+
+
+@pytest.mark.parametrize("src_fps, dst_fps, start, lead", [(60.0, 30.0, 31, 31), (60.0, 30.0, 40, 10),
+                                                          (120.0, 24.0, 100, 47), (30.0, 60.0, 20, 7),
+                                                          (59.94, 30.0, 50, 13), (30.0, 30.0, 12, 5)])
+def test_preroll_leads_into_the_frames_asked_for_on_their_own_time_grid(src_fps, dst_fps, start, lead):
+    """The frames written after a pre-roll are those a bake of --frames START:STOP alone writes (same times, same
+    poses), whatever the frame rates; the pre-roll is the output frames before them."""
+    from core.motion import preroll
+
+    m = _spinning_motion(src_fps, int(round(3 * src_fps)))
+    stop = start + int(round(src_fps))  # one second
+    plain = resample(select_frames(m, start, stop), dst_fps)
+    led = resample(preroll(m, start, stop, lead), dst_fps)
+    n = led.n_lead
+    assert n == int(np.floor(lead / src_fps * dst_fps + 1e-6)) and n >= 1
+    assert led.n_frames - n == plain.n_frames
+    np.testing.assert_allclose(axis_angle_to_matrix(led.poses[n:, 1]), axis_angle_to_matrix(plain.poses[:, 1]),
+                               atol=2e-6)
+    np.testing.assert_allclose(led.trans[n:], plain.trans, atol=2e-6)
+    np.testing.assert_allclose(led.trans[n - 1], plain.trans[0] - np.array([1.2, -0.3, 0.0]) / dst_fps, atol=2e-6)
+
+
+def test_preroll_is_clipped_at_the_motion_start_and_excludes_settle():
+    from core.motion import preroll
+
+    m = _random_motion(30, 24)
+    p = preroll(m, 10, 20, 4)
+    assert (p.n_frames, p.n_lead) == (14, 4)
+    np.testing.assert_array_equal(p.poses[4:], m.poses[10:20])
+    np.testing.assert_array_equal(p.poses[:4], m.poses[6:10])
+    assert preroll(m, 3, 20, 10).n_lead == 3  # only 3 frames before START
+    assert preroll(m, 0, 20, 10).n_lead == 0 and preroll(m, 10, 20, 0).n_lead == 0
+    assert preroll(m, -5, None, 2).n_lead == 2  # counted from the end, as --frames does
+    assert select_frames(p, 2, None).n_lead == 2
+    with pytest.raises(InputError, match="--settle and --preroll"):
+        settle(p, 3)
+    with pytest.raises(InputError, match="selects no frame"):
+        preroll(m, 40, 50, 5)

@@ -113,6 +113,10 @@ BAD_CASES = {
     "bad frames": (lambda s: ["bake", s["garment"], s["motion"], "--frames", "a:b"], ["--frames"]),
     "empty frames": (lambda s: ["bake", s["garment"], s["motion"], "--frames", "50:60"], ["--frames", "no frame"]),
     "negative settle": (lambda s: ["bake", s["garment"], s["motion"], "--settle", -2], ["--settle"]),
+    "preroll without frames": (lambda s: ["bake", s["garment"], s["motion"], "--preroll", 3],
+                               ["--preroll", "--frames START:STOP"]),
+    "preroll and settle": (lambda s: ["bake", s["garment"], s["motion"], "--frames", "4:", "--preroll", 3,
+                                      "--settle", 2], ["--settle and --preroll"]),
 }
 
 
@@ -518,3 +522,20 @@ def test_start_frame_numbers_the_usd_time_codes_and_obj_frames(scene):
     assert [float(v) for v in values[:5]] == [0.0] * 5  # E_verts ... E_curv: the same frames, paired by index
     assert_one_line_error(run(["bake", *common, "--start-frame", "-1", "--out", scene["out"] / "neg"]),
                           "--start-frame")
+
+
+def test_preroll_frames_are_deformed_and_not_written(scene):
+    """--frames 6:12 --preroll 4: the written frames are those of --frames 6:12 (LBS, which keeps no state, puts
+    them at the same places), numbered as they are; the summary records the pre-roll."""
+    common = [scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs", "--frames", "6:12"]
+    for name, extra in (("plain", []), ("led", ["--preroll", "4"])):
+        r = run(["bake", *common, *extra, "--out", scene["out"] / name])
+        assert r.exit_code == 0, r.output
+    from formats.sequence import read_sequence
+
+    plain, led = (read_sequence(scene["out"] / n / "shell_walk" / "shell_walk.usd") for n in ("plain", "led"))
+    assert led.points.shape == plain.points.shape == (3, plain.points.shape[1], 3)  # 6 source frames at 60 -> 30 fps
+    np.testing.assert_allclose(led.points, plain.points, atol=1e-6)
+    summary = json.loads((scene["out"] / "led" / "shell_walk" / "summary.json").read_text())
+    assert summary["frames"] == 3 and summary["preroll_frames"] == 2 and summary["options"]["preroll"] == 4
+    assert json.loads((scene["out"] / "plain" / "shell_walk" / "summary.json").read_text())["preroll_frames"] == 0

@@ -272,3 +272,28 @@ def test_first_simulates_a_garments_sequences_before_the_others(scene, monkeypat
     r = run(*base, "--first", "coat", "--out", scene["dir"] / "bad")
     assert r.exit_code != 0 and "--first" in r.output and "got 'coat'" in r.output
     assert not (scene["dir"] / "bad").exists()
+
+
+def test_sim_preroll_brings_the_cloth_into_the_first_frame_moving(scene):
+    """A body walking at 1.5 m/s from the first frame: with --frames 4: the cloth starts at rest at frame 4 (and
+    bake says so); with --preroll 4 it was simulated from frame 0 and arrives there carried along, elsewhere."""
+    n = 8
+    poses = np.zeros((n, 72), np.float32)
+    poses[:, :3] = [np.pi / 2, 0, 0]
+    trans = np.zeros((n, 3), np.float32)
+    trans[:, 0] = 1.5 * np.arange(n) / 30.0
+    write_motion(scene["dir"] / "stride.npz", n_frames=n, fps=30.0, poses=poses, trans=trans)
+    common = [scene["garment"], scene["dir"] / "stride.npz", "--body", scene["body"], "--method", "sim",
+              "--substeps", 4, "--floor", "none", "--no-obj", "--no-body", "--frames", "4:"]
+    r = run("bake", *common, "--out", scene["out"] / "rest")
+    assert r.exit_code == 0, r.output
+    assert "the cloth starts at rest on the body at START; --preroll N" in r.output
+    r = run("bake", *common, "--preroll", 4, "--out", scene["out"] / "led")
+    assert r.exit_code == 0, r.output
+    assert "--preroll N" not in r.output
+    from formats.sequence import read_sequence
+
+    rest, led = (read_sequence(scene["out"] / d / "shell_stride" / "shell_stride.usd").points for d in ("rest", "led"))
+    assert rest.shape == led.shape and rest.shape[0] == n - 4
+    assert np.abs(led[0] - rest[0]).max() > 1e-3  # the pre-roll's motion shows in the first frame written
+    assert json.loads((scene["out"] / "led" / "shell_stride" / "summary.json").read_text())["preroll_frames"] == 4
