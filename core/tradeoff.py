@@ -145,7 +145,8 @@ class Measurement:
 
 def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeats: int = 3,
             cache_dir=None) -> Measurement:
-    """Warm-up (preparation timed apart) and `repeats` timed runs (1 for the simulator: minutes per run)."""
+    """Warm-up (preparation timed apart) and `repeats` timed runs (1 for the simulator: minutes per run). The
+    motion's lead frames (`Motion.n_lead`, a pre-roll) are deformed and timed, and left out of the points kept."""
     deformer = make_deformer(config, cache_dir)
     t0 = time.perf_counter()
     deformer.prepare(garment, body)
@@ -159,7 +160,8 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
             t = time.perf_counter()
             points = deformer.deform(garment, body, motion)
             times.append(time.perf_counter() - t)
-    return Measurement(config, points, statistics.median(times) / motion.n_frames, prep, mem.peak_mb, runs)
+    return Measurement(config, points[motion.n_lead:], statistics.median(times) / motion.n_frames, prep, mem.peak_mb,
+                       runs)
 
 
 def simulation_scene(garment: Garment, body: Body, motion: Motion):
@@ -222,7 +224,8 @@ def compare(measurements: list[Measurement], garment: Garment, body: Body, motio
     from core.metrics import compute_metrics, frames_inside
 
     ref = next(m for m in measurements if m.config.reference)
-    body_pts, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
+    lead = motion.n_lead  # the frames kept (`measure`) follow the pre-roll
+    body_pts, _ = body.pose(poses_for_body(motion, body.n_joints)[lead:], motion.trans[lead:], motion.betas)
     inside = frames_inside(lambda p, v, f: points_inside_mesh(p, v, f, depth=PENETRATION_DEPTH_M))
     for m in measurements:
         res = compute_metrics(m.points, ref.points, garment.faces, body_pts, body.faces, inside,

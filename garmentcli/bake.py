@@ -28,6 +28,7 @@ from garmentcli.common import (
     PIN_HELP,
     betas_option,
     body_option,
+    check_preroll,
     collected_warnings,
     frames_option,
     input_errors_as_click,
@@ -35,6 +36,7 @@ from garmentcli.common import (
     motion_files,
     motion_names,
     prepare_motion,
+    preroll_option,
     scheduler_options,
     source_fps_option,
     with_collected_warnings,
@@ -280,9 +282,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="Frames blending from the rest pose into the first frame, prepended to the output.")
-@click.option("--preroll", "preroll_frames", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
-              help="With --frames START:STOP: also deform the N source frames before START, not written, so the "
-                   "cloth (sim, model) arrives at START moving with the body instead of starting there at rest.")
+@preroll_option
 @click.option("--lbs-smooth", type=click.IntRange(min=0), default=LBSOptions.smooth_iterations, show_default=True,
               help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
@@ -330,11 +330,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
     if frames:
         parse_frame_range(frames)  # reject a bad --frames before any work
-    if preroll_frames and not frames:
-        raise click.UsageError("--preroll: expected --frames START:STOP as well (it deforms the frames before START)")
-    if preroll_frames and settle_frames:
-        raise click.UsageError("--settle and --preroll: expected one of them (the settle frames are written and "
-                               "would blend into the pre-roll's first frame, not into START)")
+    check_preroll(preroll_frames, frames, settle_frames)
     if quality is None:
         for name, v in (("--budget-mm", budget_mm), ("--calibration", calibration_path)):
             if v is not None:

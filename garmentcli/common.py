@@ -211,3 +211,20 @@ def frames_option(command):
     return click.option("--frames", default=None, metavar="START:STOP",
                         help="Source frames (Python slice, STOP exclusive).")(command)
 
+
+def preroll_option(command):
+    """--preroll N: source frames before --frames START deformed and not written (`core.motion.preroll`)."""
+    return click.option("--preroll", "preroll_frames", type=click.IntRange(min=0), default=0, show_default=True,
+                        metavar="N", help="With --frames START:STOP: also deform the N source frames before START, not "
+                        "written, so the cloth (sim, model) arrives at START moving with the body instead of starting "
+                        "there at rest.")(command)
+
+
+def check_preroll(preroll_frames: int, frames: str | None, settle_frames: int = 0) -> None:
+    """--preroll needs --frames and excludes --settle: a click.UsageError naming them otherwise."""
+    if preroll_frames and not frames:
+        raise click.UsageError("--preroll: expected --frames START:STOP as well (it deforms the frames before START)")
+    if preroll_frames and settle_frames:
+        raise click.UsageError("--settle and --preroll: expected one of them (the settle frames are written and "
+                               "would blend into the pre-roll's first frame, not into START)")
+

@@ -32,10 +32,12 @@ from core.tradeoff import (
 from garmentcli.common import (
     betas_option,
     body_option,
+    check_preroll,
     frames_option,
     input_errors_as_click,
     load_body_option,
     prepare_motion,
+    preroll_option,
     source_fps_option,
 )
 
@@ -74,6 +76,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @source_fps_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the scene is baked at.")
 @frames_option
+@preroll_option
 @click.option("--model", "model_specs", multiple=True, metavar="NAME=PATH",
               help="Model checkpoints to compare (repeatable). Default: the shipped model.")
 @click.option("--fit", "fit_specs", multiple=True, metavar="NAME=PATH",
@@ -95,7 +98,8 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
                    "row's error. A row of the table and a dashed line in the plot; one more reference run of time.")
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
-             reuse_sim=False, calibration_path=None, spread=False, betas="motion", source_fps=None, fit_specs=()):
+             reuse_sim=False, calibration_path=None, spread=False, betas="motion", source_fps=None, fit_specs=(),
+             preroll_frames=0):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each --fit (psd); each model in float32 and bfloat16, with and without penetration push-out; the
@@ -107,6 +111,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     for p in (garment_path, motion_path):
         if not Path(p).is_file():
             raise click.FileError(p, hint="no such file")
+    check_preroll(preroll_frames, frames)
     models = _models(model_specs)
     fits = _named_files(fit_specs, "--fit", "fit")
     try:
@@ -127,7 +132,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         shutil.rmtree(staged)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
-    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps)
+    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames)
     from formats.cache import default_cache_dir
 
     rows = configurations(models, spread=spread, fits=fits)
@@ -200,7 +205,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                    f"the earlier run" + (f" ({', '.join(reused)})" if reused else ""))
     best = min((r for r in table if r["method"] == "model" and not r["failed"]), key=lambda r: r["e_verts"], default=None)
     lbs = next(r for r in table if r["method"] == "lbs")
-    click.echo(f"{target}: {len(table)} configurations on {motion.n_frames} frames; lbs {lbs['e_verts']:.1f} mm at "
+    click.echo(f"{target}: {len(table)} configurations on {motion.n_frames - motion.n_lead} frames; lbs {lbs['e_verts']:.1f} mm at "
                f"{lbs['seconds_per_frame'] * 1e3:.2f} ms/frame"
                + (f", best model row '{best['config']}' {best['e_verts']:.1f} mm at "
                   f"{best['seconds_per_frame'] * 1e3:.1f} ms/frame" if best else "")
@@ -217,13 +222,16 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
         w.writeheader()
         w.writerows(table)
     (directory / "tradeoff.json").write_text(json.dumps(
-        {"garment": str(garment_path), "motion": str(motion_path), "frames": motion.n_frames, "fps": motion.fps,
+        {"garment": str(garment_path), "motion": str(motion_path), "frames": motion.n_frames - motion.n_lead,
+         "preroll_frames": motion.n_lead, "fps": motion.fps,
          "vertices": garment.n_vertices, "rows": table}, indent=1))
     ref = next(r["config"] for r in table if r["reference"])
     done = [r for r in table if not r["failed"]]
     spread = next((r for r in done if r["spread"]), None)
     md = [f"# Speed against accuracy: `{Path(garment_path).name}` on `{Path(motion_path).name}`", "",
-          (f"{motion.n_frames} frames at {motion.fps:g} fps, {garment.n_vertices} garment vertices. Errors against "
+          (f"{motion.n_frames - motion.n_lead} frames at {motion.fps:g} fps"
+           + (f" after {motion.n_lead} pre-roll frames" if motion.n_lead else "")
+           + f", {garment.n_vertices} garment vertices. Errors against "
            f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
            "run); preparation (binding, preprocessing, simulator build) apart; peak memory: the largest rise of "
            "resident memory during the timed runs. E_verts mm, E_vnorm / E_fnorm degrees, E_edge %, penetration: "

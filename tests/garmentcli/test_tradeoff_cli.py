@@ -129,7 +129,7 @@ def _fake_measure(fail):
     def measure(config, garment, body, motion, repeats=3, cache_dir=None):
         if fail(config):
             raise SimulationError(f"sim: frame 3 of motion '{motion.name}' failed after 3 tries")
-        pts = LBSDeformer().deform(garment, body, motion) + (0.0 if config.reference else 0.01)
+        pts = LBSDeformer().deform(garment, body, motion)[motion.n_lead:] + (0.0 if config.reference else 0.01)
         return Measurement(config, pts, 1.0 if config.method == "sim" else 0.01, 0.0, 0.0, 1)
 
     return measure
@@ -276,3 +276,34 @@ def test_a_fit_is_a_psd_row_left_out_of_the_calibration(scene, monkeypatch, tmp_
     assert "psd mine" not in json.loads((tmp_path / "cal.json").read_text())["configs"]
     r = invoke([*base, "--fit", f"x={tmp_path / 'gone.npz'}", "--out", tmp_path / "o"])
     assert r.exit_code != 0 and "fit '" in r.output and "gone.npz': no such file" in r.output
+
+
+def test_preroll_frames_are_deformed_timed_and_left_out_of_the_comparison(scene, monkeypatch):
+    """measure keeps the frames after the pre-roll (LBS: those of --frames alone) and times every frame deformed;
+    the command compares those, records the pre-roll, and refuses --preroll without --frames."""
+    import garmentcli.tradeoff
+    from core.deform import LBSDeformer
+    from core.motion import preroll, resample
+    from core.tradeoff import Config, measure
+    from formats.body import load_body
+    from formats.motion import load_motion
+    from formats.obj import read_garment
+
+    garment, body = read_garment(scene["garment"]), load_body(scene["body"])
+    source = load_motion(scene["motion"])
+    led = resample(preroll(source, 6, 12, 4), 30.0)
+    m = measure(Config("lbs", "lbs", {}), garment, body, led, repeats=1)
+    plain = resample(preroll(source, 6, 12, 0), 30.0)
+    assert led.n_lead == 2 and m.points.shape[0] == plain.n_frames == 3
+    np.testing.assert_allclose(m.points, LBSDeformer().deform(garment, body, plain), atol=1e-6)
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: False))
+    base = ["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]]
+    r = invoke([*base, "--frames", "6:12", "--preroll", 4])
+    assert r.exit_code == 0, r.output
+    result = json.loads((scene["out"] / "shell_walk" / "tradeoff.json").read_text())
+    assert (result["frames"], result["preroll_frames"]) == (3, 2)
+    assert "3 frames at 30 fps after 2 pre-roll frames" in (scene["out"] / "shell_walk" / "tradeoff.md").read_text()
+    lbs = next(row for row in result["rows"] if row["config"] == "lbs")
+    assert lbs["e_verts"] == pytest.approx(10 * np.sqrt(3), abs=0.01)
+    r = invoke([*base, "--preroll", 4, "--overwrite"])
+    assert r.exit_code != 0 and "--preroll: expected --frames START:STOP" in r.output
