@@ -25,6 +25,7 @@ from core.deform import Deformer, LBSOptions
 from core.errors import InputError
 from core.garment import Garment
 from core.motion import Motion, poses_for_body
+from core.pushout import guard_sequence
 from core.rotations import axis_angle_to_matrix
 from core.skinning import bind_garment, shaped_garment
 
@@ -150,10 +151,13 @@ class PSDDeformer(Deformer):
 
     name = "psd"
 
-    def __init__(self, fit: PSDFit, source: str = "psd fit"):
+    def __init__(self, fit: PSDFit, source: str = "psd fit", contact_guard: bool = True):
         super().__init__()
         self.fit = fit
         self.source = source
+        #: Keep vertices outside the body faces they rest on, as the model does (`core.pushout.guard_sequence`):
+        #: a fit's offsets carry a tight garment into the body on motions unlike its own.
+        self.contact_guard = contact_guard
         self._bindings: dict = {}
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
@@ -190,4 +194,6 @@ class PSDDeformer(Deformer):
                 out[s:s + batch] = skin_points(points, w, A[s:s + batch]).numpy()
         self.report = {"method": self.name, "fit": {"source": self.source, "rank": self.fit.rank,
                                                     **self.fit.meta}}
+        if self.contact_guard:
+            out, self.report["contact_guard"] = guard_sequence(out, rest, body, poses, motion.trans, betas)
         return out

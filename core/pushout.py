@@ -29,7 +29,7 @@ import numpy as np
 from core.body import Body
 from core.deform import Deformer
 from core.garment import Garment
-from core.geometry import TriangleMesh, face_normals, outward_offsets
+from core.geometry import TriangleMesh, face_normals, outward_faces, outward_offsets
 from core.motion import Motion, poses_for_body
 
 #: Distance outside the body a pushed vertex ends at (metres): within the 2 mm depth the penetration
@@ -139,6 +139,38 @@ def guard_contact(points: np.ndarray, body_points: np.ndarray, anchors: ContactA
     lift = behind * _fade(behind, depth, depth_fade) * _fade(lateral, reach, reach_fade)
     out = (points + lift[..., None] * normal).astype(np.float32)
     return out, (lift > 0).sum(axis=1)
+
+
+#: Frames the contact guard poses the body for at once (posing 2 at a time cost 2.3 ms/frame, 16 at a time 1.3).
+GUARD_CHUNK_FRAMES = 16
+
+
+def guard_sequence(points: np.ndarray, rest: np.ndarray, body: Body, poses: np.ndarray, trans: np.ndarray,
+                   betas: np.ndarray | None) -> tuple[np.ndarray, dict]:
+    """The contact guard over a deformed sequence (the model's and psd's): each vertex tied to its closest face
+    of the body at rest (`contact_anchors`, both shaped by `betas`), then kept outside it in every frame
+    (`guard_contact`), the body posed `GUARD_CHUNK_FRAMES` frames at a time.
+
+    points: (T, V, 3) the sequence (written in place); rest: (V, 3) the garment at rest on the shaped body;
+    poses: (T, J, 3) in the body's layout. Returns (points, the report's "contact_guard" entry).
+    """
+    import time
+
+    t0 = time.perf_counter()
+    shaped_body, _ = body.shaped(betas)
+    anchors = contact_anchors(np.asarray(rest), shaped_body, outward_faces(shaped_body, body.faces))
+    moved = [np.zeros(1, dtype=np.int64)]
+    for s in range(0, len(points), GUARD_CHUNK_FRAMES):
+        fr = slice(s, min(s + GUARD_CHUNK_FRAMES, len(points)))
+        body_points, _ = body.pose(poses[fr], trans[fr], betas)
+        points[fr], n = guard_contact(points[fr], body_points, anchors)
+        moved.append(n)
+    moved = np.concatenate(moved[1:] or moved)
+    return points, {"margin_m": GUARD_MARGIN_M, "reach_m": GUARD_REACH_M, "depth_m": GUARD_DEPTH_M,
+                    "reach_fade_m": GUARD_REACH_FADE_M, "depth_fade_m": GUARD_DEPTH_FADE_M,
+                    "vertices_moved_per_frame_mean": float(moved.mean()),
+                    "vertices_moved_per_frame_max": int(moved.max()),
+                    "seconds_per_frame": (time.perf_counter() - t0) / max(len(points), 1)}
 
 
 class PushOutDeformer(Deformer):

@@ -60,6 +60,6 @@ def load_fit(path: str | os.PathLike) -> PSDFit:
                   smooth_strength=float(header["smooth_strength"]), meta=dict(header.get("meta", {})))
 
 
-def psd_deformer(path: str | os.PathLike) -> PSDDeformer:
+def psd_deformer(path: str | os.PathLike, contact_guard: bool = True) -> PSDDeformer:
     """The `psd` method of the fit at `path` (`load_fit`), its errors naming the file."""
-    return PSDDeformer(load_fit(path), source=f"psd fit '{path}'")
+    return PSDDeformer(load_fit(path), source=f"psd fit '{path}'", contact_guard=contact_guard)

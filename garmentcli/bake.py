@@ -78,7 +78,7 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
     if method == "psd":
         from formats.psd import psd_deformer
 
-        return psd_deformer(fit_path)
+        return psd_deformer(fit_path, contact_guard=contact_guard)
     if method == "lbs":
         return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth))
     if method == "model":
@@ -152,7 +152,7 @@ class BakeSpec:
     no_skip: tuple = ()
     threads: int = 0  # torch threads of a --workers process (0: torch's default)
     fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
-    contact_guard: bool = True  # model: keep vertices outside the body faces they rest on
+    contact_guard: bool = True  # model, psd: keep vertices outside the body faces they rest on
     betas: str = "motion"  # --betas as given (the motions arrive with it applied), recorded in summary.json
     floor: str | None = None  # sim: --floor (None: the default)
     start_frame: int = 0  # --start-frame: the number of the first frame written (USD time code, OBJ file)
@@ -265,8 +265,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="model: arithmetic of the network [default: float32].")
 @click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
 @click.option("--no-contact-guard", is_flag=True,
-              help="model: leave out the contact guard (on by default, about 1.5 ms/frame), which keeps each vertex "
-                   "outside the body face it rests on; the network's raw output.")
+              help="model, psd: leave out the contact guard (on by default, about 1.5 ms/frame), which keeps each "
+                   "vertex outside the body face it rests on; the network's or the fit's raw output.")
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
                    "on the garment, body faces out of its reach (sim), self-contact where distant parts never meet, "
@@ -337,8 +337,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                 raise click.UsageError(f"{name} applies to --quality auto only")
         explicit = method is not None
         method = method or "model"
-        if no_contact_guard and method != "model":
-            raise click.UsageError(f"--no-contact-guard applies to --method model only (got --method {method})")
+        if no_contact_guard and method not in ("model", "psd"):
+            raise click.UsageError(f"--no-contact-guard applies to --method model and psd only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                  precision, push_out, no_skip, not no_contact_guard, floor, fit_path)
     elif method is not None or precision is not None or push_out:

@@ -92,7 +92,7 @@ def test_fit_recovers_blend_shapes_linear_in_the_features():
 
     fit = fit_psd(garment, body, [(m, simulated(m)) for m in motions[:6]], rank=8, ridge=1e-9)
     assert fit.meta["sequences"] == 6 and fit.meta["frames"] == 1200 and fit.meta["fit_residual_mm"] < 0.01
-    psd = PSDDeformer(fit)
+    psd = PSDDeformer(fit, contact_guard=False)  # the fit alone
     assert np.abs(psd.deform(garment, body, motions[1]) - simulated(motions[1])).max() < 1e-5
     truth = simulated(motions[6])
     error = {name: np.linalg.norm(d.deform(garment, body, motions[6]) - truth, axis=-1).mean()
@@ -110,7 +110,7 @@ def test_a_fit_round_trips_and_belongs_to_its_garment_and_body(tmp_path):
     for k in ("mean", "basis", "weights"):
         np.testing.assert_array_equal(getattr(back, k), getattr(fit, k))
     assert (back.garment_sha256, back.n_joints, back.meta) == (fit.garment_sha256, fit.n_joints, fit.meta)
-    np.testing.assert_allclose(PSDDeformer(back).deform(garment, body, m),
+    np.testing.assert_allclose(PSDDeformer(back, contact_guard=False).deform(garment, body, m),
                                LBSDeformer().deform(garment, body, m), atol=1e-5)  # the offsets are zero
     other = Garment(*tube(10, 5))
     with pytest.raises(InputError, match="fitted to another garment"):
@@ -121,3 +121,31 @@ def test_a_fit_round_trips_and_belongs_to_its_garment_and_body(tmp_path):
     np.savez(tmp_path / "motion.npz", poses=np.zeros((2, 72)))
     with pytest.raises(InputError, match="expected a fit written by `garment fit`"):
         load_fit(tmp_path / "motion.npz")
+
+
+def test_the_contact_guard_lifts_what_the_offsets_carry_into_the_body():
+    """Offsets that carry every vertex of a tube 1 cm into the body it hangs around (past its closest face) put
+    it inside; the contact guard (on by default, as the model's) lifts those vertices back out and leaves the
+    fit's result elsewhere untouched."""
+    import dataclasses
+
+    from core.geometry import TriangleMesh, points_inside_mesh
+
+    body = tiny_body()
+    v, f = tube(12, 6)
+    garment = Garment(v, f)
+    still = Motion(poses=np.zeros((4, 24, 3), np.float32), trans=np.zeros((4, 3), np.float32), fps=30.0)
+    fit = fit_psd(garment, body, [(still, _skinned(garment, body, still, np.zeros((4, len(v), 3))))], rank=2)
+    closest = TriangleMesh(body.v_template, body.faces).closest(v.astype(np.float64)).closest
+    gap = closest - v
+    sink = gap * (1.0 + 0.01 / np.linalg.norm(gap, axis=1, keepdims=True))
+    sink[v[:, 1] > 0.0] = 0.0  # the tube's top ring stays where it is
+    fit = dataclasses.replace(fit, mean=sink.reshape(-1).astype(np.float32))
+    raw = PSDDeformer(fit, contact_guard=False).deform(garment, body, still)
+    psd = PSDDeformer(fit)
+    guarded = psd.deform(garment, body, still)
+    inside = [points_inside_mesh(p[0], body.v_template, body.faces).mean() for p in (raw, guarded)]
+    assert inside[0] > 0.5 and inside[1] < 0.05, inside
+    top = v[:, 1] > 0.0
+    np.testing.assert_allclose(guarded[:, top], raw[:, top], atol=1e-6)
+    assert psd.report["contact_guard"]["vertices_moved_per_frame_mean"] > 0.5 * (~top).sum()

@@ -108,7 +108,7 @@ def test_contact_guard_is_the_default_and_can_be_left_out(tmp_path):
     assert summary["penetration"]["mean_percent"] < raw_summary["penetration"]["mean_percent"]
     r = invoke(["bake", dress, ROOT / "examples" / "walk.npz", "--method", "lbs", "--no-contact-guard",
                 "--out", tmp_path / "bad"])
-    assert r.exit_code != 0 and "--no-contact-guard applies to --method model only" in r.output
+    assert r.exit_code != 0 and "--no-contact-guard applies to --method model and psd only" in r.output
     assert not (tmp_path / "bad").exists()
 
 
