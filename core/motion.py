@@ -181,8 +181,8 @@ def settle(motion: Motion, n_frames: int) -> Motion:
     if n_frames == 0:
         return motion
     if motion.n_lead:
-        raise InputError("--settle and --preroll: expected one of them (the settle frames are written and would "
-                         "blend into the pre-roll's first frame, not into the first frame written)")
+        raise InputError(f"motion '{motion.name}': a settle blend goes before its first frame, which is a "
+                         "pre-roll's (--settle and --preroll exclude each other)")
     first = motion.poses[0]
     q_first = axis_angle_to_quat(first)
     q_rest = np.zeros_like(q_first)

@@ -159,13 +159,13 @@ def guard_sequence(points: np.ndarray, rest: np.ndarray, body: Body, poses: np.n
     t0 = time.perf_counter()
     shaped_body, _ = body.shaped(betas)
     anchors = contact_anchors(np.asarray(rest), shaped_body, outward_faces(shaped_body, body.faces))
-    moved = [np.zeros(1, dtype=np.int64)]
+    moved = []
     for s in range(0, len(points), GUARD_CHUNK_FRAMES):
         fr = slice(s, min(s + GUARD_CHUNK_FRAMES, len(points)))
         body_points, _ = body.pose(poses[fr], trans[fr], betas)
         points[fr], n = guard_contact(points[fr], body_points, anchors)
         moved.append(n)
-    moved = np.concatenate(moved[1:] or moved)
+    moved = np.concatenate(moved) if moved else np.zeros(1, dtype=np.int64)
     return points, {"margin_m": GUARD_MARGIN_M, "reach_m": GUARD_REACH_M, "depth_m": GUARD_DEPTH_M,
                     "reach_fade_m": GUARD_REACH_FADE_M, "depth_fade_m": GUARD_DEPTH_FADE_M,
                     "vertices_moved_per_frame_mean": float(moved.mean()),

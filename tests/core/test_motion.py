@@ -268,7 +268,7 @@ def test_preroll_is_clipped_at_the_motion_start_and_excludes_settle():
     assert preroll(m, 0, 20, 10).n_lead == 0 and preroll(m, 10, 20, 0).n_lead == 0
     assert preroll(m, -5, None, 2).n_lead == 2  # counted from the end, as --frames does
     assert select_frames(p, 2, None).n_lead == 2
-    with pytest.raises(InputError, match="--settle and --preroll"):
+    with pytest.raises(InputError, match="--settle and --preroll exclude each other"):
         settle(p, 3)
     with pytest.raises(InputError, match="selects no frame"):
         preroll(m, 40, 50, 5)
