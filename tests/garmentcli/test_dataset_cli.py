@@ -159,6 +159,7 @@ def test_bake_method_sim_and_sim_options_rejected_for_lbs(scene):
     assert summary["deformer"]["options"]["floor"] == "none" and summary["deformer"]["floor"] is None
     assert summary["scene"]["floor"] == {"skipped_work": False, "overridden": False, "reason": "floor none"}
     assert summary["deformer"]["checks"]["nan"] is False
+    assert "note:" not in r.output  # a motion that starts still starts the cloth at rest rightly
 
 
 def test_dataset_needs_motions_and_library_loads(scene):
@@ -297,3 +298,7 @@ def test_sim_preroll_brings_the_cloth_into_the_first_frame_moving(scene):
     assert rest.shape == led.shape and rest.shape[0] == n - 4
     assert np.abs(led[0] - rest[0]).max() > 1e-3  # the pre-roll's motion shows in the first frame written
     assert json.loads((scene["out"] / "led" / "shell_stride" / "summary.json").read_text())["preroll_frames"] == 4
+    # From the motion's own first frame, already moving: bake says so and how to leave that start out.
+    r = run("bake", *common[:-2], "--frames", "0:3", "--out", scene["out"] / "start")
+    assert r.exit_code == 0, r.output
+    assert "stride.npz' moves at 1.5 m/s from its first frame" in r.output and "--frames K: --preroll K" in r.output
