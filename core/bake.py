@@ -16,7 +16,7 @@ from core.body import Body
 from core.deform import Deformer
 from core.garment import Garment
 from core.geometry import penetration_per_frame
-from core.motion import Motion, poses_for_body
+from core.motion import Motion, poses_for_body, written
 
 #: Depth below the body surface at which a garment vertex counts as penetrating.
 PENETRATION_DEPTH_M = 0.002
@@ -65,17 +65,17 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
     t0 = time.perf_counter()
     points = deformer.deform(garment, body, motion)
     t_deform = time.perf_counter() - t0
-    lead = motion.n_lead  # pre-roll: deformed, not kept
-    points = points[lead:]
+    points = points[motion.n_lead:]  # a pre-roll is deformed, not kept
+    shown = written(motion)
     body_points = None
     if with_body or check_penetration:
-        body_points, _ = body.pose(poses_for_body(motion, body.n_joints)[lead:], motion.trans[lead:], motion.betas)
+        body_points, _ = body.pose(poses_for_body(shown, body.n_joints), shown.trans, shown.betas)
     summary = {
         "method": deformer.name,
-        "frames": int(motion.n_frames - lead),
+        "frames": int(shown.n_frames),
         "fps": float(motion.fps),
         "settle_frames": int(motion.n_settle),
-        "preroll_frames": int(lead),
+        "preroll_frames": int(motion.n_lead),
         "garment": {"name": garment.name, "vertices": garment.n_vertices, "faces": garment.n_faces,
                     "sha256": garment.content_hash(),
                     # The outputs are written in the file's own mesh where it differs from the one deformed.

@@ -65,6 +65,11 @@ class Motion:
         return int(self.poses.shape[0])
 
     @property
+    def n_written(self) -> int:
+        """Frames after the lead (`n_lead`): those a bake writes."""
+        return self.n_frames - self.n_lead
+
+    @property
     def layout(self) -> str:
         return layout_for_joint_count(self.poses.shape[1])
 
@@ -154,6 +159,11 @@ def select_frames(motion: Motion, start: int | None, stop: int | None) -> Motion
                          f"selects no frame of motion '{motion.name}' ({motion.n_frames} frames)")
     return replace(motion, poses=motion.poses[sl].copy(), trans=motion.trans[sl].copy(),
                    n_settle=sum(1 for i in idx if i < motion.n_settle), n_lead=sum(1 for i in idx if i < motion.n_lead))
+
+
+def written(motion: Motion) -> Motion:
+    """The motion without its lead frames (`Motion.n_lead`): the frames a bake writes and is measured on."""
+    return select_frames(motion, motion.n_lead, None) if motion.n_lead else motion
 
 
 def preroll(motion: Motion, start: int | None, stop: int | None, n_frames: int) -> Motion:

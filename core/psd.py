@@ -194,6 +194,8 @@ class PSDDeformer(Deformer):
                 out[s:s + batch] = skin_points(points, w, A[s:s + batch]).numpy()
         self.report = {"method": self.name, "fit": {"source": self.source, "rank": self.fit.rank,
                                                     **self.fit.meta}}
-        if self.contact_guard:
-            out, self.report["contact_guard"] = guard_sequence(out, rest, body, poses, motion.trans, betas)
+        if self.contact_guard:  # reported as the model reports it
+            out, guard = guard_sequence(out, rest, body, poses, motion.trans, betas)
+            self.report["seconds_per_frame_guard"] = guard.pop("seconds_per_frame")
+            self.report["contact_guard"] = guard
         return out

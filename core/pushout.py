@@ -22,6 +22,7 @@ skinning (blend shapes pushing cloth into the body, learned weights that drift f
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -154,8 +155,6 @@ def guard_sequence(points: np.ndarray, rest: np.ndarray, body: Body, poses: np.n
     points: (T, V, 3) the sequence (written in place); rest: (V, 3) the garment at rest on the shaped body;
     poses: (T, J, 3) in the body's layout. Returns (points, the report's "contact_guard" entry).
     """
-    import time
-
     t0 = time.perf_counter()
     shaped_body, _ = body.shaped(betas)
     anchors = contact_anchors(np.asarray(rest), shaped_body, outward_faces(shaped_body, body.faces))

@@ -23,7 +23,7 @@ import numpy as np
 from core.body import Body
 from core.deform import Deformer, LBSDeformer
 from core.garment import Garment
-from core.motion import Motion, poses_for_body
+from core.motion import Motion, poses_for_body, written
 
 #: Simulator substeps per frame of the two settings; the finest, with self-contact, is the reference.
 #: VBD (10 iterations a substep) keeps converging with substeps: on the example skirt (walk_brisk, 15
@@ -224,8 +224,8 @@ def compare(measurements: list[Measurement], garment: Garment, body: Body, motio
     from core.metrics import compute_metrics, frames_inside
 
     ref = next(m for m in measurements if m.config.reference)
-    lead = motion.n_lead  # the frames kept (`measure`) follow the pre-roll
-    body_pts, _ = body.pose(poses_for_body(motion, body.n_joints)[lead:], motion.trans[lead:], motion.betas)
+    shown = written(motion)  # the frames `measure` keeps
+    body_pts, _ = body.pose(poses_for_body(shown, body.n_joints), shown.trans, shown.betas)
     inside = frames_inside(lambda p, v, f: points_inside_mesh(p, v, f, depth=PENETRATION_DEPTH_M))
     for m in measurements:
         res = compute_metrics(m.points, ref.points, garment.faces, body_pts, body.faces, inside,

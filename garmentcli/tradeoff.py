@@ -205,7 +205,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                    f"the earlier run" + (f" ({', '.join(reused)})" if reused else ""))
     best = min((r for r in table if r["method"] == "model" and not r["failed"]), key=lambda r: r["e_verts"], default=None)
     lbs = next(r for r in table if r["method"] == "lbs")
-    click.echo(f"{target}: {len(table)} configurations on {motion.n_frames - motion.n_lead} frames; lbs {lbs['e_verts']:.1f} mm at "
+    click.echo(f"{target}: {len(table)} configurations on {motion.n_written} frames; lbs {lbs['e_verts']:.1f} mm at "
                f"{lbs['seconds_per_frame'] * 1e3:.2f} ms/frame"
                + (f", best model row '{best['config']}' {best['e_verts']:.1f} mm at "
                   f"{best['seconds_per_frame'] * 1e3:.1f} ms/frame" if best else "")
@@ -222,14 +222,14 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
         w.writeheader()
         w.writerows(table)
     (directory / "tradeoff.json").write_text(json.dumps(
-        {"garment": str(garment_path), "motion": str(motion_path), "frames": motion.n_frames - motion.n_lead,
+        {"garment": str(garment_path), "motion": str(motion_path), "frames": motion.n_written,
          "preroll_frames": motion.n_lead, "fps": motion.fps,
          "vertices": garment.n_vertices, "rows": table}, indent=1))
     ref = next(r["config"] for r in table if r["reference"])
     done = [r for r in table if not r["failed"]]
     spread = next((r for r in done if r["spread"]), None)
     md = [f"# Speed against accuracy: `{Path(garment_path).name}` on `{Path(motion_path).name}`", "",
-          (f"{motion.n_frames - motion.n_lead} frames at {motion.fps:g} fps"
+          (f"{motion.n_written} frames at {motion.fps:g} fps"
            + (f" after {motion.n_lead} pre-roll frames" if motion.n_lead else "")
            + f", {garment.n_vertices} garment vertices. Errors against "
            f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
