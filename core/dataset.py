@@ -13,6 +13,10 @@ Pure computation; `formats.dataset` stores what this produces and
 - Each motion is cut into clips of at most `frames_per_clip` frames (at the
   dataset's fps); every clip gets `settle_frames` blend frames from the rest pose
   (`core.motion.settle`), stored and flagged by `n_settle`.
+- A clip that does not start its motion is preceded by up to `preroll` frames of the
+  motion before it (`DatasetItem.preroll`), simulated after the settle blend and flagged
+  with it by `n_settle`: the cloth enters the clip moving with the body, as it would
+  in the whole motion, instead of starting there at rest.
 """
 
 from __future__ import annotations
@@ -34,7 +38,8 @@ DEFAULT_BETAS_RANGE = 2.0
 
 @dataclass(frozen=True)
 class DatasetItem:
-    """One sequence to simulate. clip: index of the clip within the motion; body: index into the sampled betas."""
+    """One sequence to simulate. clip: index of the clip within the motion; body: index into the sampled betas.
+    preroll: frames of the motion before start_frame simulated ahead of the clip (after the settle blend)."""
 
     id: str
     garment: str
@@ -44,6 +49,7 @@ class DatasetItem:
     n_frames: int
     body: int
     split: str
+    preroll: int = 0
 
 
 def sample_betas(n_bodies: int, n_betas: int, betas_range: float = DEFAULT_BETAS_RANGE, seed: int = 0) -> np.ndarray:
@@ -108,7 +114,7 @@ def clip_ranges(n_frames: int, frames_per_clip: int | None) -> list[tuple[int, i
 def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies: int,
                frames_per_clip: int | None = None, seed: int = 0,
                max_clips_per_motion: int | None = None, bodies_per_clip: int | None = None,
-               held_out: str | bool | None = None) -> tuple[list[DatasetItem], dict]:
+               held_out: str | bool | None = None, preroll: int = 0) -> tuple[list[DatasetItem], dict]:
     """Items over garments x motion clips x bodies and the split description.
 
     motion_frames: motion name -> frame count at the dataset's fps.
@@ -117,6 +123,7 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
       (body k, k+1, ... modulo n_bodies, k counting the pairs in motion/clip/garment order), so every
       body shape appears at a fraction of the cost; None: every body.
     held_out: the garment kept for the test split (None: drawn with the seed; False: none).
+    preroll: frames of the motion simulated ahead of a clip that does not start it (fewer where it starts sooner).
     Returns (items sorted by id, {"motions": {split: [...]}, "garments": {split: [...]}, "held_out_garments": [...]}).
     """
     if len(set(garment_names)) != len(garment_names):
@@ -126,6 +133,8 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
     per_clip = n_bodies if bodies_per_clip is None else min(bodies_per_clip, n_bodies)
     if per_clip < 1:
         raise InputError(f"--bodies-per-clip: expected at least 1, got {bodies_per_clip}")
+    if preroll < 0:
+        raise InputError(f"--preroll: expected a non-negative number of frames, got {preroll}")
     items, turn = [], 0
     for motion, n in motion_frames.items():
         split = motion_split[motion]
@@ -136,7 +145,8 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
                 turn += per_clip
                 for b in bodies:
                     items.append(DatasetItem(id=f"{g}__{motion}__c{c:02d}__b{b:02d}", garment=g, motion=motion, clip=c,
-                                             start_frame=start, n_frames=stop - start, body=b, split=split))
+                                             start_frame=start, n_frames=stop - start, body=b, split=split,
+                                             preroll=min(preroll, start)))
     items.sort(key=lambda it: it.id)
     splits = {"motions": {s: sorted(m for m, v in motion_split.items() if v == s) for s in ("train", "val", "test")},
               "garments": {s: sorted({it.garment for it in items if it.split == s}) for s in ("train", "val", "test")},
@@ -145,21 +155,23 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
 
 
 def item_motion(motion: Motion, item: DatasetItem, betas: np.ndarray, settle_frames: int) -> Motion:
-    """The clip of `motion` (already at the dataset fps) for `item`, with its body shape and settle blend."""
-    clip = select_frames(motion, item.start_frame, item.start_frame + item.n_frames)
+    """The clip of `motion` (already at the dataset fps) for `item`, after its pre-roll frames, with its body
+    shape and the settle blend into the first of them."""
+    clip = select_frames(motion, item.start_frame - item.preroll, item.start_frame + item.n_frames)
     return settle(replace(clip, betas=np.asarray(betas, dtype=np.float32), name=item.id), settle_frames)
 
 
-def simulate_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer) -> dict:
-    """Run `deformer` on one item's prepared motion; the arrays of a sequence file plus the deformer's report.
+def simulate_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, preroll: int = 0) -> dict:
+    """Run `deformer` on one item's prepared motion (`item_motion`); the arrays of a sequence file plus the
+    deformer's report.
 
     Returns positions (T, V, 3) float32, poses (T, J, 3) float32 in the body's layout, trans (T, 3),
-    betas (S,), fps, n_settle, report (dict).
+    betas (S,), fps, n_settle (the settle blend and the item's `preroll` frames: all before the clip), report.
     """
     positions = deformer.deform(garment, body, motion)
     return {"positions": positions, "poses": poses_for_body(motion, body.n_joints),
             "trans": motion.trans.astype(np.float32), "betas": body.fit_betas(motion.betas),
-            "fps": float(motion.fps), "n_settle": int(motion.n_settle), "report": deformer.report}
+            "fps": float(motion.fps), "n_settle": int(motion.n_settle) + int(preroll), "report": deformer.report}
 
 
 def plan_key(settings: dict) -> str:
@@ -201,6 +213,11 @@ def only_stop_checks_differ(old: dict, new: dict) -> bool:
     return bool(diff) and all(k.startswith("solver.") and k[len("solver."):] in STOP_CHECK_OPTIONS for k in diff)
 
 
+def item_frames(item: DatasetItem, settings: dict) -> int:
+    """Frames simulated for `item`: its settle blend, pre-roll and clip."""
+    return item.n_frames + item.preroll + int(settings.get("settle", 0))
+
+
 def build_manifest(settings: dict, items: list[DatasetItem], splits: dict, betas: np.ndarray, inputs: dict,
                    software: dict) -> dict:
     """The manifest's content: settings (incl. material and solver), inputs' hashes, software, splits, items."""
@@ -214,7 +231,7 @@ def build_manifest(settings: dict, items: list[DatasetItem], splits: dict, betas
                   "per_body": betas.round(6).tolist()},
         "splits": splits,
         "items": [asdict(it) | {"file": f"sequences/{it.id}.npz"} for it in items],
-        "totals": {"items": len(items), "frames": int(sum(it.n_frames + settings.get("settle", 0) for it in items)),
-                   "frames_per_split": {s: int(sum(it.n_frames + settings.get("settle", 0) for it in items
-                                                   if it.split == s)) for s in ("train", "val", "test")}},
+        "totals": {"items": len(items), "frames": int(sum(item_frames(it, settings) for it in items)),
+                   "frames_per_split": {s: int(sum(item_frames(it, settings) for it in items if it.split == s))
+                                        for s in ("train", "val", "test")}},
     }

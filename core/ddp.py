@@ -104,7 +104,7 @@ class DistributedTrainer(Trainer):
         out = []
         for _ in range(self.global_batch):
             seq = train[int(self.rng.integers(len(train)))]
-            frames = np.sort(self.rng.integers(0, seq.n_frames, size=self.config.frames_per_step))
+            frames = seq.draw_frames(self.rng, self.config.frames_per_step)
             out.append((seq, frames))
         return out
 

@@ -73,6 +73,8 @@ class Sequence:
 
     positions: (T, V, 3) float32 world metres (ground truth). poses: (T, J, 3); trans: (T, 3); betas: (S,).
     motion: MotionFeatures. rest: (V, 3) garment rest on the shaped body. body_dist: (N_b, S).
+    n_settle: leading frames of the settle blend from the rest pose (`core.motion.settle`): inputs of the
+    frames after them (their window), never targets, as a bake's motion has no such frames.
     """
 
     item_id: str
@@ -85,10 +87,20 @@ class Sequence:
     motion: MotionFeatures
     rest: torch.Tensor
     body_dist: torch.Tensor
+    n_settle: int = 0
 
     @property
     def n_frames(self) -> int:
         return int(self.positions.shape[0])
+
+    def draw_frames(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """`n` target frames drawn uniformly, with repeats, after the settle blend: (n,) int64 sorted."""
+        return np.sort(rng.integers(self.n_settle, self.n_frames, size=n))
+
+    def even_frames(self, n: int) -> np.ndarray:
+        """Up to `n` target frames evenly spread over those after the settle blend (validation): sorted int64."""
+        first, last = self.n_settle, self.n_frames - 1
+        return np.unique(np.linspace(first, last, min(n, last - first + 1)).round().astype(np.int64))
 
 
 def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Body, garment: GarmentData,
@@ -112,9 +124,14 @@ def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Bo
         raise InputError(f"dataset sequence '{source}': expected trans of shape ({T}, 3), got {tuple(trans.shape)}")
     betas = body.fit_betas(arrays.get("betas"))
     fps = float(np.asarray(arrays["fps"]))
+    n_settle = int(np.asarray(arrays.get("n_settle", 0)))
+    if not 0 <= n_settle < T:
+        raise InputError(f"dataset sequence '{source}': expected n_settle in [0, {T}) (settle frames before the "
+                         f"motion's {T} frames end), got {n_settle}")
     return Sequence(item_id=item_id, garment_name=garment_name, positions=torch.from_numpy(pos), poses=poses,
                     trans=trans, betas=betas, fps=fps, motion=motion_features(body, poses, trans, betas, fps),
-                    rest=shaped_rest(garment.inputs, body, betas), body_dist=body_distances(body, betas))
+                    rest=shaped_rest(garment.inputs, body, betas), body_dist=body_distances(body, betas),
+                    n_settle=n_settle)
 
 
 def _items(manifest: dict, source: str) -> dict:

@@ -188,7 +188,7 @@ class Trainer:
         self.model.train()
         train = self.data.splits["train"]
         seq = train[int(self.rng.integers(len(train)))]
-        frames = np.sort(self.rng.integers(0, seq.n_frames, size=self.config.frames_per_step))
+        frames = seq.draw_frames(self.rng, self.config.frames_per_step)
         phase = self.phase.phase
         frozen = phase >= 2
         terms = frame_losses(self.model, self.data, seq, frames, phase, frozen)
@@ -229,8 +229,7 @@ class Trainer:
         errs, coll = [], []
         with torch.no_grad():
             for seq in self.val:
-                n = min(self.config.val_frames, seq.n_frames)
-                frames = np.unique(np.linspace(0, seq.n_frames - 1, n).round().astype(np.int64))
+                frames = seq.even_frames(self.config.val_frames)
                 terms = frame_losses(self.model, self.data, seq, frames, min(self.phase.phase, 2), True)
                 x = terms["_verts"]
                 errs.append(float((x - seq.positions[torch.as_tensor(frames, device=x.device)]).norm(dim=-1).mean()) * 1e3)

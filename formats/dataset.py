@@ -12,7 +12,7 @@ A sequence file (`np.savez_compressed`) holds:
     trans     (T, 3) float32     root translation, metres, Z-up world
     betas     (S,) float32       body shape coefficients
     fps       () float64         frames per second
-    n_settle  () int64           leading frames that blend from the rest pose (not motion data)
+    n_settle  () int64           leading frames before the clip: the blend from the rest pose, then any pre-roll
     garment   () str             template name (DATA/garments/<garment>.obj)
     garment_sha256 () str        core.garment.Garment.content_hash() of the template
     body      () str             body id (e.g. 'default' or the body file's name)

@@ -28,6 +28,9 @@ def _sha256(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+#: Pre-roll frames ahead of a clip that does not start its motion (0.33 s at the default 30 fps).
+DEFAULT_PREROLL = 10
+
 # Per worker process: inputs loaded once.
 _W: dict = {}
 
@@ -94,7 +97,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
     garment = _W["garments"][item.garment]
     motion = item_motion(_W["motions"][item.motion], item, betas, settle_frames)
     t0 = time.perf_counter()
-    r = simulate_item(garment, _W["body"], motion, _W["deformer"])
+    r = simulate_item(garment, _W["body"], motion, _W["deformer"], item.preroll)
     write_sequence(sequence_path(out_dir, item.id),
                    Sequence(positions=r["positions"], poses=r["poses"], trans=r["trans"], betas=r["betas"],
                             fps=r["fps"], n_settle=r["n_settle"], garment=item.garment,
@@ -137,6 +140,10 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
               help="Write the plan (OUT/manifest.json, OUT/garments) and print its size; simulate nothing.")
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=10, show_default=True,
               help="Blend frames from the rest pose prepended to every clip (stored, flagged by n_settle).")
+@click.option("--preroll", type=click.IntRange(min=0), default=DEFAULT_PREROLL, show_default=True,
+              help="Frames of the motion simulated ahead of every clip that does not start it (after the settle "
+                   "blend; stored and flagged with it by n_settle), so the cloth enters the clip moving with the "
+                   "body instead of starting there at rest, as `bake --preroll`. The first clip has none.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of body shapes and splits.")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="Cloth material JSON (fields of core.sim.Material).")
@@ -150,13 +157,14 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
             pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None, no_held_out=False,
-            dry_run=False, source_fps=None, floor="auto", first=()):
+            dry_run=False, source_fps=None, floor="auto", first=(), preroll=DEFAULT_PREROLL):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
     items), OUT/garments/*.obj and OUT/sequences/<item>.npz.
     """
-    from core.dataset import build_manifest, plan_items, sample_betas, only_stop_checks_differ, settings_difference
+    from core.dataset import (build_manifest, item_frames, only_stop_checks_differ, plan_items, sample_betas,
+                              settings_difference)
     from core.sim import SIMULATOR_VERSION, Material, SimOptions, load_material
     from formats.dataset import (
         copy_garment_template,
@@ -191,7 +199,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
     items, splits = plan_items(sorted(garments), {k: v.n_frames for k, v in motions.items()}, n_bodies,
-                               frames_per_clip, seed, max_clips_per_motion, bodies_per_clip, held_out)
+                               frames_per_clip, seed, max_clips_per_motion, bodies_per_clip, held_out, preroll)
     settings = {"library": library, "fps": fps, "source_fps": source_fps, "frames_per_clip": frames_per_clip,
                 "max_clips_per_motion": max_clips_per_motion, "settle": settle_frames, "bodies": n_bodies,
                 "bodies_per_clip": bodies_per_clip, "held_out": held_out,
@@ -201,6 +209,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 "simulator_version": SIMULATOR_VERSION,
                 # Garment meshes key the plan too: resuming after a garment was edited must not keep its old sequences.
                 "garment_meshes": {k: g.content_hash() for k, g in sorted(garments.items())}}
+    if any(it.preroll for it in items):  # a plan whose clips all start their motions is the same without it
+        settings["preroll"] = preroll
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
               "motions": {name: {"path": str(p), "sha256": _sha256(p)} for name, p in zip(file_motions, motion_paths)},
@@ -242,7 +252,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         init = ([str(Path(p).resolve()) for p in garment_paths], [str(Path(p).resolve()) for p in motion_paths],
                 library, str(Path(body_path).resolve()) if body_path else None, fps, material, options, source_fps)
     calls = [(init, it, betas[it.body], settle_frames, task_out, body_id) for it in todo]
-    frames_of = {it.id: it.n_frames + settle_frames for it in todo}
+    frames_of = {it.id: item_frames(it, settings) for it in todo}
     failed, finished = None, 0
     total_frames, frames_done, t_start = sum(frames_of.values()), 0, time.perf_counter()
     with tqdm(total=total_frames, unit="frame", desc="dataset", disable=None) as bar:

@@ -65,8 +65,10 @@ def sequence(body, v, f, T: int, seed: int, betas):
     return poses, trans, pos.astype(np.float32)
 
 
-def make_dataset(root: Path, T: int = 12) -> Path:
-    """Write a 3-sequence dataset (2 train on garment 'a', 1 val on garment 'b'). Returns root."""
+def make_dataset(root: Path, T: int = 12, n_settle: int = 0, settle_shift_m: float = 0.0) -> Path:
+    """Write a 3-sequence dataset (2 train on garment 'a', 1 val on garment 'b'). Returns root.
+
+    n_settle: the first frames flagged as a settle blend; settle_shift_m: moves their positions along +X."""
     root = Path(root)
     (root / "garments").mkdir(parents=True, exist_ok=True)
     body = tiny_body()
@@ -79,9 +81,10 @@ def make_dataset(root: Path, T: int = 12) -> Path:
         betas[0] = 0.5 * k
         v, f = garments[gname]
         poses, trans, pos = sequence(body, v, f, T, seed, betas)
+        pos[:n_settle, :, 0] += np.float32(settle_shift_m)
         iid = f"s{k}"
         write_sequence(sequence_path(root, iid), DatasetSequence(
-            positions=pos, poses=poses, trans=trans, betas=betas, fps=30.0, n_settle=0, garment=gname,
+            positions=pos, poses=poses, trans=trans, betas=betas, fps=30.0, n_settle=n_settle, garment=gname,
             garment_sha256="", body="tiny"))
         items.append({"id": iid, "garment": gname, "motion": f"m{k}", "split": split, "betas": betas.tolist(),
                       "file": f"sequences/{iid}.npz"})

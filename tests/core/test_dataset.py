@@ -120,3 +120,34 @@ def test_settings_difference_names_nested_added_and_removed_keys():
                                              "solver.substeps: 10 -> 20")
     assert settings_difference(old, new, limit=1) == "gone: 1 -> absent; 2 more"
     assert settings_difference(new, new) == ""
+
+
+def test_preroll_leads_into_every_clip_that_does_not_start_its_motion():
+    from core.dataset import item_frames, item_motion, simulate_item
+    from core.motion import Motion
+
+    items, _ = plan_items(["a"], {"m": 100}, 1, frames_per_clip=30, max_clips_per_motion=3, preroll=12)
+    assert [(it.start_frame, it.preroll) for it in items] == [(0, 0), (30, 12), (60, 12)]
+    assert [it.preroll for it in plan_items(["a"], {"m": 100}, 1, frames_per_clip=30, preroll=45)[0]] == [0, 30, 45, 45]
+    assert item_frames(items[1], {"settle": 4}) == 4 + 12 + 30
+    with pytest.raises(InputError, match="--preroll: expected a non-negative number of frames, got -1"):
+        plan_items(["a"], {"m": 100}, 1, frames_per_clip=30, preroll=-1)
+    rng = np.random.default_rng(0)
+    motion = Motion(poses=rng.normal(0, 0.3, (100, 24, 3)).astype(np.float32),
+                    trans=np.cumsum(np.full((100, 3), 0.01, np.float32), axis=0), fps=30.0, name="m")
+    m = item_motion(motion, items[1], np.zeros(10, np.float32), settle_frames=4)
+    # The settle blend into source frame 18, then frames 18..59: the pre-roll and the clip, in the motion's own poses.
+    assert m.n_frames == 4 + 12 + 30 and m.n_settle == 4
+    np.testing.assert_array_equal(m.poses[4:], motion.poses[18:60])
+    np.testing.assert_array_equal(m.trans[:5], np.repeat(motion.trans[18:19], 5, axis=0))
+
+    class Echo:  # a deformer whose positions are the root translation: where the frames come from
+        report = {"checks": {}}
+
+        def deform(self, garment, body, motion):
+            return np.repeat(motion.trans[:, None], 2, axis=1)
+
+    from tests.meshes import tiny_body
+    r = simulate_item(None, tiny_body(), m, Echo(), preroll=items[1].preroll)
+    assert r["n_settle"] == 4 + 12  # the settle blend and the pre-roll: neither is the clip's data
+    np.testing.assert_array_equal(r["positions"][r["n_settle"]:, 0], motion.trans[30:60])

@@ -1,6 +1,7 @@
 """The hybrid trainer end to end on a tiny synthetic dataset: learns, switches phase, resumes exactly."""
 
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -52,6 +53,38 @@ def test_training_decreases_the_error(data):
     after = _train_error(tr)
     assert after < 0.8 * before
     assert all(r["phase"] == 1 for r in tr.rows)
+
+
+def test_settle_frames_are_never_targets(tmp_path):
+    # The settle blend (frames before n_settle) is input history, not ground truth of a bake's frames: moving
+    # its positions by a metre changes neither a training step's loss nor the validation error.
+    cfg = TrainConfig(steps=6, lr=5e-3, frames_per_step=6, val_every=3, phases=(1,))
+    rows = []
+    for shift in (0.0, 1.0):
+        data = ModelDataset(make_dataset(tmp_path / f"shift{shift}", n_settle=4, settle_shift_m=shift),
+                            tiny_body(), TINY_CONFIG)
+        assert [s.n_settle for s in data.splits["train"]] == [4, 4]
+        tr = Trainer(data, TINY_CONFIG, cfg)
+        tr.run()
+        rows.append([(r["loss"], r.get("val_verts_mm")) for r in tr.rows])
+    assert rows[0] == rows[1]
+    assert all(math.isfinite(v) for _, v in rows[0] if v is not None) and rows[0][2][1] < 1000
+
+
+def test_settle_frames_draws_and_bad_count(tmp_path):
+    data = ModelDataset(make_dataset(tmp_path / "ds", n_settle=4), tiny_body(), TINY_CONFIG)
+    seq = data.splits["train"][0]
+    drawn = seq.draw_frames(np.random.default_rng(0), 500)
+    assert drawn.min() == 4 and drawn.max() == seq.n_frames - 1
+    assert seq.even_frames(32).tolist() == list(range(4, seq.n_frames))
+    assert seq.even_frames(3).tolist() == [4, 8, 11]
+    from core.model_data import sequence_from_arrays
+    from formats.dataset import read_sequence
+    from dataclasses import asdict
+    arrays = asdict(read_sequence(tmp_path / "ds" / "sequences" / "s0.npz"))
+    arrays["n_settle"] = 12
+    with pytest.raises(InputError, match=r"s0.npz.*expected n_settle in \[0, 12\).*got 12"):
+        sequence_from_arrays("s0", "a", arrays, tiny_body(), data.garments["a"], str(tmp_path / "ds" / "sequences" / "s0.npz"))
 
 
 def test_phase_switches_on_forced_plateau(data):

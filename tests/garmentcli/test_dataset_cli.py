@@ -302,3 +302,37 @@ def test_sim_preroll_brings_the_cloth_into_the_first_frame_moving(scene):
     r = run("bake", *common[:-2], "--frames", "0:3", "--out", scene["out"] / "start")
     assert r.exit_code == 0, r.output
     assert "stride.npz' moves at 1.5 m/s from its first frame" in r.output and "--frames K: --preroll K" in r.output
+
+
+def test_dataset_preroll_simulates_the_motion_before_a_later_clip(scene):
+    """Clips of 3 frames from a 6-frame stride: the second is simulated after 2 frames of the motion before it,
+    stored ahead of it and flagged with the settle blend; a plan whose clips all start their motions (one clip)
+    keeps the settings it had before --preroll existed, so such a dataset still resumes."""
+    n = 6
+    poses = np.zeros((n, 72), np.float32)
+    poses[:, :3] = [np.pi / 2, 0, 0]
+    trans = np.zeros((n, 3), np.float32)
+    trans[:, 0] = 1.5 * np.arange(n) / 30.0
+    write_motion(scene["dir"] / "stride.npz", n_frames=n, fps=30.0, poses=poses, trans=trans)
+    base = ["dataset", "--garments", scene["garment"], "--motions", scene["dir"] / "stride.npz", "--body",
+            scene["body"], "--bodies", 1, "--settle", 1, "--substeps", 4, "--floor", "none", "--frames-per-clip", 3]
+    out = scene["dir"] / "led"
+    r = run(*base, "--preroll", 2, "--out", out)
+    assert r.exit_code == 0, r.output
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["settings"]["preroll"] == 2 and [it["preroll"] for it in m["items"]] == [0, 2]
+    assert m["totals"]["frames"] == (1 + 3) + (1 + 2 + 3)
+    first, second = (read_sequence(out / "sequences" / f"shell__stride__c0{c}__b00.npz") for c in (0, 1))
+    assert first.positions.shape[0] == 4 and first.n_settle == 1
+    assert second.positions.shape[0] == 6 and second.n_settle == 3  # settle blend + pre-roll, then the clip
+    np.testing.assert_allclose(second.trans[1:], trans[1:6], atol=1e-6)  # source frames 1, 2 lead into 3..5
+    # The cloth enters the clip carried along: its first frame lies elsewhere than a clip started at rest.
+    r = run(*base, "--preroll", 0, "--out", scene["dir"] / "rest")
+    assert r.exit_code == 0, r.output
+    rest = read_sequence(scene["dir"] / "rest" / "sequences" / "shell__stride__c01__b00.npz")
+    assert rest.n_settle == 1 and "preroll" not in json.loads((scene["dir"] / "rest" / "manifest.json").read_text())["settings"]
+    assert np.abs(second.positions[3] - rest.positions[1]).max() > 1e-3
+    # One clip per motion: no pre-roll anywhere, the plan's settings as without the option.
+    r = run(*base, "--max-clips-per-motion", 1, "--dry-run", "--out", scene["dir"] / "one")
+    assert r.exit_code == 0, r.output
+    assert "preroll" not in json.loads((scene["dir"] / "one" / "manifest.json").read_text())["settings"]
