@@ -154,10 +154,11 @@ class ModelDataset:
     root: dataset directory. body: the body the sequences were simulated on. splits: which to load.
     cache_dir: preprocessing cache (None = compute). partial: load the sequences simulated so far of a dataset
     whose `garment dataset` run has not finished (`missing` counts the others per split) instead of refusing it.
+    garments: load only these garments' sequences (a garment's own fine-tune); None: every garment.
     """
 
     def __init__(self, root, body: Body, config: ModelConfig, splits=("train", "val"), cache_dir=None,
-                 partial: bool = False):
+                 partial: bool = False, garments=None):
         from dataclasses import asdict
 
         from formats.dataset import MANIFEST, read_manifest, read_sequence
@@ -176,6 +177,13 @@ class ModelDataset:
         if unknown:
             raise InputError(f"dataset manifest '{mpath}': expected every item's 'split' to be train, val or test, "
                              f"got {unknown[0]!r}")
+        if garments is not None:
+            known = {str(rec.get("garment")) for rec in items.values()}
+            unknown = sorted(set(garments) - known)
+            if unknown:
+                raise InputError(f"dataset '{self.root}': expected a garment of its sequences "
+                                 f"({', '.join(sorted(known))}), got '{unknown[0]}'")
+            items = {i: rec for i, rec in items.items() if str(rec.get("garment")) in set(garments)}
         missing = [i for i, rec in items.items() if rec["split"] in splits and not self._file(i, rec).is_file()]
         if missing and not partial:
             raise InputError(f"dataset '{self.root}': {len(missing)} of {len(items)} sequences are missing (e.g. "

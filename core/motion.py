@@ -179,13 +179,25 @@ def preroll(motion: Motion, start: int | None, stop: int | None, n_frames: int) 
     return replace(select_frames(motion, begin - lead, begin + first.n_frames), n_lead=lead)
 
 
-def settle(motion: Motion, n_frames: int) -> Motion:
-    """Prepend `n_frames` frames that blend from the rest pose into the first frame.
+def blend_in(first_pose: np.ndarray, n_frames: int) -> np.ndarray:
+    """The `n_frames` poses (n, J, 3) float32 that blend from the rest pose into `first_pose` (J, 3), the
+    first of them the rest pose itself (the frame after them is `first_pose`).
 
-    The root orientation and translation of frame 0 are held; every other joint
-    slerps from identity (T-pose) to its frame-0 rotation, so a garment authored
-    on the rest body starts outside the posed body.
+    The root orientation is held; every other joint slerps from identity (T-pose) to its rotation in
+    `first_pose`. The settle blend (`settle`), the simulator's internal lead-in and the model's
+    (`core.model_deform.ModelDeformer`) are these frames, with the root translation held too.
     """
+    q_first = axis_angle_to_quat(np.asarray(first_pose))
+    q_rest = np.zeros_like(q_first)
+    q_rest[:, 0] = 1.0
+    q_rest[0] = q_first[0]
+    t = np.arange(n_frames, dtype=np.float64) / n_frames  # 0 .. (K-1)/K, frame 0 itself follows
+    return quat_to_axis_angle(quat_slerp(q_rest[None], q_first[None], t[:, None])).astype(np.float32)
+
+
+def settle(motion: Motion, n_frames: int) -> Motion:
+    """Prepend `n_frames` frames that blend from the rest pose into the first frame (`blend_in`), so a
+    garment authored on the rest body starts outside the posed body."""
     if n_frames < 0:
         raise InputError(f"--settle: expected a non-negative number of frames, got {n_frames}")
     if n_frames == 0:
@@ -193,17 +205,9 @@ def settle(motion: Motion, n_frames: int) -> Motion:
     if motion.n_lead:
         raise InputError(f"motion '{motion.name}': a settle blend goes before its first frame, which is a "
                          "pre-roll's (--settle and --preroll exclude each other)")
-    first = motion.poses[0]
-    q_first = axis_angle_to_quat(first)
-    q_rest = np.zeros_like(q_first)
-    q_rest[:, 0] = 1.0
-    q_rest[0] = q_first[0]
-    t = np.arange(n_frames, dtype=np.float64) / n_frames  # 0 .. (K-1)/K, frame 0 itself follows
-    q = quat_slerp(q_rest[None], q_first[None], t[:, None])
-    blend = quat_to_axis_angle(q).astype(np.float32)
-    poses = np.concatenate([blend, motion.poses])
-    trans = np.concatenate([np.repeat(motion.trans[:1], n_frames, axis=0), motion.trans])
-    return replace(motion, poses=poses, trans=trans, n_settle=motion.n_settle + n_frames)
+    trans = np.repeat(motion.trans[:1], n_frames, axis=0)
+    return replace(motion, poses=np.concatenate([blend_in(motion.poses[0], n_frames), motion.poses]),
+                   trans=np.concatenate([trans, motion.trans]), n_settle=motion.n_settle + n_frames)
 
 
 #: A motion whose body points its head along world +Y (cosine above this) in Y_UP_SHARE of its frames

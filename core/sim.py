@@ -51,7 +51,7 @@ from core.errors import InputError
 from core.garment import Garment, boundary_loops, edge_face_counts, mesh_edges
 from core.geodesic import geodesic_graph, geodesic_neighbourhood
 from core.geometry import TriangleMesh, face_cross, outward_faces
-from core.motion import Motion, poses_for_body, settle
+from core.motion import Motion, blend_in, poses_for_body
 from core.provenance import package_version
 from core.scene import SceneAnalysis, analyse_collisions, lbs_preview
 from core.skinning import bind_garment, shaped_garment
@@ -813,9 +813,7 @@ class SimDeformer(Deformer):
         rest_pose[0, 0] = poses[0, 0]
         pre = []  # internal blend frames (rest -> frame 0), not output
         if motion.n_settle == 0 and o.blend_frames > 0:
-            one = Motion(poses=motion.poses[:1], trans=motion.trans[:1], fps=motion.fps, name=motion.name)
-            blended = settle(one, o.blend_frames)
-            pre = poses_for_body(blended, body.n_joints)[1:o.blend_frames]  # [0] is the rest pose itself
+            pre = blend_in(poses[0], o.blend_frames)[1:]  # [0] is the rest pose itself
         all_poses = np.concatenate([rest_pose, *([pre] if len(pre) else []), poses])
         all_trans = np.concatenate([motion.trans[:1], np.repeat(motion.trans[:1], len(pre), axis=0), motion.trans])
         body_pts, _, transforms = body.pose_with_transforms(all_poses, all_trans, betas)

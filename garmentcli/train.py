@@ -72,9 +72,12 @@ def _parse_phases(text: str) -> tuple:
               "default model on simulations with self-contact); a 'model' section in --config is then an error.")
 @click.option("--partial", is_flag=True, help="Train on the sequences simulated so far of a dataset whose "
               "`garment dataset` run has not finished (the model card records how many were missing).")
+@click.option("--garment", "garments", multiple=True, metavar="NAME",
+              help="Train on this garment's sequences only (repeatable; the dataset's garments/NAME.obj): with "
+                   "--init, a garment's own fine-tune of a model.")
 @input_errors_as_click
 def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-          sequences_per_step=1, device="cpu", time_limit=None, init_path=None, partial=False):
+          sequences_per_step=1, device="cpu", time_limit=None, init_path=None, partial=False, garments=()):
     """Train the garment model on a simulator dataset (phases switch on validation plateaus).
 
     Under `torchrun --nproc_per_node N` it trains with DistributedDataParallel (gloo on CPU); only
@@ -90,7 +93,7 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
     try:
         _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
                sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None,
-               dev, time_limit, init_path, partial)
+               dev, time_limit, init_path, partial, garments)
         if world > 1:
             import torch.distributed as dist
 
@@ -122,7 +125,7 @@ def _parse_device(text: str):
 
 def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
            sequences_per_step, rank, world, parallel_trainer, device=torch.device("cpu"), time_limit=None,
-           init_path=None, partial=False):
+           init_path=None, partial=False, garments=()):
     import os
 
     from core.model_data import ModelDataset
@@ -158,7 +161,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     if not resume and ckpt_path.exists():
         raise click.ClickException(f"checkpoint '{ckpt_path}' exists: pass --resume to continue it, or remove it")
 
-    data = ModelDataset(data_dir, body, model_cfg, cache_dir=cache_dir, partial=partial)
+    data = ModelDataset(data_dir, body, model_cfg, cache_dir=cache_dir, partial=partial, garments=garments or None)
     if parallel_trainer is None:
         trainer = Trainer(data, model_cfg, train_cfg, device=device)
     else:
@@ -187,7 +190,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
                                          "data": str(data_dir), "init": init_path, "processes": world,
                                          "device": str(device), "sequences_per_step": sequences_per_step,
-                                         "sequences_missing": data.missing}, indent=2))
+                                         "sequences_missing": data.missing, "garments": sorted(data.garments)}, indent=2))
     # Only rank 0 writes: the others log into the null device.
     with (open(csv_path, "w", newline="") if main else open(os.devnull, "w")) as fh:
         writer = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
@@ -211,11 +214,15 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         if init is not None and init.get("meta", {}).get("joint_coverage") is not None:  # it has seen both datasets
             coverage = [max(a, b) for a, b in zip(coverage, init["meta"]["joint_coverage"])]
 
+        # The model's lead-in at bake time: the settle blend its training sequences start with (core.model_deform).
+        lead_in = data.manifest.get("settings", {}).get("settle")
+
         def snapshot(tr, phase):
             if main:  # the model at the end of `phase`, e.g. MODEL.phase1.pt
                 save_checkpoint(out.with_name(f"{out.stem}.phase{phase}{out.suffix}"), model_cfg,
                                 {k: v.cpu() for k, v in tr.model.state_dict().items()},
-                                meta={"steps": tr.step, "phase": phase, "of": out.name, "joint_coverage": coverage})
+                                meta={"steps": tr.step, "phase": phase, "of": out.name, "joint_coverage": coverage,
+                                      "lead_in_frames": lead_in})
 
         trainer.progress = progress
         trainer.on_switch = snapshot
@@ -227,8 +234,9 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
             "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name, "joint_coverage": coverage,
+            "lead_in_frames": lead_in,
             "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
-            "sequences_missing": data.missing}
+            "sequences_missing": data.missing, "garments": sorted(data.garments)}
     if not main:
         return
     save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)

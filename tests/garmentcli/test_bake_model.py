@@ -54,9 +54,11 @@ def test_model_on_every_example_garment_within_its_training_range(garment, tmp_p
     gap = np.linalg.norm(default - lbs, axis=-1)
     extent = float(np.ptp(lbs[0], axis=0).max())
     # The network corrects LBS (it is not LBS: trained blend shapes and weights move vertices) and stays
-    # bounded: on average within a tenth of the garment's size of the LBS garment, no vertex further than half.
+    # bounded: on average within a tenth of the garment's size of the LBS garment, no vertex further than its
+    # size. (Not half of it: on these frames the simulator itself takes a skirt vertex 0.37 m, 0.71 of the
+    # skirt's size, from where LBS puts it; the model 0.28 m, 31 mm from the simulator on average, LBS 63 mm.)
     assert 1e-3 < gap.mean() < 0.1 * extent, (gap.mean(), extent)
-    assert gap.max() < 0.5 * extent, (gap.max(), extent)
+    assert gap.max() < extent, (gap.max(), extent)
 
 
 def test_garment_outside_the_training_range_is_baked_with_lbs_unless_the_model_is_asked_for(tmp_path):

@@ -214,6 +214,40 @@ def test_train_partial_uses_the_sequences_simulated_so_far(setup, tmp_path):
 
     meta = load_checkpoint(tmp_path / "m.pt")["meta"]
     assert meta["sequences"] == {"train": 1, "val": 1} and meta["sequences_missing"] == {"train": 1, "val": 0}
+    assert meta["lead_in_frames"] is None  # a manifest without `garment dataset`'s settings: the default lead-in
     (part / "sequences" / "s2.npz").unlink()
     r = _train(root, part, body, cfg, tmp_path / "n.pt", "--steps", "2", "--partial")
     assert r.exit_code != 0 and "expected sequences in its 'val' split, got none simulated yet" in r.output
+
+
+def test_train_records_the_datasets_settle_blend_as_the_models_lead_in(setup, tmp_path):
+    """Its training sequences start with the dataset's settle blend, so a bake gives the model's window the same."""
+    import shutil
+
+    from core.model_deform import load_model_deformer
+    from formats.checkpoint import load_checkpoint
+
+    root, data, body, cfg = setup
+    copy = tmp_path / "ds"
+    shutil.copytree(data, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    manifest["settings"] = {"settle": 3}
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    r = _train(root, copy, body, cfg, tmp_path / "m.pt", "--steps", "2")
+    assert r.exit_code == 0, r.output
+    assert load_checkpoint(tmp_path / "m.pt")["meta"]["lead_in_frames"] == 3
+    assert load_model_deformer(tmp_path / "m.pt").lead_in_frames == 3
+
+
+def test_train_garment_trains_on_that_garments_sequences_only(setup, tmp_path):
+    """--garment NAME: a garment's own fine-tune; a name the dataset has no sequences of is refused, naming them."""
+    from formats.checkpoint import load_checkpoint
+
+    root, data, body, cfg = setup
+    r = _train(root, data, body, cfg, tmp_path / "a.pt", "--steps", "2", "--garment", "a")
+    assert r.exit_code == 0, r.output
+    meta = load_checkpoint(tmp_path / "a.pt")["meta"]
+    assert meta["garments"] == ["a"] and meta["sequences"] == {"train": 2, "val": 0}
+    r = _train(root, data, body, cfg, tmp_path / "z.pt", "--steps", "2", "--garment", "z")
+    assert r.exit_code != 0 and "expected a garment of its sequences (a, b), got 'z'" in r.output
+    assert "Traceback" not in r.output and not (tmp_path / "z.pt").exists()
