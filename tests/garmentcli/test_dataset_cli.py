@@ -275,15 +275,21 @@ def test_first_simulates_a_garments_sequences_before_the_others(scene, monkeypat
     assert not (scene["dir"] / "bad").exists()
 
 
-def test_sim_preroll_brings_the_cloth_into_the_first_frame_moving(scene):
-    """A body walking at 1.5 m/s from the first frame: with --frames 4: the cloth starts at rest at frame 4 (and
-    bake says so); with --preroll 4 it was simulated from frame 0 and arrives there carried along, elsewhere."""
-    n = 8
+def stride(path, n):
+    """Write an n-frame motion of a body gliding along +X at 1.5 m/s from its first frame; returns its trans."""
     poses = np.zeros((n, 72), np.float32)
     poses[:, :3] = [np.pi / 2, 0, 0]
     trans = np.zeros((n, 3), np.float32)
     trans[:, 0] = 1.5 * np.arange(n) / 30.0
-    write_motion(scene["dir"] / "stride.npz", n_frames=n, fps=30.0, poses=poses, trans=trans)
+    write_motion(path, n_frames=n, fps=30.0, poses=poses, trans=trans)
+    return trans
+
+
+def test_sim_preroll_brings_the_cloth_into_the_first_frame_moving(scene):
+    """A body walking at 1.5 m/s from the first frame: with --frames 4: the cloth starts at rest at frame 4 (and
+    bake says so); with --preroll 4 it was simulated from frame 0 and arrives there carried along, elsewhere."""
+    n = 8
+    stride(scene["dir"] / "stride.npz", n)
     common = [scene["garment"], scene["dir"] / "stride.npz", "--body", scene["body"], "--method", "sim",
               "--substeps", 4, "--floor", "none", "--no-obj", "--no-body", "--frames", "4:"]
     r = run("bake", *common, "--out", scene["out"] / "rest")
@@ -309,11 +315,7 @@ def test_dataset_preroll_simulates_the_motion_before_a_later_clip(scene):
     stored ahead of it and flagged with the settle blend; a plan whose clips all start their motions (one clip)
     keeps the settings it had before --preroll existed, so such a dataset still resumes."""
     n = 6
-    poses = np.zeros((n, 72), np.float32)
-    poses[:, :3] = [np.pi / 2, 0, 0]
-    trans = np.zeros((n, 3), np.float32)
-    trans[:, 0] = 1.5 * np.arange(n) / 30.0
-    write_motion(scene["dir"] / "stride.npz", n_frames=n, fps=30.0, poses=poses, trans=trans)
+    trans = stride(scene["dir"] / "stride.npz", n)
     base = ["dataset", "--garments", scene["garment"], "--motions", scene["dir"] / "stride.npz", "--body",
             scene["body"], "--bodies", 1, "--settle", 1, "--substeps", 4, "--floor", "none", "--frames-per-clip", 3]
     out = scene["dir"] / "led"
