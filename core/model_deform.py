@@ -82,9 +82,9 @@ MAX_UNCOVERED_SHARE = 0.05
 DEFAULT_BATCH_FRAMES = {"cpu": 2}
 
 
-#: Lead-in frames of a model whose checkpoint records none (meta "lead_in_frames"): the settle blend of the
-#: datasets the shipped models were trained on (README: `garment dataset ... --settle 6`).
-DEFAULT_LEAD_IN_FRAMES = 6
+#: Lead-in of a model whose checkpoint records none (meta "lead_in_s"), seconds: the settle blend of the
+#: datasets the shipped models were trained on (README: `garment dataset ... --settle 6` at 30 fps).
+DEFAULT_LEAD_IN_S = 0.2
 
 
 def default_batch_frames(device: torch.device | str) -> int:
@@ -124,8 +124,9 @@ class ModelDeformer(Deformer):
     precision: "float32", or "bfloat16" (the network under autocast; skinning weights and the final
     world-space skinning stay float32). The network runs on the device of `model`'s parameters.
 
-    lead_in_frames: a motion without settle frames of its own starts, in the network's input window only, with
-    this many frames blending from the rest pose into its first frame (`core.motion.blend_in`; not output).
+    lead_in_s: a motion without settle frames of its own starts, in the network's input window only, with
+    this many seconds of frames blending from the rest pose into its first frame (`core.motion.blend_in`; not
+    output; in seconds, so the blend turns the joints as fast at any frame rate).
     That is how every training sequence starts (the dataset's settle blend) and how the simulator starts a
     bake (its internal blend): the window then holds what the simulator's cloth went through, not a body
     that stood still in its first pose forever. On the held-out walk of the tradeoff scenes, against the
@@ -136,7 +137,7 @@ class ModelDeformer(Deformer):
 
     def __init__(self, model: GarmentModel, batch_frames: int | None = None, cache_dir=None, model_name: str = "model",
                  precision: str = "float32", coverage=None, contact_guard: bool = True,
-                 lead_in_frames: int | None = None):
+                 lead_in_s: float | None = None):
         super().__init__()
         if precision not in PRECISIONS:
             raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -150,9 +151,9 @@ class ModelDeformer(Deformer):
         self._garments: dict = {}
         #: Keep vertices outside the body faces they rest on (`core.pushout.guard_contact`).
         self.contact_guard = contact_guard
-        self.lead_in_frames = DEFAULT_LEAD_IN_FRAMES if lead_in_frames is None else int(lead_in_frames)
-        if self.lead_in_frames < 0:
-            raise InputError(f"model lead-in: expected a non-negative number of frames, got {lead_in_frames!r}")
+        self.lead_in_s = DEFAULT_LEAD_IN_S if lead_in_s is None else float(lead_in_s)
+        if not (np.isfinite(self.lead_in_s) and self.lead_in_s >= 0):
+            raise InputError(f"model lead-in: expected a non-negative number of seconds, got {lead_in_s!r}")
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         if body.n_joints != self.model.config.n_joints:
@@ -176,7 +177,8 @@ class ModelDeformer(Deformer):
         g = tensors_to(self._garments[(garment.content_hash(), id(body))].inputs, device)
         betas = body.fit_betas(motion.betas)
         poses = poses_for_body(motion, body.n_joints)
-        lead = self.lead_in_frames if motion.n_settle == 0 else 0  # a settle blend of its own is one already
+        # A settle blend of its own is one already.
+        lead = int(round(self.lead_in_s * motion.fps)) if motion.n_settle == 0 else 0
         window_poses = np.concatenate([blend_in(poses[0], lead), poses]) if lead else poses
         window_trans = np.concatenate([np.repeat(motion.trans[:1], lead, axis=0), motion.trans]) if lead else motion.trans
         mf = tensors_to(motion_features(body, window_poses, window_trans, betas, motion.fps), device)
@@ -226,5 +228,5 @@ def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
                              "pass --model PATH or use --method lbs")
         path = DEFAULT_MODEL
     model, data = load_model(path)
-    kwargs.setdefault("lead_in_frames", data["meta"].get("lead_in_frames"))
+    kwargs.setdefault("lead_in_s", data["meta"].get("lead_in_s"))
     return ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"), **kwargs)

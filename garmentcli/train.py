@@ -215,14 +215,15 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             coverage = [max(a, b) for a, b in zip(coverage, init["meta"]["joint_coverage"])]
 
         # The model's lead-in at bake time: the settle blend its training sequences start with (core.model_deform).
-        lead_in = data.manifest.get("settings", {}).get("settle")
+        settings = data.manifest.get("settings", {})
+        lead_in = (settings["settle"] / settings["fps"]) if {"settle", "fps"} <= set(settings) else None
 
         def snapshot(tr, phase):
             if main:  # the model at the end of `phase`, e.g. MODEL.phase1.pt
                 save_checkpoint(out.with_name(f"{out.stem}.phase{phase}{out.suffix}"), model_cfg,
                                 {k: v.cpu() for k, v in tr.model.state_dict().items()},
                                 meta={"steps": tr.step, "phase": phase, "of": out.name, "joint_coverage": coverage,
-                                      "lead_in_frames": lead_in})
+                                      "lead_in_s": lead_in})
 
         trainer.progress = progress
         trainer.on_switch = snapshot
@@ -234,7 +235,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
             "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name, "joint_coverage": coverage,
-            "lead_in_frames": lead_in,
+            "lead_in_s": lead_in,
             "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
             "sequences_missing": data.missing, "garments": sorted(data.garments)}
     if not main:

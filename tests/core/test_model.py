@@ -227,9 +227,9 @@ def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     """A motion without settle frames starts, in the network's window only, with the blend from the rest pose
     its training sequences start with: the same frames as baking the motion with that settle blend and
     dropping it; frames whose window no longer reaches it are unchanged; a motion with its own settle blend
-    gets none; the checkpoint's "lead_in_frames" sets it."""
+    gets none; the checkpoint's "lead_in_s" sets it, in seconds."""
     from core.garment import Garment
-    from core.model_deform import DEFAULT_LEAD_IN_FRAMES, ModelDeformer, load_model_deformer
+    from core.model_deform import DEFAULT_LEAD_IN_S, ModelDeformer, load_model_deformer
     from core.motion import Motion, settle
     from formats.checkpoint import save_checkpoint
 
@@ -238,10 +238,10 @@ def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     garment = Garment(v, f)
     poses, trans, _ = sequence(body, v, f, 9, 0, None)
     motion = Motion(poses=poses, trans=trans, fps=30.0)
-    led = ModelDeformer(model, lead_in_frames=4, contact_guard=False)
+    led = ModelDeformer(model, lead_in_s=4 / 30, contact_guard=False)
     out = led.deform(garment, body, motion)
     assert led.report["lead_in_frames"] == 4
-    plain = ModelDeformer(model, lead_in_frames=0, contact_guard=False)
+    plain = ModelDeformer(model, lead_in_s=0, contact_guard=False)
     blended = plain.deform(garment, body, settle(motion, 4))
     assert plain.report["lead_in_frames"] == 0  # the settle blend is the motion's own: no lead-in on top
     np.testing.assert_allclose(out, blended[4:], atol=1e-5)
@@ -249,14 +249,16 @@ def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     w = TINY_CONFIG.window
     assert np.abs(out[0] - still[0]).max() > 1e-4  # the first frame's window holds the blend, not a still body
     np.testing.assert_allclose(out[w + 1:], still[w + 1:], atol=1e-5)  # past the window (and frame 0's rates)
-    assert ModelDeformer(model).lead_in_frames == DEFAULT_LEAD_IN_FRAMES
+    led.deform(garment, body, Motion(poses=poses, trans=trans, fps=60.0))
+    assert led.report["lead_in_frames"] == 8  # as many seconds at twice the frame rate
+    assert ModelDeformer(model).lead_in_s == DEFAULT_LEAD_IN_S
     with pytest.raises(InputError, match="lead-in"):
-        ModelDeformer(model, lead_in_frames=-1)
-    path = save_checkpoint(tmp_path / "m.pt", TINY_CONFIG, model.state_dict(), meta={"lead_in_frames": 3})
-    assert load_model_deformer(path).lead_in_frames == 3
-    assert load_model_deformer(path, lead_in_frames=0).lead_in_frames == 0
+        ModelDeformer(model, lead_in_s=-1)
+    path = save_checkpoint(tmp_path / "m.pt", TINY_CONFIG, model.state_dict(), meta={"lead_in_s": 0.1})
+    assert load_model_deformer(path).lead_in_s == 0.1
+    assert load_model_deformer(path, lead_in_s=0).lead_in_s == 0
     path = save_checkpoint(tmp_path / "n.pt", TINY_CONFIG, model.state_dict())
-    assert load_model_deformer(path).lead_in_frames == DEFAULT_LEAD_IN_FRAMES
+    assert load_model_deformer(path).lead_in_s == DEFAULT_LEAD_IN_S
 
 
 def test_pooled_body_velocities_match_posing_every_vertex(body):

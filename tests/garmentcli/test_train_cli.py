@@ -214,7 +214,7 @@ def test_train_partial_uses_the_sequences_simulated_so_far(setup, tmp_path):
 
     meta = load_checkpoint(tmp_path / "m.pt")["meta"]
     assert meta["sequences"] == {"train": 1, "val": 1} and meta["sequences_missing"] == {"train": 1, "val": 0}
-    assert meta["lead_in_frames"] is None  # a manifest without `garment dataset`'s settings: the default lead-in
+    assert meta["lead_in_s"] is None  # a manifest without `garment dataset`'s settings: the default lead-in
     (part / "sequences" / "s2.npz").unlink()
     r = _train(root, part, body, cfg, tmp_path / "n.pt", "--steps", "2", "--partial")
     assert r.exit_code != 0 and "expected sequences in its 'val' split, got none simulated yet" in r.output
@@ -231,12 +231,12 @@ def test_train_records_the_datasets_settle_blend_as_the_models_lead_in(setup, tm
     copy = tmp_path / "ds"
     shutil.copytree(data, copy)
     manifest = json.loads((copy / "manifest.json").read_text())
-    manifest["settings"] = {"settle": 3}
+    manifest["settings"] = {"settle": 3, "fps": 30.0}
     (copy / "manifest.json").write_text(json.dumps(manifest))
     r = _train(root, copy, body, cfg, tmp_path / "m.pt", "--steps", "2")
     assert r.exit_code == 0, r.output
-    assert load_checkpoint(tmp_path / "m.pt")["meta"]["lead_in_frames"] == 3
-    assert load_model_deformer(tmp_path / "m.pt").lead_in_frames == 3
+    assert load_checkpoint(tmp_path / "m.pt")["meta"]["lead_in_s"] == 0.1
+    assert load_model_deformer(tmp_path / "m.pt").lead_in_s == 0.1
 
 
 def test_train_garment_trains_on_that_garments_sequences_only(setup, tmp_path):
