@@ -73,8 +73,8 @@ class Sequence:
 
     positions: (T, V, 3) float32 world metres (ground truth). poses: (T, J, 3); trans: (T, 3); betas: (S,).
     motion: MotionFeatures. rest: (V, 3) garment rest on the shaped body. body_dist: (N_b, S).
-    n_settle: leading frames of the settle blend from the rest pose (`core.motion.settle`): inputs of the
-    frames after them (their window), never targets, as a bake's motion has no such frames.
+    n_settle: leading frames before the clip, the settle blend from the rest pose (`core.motion.settle`) and
+    any pre-roll (`garment dataset --preroll`): inputs of the frames after them (their window), never targets.
     """
 
     item_id: str

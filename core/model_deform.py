@@ -208,7 +208,8 @@ class ModelDeformer(Deformer):
             out, guard = guard_sequence(out, rest.cpu().numpy(), body, poses, motion.trans, betas)
         self.report = {"method": self.name, "model": self.model_name, "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
-                       "lead_in_frames": lead, "encode_seconds": t1 - t0, "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
+                       "lead_in_frames": lead, "encode_seconds": t1 - t0,
+                       "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
         if guard is not None:
