@@ -179,11 +179,12 @@ class ModelDataset:
                              f"got {unknown[0]!r}")
         if garments is not None:
             known = {str(rec.get("garment")) for rec in items.values()}
-            unknown = sorted(set(garments) - known)
+            garments = set(garments)
+            unknown = sorted(garments - known)
             if unknown:
                 raise InputError(f"dataset '{self.root}': expected a garment of its sequences "
                                  f"({', '.join(sorted(known))}), got '{unknown[0]}'")
-            items = {i: rec for i, rec in items.items() if str(rec.get("garment")) in set(garments)}
+            items = {i: rec for i, rec in items.items() if str(rec.get("garment")) in garments}
         missing = [i for i, rec in items.items() if rec["split"] in splits and not self._file(i, rec).is_file()]
         if missing and not partial:
             raise InputError(f"dataset '{self.root}': {len(missing)} of {len(items)} sequences are missing (e.g. "

@@ -28,7 +28,7 @@ from core.model import (
     window_index,
 )
 from core.model_data import prepare_garment
-from core.motion import Motion, blend_in, poses_for_body
+from core.motion import Motion, poses_for_body, prepend_blend
 from core.pushout import guard_sequence
 from core.scene import SceneAnalysis, scene_levels
 
@@ -125,7 +125,7 @@ class ModelDeformer(Deformer):
     world-space skinning stay float32). The network runs on the device of `model`'s parameters.
 
     lead_in_s: a motion without settle frames of its own starts, in the network's input window only, with
-    this many seconds of frames blending from the rest pose into its first frame (`core.motion.blend_in`; not
+    this many seconds of frames blending from the rest pose into its first frame (`core.motion.prepend_blend`; not
     output; in seconds, so the blend turns the joints as fast at any frame rate).
     That is how every training sequence starts (the dataset's settle blend) and how the simulator starts a
     bake (its internal blend): the window then holds what the simulator's cloth went through, not a body
@@ -179,8 +179,7 @@ class ModelDeformer(Deformer):
         poses = poses_for_body(motion, body.n_joints)
         # A settle blend of its own is one already.
         lead = int(round(self.lead_in_s * motion.fps)) if motion.n_settle == 0 else 0
-        window_poses = np.concatenate([blend_in(poses[0], lead), poses]) if lead else poses
-        window_trans = np.concatenate([np.repeat(motion.trans[:1], lead, axis=0), motion.trans]) if lead else motion.trans
+        window_poses, window_trans = prepend_blend(poses, motion.trans, lead)
         mf = tensors_to(motion_features(body, window_poses, window_trans, betas, motion.fps), device)
         rest = shaped_rest(g, body, betas)
         batch = self.batch_frames or default_batch_frames(device)
@@ -203,7 +202,7 @@ class ModelDeformer(Deformer):
                                                 skip_joints=scene.enabled("joints"))
                 out[s:s + len(fr)] = res.verts.float().cpu().numpy()
         t2 = time.perf_counter()
-        guard = None
+        guard = {}
         if self.contact_guard:  # outside autocast: the body is posed in float32
             out, guard = guard_sequence(out, rest.cpu().numpy(), body, poses, motion.trans, betas)
         self.report = {"method": self.name, "model": self.model_name, "batch_frames": batch,
@@ -212,9 +211,7 @@ class ModelDeformer(Deformer):
                        "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
-        if guard is not None:
-            self.report["seconds_per_frame_guard"] = guard.pop("seconds_per_frame")
-            self.report["contact_guard"] = guard
+        self.report.update(guard)
         self.scene = scene.report
         return out
 

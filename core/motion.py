@@ -195,6 +195,15 @@ def blend_in(first_pose: np.ndarray, n_frames: int) -> np.ndarray:
     return quat_to_axis_angle(quat_slerp(q_rest[None], q_first[None], t[:, None])).astype(np.float32)
 
 
+def prepend_blend(poses: np.ndarray, trans: np.ndarray, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """`poses` (T, J, 3) and `trans` (T, 3) after `n_frames` frames blending into their first frame
+    (`blend_in`, the root translation held): the settle blend's frames (`settle`) and the model's lead-in."""
+    if n_frames == 0:
+        return poses, trans
+    return (np.concatenate([blend_in(poses[0], n_frames), poses]),
+            np.concatenate([np.repeat(trans[:1], n_frames, axis=0), trans]))
+
+
 def settle(motion: Motion, n_frames: int) -> Motion:
     """Prepend `n_frames` frames that blend from the rest pose into the first frame (`blend_in`), so a
     garment authored on the rest body starts outside the posed body."""
@@ -205,9 +214,8 @@ def settle(motion: Motion, n_frames: int) -> Motion:
     if motion.n_lead:
         raise InputError(f"motion '{motion.name}': a settle blend goes before its first frame, which is a "
                          "pre-roll's (--settle and --preroll exclude each other)")
-    trans = np.repeat(motion.trans[:1], n_frames, axis=0)
-    return replace(motion, poses=np.concatenate([blend_in(motion.poses[0], n_frames), motion.poses]),
-                   trans=np.concatenate([trans, motion.trans]), n_settle=motion.n_settle + n_frames)
+    poses, trans = prepend_blend(motion.poses, motion.trans, n_frames)
+    return replace(motion, poses=poses, trans=trans, n_settle=motion.n_settle + n_frames)
 
 
 #: A motion whose body points its head along world +Y (cosine above this) in Y_UP_SHARE of its frames

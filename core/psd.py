@@ -196,6 +196,5 @@ class PSDDeformer(Deformer):
                                                     **self.fit.meta}}
         if self.contact_guard:  # reported as the model reports it
             out, guard = guard_sequence(out, rest, body, poses, motion.trans, betas)
-            self.report["seconds_per_frame_guard"] = guard.pop("seconds_per_frame")
-            self.report["contact_guard"] = guard
+            self.report.update(guard)
         return out
