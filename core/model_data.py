@@ -148,57 +148,116 @@ def _items(manifest: dict, source: str) -> dict:
     raise InputError(f"dataset manifest '{source}': expected 'items' as a list or a mapping, got {type(items).__name__}")
 
 
-class ModelDataset:
-    """A simulator dataset loaded for training: garments (shared) and sequences per split.
+#: Key of the dataset directory in the item records ModelDataset merges (not a manifest field).
+_ROOT = "_root"
 
-    root: dataset directory. body: the body the sequences were simulated on. splits: which to load.
-    cache_dir: preprocessing cache (None = compute). partial: load the sequences simulated so far of a dataset
-    whose `garment dataset` run has not finished (`missing` counts the others per split) instead of refusing it.
-    garments: load only these garments' sequences (a garment's own fine-tune); None: every garment.
+#: Item fields that make two records of one id the same simulated item.
+_SAME_ITEM = ("garment", "motion", "clip", "start_frame", "n_frames", "body", "split")
+
+
+def _item_file(item_id: str, rec: dict) -> Path:
+    from formats.dataset import sequence_path
+
+    root = rec[_ROOT]
+    return root / str(rec["file"]) if "file" in rec else sequence_path(root, item_id)
+
+
+def _merged_manifests(roots: list[Path]) -> tuple[dict, dict, dict]:
+    """The first dataset's manifest, every dataset's items (id -> record with its directory) and garment
+    templates (name -> path); InputError when the datasets disagree (see ModelDataset)."""
+    from formats.dataset import MANIFEST, read_manifest
+    from formats.obj import read_obj
+
+    first, items, templates, motion_split = None, {}, {}, {}
+    for root in roots:
+        mpath = root / MANIFEST
+        manifest = read_manifest(root)
+        if manifest is None:
+            raise InputError(f"dataset '{root}': expected a {MANIFEST} in it, found none")
+        recs = _items(manifest, str(mpath))
+        unknown = sorted({str(rec.get("split")) for rec in recs.values()} - {"train", "val", "test"})
+        if unknown:
+            raise InputError(f"dataset manifest '{mpath}': expected every item's 'split' to be train, val or test, "
+                             f"got {unknown[0]!r}")
+        if first is None:
+            first = manifest
+        else:
+            lead = {k: first.get("settings", {}).get(k) for k in ("settle", "fps")}
+            here = {k: manifest.get("settings", {}).get(k) for k in ("settle", "fps")}
+            if here != lead:
+                raise InputError(f"dataset '{root}': expected the settle blend of dataset '{roots[0]}' ({lead}), got "
+                                 f"{here}: the model learns one lead-in")
+        for gname in sorted({str(rec.get("garment")) for rec in recs.values()}):
+            gpath = root / "garments" / f"{gname}.obj"
+            if not gpath.is_file():
+                continue
+            if gname not in templates:
+                templates[gname] = gpath
+            elif read_obj(gpath).content_hash() != read_obj(templates[gname]).content_hash():
+                raise InputError(f"dataset '{root}': expected its garment '{gname}' to be the mesh of "
+                                 f"'{templates[gname]}', got a different '{gpath}'")
+        for item_id, rec in recs.items():
+            motion, split = rec.get("motion"), rec["split"]
+            if motion is not None and motion_split.setdefault(motion, (split, root))[0] != split:
+                raise InputError(f"dataset '{root}': expected motion '{motion}' in the '{motion_split[motion][0]}' "
+                                 f"split as in dataset '{motion_split[motion][1]}', got '{split}' (a motion "
+                                 f"trained on and tested on)")
+            if item_id in items:
+                if any(items[item_id].get(k) != rec.get(k) for k in _SAME_ITEM):
+                    raise InputError(f"dataset '{root}': expected item '{item_id}' to be the item of that id in "
+                                     f"dataset '{items[item_id][_ROOT]}', got a different one")
+                if _item_file(item_id, items[item_id]).is_file():
+                    continue  # the same item: kept once, from wherever it is simulated
+            items[item_id] = {**rec, _ROOT: root}
+    return first, items, templates
+
+
+class ModelDataset:
+    """Simulator datasets loaded for training: garments (shared) and sequences per split.
+
+    root: a dataset directory, or a list of them trained on together (`garment train --data A --data B`): their
+    garments of one name must be the same mesh, their motions in the same split, their settle blends alike, and
+    an item id in two of them the same item (kept once, e.g. a dataset that links another's sequences).
+    body: the body the sequences were simulated on. splits: which to load. cache_dir: preprocessing cache
+    (None = compute). partial: load the sequences simulated so far of a dataset whose `garment dataset` run has
+    not finished (`missing` counts the others per split) instead of refusing it. garments: load only these
+    garments' sequences (a garment's own fine-tune); None: every garment.
     """
 
     def __init__(self, root, body: Body, config: ModelConfig, splits=("train", "val"), cache_dir=None,
                  partial: bool = False, garments=None):
         from dataclasses import asdict
 
-        from formats.dataset import MANIFEST, read_manifest, read_sequence
+        from formats.dataset import read_sequence
         from formats.obj import read_obj  # file reading lives in formats/
 
-        self.root = Path(root)
+        self.roots = [Path(r) for r in (root if isinstance(root, (list, tuple)) else [root])]
+        self.root = self.roots[0]
         self.body = body
         self.config = config
-        mpath = self.root / MANIFEST
-        manifest = read_manifest(self.root)
-        if manifest is None:
-            raise InputError(f"dataset '{self.root}': expected a {MANIFEST} in it, found none")
-        self.manifest = manifest
-        items = _items(manifest, str(mpath))
-        unknown = sorted({str(rec.get("split")) for rec in items.values()} - {"train", "val", "test"})
-        if unknown:
-            raise InputError(f"dataset manifest '{mpath}': expected every item's 'split' to be train, val or test, "
-                             f"got {unknown[0]!r}")
+        self.manifest, items, templates = _merged_manifests(self.roots)
+        name = "dataset " + ", ".join(f"'{r}'" for r in self.roots)
         if garments is not None:
             known = {str(rec.get("garment")) for rec in items.values()}
             garments = set(garments)
             unknown = sorted(garments - known)
             if unknown:
-                raise InputError(f"dataset '{self.root}': expected a garment of its sequences "
-                                 f"({', '.join(sorted(known))}), got '{unknown[0]}'")
+                raise InputError(f"{name}: expected a garment of its sequences ({', '.join(sorted(known))}), "
+                                 f"got '{unknown[0]}'")
             items = {i: rec for i, rec in items.items() if str(rec.get("garment")) in garments}
-        missing = [i for i, rec in items.items() if rec["split"] in splits and not self._file(i, rec).is_file()]
+        missing = [i for i, rec in items.items() if rec["split"] in splits and not _item_file(i, rec).is_file()]
         if missing and not partial:
-            raise InputError(f"dataset '{self.root}': {len(missing)} of {len(items)} sequences are missing (e.g. "
-                             f"'{missing[0]}'); the `garment dataset` run has not finished: rerun it to resume "
-                             f"(or train on what it has simulated with --partial)")
+            raise InputError(f"{name}: {len(missing)} of {len(items)} sequences are missing (e.g. '{missing[0]}'); "
+                             f"the `garment dataset` run has not finished: rerun it to resume (or train on what it "
+                             f"has simulated with --partial)")
         self.missing = {split: sum(items[i]["split"] == split for i in missing) for split in splits}
         if missing:
             missing = set(missing)
             for split in splits:
                 if self.missing[split] and all(i in missing for i, rec in items.items() if rec["split"] == split):
-                    raise InputError(f"dataset '{self.root}': expected sequences in its '{split}' split, got none "
-                                     f"simulated yet")
-            log.warning("dataset '%s': %d of its %s sequences are not simulated yet; training on the others",
-                        self.root, len(missing), "/".join(splits))
+                    raise InputError(f"{name}: expected sequences in its '{split}' split, got none simulated yet")
+            log.warning("%s: %d of its %s sequences are not simulated yet; training on the others",
+                        name, len(missing), "/".join(splits))
             items = {i: rec for i, rec in items.items() if i not in missing}
         self.device = torch.device("cpu")
         self.body_faces = torch.as_tensor(np.asarray(body.faces), dtype=torch.long)
@@ -209,22 +268,17 @@ class ModelDataset:
             for item_id, rec in items.items():
                 if rec["split"] != split:
                     continue
-                name = str(rec["garment"])
-                if name not in self.garments:
-                    gpath = self.root / "garments" / f"{name}.obj"
+                gname = str(rec["garment"])
+                if gname not in self.garments:
+                    gpath = templates.get(gname, rec[_ROOT] / "garments" / f"{gname}.obj")
                     if not gpath.is_file():
-                        raise InputError(f"dataset '{self.root}': expected garment template '{gpath}', found none")
-                    self.garments[name] = prepare_garment(read_obj(gpath), body, config, cache_dir, str(gpath))
-                spath = self._file(item_id, rec)
+                        raise InputError(f"dataset '{rec[_ROOT]}': expected garment template '{gpath}', found none")
+                    self.garments[gname] = prepare_garment(read_obj(gpath), body, config, cache_dir, str(gpath))
+                spath = _item_file(item_id, rec)
                 arrays = asdict(read_sequence(spath))
-                seqs.append(sequence_from_arrays(item_id, name, arrays, body, self.garments[name], str(spath)))
+                seqs.append(sequence_from_arrays(item_id, gname, arrays, body, self.garments[gname], str(spath)))
             self.splits[split] = seqs
             log.info("dataset split '%s': %d sequences", split, len(seqs))
-
-    def _file(self, item_id: str, rec: dict) -> Path:
-        from formats.dataset import sequence_path
-
-        return self.root / str(rec["file"]) if "file" in rec else sequence_path(self.root, item_id)
 
     def to(self, device) -> ModelDataset:
         """Move every tensor of the garments and sequences to `device` (in place); returns self."""

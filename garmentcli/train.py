@@ -49,7 +49,9 @@ def _parse_phases(text: str) -> tuple:
 
 
 @click.command(name="train")
-@click.option("--data", "data_dir", required=True, type=click.Path(file_okay=False), help="Simulator dataset directory.")
+@click.option("--data", "data_dir", required=True, multiple=True, type=click.Path(file_okay=False),
+              help="Simulator dataset directory (repeatable: trained on together; their garments of one name must "
+                   "be the same mesh, their motions in the same split and their settle blends alike).")
 @click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False), help="Model file to write.")
 @click.option("--phases", default="1,2,3", show_default=True, help="Training phases: 1, 1,2 or 1,2,3.")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Optimizer steps (default from config).")
@@ -132,8 +134,11 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     from core.model_deform import joint_coverage
     from formats.checkpoint import load_checkpoint, save_checkpoint
 
-    if not Path(data_dir).is_dir():
-        raise click.BadParameter(f"expected a dataset directory, got '{data_dir}' (not found)", param_hint="--data")
+    data_dir = [data_dir] if isinstance(data_dir, (str, Path)) else list(data_dir)
+    for d in data_dir:
+        if not Path(d).is_dir():
+            raise click.BadParameter(f"expected a dataset directory, got '{d}' (not found)", param_hint="--data")
+    data_dir = str(data_dir[0]) if len(data_dir) == 1 else [str(d) for d in data_dir]  # as the card records it
     out = Path(out_path)
     ckpt_path, csv_path, json_path = (out.with_name(out.name + s) for s in (".ckpt", ".csv", ".json"))
     model_values, train_values = _read_config(config_path)
@@ -188,7 +193,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     if main:
         out.parent.mkdir(parents=True, exist_ok=True)
         json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
-                                         "data": str(data_dir), "init": init_path, "processes": world,
+                                         "data": data_dir, "init": init_path, "processes": world,
                                          "device": str(device), "sequences_per_step": sequences_per_step,
                                          "sequences_missing": data.missing, "garments": sorted(data.garments)}, indent=2))
     # Only rank 0 writes: the others log into the null device.
@@ -231,7 +236,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         bar.close()
         checkpoint(trainer)
     last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
-    meta = {"train_config": dataclasses.asdict(train_cfg), "data": str(data_dir), "init": init_path,
+    meta = {"train_config": dataclasses.asdict(train_cfg), "data": data_dir, "init": init_path,
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
             "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name, "joint_coverage": coverage,

@@ -193,3 +193,72 @@ def test_checkpoint_rejects_other_version(tmp_path):
     (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
     with pytest.raises(InputError, match="junk.pt"):
         load_checkpoint(tmp_path / "junk.pt")
+
+
+def _edited_copy(src, dst, edit=None, ids=None):
+    """A copy of dataset `src` at `dst` whose manifest `edit` changed in place; `ids` renames its items."""
+    import json
+    import shutil
+
+    shutil.copytree(src, dst)
+    manifest = json.loads((dst / "manifest.json").read_text())
+    for rec in manifest["items"]:
+        if ids:
+            old, rec["id"] = rec["id"], ids[rec["id"]]
+            rec["file"] = f"sequences/{rec['id']}.npz"
+            (dst / "sequences" / f"{old}.npz").rename(dst / rec["file"])
+    if edit:
+        edit(manifest)
+    (dst / "manifest.json").write_text(json.dumps(manifest))
+    return dst
+
+
+def test_several_datasets_train_together(tmp_path):
+    a = make_dataset(tmp_path / "a")
+    b = _edited_copy(a, tmp_path / "b", ids={"s0": "t0", "s1": "t1", "s2": "t2"})
+    data = ModelDataset([a, b], tiny_body(), TINY_CONFIG)
+    assert [s.item_id for s in data.splits["train"]] == ["s0", "s1", "t0", "t1"]
+    assert [s.item_id for s in data.splits["val"]] == ["s2", "t2"] and set(data.garments) == {"a", "b"}
+    # A dataset that holds another's items (the same ids and records, e.g. linked in) adds each once.
+    same = _edited_copy(a, tmp_path / "same")
+    assert [s.item_id for s in ModelDataset([a, same], tiny_body(), TINY_CONFIG).splits["train"]] == ["s0", "s1"]
+    # An item only the second one has simulated yet comes from there.
+    (a / "sequences" / "s1.npz").rename(tmp_path / "s1.npz")
+    data = ModelDataset([a, same], tiny_body(), TINY_CONFIG)
+    assert [str(s.item_id) for s in data.splits["train"]] == ["s0", "s1"] and not data.missing["train"]
+
+
+def _set(path, value):
+    def edit(manifest):
+        *keys, last = path
+        node = manifest
+        for k in keys:
+            node = node[k]
+        node[last] = value
+    return edit
+
+
+@pytest.mark.parametrize("edit, ids, message", [
+    (_set(("items", 2, "split"), "train"), {"s0": "t0", "s1": "t1", "s2": "t2"},
+     r"b': expected motion 'm2' in the 'val' split as in dataset '.*a', got 'train' \(a motion trained on"),
+    (_set(("items", 0, "garment"), "b"), None, r"b': expected item 's0' to be the item of that id in dataset "
+     r"'.*a', got a different one"),
+    (_set(("settings",), {"settle": 4, "fps": 30.0}), {"s0": "t0", "s1": "t1", "s2": "t2"},
+     r"b': expected the settle blend of dataset '.*a' \(\{'settle': None, 'fps': None\}\), got \{'settle': 4"),
+])
+def test_several_datasets_that_disagree_are_refused(tmp_path, edit, ids, message):
+    a = make_dataset(tmp_path / "a")
+    b = _edited_copy(a, tmp_path / "b", edit, ids)
+    with pytest.raises(InputError, match=message):
+        ModelDataset([a, b], tiny_body(), TINY_CONFIG)
+
+
+def test_several_datasets_with_different_meshes_of_one_garment_are_refused(tmp_path):
+    from tests.core.model_fixtures import tube, write_obj
+
+    a = make_dataset(tmp_path / "a")
+    b = _edited_copy(a, tmp_path / "b", ids={"s0": "t0", "s1": "t1", "s2": "t2"})
+    write_obj(b / "garments" / "a.obj", *tube(12, 6, radius=(0.31, 0.2)))
+    with pytest.raises(InputError, match=r"dataset '.*b': expected its garment 'a' to be the mesh of '.*a/garments/"
+                                         r"a.obj', got a different '.*b/garments/a.obj'"):
+        ModelDataset([a, b], tiny_body(), TINY_CONFIG)

@@ -251,3 +251,28 @@ def test_train_garment_trains_on_that_garments_sequences_only(setup, tmp_path):
     r = _train(root, data, body, cfg, tmp_path / "z.pt", "--steps", "2", "--garment", "z")
     assert r.exit_code != 0 and "expected a garment of its sequences (a, b), got 'z'" in r.output
     assert "Traceback" not in r.output and not (tmp_path / "z.pt").exists()
+
+
+def test_train_on_several_datasets(setup, tmp_path):
+    """--data A --data B: trained on together; the card records both; a missing one is named."""
+    import shutil
+
+    from formats.checkpoint import load_checkpoint
+
+    root, data, body, cfg = setup
+    other = tmp_path / "other"
+    shutil.copytree(data, other)
+    manifest = json.loads((other / "manifest.json").read_text())
+    manifest["items"] = [rec for rec in manifest["items"] if rec["garment"] == "a"]
+    for rec in manifest["items"]:
+        (other / rec["file"]).rename(other / "sequences" / f"x{rec['id']}.npz")
+        rec["id"], rec["file"] = f"x{rec['id']}", f"sequences/x{rec['id']}.npz"
+    (other / "manifest.json").write_text(json.dumps(manifest))
+    r = _train(root, data, body, cfg, tmp_path / "m.pt", "--steps", "2", "--data", str(other))
+    assert r.exit_code == 0, r.output
+    meta = load_checkpoint(tmp_path / "m.pt")["meta"]
+    assert meta["data"] == [str(data), str(other)] and meta["sequences"] == {"train": 4, "val": 1}
+    assert json.loads((tmp_path / "m.pt.json").read_text())["data"] == [str(data), str(other)]
+    r = _train(root, data, body, cfg, tmp_path / "n.pt", "--steps", "2", "--data", str(tmp_path / "nowhere"))
+    assert r.exit_code != 0 and f"expected a dataset directory, got '{tmp_path / 'nowhere'}' (not found)" in r.output
+    assert not (tmp_path / "n.pt").exists()
