@@ -75,14 +75,16 @@ def test_items(manifest: dict, group: str | None = None) -> list[dict]:
 
 
 def evaluate(data: Path, methods: dict, self_every: int = 6, max_items: int | None = None,
-             group: str | None = None) -> list[Row]:
+             group: str | None = None, skip=()) -> list[Row]:
+    """Rows of every method on the test items of `data` (all its items in `group`), but the item ids in `skip`."""
     manifest = read_manifest(data)
     if manifest is None:
         raise SystemExit(f"{data}: no manifest.json (expected a `garment dataset` directory)")
     body = default_body()
     inside = frames_inside(lambda p, v, f: points_inside_mesh(p, v, f, depth=PENETRATION_DEPTH_M))
     rows = []
-    items = [it for it in test_items(manifest, group) if sequence_path(data, it["id"]).exists()][:max_items]
+    items = [it for it in test_items(manifest, group)
+             if it["id"] not in skip and sequence_path(data, it["id"]).exists()][:max_items]
     garments = {}
     for n, it in enumerate(items):
         seq = read_sequence(sequence_path(data, it["id"]))
@@ -125,12 +127,12 @@ def summarise(rows: list[Row], order: list[str]) -> list[tuple[str, str, int, di
 def write(out: Path, summary, rows, args) -> None:
     from formats.atomic import atomic_file
 
-    command = (f"python benchmarks/model_table.py --data {args.data} "
+    command = ("python benchmarks/model_table.py " + "".join(f"--data {d} " for d in args.data)
                + "".join(f"--held-out-data {d} " for d in args.held_out_data)
                + " ".join(f'--model "{m}"' for m in args.model) + (" --push-out" if args.push_out else "")
                + "".join(f' --network-only "{n}"' for n in args.network_only) + f" --self-every {args.self_every}")
     lines = ["# Learned model variants and LBS against the simulator (paper Table 1 layout)", "",
-             f"Data: `{args.data}` test split (held-out motions; the held-out garment separately)"
+             "Data: " + ", ".join(f"`{d}`" for d in args.data) + " test split (held-out motions; the held-out garment separately)"
              + "".join(f"; every sequence of `{d}` ({IN_RANGE_GROUP})" for d in args.held_out_data) + ". Made by "
              f"`{command}`.", "",
              "E_verts in mm, normal errors in degrees, E_edge in %, E_curv in 1/m^2 (core.metrics); penetration: % "
@@ -166,7 +168,8 @@ def write(out: Path, summary, rows, args) -> None:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, required=True, help="`garment dataset` directory")
+    ap.add_argument("--data", type=Path, action="append", required=True,
+                    help="`garment dataset` directory (repeatable: an item id already evaluated is not again)")
     ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH", help="a trained model (repeatable)")
     ap.add_argument("--self-every", type=int, default=6, help="self-intersection on every Nth frame")
     ap.add_argument("--held-out-data", type=Path, action="append", default=[],
@@ -191,7 +194,9 @@ def main(argv=None) -> None:
             from core.pushout import PushOutDeformer
 
             methods[f"{name} +push-out"] = PushOutDeformer(load_model_deformer(path))
-    rows = evaluate(args.data, methods, args.self_every, args.max_items)
+    rows = []
+    for data in args.data:
+        rows += evaluate(data, methods, args.self_every, args.max_items, skip={r.item for r in rows})
     for extra in args.held_out_data:
         rows += evaluate(extra, methods, args.self_every, args.max_items, group=IN_RANGE_GROUP)
     summary = summarise(rows, list(methods))

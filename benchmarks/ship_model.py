@@ -60,7 +60,8 @@ def training_coverage(data: Path) -> list[float]:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("model", type=Path)
-    ap.add_argument("--data", type=Path, required=True)
+    ap.add_argument("--data", type=Path, action="append", required=True,
+                    help="the dataset(s) it was trained on (repeatable, as `garment train --data`)")
     ap.add_argument("--table", type=Path, required=True, help="model_table.py's JSON summary")
     ap.add_argument("--name", required=True, help="the model's row name in the table")
     ap.add_argument("--train-command", default="python benchmarks/train_variants.py --data data/sim_v1 "
@@ -82,12 +83,13 @@ def main(argv=None) -> None:
                     "train": args.train_command,
                     "evaluate": table.get("command", ""),
                     "ship": "python " + " ".join([Path(__file__).relative_to(ROOT).as_posix(), *map(str, argv or sys.argv[1:])])},
-        "dataset": dataset_card(args.data),
+        "dataset": dataset_card(args.data[0]) if len(args.data) == 1 else [dataset_card(d) for d in args.data],
         "training": {"config": ck["config"], "run": run, "meta": ck["meta"]},
         "metrics": metrics,
     }
     meta = {**ck["meta"], "card": DEFAULT_MODEL.with_suffix(".json").name}
-    meta.setdefault("joint_coverage", training_coverage(args.data))  # models trained before it was recorded
+    if "joint_coverage" not in meta:
+        meta["joint_coverage"] = [max(c) for c in zip(*(training_coverage(d) for d in args.data))]  # models trained before it was recorded
     card["training_joint_coverage"] = dict(zip(SMPL_JOINT_NAMES, meta["joint_coverage"]))
     save_checkpoint(DEFAULT_MODEL, ck["config"], ck["model"], meta=meta)
     DEFAULT_MODEL.with_suffix(".json").write_text(json.dumps(card, indent=1, default=str) + "\n")
