@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from pathlib import Path
 
@@ -33,7 +34,9 @@ SIM_SECONDS_PER_FRAME_PER_KVERT = 0.64
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, required=True)
+    ap.add_argument("--data", type=Path, action="append", required=True,
+                    help="the table's dataset(s) (repeatable, as model_table.py's; an item is read from the first "
+                         "that has it)")
     ap.add_argument("--table", type=Path, required=True, help="model_table.py's per-sequence CSV")
     ap.add_argument("--model-row", required=True, help="the model's method name in the table")
     ap.add_argument("--out", type=Path, required=True)
@@ -43,18 +46,23 @@ def main(argv=None) -> None:
              args.model_row: ("model float32", "model", {"precision": "float32", "push_out": False}),
              f"{args.model_row} +push-out": ("model float32 +push-out", "model",
                                              {"precision": "float32", "push_out": True})}
-    manifest = read_manifest(args.data)
-    substeps = int(manifest["settings"]["solver"]["substeps"])
-    self_contact = bool(manifest["settings"]["solver"]["self_contact"])
+    manifests = {d: read_manifest(d) for d in args.data}
+    solvers = {json.dumps([m["settings"]["solver"][k] for k in ("substeps", "self_contact")]) for m in manifests.values()}
+    if len(solvers) > 1:
+        raise SystemExit(f"--data: expected datasets simulated alike (substeps, self-contact), got {sorted(solvers)}")
+    substeps, self_contact = json.loads(solvers.pop())
     sim_name = f"sim {substeps} substeps" + (" +self-contact" if self_contact else "")
-    stats = manifest.get("item_stats", {})
     body = default_body()
     cal = Calibration({})
     garments = {}
     for item in sorted({r["item"] for r in rows}):
-        seq = read_sequence(sequence_path(args.data, item))
+        data = next((d for d in args.data if sequence_path(d, item).is_file()), None)
+        if data is None:
+            raise SystemExit(f"{args.table}: item '{item}' is in none of --data {', '.join(map(str, args.data))}")
+        seq = read_sequence(sequence_path(data, item))
+        stats = manifests[data].get("item_stats", {})
         if seq.garment not in garments:
-            garments[seq.garment] = read_obj(args.data / "garments" / f"{seq.garment}.obj")
+            garments[seq.garment] = read_obj(data / "garments" / f"{seq.garment}.obj")
         motion = sequence_motion(seq, item, drop_settle=True)
         features = scene_features(garments[seq.garment], body, motion)
         sim_seconds = stats.get(item, {}).get("seconds_per_frame",

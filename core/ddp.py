@@ -20,7 +20,6 @@ import json
 import logging
 import os
 
-import numpy as np
 import torch
 import torch.distributed as dist
 from torch import nn

@@ -75,6 +75,16 @@ SHAPE_INPUT_SCALE = 100.0
 ADDABLE_INPUTS = {"shape_input": "shape_code", "pose_codes": "pose_codes"}
 
 
+def keep_levels(state: dict, levels: int) -> dict:
+    """A network's weights without those of its pooling levels from `levels` down (`GraphUNet`'s
+    `unet.down/merge/up.<l>`): the start of the same network with fewer levels, its bottom layers then
+    working one level finer (`garment train --init` with a smaller `"levels"` in --config)."""
+    def level(key: str) -> int:
+        parts = key.split(".")
+        return int(parts[2]) if parts[0] == "unet" and parts[1] in ("down", "merge", "up") else -1
+    return {k: v for k, v in state.items() if level(k) < levels}
+
+
 @dataclass(frozen=True)
 class ModelConfig:
     """Sizes of the network (stored in every checkpoint).

@@ -18,7 +18,7 @@ import torch
 from tqdm import tqdm
 
 from core.errors import InputError
-from core.model import ADDABLE_INPUTS, ModelConfig, config_from_dict
+from core.model import ADDABLE_INPUTS, ModelConfig, config_from_dict, keep_levels
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
 from garmentcli.common import input_errors_as_click, load_body_option
 
@@ -71,7 +71,9 @@ def _parse_phases(text: str) -> tuple:
               help="Stop after this many minutes of training (checkpoint and model written); continue with --resume.")
 @click.option("--init", "init_path", type=click.Path(dir_okay=False), default=None, metavar="MODEL",
               help="Start from this model's weights and network config (fine-tuning it on --data, e.g. the "
-              "default model on simulations with self-contact); a 'model' section in --config is then an error.")
+              "default model on simulations with self-contact); a 'model' section in --config is then an error, "
+              "but for the inputs it may add (shape_input, pose_codes) and fewer pooling 'levels' (the deeper ones "
+              "left out).")
 @click.option("--partial", is_flag=True, help="Train on the sequences simulated so far of a dataset whose "
               "`garment dataset` run has not finished (the model card records how many were missing).")
 @click.option("--garment", "garments", multiple=True, metavar="NAME",
@@ -145,11 +147,17 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     body = load_body_option(body_path)
     init = None
     if init_path is not None:
-        if set(model_values) - set(ADDABLE_INPUTS):
+        if set(model_values) - set(ADDABLE_INPUTS) - {"levels"}:
             raise click.BadParameter(f"'{init_path}' fixes the network; expected no 'model' section in --config "
-                                     f"'{config_path}' (or only {', '.join(sorted(ADDABLE_INPUTS))}), got "
-                                     f"{sorted(model_values)}", param_hint="--init")
+                                     f"'{config_path}' (or only {', '.join(sorted([*ADDABLE_INPUTS, 'levels']))}), "
+                                     f"got {sorted(model_values)}", param_hint="--init")
         init = load_checkpoint(init_path)
+        levels, init_levels = model_values.get("levels", init["config"]["levels"]), init["config"]["levels"]
+        if levels != init_levels and not (isinstance(levels, int) and 0 <= levels < init_levels
+                                          and init["config"].get("pooling") == "structure"):
+            raise click.BadParameter(f"--config '{config_path}': expected 'levels' from 0 to the {init_levels} of "
+                                     f"'{init_path}' (its deeper levels left out; our pooling only), got {levels!r}",
+                                     param_hint="--init")
         model_values = {**init["config"], **model_values}
     model_values.setdefault("n_joints", body.n_joints)
     if model_values["n_joints"] != body.n_joints:
@@ -172,7 +180,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     else:
         trainer = parallel_trainer(data, model_cfg, train_cfg, sequences_per_rank=sequences_per_step, device=device)
     if init is not None:  # before --resume: a checkpoint's weights replace these
-        missing, unexpected = trainer.model.load_state_dict(init["model"], strict=False)
+        missing, unexpected = trainer.model.load_state_dict(keep_levels(init["model"], model_cfg.levels), strict=False)
         # Only the zero-initialised layers of an input this --config adds may be missing: the network
         # then starts as the one it came from.
         added = tuple(f"{module}." for name, module in ADDABLE_INPUTS.items()

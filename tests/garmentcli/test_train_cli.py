@@ -196,6 +196,37 @@ def test_train_init_starts_from_a_model(setup):
     assert r.exit_code != 0 and "--config" in r.output and "joints" in r.output and "Traceback" not in r.output
 
 
+def test_train_init_with_fewer_levels_keeps_the_finer_ones(setup):
+    """--init with a smaller "levels" in --config starts from the model's weights without its deeper levels'
+    (the 0- and 1-level rows of the tradeoff from the shipped model); more levels than it has are refused."""
+    root, data, body, cfg = setup
+    from formats.checkpoint import load_checkpoint
+
+    base = root / "levels_base.pt"
+    r = _train(root, data, body, cfg, base, "--steps", "1", "--seed", "3")
+    assert r.exit_code == 0, r.output
+    b = load_checkpoint(base)
+    assert b["config"]["levels"] == 1
+    train_values = {**json.loads(cfg.read_text())["train"], "lr": 1e-12}
+    fewer = root / "levels0.json"
+    fewer.write_text(json.dumps({"model": {"levels": 0}, "train": train_values}))
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(root / "l0.pt"), "--body", str(body),
+                                 "--config", str(fewer), "--init", str(base), "--steps", "1", "--seed", "1"])
+    assert r.exit_code == 0, r.output
+    t = load_checkpoint(root / "l0.pt")
+    assert t["config"] == {**b["config"], "levels": 0}
+    dropped = sorted(set(b["model"]) - set(t["model"]))
+    assert dropped and all(k.startswith(("unet.down.0.", "unet.merge.0.", "unet.up.0.")) for k in dropped)
+    assert set(t["model"]) <= set(b["model"])
+    assert all(torch.allclose(t["model"][k], b["model"][k], atol=1e-9) for k in t["model"])
+    more = root / "levels2.json"
+    more.write_text(json.dumps({"model": {"levels": 2}, "train": train_values}))
+    r = CliRunner().invoke(cli, ["train", "--data", str(data), "--out", str(root / "l2.pt"), "--body", str(body),
+                                 "--config", str(more), "--init", str(base), "--steps", "1"])
+    assert r.exit_code != 0 and "'levels'" in r.output and "levels2.json" in r.output and "got 2" in r.output
+    assert not (root / "l2.pt").exists()
+
+
 def test_train_partial_uses_the_sequences_simulated_so_far(setup, tmp_path):
     """A dataset whose run has not finished (a training sequence missing) is refused, naming --partial; with it
     the model trains on the others and records what was missing; a split with nothing simulated is refused."""
