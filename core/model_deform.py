@@ -122,7 +122,7 @@ class ModelDeformer(Deformer):
     default, `default_batch_frames`).
 
     precision: "float32", or "bfloat16" (the network under autocast; skinning weights and the final
-    world-space skinning stay float32). The network runs on the device of `model`'s parameters.
+    world-space skinning stay float32). The network runs on `device` (None: where `model`'s parameters are).
 
     lead_in_s: a motion without settle frames of its own starts, in the network's input window only, with
     this many seconds of frames blending from the rest pose into its first frame (`core.motion.prepend_blend`; not
@@ -137,11 +137,11 @@ class ModelDeformer(Deformer):
 
     def __init__(self, model: GarmentModel, batch_frames: int | None = None, cache_dir=None, model_name: str = "model",
                  precision: str = "float32", coverage=None, contact_guard: bool = True,
-                 lead_in_s: float | None = None):
+                 lead_in_s: float | None = None, device: torch.device | str | None = None):
         super().__init__()
         if precision not in PRECISIONS:
             raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
-        self.model = model.eval()
+        self.model = model.eval() if device is None else model.eval().to(device)
         self.precision = precision
         self.batch_frames = batch_frames
         self.cache_dir = cache_dir
@@ -205,7 +205,7 @@ class ModelDeformer(Deformer):
         guard = {}
         if self.contact_guard:  # outside autocast: the body is posed in float32
             out, guard = guard_sequence(out, rest.cpu().numpy(), body, poses, motion.trans, betas)
-        self.report = {"method": self.name, "model": self.model_name, "batch_frames": batch,
+        self.report = {"method": self.name, "model": self.model_name, "device": str(device), "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
                        "lead_in_frames": lead, "encode_seconds": t1 - t0,
                        "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}

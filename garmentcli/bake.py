@@ -35,6 +35,7 @@ from garmentcli.common import (
     load_body_option,
     motion_files,
     motion_names,
+    parse_device,
     prepare_motion,
     preroll_option,
     scheduler_options,
@@ -47,9 +48,9 @@ log = logging.getLogger(__name__)
 
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
                   iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=(),
-                  contact_guard=True, floor=None, fit_path=None):
+                  contact_guard=True, floor=None, fit_path=None, device=None):
     deformer = _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                precision, contact_guard, floor, fit_path)
+                                precision, contact_guard, floor, fit_path, device)
     deformer.skips = parse_no_skip(no_skip)
     if push_out:
         if method == "sim":
@@ -61,14 +62,14 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
 
 
 def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                     precision, contact_guard=True, floor=None, fit_path=None):
+                     precision, contact_guard=True, floor=None, fit_path=None, device=None):
     sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
                                       ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin),
                                       ("--floor", floor))
                  if v is not None]
     if method != "sim" and sim_given:
         raise click.UsageError(f"{sim_given[0]} applies to --method sim only (got --method {method})")
-    for name, v in (("--model", model_path), ("--precision", precision)):
+    for name, v in (("--model", model_path), ("--precision", precision), ("--device", device)):
         if method != "model" and v is not None:
             raise click.UsageError(f"{name} applies to --method model only (got --method {method})")
     if method == "psd" and fit_path is None:
@@ -87,7 +88,7 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
 
         # Garment preprocessing is cached ($GARMENT_CACHE_DIR or ~/.cache/garment), as `garment preprocess` does.
         return load_model_deformer(model_path, cache_dir=default_cache_dir(), precision=precision or "float32",
-                                   contact_guard=contact_guard)
+                                   contact_guard=contact_guard, device=parse_device(device, auto=True))
     if method == "sim":
         from core.sim import Material, SimDeformer, SimOptions, load_material
 
@@ -158,6 +159,7 @@ class BakeSpec:
     start_frame: int = 0  # --start-frame: the number of the first frame written (USD time code, OBJ file)
     preroll_frames: int = 0  # --preroll: source frames before --frames START deformed, not written
     fit_path: str | None = None  # psd: --fit
+    device: str | None = None  # model: --device as given (None: auto, resolved where the deformer is made)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
 
@@ -177,7 +179,7 @@ def _context(spec: BakeSpec):
             torch.set_num_threads(spec.threads)
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
-                                 spec.no_skip, spec.contact_guard, spec.floor, spec.fit_path)
+                                 spec.no_skip, spec.contact_guard, spec.floor, spec.fit_path, spec.device)
         garment = read_garment(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
@@ -263,6 +265,9 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="--quality auto: calibration JSON (`garment tradeoff --calibrate`). Default: the model's own.")
 @click.option("--precision", type=click.Choice(["float32", "bfloat16"]), default=None,
               help="model: arithmetic of the network [default: float32].")
+@click.option("--device", default=None, metavar="DEVICE",
+              help="model: where the network runs: cpu, cuda or cuda:N [default: auto, the first CUDA GPU torch sees, "
+                   "else the CPU].")
 @click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
 @click.option("--no-contact-guard", is_flag=True,
               help="model, psd: leave out the contact guard (on by default, about 1.5-2.5 ms/frame), which keeps each "
@@ -316,7 +321,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="motion", source_fps=None, floor=None, start_frame=0, fit_path=None,
-         preroll_frames=0, warned=()):
+         preroll_frames=0, device=None, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz, or a directory:
     every motion .npz under it).
 
@@ -331,6 +336,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     if frames:
         parse_frame_range(frames)  # reject a bad --frames before any work
     check_preroll(preroll_frames, frames, settle_frames)
+    if device is not None:  # a cluster's workers have their own devices
+        parse_device(device, auto=True, check=not scheduler)
     if quality is None:
         for name, v in (("--budget-mm", budget_mm), ("--calibration", calibration_path)):
             if v is not None:
@@ -340,7 +347,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if no_contact_guard and method not in ("model", "psd"):
             raise click.UsageError(f"--no-contact-guard applies to --method model and psd only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path)
+                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device)
     elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
                                "--precision and --push-out")
@@ -376,11 +383,11 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         substeps = opts.get("substeps", substeps)
         self_contact = bool(opts.get("self_contact", self_contact))
         if method != "model":
-            model_path, precision = None, None
+            model_path, precision, device = None, None, None
         if method != "psd":
             fit_path = None  # a fit given to --quality auto is one candidate; another method was chosen
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path)
+                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device)
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
                                                    "features", "reason", "candidates")})
         click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
@@ -392,9 +399,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         deformer.prepare(garment, body, source=garment_path)
         fallback = _training_range_guard(deformer, garment, body, garment_path, explicit)
         if fallback:
-            method, model_path, precision = "lbs", None, None
+            method, model_path, precision, device = "lbs", None, None, None
             deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
-    if method == "model" and precision == "bfloat16":
+    if method == "model" and precision == "bfloat16" and next(deformer.model.parameters()).device.type == "cpu":
         from core.model_deform import native_bfloat16
 
         if native_bfloat16() is False:
@@ -405,7 +412,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
                     contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame,
-                    fit_path=fit_path, preroll_frames=preroll_frames)
+                    fit_path=fit_path, preroll_frames=preroll_frames, device=device)
     if method == "sim":
         _note_rest_start(frames, preroll_frames, [(mo, path) for (mo, _), path, _ in motions])
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair

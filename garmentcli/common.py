@@ -228,3 +228,26 @@ def check_preroll(preroll_frames: int, frames: str | None, settle_frames: int = 
         raise click.UsageError("--settle and --preroll: expected one of them (the settle frames are written and "
                                "would blend into the pre-roll's first frame, not into START)")
 
+
+def parse_device(text: str | None, option: str = "--device", auto: bool = False, check: bool = True):
+    """`option` as a torch.device: cpu, cuda or cuda:N; where `auto`, also "auto" or None (the first CUDA device
+    torch sees, else the CPU). check: the device must be on this machine (not for work sent to a cluster's
+    workers, which check their own). BadParameter naming the option when unknown or absent."""
+    import torch
+
+    expected = f"expected {'auto, ' if auto else ''}cpu, cuda or cuda:N, got {text!r}"
+    if auto and text in (None, "auto"):
+        return torch.device("cuda", 0) if torch.cuda.is_available() else torch.device("cpu")
+    try:
+        dev = torch.device(text)
+    except (RuntimeError, ValueError, TypeError):
+        raise click.BadParameter(expected, param_hint=option) from None
+    if dev.type not in ("cpu", "cuda"):
+        raise click.BadParameter(expected, param_hint=option)
+    if check and dev.type == "cuda" and not torch.cuda.is_available():
+        raise click.BadParameter(f"{text!r}: no CUDA device is available on this machine (torch "
+                                 f"{torch.__version__})", param_hint=option)
+    if check and dev.type == "cuda" and dev.index is not None and dev.index >= torch.cuda.device_count():
+        raise click.BadParameter(f"{text!r}: this machine has {torch.cuda.device_count()} CUDA devices",
+                                 param_hint=option)
+    return dev

@@ -20,7 +20,7 @@ from tqdm import tqdm
 from core.errors import InputError
 from core.model import ADDABLE_INPUTS, ModelConfig, config_from_dict, keep_levels
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
-from garmentcli.common import input_errors_as_click, load_body_option
+from garmentcli.common import input_errors_as_click, load_body_option, parse_device
 
 CSV_COLUMNS = ("step", "phase", "item", "loss", *LOSS_COLUMNS, "val_verts_mm", "val_collision")
 
@@ -89,7 +89,7 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
     """
     from core.ddp import DistributedTrainer, init_from_env, torchrun_env
 
-    dev = _parse_device(device)
+    dev = parse_device(device)
     env = torchrun_env()
     if dev.type == "cuda" and env is not None and dev.index is None:
         dev = torch.device("cuda", env[2])  # one GPU per process: the local rank's
@@ -108,23 +108,6 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
 
             if dist.is_initialized():
                 dist.destroy_process_group()
-
-
-def _parse_device(text: str):
-    """--device as a torch.device; BadParameter when unknown or not available here."""
-    try:
-        dev = torch.device(text)
-    except (RuntimeError, ValueError):
-        raise click.BadParameter(f"expected cpu, cuda or cuda:N, got {text!r}", param_hint="--device") from None
-    if dev.type not in ("cpu", "cuda"):
-        raise click.BadParameter(f"expected cpu, cuda or cuda:N, got {text!r}", param_hint="--device")
-    if dev.type == "cuda" and not torch.cuda.is_available():
-        raise click.BadParameter(f"{text!r}: no CUDA device is available on this machine (torch "
-                                 f"{torch.__version__})", param_hint="--device")
-    if dev.type == "cuda" and dev.index is not None and dev.index >= torch.cuda.device_count():
-        raise click.BadParameter(f"{text!r}: this machine has {torch.cuda.device_count()} CUDA devices",
-                                 param_hint="--device")
-    return dev
 
 
 def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,

@@ -106,6 +106,26 @@ def test_train_device_option(setup):
         assert r.exit_code != 0 and "no CUDA device" in r.output and not (root / "d.pt").exists()
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_train_on_a_gpu_follows_the_cpu(setup):
+    """Three phases' worth of steps on the GPU: the same losses as on the CPU at the first step (one initialisation,
+    on the CPU, from the seed), a model written and loadable on the CPU."""
+    root, data, body, cfg = setup
+    runs = {}
+    for device in ("cpu", "cuda"):
+        out = root / f"{device}.pt"
+        r = _train(root, data, body, cfg, out, "--steps", "4", "--seed", "3", "--device", device)
+        assert r.exit_code == 0, r.output
+        runs[device] = list(csv.DictReader(open(root / f"{device}.pt.csv")))
+    assert json.loads((root / "cuda.pt.json").read_text())["device"].startswith("cuda")
+    first_cpu, first_gpu = float(runs["cpu"][0]["loss"]), float(runs["cuda"][0]["loss"])
+    assert abs(first_gpu - first_cpu) <= 1e-3 * abs(first_cpu), (first_cpu, first_gpu)
+    from formats.checkpoint import load_model
+
+    model, _ = load_model(root / "cuda.pt")
+    assert next(model.parameters()).device.type == "cpu"
+
+
 def test_train_bad_inputs(setup):
     root, data, body, cfg = setup
     r = _train(root, data, body, cfg, root / "x.pt", "--phases", "2,3")
