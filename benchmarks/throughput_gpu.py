@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.throughput import dress_4k, median_seconds, repeated  # noqa: E402
 from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
-from core.model_deform import default_batch_frames, load_model_deformer  # noqa: E402
+from core.model_deform import load_model_deformer  # noqa: E402
 from core.motion import Motion, resample  # noqa: E402
 from formats.report import markdown_table  # noqa: E402
 
@@ -51,41 +51,45 @@ def timed_median(fn, repeats: int, limit_s: float = TIME_PER_CONFIG_S) -> float:
     return float(np.median(times))
 
 
-def model_rate(garment, body, motion: Motion, device: str, precision: str, batch: int, guard: bool,
-               repeats: int) -> tuple[float, float, np.ndarray]:
-    """(frames/s of a whole deform, frames/s of the network alone, the last result) of the shipped model."""
+def model_rate(garment, body, motion: Motion, device: str, precision: str, batch: int | None, guard: str,
+               repeats: int) -> dict:
+    """The shipped model's frames/s of a whole deform ("whole") and of the network alone ("network"), the GPU
+    memory it peaked at ("peak_mib"), its batch and last result. guard: "device" (batch by batch on `device`),
+    "host" (afterwards over the sequence on the CPU) or "off"; batch None: the device's default."""
     torch.set_float32_matmul_precision("high" if precision == "tf32" else "highest")
-    d = load_model_deformer(precision="bfloat16" if precision == "bfloat16" else "float32", contact_guard=guard)
-    d.batch_frames = batch
+    d = load_model_deformer(precision="bfloat16" if precision == "bfloat16" else "float32", contact_guard=guard != "off")
+    d.batch_frames, d.guard_on_device = batch, guard == "device"
     d.model.to(device)
     d.prepare(garment, body)
     out = {}
+    gpu = torch.device(device).type == "cuda"
 
     def once():
         out["verts"] = d.deform(garment, body, motion)
-        if device != "cpu":
+        if gpu:
             torch.cuda.synchronize()
 
+    if gpu:
+        torch.cuda.reset_peak_memory_stats()
     whole = timed_median(once, repeats)
-    network = d.report["seconds_per_frame_network"]  # the last run's: results copied back included
-    return motion.n_frames / whole, 1.0 / network, out["verts"]
+    return {"whole": motion.n_frames / whole, "network": 1.0 / d.report["seconds_per_frame_network"],
+            "peak_mib": torch.cuda.max_memory_allocated() / 2**20 if gpu else None, "batch": d.report["batch_frames"],
+            "verts": out["verts"]}
 
 
-def gpu_profile(garment, body, motion: Motion, batch: int, rows: int = 10) -> tuple[list[list], dict]:
-    """Top CUDA kernels of one network-only bake by device time, and the totals."""
+def gpu_profile(garment, body, motion: Motion, rows: int = 10) -> tuple[list[list], dict]:
+    """Top CUDA kernels of one default bake (float32, the default batch, the guard on the GPU) by device time,
+    and the totals: kernel launches, the GPU's busy milliseconds."""
     from torch.profiler import ProfilerActivity, profile
 
-    d = load_model_deformer(contact_guard=False)
-    d.batch_frames = batch
+    d = load_model_deformer()
     d.model.to("cuda")
     d.prepare(garment, body)
     d.deform(garment, body, motion)
     torch.cuda.synchronize()
-    t = time.perf_counter()
-    with profile(activities=[ProfilerActivity.CPU, ProfilerActivity.CUDA]) as prof:
+    with profile(activities=[ProfilerActivity.CPU, ProfilerActivity.CUDA], acc_events=True) as prof:
         d.deform(garment, body, motion)
         torch.cuda.synchronize()
-    wall = time.perf_counter() - t
     kernels = [e for e in prof.events() if e.device_type == torch.autograd.DeviceType.CUDA]
     busy_us = sum(e.device_time for e in kernels)
     by_name: dict[str, list] = {}
@@ -95,9 +99,8 @@ def gpu_profile(garment, body, motion: Motion, batch: int, rows: int = 10) -> tu
         acc[1] += e.device_time
     top = sorted(by_name.items(), key=lambda kv: kv[1][1], reverse=True)[:rows]
     table = [[name[:60], n, f"{us / 1e3:.1f}", f"{100 * us / max(busy_us, 1e-9):.1f}"] for name, (n, us) in top]
-    totals = {"kernels": len(kernels), "kernels_per_frame": len(kernels) / motion.n_frames,
-              "busy_ms": busy_us / 1e3, "wall_ms": wall * 1e3}
-    return table, totals
+    return table, {"kernels": len(kernels), "kernels_per_frame": len(kernels) / motion.n_frames,
+                   "busy_ms": busy_us / 1e3}
 
 
 def main(argv=None) -> None:
@@ -116,72 +119,79 @@ def main(argv=None) -> None:
     long = repeated(walk, args.long_repeats)
     rows = []
 
+    def row(method, device, precision, batch, guard, whole, network=None, peak=None):
+        rows.append([method, device, precision, batch, guard, f"{whole:,.1f}", "-" if network is None else
+                     f"{network:,.1f}", "-" if peak is None else f"{peak:,.0f}"])
+        print(rows[-1], flush=True)
+
     lbs = LBSDeformer()
     lbs.prepare(garment, body)
-    t = median_seconds(lambda: lbs.deform(garment, body, long), args.repeats)
-    lbs_fps = long.n_frames / t
-    rows.append(["lbs", "cpu", "float32", "-", "-", f"{lbs_fps:,.0f}", "-"])
-    print(rows[-1], flush=True)
-    cpu_batch = default_batch_frames("cpu")
-    cpu_fps, cpu_net, cpu_verts = model_rate(garment, body, walk, "cpu", "float32", cpu_batch, True, args.repeats)
-    rows.append(["model", "cpu", "float32", cpu_batch, "yes", f"{cpu_fps:.1f}", f"{cpu_net:.1f}"])
-    print(rows[-1], flush=True)
+    lbs_fps = long.n_frames / median_seconds(lambda: lbs.deform(garment, body, long), args.repeats)
+    row("lbs", "cpu", "float32", "-", "-", lbs_fps)
+    cpu = model_rate(garment, body, walk, "cpu", "float32", None, "host", args.repeats)
+    row("model", "cpu", "float32", cpu["batch"], "cpu, after", cpu["whole"], cpu["network"])
 
+    guard_names = {"device": "gpu, per batch", "host": "cpu, after", "off": "off"}
+    configs = ([("float32", None, "device")] + [("float32", b, "device") for b in GPU_BATCHES]
+               + [("float32", None, "host")] + [("float32", b, "off") for b in GPU_BATCHES]
+               + [(p, b, "off") for p in ("tf32", "bfloat16") for b in GPU_BATCHES[2:]])
     gpu = {}
-    configs = [("float32", b, True) for b in GPU_BATCHES] + [(p, b, False) for p in ("float32", "tf32", "bfloat16")
-                                                              for b in GPU_BATCHES]
     for precision, batch, guard in configs:
-        fps, net, _ = model_rate(garment, body, long, args.device, precision, batch, guard, args.repeats)
-        gpu[(precision, batch, guard)] = (fps, net)
-        rows.append(["model", args.device, precision, batch, "yes" if guard else "no", f"{fps:.1f}", f"{net:.1f}"])
-        print(rows[-1], flush=True)
-    _, _, gpu_verts = model_rate(garment, body, walk, args.device, "float32", cpu_batch, True, 1)
-    diff_mm = 1e3 * np.linalg.norm(gpu_verts - cpu_verts, axis=-1)
-    scale_mm = 1e3 * np.linalg.norm(cpu_verts - cpu_verts.mean(axis=1, keepdims=True), axis=-1).mean()
+        r = model_rate(garment, body, long, args.device, precision, batch, guard, args.repeats)
+        gpu[(precision, batch, guard)] = r
+        row("model", args.device, precision, f"{r['batch']}{' (default)' if batch is None else ''}",
+            guard_names[guard], r["whole"], r["network"], r["peak_mib"])
+    default = gpu[("float32", None, "device")]
+    same = model_rate(garment, body, walk, args.device, "float32", None, "device", 1)
+    diff_mm = 1e3 * np.linalg.norm(same["verts"] - cpu["verts"], axis=-1)
+    scale_mm = 1e3 * np.linalg.norm(cpu["verts"] - cpu["verts"].mean(axis=1, keepdims=True), axis=-1).mean()
     print(f"gpu vs cpu: max {diff_mm.max():.4f} mm, mean {diff_mm.mean():.5f} mm", flush=True)
     on_gpu = torch.device(args.device).type == "cuda"
     if on_gpu:
-        prof_rows, totals = gpu_profile(garment, body, long, 128)
+        prof_rows, totals = gpu_profile(garment, body, long)
         print(totals, flush=True)
-
-    best_guard = max(gpu.items(), key=lambda kv: kv[1][0] if kv[0][2] else 0)
-    best_any = max(gpu.items(), key=lambda kv: kv[1][0])
-    best_net = max(gpu.items(), key=lambda kv: kv[1][1])
+    best = max(gpu.items(), key=lambda kv: kv[1]["whole"])
+    best_net = max(gpu.items(), key=lambda kv: kv[1]["network"])
 
     def cfg(key):
         precision, batch, guard = key
-        return f"{precision}, batch {batch}, contact guard {'on' if guard else 'off'}"
+        return f"{precision}, batch {gpu[key]['batch']}, contact guard {guard_names[guard]}"
 
     name = torch.cuda.get_device_name(0) if torch.cuda.is_available() else args.device
     lines = [
         "# The model's throughput on a GPU",
         "",
-        f"Made by `python benchmarks/throughput_gpu.py --repeats {args.repeats}` on one {name} (host: "
-        f"{platform.machine()}, {os.cpu_count()} cores, {torch.get_num_threads()} torch threads), torch "
-        f"{torch.__version__}, Python {platform.python_version()}. Garment: the example dress remeshed to "
+        f"Made by `python benchmarks/throughput_gpu.py --repeats {args.repeats}` (in `benchmarks/gpu_check.sh`) on one "
+        f"{name} (host: {platform.machine()}, {os.cpu_count()} cores, {torch.get_num_threads()} torch threads), "
+        f"torch {torch.__version__}, Python {platform.python_version()}. Garment: the example dress remeshed to "
         f"{garment.n_vertices:,} vertices. Motion: walk_brisk (held out from training) at 30 fps, repeated to "
         f"{long.n_frames:,} frames ({walk.n_frames} for the model on the CPU). The shipped model "
-        "(core/assets/default_model.pt). \"whole\": `ModelDeformer.deform`, results copied back to the host and the "
-        "contact guard (on the CPU) included where on; \"network\": its forward passes and the copies back alone.",
+        "(core/assets/default_model.pt). \"whole\": `ModelDeformer.deform` as `garment bake` runs it (motion "
+        "features, the network, the contact guard, the frames copied back to the host); \"network\": its batches "
+        "alone (forward passes, the guard where it runs per batch, the copies back). Contact guard: \"gpu, per "
+        "batch\" (the default on a GPU), \"cpu, after\" (over the whole sequence on the host, the default on a CPU) "
+        "or off. Peak: the GPU memory allocated at most.",
         "",
         markdown_table(["method", "device", "precision", "batch frames", "contact guard", "frames/s whole",
-                        "frames/s network"], rows),
+                        "frames/s network", "GPU peak MiB"], rows),
         "",
-        f"- fastest with the contact guard (the default): {best_guard[1][0]:,.0f} frames/s ({cfg(best_guard[0])}), "
-        f"{best_guard[1][0] / cpu_fps:.0f}x the model on this machine's CPU; without it {best_any[1][0]:,.0f} "
-        f"({cfg(best_any[0])}); the network alone {best_net[1][1]:,.0f} ({cfg(best_net[0])}). The paper reports 402 "
-        "frames/s on an RTX 4090.",
+        f"- the default on the GPU (float32, batch {default['batch']}, the guard per batch on the GPU): "
+        f"{default['whole']:,.0f} frames/s, {default['whole'] / cpu['whole']:.0f}x the model's default on this "
+        f"machine's CPU ({cpu['whole']:.0f} frames/s); the fastest: {best[1]['whole']:,.0f} ({cfg(best[0])}); the "
+        f"network alone at most {best_net[1]['network']:,.0f} ({cfg(best_net[0])}). The paper reports 402 frames/s "
+        "on an RTX 4090.",
         f"- LBS on this machine's CPU: {lbs_fps:,.0f} frames/s.",
-        f"- the GPU's float32 results against the CPU's (walk_brisk, {walk.n_frames} frames, contact guard on): "
-        f"largest difference {diff_mm.max():.4f} mm, mean {diff_mm.mean():.5f} mm (the garment's mean distance "
-        f"from its centre: {scale_mm:.0f} mm).",
+        f"- the GPU's default against the CPU's (float32, walk_brisk, {walk.n_frames} frames, the guard on each's "
+        f"default path): largest difference {diff_mm.max():.4f} mm, mean {diff_mm.mean():.5f} mm (the garment's "
+        f"mean distance from its centre: {scale_mm:.0f} mm).",
     ]
     if on_gpu:
+        wall_ms = 1e3 * long.n_frames / default["whole"]
         lines += [
-            f"- profile of one network-only bake (float32, batch 128, {long.n_frames:,} frames): {totals['kernels']:,} "
-            f"kernel launches ({totals['kernels_per_frame']:.1f} per frame), the GPU busy {totals['busy_ms']:.0f} ms of "
-            f"{totals['wall_ms']:.0f} ms wall ({100 * totals['busy_ms'] / totals['wall_ms']:.0f} %; the rest is the "
-            "host: launches, the frame windows, copies back).",
+            f"- profile of one default bake ({long.n_frames:,} frames): {totals['kernels']:,} kernel launches "
+            f"({totals['kernels_per_frame']:.1f} per frame), the GPU busy {totals['busy_ms']:.0f} ms of the "
+            f"{wall_ms:.0f} ms it takes unprofiled ({100 * totals['busy_ms'] / wall_ms:.0f} %; the rest is host "
+            "work: the motion features, launches, the copies back).",
             "",
             "Kernels of that bake by device time:",
             "",

@@ -167,17 +167,28 @@ class Body:
                              f"got {tuple(poses.shape)}")
         return poses
 
-    def torch(self, dtype: torch.dtype = torch.float32):
-        """The model arrays as tensors in `lbs()` argument order (after betas, pose)."""
+    def torch(self, dtype: torch.dtype = torch.float32, device: torch.device | str = "cpu"):
+        """The model arrays as tensors in `lbs()` argument order (after betas, pose), on `device`."""
         cache = self.__dict__.setdefault("_torch_cache", {})
-        if dtype not in cache:
-            t = lambda a: torch.as_tensor(np.asarray(a), dtype=dtype)  # noqa: E731
-            cache[dtype] = (
+        key = (dtype, str(torch.device(device)))
+        if key not in cache:
+            t = lambda a: torch.as_tensor(np.asarray(a), dtype=dtype, device=device)  # noqa: E731
+            cache[key] = (
                 t(self.v_template), t(self.shapedirs),
                 None if self.posedirs is None else t(self.posedirs),
+                # parents stay on the host, where forward_kinematics reads them
                 t(self.J_regressor), torch.as_tensor(self.parents, dtype=torch.long), t(self.weights),
             )
-        return cache[dtype]
+        return cache[key]
+
+    def pose_tensor(self, poses: torch.Tensor, trans: torch.Tensor | None = None,
+                    betas: np.ndarray | None = None) -> torch.Tensor:
+        """`pose`'s vertices for tensors, computed where `poses` (B, J, 3) is (a GPU's work stays there): (B, V, 3)
+        float32 metres, no gradient. trans: (B, 3) or None."""
+        with torch.no_grad():
+            b = torch.as_tensor(self.fit_betas(betas), device=poses.device).expand(poses.shape[0], -1)
+            verts, _ = lbs(b, poses.float(), *self.torch(device=poses.device))
+        return verts if trans is None else verts + trans[:, None].float()
 
 
 def lbs(betas: torch.Tensor, pose: torch.Tensor, v_template: torch.Tensor, shapedirs: torch.Tensor,

@@ -29,7 +29,7 @@ from core.model import (
 )
 from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body, prepend_blend
-from core.pushout import guard_sequence
+from core.pushout import body_anchors, guard_contact, guard_report, guard_sequence
 from core.scene import SceneAnalysis, scene_levels
 
 log = logging.getLogger(__name__)
@@ -78,8 +78,15 @@ MAX_UNCOVERED_SHARE = 0.05
 
 #: Frames per forward pass where ModelDeformer is not told: on a CPU 2, the fastest measured on a 2-core
 #: AMD EPYC for a 3,960-vertex dress (15 ms/frame against 20 at 4 and 23 at 8: the graph attention's
-#: per-layer temporaries of a few frames stay in cache; benchmarks/throughput.py); elsewhere (a GPU) 8.
+#: per-layer temporaries of a few frames stay in cache; benchmarks/throughput.py); elsewhere `default_batch_frames`.
 DEFAULT_BATCH_FRAMES = {"cpu": 2}
+
+#: On a GPU, vertex-frames per forward pass where ModelDeformer is not told (128 frames of a 4,096-vertex garment):
+#: on an H200 the network alone ran the 3,960-vertex dress at 1,911 frames/s in batches of 8, 6,483 of 32, 9,494
+#: of 128 and 10,544 of 512 (benchmarks/results/throughput_gpu.md), its memory growing with the batch.
+GPU_VERTEX_FRAMES = 1 << 19
+#: Most frames per forward pass on a GPU (a small garment's).
+GPU_MAX_BATCH_FRAMES = 512
 
 
 #: Lead-in of a model whose checkpoint records none (meta "lead_in_s"), seconds: the settle blend of the
@@ -87,8 +94,12 @@ DEFAULT_BATCH_FRAMES = {"cpu": 2}
 DEFAULT_LEAD_IN_S = 0.2
 
 
-def default_batch_frames(device: torch.device | str) -> int:
-    return DEFAULT_BATCH_FRAMES.get(torch.device(device).type, 8)
+def default_batch_frames(device: torch.device | str, n_vertices: int = 4096) -> int:
+    """Frames per forward pass of an `n_vertices` garment on `device` where ModelDeformer is not told."""
+    kind = torch.device(device).type
+    if kind in DEFAULT_BATCH_FRAMES:
+        return DEFAULT_BATCH_FRAMES[kind]
+    return int(np.clip(GPU_VERTEX_FRAMES // max(n_vertices, 1), 1, GPU_MAX_BATCH_FRAMES))
 
 
 def joint_shares(weights) -> np.ndarray:
@@ -151,6 +162,9 @@ class ModelDeformer(Deformer):
         self._garments: dict = {}
         #: Keep vertices outside the body faces they rest on (`core.pushout.guard_contact`).
         self.contact_guard = contact_guard
+        #: The guard batch by batch on the network's device (True), or afterwards over the sequence on the CPU
+        #: (False); None: on the network's device where that is not the CPU. The two agree to float32 rounding.
+        self.guard_on_device: bool | None = None
         self.lead_in_s = DEFAULT_LEAD_IN_S if lead_in_s is None else float(lead_in_s)
         if not (np.isfinite(self.lead_in_s) and self.lead_in_s >= 0):
             raise InputError(f"model lead-in: expected a non-negative number of seconds, got {lead_in_s!r}")
@@ -182,7 +196,7 @@ class ModelDeformer(Deformer):
         window_poses, window_trans = prepend_blend(poses, motion.trans, lead)
         mf = tensors_to(motion_features(body, window_poses, window_trans, betas, motion.fps), device)
         rest = shaped_rest(g, body, betas)
-        batch = self.batch_frames or default_batch_frames(device)
+        batch = self.batch_frames or default_batch_frames(device, garment.n_vertices)
         out = np.empty((motion.n_frames, garment.n_vertices, 3), dtype=np.float32)
         scene = SceneAnalysis(self.skips)
         used = (g.prior_weights > 0).any(0)
@@ -191,6 +205,15 @@ class ModelDeformer(Deformer):
         scene.report["levels"] = {**levels, "model": self.model.config.levels,
                                   "matches": levels["suggested"] == self.model.config.levels}
         t0 = time.perf_counter()
+        # The contact guard batch by batch where the network runs (a GPU's frames stay there), else afterwards over
+        # the whole sequence (on a CPU: the body posed GUARD_CHUNK_FRAMES at a time, faster than per batch).
+        guard_here = self.contact_guard and (device.type != "cpu" if self.guard_on_device is None
+                                             else self.guard_on_device)
+        if guard_here:
+            anchors = body_anchors(rest.cpu().numpy(), body, betas)
+            pose_t = torch.as_tensor(poses, dtype=torch.float32, device=device)
+            trans_t = torch.as_tensor(motion.trans, dtype=torch.float32, device=device)
+            moved = []
         with torch.inference_mode(), torch.autocast(device.type, dtype=torch.bfloat16,
                                                     enabled=self.precision == "bfloat16"):
             fused = self.model.encode(g, body_distances(body, betas).to(device))
@@ -200,11 +223,21 @@ class ModelDeformer(Deformer):
                 win = window_index(fr.cpu(), self.model.config.window).to(device)
                 res = self.model.forward_frames(fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr],
                                                 skip_joints=scene.enabled("joints"))
-                out[s:s + len(fr)] = res.verts.float().cpu().numpy()
+                verts = res.verts.float()
+                if guard_here:
+                    with torch.autocast(device.type, enabled=False):  # the body posed in float32
+                        at = slice(s, s + len(fr))
+                        verts, n = guard_contact(verts, body.pose_tensor(pose_t[at], trans_t[at], betas), anchors)
+                    moved.append(n)
+                out[s:s + len(fr)] = verts.cpu().numpy()
         t2 = time.perf_counter()
         guard = {}
-        if self.contact_guard:  # outside autocast: the body is posed in float32
+        if guard_here:
+            guard = guard_report([m.cpu() for m in moved], None, motion.n_frames)
+        elif self.contact_guard:  # outside autocast: the body is posed in float32
             out, guard = guard_sequence(out, rest.cpu().numpy(), body, poses, motion.trans, betas)
+        if guard:
+            guard["contact_guard"]["device"] = str(device) if guard_here else "cpu"
         self.report = {"method": self.name, "model": self.model_name, "device": str(device), "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
                        "lead_in_frames": lead, "encode_seconds": t1 - t0,

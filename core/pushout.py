@@ -26,6 +26,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 
 from core.body import Body
 from core.deform import Deformer
@@ -59,11 +60,11 @@ GUARD_REACH_FADE_M = 0.05
 GUARD_DEPTH_FADE_M = 0.03
 
 
-def _fade(x: np.ndarray, bound: float, width: float) -> np.ndarray:
+def _fade(x: torch.Tensor, bound: float, width: float) -> torch.Tensor:
     """1 up to `bound`, falling linearly to 0 at `bound + width` (a step at `bound` when width is 0)."""
     if width <= 0:
-        return (x <= bound).astype(np.float64)
-    return np.clip((bound + width - x) / width, 0.0, 1.0)
+        return (x <= bound).to(x.dtype)
+    return ((bound + width - x) / width).clamp(0.0, 1.0)
 
 
 def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
@@ -114,62 +115,89 @@ def contact_anchors(rest: np.ndarray, body_verts: np.ndarray, body_faces: np.nda
     return ContactAnchors(faces, res.barycentric, np.minimum(margin, offset))
 
 
-def anchor_offsets(points: np.ndarray, body_points: np.ndarray,
-                   anchors: ContactAnchors) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def anchor_offsets(points, body_points, anchors: ContactAnchors):
     """Where each vertex lies against its posed anchor face: (behind (T, V), its depth below the guard's floor,
     0 where it is above; lateral (T, V), its distance from the face's point along the plane; the face's unit
-    normal (T, V, 3)), metres. points: (T, V, 3); body_points: (T, Vb, 3)."""
-    body_points = np.asarray(body_points, dtype=np.float64)
-    point = np.einsum("tvkc,vk->tvc", body_points[:, anchors.faces], anchors.barycentric)
-    normal = face_normals(body_points, anchors.faces)  # (T, V, 3)
-    rel = np.asarray(points, dtype=np.float64) - point
-    along = np.einsum("tvc,tvc->tv", rel, normal)
-    lateral = np.linalg.norm(rel - along[..., None] * normal, axis=-1)
-    return np.clip(anchors.floor[None] - along, 0.0, None), lateral, normal
+    normal (T, V, 3)), metres. points: (T, V, 3); body_points: (T, Vb, 3). Arrays in, float64 arrays out;
+    tensors in, tensors of `body_points`' device and dtype out (a GPU's bake keeps its frames there)."""
+    arrays = not isinstance(body_points, torch.Tensor)
+    bp = torch.as_tensor(np.asarray(body_points, dtype=np.float64)) if arrays else body_points
+    p = torch.as_tensor(np.asarray(points, dtype=np.float64)) if arrays else points.to(bp.dtype)
+    faces = torch.as_tensor(anchors.faces, device=bp.device)
+    tri = bp[:, faces]  # (T, V, 3 corners, 3)
+    point = torch.einsum("tvkc,vk->tvc", tri, torch.as_tensor(anchors.barycentric, dtype=bp.dtype, device=bp.device))
+    # Unit normals, right-handed in the (outward) corner order; zero for a zero-area face (as face_normals).
+    normal = torch.nn.functional.normalize(torch.linalg.cross(tri[:, :, 1] - tri[:, :, 0], tri[:, :, 2] - tri[:, :, 0],
+                                                              dim=-1), dim=-1, eps=1e-30)
+    rel = p - point
+    along = torch.einsum("tvc,tvc->tv", rel, normal)
+    lateral = torch.linalg.norm(rel - along[..., None] * normal, dim=-1)
+    floor = torch.as_tensor(anchors.floor, dtype=bp.dtype, device=bp.device)
+    behind = (floor[None] - along).clamp(min=0.0)
+    return (behind.numpy(), lateral.numpy(), normal.numpy()) if arrays else (behind, lateral, normal)
 
 
-def guard_contact(points: np.ndarray, body_points: np.ndarray, anchors: ContactAnchors,
-                  reach: float = GUARD_REACH_M, depth: float = GUARD_DEPTH_M, reach_fade: float = GUARD_REACH_FADE_M,
-                  depth_fade: float = GUARD_DEPTH_FADE_M) -> tuple[np.ndarray, np.ndarray]:
+def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = GUARD_REACH_M,
+                  depth: float = GUARD_DEPTH_M, reach_fade: float = GUARD_REACH_FADE_M,
+                  depth_fade: float = GUARD_DEPTH_FADE_M):
     """Keep each vertex outside its posed anchor face's plane (see the module's docstring).
 
-    points: (T, V, 3) garment; body_points: (T, Vb, 3) the posed body. Fades of 0 cut the lift off at the
-    bounds. Returns (points (T, V, 3) float32, moved (T,) vertex counts).
+    points: (T, V, 3) garment; body_points: (T, Vb, 3) the posed body, both arrays (float64 arithmetic) or both
+    tensors (on their device, in body_points' dtype). Fades of 0 cut the lift off at the bounds. Returns (points
+    (T, V, 3) float32, moved (T,) vertex counts), arrays or tensors as given.
     """
+    arrays = not isinstance(body_points, torch.Tensor)
     behind, lateral, normal = anchor_offsets(points, body_points, anchors)
+    if arrays:
+        behind, lateral, normal = map(torch.from_numpy, (behind, lateral, normal))
     lift = behind * _fade(behind, depth, depth_fade) * _fade(lateral, reach, reach_fade)
-    out = (points + lift[..., None] * normal).astype(np.float32)
-    return out, (lift > 0).sum(axis=1)
+    moved = (lift > 0).sum(dim=1)
+    if arrays:
+        return (points + lift.numpy()[..., None] * normal.numpy()).astype(np.float32), moved.numpy()
+    return (points + lift[..., None] * normal).float(), moved
 
 
 #: Frames the contact guard poses the body for at once (posing 2 at a time cost 2.3 ms/frame, 16 at a time 1.3).
 GUARD_CHUNK_FRAMES = 16
 
 
+def body_anchors(rest: np.ndarray, body: Body, betas: np.ndarray | None) -> ContactAnchors:
+    """`contact_anchors` of a garment at rest (V, 3) on `body` shaped by `betas` (its faces wound outward)."""
+    shaped_body, _ = body.shaped(betas)
+    return contact_anchors(np.asarray(rest), shaped_body, outward_faces(shaped_body, body.faces))
+
+
+def guard_report(moved: list, seconds: float | None, frames: int) -> dict:
+    """The deformer report's entries of a guarded sequence: "contact_guard" (its bounds and how many vertices it
+    moved per frame: `moved`, (T,) counts in pieces) and "seconds_per_frame_guard" (None: not timed apart)."""
+    moved = np.concatenate([np.asarray(m) for m in moved]) if moved else np.zeros(1, dtype=np.int64)
+    guard = {"margin_m": GUARD_MARGIN_M, "reach_m": GUARD_REACH_M, "depth_m": GUARD_DEPTH_M,
+             "reach_fade_m": GUARD_REACH_FADE_M, "depth_fade_m": GUARD_DEPTH_FADE_M,
+             "vertices_moved_per_frame_mean": float(moved.mean()), "vertices_moved_per_frame_max": int(moved.max())}
+    report = {"contact_guard": guard}
+    if seconds is not None:
+        report["seconds_per_frame_guard"] = seconds / max(frames, 1)
+    return report
+
+
 def guard_sequence(points: np.ndarray, rest: np.ndarray, body: Body, poses: np.ndarray, trans: np.ndarray,
                    betas: np.ndarray | None) -> tuple[np.ndarray, dict]:
     """The contact guard over a deformed sequence (the model's and psd's): each vertex tied to its closest face
-    of the body at rest (`contact_anchors`, both shaped by `betas`), then kept outside it in every frame
-    (`guard_contact`), the body posed `GUARD_CHUNK_FRAMES` frames at a time.
+    of the body at rest (`body_anchors`), then kept outside it in every frame (`guard_contact`), the body posed
+    `GUARD_CHUNK_FRAMES` frames at a time.
 
     points: (T, V, 3) the sequence (written in place); rest: (V, 3) the garment at rest on the shaped body;
-    poses: (T, J, 3) in the body's layout. Returns (points, the deformer report's entries: "contact_guard" and
-    "seconds_per_frame_guard").
+    poses: (T, J, 3) in the body's layout. Returns (points, `guard_report`'s entries).
     """
     t0 = time.perf_counter()
-    shaped_body, _ = body.shaped(betas)
-    anchors = contact_anchors(np.asarray(rest), shaped_body, outward_faces(shaped_body, body.faces))
+    anchors = body_anchors(rest, body, betas)
     moved = []
     for s in range(0, len(points), GUARD_CHUNK_FRAMES):
         fr = slice(s, min(s + GUARD_CHUNK_FRAMES, len(points)))
         body_points, _ = body.pose(poses[fr], trans[fr], betas)
         points[fr], n = guard_contact(points[fr], body_points, anchors)
         moved.append(n)
-    moved = np.concatenate(moved) if moved else np.zeros(1, dtype=np.int64)
-    guard = {"margin_m": GUARD_MARGIN_M, "reach_m": GUARD_REACH_M, "depth_m": GUARD_DEPTH_M,
-             "reach_fade_m": GUARD_REACH_FADE_M, "depth_fade_m": GUARD_DEPTH_FADE_M,
-             "vertices_moved_per_frame_mean": float(moved.mean()), "vertices_moved_per_frame_max": int(moved.max())}
-    return points, {"contact_guard": guard, "seconds_per_frame_guard": (time.perf_counter() - t0) / max(len(points), 1)}
+    return points, guard_report(moved, time.perf_counter() - t0, len(points))
 
 
 class PushOutDeformer(Deformer):

@@ -206,7 +206,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
                 save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(), train=tr.state())
 
         # What the model has seen: per joint, the largest share of a training garment's weight on it.
-        coverage = joint_coverage([g.inputs.prior_weights.numpy() for g in data.garments.values()])
+        coverage = joint_coverage([g.inputs.prior_weights.cpu().numpy() for g in data.garments.values()])
         if init is not None and init.get("meta", {}).get("joint_coverage") is not None:  # it has seen both datasets
             coverage = [max(a, b) for a, b in zip(coverage, init["meta"]["joint_coverage"])]
 

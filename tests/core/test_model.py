@@ -342,3 +342,39 @@ def test_temporal_encoders_run_in_the_weights_precision_under_bfloat16_autocast(
         h = _last_state(lstm, x)
     assert h.shape == (3, 8) and h.dtype == torch.float32 and torch.equal(h, plain)
     assert _last_state(lstm.double(), x).dtype == torch.float64
+
+
+def test_contact_guard_with_the_network_matches_the_guard_afterwards():
+    """The contact guard batch by batch where the network runs (a GPU bake's path, here forced on the CPU) gives
+    the frames of the guard over the whole sequence afterwards (float32 against float64 arithmetic) and moves the
+    same vertices; both differ from the network's raw output."""
+    from pathlib import Path
+
+    from core.body import default_body
+    from core.model_deform import load_model_deformer
+    from formats.motion import load_motion
+    from formats.obj import read_garment
+
+    root = Path(__file__).resolve().parents[2]
+    garment, body = read_garment(root / "examples" / "dress.obj"), default_body()
+    run = load_motion(root / "examples" / "run.npz", fps=30.0)
+    motion = dataclasses.replace(run, poses=run.poses[:7], trans=run.trans[:7])
+    out, reports = {}, {}
+    for name, guard, on_device in (("after", True, False), ("with", True, True), ("raw", False, None)):
+        d = load_model_deformer(contact_guard=guard)
+        d.batch_frames, d.guard_on_device = 3, on_device  # batches of 3, 3 and 1 frames
+        out[name] = d.deform(garment, body, motion)
+        reports[name] = d.report
+    after, with_net = reports["after"]["contact_guard"], reports["with"]["contact_guard"]
+    assert after["device"] == with_net["device"] == "cpu" and after["vertices_moved_per_frame_mean"] > 0
+    assert with_net["vertices_moved_per_frame_mean"] == after["vertices_moved_per_frame_mean"]
+    assert np.abs(out["with"] - out["after"]).max() < 1e-5
+    assert np.abs(out["after"] - out["raw"]).max() > 1e-3
+
+
+def test_default_batch_frames_follow_the_device_and_the_garment_size():
+    from core.model_deform import GPU_MAX_BATCH_FRAMES, default_batch_frames
+
+    assert default_batch_frames("cpu", 50) == default_batch_frames("cpu", 50_000) == 2
+    assert default_batch_frames("cuda", 4096) == 128 and default_batch_frames("cuda:1", 50_000) == 10
+    assert default_batch_frames("cuda", 50) == GPU_MAX_BATCH_FRAMES and default_batch_frames("cuda", 10**7) == 1

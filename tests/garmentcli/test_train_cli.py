@@ -2,6 +2,7 @@
 
 import csv
 import json
+import traceback
 
 import numpy as np
 import pytest
@@ -115,7 +116,7 @@ def test_train_on_a_gpu_follows_the_cpu(setup):
     for device in ("cpu", "cuda"):
         out = root / f"{device}.pt"
         r = _train(root, data, body, cfg, out, "--steps", "4", "--seed", "3", "--device", device)
-        assert r.exit_code == 0, r.output
+        assert r.exit_code == 0, (r.output, "".join(traceback.format_exception(*r.exc_info)) if r.exc_info else "")
         runs[device] = list(csv.DictReader(open(root / f"{device}.pt.csv")))
     assert json.loads((root / "cuda.pt.json").read_text())["device"].startswith("cuda")
     first_cpu, first_gpu = float(runs["cpu"][0]["loss"]), float(runs["cuda"][0]["loss"])
