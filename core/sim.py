@@ -944,8 +944,11 @@ class SimDeformer(Deformer):
             if (not check["finite"] or check["tunnelled_share"] > o.fail_penetration_share
                     or check["mean_strain"] > o.fail_mean_strain or fell or left):
                 off = ""
-                what = (lambda k: f"piece {k + 1} of {n_pieces} ({int(np.sum(pieces == k))} vertices, not joined to "
-                                  f"the rest)" if n_pieces > 1 else "the garment")
+
+                def what(k):
+                    return (f"piece {k + 1} of {n_pieces} ({int(np.sum(pieces == k))} vertices, not joined to the "
+                            "rest)" if n_pieces > 1 else "the garment")
+
                 if fell and (n_pieces > 1 or not left):
                     k = fell[0]
                     off = (f"; {what(k)} fell or slid off the body: its median distance to it is "

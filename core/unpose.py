@@ -74,8 +74,9 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     def blended(at) -> np.ndarray:  # (V, 3, 4): each vertex's blend of the joints' transforms, weights from `at`
         return np.einsum("vj,jrc->vrc", transfer_weights(at, body, garment.faces, smooth_iterations), A)
 
-    for refine in range(UNPOSE_REFINE_PASSES + 1):
-        if refine:  # the weights `bake` will use: from the (shaped) rest body, at the unposed points
+    rest = None
+    for _ in range(UNPOSE_REFINE_PASSES + 1):
+        if rest is not None:  # the weights `bake` will use: from the (shaped) rest body, at the unposed points
             hit = rest_mesh.closest(rest)
         M = blended(hit)
         bad = np.linalg.svd(M[:, :, :3], compute_uv=False)[:, -1] < MIN_SINGULAR_VALUE

@@ -107,7 +107,10 @@ class Scene:
     def take(self, frames) -> "Scene":
         """The scene restricted to the given frame indices (an int array or a slice)."""
         idx = np.arange(self.n_frames)[frames]
-        pick = (lambda a: None if a is None else a[idx])
+
+        def pick(a):
+            return None if a is None else a[idx]
+
         return replace(self, garment_points=self.garment_points[idx], body_points=pick(self.body_points),
                        frame_numbers=self.frame_numbers[idx], vertex_values=pick(self.vertex_values),
                        inside=pick(self.inside))
