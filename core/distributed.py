@@ -107,7 +107,7 @@ def _run_local(task, calls, names, workers: int):
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     failures = []
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=pool_context()) as pool:
         futures = {pool.submit(task, *args): name for name, args in zip(names, calls)}
         for fut in as_completed(futures):
             exc = fut.exception()
@@ -118,6 +118,19 @@ def _run_local(task, calls, names, workers: int):
                 yield futures[fut], fut.result()
     if failures:
         raise ItemsFailed(failures, len(calls))
+
+
+def pool_context():
+    """The local processes' start method: spawn where this process has started CUDA (a forked child cannot use it:
+    "Cannot re-initialize CUDA in forked subprocess", so `bake --workers N` on a GPU would fail), else the
+    platform's default (None; fork on Linux, which imports nothing again)."""
+    import multiprocessing
+    import sys
+
+    torch = sys.modules.get("torch")
+    if torch is not None and torch.cuda.is_initialized():
+        return multiprocessing.get_context("spawn")
+    return None
 
 
 def _run_dask(client, task, calls, names, retries: int):

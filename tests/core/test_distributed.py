@@ -1,6 +1,7 @@
 """core.distributed: the same items through the local engines and a Dask LocalCluster, with injected failures."""
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -69,6 +70,31 @@ def test_local_processes_keep_going_past_a_failed_item(caplog):
             got[name] = value
     assert got == {"i0": 0, "i2": 4, "i3": 9, "i4": 16} and info.value.total == 5
     assert "item 'i1' failed: ValueError: one is broken" in caplog.text
+
+
+#: "imported" as this module is loaded; the spawn test sets it in its own process: a forked child inherits that, a
+#: spawned one imports the module afresh.
+_MARK = "imported"
+
+
+def _mark_and_square(x):
+    return _MARK, x * x
+
+
+def test_local_processes_are_spawned_once_this_process_has_started_cuda(monkeypatch):
+    """A forked child cannot use CUDA once its parent has started it: the processes are then spawned (fresh
+    interpreters) and still run every item; otherwise the platform's default start method (no re-import)."""
+    import torch
+
+    from core.distributed import pool_context
+
+    assert pool_context() is None or torch.cuda.is_initialized()
+    monkeypatch.setattr(torch.cuda, "is_initialized", lambda: True)
+    assert pool_context().get_start_method() == "spawn"
+    monkeypatch.setattr(sys.modules[__name__], "_MARK", "set in the parent")
+    got = dict(run_items(_mark_and_square, [(x,) for x in range(4)], [f"i{x}" for x in range(4)], workers=2))
+    assert {k: v[1] for k, v in got.items()} == {"i0": 0, "i1": 1, "i2": 4, "i3": 9}
+    assert {mark for mark, _ in got.values()} == {"imported"}
 
 
 def test_cluster_retries_failed_and_killed_tasks(client, tmp_path):
