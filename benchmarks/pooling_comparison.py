@@ -34,6 +34,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from model_table import COLUMNS, evaluate, summarise  # noqa: E402
 
 from core.model import ModelConfig  # noqa: E402
+from formats.report import write_markdown  # noqa: E402
 
 POOLING_VARIANTS = {"ours (structure-preserving)": {"pooling": "structure", "levels": 2},
                     "TopKPool": {"pooling": "topk", "levels": 2},
@@ -143,9 +144,7 @@ def run(variants: dict, args, table: Path) -> None:
     for name in models:
         lines.append(f"| {name} | {steps[name]} | "
                      + " | ".join(" / ".join(map(str, components[(name, g)])) for g in test_garments) + " |")
-    table.parent.mkdir(parents=True, exist_ok=True)
-    table.write_text("\n".join(lines) + "\n")
-    print(f"wrote {table}")
+    write_markdown(table, lines)
 
 
 def main(argv=None) -> None:

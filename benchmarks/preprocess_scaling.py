@@ -90,6 +90,8 @@ def measure(n_vertices: int) -> dict:
 
 
 def main() -> None:
+    from formats.report import write_markdown
+
     rows = []
     for n in SIZES:
         res = subprocess.run([sys.executable, __file__, "--one", str(n)], capture_output=True, text=True, check=True)
@@ -125,9 +127,7 @@ def main() -> None:
               "V x V dense. Callers that only need a few candidate pairs use `core.geodesic.geodesically_far`, "
               "which searches from those pairs' vertices only.",
               "- Everything else (features, hierarchy, graph) is O(V + E)."]
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text("\n".join(lines) + "\n")
-    print(f"wrote {OUT}")
+    write_markdown(OUT, lines)
 
 
 if __name__ == "__main__":

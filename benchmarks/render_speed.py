@@ -51,6 +51,8 @@ def synthetic_scene(n_frames: int):
 
 
 def main() -> None:
+    from formats.report import write_markdown
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--garment", type=Path, default=ROOT / "examples" / "dress.obj")
     ap.add_argument("--motion", type=Path, default=ROOT / "examples" / "walk.npz")
@@ -108,10 +110,7 @@ def main() -> None:
         "|---|---:|---:|---:|---:|---:|",
     ]
     lines += [f"| {c} | {r:.4f} | {p:.4f} | {m:.4f} | {tot:.4f} | {1 / tot:.1f} |" for c, r, p, m, tot in rows]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-    print(f"wrote {args.out}")
+    write_markdown(args.out, lines, show=True)
 
 
 if __name__ == "__main__":

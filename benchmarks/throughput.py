@@ -36,7 +36,7 @@ from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
 from core.model_deform import default_batch_frames, load_model_deformer, native_bfloat16  # noqa: E402
 from core.motion import Motion, resample  # noqa: E402
-from formats.report import markdown_table  # noqa: E402
+from formats.report import markdown_table, write_markdown  # noqa: E402
 
 #: Times each motion of the CLI bake is played in a row (about 12 s each: a typical motion-capture clip).
 CLI_REPEATS = 3
@@ -204,9 +204,7 @@ def main(argv=None) -> None:
                   f"imported), median of 3: {startup:.2f} s."]
     lines += ["", f"Profile of one model bake (float32, batch {default_batch}), operators by self CPU time:", "",
               markdown_table(["operator", "calls", "self ms", "%"], prof)]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("\n".join(lines) + "\n")
-    print(f"wrote {args.out}")
+    write_markdown(args.out, lines)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
 from core.model_deform import load_model_deformer  # noqa: E402
 from core.motion import Motion, resample  # noqa: E402
-from formats.report import markdown_table  # noqa: E402
+from formats.report import markdown_table, write_markdown  # noqa: E402
 
 #: Frames per forward pass tried on the GPU.
 GPU_BATCHES = (8, 32, 128, 512)
@@ -197,10 +197,7 @@ def main(argv=None) -> None:
             "",
             markdown_table(["kernel", "launches", "ms", "%"], prof_rows),
         ]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-    print(f"wrote {args.out}")
+    write_markdown(args.out, lines, show=True)
 
 
 if __name__ == "__main__":

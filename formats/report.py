@@ -83,6 +83,19 @@ def _atomic_write_text(path: Path, text: str) -> None:
         tmp.write_text(text, encoding="utf-8", newline="")
 
 
+def write_markdown(path: str | os.PathLike, lines: Sequence[str], show: bool = False) -> Path:
+    """A benchmark's Markdown report: `lines` written to `path` (its folder made, atomically), printed first
+    where `show`, then where it went. Returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = "\n".join(lines) + "\n"
+    _atomic_write_text(path, text)
+    if show:
+        print(text, end="")
+    print(f"wrote {path}")
+    return path
+
+
 def write_json(path: str | os.PathLike, obj: Any) -> Path:
     """Write `obj` (JSON-serialisable; numpy scalars/arrays allowed) as indented JSON; returns the path."""
 

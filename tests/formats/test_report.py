@@ -108,3 +108,14 @@ def test_stem_path_and_bad_format(tmp_path):
     bad.write_text("{not json")
     with pytest.raises(InputError, match="metrics report '.*bad.json'"):
         read_json_report(bad)
+
+
+def test_write_markdown_makes_the_folder_and_says_where(tmp_path, capsys):
+    from formats.report import write_markdown
+
+    path = write_markdown(tmp_path / "new" / "table.md", ["# Title", "", "| a |"], show=True)
+    assert path.read_text() == "# Title\n\n| a |\n"
+    out = capsys.readouterr().out
+    assert out.startswith("# Title\n") and out.rstrip().endswith(f"wrote {path}")
+    write_markdown(path, ["again"])
+    assert path.read_text() == "again\n" and capsys.readouterr().out == f"wrote {path}\n"
