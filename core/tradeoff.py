@@ -75,8 +75,8 @@ def configurations(models: dict, with_sim: bool = True, spread: bool = False, fi
     return rows
 
 
-def make_deformer(config: Config, cache_dir=None) -> Deformer:
-    """The Deformer of a configuration."""
+def make_deformer(config: Config, cache_dir=None, device=None) -> Deformer:
+    """The Deformer of a configuration; a model's network on `device` (None: where its checkpoint loads, the CPU)."""
     if config.method == "lbs":
         return LBSDeformer()
     if config.method == "psd":
@@ -86,7 +86,8 @@ def make_deformer(config: Config, cache_dir=None) -> Deformer:
     if config.method == "model":
         from core.model_deform import load_model_deformer
 
-        d = load_model_deformer(config.options["path"], cache_dir=cache_dir, precision=config.options["precision"])
+        d = load_model_deformer(config.options["path"], cache_dir=cache_dir, precision=config.options["precision"],
+                                device=device)
         if config.options["push_out"]:
             from core.pushout import PushOutDeformer
 
@@ -144,10 +145,11 @@ class Measurement:
 
 
 def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeats: int = 3,
-            cache_dir=None) -> Measurement:
+            cache_dir=None, device=None) -> Measurement:
     """Warm-up (preparation timed apart) and `repeats` timed runs (1 for the simulator: minutes per run). The
-    motion's lead frames (`Motion.n_lead`, a pre-roll) are deformed and timed, and left out of the points kept."""
-    deformer = make_deformer(config, cache_dir)
+    motion's lead frames (`Motion.n_lead`, a pre-roll) are deformed and timed, and left out of the points kept.
+    device: the model rows' (`make_deformer`)."""
+    deformer = make_deformer(config, cache_dir, device)
     t0 = time.perf_counter()
     deformer.prepare(garment, body)
     prep = time.perf_counter() - t0

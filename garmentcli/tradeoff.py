@@ -36,6 +36,7 @@ from garmentcli.common import (
     frames_option,
     input_errors_as_click,
     load_body_option,
+    parse_device,
     prepare_motion,
     preroll_option,
     source_fps_option,
@@ -82,6 +83,8 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @click.option("--fit", "fit_specs", multiple=True, metavar="NAME=PATH",
               help="The garment's fitted blend shapes (`garment fit`) to compare as `psd NAME` rows (repeatable; "
                    "left out of --calibrate: a fit belongs to one garment).")
+@click.option("--device", default=None, metavar="DEVICE",
+              help="Where the model rows' network runs: cpu, cuda or cuda:N [default: auto, as bake's].")
 @click.option("--repeats", type=click.IntRange(min=1), default=3, show_default=True,
               help="Timed runs per configuration after a warm-up (the median counts); the simulator runs once.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing result directory.")
@@ -99,7 +102,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
              reuse_sim=False, calibration_path=None, spread=False, betas="motion", source_fps=None, fit_specs=(),
-             preroll_frames=0):
+             preroll_frames=0, device=None):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each --fit (psd); each model in float32 and bfloat16, with and without penetration push-out; the
@@ -112,6 +115,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         if not Path(p).is_file():
             raise click.FileError(p, hint="no such file")
     check_preroll(preroll_frames, frames)
+    device = str(parse_device(device, auto=True))
     models = _models(model_specs)
     fits = _named_files(fit_specs, "--fit", "fit")
     try:
@@ -149,7 +153,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                 reused.append(config.name)
                 continue
         try:
-            results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir()))
+            results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir(),
+                                   device=device))
             if key is not None:
                 staged.mkdir(parents=True, exist_ok=True)
                 save_simulation(staged / sim_file_name(config), results[-1], key)
@@ -179,7 +184,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     try:
-        _write(tmp, table, garment_path, motion_path, motion, garment)
+        _write(tmp, table, garment_path, motion_path, motion, garment, device)
         (tmp / SIMULATIONS).mkdir()
         for m in results:
             if m.config.method == "sim":
@@ -213,7 +218,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                          if r["spread"] and not r["failed"]))
 
 
-def _write(directory: Path, table: list[dict], garment_path, motion_path, motion, garment) -> None:
+def _write(directory: Path, table: list[dict], garment_path, motion_path, motion, garment, device: str) -> None:
     from formats.plots import plot_pareto
     from formats.report import markdown_table
 
@@ -224,14 +229,14 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
     (directory / "tradeoff.json").write_text(json.dumps(
         {"garment": str(garment_path), "motion": str(motion_path), "frames": motion.n_written,
          "preroll_frames": motion.n_lead, "fps": motion.fps,
-         "vertices": garment.n_vertices, "rows": table}, indent=1))
+         "vertices": garment.n_vertices, "model_device": device, "rows": table}, indent=1))
     ref = next(r["config"] for r in table if r["reference"])
     done = [r for r in table if not r["failed"]]
     spread = next((r for r in done if r["spread"]), None)
     md = [f"# Speed against accuracy: `{Path(garment_path).name}` on `{Path(motion_path).name}`", "",
           (f"{motion.n_written} frames at {motion.fps:g} fps"
            + (f" after {motion.n_lead} pre-roll frames" if motion.n_lead else "")
-           + f", {garment.n_vertices} garment vertices. Errors against "
+           + f", {garment.n_vertices} garment vertices, the model rows on {device}. Errors against "
            f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
            "run); preparation (binding, preprocessing, simulator build) apart; peak memory: the largest rise of "
            "resident memory during the timed runs. E_verts mm, E_vnorm / E_fnorm degrees, E_edge %, penetration: "

@@ -72,7 +72,7 @@ def model_file(tmp_path):
 
 def test_tradeoff_writes_table_plot_and_json(scene, model_file):
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--model", f"tiny={model_file}",
-                "--repeats", 1, "--frames", "0:4", "--out", scene["out"], "--spread"])
+                "--repeats", 1, "--frames", "0:4", "--out", scene["out"], "--spread", "--device", "cpu"])
     assert r.exit_code == 0, r.output
     d = scene["out"] / "shell_walk"
     rows = list(csv.DictReader(open(d / "tradeoff.csv")))
@@ -96,7 +96,7 @@ def test_tradeoff_writes_table_plot_and_json(scene, model_file):
     assert fastest["pareto"] == "True"
     assert float(by["tiny float32 +push-out"]["penetration_pct"]) == 0.0
     meta = json.loads((d / "tradeoff.json").read_text())
-    assert meta["frames"] > 0 and len(meta["rows"]) == len(rows)
+    assert meta["frames"] > 0 and len(meta["rows"]) == len(rows) and meta["model_device"] == "cpu"
     assert (d / "tradeoff.png").stat().st_size > 1000 and "| lbs " in (d / "tradeoff.md").read_text()
     assert "shell_walk" in r.output
     # Existing output: refused without --overwrite.
@@ -107,7 +107,8 @@ def test_tradeoff_writes_table_plot_and_json(scene, model_file):
 
 @pytest.mark.parametrize("extra, needle", [(["--model", "nopath"], "NAME=PATH"),
                                            (["--model", "x=missing.pt"], "missing.pt"),
-                                           (["--repeats", "0"], "--repeats")])
+                                           (["--repeats", "0"], "--repeats"),
+                                           (["--device", "tpu"], "expected auto, cpu, cuda or cuda:N, got 'tpu'")])
 def test_tradeoff_bad_options(scene, extra, needle):
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--out", scene["out"], *extra])
     assert r.exit_code != 0 and needle in r.output and "Traceback" not in r.output
@@ -126,7 +127,7 @@ def _fake_measure(fail):
     from core.sim import SimulationError
     from core.tradeoff import Measurement
 
-    def measure(config, garment, body, motion, repeats=3, cache_dir=None):
+    def measure(config, garment, body, motion, repeats=3, cache_dir=None, device=None):
         if fail(config):
             raise SimulationError(f"sim: frame 3 of motion '{motion.name}' failed after 3 tries")
         pts = LBSDeformer().deform(garment, body, motion)[motion.n_lead:] + (0.0 if config.reference else 0.01)
