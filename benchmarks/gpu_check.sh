@@ -2,7 +2,10 @@
 # The checks that need a CUDA GPU, in one run: the tests that skip without one, then the model's throughput
 # there (benchmarks/throughput_gpu.py). Run from the repository root on a machine with torch (CUDA build),
 # torch-geometric, numpy, scipy, click, tqdm, psutil and usd-core; OUT (default ./gpu_out) gets the logs and
-# the table. Where a package is missing, wheels in .whl/ are installed into /tmp/site first.
+# the table. Where a package is missing, wheels in .whl/ are installed into /tmp/site first; for the lent H200
+# (Python 3.12, no usd-core), made on a machine with network access:
+#   pip download --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+#       --platform manylinux_2_28_x86_64 -d .whl usd-core==26.11
 set -uo pipefail
 OUT=${OUT:-gpu_out}
 mkdir -p "$OUT"
