@@ -178,5 +178,15 @@ def test_model_on_a_gpu_matches_the_cpu(tmp_path):
     cpu, _, _ = _bake(dress, tmp_path / "cpu", "--device", "cpu")
     gpu, summary, _ = _bake(dress, tmp_path / "gpu", "--device", "cuda")
     assert summary["deformer"]["device"] == "cuda:0"
+    assert summary["deformer"]["contact_guard"]["device"] == "cuda:0"  # per batch, on the GPU
     # float32 on both; the GPU's kernels sum in other orders: far under a millimetre apart.
     assert np.abs(gpu - cpu).max() < 1e-4, np.abs(gpu - cpu).max()
+    # Two motions in two worker processes after this process has started CUDA: spawned, each on the GPU.
+    r = invoke_default(["bake", dress, ROOT / "examples" / "run.npz", ROOT / "examples" / "walk.npz", "--frames", "0:8",
+                        "--out", tmp_path / "workers", "--no-obj", "--no-body", "--device", "cuda", "--workers", "2"])
+    assert r.exit_code == 0, r.output
+    for motion in ("run", "walk"):
+        summary = json.loads((tmp_path / "workers" / f"dress_{motion}" / "summary.json").read_text())
+        assert summary["deformer"]["device"] == "cuda:0"
+    workers_run = read_usd(tmp_path / "workers" / "dress_run" / "dress_run.usd").tracks["garment"].points
+    assert np.abs(workers_run - gpu).max() < 1e-5
