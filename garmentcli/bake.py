@@ -241,8 +241,10 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
     hint = ""
     if mean > PUSH_OUT_HINT_PERCENT and method in ("model", "lbs") and not summary.get("push_out"):
         hint = " (--push-out moves them outside)"
+    device = summary.get("deformer", {}).get("device", "cpu")
+    where = method if device == "cpu" else f"{method} on {device}"
     click.echo(f"{target}: {summary['frames']} frames at {fps:g} fps, "
-               f"{summary['seconds_per_frame'] * 1e3:.2f} ms/frame ({method}), "
+               f"{summary['seconds_per_frame'] * 1e3:.2f} ms/frame ({where}), "
                f"penetration mean {mean:.2f}% max {pen.get('max_percent', float('nan')):.2f}%{hint}")
 
 

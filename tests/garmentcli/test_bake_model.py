@@ -155,8 +155,8 @@ def test_device_is_recorded_and_bad_values_are_one_line(tmp_path):
     import torch
 
     dress = ROOT / "examples" / "dress.obj"
-    _, summary, _ = _bake(dress, tmp_path / "cpu", "--device", "cpu")
-    assert summary["deformer"]["device"] == "cpu"
+    _, summary, said = _bake(dress, tmp_path / "cpu", "--device", "cpu")
+    assert summary["deformer"]["device"] == "cpu" and "ms/frame (model)" in said
     _, summary, _ = _bake(dress, tmp_path / "auto")
     assert summary["deformer"]["device"] == ("cuda:0" if torch.cuda.is_available() else "cpu")
     walk = ROOT / "examples" / "walk.npz"
@@ -176,8 +176,8 @@ def test_device_is_recorded_and_bad_values_are_one_line(tmp_path):
 def test_model_on_a_gpu_matches_the_cpu(tmp_path):
     dress = ROOT / "examples" / "dress.obj"
     cpu, _, _ = _bake(dress, tmp_path / "cpu", "--device", "cpu")
-    gpu, summary, _ = _bake(dress, tmp_path / "gpu", "--device", "cuda")
-    assert summary["deformer"]["device"] == "cuda:0"
+    gpu, summary, said = _bake(dress, tmp_path / "gpu", "--device", "cuda")
+    assert summary["deformer"]["device"] == "cuda:0" and "ms/frame (model on cuda:0)" in said
     assert summary["deformer"]["contact_guard"]["device"] == "cuda:0"  # per batch, on the GPU
     # float32 on both; the GPU's kernels sum in other orders: far under a millimetre apart.
     assert np.abs(gpu - cpu).max() < 1e-4, np.abs(gpu - cpu).max()
