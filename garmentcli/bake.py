@@ -403,7 +403,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if fallback:
             method, model_path, precision, device = "lbs", None, None, None
             deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
-    if method == "model" and precision == "bfloat16" and next(deformer.model.parameters()).device.type == "cpu":
+    if (method == "model" and precision == "bfloat16"
+            and parse_device(device, auto=True, check=not scheduler).type == "cpu"):
         from core.model_deform import native_bfloat16
 
         if native_bfloat16() is False:

@@ -172,6 +172,14 @@ def test_device_is_recorded_and_bad_values_are_one_line(tmp_path):
     assert not (tmp_path / "bad").exists()
 
 
+def test_bfloat16_with_push_out(tmp_path):
+    """--precision bfloat16 with --push-out: the network wrapped by the push-out, baked (the CPU's bfloat16 check
+    once read the device off the wrapper, which has no network)."""
+    _, summary, _ = _bake(ROOT / "examples" / "dress.obj", tmp_path / "b", "--precision", "bfloat16", "--push-out",
+                          "--device", "cpu")
+    assert summary["deformer"]["precision"] == "bfloat16" and "push_out" in summary["deformer"]
+
+
 @pytest.mark.skipif(not __import__("torch").cuda.is_available(), reason="needs a CUDA device")
 def test_model_on_a_gpu_matches_the_cpu(tmp_path):
     dress = ROOT / "examples" / "dress.obj"
