@@ -65,10 +65,12 @@ def repeated(motion: Motion, times: int) -> Motion:
                   fps=motion.fps, name=f"{motion.name} x{times}")
 
 
-def median_seconds(fn, repeats: int) -> float:
+def median_seconds(fn, repeats: int, limit_s: float | None = None) -> float:
+    """Median seconds of `repeats` runs of `fn` after a warm-up; with `limit_s`, fewer once that many seconds are
+    spent (at least one)."""
     fn()  # warm-up
     times = []
-    for _ in range(repeats):
+    while len(times) < repeats and (limit_s is None or sum(times) < limit_s):
         t = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t)

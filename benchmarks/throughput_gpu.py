@@ -18,7 +18,6 @@ import argparse
 import os
 import platform
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -38,17 +37,6 @@ from formats.report import markdown_table, write_markdown  # noqa: E402
 GPU_BATCHES = (8, 32, 128, 512)
 #: Seconds one configuration is timed for at most (after its warm-up; at least one timed run).
 TIME_PER_CONFIG_S = 5.0
-
-
-def timed_median(fn, repeats: int, limit_s: float = TIME_PER_CONFIG_S) -> float:
-    """Median seconds of up to `repeats` runs of `fn` after a warm-up, stopping once `limit_s` is spent."""
-    fn()
-    times = []
-    while len(times) < repeats and sum(times) < limit_s:
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return float(np.median(times))
 
 
 def model_rate(garment, body, motion: Motion, device: str, precision: str, batch: int | None, guard: str,
@@ -71,7 +59,7 @@ def model_rate(garment, body, motion: Motion, device: str, precision: str, batch
 
     if gpu:
         torch.cuda.reset_peak_memory_stats()
-    whole = timed_median(once, repeats)
+    whole = median_seconds(once, repeats, TIME_PER_CONFIG_S)
     return {"whole": motion.n_frames / whole, "network": 1.0 / d.report["seconds_per_frame_network"],
             "peak_mib": torch.cuda.max_memory_allocated() / 2**20 if gpu else None, "batch": d.report["batch_frames"],
             "verts": out["verts"]}

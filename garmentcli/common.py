@@ -229,8 +229,8 @@ def check_preroll(preroll_frames: int, frames: str | None, settle_frames: int = 
                                "would blend into the pre-roll's first frame, not into START)")
 
 
-def parse_device(text: str | None, option: str = "--device", auto: bool = False, check: bool = True):
-    """`option` as a torch.device: cpu, cuda or cuda:N; where `auto`, also "auto" or None (the first CUDA device
+def parse_device(text: str | None, auto: bool = False, check: bool = True):
+    """--device as a torch.device: cpu, cuda or cuda:N; where `auto`, also "auto" or None (the first CUDA device
     torch sees, else the CPU). check: the device must be on this machine (not for work sent to a cluster's
     workers, which check their own). BadParameter naming the option when unknown or absent."""
     import torch
@@ -241,13 +241,13 @@ def parse_device(text: str | None, option: str = "--device", auto: bool = False,
     try:
         dev = torch.device(text)
     except (RuntimeError, ValueError, TypeError):
-        raise click.BadParameter(expected, param_hint=option) from None
+        raise click.BadParameter(expected, param_hint="--device") from None
     if dev.type not in ("cpu", "cuda"):
-        raise click.BadParameter(expected, param_hint=option)
+        raise click.BadParameter(expected, param_hint="--device")
     if check and dev.type == "cuda" and not torch.cuda.is_available():
         raise click.BadParameter(f"{text!r}: no CUDA device is available on this machine (torch "
-                                 f"{torch.__version__})", param_hint=option)
+                                 f"{torch.__version__})", param_hint="--device")
     if check and dev.type == "cuda" and dev.index is not None and dev.index >= torch.cuda.device_count():
         raise click.BadParameter(f"{text!r}: this machine has {torch.cuda.device_count()} CUDA devices",
-                                 param_hint=option)
+                                 param_hint="--device")
     return dev
