@@ -115,14 +115,17 @@ def contact_anchors(rest: np.ndarray, body_verts: np.ndarray, body_faces: np.nda
     return ContactAnchors(faces, res.barycentric, np.minimum(margin, offset))
 
 
-def anchor_offsets(points, body_points, anchors: ContactAnchors):
-    """Where each vertex lies against its posed anchor face: (behind (T, V), its depth below the guard's floor,
-    0 where it is above; lateral (T, V), its distance from the face's point along the plane; the face's unit
-    normal (T, V, 3)), metres. points: (T, V, 3); body_points: (T, Vb, 3). Arrays in, float64 arrays out;
-    tensors in, tensors of `body_points`' device and dtype out (a GPU's bake keeps its frames there)."""
-    arrays = not isinstance(body_points, torch.Tensor)
-    bp = torch.as_tensor(np.asarray(body_points, dtype=np.float64)) if arrays else body_points
-    p = torch.as_tensor(np.asarray(points, dtype=np.float64)) if arrays else points.to(bp.dtype)
+def _as_tensors(points, body_points) -> tuple[torch.Tensor, torch.Tensor, bool]:
+    """(points, body_points) as tensors in body_points' device and dtype (arrays: float64 on the CPU), and
+    whether they came as arrays."""
+    if isinstance(body_points, torch.Tensor):
+        return points.to(body_points.dtype), body_points, False
+    as64 = lambda a: torch.from_numpy(np.asarray(a, dtype=np.float64))  # noqa: E731
+    return as64(points), as64(body_points), True
+
+
+def _offsets(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors):
+    """`anchor_offsets` of tensors."""
     faces = torch.as_tensor(anchors.faces, device=bp.device)
     tri = bp[:, faces]  # (T, V, 3 corners, 3)
     point = torch.einsum("tvkc,vk->tvc", tri, torch.as_tensor(anchors.barycentric, dtype=bp.dtype, device=bp.device))
@@ -133,8 +136,17 @@ def anchor_offsets(points, body_points, anchors: ContactAnchors):
     along = torch.einsum("tvc,tvc->tv", rel, normal)
     lateral = torch.linalg.norm(rel - along[..., None] * normal, dim=-1)
     floor = torch.as_tensor(anchors.floor, dtype=bp.dtype, device=bp.device)
-    behind = (floor[None] - along).clamp(min=0.0)
-    return (behind.numpy(), lateral.numpy(), normal.numpy()) if arrays else (behind, lateral, normal)
+    return (floor[None] - along).clamp(min=0.0), lateral, normal
+
+
+def anchor_offsets(points, body_points, anchors: ContactAnchors):
+    """Where each vertex lies against its posed anchor face: (behind (T, V), its depth below the guard's floor,
+    0 where it is above; lateral (T, V), its distance from the face's point along the plane; the face's unit
+    normal (T, V, 3)), metres. points: (T, V, 3); body_points: (T, Vb, 3). Arrays in, float64 arrays out;
+    tensors in, tensors of `body_points`' device and dtype out (a GPU's bake keeps its frames there)."""
+    p, bp, arrays = _as_tensors(points, body_points)
+    out = _offsets(p, bp, anchors)
+    return tuple(x.numpy() for x in out) if arrays else out
 
 
 def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = GUARD_REACH_M,
@@ -146,15 +158,11 @@ def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = G
     tensors (on their device, in body_points' dtype). Fades of 0 cut the lift off at the bounds. Returns (points
     (T, V, 3) float32, moved (T,) vertex counts), arrays or tensors as given.
     """
-    arrays = not isinstance(body_points, torch.Tensor)
-    behind, lateral, normal = anchor_offsets(points, body_points, anchors)
-    if arrays:
-        behind, lateral, normal = map(torch.from_numpy, (behind, lateral, normal))
+    p, bp, arrays = _as_tensors(points, body_points)
+    behind, lateral, normal = _offsets(p, bp, anchors)
     lift = behind * _fade(behind, depth, depth_fade) * _fade(lateral, reach, reach_fade)
-    moved = (lift > 0).sum(dim=1)
-    if arrays:
-        return (points + lift.numpy()[..., None] * normal.numpy()).astype(np.float32), moved.numpy()
-    return (points + lift[..., None] * normal).float(), moved
+    out, moved = (p + lift[..., None] * normal).float(), (lift > 0).sum(dim=1)
+    return (out.numpy(), moved.numpy()) if arrays else (out, moved)
 
 
 #: Frames the contact guard poses the body for at once (posing 2 at a time cost 2.3 ms/frame, 16 at a time 1.3).
