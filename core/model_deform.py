@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import logging
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment
 from core.model import (
+    GarmentInputs,
     GarmentModel,
     body_distances,
     motion_features,
@@ -29,7 +31,7 @@ from core.model import (
 )
 from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body, prepend_blend
-from core.pushout import body_anchors, guard_contact, guard_report, guard_sequence
+from core.pushout import ContactAnchors, body_anchors, guard_contact, guard_report, guard_sequence
 from core.scene import SceneAnalysis, scene_levels
 
 log = logging.getLogger(__name__)
@@ -37,6 +39,9 @@ log = logging.getLogger(__name__)
 #: The model shipped in the package (trained by the command in core/assets/README.md); `bake`'s default.
 DEFAULT_MODEL = Path(__file__).resolve().parent / "assets" / "default_model.pt"
 PRECISIONS = ("float32", "bfloat16")
+#: Body shapes whose prepared inputs a ModelDeformer keeps per garment (`_Shaped`): a bake of many motions of one
+#: subject prepares them once.
+SHAPED_CACHE = 4
 
 
 @functools.cache
@@ -128,6 +133,46 @@ def training_range(weights, coverage, joint_names=None) -> dict:
     return {"uncovered_share": share, "uncovered_joints": names, "within": share <= MAX_UNCOVERED_SHARE}
 
 
+@dataclass
+class _Shaped:
+    """What a deform needs of one garment on one body shape, on the network's device: the garment's inputs,
+    its rest vertices on the shaped body, the encoded rest pose (X^fuse), the suggested levels and the contact
+    guard's anchors (None until a guard on the device needs them)."""
+
+    g: GarmentInputs
+    rest: torch.Tensor
+    fused: torch.Tensor
+    levels: dict
+    anchors: ContactAnchors | None = None
+
+
+class _CopiesBack:
+    """Batches of frames written into `out` (T, V, 3) numpy. From a CUDA device each copy trails the network by
+    one batch: batch k goes into pinned memory without waiting, and is written into `out` once batch k+1 is
+    queued, so the GPU runs k+1 while the host waits for k. `finish` writes the last."""
+
+    def __init__(self, out: np.ndarray, device: torch.device):
+        self.out, self.cuda, self.pending = out, device.type == "cuda", None
+
+    def put(self, start: int, verts: torch.Tensor) -> None:
+        if not self.cuda:
+            self.out[start:start + len(verts)] = verts.numpy()
+            return
+        host = torch.empty(verts.shape, dtype=verts.dtype, pin_memory=True)
+        host.copy_(verts, non_blocking=True)
+        done = torch.cuda.Event()
+        done.record(torch.cuda.current_stream(verts.device))
+        self.finish()
+        self.pending = (start, host, done)
+
+    def finish(self) -> None:
+        if self.pending is not None:
+            start, host, done = self.pending
+            done.synchronize()
+            self.out[start:start + len(host)] = host.numpy()
+            self.pending = None
+
+
 class ModelDeformer(Deformer):
     """The paper's network. model: a GarmentModel; batch_frames: frames per forward pass (None: the device's
     default, `default_batch_frames`).
@@ -160,6 +205,7 @@ class ModelDeformer(Deformer):
         #: Per joint, the largest share of a training garment's weight on it (None: not recorded).
         self.coverage = coverage
         self._garments: dict = {}
+        self._shaped: dict = {}
         #: Keep vertices outside the body faces they rest on (`core.pushout.guard_contact`).
         self.contact_guard = contact_guard
         #: The guard batch by batch on the network's device (True), or afterwards over the sequence on the CPU
@@ -177,6 +223,23 @@ class ModelDeformer(Deformer):
         if key not in self._garments:
             self._garments[key] = prepare_garment(garment, body, self.model.config, self.cache_dir, source)
 
+    def _shaped_inputs(self, garment: Garment, body: Body, motion_betas, device: torch.device) -> _Shaped:
+        """The garment's `_Shaped` inputs on the body shaped by `motion_betas`, made once per garment, body shape,
+        device, precision and state of the network's weights (the last `SHAPED_CACHE` kept)."""
+        betas = body.fit_betas(motion_betas)
+        weights = tuple(p._version for p in self.model.parameters())  # bumped by every in-place change
+        key = (garment.content_hash(), id(body), betas.tobytes(), str(device), self.precision, id(self.model),
+               weights)
+        if key not in self._shaped:
+            g = tensors_to(self._garments[(garment.content_hash(), id(body))].inputs, device)
+            with torch.inference_mode(), torch.autocast(device.type, dtype=torch.bfloat16,
+                                                        enabled=self.precision == "bfloat16"):
+                fused = self.model.encode(g, body_distances(body, betas).to(device))
+            while len(self._shaped) >= SHAPED_CACHE:
+                self._shaped.pop(next(iter(self._shaped)))
+            self._shaped[key] = _Shaped(g, shaped_rest(g, body, betas), fused, scene_levels(garment, body, motion_betas))
+        return self._shaped[key]
+
     def training_range(self, garment: Garment, body: Body) -> dict | None:
         """`training_range` of a prepared garment against the model's training garments (None: unknown)."""
         if self.coverage is None:
@@ -188,59 +251,62 @@ class ModelDeformer(Deformer):
         self.prepare(garment, body)
         # Inputs on the network's device (a GPU where the model was moved to one); results come back as numpy.
         device = next(self.model.parameters()).device
-        g = tensors_to(self._garments[(garment.content_hash(), id(body))].inputs, device)
         betas = body.fit_betas(motion.betas)
         poses = poses_for_body(motion, body.n_joints)
         # A settle blend of its own is one already.
         lead = int(round(self.lead_in_s * motion.fps)) if motion.n_settle == 0 else 0
         window_poses, window_trans = prepend_blend(poses, motion.trans, lead)
+        t0 = time.perf_counter()
+        shaped = self._shaped_inputs(garment, body, motion.betas, device)
+        g, rest = shaped.g, shaped.rest
         mf = tensors_to(motion_features(body, window_poses, window_trans, betas, motion.fps), device)
-        rest = shaped_rest(g, body, betas)
         batch = self.batch_frames or default_batch_frames(device, garment.n_vertices)
         out = np.empty((motion.n_frames, garment.n_vertices, 3), dtype=np.float32)
         scene = SceneAnalysis(self.skips)
         used = (g.prior_weights > 0).any(0)
         scene.record("joints", not bool(used.all()), used=int(used.sum()), joints=len(used))
-        levels = scene_levels(garment, body, motion)
-        scene.report["levels"] = {**levels, "model": self.model.config.levels,
-                                  "matches": levels["suggested"] == self.model.config.levels}
-        t0 = time.perf_counter()
+        scene.report["levels"] = {**shaped.levels, "model": self.model.config.levels,
+                                  "matches": shaped.levels["suggested"] == self.model.config.levels}
         # The contact guard batch by batch where the network runs (a GPU's frames stay there), else afterwards over
         # the whole sequence (on a CPU: the body posed GUARD_CHUNK_FRAMES at a time, faster than per batch).
         guard_here = self.contact_guard and (device.type != "cpu" if self.guard_on_device is None
                                              else self.guard_on_device)
+        if self.contact_guard and shaped.anchors is None:
+            shaped.anchors = body_anchors(rest.cpu().numpy(), body, betas)
         if guard_here:
-            anchors = body_anchors(rest.cpu().numpy(), body, betas)
             pose_t = torch.as_tensor(poses, dtype=torch.float32, device=device)
             trans_t = torch.as_tensor(motion.trans, dtype=torch.float32, device=device)
             moved = []
         with torch.inference_mode(), torch.autocast(device.type, dtype=torch.bfloat16,
                                                     enabled=self.precision == "bfloat16"):
-            fused = self.model.encode(g, body_distances(body, betas).to(device))
             t1 = time.perf_counter()
+            copies = _CopiesBack(out, device)
             for s in range(0, motion.n_frames, batch):
                 fr = torch.arange(lead + s, lead + min(s + batch, motion.n_frames), device=device)
-                win = window_index(fr.cpu(), self.model.config.window).to(device)
-                res = self.model.forward_frames(fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr],
+                win = window_index(fr, self.model.config.window)
+                res = self.model.forward_frames(shaped.fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr],
                                                 skip_joints=scene.enabled("joints"))
                 verts = res.verts.float()
                 if guard_here:
                     with torch.autocast(device.type, enabled=False):  # the body posed in float32
                         at = slice(s, s + len(fr))
-                        verts, n = guard_contact(verts, body.pose_tensor(pose_t[at], trans_t[at], betas), anchors)
+                        verts, n = guard_contact(verts, body.pose_tensor(pose_t[at], trans_t[at], betas),
+                                                shaped.anchors)
                     moved.append(n)
-                out[s:s + len(fr)] = verts.cpu().numpy()
+                copies.put(s, verts)
+            copies.finish()
         t2 = time.perf_counter()
         guard = {}
         if guard_here:
             guard = guard_report([m.cpu() for m in moved], None, motion.n_frames)
         elif self.contact_guard:  # outside autocast: the body is posed in float32
-            out, guard = guard_sequence(out, rest.cpu().numpy(), body, poses, motion.trans, betas)
+            out, guard = guard_sequence(out, rest.cpu().numpy(), body, poses, motion.trans, betas,
+                                        shaped.anchors)
         if guard:
             guard["contact_guard"]["device"] = str(device) if guard_here else "cpu"
         self.report = {"method": self.name, "model": self.model_name, "device": str(device), "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
-                       "lead_in_frames": lead, "encode_seconds": t1 - t0,
+                       "lead_in_frames": lead, "prepare_seconds": t1 - t0,
                        "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()

@@ -189,16 +189,18 @@ def guard_report(moved: list, seconds: float | None, frames: int) -> dict:
 
 
 def guard_sequence(points: np.ndarray, rest: np.ndarray, body: Body, poses: np.ndarray, trans: np.ndarray,
-                   betas: np.ndarray | None) -> tuple[np.ndarray, dict]:
+                   betas: np.ndarray | None, anchors: ContactAnchors | None = None) -> tuple[np.ndarray, dict]:
     """The contact guard over a deformed sequence (the model's and psd's): each vertex tied to its closest face
     of the body at rest (`body_anchors`), then kept outside it in every frame (`guard_contact`), the body posed
     `GUARD_CHUNK_FRAMES` frames at a time.
 
     points: (T, V, 3) the sequence (written in place); rest: (V, 3) the garment at rest on the shaped body;
-    poses: (T, J, 3) in the body's layout. Returns (points, `guard_report`'s entries).
+    poses: (T, J, 3) in the body's layout; anchors: `body_anchors(rest, body, betas)` where made already.
+    Returns (points, `guard_report`'s entries).
     """
     t0 = time.perf_counter()
-    anchors = body_anchors(rest, body, betas)
+    if anchors is None:
+        anchors = body_anchors(rest, body, betas)
     moved = []
     for s in range(0, len(points), GUARD_CHUNK_FRAMES):
         fr = slice(s, min(s + GUARD_CHUNK_FRAMES, len(points)))

@@ -31,7 +31,6 @@ from scipy.spatial import cKDTree
 
 from core.body import Body, skin_points
 from core.garment import Garment
-from core.motion import Motion
 
 #: Overridable skips (`bake --no-skip NAME`).
 SKIPS = ("joints", "body-faces", "self-contact", "floor")
@@ -242,10 +241,11 @@ def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: n
     return Collisions(faces, contact, floor_z if floor else None)
 
 
-def scene_levels(garment: Garment, body: Body, motion: Motion) -> dict:
-    """The `levels` report: suggested levels and the looseness they follow."""
+def scene_levels(garment: Garment, body: Body, betas) -> dict:
+    """The `levels` report: suggested levels and the looseness they follow (on the body shaped by `betas`, a
+    motion's)."""
     from core.quality import looseness
 
-    loose = looseness(garment, body, motion.betas)
+    loose = looseness(garment, body, betas)
     return {"suggested": suggested_levels(garment.n_vertices, loose), "vertices": int(garment.n_vertices),
             "looseness_m": loose}

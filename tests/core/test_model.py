@@ -372,6 +372,42 @@ def test_contact_guard_with_the_network_matches_the_guard_afterwards():
     assert np.abs(out["after"] - out["raw"]).max() > 1e-3
 
 
+def test_model_deformer_prepares_a_body_shape_once_and_again_after_its_weights_change():
+    """A bake of several motions of one body shape encodes the garment once (`_shaped_inputs`); another shape, or
+    weights changed in place since, are prepared again; at most SHAPED_CACHE shapes are kept; the frames are
+    those of a fresh deformer every time."""
+    from pathlib import Path
+
+    from core.body import default_body
+    from core.model_deform import SHAPED_CACHE, load_model_deformer
+    from formats.motion import load_motion
+    from formats.obj import read_garment
+
+    root = Path(__file__).resolve().parents[2]
+    garment, body = read_garment(root / "examples" / "dress.obj"), default_body()
+    run = load_motion(root / "examples" / "run.npz", fps=30.0)
+    motion = dataclasses.replace(run, poses=run.poses[:4], trans=run.trans[:4])
+    d = load_model_deformer()
+    calls = []
+    encode = d.model.encode
+    d.model.encode = lambda *a: calls.append(1) or encode(*a)
+    first = d.deform(garment, body, motion)
+    again = d.deform(garment, body, dataclasses.replace(motion, trans=motion.trans + 0.5))
+    assert len(calls) == 1 and np.allclose(again, first + np.float32(0.5), atol=1e-5)
+    for k in range(SHAPED_CACHE + 1):  # other shapes: each prepared, the oldest dropped
+        d.deform(garment, body, dataclasses.replace(motion, betas=np.full(10, 0.1 * (k + 1), dtype=np.float32)))
+    assert len(calls) == SHAPED_CACHE + 2 and len(d._shaped) == SHAPED_CACHE
+    with torch.no_grad():
+        for p in d.model.parameters():
+            p.mul_(1.1)
+    changed = d.deform(garment, body, motion)
+    assert len(calls) == SHAPED_CACHE + 3
+    fresh = load_model_deformer()
+    fresh.model.load_state_dict(d.model.state_dict())
+    assert np.array_equal(changed, fresh.deform(garment, body, motion))
+    assert np.abs(changed - first).max() > 1e-3
+
+
 def test_default_batch_frames_follow_the_device_and_the_garment_size():
     from core.model_deform import GPU_MAX_BATCH_FRAMES, default_batch_frames
 
