@@ -16,5 +16,5 @@ fi
 export PYTHONPATH=$PWD${PYTHONPATH:+:$PYTHONPATH} PYTHONUNBUFFERED=1
 nvidia-smi --query-gpu=name,memory.total,driver_version,clocks.sm --format=csv
 python3 -c "import torch, torch_geometric, numpy; print('torch', torch.__version__, 'pyg', torch_geometric.__version__, 'numpy', numpy.__version__, 'cuda', torch.cuda.is_available())"
-python3 -m pytest -q -p no:cacheprovider -rs tests/garmentcli/test_bake_model.py tests/garmentcli/test_train_cli.py -k "device or gpu" 2>&1 | tee "$OUT/pytest.log"
+python3 -m pytest -q -p no:cacheprovider -rs tests/garmentcli/test_bake_model.py tests/garmentcli/test_train_cli.py tests/garmentcli/test_tradeoff_cli.py -k "device or gpu" 2>&1 | tee "$OUT/pytest.log"
 python3 benchmarks/throughput_gpu.py --repeats 3 --out "$OUT/throughput_gpu.md" 2>&1 | tee "$OUT/throughput_gpu.log"

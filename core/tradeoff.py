@@ -133,6 +133,31 @@ class PeakMemory:
         return False
 
 
+class GpuPeakMemory:
+    """Context manager: `.peak_mb` = the largest rise of the GPU memory torch allocated on `device` over the
+    start level (the model's rows on a GPU); None where `device` is not a CUDA device. The simulator's GPU
+    memory (Warp's allocator) is not torch's and not counted."""
+
+    def __init__(self, device=None):
+        import torch
+
+        self.cuda = torch.cuda if device is not None and torch.device(device).type == "cuda" else None
+        self.device = device
+        self.peak_mb = None
+
+    def __enter__(self):
+        if self.cuda:
+            self._start = self.cuda.memory_allocated(self.device)
+            self.cuda.reset_peak_memory_stats(self.device)
+        return self
+
+    def __exit__(self, *exc):
+        if self.cuda:
+            self.cuda.synchronize(self.device)
+            self.peak_mb = (self.cuda.max_memory_allocated(self.device) - self._start) / 2**20
+        return False
+
+
 @dataclass
 class Measurement:
     config: Config
@@ -142,6 +167,8 @@ class Measurement:
     peak_memory_mb: float
     runs: int
     metrics: dict = field(default_factory=dict)
+    #: `GpuPeakMemory`'s (None: not run on a GPU through torch).
+    gpu_peak_memory_mb: float | None = None
 
 
 def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeats: int = 3,
@@ -157,13 +184,13 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
     if config.method != "sim":
         deformer.deform(garment, body, motion)  # warm-up (caches, allocator, first-call costs)
     times = []
-    with PeakMemory() as mem:
+    with PeakMemory() as mem, GpuPeakMemory(device if config.method == "model" else None) as gpu:
         for _ in range(runs):
             t = time.perf_counter()
             points = deformer.deform(garment, body, motion)
             times.append(time.perf_counter() - t)
     return Measurement(config, points[motion.n_lead:], statistics.median(times) / motion.n_frames, prep, mem.peak_mb,
-                       runs)
+                       runs, gpu_peak_memory_mb=gpu.peak_mb)
 
 
 def simulation_scene(garment: Garment, body: Body, motion: Motion):

@@ -43,7 +43,7 @@ from garmentcli.common import (
 )
 
 COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "seconds_prepare", "peak_memory_mb",
-           *METRIC_COLUMNS, "pareto")
+           "gpu_peak_memory_mb", *METRIC_COLUMNS, "pareto")
 
 
 #: Subdirectory of a scene's results holding its simulator rows (points, timings, key) for --reuse-sim.
@@ -176,7 +176,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         on = False if m.config.spread else next(front)
         table.append({"config": m.config.name, "method": m.config.method, "seconds_per_frame": m.seconds_per_frame,
                       "frames_per_second": 1.0 / m.seconds_per_frame, "seconds_prepare": m.seconds_prepare,
-                      "peak_memory_mb": m.peak_memory_mb, **m.metrics, "pareto": on,
+                      "peak_memory_mb": m.peak_memory_mb, "gpu_peak_memory_mb": m.gpu_peak_memory_mb, **m.metrics,
+                      "pareto": on,
                       "reference": m.config.reference, "spread": m.config.spread, "runs": m.runs, "failed": ""})
     for config, reason in failed:
         table.append({"config": config.name, "method": config.method, "pareto": False, "reference": False,
@@ -218,6 +219,10 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                          if r["spread"] and not r["failed"]))
 
 
+def _or_dash(value):
+    return "-" if value is None else value
+
+
 def _write(directory: Path, table: list[dict], garment_path, motion_path, motion, garment, device: str) -> None:
     from formats.plots import plot_pareto
     from formats.report import markdown_table
@@ -233,21 +238,25 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
     ref = next(r["config"] for r in table if r["reference"])
     done = [r for r in table if not r["failed"]]
     spread = next((r for r in done if r["spread"]), None)
+    gpu = any(r.get("gpu_peak_memory_mb") is not None for r in done)  # a column of its own where any row has one
     md = [f"# Speed against accuracy: `{Path(garment_path).name}` on `{Path(motion_path).name}`", "",
           (f"{motion.n_written} frames at {motion.fps:g} fps"
            + (f" after {motion.n_lead} pre-roll frames" if motion.n_lead else "")
            + f", {garment.n_vertices} garment vertices, the model rows on {device}. Errors against "
            f"the reference `{ref}`; seconds per frame: median of the timed runs after a warm-up (simulator: one "
            "run); preparation (binding, preprocessing, simulator build) apart; peak memory: the largest rise of "
-           "resident memory during the timed runs. E_verts mm, E_vnorm / E_fnorm degrees, E_edge %, penetration: "
+           "resident memory during the timed runs"
+           + ("; GPU peak: the largest rise of the GPU memory torch allocated (the model rows)" if gpu else "")
+           + ". E_verts mm, E_vnorm / E_fnorm degrees, E_edge %, penetration: "
            "% of vertices > 2 mm inside the body.")
           + (f" `{spread['config']}`: the reference run again from starting positions moved by a seeded "
              f"{SPREAD_JITTER_M * 1e6:g} um; its error, {spread['e_verts']:.1f} mm, is how far two equally valid "
              "simulations of this scene end up apart, the floor under every row's error." if spread else ""), "",
-          markdown_table(["config", "s/frame", "fps", "prepare s", "peak MB", *METRIC_COLUMNS, "Pareto"],
+          markdown_table(["config", "s/frame", "fps", "prepare s", "peak MB", *(["GPU peak MB"] if gpu else []),
+                          *METRIC_COLUMNS, "Pareto"],
                          [[r["config"], r["seconds_per_frame"], r["frames_per_second"], r["seconds_prepare"],
-                           r["peak_memory_mb"], *[r[k] for k in METRIC_COLUMNS], "yes" if r["pareto"] else ""]
-                          for r in done])]
+                           r["peak_memory_mb"], *([_or_dash(r["gpu_peak_memory_mb"])] if gpu else []),
+                           *[r[k] for k in METRIC_COLUMNS], "yes" if r["pareto"] else ""] for r in done])]
     md += [f"\n`{r['config']}` failed: {r['failed']}" for r in table if r["failed"]]
     (directory / "tradeoff.md").write_text("\n".join(md))
     rows = [r for r in done if not r["spread"]]

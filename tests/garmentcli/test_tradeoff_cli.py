@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+import torch
 
 from core.tradeoff import configurations, pareto_front, scene_summary
 from tests.core.model_fixtures import TINY_CONFIG, perturbed_model
@@ -90,7 +91,7 @@ def test_tradeoff_writes_table_plot_and_json(scene, model_file):
     assert 0 < float(by["reference +1 um jitter"]["e_verts"]) < float(by["lbs"]["e_verts"])
     for row in rows:
         assert float(row["seconds_per_frame"]) > 0 and np.isfinite(float(row["e_verts"]))
-        assert float(row["peak_memory_mb"]) >= 0
+        assert float(row["peak_memory_mb"]) >= 0 and row["gpu_peak_memory_mb"] == ""  # nothing ran on a GPU
     # The fastest row is on the Pareto front; the push-out leaves no vertex > 2 mm inside the body.
     fastest = min(rows, key=lambda row: float(row["seconds_per_frame"]))
     assert fastest["pareto"] == "True"
@@ -98,11 +99,26 @@ def test_tradeoff_writes_table_plot_and_json(scene, model_file):
     meta = json.loads((d / "tradeoff.json").read_text())
     assert meta["frames"] > 0 and len(meta["rows"]) == len(rows) and meta["model_device"] == "cpu"
     assert (d / "tradeoff.png").stat().st_size > 1000 and "| lbs " in (d / "tradeoff.md").read_text()
+    assert "GPU peak" not in (d / "tradeoff.md").read_text()
     assert "shell_walk" in r.output
     # Existing output: refused without --overwrite.
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--model",
                 f"tiny={model_file}", "--out", scene["out"]])
     assert r.exit_code != 0 and "--overwrite" in r.output
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_tradeoff_model_rows_on_a_gpu_report_its_memory(scene, model_file):
+    """`--device cuda`: the model rows' GPU memory is a column of its own; the other rows have none."""
+    pytest.importorskip("newton")  # the reference row (not on every GPU machine)
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--model", f"tiny={model_file}",
+                "--repeats", 1, "--frames", "0:4", "--out", scene["out"], "--device", "cuda"])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "shell_walk"
+    for row in csv.DictReader(open(d / "tradeoff.csv")):
+        assert (float(row["gpu_peak_memory_mb"]) > 0) if row["method"] == "model" else row["gpu_peak_memory_mb"] == ""
+    assert json.loads((d / "tradeoff.json").read_text())["model_device"].startswith("cuda")
+    assert "GPU peak MB" in (d / "tradeoff.md").read_text()
 
 
 @pytest.mark.parametrize("extra, needle", [(["--model", "nopath"], "NAME=PATH"),
