@@ -23,14 +23,24 @@ def _umask() -> int:
 
 
 @contextmanager
+def _writing(path: Path):
+    """An OSError making `path`'s folder or its temporary entry there as one InputError line naming `path`."""
+    try:
+        yield
+    except OSError as exc:
+        raise InputError(f"output '{path}': cannot write in '{path.parent}' ({exc.strerror or exc})") from None
+
+
+@contextmanager
 def atomic_file(path: str | os.PathLike):
     """Yield a temporary path beside `path` (same suffix); on success it replaces `path`.
 
     The parent directory is created. On an exception the temporary file is removed.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".partial" + path.suffix, dir=path.parent)
+    with _writing(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".partial" + path.suffix, dir=path.parent)
     os.close(fd)
     tmp = Path(tmp)
     try:
@@ -51,8 +61,9 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool):
     final = Path(final)
     if final.exists() and not overwrite:
         raise InputError(f"output '{final}' exists: pass --overwrite to replace it")
-    final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
+    with _writing(final):
+        final.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
     os.chmod(tmp, 0o777 & ~_umask())
     try:
         yield tmp

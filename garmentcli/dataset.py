@@ -12,6 +12,7 @@ from tqdm import tqdm
 
 from core.provenance import software_versions
 from garmentcli.common import (
+    OutputPath,
     FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,
@@ -118,7 +119,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
               help="Sampled betas are uniform in [-R, R].")
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
               help="SMPL-format body (.npz or .pkl). Default: the embedded body.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_dataset", show_default=True)
+@click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="garment_dataset", show_default=True)
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Processes.")
 @click.option("--fps", type=click.FloatRange(min=1.0), default=30.0, show_default=True)
 @source_fps_option

@@ -7,11 +7,11 @@ from pathlib import Path
 import click
 
 from formats.atomic import atomic_dir
-from garmentcli.common import input_errors_as_click
+from garmentcli.common import OutputPath, input_errors_as_click
 
 
 @click.command(name="examples")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="examples", show_default=True,
+@click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="examples", show_default=True,
               help="Directory to write the examples into.")
 @click.option("--fps", type=click.FloatRange(min=1.0), default=60.0, show_default=True,
               help="Frame rate of the generated motions.")

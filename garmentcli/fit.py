@@ -7,14 +7,14 @@ from pathlib import Path
 import click
 import numpy as np
 
-from garmentcli.common import body_option, input_errors_as_click, load_body_option
+from garmentcli.common import OutputPath, body_option, input_errors_as_click, load_body_option
 
 
 @click.command(name="fit")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
 @click.option("--data", "data_dir", required=True, type=click.Path(file_okay=False),
               help="A `garment dataset` directory that simulated GARMENT (the same mesh).")
-@click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--out", "out_path", type=OutputPath(dir_okay=False), default=None,
               help="Fit file to write [default: <garment>.psd.npz beside GARMENT].")
 @click.option("--rank", type=click.IntRange(min=1), default=None, help="Principal offsets kept [default: 64].")
 @click.option("--ridge", type=click.FloatRange(min=0), default=None, help="Ridge weight [default: 10].")

@@ -13,6 +13,7 @@ import click
 import numpy as np
 
 from core.body import DEFAULT_BODY_RESOURCE
+from garmentcli.common import OutputPath
 from formats.atomic import atomic_file
 
 
@@ -21,7 +22,7 @@ def _default_out() -> Path:
 
 
 @click.command(name="make-body")
-@click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--out", "out", type=OutputPath(dir_okay=False, path_type=Path), default=None,
               help="Output .npz (default: the package's core/assets/default_body.npz).")
 @click.option("--samples", type=click.IntRange(min=20), default=400, show_default=True,
               help="Adult phenotype samples for the shape PCA.")

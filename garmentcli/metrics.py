@@ -9,7 +9,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
-from garmentcli.common import betas_option, input_errors_as_click, source_fps_option
+from garmentcli.common import OutputPath, betas_option, input_errors_as_click, source_fps_option
 
 _FORMATS = {"json": ("json",), "csv": ("csv",), "md": ("md",), "all": ("json", "csv", "md")}
 
@@ -76,7 +76,7 @@ def _default_depth_mm() -> float:
 @click.command(name="metrics")
 @click.argument("pred", type=click.Path(exists=True, path_type=Path))
 @click.argument("gt", type=click.Path(exists=True, path_type=Path))
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+@click.option("--out", "out_dir", type=OutputPath(file_okay=False, path_type=Path), default=None,
               help="Directory to write metrics.json / metrics.csv / metrics.md into (default: print only).")
 @click.option("--format", "fmt", type=click.Choice(sorted(_FORMATS)), default="all", show_default=True,
               help="Which report files to write with --out.")

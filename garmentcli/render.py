@@ -9,7 +9,7 @@ from tqdm import tqdm
 
 from core.errors import InputError
 from formats.atomic import atomic_dir
-from garmentcli.common import input_errors_as_click
+from garmentcli.common import OutputPath, input_errors_as_click
 
 COLORS = ("plain", "error", "penetration", "scalar")
 CAMERA_CHOICES = ("front", "side", "back", "orbit")
@@ -24,7 +24,7 @@ def _frame_slice(frames: str | None, every: int) -> slice:
 
 @click.command(name="render")
 @click.argument("input_path", metavar="INPUT", type=click.Path(exists=True, path_type=Path))
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+@click.option("--out", "out_dir", type=OutputPath(file_okay=False, path_type=Path), default=None,
               help="Output directory [default: <INPUT stem>_render beside INPUT].")
 @click.option("--camera", "cameras", type=click.Choice(CAMERA_CHOICES), multiple=True,
               help="Camera preset, repeatable [default: front]. 'orbit' turns once around over the frames.")

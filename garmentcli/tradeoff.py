@@ -30,6 +30,7 @@ from core.tradeoff import (
     simulation_scene,
 )
 from garmentcli.common import (
+    OutputPath,
     betas_option,
     body_option,
     check_preroll,
@@ -70,7 +71,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @click.command(name="tradeoff")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
 @click.argument("motion_path", metavar="MOTION", type=click.Path(dir_okay=False))
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="garment_tradeoff", show_default=True,
+@click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="garment_tradeoff", show_default=True,
               help="Output directory; the scene's results go to OUT/<garment>_<motion>/.")
 @body_option
 @betas_option

@@ -20,7 +20,7 @@ from tqdm import tqdm
 from core.errors import InputError
 from core.model import ADDABLE_INPUTS, ModelConfig, config_from_dict, keep_levels
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
-from garmentcli.common import input_errors_as_click, load_body_option, parse_device
+from garmentcli.common import OutputPath, input_errors_as_click, load_body_option, parse_device
 
 CSV_COLUMNS = ("step", "phase", "item", "loss", *LOSS_COLUMNS, "val_verts_mm", "val_collision")
 
@@ -52,7 +52,7 @@ def _parse_phases(text: str) -> tuple:
 @click.option("--data", "data_dir", required=True, multiple=True, type=click.Path(file_okay=False),
               help="Simulator dataset directory (repeatable: trained on together; their garments of one name must "
                    "be the same mesh, their motions in the same split and their settle blends alike).")
-@click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False), help="Model file to write.")
+@click.option("--out", "out_path", required=True, type=OutputPath(dir_okay=False), help="Model file to write.")
 @click.option("--phases", default="1,2,3", show_default=True, help="Training phases: 1, 1,2 or 1,2,3.")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Optimizer steps (default from config).")
 @click.option("--seed", type=int, default=None, help="Seed of initialisation and sampling (default 0).")

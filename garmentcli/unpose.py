@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from core.unpose import A_POSE_ARM_DEGREES
-from garmentcli.common import body_option, input_errors_as_click, load_body_option, parse_betas
+from garmentcli.common import OutputPath, body_option, input_errors_as_click, load_body_option, parse_betas
 
 
 def _check_shape(ctx, param, value):
@@ -30,7 +30,7 @@ def _check_shape(ctx, param, value):
               help=f"apose: degrees each arm is lowered from the T-pose [default: {A_POSE_ARM_DEGREES:g}].")
 @click.option("--frame", type=click.IntRange(min=0), default=None, help="POSE.npz: the frame to use [default: 0].")
 @body_option
-@click.option("--out", "out_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--out", "out_path", type=OutputPath(dir_okay=False), default=None,
               help="Output OBJ [default: <garment>_rest.obj beside GARMENT].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 @input_errors_as_click

@@ -539,3 +539,51 @@ def test_preroll_frames_are_deformed_and_not_written(scene):
     summary = json.loads((scene["out"] / "led" / "shell_walk" / "summary.json").read_text())
     assert summary["frames"] == 3 and summary["preroll_frames"] == 2 and summary["options"]["preroll"] == 4
     assert json.loads((scene["out"] / "plain" / "shell_walk" / "summary.json").read_text())["preroll_frames"] == 0
+
+
+def test_an_output_that_cannot_be_written_stops_before_any_work(scene, tmp_path, monkeypatch):
+    """--out under a file, or in a folder where nothing can be made (a read-only or virtual file system: root
+    passes every permission check, so it is tried): one line naming --out when the command line is read, nothing
+    baked or left behind."""
+    import garmentcli.bake
+
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    monkeypatch.setattr(garmentcli.bake, "bake_task", lambda *a, **k: pytest.fail("baked"))
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", afile / "sub"])
+    assert_one_line_error(r, "'--out'", "is a file, not a folder")
+    readonly = tmp_path / "readonly"
+    readonly.mkdir()
+
+    def refused(*a, dir=None, **k):
+        raise PermissionError(30, "Read-only file system")
+
+    monkeypatch.setattr("garmentcli.common.tempfile.mkdtemp", refused)
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", readonly / "new" / "out"])
+    assert_one_line_error(r, "'--out'", f"cannot write in '{readonly}' (Read-only file system)")
+    assert list(readonly.iterdir()) == []
+
+
+def test_every_output_option_is_checked_when_read():
+    import click
+
+    from garmentcli.common import OutputPath
+    from garmentcli.main import cli
+
+    outs = {name: p for name, c in cli.commands.items() for p in c.params
+            if isinstance(p, click.Option) and "--out" in p.opts}
+    assert len(outs) >= 10 and all(isinstance(p.type, OutputPath) for p in outs.values()), \
+        [n for n, p in outs.items() if not isinstance(p.type, OutputPath)]
+
+
+def test_atomic_writers_turn_an_unwritable_place_into_one_line(tmp_path):
+    from core.errors import InputError
+    from formats.atomic import atomic_dir, atomic_file
+
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(InputError, match=r"output '.*afile/d': cannot write in '.*afile'"):
+        with atomic_dir(tmp_path / "afile" / "d", overwrite=False):
+            pass
+    with pytest.raises(InputError, match=r"output '.*afile/f.txt': cannot write in"):
+        with atomic_file(tmp_path / "afile" / "f.txt"):
+            pass
