@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from core.errors import InputError
+from core.garment import unit_hint
 from core.rotations import axis_angle_to_matrix_torch
 
 log = logging.getLogger(__name__)
@@ -81,10 +82,12 @@ class Body:
     def layout(self) -> str | None:
         return layout_for_joint_count(self.n_joints)
 
-    def fit_betas(self, betas: np.ndarray | None) -> np.ndarray:
+    def fit_betas(self, betas: np.ndarray | None, source: str = "", note: str = "") -> np.ndarray:
         """Pad with zeros or truncate `betas` to this body's coefficient count (warns when changed).
 
-        betas: (S',) or None -> (S,) float32.
+        betas: (S',) or None -> (S,) float32. source: where they come from, leading the warning (e.g. the
+        motion file); note: said after it, in parentheses. A caller that fits a motion's betas once (the CLI's
+        `prepare_motion`) warns once: the fitted betas warn no more.
         """
         out = np.zeros(self.n_betas, dtype=np.float32)
         if betas is None:
@@ -93,11 +96,13 @@ class Body:
         n = min(len(betas), self.n_betas)
         out[:n] = betas[:n]
         if len(betas) > self.n_betas and np.any(betas[self.n_betas:] != 0):
-            log.warning("%d betas given, body '%s' has %d shape coefficients: extra ones ignored",
-                        len(betas), self.name, self.n_betas)
+            what = "extra ones ignored"
         elif 0 < len(betas) < self.n_betas:
-            log.warning("%d betas given, body '%s' has %d shape coefficients: padded with zeros",
-                        len(betas), self.name, self.n_betas)
+            what = "padded with zeros"
+        else:
+            return out
+        log.warning("%s%d betas given, body '%s' has %d shape coefficients: %s%s", f"{source}: " if source else "",
+                    len(betas), self.name, self.n_betas, what, f" ({note})" if note else "")
         return out
 
     def shaped(self, betas: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -277,6 +282,16 @@ def forward_kinematics(rot: torch.Tensor, joints_rest: torch.Tensor, parents: to
     return torch.stack(chain, dim=1)
 
 
+#: A body file whose rest mesh spans more than this many units is not in metres (a human stands 0.5-2.5 m tall;
+#: in centimetres, millimetres or inches: 20-2,500 units); the units of `core.garment.UNIT_GUESSES` that make it
+#: BODY_SPAN_M metres are named.
+MAX_BODY_EXTENT = 10.0
+BODY_SPAN_M = (0.5, 2.5)
+#: Each vertex's skinning weights sum to 1 within this (SMPL / SMPL-X files: float32 rounding, under 1e-6); rows
+#: that do not shrink or drag the posed body (rows of 0.5: the body posed at half its size).
+WEIGHT_SUM_TOLERANCE = 1e-3
+
+
 def validate_body_arrays(arrays: dict, source: str) -> None:
     """Check shapes and values of SMPL-format arrays; raise InputError naming `source`."""
     v = arrays["v_template"]
@@ -308,6 +323,17 @@ def validate_body_arrays(arrays: dict, source: str) -> None:
     for key in ("v_template", "shapedirs", "J_regressor", "weights"):
         if not np.all(np.isfinite(arrays[key])):
             raise InputError(f"body '{source}': {key} contains NaN or Inf")
+    extent = float(np.max(v.max(axis=0) - v.min(axis=0)))
+    if extent > MAX_BODY_EXTENT:
+        raise InputError(f"body '{source}': expected metres (a body stands {BODY_SPAN_M[0]:g}-{BODY_SPAN_M[1]:g} m "
+                         f"tall), got a rest mesh spanning {extent:.1f} units{unit_hint(extent, BODY_SPAN_M)}")
+    sums = np.asarray(arrays["weights"], dtype=np.float64).sum(axis=1)
+    off = np.abs(sums - 1.0) > WEIGHT_SUM_TOLERANCE
+    if off.any():
+        worst = int(np.argmax(np.abs(sums - 1.0)))
+        raise InputError(f"body '{source}': expected skinning weights whose rows sum to 1 (within "
+                         f"{WEIGHT_SUM_TOLERANCE:g}), got rows that do not at {int(off.sum()):,} of {V:,} vertices "
+                         f"(the worst sums to {sums[worst]:.4g}, at vertex {worst})")
 
 
 def body_from_arrays(arrays: dict, name: str, source: str | None = None) -> Body:

@@ -146,8 +146,24 @@ def boundary_loops(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
     return sorted(loops, key=lambda loop: int(loop[0]))
 
 
-#: Units a garment file too large for metres may be in, tried in this order: (name, scale to metres).
+#: Units a garment or body file too large for metres may be in, named in this order: (name, scale to metres).
 UNIT_GUESSES = (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254))
+#: The extent (metres) a garment has: the units of `UNIT_GUESSES` that give it are named (a skirt to a T-posed
+#: jumpsuit: 0.5-1.3 m).
+GARMENT_SPAN_M = (0.2, 2.5)
+
+
+def unit_hint(extent: float, span_m: tuple[float, float]) -> str:
+    """The hint for a file `extent` units across that is too large for metres: each of `UNIT_GUESSES` that makes
+    it span_m (low, high) metres, as "; is it in centimetres? scale it by 0.01", or "; is it in centimetres
+    (scale it by 0.01) or inches (scale it by 0.0254)?" where several do (a 51-unit skirt: 51 cm or 1.3 m); ""
+    where none does."""
+    units = [(name, s) for name, s in UNIT_GUESSES if span_m[0] <= extent * s <= span_m[1]]
+    if len(units) == 1:
+        return f"; is it in {units[0][0]}? scale it by {units[0][1]:g}"
+    if units:
+        return "; is it in " + " or ".join(f"{name} (scale it by {s:g})" for name, s in units) + "?"
+    return ""
 
 
 def validate_garment(garment: Garment, source: str) -> None:
@@ -162,10 +178,9 @@ def validate_garment(garment: Garment, source: str) -> None:
         raise InputError(f"garment mesh '{source}': expected finite coordinates, got NaN/Inf at vertex {int(np.argmax(bad))}")
     extent = float(np.max(v[np.unique(f)].max(0) - v[np.unique(f)].min(0)))
     if extent > 10.0:
-        # The unit whose metres fit a garment (0.1-3 m): centimetres or millimetres (Marvelous Designer's and
-        # CLO's default export), else inches.
-        unit = next(((name, s) for name, s in UNIT_GUESSES if 0.1 <= extent * s <= 3.0), None)
-        hint = f"; is it in {unit[0]}? scale it by {unit[1]:g}" if unit else ""
+        # The units whose metres fit a garment: centimetres or millimetres (Marvelous Designer's and CLO's default
+        # export), inches; all of those that could be it, as the file does not say.
+        hint = unit_hint(extent, GARMENT_SPAN_M)
         raise InputError(f"garment mesh '{source}': expected metres (a garment spans under 3 m), got an extent of "
                          f"{extent:.1f} units{hint}")
     if extent < 1e-3:

@@ -26,6 +26,10 @@ _N_HAND_JOINTS = 30
 #: Rotation taking the Y-up body rest frame to the Z-up world: +90 deg about X.
 Y_UP_TO_Z_UP = np.array([np.pi / 2, 0.0, 0.0])
 
+#: Source frame rates under this (Hz) are refused: no capture runs slower, and a BVH-style frame time (seconds per
+#: frame, 0.0167 for 60 fps) stored as the rate would turn 10 frames into 16,201.
+MIN_SOURCE_FPS = 1.0
+
 
 @dataclass(frozen=True, eq=False)
 class Motion:
@@ -116,25 +120,45 @@ def resample(motion: Motion, fps: float) -> Motion:
     (`n_lead`), the grid is shifted so that an output frame lies on the first frame after them (the first
     written one), and the lead becomes the output frames before it.
     """
+    grid = _resample_grid(motion, fps)
+    if grid is None:
+        return replace(motion, fps=float(fps))
+    n_lead, t0, n_out = grid
+    try:
+        t_src = t0 * motion.fps + np.arange(n_out) * (motion.fps / fps)  # output times in source-frame units
+        i0 = np.clip(np.floor(t_src).astype(np.int64), 0, motion.n_frames - 1)
+        i1 = np.minimum(i0 + 1, motion.n_frames - 1)
+        a = (t_src - i0).clip(0.0, 1.0)
+        q = axis_angle_to_quat(motion.poses)
+        qi = quat_slerp(q[i0], q[i1], a[:, None])
+        poses = quat_to_axis_angle(qi).astype(np.float32)
+        trans = ((1 - a)[:, None] * motion.trans[i0] + a[:, None] * motion.trans[i1]).astype(np.float32)
+    except MemoryError:  # callers check `resampled_frame_count` first; this is the net under them
+        raise InputError(f"--fps {fps:g}: resampling motion '{motion.name}' ({motion.n_frames} frames at "
+                         f"{motion.fps:g} fps) to {n_out} frames needs more memory than is free: lower --fps") from None
+    # Settle frames keep their share of the clip's time.
+    n_settle = min(n_out, int(np.ceil(motion.n_settle * fps / motion.fps - 1e-9)))
+    return replace(motion, poses=poses, trans=trans, fps=float(fps), n_settle=n_settle, n_lead=n_lead)
+
+
+def resampled_frame_count(motion: Motion, fps: float) -> int:
+    """The number of frames `resample(motion, fps)` returns, known before anything is allocated (a caller
+    checks it against the memory free)."""
+    grid = _resample_grid(motion, fps)
+    return motion.n_frames if grid is None else grid[2]
+
+
+def _resample_grid(motion: Motion, fps: float) -> tuple[int, float, int] | None:
+    """(lead frames, time of output frame 0 in s, output frames) of `resample`; None where the frames stay."""
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"--fps: expected a positive number, got {fps}")
     if abs(fps - motion.fps) < 1e-9 or motion.n_frames == 1:
-        return replace(motion, fps=float(fps))
+        return None
     t_first = motion.n_lead / motion.fps  # seconds: the first frame to write
     n_lead = int(np.floor(t_first * fps + 1e-6))
     t0 = max(t_first - n_lead / fps, 0.0)
     n_out = int(np.floor((motion.duration_s - t0) * fps + 1e-6)) + 1
-    t_src = t0 * motion.fps + np.arange(n_out) * (motion.fps / fps)  # output times in source-frame units
-    i0 = np.clip(np.floor(t_src).astype(np.int64), 0, motion.n_frames - 1)
-    i1 = np.minimum(i0 + 1, motion.n_frames - 1)
-    a = (t_src - i0).clip(0.0, 1.0)
-    q = axis_angle_to_quat(motion.poses)
-    qi = quat_slerp(q[i0], q[i1], a[:, None])
-    poses = quat_to_axis_angle(qi).astype(np.float32)
-    trans = ((1 - a)[:, None] * motion.trans[i0] + a[:, None] * motion.trans[i1]).astype(np.float32)
-    # Settle frames keep their share of the clip's time.
-    n_settle = min(n_out, int(np.ceil(motion.n_settle * fps / motion.fps - 1e-9)))
-    return replace(motion, poses=poses, trans=trans, fps=float(fps), n_settle=n_settle, n_lead=n_lead)
+    return n_lead, t0, n_out
 
 
 def parse_frame_range(text: str) -> tuple[int | None, int | None]:
@@ -270,10 +294,23 @@ def warn_if_not_metres(motion: Motion, source: str) -> bool:
     return True
 
 
+#: Root translation further than this from the origin (metres) in any frame is refused: no capture volume spans
+#: 10 km, and a glitch frame (1e30) would be baked into the outputs as it is (the unit checks above use medians).
+TRANS_MAX_DISTANCE_M = 1e4
+
+
 def validate_motion_values(motion: Motion, source: str) -> None:
-    """Reject NaN/Inf in poses or translation, naming the first bad frame."""
+    """Reject NaN/Inf in poses or translation, and a root translation beyond TRANS_MAX_DISTANCE_M, naming the
+    first bad frame."""
     for key in ("poses", "trans"):
         arr = getattr(motion, key)
         bad = ~np.isfinite(arr.reshape(arr.shape[0], -1)).all(axis=1)
         if bad.any():
             raise InputError(f"motion '{source}': {key} contains NaN or Inf (first at frame {int(np.argmax(bad))})")
+    distance = np.linalg.norm(motion.trans.astype(np.float64), axis=1)
+    far = distance > TRANS_MAX_DISTANCE_M
+    if far.any():
+        i = int(np.argmax(far))
+        raise InputError(f"motion '{source}': expected trans within {TRANS_MAX_DISTANCE_M:g} m (10 km) of the origin, "
+                         f"got {distance[i]:.3g} m at frame {i} ({int(far.sum())} of {len(far)} frames that far): a "
+                         f"glitch in the file, or millimetres (scale it by 0.001)?")

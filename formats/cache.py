@@ -73,6 +73,7 @@ def write_cache(path: str | os.PathLike, arrays: dict, meta: dict) -> Path:
     payload = {"__meta__": np.array(json.dumps({"version": CACHE_FORMAT_VERSION, "key": meta}))}
     payload.update({k: np.asarray(v) for k, v in arrays.items()})
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)  # here, to name the cache directory when it cannot be made
         with atomic_file(path) as tmp, open(tmp, "wb") as fh:
             np.savez(fh, **payload)
     except OSError as exc:

@@ -20,7 +20,7 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
 from core.errors import InputError
-from core.motion import Motion, validate_motion_values, warn_if_not_metres, warn_if_y_up
+from core.motion import MIN_SOURCE_FPS, Motion, validate_motion_values, warn_if_not_metres, warn_if_y_up
 from formats.atomic import atomic_file
 
 log = logging.getLogger(__name__)
@@ -34,6 +34,10 @@ _BODY_ONLY_JOINTS = N_BODY_JOINTS
 #: Poses whose joint rotations exceed 2 pi radians (a full turn) in more than this share of the rotated joints are
 #: refused as degrees: axis-angle fits (AMASS, SMPL) stay within pi; in degrees, joints bent past 6.3 do.
 DEGREES_SHARE = 0.2
+#: A rotation vector longer than this (720 degrees) is refused as degrees whatever the share: a radian fit stays
+#: within pi (an unnormalised root within one turn more, 3 pi), while degrees with small joint bends and a 90-degree
+#: root turn put only 19 % of the rotated joints past 2 pi.
+DEGREES_MAX_NORM = 4 * np.pi
 #: Per-frame betas (a shape estimated in every frame, as video-based fits write) further than this from their
 #: mean in some frame and coefficient are warned about: the motion is baked with the mean shape.
 BETAS_SPREAD_WARN = 0.1
@@ -119,6 +123,10 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         what = "the fps override"
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"{src}: expected a positive frame rate in {what}, got {fps}")
+    if fps < MIN_SOURCE_FPS:
+        raise InputError(f"{src}: expected a frame rate of at least {MIN_SOURCE_FPS:g} Hz in {what}, got {fps:.4g}: "
+                         f"seconds per frame (a BVH Frame Time)? that is {1 / fps:.4g} fps; pass the motion's "
+                         f"frame rate with --source-fps")
 
     gender = _read_gender(arrays.get("gender"))
     motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem)
@@ -168,11 +176,11 @@ def _read_betas(raw, n_frames: int, src: str) -> np.ndarray:
 
 
 def _refuse_degrees(poses: np.ndarray, src: str) -> None:
-    """InputError when the (T, J, 3) axis-angle `poses` look like degrees (`DEGREES_SHARE`)."""
+    """InputError when the (T, J, 3) axis-angle `poses` look like degrees (`DEGREES_SHARE`, `DEGREES_MAX_NORM`)."""
     angle = np.linalg.norm(np.asarray(poses, dtype=np.float64), axis=-1)
     angle = angle[np.isfinite(angle) & (angle > 1e-6)]
     over = float(np.mean(angle > 2 * np.pi)) if angle.size else 0.0
-    if over > DEGREES_SHARE:
+    if over > DEGREES_SHARE or (angle.size and angle.max() > DEGREES_MAX_NORM):
         raise InputError(f"{src}: expected joint rotations as axis-angle radians, got {over:.0%} of them over a full "
                          f"turn (2 pi; the largest {angle.max():.1f}): in degrees? multiply poses by pi / 180")
 
@@ -234,7 +242,8 @@ def _split_poses(arrays: dict, src: str) -> np.ndarray:
 
 def _float_array(a, key: str, src: str) -> np.ndarray:
     try:
-        return np.asarray(a, dtype=np.float32)
+        with np.errstate(over="ignore"):  # float64 beyond float32's range becomes Inf, refused naming the frame
+            return np.asarray(a, dtype=np.float32)
     except (ValueError, TypeError):
         raise InputError(f"{src}: expected numbers in '{key}', got dtype {np.asarray(a).dtype}") from None
 

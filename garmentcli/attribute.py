@@ -67,7 +67,7 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     model, _ = load_model(model_path)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
-    motion, _ = prepare_motion(motion_path, fps, None, 0)
+    motion, _ = prepare_motion(motion_path, fps, None, 0, body=body)
     out = Path(out_dir or f"{Path(garment_path).stem}_{Path(motion_path).stem}_f{frame}_attribution")
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")

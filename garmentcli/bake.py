@@ -374,8 +374,14 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         existing = [str(t) for _, t in targets if t.exists()]
         if existing:
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
-    # Read every motion before baking any, so a bad file fails fast and writes nothing.
-    motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames), m, target)
+    # Read every motion before baking any, so a bad file fails fast and writes nothing; one that --fps would
+    # resample to more frames than fit (the cheapest method's copies, one at a time) is refused before it is.
+    def check_frames(path):
+        return lambda n, src_fps: _refuse_beyond_memory(garment, body, path, n, src_fps, fps,
+                                                        min(BAKE_COPIES.values()), 1)
+
+    motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames, body=body,
+                               check_frames=check_frames(m)), m, target)
                for m, target in targets]
     choice, fallback = "", ""
     if quality == "auto":
@@ -450,7 +456,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
 def _warnings_of(messages, motion_paths) -> tuple:
     """((motion path, (message, ...)), ...): per motion, the messages naming it or no motion of the batch."""
     quoted = {str(m): f"'{m}'" for m in motion_paths}
-    return tuple((m, tuple(w for w in messages if q in w or not any(o in w for o in quoted.values())))
+    return tuple((m, tuple(dict.fromkeys(w for w in messages if q in w or not any(o in w for o in quoted.values()))))
                  for m, q in quoted.items())
 
 
@@ -465,23 +471,34 @@ def _check_memory(garment, body, motions, method, parallel: int) -> None:
     """Refuse, before any work, a bake whose longest motion would not fit in the memory free now (`parallel`
     motions at once), naming the motion and the --frames that fit; a crash for want of memory writes nothing
     either, but says nothing. motions: (prepared motion, its source fps, path)."""
-    import psutil
-
     if not motions:  # --skip-existing found every one baked
         return
     motion, source_fps, path = max(motions, key=lambda x: x[0].n_frames)
-    longest = motion.n_frames
-    at_once = max(1, min(parallel, len(motions)))
-    per_frame = (garment.n_vertices + body.n_vertices) * 12 * BAKE_COPIES[method]
-    need = longest * per_frame * at_once
+    _refuse_beyond_memory(garment, body, path, motion.n_frames, source_fps, motion.fps, BAKE_COPIES[method],
+                          max(1, min(parallel, len(motions))))
+
+
+def _refuse_beyond_memory(garment, body, path, n_frames: int, source_fps: float, fps: float, copies: float,
+                          at_once: int) -> None:
+    """The click error of `_check_memory` where `n_frames` frames at `fps` (of a motion at `source_fps`), `at_once`
+    motions at a time with `copies` (BAKE_COPIES), would not fit in the memory free now."""
+    import psutil
+
+    per_frame = (garment.n_vertices + body.n_vertices) * 12 * copies
+    need = n_frames * per_frame * at_once
     free = psutil.virtual_memory().available
-    if need > free:
-        fit = int(free / per_frame / at_once * source_fps / motion.fps)  # in source frames, as --frames counts
-        what = (f"bake it in parts of at most {fit} source frames with --frames START:STOP" if fit >= 1 else
-                "not one frame fits")
-        raise click.ClickException(
-            f"motion '{path}': {longest} frames of a {garment.n_vertices}-vertex garment on a {body.n_vertices}-vertex "
-            f"body need about {need / 1e9:.3g} GB, {free / 1e9:.3g} GB is free: {what}")
+    if need <= free:
+        return
+    fit = int(free / per_frame / at_once * source_fps / fps)  # in source frames, as --frames counts
+    parts = f"bake it in parts of at most {fit} source frames with --frames START:STOP" if fit >= 1 else ""
+    if fps > source_fps:  # --fps multiplies the frames
+        lower = f"lower --fps {fps:g} (it makes {fps / source_fps:.3g} frames of each at {source_fps:g} fps)"
+        what = f"{parts}, or {lower}" if parts else lower
+    else:
+        what = parts or "not one frame fits"
+    raise click.ClickException(
+        f"motion '{path}': {n_frames} frames of a {garment.n_vertices}-vertex garment on a {body.n_vertices}-vertex "
+        f"body need about {need / 1e9:.3g} GB, {free / 1e9:.3g} GB is free: {what}")
 
 
 #: Root speed (m/s) in a simulated motion's first frame above which `bake` notes the jolt of a cloth starting at

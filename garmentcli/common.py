@@ -15,7 +15,7 @@ import numpy as np
 
 from core.body import Body, default_body
 from core.errors import InputError
-from core.motion import parse_frame_range, preroll, resample, settle
+from core.motion import MIN_SOURCE_FPS, parse_frame_range, preroll, resample, resampled_frame_count, settle
 
 #: `--pin` values (core.sim.PIN_MODES; repeated here so the CLI starts without importing the simulator).
 PIN_CHOICES = ("auto", "none")
@@ -161,21 +161,56 @@ def load_body_option(body_path: str | None) -> Body:
     return load_body(body_path)
 
 
+#: Said where a motion's betas do not fit the body: why, and how to leave them out.
+MOTION_BETAS_NOTE = ("a motion's betas belong to the body model it was fitted to, e.g. SMPL+H; --betas mean "
+                     "ignores them")
+#: Bytes `resample` holds per output frame and joint (float64 quaternions and their slerp's temporaries).
+RESAMPLE_BYTES_PER_JOINT = 512
+
+
 def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
-                   source_fps: float | None = None, preroll_frames: int = 0):
+                   source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
+                   check_frames=None):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas, --frames
     (source frames) with --preroll (source frames before them, deformed and not written: `Motion.n_lead`),
-    --fps and --settle, in that order."""
+    --fps and --settle, in that order.
+
+    body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
+    once, naming the motion. check_frames(n_frames, source_fps): called with the frame count of the prepared
+    motion before --fps resamples it (the caller refuses what would not fit); the resampling's own arrays are
+    checked against the memory free in any case."""
     from formats.motion import load_motion
 
     motion = load_motion(path, fps=source_fps)
     if betas is not None and betas != "motion":
         motion = replace(motion, betas=None if betas == "mean" else parse_betas(betas))
+    if body is not None and motion.betas is not None:
+        source, note = ((f"motion '{path}'", MOTION_BETAS_NOTE) if betas in (None, "motion") else
+                        (f"--betas (motion '{path}')", ""))
+        motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note))
     source_fps = motion.fps
     if frames:
         motion = preroll(motion, *parse_frame_range(frames), preroll_frames)
+    n_frames = resampled_frame_count(motion, fps) + settle_frames
+    if check_frames is not None:
+        check_frames(n_frames, source_fps)
+    _check_resample_memory(path, motion, fps, n_frames)
     motion = resample(motion, fps)
     return settle(motion, settle_frames), source_fps
+
+
+def _check_resample_memory(path: str, motion, fps: float, n_frames: int) -> None:
+    """A click error naming --fps when resampling `motion` to `n_frames` frames would not fit in the memory free."""
+    try:
+        import psutil
+    except ImportError:  # resample's own MemoryError is the net
+        return
+    need = n_frames * motion.poses.shape[1] * RESAMPLE_BYTES_PER_JOINT
+    free = psutil.virtual_memory().available
+    if need > free:
+        raise click.ClickException(
+            f"motion '{path}': --fps {fps:g} resamples its {motion.n_frames} frames at {motion.fps:g} fps to "
+            f"{n_frames} frames, about {need / 1e9:.3g} GB, {free / 1e9:.3g} GB is free: lower --fps")
 
 
 def parse_betas(text: str, words: tuple[str, ...] = ()) -> np.ndarray:
@@ -183,14 +218,15 @@ def parse_betas(text: str, words: tuple[str, ...] = ()) -> np.ndarray:
 
     words: the option's other accepted values, named in the message ('motion', 'mean' for bake's --betas)."""
     try:
-        values = np.array([float(v) for v in text.split(",")], dtype=np.float32)
+        values = np.array([float(v) for v in text.split(",")], dtype=np.float64)
     except ValueError:
         expected = "".join(f"'{w}', " for w in words[:-1]) + (f"'{words[-1]}' or " if words else "")
         raise click.BadParameter(f"expected {expected}comma-separated numbers, got '{text}'",
                                  param_hint="--betas") from None
-    if not np.all(np.isfinite(values)):
+    # float32's range checked before the cast, which would warn of the overflow
+    if not np.all(np.isfinite(values)) or np.any(np.abs(values) > np.finfo(np.float32).max):
         raise click.BadParameter(f"expected finite numbers, got '{text}'", param_hint="--betas")
-    return values
+    return values.astype(np.float32)
 
 
 #: bake's --betas values besides numbers.
@@ -210,9 +246,19 @@ def betas_option(command):
                              "coefficients (missing ones 0; the body's own basis, e.g. the embedded body's 10).")(command)
 
 
+def _check_source_fps(ctx, param, value: float | None) -> float | None:
+    if value is not None and value < MIN_SOURCE_FPS:
+        raise click.BadParameter(f"expected a frame rate of at least {MIN_SOURCE_FPS:g} Hz, got {value:.4g}: seconds "
+                                 f"per frame (a BVH Frame Time)? that is --source-fps {1 / value:.4g}",
+                                 param_hint="--source-fps")
+    return value
+
+
 def source_fps_option(command):
-    """--source-fps HZ: the motion files' frame rate, for files that carry none (or a wrong one)."""
+    """--source-fps HZ: the motion files' frame rate, for files that carry none (or a wrong one); at least
+    MIN_SOURCE_FPS."""
     return click.option("--source-fps", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
+                        callback=_check_source_fps,
                         help="The motions' own frame rate, overriding the file's (needed for files that carry "
                              "none).")(command)
 

@@ -58,7 +58,7 @@ def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_f
     from garmentcli.common import load_body_option, prepare_motion
 
     body = load_body_option(None if body_file is None else str(body_file))
-    motion, _ = prepare_motion(str(motion_file), fps, frames, settle_frames, betas, source_fps)
+    motion, _ = prepare_motion(str(motion_file), fps, frames, settle_frames, betas, source_fps, body=body)
     if motion.n_frames != n_frames:
         raise InputError(f"--motion '{motion_file}': expected {n_frames} frames like PRED, got {motion.n_frames} "
                          f"at --fps {fps:g} (pass the --fps, --frames and --settle of the bake)")

@@ -137,7 +137,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         shutil.rmtree(staged)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
-    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames)
+    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body)
     from formats.cache import default_cache_dir
 
     rows = configurations(models, spread=spread, fits=fits)

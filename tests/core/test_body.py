@@ -130,6 +130,18 @@ def test_fit_betas_pads_and_truncates_with_warning(caplog):
     assert not caplog.records
 
 
+def test_fit_betas_warning_names_its_source_and_note_on_one_line(caplog):
+    """The warning leads with where the betas come from and ends with the caller's note; fitted betas warn no
+    more (a caller that fits a motion's betas once warns once)."""
+    body = body_from_arrays(tiny_body(), name="tiny")  # 4 betas
+    with caplog.at_level(logging.WARNING, logger="core.body"):
+        fitted = body.fit_betas(np.arange(1.0, 17.0), source="motion 'smplh.npz'", note="fitted to SMPL+H")
+        body.fit_betas(fitted)
+    assert [r.getMessage() for r in caplog.records] == [
+        "motion 'smplh.npz': 16 betas given, body 'tiny' has 4 shape coefficients: extra ones ignored "
+        "(fitted to SMPL+H)"]
+
+
 # --- the embedded default body ------------------------------------------------------------
 
 

@@ -272,3 +272,48 @@ def test_preroll_is_clipped_at_the_motion_start_and_excludes_settle():
         settle(p, 3)
     with pytest.raises(InputError, match="selects no frame"):
         preroll(m, 40, 50, 5)
+
+
+@pytest.mark.parametrize("src_fps, dst_fps, lead", [(120.0, 30.0, 0), (59.94, 30.0, 0), (30.0, 60.0, 0),
+                                                   (24.0, 30.0, 0), (60.0, 30.0, 7), (30.0, 30.0, 0), (60.0, 1e5, 3)])
+def test_resampled_frame_count_is_the_frame_count_of_resample(src_fps, dst_fps, lead):
+    """The count a caller checks against the memory free before resampling is the one resample makes; for --fps 1e9
+    it is known without allocating anything."""
+    from core.motion import preroll, resampled_frame_count
+
+    m = _spinning_motion(src_fps, 40)
+    m = preroll(m, lead, None, lead) if lead else m
+    assert resampled_frame_count(m, dst_fps) == resample(m, dst_fps).n_frames
+    assert resampled_frame_count(m, 1e9) >= int(m.duration_s * 1e9) - m.n_lead * 1e9 / src_fps  # nothing allocated
+    assert resampled_frame_count(select_frames(m, 0, 1), 1e9) == 1  # one frame stays one
+
+
+def test_resample_out_of_memory_is_one_line_naming_fps(monkeypatch):
+    """Where the resampled arrays cannot be allocated, resample says so in one line naming --fps (no numpy
+    _ArrayMemoryError traceback)."""
+    import core.motion
+
+    def no_memory(*args):
+        raise MemoryError("Unable to allocate 1.2 TiB")
+
+    monkeypatch.setattr(core.motion, "quat_slerp", no_memory)
+    with pytest.raises(InputError) as info:
+        resample(_spinning_motion(60.0, 12), 1e9)
+    msg = str(info.value)
+    assert "\n" not in msg and msg.startswith("--fps 1e+09") and "spin" in msg and "more memory than is free" in msg
+
+
+def test_validate_motion_values_refuses_trans_beyond_10_km_naming_the_first_frame():
+    """A glitch frame (1e30) is refused naming its frame; 10 m teleports and 9 km pass."""
+    m = _random_motion(8, 24)
+    trans = m.trans.copy()
+    trans[3] = [1e30, 0.0, 0.0]
+    trans[6] = [0.0, 2e4, 0.0]
+    with pytest.raises(InputError) as info:
+        validate_motion_values(Motion(poses=m.poses, trans=trans, fps=30.0), "spike.npz")
+    msg = str(info.value)
+    assert "\n" not in msg and "'spike.npz'" in msg and "at frame 3 (2 of 8 frames" in msg and "10 km" in msg
+    trans = m.trans.copy()
+    trans[::2] += [10.0, -10.0, 0.0]
+    trans[5] = [9e3, 0.0, 0.0]
+    validate_motion_values(Motion(poses=m.poses, trans=trans, fps=30.0), "teleport.npz")

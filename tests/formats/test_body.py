@@ -221,6 +221,46 @@ def test_wrong_shapes(tmp_path, key, bad, needle):
     _one_line(e, "m.npz", needle)
 
 
+def test_weights_whose_rows_do_not_sum_to_one_are_refused(tmp_path):
+    """Rows summing to 0.5 (the posed body shrinks to half) or with the hand joints' columns zeroed and not
+    renormalised: one line naming the file, how many vertices and the worst sum. float32 rounding passes."""
+    arrays = smpl_arrays()
+    arrays["weights"] = arrays["weights"] * 0.5
+    write_npz(tmp_path / "half.npz", arrays)
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "half.npz")
+    _one_line(e, "half.npz", "expected skinning weights whose rows sum to 1", f"at {V} of {V} vertices",
+              "the worst sums to 0.5")
+    arrays = smpl_arrays()
+    w = arrays["weights"].copy()
+    w[:, 20:] = 0.0
+    worst = int(np.argmin(w.sum(1)))
+    arrays["weights"] = w
+    write_pkl(tmp_path / "hands.pkl", arrays)
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "hands.pkl")
+    _one_line(e, "hands.pkl", f"at vertex {worst}")
+    arrays = smpl_arrays()
+    arrays["weights"] = arrays["weights"].astype(np.float32) * np.float32(1 + 1e-6)
+    write_npz(tmp_path / "rounded.npz", arrays)
+    load_body(tmp_path / "rounded.npz")
+
+
+@pytest.mark.parametrize("scale,unit", [(100.0, "is it in centimetres? scale it by 0.01"),
+                                        (1000.0, "is it in millimetres? scale it by 0.001")])
+def test_body_in_centimetres_or_millimetres_is_refused(tmp_path, scale, unit):
+    """The default body (1.70 m) written in centimetres or millimetres: one line naming the file and the unit,
+    not a garment 'far from the body' later."""
+    ref = default_body()
+    v = (ref.v_template * scale).astype(np.float32)
+    np.savez(tmp_path / "cm.npz", v_template=v, shapedirs=ref.shapedirs * scale, J_regressor=ref.J_regressor,
+             weights=ref.weights, kintree_table=np.array([ref.parents, np.arange(24)]), f=ref.faces)
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "cm.npz")
+    extent = float(np.max(v.max(axis=0) - v.min(axis=0)))
+    _one_line(e, "cm.npz", "expected metres (a body stands 0.5-2.5 m tall)", f"spanning {extent:.1f} units; {unit}")
+
+
 def test_pickle_that_is_not_a_dict(tmp_path):
     with open(tmp_path / "l.pkl", "wb") as fh:
         pickle.dump([1, 2, 3], fh, protocol=2)

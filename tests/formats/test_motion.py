@@ -394,3 +394,65 @@ def test_amass_smplx_stageii_file_with_a_pickled_marker_dict(tmp_path):
              pose_eye=poses[:, 69:75])
     m = load_motion(path)
     assert m.poses.shape == (T, 55, 3) and m.fps == 120.0 and m.gender == "female"
+
+
+def test_a_frame_time_stored_as_the_frame_rate_is_refused(tmp_path):
+    """A BVH-style Frame Time (seconds per frame) in mocap_framerate would turn 10 frames into 16,201: refused in
+    one line naming the file, the value, the rate it stands for and --source-fps; so is such an override. 1 Hz
+    (the slowest rate read) still reads."""
+    path = _write(tmp_path, "frametime.npz", poses=_poses(10, 72), trans=_trans(10), mocap_framerate=1 / 60)
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    _assert_one_line(info, "frametime.npz", "'mocap_framerate'", "0.01667", "seconds per frame", "60 fps",
+                     "--source-fps")
+    with pytest.raises(InputError, match="seconds per frame"):
+        load_motion(_write(tmp_path, "ok.npz", poses=_poses(10, 72), trans=_trans(10), mocap_framerate=60.0), fps=0.5)
+    assert load_motion(path, fps=60.0).fps == 60.0
+    assert load_motion(_write(tmp_path, "slow.npz", poses=_poses(10, 72), trans=_trans(10), mocap_framerate=1.0)).fps == 1.0
+
+
+def test_degrees_with_small_bends_are_refused_by_their_longest_rotation(tmp_path):
+    """A motion in degrees whose joints bend 1-10 degrees and whose root turns 90 has under 20 % of its rotated
+    joints past 2 pi, but a rotation of 90 (radians?): refused as degrees. The example motions and the built-in
+    library, and a root one full turn longer (3 pi at most), read."""
+    from pathlib import Path
+
+    from core.motiongen import MOTION_LIBRARY
+    from formats.motion import DEGREES_MAX_NORM, DEGREES_SHARE
+
+    rng = np.random.default_rng(0)
+    poses = np.zeros((60, 24, 3))
+    poses[:, 0] = [90.0, 0.0, 0.0]
+    axes = rng.normal(size=(60, 23, 3))
+    poses[:, 1:] = axes / np.linalg.norm(axes, axis=-1, keepdims=True) * np.linspace(1.0, 7.0, 23)[:, None]
+    norms = np.linalg.norm(poses, axis=-1)
+    assert np.mean(norms[norms > 1e-6] > 2 * np.pi) < DEGREES_SHARE  # the share alone lets it pass
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, "idle_degrees.npz", poses=poses.reshape(60, 72), trans=_trans(60),
+                           mocap_framerate=60.0))
+    _assert_one_line(info, "idle_degrees.npz", "axis-angle radians", "the largest 90.0", "in degrees?")
+    for path in sorted((Path(__file__).resolve().parents[2] / "examples").glob("*.npz")):
+        if "poses" in np.load(path).files:
+            load_motion(path)
+    for name, make in MOTION_LIBRARY.items():
+        assert np.linalg.norm(make(fps=30.0).poses, axis=-1).max() < DEGREES_MAX_NORM / 2, name
+
+
+def test_a_glitch_frame_in_trans_far_from_the_origin_is_refused(tmp_path):
+    """One frame of trans at 1e30 (the unit checks use medians, which it leaves alone) is refused naming the file
+    and the frame; float64 past float32's range is refused without numpy's overflow warning; a root 9 km out
+    reads."""
+    import warnings
+
+    trans = _trans(40).astype(np.float64)
+    trans[5] = 1e30
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, "spike.npz", poses=_poses(40, 72), trans=trans, mocap_framerate=60.0))
+    _assert_one_line(info, "spike.npz", "trans", "10 km", "frame 5")
+    trans[5] = 1e40
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match="frame 5"):
+            load_motion(_write(tmp_path, "huge.npz", poses=_poses(40, 72), trans=trans, mocap_framerate=60.0))
+    trans[5] = [9e3, 0.0, 0.0]
+    load_motion(_write(tmp_path, "far.npz", poses=_poses(40, 72), trans=trans, mocap_framerate=60.0))

@@ -265,6 +265,10 @@ def test_write_read_round_trip(tmp_path, with_uvs):
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\n", "expected faces ('f' lines), got none"),
     ("v 0 0 0\nv 100 0 0\nv 0 100 0\nf 1 2 3\n", "is it in centimetres? scale it by 0.01"),
     ("v 0 0 0\nv 1000 0 0\nv 0 1000 0\nf 1 2 3\n", "is it in millimetres? scale it by 0.001"),
+    # 20 units: a 20 cm or a 51 cm (20 inch) garment, both named; 15 units: inches alone (15 cm is no garment).
+    ("v 0 0 0\nv 20.1 0 0\nv 0 20 0\nf 1 2 3\n", "got an extent of 20.1 units; is it in centimetres (scale it by "
+     "0.01) or inches (scale it by 0.0254)?"),
+    ("v 0 0 0\nv 15 0 0\nv 0 15 0\nf 1 2 3\n", "got an extent of 15.0 units; is it in inches? scale it by 0.0254"),
     ("v 0 0 0\nv 1e5 0 0\nv 0 1 0\nf 1 2 3\n", "got an extent of 100000.0 units"),  # no unit fits: no guess
     ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "expected finite coordinates, got NaN/Inf at vertex 1"),
     ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "got no faces"),

@@ -181,6 +181,23 @@ def test_bad_body_file(scene):
     assert_one_line_error(r, "broken_body.npz")
 
 
+def test_body_in_centimetres_or_with_weights_not_summing_to_one_is_refused(scene):
+    """The body's own faults are blamed on the body file, not on the garment ('far from the body'), and nothing
+    is written."""
+    d, tiny = scene["dir"], scene["tiny"]
+    kintree = np.stack([tiny.parents, np.arange(tiny.n_joints)])
+    arrays = dict(v_template=tiny.v_template, shapedirs=tiny.shapedirs, J_regressor=tiny.J_regressor,
+                  weights=tiny.weights, kintree_table=kintree, f=tiny.faces)
+    np.savez(d / "body_cm.npz", **{**arrays, "v_template": tiny.v_template * 100, "shapedirs": tiny.shapedirs * 100})
+    np.savez(d / "weights_half.npz", **{**arrays, "weights": tiny.weights * 0.5})
+    for name, needles in (("body_cm.npz", ("expected metres", "is it in centimetres? scale it by 0.01")),
+                          ("weights_half.npz", ("rows sum to 1", "the worst sums to 0.5"))):
+        r = run(["bake", scene["garment"], scene["motion"], "--body", d / name, "--out", scene["out"]])
+        assert_one_line_error(r, f"body '{d / name}'", *needles)
+        assert "garment mesh" not in r.output
+    assert not scene["out"].exists() or not any(scene["out"].iterdir())
+
+
 def test_bake_reports_scene_skips_and_no_skip_overrides_them(scene):
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--no-obj"])
     assert r.exit_code == 0, r.output

@@ -1,0 +1,85 @@
+"""`garment bake` with motions whose frame rate, translation or body shape is off, and --fps, --source-fps and
+--betas values beyond reason: one line naming the file or option, nothing written; the betas warning once."""
+
+import json
+import logging
+import warnings
+
+import numpy as np
+
+from tests.garmentcli.cli import invoke
+
+
+def assert_one_line_error(result, *needles):
+    assert result.exit_code != 0, result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit), repr(result.exception)
+    assert "Traceback" not in result.output
+    line = result.output.strip().splitlines()[-1]
+    for n in needles:
+        assert n in line, (n, line)
+
+
+def _bake(scene, motion, *options):
+    return invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"], "--no-obj",
+                   *options])
+
+
+def test_a_frame_time_for_a_frame_rate_is_refused_and_1_hz_bakes(scene):
+    """mocap_framerate = 1/60 (a BVH Frame Time) would make 10 frames 16,201: refused naming the file, the value
+    and --source-fps; so is --source-fps 0.01667; --source-fps 60 bakes it, and a 1 Hz motion bakes."""
+    from tests.garmentcli.conftest import write_motion
+
+    d = scene["dir"]
+    write_motion(d / "frametime.npz", n_frames=10, fps=1 / 60)
+    r = _bake(scene, d / "frametime.npz")
+    assert_one_line_error(r, "frametime.npz", "0.01667", "seconds per frame", "60 fps", "--source-fps")
+    r = _bake(scene, d / "frametime.npz", "--source-fps", "0.01667")
+    assert_one_line_error(r, "--source-fps", "0.01667", "seconds per frame", "--source-fps 59.99")
+    assert not scene["out"].exists()
+    r = _bake(scene, d / "frametime.npz", "--source-fps", 60)
+    assert r.exit_code == 0, r.output
+    assert json.loads((scene["out"] / "shell_frametime" / "summary.json").read_text())["frames"] == 5
+    write_motion(d / "slow.npz", n_frames=3, fps=1.0)
+    r = _bake(scene, d / "slow.npz")
+    assert r.exit_code == 0, r.output
+    assert json.loads((scene["out"] / "shell_slow" / "summary.json").read_text())["frames"] == 61  # 2 s at 30 fps
+
+
+def test_an_fps_that_makes_more_frames_than_fit_is_refused_before_resampling(scene):
+    """--fps 1e9 on the 12-frame walk (60 fps) makes 183,333,334 frames: refused naming --fps and the memory
+    before anything is allocated (it was numpy's _ArrayMemoryError from resample); --source-fps 1e-9 is refused as
+    a frame time."""
+    r = _bake(scene, scene["motion"], "--fps", "1e9")
+    assert_one_line_error(r, "walk.npz", "183333334 frames", "is free", "lower --fps 1e+09")
+    r = _bake(scene, scene["motion"], "--source-fps", "1e-9")
+    assert_one_line_error(r, "--source-fps", "1e-09", "seconds per frame")
+    assert not scene["out"].exists()
+
+
+def test_motion_betas_the_body_lacks_are_warned_about_once_per_motion(scene, caplog):
+    """16 betas on the 4-coefficient body: one warning per motion (it was one per posing of the body, 3-6 a bake),
+    naming the motion and saying where its betas belong and how to leave them out; one copy in each summary."""
+    from tests.garmentcli.conftest import write_motion
+
+    d = scene["dir"]
+    write_motion(d / "smplh.npz", n_values=156, betas=np.full(16, 0.5, np.float32))
+    write_motion(d / "other.npz", betas=np.full(16, 0.5, np.float32))
+    with caplog.at_level(logging.WARNING):
+        r = _bake(scene, d / "smplh.npz", d / "other.npz")
+    assert r.exit_code == 0, r.output
+    said = [rec.getMessage() for rec in caplog.records if "betas given" in rec.getMessage()]
+    assert len(said) == 2 and len({m for m in said}) == 2, said
+    for name in ("smplh", "other"):
+        summary = json.loads((scene["out"] / f"shell_{name}" / "summary.json").read_text())
+        (warning,) = summary["warnings"]
+        assert warning.startswith(f"motion '{d / name}.npz': 16 betas given, body 'tiny_body' has 4")
+        assert "SMPL+H" in warning and "--betas mean ignores them" in warning and "\n" not in warning
+
+
+def test_betas_beyond_float32_are_refused_without_numpy_warnings(scene):
+    """--betas 1e40: the one error line, and no RuntimeWarning of numpy's overflowing cast before it."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = _bake(scene, scene["motion"], "--betas", "1e40")
+    assert_one_line_error(r, "--betas", "expected finite numbers, got '1e40'")
+    assert "RuntimeWarning" not in r.output
