@@ -158,12 +158,18 @@ class _CopiesBack:
         if not self.cuda:
             self.out[start:start + len(verts)] = verts.numpy()
             return
+        host, done = self._start_copy(verts)
+        self.finish()
+        self.pending = (start, host, done)
+
+    @staticmethod
+    def _start_copy(verts: torch.Tensor):
+        """verts' copy into pinned host memory, queued on its stream, and the event marking its end."""
         host = torch.empty(verts.shape, dtype=verts.dtype, pin_memory=True)
         host.copy_(verts, non_blocking=True)
         done = torch.cuda.Event()
         done.record(torch.cuda.current_stream(verts.device))
-        self.finish()
-        self.pending = (start, host, done)
+        return host, done
 
     def finish(self) -> None:
         if self.pending is not None:

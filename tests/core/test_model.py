@@ -408,6 +408,34 @@ def test_model_deformer_prepares_a_body_shape_once_and_again_after_its_weights_c
     assert np.abs(changed - first).max() > 1e-3
 
 
+def test_copies_back_from_a_gpu_trail_the_network_by_one_batch(monkeypatch):
+    """`_CopiesBack` on a CUDA device (its copy and event faked here): batch k is written into the output once
+    batch k+1 is queued, waiting on k's event only; `finish` writes the last; every frame lands where it belongs."""
+    from core.model_deform import _CopiesBack
+
+    waited = []
+
+    class Event:
+        def __init__(self, k):
+            self.k = k
+
+        def synchronize(self):
+            waited.append(self.k)
+
+    monkeypatch.setattr(_CopiesBack, "_start_copy", staticmethod(lambda v: (v.clone(), Event(int(v[0, 0, 0])))))
+    out = np.full((7, 2, 3), -1.0, dtype=np.float32)
+    copies = _CopiesBack(out, torch.device("cuda", 0))
+    batches = [torch.full((n, 2, 3), float(k)) for k, n in enumerate((3, 3, 1))]
+    copies.put(0, batches[0])
+    assert waited == [] and (out == -1).all()
+    copies.put(3, batches[1])
+    assert waited == [0] and (out[:3] == 0).all() and (out[3:] == -1).all()
+    copies.put(6, batches[2])
+    copies.finish()
+    assert waited == [0, 1, 2] and np.array_equal(out, np.concatenate([b.numpy() for b in batches]))
+    assert copies.pending is None
+
+
 def test_default_batch_frames_follow_the_device_and_the_garment_size():
     from core.model_deform import GPU_MAX_BATCH_FRAMES, default_batch_frames
 
