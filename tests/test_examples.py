@@ -61,7 +61,8 @@ def test_example_motions_are_valid_amass_files():
 
 
 def test_examples_are_reproducible_by_the_documented_generator():
-    """`garment examples` regenerates exactly what is shipped (motions exactly, garments within OBJ precision)."""
+    """`garment examples` regenerates what is shipped (motions exactly, garments within OBJ precision but for the
+    t-shirt's vertices its help names)."""
     from core.garmentgen import generate_example_garments
     from core.motiongen import generate_example_motions
 
@@ -69,10 +70,16 @@ def test_examples_are_reproducible_by_the_documented_generator():
     for p in MOTIONS:
         shipped = load_motion(p)
         np.testing.assert_allclose(motions[p.stem].poses, shipped.poses, atol=1e-6)
-    garments = generate_example_garments(default_body(), names=("skirt",))
-    shipped = read_obj(EXAMPLES / "skirt.obj")
-    np.testing.assert_allclose(garments["skirt"].vertices, shipped.vertices, atol=2e-6)
-    np.testing.assert_array_equal(garments["skirt"].faces, shipped.faces)
+    garments = generate_example_garments(default_body())
+    assert sorted(garments) == sorted(p.stem for p in GARMENTS)
+    for name, made in garments.items():
+        shipped = read_obj(EXAMPLES / f"{name}.obj")
+        np.testing.assert_array_equal(made.faces, shipped.faces)
+        moved = np.linalg.norm(made.vertices - shipped.vertices, axis=1)
+        if name == "tshirt":  # some vertices follow the CPU's float rounding (garment examples' help)
+            assert (moved > 2e-6).mean() < 0.05 and moved.max() < 0.01, ((moved > 2e-6).sum(), moved.max())
+        else:
+            assert moved.max() < 2e-6, (name, moved.max())
 
 
 def test_garments_without_shoulders_get_a_waistband_and_the_others_none():
