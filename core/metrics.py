@@ -266,8 +266,13 @@ def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points:
                          "expected the same garment mesh (same vertices and faces)")
     Tp, Tg = np.shape(pred_points)[0], np.shape(gt_points)[0]
     if Tp != Tg:
-        raise InputError(f"'{pred_name}' has {Tp} frames, '{gt_name}' has {Tg}: expected the same "
+        raise InputError(f"'{pred_name}' has {frames_text(Tp)}, '{gt_name}' has {Tg}: expected the same "
                          "frame count (trim or resample one of them to match)")
+
+
+def frames_text(n: int) -> str:
+    """"1 frame", "5 frames": a frame count for messages."""
+    return f"{n} frame" if n == 1 else f"{n} frames"
 
 
 def _edge_keys(faces: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -372,7 +377,8 @@ def self_intersection_pct(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 def compute_metrics(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray,
                     body_points: np.ndarray | None = None, body_faces: np.ndarray | None = None,
                     inside_fn: InsideFn | None = None, pred_name: str = "pred",
-                    gt_name: str = "gt", body_name: str | None = None) -> MetricsResult:
+                    gt_name: str = "gt", body_name: str | None = None, gt_body_points: np.ndarray | None = None,
+                    gt_body_faces: np.ndarray | None = None, gt_body_name: str | None = None) -> MetricsResult:
     """The paper's five metrics (Eqs. 11-15) per frame and overall, plus optional penetration.
 
     pred, gt: (T, V, 3) float, metres, same topology and frame count.
@@ -380,7 +386,8 @@ def compute_metrics(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray,
     body_points: (T, Vb, 3) metres, body_faces: (Fb, 3) int, and
     inside_fn(points (T,V,3), body_points (T,Vb,3), body_faces) -> (T,V) bool:
     when all three are given, `penetration_pct` (pred) and `gt_penetration_pct`
-    (gt against the same body) are added, in percent of garment vertices.
+    (gt against gt_body_points/gt_body_faces when given, GT's own body; else the same body) are added, in percent
+    of garment vertices.
     pred_name, gt_name, body_name: how error messages name the inputs (e.g.
     file paths; the body defaults to "<pred_name> body").
     Raises InputError on mismatched shapes, bad faces or non-finite values.
@@ -397,10 +404,17 @@ def compute_metrics(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray,
         body_name = body_name or f"{pred_name} body"
         b = _check_points(body_points, body_name)
         if b.shape[0] != T:
-            raise InputError(f"'{body_name}': has {b.shape[0]} frames, the garment has {T}: "
+            raise InputError(f"'{body_name}': has {frames_text(b.shape[0])}, the garment has {T}: "
                              "expected one body pose per frame")
         bf = _check_faces(body_faces, b.shape[1], f"{body_name} faces")
         per_frame["penetration_pct"] = penetration_pct(p, b, bf, inside_fn)
+        if gt_body_points is not None and gt_body_faces is not None:
+            gt_body_name = gt_body_name or f"{gt_name} body"
+            b = _check_points(gt_body_points, gt_body_name)
+            if b.shape[0] != T:
+                raise InputError(f"'{gt_body_name}': has {frames_text(b.shape[0])}, the garment has {T}: "
+                                 "expected one body pose per frame")
+            bf = _check_faces(gt_body_faces, b.shape[1], f"{gt_body_name} faces")
         per_frame["gt_penetration_pct"] = penetration_pct(g, b, bf, inside_fn)
 
     overall = {name: float(np.mean(v)) for name, v in per_frame.items()}

@@ -96,6 +96,22 @@ def train_config_from_dict(values: dict, source: str = "train config") -> TrainC
     for key in values:
         if key not in known:
             raise InputError(f"{source}: unknown key '{key}' (expected one of {', '.join(sorted(known))})")
+    defaults = TrainConfig()
+    for key, val in values.items():
+        default = getattr(defaults, key)
+        if key == "phases":
+            ok = isinstance(val, (list, tuple)) and all(isinstance(p, int) and not isinstance(p, bool) for p in val)
+            want = "a list of phase numbers, e.g. [1, 2, 3]"
+        elif key == "loss_scale":  # checked term by term by TrainConfig.validate
+            continue
+        elif isinstance(default, int) and not isinstance(default, bool):
+            ok, want = isinstance(val, int) and not isinstance(val, bool), "an integer"
+        else:  # float fields (lr_final may also be null)
+            ok = (val is None and key == "lr_final") or (
+                isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val))
+            want = "a finite number" + (" or null" if key == "lr_final" else "")
+        if not ok:
+            raise InputError(f"{source}: '{key}': expected {want}, got {val!r}")
     v = dict(values)
     if "phases" in v:
         v["phases"] = tuple(int(p) for p in v["phases"])

@@ -515,6 +515,20 @@ def read_garment(path: str | os.PathLike) -> Garment:
         from formats.usd import read_usd_garment
 
         return read_usd_garment(path)
+    try:  # binary content is no OBJ: say what it is instead of finding no 'v' lines in it
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        head = b""  # read_obj says why the file cannot be read
+    if head.startswith(b"PK\x03\x04") or head.startswith(b"PK\x05\x06"):
+        raise InputError(f"garment mesh '{path}': expected an OBJ or USD garment, got a NumPy .npz archive (a motion?)")
+    if head.startswith(b"\x93NUMPY"):
+        raise InputError(f"garment mesh '{path}': expected an OBJ or USD garment, got a NumPy .npy array")
+    if head.startswith(b"PXR-USDC"):
+        raise InputError(f"garment mesh '{path}': expected an OBJ or USD garment, got a binary USD (.usdc) file "
+                         f"named '{Path(path).suffix or 'without a suffix'}' (name it .usd or .usdc)")
+    if b"\x00" in head:
+        raise InputError(f"garment mesh '{path}': expected an OBJ or USD garment, got binary content")
     return read_obj(path)
 
 

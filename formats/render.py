@@ -158,6 +158,8 @@ class RenderOptions:
             raise InputError(f"--framing: expected one of {', '.join(FRAMINGS)}, got '{self.framing}'")
         if not (16 <= self.width <= 8192 and 16 <= self.height <= 8192):
             raise InputError(f"--size: expected 16..8192 pixels a side, got {self.width}x{self.height}")
+        if not math.isfinite(self.azimuth_deg):
+            raise InputError(f"--azimuth: expected a finite number of degrees, got {self.azimuth_deg}")
         if not (0.0 <= self.margin < 0.45):
             raise InputError(f"render margin: expected 0 <= margin < 0.45, got {self.margin}")
 
@@ -244,6 +246,29 @@ def robust_range(values: np.ndarray, upper_percentile: float = 99.0) -> tuple[fl
     return lo, hi
 
 
+def check_finite_sequence(seq, what: str = "garment sequence") -> None:
+    """Raise InputError naming `seq.source` and the first frame and vertex whose coordinates are NaN or Inf.
+
+    Checks the garment points and, when present, the body points (frame numbers of the file, 0-based).
+    """
+    for points, mesh in ((seq.points, ""), (seq.body_points, "body ")):
+        if points is None:
+            continue
+        bad = ~np.isfinite(np.asarray(points)).all(axis=-1)
+        if bad.any():
+            t, v = (int(i) for i in np.argwhere(bad)[0])
+            kind = "NaN" if np.isnan(points[t, v]).any() else "Inf"
+            raise InputError(f"{what} '{seq.source}': expected finite coordinates, got {kind} at frame {t}, "
+                             f"{mesh}vertex {v}")
+    points = np.asarray(seq.points)
+    if points.shape[1] > 1 and not np.ptp(points, axis=1).any():
+        far = float(np.abs(points).max())
+        raise InputError(f"{what} '{seq.source}': expected a garment of some size, got all {points.shape[1]} "
+                         f"vertices at one point in every frame"
+                         + (f", {far:.3g} m from the origin (too far for float32 to tell its vertices apart: "
+                            f"move it near the origin)" if far > 1e4 else ""))
+
+
 def scene_from_sequence(seq, color: str = "plain", gt=None, scalars: np.ndarray | None = None,
                         scalar_label: str = "value", value_range: tuple[float, float] | None = None,
                         frames=None, depth_m: float = 0.002) -> Scene:
@@ -254,6 +279,11 @@ def scene_from_sequence(seq, color: str = "plain", gt=None, scalars: np.ndarray 
     `scalars`, (T, V) for the whole sequence). frames: indices or a slice of the
     frames to keep (applied before the costly penetration test).
     """
+    if value_range is not None and not (np.isfinite(value_range).all() and value_range[0] < value_range[1]):
+        raise InputError(f"--range: expected finite LO < HI, got {value_range[0]} {value_range[1]}")
+    check_finite_sequence(seq)
+    if gt is not None:
+        check_finite_sequence(gt, "--gt")
     idx = np.arange(seq.n_frames) if frames is None else np.arange(seq.n_frames)[frames]
     if idx.size == 0:
         raise InputError(f"--frames: selects no frame of '{seq.source}' ({seq.n_frames} frames)")
@@ -359,11 +389,44 @@ def camera_track(frame_lo: np.ndarray, frame_hi: np.ndarray, preset: str, option
     else:
         centre = (frame_lo + frame_hi) / 2.0
         target = _smooth(centre, int(round((fps or 30.0) * 0.5)) | 1)
+        # Smoothing lags behind a fast traveller (metres a frame): keep the target within the figure's own
+        # size of its centre, or the one distance below backs off until the figure is a speck.
+        own_size = np.linalg.norm(frame_hi - frame_lo, axis=1).max()
+        target = centre + np.clip(target - centre, -own_size, own_size)
         dists = np.array([fit_distance(frame_lo[t], frame_hi[t], target[t], azimuths[t], el, options.fov_deg,
                                        aspect, options.margin) for t in range(T)])
         dists = np.full(T, dists.max())  # one distance: the figure keeps its size on screen
     pos = np.stack([target[t] + dists[t] * _view_basis(azimuths[t], el)[0] for t in range(T)])
     return pos, target
+
+
+def garment_out_of_view(points: np.ndarray, pos: np.ndarray, focal: np.ndarray, options: RenderOptions,
+                        min_fraction: float = 0.02) -> np.ndarray:
+    """Frames whose garment is outside the picture, or spans under `min_fraction` of its width and height.
+
+    points: (T, V, 3) metres; pos, focal: (T, 3) camera positions and focal points (`camera_track`).
+    Returns (T,) bool. Each frame's garment box is projected through a pinhole camera (Z up).
+    """
+    lo, hi = points.min(axis=1).astype(np.float64), points.max(axis=1).astype(np.float64)
+    tan_v = math.tan(math.radians(options.fov_deg) / 2.0)
+    tan_h = tan_v * options.width / options.height
+    lost = np.zeros(points.shape[0], dtype=bool)
+    for t in range(points.shape[0]):
+        fwd = focal[t] - pos[t]
+        fwd /= max(np.linalg.norm(fwd), 1e-12)
+        right = np.cross(fwd, [0.0, 0.0, 1.0])
+        right /= max(np.linalg.norm(right), 1e-12)
+        up = np.cross(right, fwd)
+        corners = np.array([[x, y, z] for x in (lo[t, 0], hi[t, 0]) for y in (lo[t, 1], hi[t, 1])
+                            for z in (lo[t, 2], hi[t, 2])]) - pos[t]
+        depth = corners @ fwd
+        if (depth <= 0).any():
+            lost[t] = bool((depth <= 0).all())
+            continue
+        u = np.clip(corners @ right / (depth * tan_h), -1.0, 1.0)  # image coordinates in [-1, 1]
+        v = np.clip(corners @ up / (depth * tan_v), -1.0, 1.0)
+        lost[t] = bool(np.ptp(u) < 2 * min_fraction and np.ptp(v) < 2 * min_fraction)
+    return lost
 
 
 # ---------------------------------------------------------------------------
@@ -378,18 +441,69 @@ def _import_pyvista():
     return pv
 
 
+def _x_display_opens() -> bool:
+    """Whether libX11 can open the display named by $DISPLAY (VTK's X window crashes when it cannot)."""
+    lib = _find_library("X11")
+    if lib is None:
+        return False
+    try:
+        x11 = ctypes.CDLL(lib)
+        x11.XOpenDisplay.restype = ctypes.c_void_p
+        x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
+        x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+        display = x11.XOpenDisplay(None)
+    except (OSError, AttributeError):
+        return False
+    if not display:
+        return False
+    x11.XCloseDisplay(display)
+    return True
+
+
 def _check_gl_libraries() -> None:
-    """Raise RenderError naming the packages when the EGL/GL libraries VTK loads are absent."""
-    if os.environ.get("VTK_DEFAULT_OPENGL_WINDOW") != "vtkEGLRenderWindow":
-        return  # the user chose another window (X, OSMesa): let VTK speak for it
+    """Raise RenderError (one line) when the window VTK will open cannot be: its libraries or display are absent.
+
+    vtkEGLRenderWindow (the default): libEGL and libGL. A user's VTK_DEFAULT_OPENGL_WINDOW is checked
+    for what it needs first, as VTK crashes (segfault) rather than report it: vtkXOpenGLRenderWindow a
+    DISPLAY that opens, vtkOSOpenGLRenderWindow libOSMesa. Other windows (Win32, Cocoa) are left to VTK.
+    """
+    window = os.environ.get("VTK_DEFAULT_OPENGL_WINDOW", "")
+    where = f"VTK_DEFAULT_OPENGL_WINDOW={window}"
+    egl = "unset VTK_DEFAULT_OPENGL_WINDOW to render off-screen with EGL"
+    if window == "vtkXOpenGLRenderWindow":
+        display = os.environ.get("DISPLAY", "")
+        if not display:
+            raise RenderError(f"{where}: expected an X display in DISPLAY, got DISPLAY unset; {egl}")
+        if not _x_display_opens():
+            raise RenderError(f"{where}: expected an X display that opens, got DISPLAY={display} that does not; "
+                              f"{egl}")
+        return
+    if window == "vtkOSOpenGLRenderWindow":
+        if _find_library("OSMesa") is None:
+            raise RenderError(f"{where}: expected the OSMesa library, found no libOSMesa (on Debian/Ubuntu: "
+                              f"apt-get install libosmesa6); {egl}")
+        return
+    if window != "vtkEGLRenderWindow":
+        return  # another platform's window: let VTK speak for it
     missing = [lib for lib in ("EGL", "GL") if _find_library(lib) is None]
     if missing:
         raise RenderError(f"no OpenGL context for off-screen rendering: library lib{missing[0]} not found "
                           f"(on Debian/Ubuntu: apt-get install {APT_PACKAGES})")
 
 
+def check_render_window() -> None:
+    """Raise RenderError when no off-screen window can be opened (`_check_gl_libraries`); call before any output."""
+    _check_gl_libraries()
+
+
 def _find_library(name: str):
     return ctypes.util.find_library(name)
+
+
+def _no_context(exc: Exception) -> RenderError:
+    """The one-line RenderError for a window or OpenGL context that VTK could not make."""
+    return RenderError(f"no OpenGL context for off-screen rendering ({type(exc).__name__}: {exc}); "
+                       f"on Debian/Ubuntu: apt-get install {APT_PACKAGES}")
 
 
 def _vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -431,21 +545,28 @@ class Renderer:
         self.options = options
         pv = _import_pyvista()
         _check_gl_libraries()
+        # Only the window and its context are blamed on OpenGL; an error building the scene is what it is.
         try:
             self.plotter = pv.Plotter(off_screen=True, window_size=(options.width, options.height),
                                       lighting="none")
             self.plotter.disable_anti_aliasing()
-            self._build(pv)
-            self.plotter.render()
-        except RenderError:
-            raise
         except Exception as exc:  # VTK raises plain RuntimeErrors when no context can be made
-            raise RenderError(f"no OpenGL context for off-screen rendering ({type(exc).__name__}: {exc}); "
-                              f"on Debian/Ubuntu: apt-get install {APT_PACKAGES}") from None
+            raise _no_context(exc) from None
+        try:
+            self._build(pv)
+        except BaseException:
+            self.plotter.close()
+            raise
+        try:
+            self.plotter.render()  # the first render opens the context
+        except Exception as exc:
+            self.plotter.close()
+            raise _no_context(exc) from None
         if not self.plotter.render_window.SupportsOpenGL():
             raise RenderError(f"no OpenGL context for off-screen rendering: VTK's {type(self.plotter.render_window).__name__} "
                               f"found no usable OpenGL (on Debian/Ubuntu: apt-get install {APT_PACKAGES})")
         self._cameras = {}
+        self._warned_view = False
 
     # -- scene set-up --------------------------------------------------------
 
@@ -540,7 +661,23 @@ class Renderer:
                 raise InputError(f"--camera: expected one of {', '.join(CAMERAS)}, got '{preset}'")
             self._cameras[preset] = camera_track(self.frame_lo, self.frame_hi, preset, self.options,
                                                  playback_fps(self.scene))
+            self._warn_if_out_of_view(preset, *self._cameras[preset])
         return self._cameras[preset]
+
+    def _warn_if_out_of_view(self, preset: str, pos: np.ndarray, focal: np.ndarray) -> None:
+        """Warn once per renderer when the garment leaves the picture, or shrinks under 2 % of it, in some frames."""
+        if self._warned_view:
+            return
+        lost = garment_out_of_view(self.scene.garment_points, pos, focal, self.options)
+        if lost.any():
+            self._warned_view = True
+            g = self.scene.garment_points
+            travel = float(np.linalg.norm(np.ptp(g.mean(axis=1), axis=0)))
+            far = float(np.abs(g).max())
+            log.warning("render: the garment is out of view or under 2%% of the picture in %d of %d frames "
+                        "(first: frame %d, %s camera); it travels %.3g m and reaches %.3g m from the origin%s",
+                        int(lost.sum()), lost.size, int(self.scene.frame_numbers[np.argmax(lost)]), preset, travel,
+                        far, "; try --framing follow" if self.options.framing == "fixed" else "")
 
     def _set_frame(self, t: int) -> None:
         s = self.scene

@@ -11,6 +11,7 @@ The writers here produce the first two forms.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import re
 from dataclasses import dataclass
@@ -21,6 +22,8 @@ import numpy as np
 from core.errors import InputError
 from formats.obj import mtllib_text, obj_face_text, obj_vertex_text, parse_obj, triangulate
 from formats.usd import read_usd
+
+log = logging.getLogger(__name__)
 
 SEQUENCE_JSON = "sequence.json"
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
@@ -45,6 +48,11 @@ class Sequence:
     @property
     def n_frames(self) -> int:
         return int(self.points.shape[0])
+
+
+def _frames_text(n: int) -> str:
+    """"1 frame", "5 frames": a frame count for messages."""
+    return f"{n} frame" if n == 1 else f"{n} frames"
 
 
 def _natural_key(name: str):
@@ -89,6 +97,48 @@ def _obj_files(directory: Path) -> list[Path]:
                   key=lambda p: _natural_key(p.name))
 
 
+_FRAME_NAME = re.compile(r"^(.*?)(\d+)$")
+
+
+def _frame_files(directory: Path, files: list[Path]) -> list[Path]:
+    """The numbered frames among the `.obj` files of `directory` (`_obj_files`): the files whose stems end in a
+    number (frame_0003, Blender skirt_000001, Houdini skirt.0001) with the most common prefix, in frame order.
+    Other OBJ files are left out with a warning naming them; a frame number used twice, or missing between the
+    first and the last frame, is an InputError naming the file expected."""
+    where = f"garment sequence '{directory}'"
+    if len(files) == 1:
+        return files
+    groups: dict[str, list[tuple[int, Path]]] = {}
+    stray = []
+    for path in files:
+        match = _FRAME_NAME.match(path.stem)
+        if match is None:
+            stray.append(path)
+        else:
+            groups.setdefault(match.group(1).lower(), []).append((int(match.group(2)), path))
+    if not groups:
+        raise InputError(f"{where}: expected numbered OBJ frames (frame_0000.obj, ...), got "
+                         f"{', '.join(p.name for p in files[:4])}{', ...' if len(files) > 4 else ''}")
+    prefix = max(groups, key=lambda k: (len(groups[k]), k == "frame_"))
+    frames = sorted(groups.pop(prefix), key=lambda nf: nf[0])
+    stray += [p for group in groups.values() for _, p in group]
+    if stray:
+        names = sorted(p.name for p in stray)
+        log.warning("%s: left out %s not numbered like the frames (%s): %s", where,
+                    "1 OBJ file" if len(names) == 1 else f"{len(names)} OBJ files", frames[0][1].name,
+                    ", ".join(names[:5]) + (", ..." if len(names) > 5 else ""))
+    for (n_a, a), (n_b, b) in zip(frames, frames[1:]):
+        if n_b == n_a:
+            raise InputError(f"{where}: expected one file per frame number, got {a.name} and {b.name} "
+                             f"for frame {n_a}")
+        if n_b != n_a + 1:
+            stem = _FRAME_NAME.match(a.stem)
+            missing = f"{stem.group(1)}{n_a + 1:0{len(stem.group(2))}d}{a.suffix}"
+            raise InputError(f"{where}: expected consecutive frames {frames[0][1].name} to {frames[-1][1].name}, "
+                             f"got no {missing} (frame {n_a + 1} missing after {a.name})")
+    return [p for _, p in frames]
+
+
 def bake_directory_sequence(directory: Path) -> Path | None:
     """The sequence inside a `garment bake` output directory (`<garment>_<motion>/`): its one USD stage (garment
     and body), else its `obj/` frames; None for a directory that holds OBJ frames itself, or neither."""
@@ -120,6 +170,7 @@ def _read_obj_directory(directory: Path) -> Sequence:
     if not files:
         raise InputError(f"{where}: expected OBJ frames (frame_0000.obj, ...) or a `garment bake` output (its "
                          f".usd stage or obj/ frames), got a directory with neither")
+    files = _frame_files(directory, files)
     fps = None
     meta_path = directory / SEQUENCE_JSON
     if meta_path.is_file():
@@ -173,7 +224,7 @@ def _read_npz(path: Path) -> Sequence:
     if "body_points" in arrays:
         body_points = _check_points(arrays["body_points"], "body_points", where)
         if body_points.shape[0] != points.shape[0]:
-            raise InputError(f"{where}: expected body_points with {points.shape[0]} frames like points, "
+            raise InputError(f"{where}: expected body_points with {_frames_text(points.shape[0])} like points, "
                              f"got {body_points.shape[0]}")
     if "body_faces" in arrays:
         if body_points is None:
@@ -196,7 +247,7 @@ def _read_usd_sequence(path: Path, track: str) -> Sequence:
     body_points = body_faces = None
     if body is not None and body is not garment:
         if body.points.shape[0] != garment.points.shape[0]:
-            raise InputError(f"{where}: expected the body track to have {garment.points.shape[0]} frames "
+            raise InputError(f"{where}: expected the body track to have {_frames_text(garment.points.shape[0])} "
                              f"like '{garment.name}', got {body.points.shape[0]}")
         body_points, body_faces = body.points.astype(np.float32), body.faces.astype(np.int64)
     return Sequence(points=garment.points.astype(np.float32), faces=garment.faces.astype(np.int64),

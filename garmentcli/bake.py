@@ -374,6 +374,10 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         existing = [str(t) for _, t in targets if t.exists()]
         if existing:
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
+    if render_video:  # a window that cannot open stops the bake before any work, not after its other outputs
+        from formats.render import check_render_window
+
+        check_render_window()
     # Read every motion before baking any, so a bad file fails fast and writes nothing; one that --fps would
     # resample to more frames than fit (the cheapest method's copies, one at a time) is refused before it is.
     def check_frames(path):

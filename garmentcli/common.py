@@ -327,3 +327,23 @@ def parse_device(text: str | None, auto: bool = False, check: bool = True):
         raise click.BadParameter(f"{text!r}: this machine has {torch.cuda.device_count()} CUDA devices",
                                  param_hint="--device")
     return dev
+
+
+class FiniteFloatRange(click.FloatRange):
+    """click.FloatRange that also refuses nan and inf (FloatRange lets them through: nan compares false)."""
+
+    def convert(self, value, param, ctx):
+        import math
+
+        rv = super().convert(value, param, ctx)
+        if not math.isfinite(rv):
+            self.fail(f"expected a finite number{self._describe_range_suffix()}, got {value!r}", param, ctx)
+        return rv
+
+    def _describe_range_suffix(self) -> str:
+        parts = []
+        if self.min is not None:
+            parts.append(f"{'>' if self.min_open else '>='} {self.min:g}")
+        if self.max is not None:
+            parts.append(f"{'<' if self.max_open else '<='} {self.max:g}")
+        return f" {' and '.join(parts)}" if parts else ""

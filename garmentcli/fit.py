@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from garmentcli.common import OutputPath, body_option, input_errors_as_click, load_body_option
+from garmentcli.common import FiniteFloatRange, OutputPath, body_option, input_errors_as_click, load_body_option
 
 
 @click.command(name="fit")
@@ -17,7 +17,7 @@ from garmentcli.common import OutputPath, body_option, input_errors_as_click, lo
 @click.option("--out", "out_path", type=OutputPath(dir_okay=False), default=None,
               help="Fit file to write [default: <garment>.psd.npz beside GARMENT].")
 @click.option("--rank", type=click.IntRange(min=1), default=None, help="Principal offsets kept [default: 64].")
-@click.option("--ridge", type=click.FloatRange(min=0), default=None, help="Ridge weight [default: 10].")
+@click.option("--ridge", type=FiniteFloatRange(min=0), default=None, help="Ridge weight [default: 10].")
 @body_option
 @click.option("--overwrite", is_flag=True, help="Replace an existing fit file.")
 @input_errors_as_click
@@ -38,6 +38,8 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     if not source.is_file():
         raise click.FileError(str(source), hint="no such file")
     out = Path(out_path) if out_path else source.with_name(f"{source.stem}.psd.npz")
+    if out.suffix.lower() != ".npz":
+        raise click.BadParameter(f"expected a .npz fit file (what is written), got '{out}'", param_hint="--out")
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     data = Path(data_dir)

@@ -29,24 +29,52 @@ def _inside_fn(depth_m: float):
     return frames_inside(lambda points, verts, faces: points_inside_mesh(points, verts, faces, depth=depth_m))
 
 
-#: (what to tell, matrix applied to GT's points as row vectors): frame and unit mix-ups of another tool's output.
-_GT_FIXES = (("is Y-up: turned to Z-up", Y_UP_TO_Z_UP_MATRIX.T),
-             ("is in centimetres", np.eye(3) * 0.01),
-             ("is Y-up and in centimetres", Y_UP_TO_Z_UP_MATRIX.T * 0.01))
+#: (what to tell, matrix applied to one side's points as row vectors): frame and unit mix-ups of another tool's
+#: output; the last undoes a Y-up to Z-up turn made by a file that declared Y-up wrongly.
+_FIXES = (("is Y-up: turned to Z-up", Y_UP_TO_Z_UP_MATRIX.T),
+          ("is in centimetres", np.eye(3) * 0.01),
+          ("is Y-up and in centimetres", Y_UP_TO_Z_UP_MATRIX.T * 0.01),
+          ("was turned from Y-up to Z-up but was Z-up already (does its file declare Y-up wrongly?)",
+           Y_UP_TO_Z_UP_MATRIX))
+
+#: A garment's plausible size (largest extent of a frame, metres), and how far below the floor (z = 0) it may reach.
+_GARMENT_SIZE_M = (0.1, 3.0)
+_BELOW_FLOOR_M = 0.05
 
 
-def frame_hint(pred: np.ndarray, gt: np.ndarray) -> str:
-    """"" or, when one of `_GT_FIXES` brings GT's first frame 10x closer to PRED's and within 5 cm (mean vertex
-    distance), what it looks like: "looks as if it is Y-up: turned to Z-up, its first frame is 3.1 mm from
-    PRED's, not 1,204 mm: convert it ..."."""
+def _extent(points: np.ndarray) -> float:
+    return float(np.ptp(points, axis=0).max())
+
+
+def _plausible(points: np.ndarray) -> bool:
+    """Whether one frame looks like a garment in this tool's world: 0.1-3 m across, not below the floor."""
+    low, high = _GARMENT_SIZE_M
+    return low <= _extent(points) <= high and float(points[:, 2].min()) >= -_BELOW_FLOOR_M
+
+
+def frame_hint(pred: np.ndarray, gt: np.ndarray) -> tuple[str, str]:
+    """("", "") or, when one of `_FIXES` applied to one side's first frame brings it 10x closer to the other's and
+    within 5 cm (mean vertex distance), (the side out of line, "PRED" or "GT"; what it looks like: "looks as if it
+    is Y-up: turned to Z-up, its first frame is 3.1 mm from PRED's, not 1,204 mm: convert it ..."). When either
+    side works (a turn undone on one is the turn done on the other), the side whose frame is not a plausible garment
+    (`_plausible`) is named, else GT. Nothing is said when a side is degenerate (all its points equal)."""
     pred, gt = np.asarray(pred, dtype=np.float64), np.asarray(gt, dtype=np.float64)
+    if min(_extent(pred), _extent(gt)) <= 1e-9:
+        return "", ""
     now = float(np.linalg.norm(pred - gt, axis=1).mean())
-    for what, m in _GT_FIXES:
-        fixed = float(np.linalg.norm(pred - gt @ m, axis=1).mean())
-        if fixed < 0.05 and fixed * 10 < now:
-            return (f"looks as if it {what}, its first frame is {fixed * 1e3:.1f} mm from PRED's, not "
-                    f"{now * 1e3:,.0f} mm: convert it to this tool's world (metres, Z-up)")
-    return ""
+    found = []
+    for side, moved, other, other_side in (("GT", gt, pred, "PRED"), ("PRED", pred, gt, "GT")):
+        for what, m in _FIXES:
+            fixed = float(np.linalg.norm(other - moved @ m, axis=1).mean())
+            if fixed < 0.05 and fixed * 10 < now:
+                found.append((side, f"looks as if it {what}, its first frame is {fixed * 1e3:.1f} mm from "
+                                    f"{other_side}'s, not {now * 1e3:,.0f} mm: convert it to this tool's world "
+                                    "(metres, Z-up)"))
+                break
+    if not found:
+        return "", ""
+    odd = [side for side, points in (("GT", gt), ("PRED", pred)) if not _plausible(points)]
+    return next((f for f in found if len(odd) == 1 and f[0] == odd[0]), found[0])
 
 
 def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="motion",
@@ -60,10 +88,39 @@ def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_f
     body = load_body_option(None if body_file is None else str(body_file))
     motion, _ = prepare_motion(str(motion_file), fps, frames, settle_frames, betas, source_fps, body=body)
     if motion.n_frames != n_frames:
-        raise InputError(f"--motion '{motion_file}': expected {n_frames} frames like PRED, got {motion.n_frames} "
+        from core.metrics import frames_text
+
+        raise InputError(f"--motion '{motion_file}': expected {frames_text(n_frames)} like PRED, got {motion.n_frames} "
                          f"at --fps {fps:g} (pass the --fps, --frames and --settle of the bake)")
     points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
     return SimpleNamespace(body_points=points, body_faces=body.faces, source=str(motion_file))
+
+
+def _plot_names() -> tuple[str, ...]:
+    """The files `--plots` writes into a report directory (besides the metrics.* reports)."""
+    from formats.plots import HISTOGRAMS_PNG, PER_FRAME_PNG, REPORT_HTML, REPORT_MD
+
+    return PER_FRAME_PNG, HISTOGRAMS_PNG, HEATMAP_PNG, REPORT_MD, REPORT_HTML
+
+
+HEATMAP_PNG = "metrics_heatmap.png"
+
+
+def _body_difference(a, b) -> str:
+    """"" when two Sequence-like bodies are the same mesh in the same poses (within 1 mm), else how they differ."""
+    pa, pb = np.asarray(a.body_points), np.asarray(b.body_points)
+    if pa.shape != pb.shape:
+        from core.metrics import frames_text
+
+        return (f"{frames_text(pa.shape[0])} of {pa.shape[1]} points vs {frames_text(pb.shape[0])} of "
+                f"{pb.shape[1]} points")
+    if not np.array_equal(np.asarray(a.body_faces), np.asarray(b.body_faces)):
+        return "different faces"
+    gap = np.linalg.norm(pa.astype(np.float64) - pb, axis=-1).max(axis=-1)
+    if gap.max() > 1e-3:
+        t = int(np.argmax(gap))
+        return f"up to {gap[t] * 1e3:,.0f} mm apart at frame {t}"
+    return ""
 
 
 def _default_depth_mm() -> float:
@@ -71,6 +128,11 @@ def _default_depth_mm() -> float:
     from core.bake import PENETRATION_DEPTH_M
 
     return PENETRATION_DEPTH_M * 1e3
+
+
+#: (parameter name, option) of the options that say how `--motion` was prepared: refused without it.
+_MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--settle"), ("betas", "--betas"),
+                ("source_fps", "--source-fps"))
 
 
 @click.command(name="metrics")
@@ -115,6 +177,13 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
 
     if body_file is not None and motion_file is None:
         raise click.BadParameter("needs --motion, the motion that posed the body", param_hint="--body")
+    if motion_file is None:
+        ctx = click.get_current_context()
+        for name, hint in _MOTION_ONLY:
+            source = ctx.get_parameter_source(name)
+            if source is not None and source != click.core.ParameterSource.DEFAULT:
+                raise click.BadParameter("applies only with --motion (how the bake prepared its motion)",
+                                         param_hint=hint)
 
     if plots and out_dir is None:
         raise click.BadParameter("needs --out, the directory to write the pictures into", param_hint="--plots")
@@ -126,27 +195,41 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
         raise click.BadParameter("applies to one PRED and GT; the bakes' stages carry their bodies",
                                  param_hint="--motion")
     if out_dir is not None and not overwrite:
-        targets = [(out_dir, REPORT_NAMES)] if pairs is None else \
-            [(out_dir, BATCH_REPORT_NAMES)] + [(out_dir / name, REPORT_NAMES) for name in pairs]
-        existing = [d / names[f] for d, names in targets for f in formats if (d / names[f]).exists()]
+        dirs = [out_dir] if pairs is None else [out_dir / name for name in pairs]
+        planned = [out_dir / BATCH_REPORT_NAMES[f] for f in formats] if pairs is not None else []
+        for d in dirs:
+            planned += [d / REPORT_NAMES[f] for f in formats] + ([d / n for n in _plot_names()] if plots else [])
+        existing = [path for path in planned if path.exists()]
         if existing:
             raise InputError(f"--out: '{existing[0]}' exists; pass --overwrite to replace it")
     if pairs is None:
         _compare(pred, gt, out_dir, formats, depth_mm, plots, body_file, motion_file, fps, frames, settle_frames,
                  betas, source_fps)
         return
-    results = {}
+    results, failed = {}, {}
     for name, (p, g) in pairs.items():
         click.echo(f"{name}:", err=True)
-        results[name] = _compare(p, g, None if out_dir is None else out_dir / name, formats, depth_mm, plots,
-                                 quiet=True)
+        try:
+            results[name] = _compare(p, g, None if out_dir is None else out_dir / name, formats, depth_mm, plots,
+                                     quiet=True)
+        except InputError as exc:  # one mismatched pair: the others are still compared, it is reported at the end
+            failed[name] = str(exc)
     from formats.report import batch_rows
 
-    _, titles, rows = batch_rows(results)
-    click.echo(markdown_table(titles, rows), nl=False)
-    if out_dir is not None:
-        for path in write_batch_report(results, out_dir, formats, {"pred": str(pred), "gt": str(gt)}):
-            click.echo(f"wrote {path}", err=True)
+    if results:
+        _, titles, rows = batch_rows(results)
+        click.echo(markdown_table(titles, rows), nl=False)
+        if out_dir is not None:
+            meta = {"pred": str(pred), "gt": str(gt)}
+            if failed:
+                meta["not compared"] = ", ".join(failed)
+            for path in write_batch_report(results, out_dir, formats, meta):
+                click.echo(f"wrote {path}", err=True)
+    if failed:
+        for name, message in failed.items():
+            click.echo(f"failed: '{name}': {message}", err=True)
+        raise InputError(f"{len(failed)} of {len(pairs)} bake{'' if len(pairs) == 1 else 's'} could not be "
+                         f"compared: {', '.join(failed)} (see the lines above)")
 
 
 def _bake_pairs(pred: Path, gt: Path) -> dict | None:
@@ -182,28 +265,46 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
 
     p_seq = _read_sequence(pred)
     g_seq = _read_sequence(gt)
+    if p_seq.fps is not None and g_seq.fps is not None and not np.isclose(p_seq.fps, g_seq.fps, rtol=1e-6):
+        raise InputError(f"'{pred}' is at {p_seq.fps:g} fps, '{gt}' at {g_seq.fps:g} fps: expected the same frame "
+                         "rate (resample one of them to match)")
     check_comparable(p_seq.points, p_seq.faces, g_seq.points, g_seq.faces, str(pred), str(gt))
 
-    body = next((s for s in (p_seq, g_seq) if s.body_points is not None and s.body_faces is not None), None)
+    own = {s: s for s in (p_seq, g_seq) if s.body_points is not None and s.body_faces is not None}
+    body = next(iter(own), None)
+    gt_body = own.get(g_seq)  # GT's penetration against its own body where it has one
     if motion_file is not None:
         body = _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, p_seq.points.shape[0], betas,
                                     source_fps)
+    if gt_body is not None and body is not None and gt_body is not body:
+        difference = _body_difference(body, gt_body)
+        if difference:
+            click.echo(f"warning: PRED and GT carry different bodies ({difference}): each side's penetration is "
+                       f"taken against its own body", err=True)
     inside_fn = _inside_fn(depth_mm * 1e-3) if body is not None else None
+
+    def body_name(b):
+        return None if b is None else f"{b.source or (pred if b is p_seq else gt)} body"
+
     result = compute_metrics(p_seq.points, g_seq.points, p_seq.faces,
                              body_points=None if body is None else body.body_points,
                              body_faces=None if body is None else body.body_faces,
-                             inside_fn=inside_fn, pred_name=str(pred), gt_name=str(gt),
-                             body_name=None if body is None else f"{body.source or (pred if body is p_seq else gt)} body")
+                             inside_fn=inside_fn, pred_name=str(pred), gt_name=str(gt), body_name=body_name(body),
+                             gt_body_points=None if gt_body is None else gt_body.body_points,
+                             gt_body_faces=None if gt_body is None else gt_body.body_faces,
+                             gt_body_name=body_name(gt_body))
     result.metadata.update({"pred": str(pred), "gt": str(gt)})
     if body is not None:
         result.metadata.update({"body_from": str(pred if body is p_seq else gt), "penetration_depth_mm": depth_mm})
+        if gt_body is not None and gt_body is not body:
+            result.metadata["gt_body_from"] = str(gt)
 
     if not quiet:
         click.echo(overall_markdown(result), nl=False)
-    hint = frame_hint(p_seq.points[0], g_seq.points[0])
+    side, hint = frame_hint(p_seq.points[0], g_seq.points[0])
     if hint:
-        click.echo(f"warning: '{gt}' {hint}", err=True)
-        result.metadata["frame_hint"] = hint
+        click.echo(f"warning: '{pred if side == 'PRED' else gt}' {hint}", err=True)
+        result.metadata["frame_hint"] = f"{side} {hint}"
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)  # an existing directory: write_report puts metrics.* inside
         for path in write_report(result, out_dir, formats):
@@ -211,7 +312,7 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
         if plots:
             from formats.plots import write_plot_report, render_worst_frame_heatmap
 
-            heatmap = render_worst_frame_heatmap(p_seq, g_seq, result, out_dir / "metrics_heatmap.png")
+            heatmap = render_worst_frame_heatmap(p_seq, g_seq, result, out_dir / HEATMAP_PNG)
             images = [("Per-vertex error (mm) on the worst frame", heatmap)] if heatmap is not None else []
             for path in write_plot_report(result, out_dir, p_seq.points, g_seq.points, p_seq.faces, images):
                 click.echo(f"wrote {path}", err=True)

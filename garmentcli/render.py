@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -16,10 +17,42 @@ CAMERA_CHOICES = ("front", "side", "back", "orbit")
 
 
 def _frame_slice(frames: str | None, every: int) -> slice:
+    """--frames START:STOP[:STEP] (Python slice, STOP exclusive, STEP >= 1) and --every N as one slice."""
     from core.motion import parse_frame_range
 
+    step = every
+    if frames and frames.count(":") == 2:
+        frames, text = frames.rsplit(":", 1)
+        try:
+            step = int(text) if text.strip() else 1
+        except ValueError:
+            step = 0
+        if step < 1:
+            raise InputError(f"--frames: expected a positive integer STEP in START:STOP:STEP, got '{text}'")
+        if every != 1 and step != 1:
+            raise InputError(f"--frames ...:{step} and --every {every}: expected one step, got both")
+        step = max(step, every)
     start, stop = parse_frame_range(frames) if frames else (None, None)
-    return slice(start, stop, every)
+    return slice(start, stop, step)
+
+
+def _check_finite(ctx, param, value):
+    """Click callback: a finite number (NaN or Inf would draw blank frames)."""
+    if value is not None and not math.isfinite(value):
+        raise click.BadParameter(f"expected a finite number of degrees, got {value}")
+    return value
+
+
+def _check_range(ctx, param, value):
+    """Click callback: LO HI finite with LO < HI (the colour bar's range)."""
+    if value is None:
+        return value
+    lo, hi = value
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise click.BadParameter(f"expected finite LO HI, got {lo} {hi}")
+    if not lo < hi:
+        raise click.BadParameter(f"expected LO < HI, got {lo} {hi}")
+    return value
 
 
 @click.command(name="render")
@@ -35,12 +68,13 @@ def _frame_slice(frames: str | None, every: int) -> slice:
               help="Ground-truth sequence for --color error (same mesh and frame count as INPUT).")
 @click.option("--scalars", "scalars_spec", metavar="FILE.npz[:KEY]", default=None,
               help="Per-vertex values (V,) or (T, V) for --color scalar.")
-@click.option("--range", "value_range", type=(float, float), default=None, metavar="LO HI",
+@click.option("--range", "value_range", type=(float, float), default=None, metavar="LO HI", callback=_check_range,
               help="Colour-bar range for error/scalar [default: 0 to the 99th percentile].")
-@click.option("--frames", default=None, metavar="START:STOP", help="Frames to render (Python slice, STOP exclusive).")
+@click.option("--frames", default=None, metavar="START:STOP[:STEP]",
+              help="Frames to render (Python slice, STOP exclusive; ::2 is every 2nd frame).")
 @click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Render every N-th frame.")
 @click.option("--size", default="1280x720", show_default=True, metavar="WxH", help="Image size in pixels.")
-@click.option("--azimuth", type=float, default=0.0, show_default=True,
+@click.option("--azimuth", type=float, default=0.0, show_default=True, callback=_check_finite,
               help="Turn every camera preset by this many degrees about the up axis (Z).")
 @click.option("--framing", type=click.Choice(("auto", "fixed", "follow")), default="auto", show_default=True,
               help="fixed: one view of the whole animation; follow: track the body; auto: follow when it travels.")
@@ -59,10 +93,12 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
     ground grid and writes OUT/frames/<camera>/frame_NNNN.png, OUT/<camera>.mp4
     and OUT/contact_sheet.png. Needs no display (EGL).
     """
-    from formats.render import RenderOptions, load_vertex_scalars, parse_size, render_outputs, scene_from_sequence
+    from formats.render import (RenderOptions, check_render_window, load_vertex_scalars, parse_size, render_outputs,
+                                scene_from_sequence)
     from formats.sequence import read_sequence
 
     width, height = parse_size(size)
+    frame_slice = _frame_slice(frames, every)  # its errors before any work
     if color == "error" and gt_path is None:
         raise click.BadParameter("--color error needs --gt", param_hint="--gt")
     if color == "scalar" and scalars_spec is None:
@@ -73,12 +109,14 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
         color = "scalar"
     options = RenderOptions(width=width, height=height, cameras=tuple(cameras) or ("front",), azimuth_deg=azimuth,
                             framing=framing, show_body=not no_body, ground=not no_ground)
-    if out_dir is None:
-        out_dir = input_path.parent / f"{input_path.stem}_render"
+    if out_dir is None:  # beside INPUT; for '.' or '..' beside the folder they name, never inside it
+        src = input_path.resolve() if input_path.name in ("", "..") else input_path
+        out_dir = src.parent / f"{src.stem}_render"
     if out_dir.exists() and not overwrite:
         raise click.ClickException(f"output '{out_dir}' exists: pass --overwrite to replace it")
     if no_png and no_mp4 and no_sheet:
         raise click.BadParameter("nothing to write: drop one of --no-png, --no-mp4, --no-sheet", param_hint="--no-png")
+    check_render_window()  # before any work or output: VTK crashes on a window it cannot open
 
     seq = read_sequence(input_path)
     gt = read_sequence(gt_path) if gt_path is not None else None
@@ -92,7 +130,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
         scalars = load_vertex_scalars(file, key or None, seq.n_frames, seq.points.shape[1])
         label = key or Path(file).stem
     scene = scene_from_sequence(seq, color=color, gt=gt, scalars=scalars, scalar_label=label,
-                                value_range=value_range, frames=_frame_slice(frames, every))
+                                value_range=value_range, frames=frame_slice)
     total = scene.n_frames * len(options.cameras)
     with atomic_dir(out_dir, overwrite) as tmp:
         with tqdm(total=total, unit="frame", desc="render", disable=None, leave=False) as bar:

@@ -29,12 +29,25 @@ def _read_config(path: str | None) -> tuple[dict, dict]:
     if path is None:
         return {}, {}
     try:
-        data = json.loads(Path(path).read_text())
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"--config '{path}': expected a JSON file, got binary (non-UTF-8) content") from None
     except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f"config '{path}': expected a JSON file, got {exc}") from None
+        raise InputError(f"--config '{path}': expected a JSON file, got {exc}") from None
     if not isinstance(data, dict) or set(data) - {"model", "train"}:
-        raise InputError(f"config '{path}': expected an object with keys 'model' and/or 'train', "
+        raise InputError(f"--config '{path}': expected an object with keys 'model' and/or 'train', "
                          f"got {sorted(data) if isinstance(data, dict) else type(data).__name__}")
+    for section in ("model", "train"):
+        if not isinstance(data.get(section, {}), dict):
+            raise InputError(f"--config '{path}': '{section}': expected an object of settings, "
+                             f"got {data[section]!r}")
+    fields = {f.name: f for f in dataclasses.fields(ModelConfig)}
+    for key, val in data.get("model", {}).items():
+        want_str = key in fields and fields[key].type in (str, "str")
+        if key in fields and not (isinstance(val, str) if want_str else (isinstance(val, int) and
+                                                                         not isinstance(val, bool))):
+            raise InputError(f"--config '{path}': model '{key}': expected {'a string' if want_str else 'an integer'}, "
+                             f"got {val!r}")
     return dict(data.get("model", {})), dict(data.get("train", {}))
 
 
@@ -113,11 +126,8 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
 def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
            sequences_per_step, rank, world, parallel_trainer, device=torch.device("cpu"), time_limit=None,
            init_path=None, partial=False, garments=()):
-    import os
-
     from core.model_data import ModelDataset
-    from core.model_deform import joint_coverage
-    from formats.checkpoint import load_checkpoint, save_checkpoint
+    from formats.checkpoint import load_checkpoint
 
     data_dir = [data_dir] if isinstance(data_dir, (str, Path)) else list(data_dir)
     for d in data_dir:
@@ -144,7 +154,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         model_values = {**init["config"], **model_values}
     model_values.setdefault("n_joints", body.n_joints)
     if model_values["n_joints"] != body.n_joints:
-        hint, src = ("--init", f"'{init_path}'") if init is not None else ("--config", f"config '{config_path}'")
+        hint, src = ("--init", f"'{init_path}'") if init is not None else ("--config", f"--config '{config_path}'")
         raise click.BadParameter(f"{src}: expected a network of the body's {body.n_joints} joints, got "
                                  f"{model_values['n_joints']} joints (pass the --body it was made for)", param_hint=hint)
     overrides = {"phases": list(_parse_phases(phases))}
@@ -152,8 +162,8 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         if val is not None:
             overrides[key] = val
     train_values.update(overrides)
-    model_cfg: ModelConfig = config_from_dict(model_values, source=f"config '{config_path}'")
-    train_cfg: TrainConfig = train_config_from_dict(train_values, source=f"config '{config_path}'")
+    model_cfg: ModelConfig = config_from_dict(model_values, source=f"--config '{config_path}'")
+    train_cfg: TrainConfig = train_config_from_dict(train_values, source=f"--config '{config_path}'")
     if not resume and ckpt_path.exists():
         raise click.ClickException(f"checkpoint '{ckpt_path}' exists: pass --resume to continue it, or remove it")
 
@@ -181,6 +191,28 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         if csv_path.exists():
             with open(csv_path, newline="") as fh:
                 rows = [r for r in csv.DictReader(fh) if int(r["step"]) <= trainer.step]
+    # Ctrl-C (SIGINT) while training finishes the step and stops as --time-limit does: checkpoint and model written.
+    interrupted, restore_sigint = _defer_interrupt() if world == 1 else ({"hit": False}, lambda: None)
+    try:
+        _run(out, ckpt_path, csv_path, json_path, main, rows, model_cfg, train_cfg, data, data_dir, init, init_path,
+             world, device, sequences_per_step, trainer, body, time_limit, interrupted)
+    except BaseException:
+        if main and not out.exists():  # no MODEL.json describing a model that was never written
+            json_path.unlink(missing_ok=True)
+        raise
+    finally:
+        restore_sigint()
+    if interrupted["hit"] and trainer.step < train_cfg.steps:  # stopped early: the shell's code for Ctrl-C
+        raise click.exceptions.Exit(130)
+
+
+def _run(out, ckpt_path, csv_path, json_path, main, rows, model_cfg, train_cfg, data, data_dir, init, init_path,
+         world, device, sequences_per_step, trainer, body, time_limit, interrupted):
+    import os
+
+    from core.model_deform import joint_coverage
+    from formats.checkpoint import save_checkpoint
+
     if main:
         out.parent.mkdir(parents=True, exist_ok=True)
         json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
@@ -223,7 +255,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
 
         trainer.progress = progress
         trainer.on_switch = snapshot
-        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(time_limit, world, device))
+        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(time_limit, world, device, interrupted))
         bar.close()
         checkpoint(trainer)
     last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
@@ -238,21 +270,46 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         return
     save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)
     val = last_val.get("val_verts_mm")
-    left = f" (stopped at the time limit: --resume continues to {train_cfg.steps})" if trainer.step < train_cfg.steps else ""
+    why = "interrupted (Ctrl-C): checkpoint '" + str(ckpt_path) + "' written" if interrupted["hit"] else \
+        "stopped at the time limit"
+    left = f" ({why}: --resume continues to {train_cfg.steps})" if trainer.step < train_cfg.steps else ""
     click.echo(f"{out}: {trainer.step} steps{left}, phase {trainer.phase.phase}, "
                + (f"validation E_verts {float(val):.2f} mm" if val not in (None, "") else "no validation yet"))
 
 
-def _time_limit(minutes: float | None, world: int, device):
-    """should_stop for Trainer.run: True once `minutes` have passed (all ranks agree: rank 0's clock decides)."""
-    if minutes is None:
+def _defer_interrupt():
+    """({"hit": bool}, restore): until restore(), a first SIGINT only sets "hit" (the run stops after the step, as
+    at the time limit); a second one interrupts at once. Outside the main thread signals stay as they are."""
+    import signal
+    import threading
+
+    state = {"hit": False}
+    if threading.current_thread() is not threading.main_thread():
+        return state, lambda: None
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum, frame):
+        if state["hit"]:
+            raise KeyboardInterrupt
+        state["hit"] = True
+
+    signal.signal(signal.SIGINT, handler)
+    return state, lambda: signal.signal(signal.SIGINT, previous)
+
+
+def _time_limit(minutes: float | None, world: int, device, interrupted: dict | None = None):
+    """should_stop for Trainer.run: True once `minutes` have passed or `interrupted["hit"]` (all ranks agree: rank
+    0's clock decides)."""
+    if minutes is None and interrupted is None:
         return None
+    import math
     import time
 
-    end = time.monotonic() + 60.0 * minutes
+    end = time.monotonic() + 60.0 * minutes if minutes is not None else math.inf
 
     def should_stop() -> bool:
-        flag = torch.tensor([1.0 if time.monotonic() > end else 0.0], device=device)
+        stop = time.monotonic() > end or bool(interrupted and interrupted["hit"])
+        flag = torch.tensor([1.0 if stop else 0.0], device=device)
         if world > 1:
             import torch.distributed as dist
 

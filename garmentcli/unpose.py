@@ -3,6 +3,7 @@ shaped body to the rest pose and mean shape."""
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import click
@@ -10,6 +11,25 @@ import numpy as np
 
 from core.unpose import A_POSE_ARM_DEGREES
 from garmentcli.common import OutputPath, body_option, input_errors_as_click, load_body_option, parse_betas
+
+
+class _AboutTheInput(logging.Filter):
+    """Rewrites the rest-fit warning of `bind_garment` on the unposed result: it names GARMENT (the input), not
+    the output file, and asks about the pose and shape given instead of advising `garment unpose`."""
+
+    def __init__(self, source: Path, what: str):
+        super().__init__()
+        self.source, self.what = source, what
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        args = record.args
+        if isinstance(args, tuple) and args and str(record.msg).startswith("garment mesh '%s'"):
+            cause = args[-1]
+            if isinstance(cause, str) and "garment unpose" in cause:
+                cause = (f"unposed from {self.what}: was '{self.source.name}' authored in that pose and shape? "
+                         f"check --pose and --betas")
+            record.args = (f"{self.source}", *args[1:-1], cause)
+        return True
 
 
 def _check_shape(ctx, param, value):
@@ -53,6 +73,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     if not source.is_file():
         raise click.FileError(str(source), hint="no such file")
     out = Path(out_path) if out_path else source.with_name(f"{source.stem}_rest.obj")
+    if out.suffix.lower() != ".obj":
+        raise click.BadParameter(f"expected an .obj file (unpose writes an OBJ), got '{out}'", param_hint="--out")
     if out.resolve() == source.resolve():
         raise click.BadParameter(f"'{out}' is GARMENT itself: write the result elsewhere", param_hint="--out")
     body = load_body_option(body_path)
@@ -91,7 +113,14 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     garment = read_garment(source)
     rest, report = unpose_garment(garment, body, pose, betas, source=str(source))
-    bind_garment(rest, body, source=str(out))  # the result must be what bake accepts: refused or warned here
+    # The result must be what bake accepts: refused or warned here, naming GARMENT (what the user can fix).
+    about_input = _AboutTheInput(source, what)
+    skinning_log = logging.getLogger("core.skinning")
+    skinning_log.addFilter(about_input)
+    try:
+        bind_garment(rest, body, source=f"{source}")
+    finally:
+        skinning_log.removeFilter(about_input)
     # Written as the file has it (its points in order, its quads, UVs and materials), as bake writes its outputs;
     # its material libraries beside it (where it is written elsewhere than GARMENT's folder).
     *mesh, materials = garment.written(rest.vertices)

@@ -94,3 +94,16 @@ def test_garments_without_shoulders_get_a_waistband_and_the_others_none():
         if expected:  # the top rows only
             y = garment.vertices[:, 1]
             assert y[band].min() > np.percentile(y, 75), name
+
+
+@pytest.mark.parametrize("fps", ["nan", "inf", "1e9", "1e5", "0"])
+def test_examples_refuses_an_absurd_fps_in_one_line(tmp_path, fps):
+    """nan, inf and huge rates crashed (ValueError, OverflowError, out of memory) or ran for minutes."""
+    from click.testing import CliRunner
+
+    from garmentcli.main import cli
+
+    r = CliRunner().invoke(cli, ["examples", "--out", str(tmp_path / "ex"), "--fps", fps])
+    assert r.exit_code == 2 and isinstance(r.exception, SystemExit), r.output
+    assert "--fps" in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "ex").exists()

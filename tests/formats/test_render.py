@@ -222,3 +222,98 @@ def test_compare_images_and_diff_image():
     assert R.compare_images(a[:10], a).shape_mismatch
     img = R.diff_image(b, a)
     assert img.shape == (20, 90, 3) and img[0, 60, 0] == 255 and img[10, 70, 0] == 40
+
+
+def test_non_finite_coordinates_are_refused_naming_frame_and_vertex():
+    seq = two_spheres(n_frames=4)
+    pts = seq.points.copy()
+    pts[2, 5, 1] = np.nan
+    with pytest.raises(InputError, match=r"'nan.npz': expected finite coordinates, got NaN at frame 2, vertex 5$"):
+        R.scene_from_sequence(Sequence(points=pts, faces=seq.faces, fps=30.0, source="nan.npz"), frames=[0, 1])
+    body = seq.body_points.copy()
+    body[3, 7, 0] = np.inf
+    bad_body = Sequence(points=seq.points, faces=seq.faces, fps=30.0, body_points=body, body_faces=seq.body_faces,
+                        source="b.npz")
+    with pytest.raises(InputError, match="'b.npz': expected finite coordinates, got Inf at frame 3, body vertex 7"):
+        R.scene_from_sequence(bad_body)
+    gt = Sequence(points=pts, faces=seq.faces, fps=30.0, source="gt.npz")
+    with pytest.raises(InputError, match="--gt 'gt.npz': expected finite coordinates"):
+        R.scene_from_sequence(seq, color="error", gt=gt)
+
+
+def test_a_scene_building_error_is_not_blamed_on_opengl():
+    seq = two_spheres(n_frames=1)
+    scene = R.Scene(seq.points * np.float32(np.nan), seq.faces, fps=30.0)  # bypasses the finite check
+    with pytest.raises(Exception) as exc:
+        R.Renderer(scene, R.RenderOptions(**SMALL))
+    assert "OpenGL" not in str(exc.value) and "apt-get" not in str(exc.value)
+
+
+def test_a_chosen_vtk_window_that_cannot_open_gives_one_line(monkeypatch):
+    scene = R.scene_from_sequence(two_spheres(1))
+    monkeypatch.setenv("VTK_DEFAULT_OPENGL_WINDOW", "vtkXOpenGLRenderWindow")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    with pytest.raises(R.RenderError, match="vtkXOpenGLRenderWindow: expected an X display in DISPLAY, got DISPLAY "
+                                            "unset; unset VTK_DEFAULT_OPENGL_WINDOW"):
+        R.Renderer(scene, R.RenderOptions(**SMALL))
+    monkeypatch.setenv("DISPLAY", ":97")
+    monkeypatch.setattr(R, "_x_display_opens", lambda: False)
+    with pytest.raises(R.RenderError, match="got DISPLAY=:97 that does not"):
+        R.check_render_window()
+    monkeypatch.setenv("VTK_DEFAULT_OPENGL_WINDOW", "vtkOSOpenGLRenderWindow")
+    monkeypatch.setattr(R, "_find_library", lambda name: None if name == "OSMesa" else f"lib{name}.so")
+    with pytest.raises(R.RenderError, match="vtkOSOpenGLRenderWindow: expected the OSMesa library, found no "
+                                            "libOSMesa") as exc:
+        R.Renderer(scene, R.RenderOptions(**SMALL))
+    assert "\n" not in str(exc.value)
+
+
+def test_range_and_azimuth_must_be_finite_and_ordered():
+    seq = two_spheres(1)
+    gt = Sequence(points=seq.points * np.float32(1.1), faces=seq.faces, fps=30.0)
+    for bad in ((5.0, 1.0), (1.0, 1.0), (float("nan"), float("nan")), (0.0, float("inf"))):
+        with pytest.raises(InputError, match="--range: expected finite LO < HI"):
+            R.scene_from_sequence(seq, color="error", gt=gt, value_range=bad)
+    with pytest.raises(InputError, match="--azimuth: expected a finite number"):
+        R.RenderOptions(azimuth_deg=float("nan"))
+
+
+def test_follow_framing_keeps_a_fast_traveller_in_view_and_leaves_ordinary_travel_alone():
+    fast = two_spheres(n_frames=5, travel=50.0)  # 50 m a frame
+    lo, hi = fast.points.min(1).astype(float), fast.points.max(1).astype(float)
+    opts = R.RenderOptions(**SMALL)
+    pos, focal = R.camera_track(lo, hi, "front", opts, fps=30.0)
+    assert not R.garment_out_of_view(fast.points, pos, focal, opts).any()
+    assert np.linalg.norm(pos - focal, axis=1).max() < 10.0  # not backed off to a speck
+    pos, focal = R.camera_track(lo, hi, "front", replace_framing(opts, "fixed"), fps=30.0)
+    assert R.garment_out_of_view(fast.points, pos, focal, opts).all()
+    walk = two_spheres(n_frames=200, travel=0.3)  # 60 m over 200 frames: the smoothed track, unclamped
+    lo, hi = walk.points.min(1).astype(float), walk.points.max(1).astype(float)
+    focal = R.camera_track(lo, hi, "front", opts, fps=30.0)[1]
+    np.testing.assert_allclose(focal, R._smooth((lo + hi) / 2, 15))
+
+
+def replace_framing(opts, framing):
+    from dataclasses import replace
+
+    return replace(opts, framing=framing)
+
+
+def test_a_garment_out_of_view_warns_once(caplog):
+    scene = R.scene_from_sequence(two_spheres(n_frames=5, travel=50.0))
+    with caplog.at_level("WARNING", logger="formats.render"):
+        with R.Renderer(scene, R.RenderOptions(**SMALL, framing="fixed", cameras=("front", "side"))) as r:
+            r.camera("front")
+            r.camera("side")
+        with R.Renderer(scene, R.RenderOptions(**SMALL)) as r:
+            r.camera("front")
+    lines = [rec.getMessage() for rec in caplog.records if "out of view" in rec.getMessage()]
+    assert len(lines) == 1 and "in 5 of 5 frames" in lines[0] and "--framing follow" in lines[0], lines
+
+
+def test_a_garment_collapsed_to_a_point_is_refused():
+    seq = two_spheres(n_frames=2)
+    far = Sequence(points=np.full_like(seq.points, 1e7), faces=seq.faces, fps=30.0, source="far.npz")
+    with pytest.raises(InputError, match=r"'far.npz': expected a garment of some size, got all \d+ vertices at one "
+                                         r"point in every frame, 1e\+07 m from the origin"):
+        R.scene_from_sequence(far)

@@ -182,7 +182,7 @@ def test_obj_frames_with_differing_topology(tmp_path):
     with pytest.raises(InputError, match=r"got 15 vertices, 16 faces in frame_0002.obj"):
         read_sequence(tmp_path)
     (tmp_path / "frame_0003.obj").write_text("v 0 0 0\nf 1 2\n")
-    (tmp_path / "frame_0002.obj").unlink()
+    write_obj(tmp_path / "frame_0002.obj", points[2], faces)  # (not deleted: a gap is refused before parsing)
     with pytest.raises(InputError, match=r"'.*frame_0003.obj': expected faces of 3 to 256 vertices, got a face with 2"):
         read_sequence(tmp_path)
 
@@ -237,3 +237,57 @@ def test_obj_frames_with_a_polygon_of_five_corners_keep_frame_0s_triangles(tmp_p
     seq = read_sequence(tmp_path)
     assert seq.points.shape == (3, 5, 3) and seq.faces.shape == (3, 3)
     np.testing.assert_allclose(seq.points[2, 1], [1, 1.2, 0.2])
+
+
+@pytest.mark.parametrize("names, missing", [
+    ([f"frame_{t:04d}" for t in (0, 1, 2, 4, 5)], "frame_0003.obj"),  # write_obj_sequence / bake names
+    ([f"skirt_{t:06d}" for t in (1, 2, 4)], "skirt_000003.obj"),  # Blender
+    ([f"skirt.{t:04d}" for t in (1, 2, 3, 5)], "skirt.0004.obj"),  # Houdini
+    ([f"f{t}" for t in (8, 9, 11)], "f10.obj"),  # unpadded
+])
+def test_obj_frames_with_a_gap_are_refused_naming_the_missing_frame(tmp_path, names, missing):
+    points, faces = _animated(n_frames=len(names))
+    for name, pts in zip(names, points):
+        write_obj(tmp_path / f"{name}.obj", pts, faces)
+    with pytest.raises(InputError) as info:
+        read_sequence(tmp_path)
+    assert str(info.value).startswith(f"garment sequence '{tmp_path}': expected consecutive frames")
+    assert f"got no {missing} " in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("names", [
+    [f"skirt_{t:06d}" for t in (1, 2, 3)], [f"skirt.{t:04d}" for t in (101, 102, 103)], ["a_9", "a_10", "a_11"]])
+def test_obj_frames_numbered_from_any_start_are_read_in_order(tmp_path, names):
+    points, faces = _animated(n_frames=3)
+    for name, pts in zip(names, points):
+        write_obj(tmp_path / f"{name}.obj", pts, faces)
+    np.testing.assert_allclose(read_sequence(tmp_path).points, points, atol=1e-6)
+
+
+def test_a_stray_obj_among_the_frames_is_left_out_with_a_warning(tmp_path, caplog):
+    points, faces = _animated(n_frames=3)
+    write_obj_sequence(tmp_path, points, faces, fps=30)
+    write_obj(tmp_path / "other.obj", points[0] + 1, faces)
+    write_obj(tmp_path / "shot_7.obj", points[0] + 2, faces)
+    with caplog.at_level("WARNING"):
+        seq = read_sequence(tmp_path)
+    np.testing.assert_allclose(seq.points, points, atol=1e-6)
+    assert [r.getMessage() for r in caplog.records if "left out" in r.getMessage()] == [
+        f"garment sequence '{tmp_path}': left out 2 OBJ files not numbered like the frames (frame_0000.obj): "
+        "other.obj, shot_7.obj"]
+
+
+def test_obj_frames_with_a_repeated_frame_number_are_refused(tmp_path):
+    points, faces = _animated(n_frames=3)
+    for name, pts in zip(["f1", "f01", "f2"], points):
+        write_obj(tmp_path / f"{name}.obj", pts, faces)
+    with pytest.raises(InputError, match="one file per frame number, got f0?1.obj and f0?1.obj for frame 1"):
+        read_sequence(tmp_path)
+
+
+def test_one_frame_is_one_frame_in_messages(tmp_path):
+    points, faces = _animated(n_frames=1)
+    body_points, body_faces = _body(n_frames=2)
+    np.savez(tmp_path / "s.npz", points=points, faces=faces, body_points=body_points, body_faces=body_faces)
+    with pytest.raises(InputError, match="expected body_points with 1 frame like points, got 2$"):
+        read_sequence(tmp_path / "s.npz")

@@ -604,3 +604,17 @@ def test_atomic_writers_turn_an_unwritable_place_into_one_line(tmp_path):
     with pytest.raises(InputError, match=r"output '.*afile/f.txt': cannot write in"):
         with atomic_file(tmp_path / "afile" / "f.txt"):
             pass
+
+
+def test_bake_render_with_a_window_that_cannot_open_stops_before_any_work(scene, monkeypatch):
+    """bake --render checks the off-screen window first: one line, nothing baked or written."""
+    import formats.render as R
+    import garmentcli.bake
+
+    monkeypatch.setenv("VTK_DEFAULT_OPENGL_WINDOW", "vtkXOpenGLRenderWindow")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.setattr(R, "_find_library", lambda name: f"lib{name}.so")
+    monkeypatch.setattr(garmentcli.bake, "bake_task", lambda *a, **k: pytest.fail("baked"))
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--render"])
+    assert_one_line_error(r, "VTK_DEFAULT_OPENGL_WINDOW=vtkXOpenGLRenderWindow: expected an X display")
+    assert not scene["out"].exists()

@@ -338,3 +338,52 @@ def test_dataset_preroll_simulates_the_motion_before_a_later_clip(scene):
     r = run(*base, "--max-clips-per-motion", 1, "--dry-run", "--out", scene["dir"] / "one")
     assert r.exit_code == 0, r.output
     assert "preroll" not in json.loads((scene["dir"] / "one" / "manifest.json").read_text())["settings"]
+
+
+def test_dataset_plans_without_resampling_and_refuses_absurd_options(scene, monkeypatch):
+    """The plan counts frames without resampling a motion (--fps 1e6 used 14 GB to plan); an absurd --fps,
+    --bodies-per-clip above --bodies, a huge or non-finite --betas-range and a duplicate garment name are refused
+    in one line naming the option, and nothing is written."""
+    import core.motion
+    from core.motion import resample
+    from formats.motion import load_motion
+
+    a, b = still_motions(scene["dir"])
+    expected = resample(load_motion(a), 70.0).n_frames
+
+    def no_resample(*args, **kwargs):
+        raise AssertionError("the plan resampled a motion")
+
+    monkeypatch.setattr(core.motion, "resample", no_resample)
+    base = ["dataset", "--garments", scene["garment"], "--motions", a, "--motions", b, "--body", scene["body"],
+            "--settle", 0, "--dry-run", "--no-held-out"]
+    r = run(*base, "--fps", 70, "--out", scene["dir"] / "p70")
+    assert r.exit_code == 0, r.output
+    m = json.loads((scene["dir"] / "p70" / "manifest.json").read_text())
+    assert {it["n_frames"] for it in m["items"]} == {expected}
+    twin = scene["dir"] / "twin"
+    twin.mkdir()
+    (twin / "shell.obj").write_bytes(Path(scene["garment"]).read_bytes())
+    for extra, option, word in ((["--fps", "1e6"], "--fps", "1000"), (["--fps", "nan"], "--fps", "finite"),
+                                (["--bodies", 2, "--bodies-per-clip", 5], "--bodies-per-clip", "at most --bodies (2)"),
+                                (["--betas-range", "1e9"], "--betas-range", "5"),
+                                (["--betas-range", "inf"], "--betas-range", "5"),
+                                (["--garments", twin / "shell.obj"], "--garments", "'shell' twice")):
+        out = scene["dir"] / "refused"
+        r = run(*base, *extra, "--out", out)
+        assert r.exit_code != 0 and option in r.output and word in r.output, (extra, r.output)
+        assert "Traceback" not in r.output and not out.exists()
+
+
+def test_a_motion_given_as_garment_is_named_for_what_it_is(scene):
+    """A motion .npz as GARMENT said "expected vertices ('v' lines), got none"."""
+    r = run("dataset", "--garments", scene["motion"], "--motions", scene["motion"], "--body", scene["body"],
+            "--dry-run", "--out", scene["dir"] / "npz")
+    assert r.exit_code != 0 and "walk.npz': expected an OBJ or USD garment, got a NumPy .npz archive (a motion?)" \
+        in r.output.strip().splitlines()[-1], r.output
+    assert not (scene["dir"] / "npz").exists()
+    binary = scene["dir"] / "blob.obj"
+    binary.write_bytes(b"\x00\x01\x02binary")
+    r = run("dataset", "--garments", binary, "--motions", scene["motion"], "--body", scene["body"],
+            "--dry-run", "--out", scene["dir"] / "npz")
+    assert r.exit_code != 0 and "blob.obj': expected an OBJ or USD garment, got binary content" in r.output

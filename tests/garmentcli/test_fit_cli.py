@@ -72,3 +72,16 @@ def test_fit_and_psd_bad_inputs(setup, tmp_path):
     r = invoke(["bake", *common, "--method", "psd", "--fit", tmp_path / "junk.npz"])
     assert r.exit_code != 0 and "junk.npz': cannot be read" in r.output
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args, option, word", [(["--ridge", "nan"], "--ridge", "finite"),
+                                                (["--ridge", "inf"], "--ridge", "finite"),
+                                                (["--out", "fit5.obj"], "--out", ".npz")])
+def test_fit_refuses_a_non_finite_ridge_and_an_out_that_is_no_npz(setup, tmp_path, args, option, word):
+    """--ridge nan/inf wrote a fit whose error was 'nan mm'; --out x.obj got npz data."""
+    root, data, body, garment = setup
+    args = [str(tmp_path / a) if a.endswith(".obj") else a for a in args]
+    out = ["--out", str(tmp_path / "f.npz")] if "--out" not in args else []
+    r = invoke(["fit", garment, "--data", data, "--body", body, *out, *args])
+    assert r.exit_code == 2 and option in r.output and word in r.output and "Traceback" not in r.output, r.output
+    assert not list(tmp_path.iterdir())

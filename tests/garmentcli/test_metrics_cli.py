@@ -253,3 +253,104 @@ def test_bake_directories_bad_pairs(tmp_path, seq):
     np.savez(motion, poses=np.zeros((3, 72)), trans=np.zeros((3, 3)), mocap_framerate=30.0)
     _bake_dir(tmp_path / "gt", "shirt_walk", pts, f)
     assert "--motion" in error_line(run([tmp_path / "pred", tmp_path / "gt", "--motion", motion]))
+
+
+@pytest.mark.parametrize("old", ["metrics_per_frame.png", "metrics_heatmap.png", "metrics_report.html"])
+def test_plots_refuse_to_overwrite_any_file_they_would_write(tmp_path, seq, old):
+    """--plots --format json writes metrics.json and the plot report: every one is checked, not only metrics.json."""
+    pts, f = seq
+    a, b = save_seq(tmp_path / "a.npz", pts, f), save_seq(tmp_path / "b.npz", pts, f)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / old).write_bytes(b"older report")
+    r = run([a, b, "--out", out, "--format", "json", "--plots"])
+    assert_clean_failure(r, "--out", old, "--overwrite")
+    assert sorted(p.name for p in out.iterdir()) == [old]  # nothing written
+    assert (out / old).read_bytes() == b"older report"
+
+
+def test_gt_penetration_is_taken_against_gts_own_body(tmp_path):
+    """Two bakes of different motions: GT's garment sits inside PRED's body but outside its own."""
+    v, f = icosphere(2, 0.2)
+    body, body_f = icosphere(1, 0.15)
+    T = 2
+    pred_body = np.repeat(body[None], T, 0).astype(np.float32)
+    gt_body = pred_body + np.float32([1.0, 0.0, 0.0])
+    a = save_seq(tmp_path / "a.npz", np.stack([v, v]), f, body_points=pred_body, body_faces=body_f)
+    b = save_seq(tmp_path / "b.npz", np.stack([v, v]) * 0.5, f, body_points=gt_body, body_faces=body_f)
+    res = run([a, b, "--out", tmp_path / "out", "--format", "json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert doc["overall"]["penetration_pct"] == 0.0 and doc["overall"]["gt_penetration_pct"] == 0.0
+    warnings = [line for line in res.output.splitlines() if "different bodies" in line]
+    assert warnings == ["warning: PRED and GT carry different bodies (up to 1,000 mm apart at frame 0): each side's "
+                        "penetration is taken against its own body"]
+    # The same body on both sides: no warning.
+    c = save_seq(tmp_path / "c.npz", np.stack([v, v]), f, body_points=pred_body, body_faces=body_f)
+    res = run([a, c])
+    assert res.exit_code == 0 and "different bodies" not in res.output, res.output
+
+
+def test_different_frame_rates_are_refused(tmp_path, seq):
+    pts, f = seq
+    a = tmp_path / "a60.npz"
+    np.savez(a, points=pts.astype(np.float32), faces=f.astype(np.int64), fps=60.0)
+    b = save_seq(tmp_path / "b.npz", pts, f)  # 30 fps, the same frame count
+    line = assert_clean_failure(run([a, b]), "a60.npz", "60 fps", "b.npz", "30 fps")
+    assert "expected the same frame rate" in line
+    c = tmp_path / "no_fps.npz"
+    np.savez(c, points=pts.astype(np.float32), faces=f.astype(np.int64))
+    assert run([a, c]).exit_code == 0  # one side does not say: nothing to compare
+
+
+def test_the_frame_hint_names_the_side_out_of_line_and_skips_a_degenerate_one(tmp_path, seq):
+    pts, f = seq
+    pts = pts - pts[0].mean(axis=0) * [1, 1, 0] + [0.0, 0.0, 1.0]  # a garment around the body, at waist height
+    gt = save_seq(tmp_path / "gt.npz", pts, f)
+    turned = pts @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], dtype=np.float64)  # a Z-up garment turned again
+    for name, pred, needle in (("cm.npz", pts * 100, "looks as if it is in centimetres"),
+                               ("turned.npz", turned, "looks as if it was turned from Y-up to Z-up but was Z-up")):
+        p = save_seq(tmp_path / name, pred + 0.001, f)
+        r = run([p, gt])
+        assert r.exit_code == 0, r.output
+        warnings = [line for line in r.output.splitlines() if line.startswith("warning")]
+        assert len(warnings) == 1 and warnings[0].startswith(f"warning: '{p}' {needle}"), r.output
+        assert "from GT's" in warnings[0]
+    zero = save_seq(tmp_path / "zero.npz", np.zeros_like(pts), f)  # a PRED collapsed to one point
+    r = run([zero, gt])
+    assert r.exit_code == 0 and "looks as if" not in r.output, r.output
+
+
+@pytest.mark.parametrize("option, value", [("--fps", "60"), ("--frames", "0:3"), ("--settle", "2"),
+                                           ("--betas", "mean"), ("--source-fps", "120"),
+                                           ("--fps", "30")])  # the default value, given: refused too
+def test_motion_options_without_motion_are_refused(tmp_path, seq, option, value):
+    pts, f = seq
+    a, b = save_seq(tmp_path / "a.npz", pts, f), save_seq(tmp_path / "b.npz", pts, f)
+    line = assert_clean_failure(run([a, b, option, value]), option, "--motion")
+    assert "E_verts" not in run([a, b, option, value]).output
+    assert line.count("\n") == 0
+
+
+def test_a_mismatched_pair_in_a_batch_does_not_stop_the_others(tmp_path, seq):
+    pts, f = seq
+    for root in (tmp_path / "pred", tmp_path / "gt"):
+        _bake_dir(root, "shirt_walk", pts, f)
+        _bake_dir(root, "shirt_run", pts if root.name == "gt" else np.concatenate([pts, pts]), f)  # 6 vs 3 frames
+    r = run([tmp_path / "pred", tmp_path / "gt", "--out", tmp_path / "m", "--format", "json"])
+    assert r.exit_code != 0
+    assert "1 of 2 bakes could not be compared: shirt_run" in error_line(r)
+    failed = [line for line in r.output.splitlines() if line.startswith("failed:")]
+    assert len(failed) == 1 and failed[0].startswith("failed: 'shirt_run': ") and "6 frames" in failed[0]
+    assert "| shirt_walk " in r.output
+    doc = json.loads((tmp_path / "m" / "metrics_batch.json").read_text())
+    assert list(doc["bakes"]) == ["shirt_walk", "all (mean over every frame)"]
+    assert doc["metadata"]["not compared"] == "shirt_run"
+    assert not (tmp_path / "m" / "shirt_run").exists()
+
+
+def test_one_frame_is_one_frame_in_messages(tmp_path, seq):
+    pts, f = seq
+    one = save_seq(tmp_path / "one.npz", pts[:1], f)
+    line = assert_clean_failure(run([one, save_seq(tmp_path / "three.npz", pts, f)]), "one.npz", "three.npz")
+    assert "has 1 frame," in line and "1 frames" not in line

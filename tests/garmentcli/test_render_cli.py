@@ -98,3 +98,66 @@ def test_metrics_plots(seqs):
         assert (out / name).is_file(), name
     assert "metrics_heatmap.png" in (out / "metrics_report.md").read_text()
     assert "--plots" in error_line(run("metrics", seqs["pred"], seqs["gt"], "--plots"))
+
+
+def test_render_nan_input_names_the_file_frame_and_vertex_not_opengl(seqs):
+    vg, fg = icosphere(2, radius=0.3)
+    pts = np.repeat(vg[None], 4, 0)
+    pts[2, 5] = np.nan
+    write_npz_sequence(seqs["dir"] / "n_nan.npz", pts, fg, fps=30.0)
+    line = error_line(run("render", seqs["dir"] / "n_nan.npz", "--out", seqs["dir"] / "bad", "--no-png"))
+    assert "n_nan.npz': expected finite coordinates, got NaN at frame 2, vertex 5" in line
+    assert "OpenGL" not in line and not (seqs["dir"] / "bad").exists()
+
+
+@pytest.mark.parametrize("window, needle", [("vtkXOpenGLRenderWindow", "expected an X display in DISPLAY"),
+                                            ("vtkOSOpenGLRenderWindow", "expected the OSMesa library")])
+def test_render_with_a_vtk_window_that_cannot_open_stops_before_writing(seqs, monkeypatch, window, needle):
+    import formats.render as R
+
+    monkeypatch.setenv("VTK_DEFAULT_OPENGL_WINDOW", window)
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.setattr(R, "_find_library", lambda name: None if name == "OSMesa" else f"lib{name}.so")
+    line = error_line(run("render", seqs["pred"], "--out", seqs["dir"] / "w", "--size", "64x64"))
+    assert f"VTK_DEFAULT_OPENGL_WINDOW={window}: {needle}" in line
+    assert not (seqs["dir"] / "w").exists() and not list(seqs["dir"].glob(".w*"))  # no .partial folder
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--range", "5", "1"], "Invalid value for '--range': expected LO < HI, got 5.0 1.0"),
+    (["--range", "2", "2"], "Invalid value for '--range': expected LO < HI"),
+    (["--range", "nan", "nan"], "Invalid value for '--range': expected finite LO HI, got nan nan"),
+    (["--range", "0", "inf"], "Invalid value for '--range': expected finite LO HI"),
+    (["--azimuth", "nan"], "Invalid value for '--azimuth': expected a finite number of degrees, got nan"),
+    (["--azimuth", "-inf"], "Invalid value for '--azimuth': expected a finite number of degrees"),
+])
+def test_render_non_finite_or_reversed_numbers_are_refused_when_read(seqs, args, needle):
+    res = run("render", seqs["pred"], "--out", seqs["dir"] / "bad", "--gt", seqs["gt"], *args)
+    assert needle in error_line(res) and res.exit_code == 2
+    assert not (seqs["dir"] / "bad").exists() and not list(seqs["dir"].glob(".bad*"))
+
+
+def test_render_dot_writes_beside_the_folder_not_inside_it(seqs, monkeypatch):
+    from formats.sequence import write_obj_sequence
+
+    vg, fg = icosphere(2, radius=0.3)
+    folder = seqs["dir"] / "walk"
+    write_obj_sequence(folder, np.repeat(vg[None], 2, 0), fg, fps=30.0)
+    monkeypatch.chdir(folder)
+    res = run("render", ".", "--size", "64x64", "--no-png", "--no-mp4")
+    assert res.exit_code == 0, res.output
+    assert (seqs["dir"] / "walk_render" / "contact_sheet.png").is_file()
+    assert not list(folder.glob("*render*"))
+
+
+def test_render_frames_accepts_a_step_and_refuses_a_bad_one(seqs, tmp_path):
+    res = run("render", seqs["pred"], "--out", tmp_path / "s", "--frames", "::2", "--size", "64x64", "--no-mp4",
+              "--no-sheet")
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in (tmp_path / "s" / "frames" / "front").iterdir()) == ["frame_0000.png",
+                                                                                       "frame_0002.png"]
+    assert "expected a positive integer STEP in START:STOP:STEP, got '0'" in error_line(
+        run("render", seqs["pred"], "--out", tmp_path / "b", "--frames", "0:3:0"))
+    assert "expected one step, got both" in error_line(
+        run("render", seqs["pred"], "--out", tmp_path / "b", "--frames", "::2", "--every", "2"))
+    assert not (tmp_path / "b").exists()

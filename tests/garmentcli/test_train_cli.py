@@ -98,6 +98,49 @@ def test_train_time_limit_stops_early_and_resumes(setup):
     assert r.exit_code != 0 and "--time-limit" in r.output
 
 
+def test_train_ctrl_c_writes_the_checkpoint_and_resumes(setup, monkeypatch):
+    """Ctrl-C (SIGINT) finishes the step and stops as --time-limit does: checkpoint and model written, one line
+    says so, --resume continues; it used to leave MODEL.json and MODEL.csv of a model never written, no checkpoint."""
+    import os
+    import signal
+
+    from core.train import Trainer
+
+    root, data, body, cfg = setup
+    out = root / "ctrlc.pt"
+    real_step = Trainer.train_step
+
+    def step_then_ctrl_c(self):
+        real_step(self)
+        if self.step == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(Trainer, "train_step", step_then_ctrl_c)
+    r = _train(root, data, body, cfg, out, "--steps", "5", "--seed", "1", "--checkpoint-every", "0")
+    monkeypatch.undo()
+    assert r.exit_code == 130 and "interrupted" in r.output and "ctrlc.pt.ckpt" in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert out.is_file() and (root / "ctrlc.pt.ckpt").is_file() and (root / "ctrlc.pt.json").is_file()
+    assert [int(row["step"]) for row in csv.DictReader(open(root / "ctrlc.pt.csv"))] == [1, 2]
+    r = _train(root, data, body, cfg, out, "--steps", "3", "--seed", "1", "--resume")
+    assert r.exit_code == 0, r.output
+    assert [int(row["step"]) for row in csv.DictReader(open(root / "ctrlc.pt.csv"))] == [1, 2, 3]
+
+
+def test_train_aborted_leaves_no_json_of_a_model_never_written(setup, monkeypatch):
+    from core.train import Trainer
+
+    root, data, body, cfg = setup
+
+    def abort(self):
+        raise KeyboardInterrupt  # a second Ctrl-C: stops at once
+
+    monkeypatch.setattr(Trainer, "train_step", abort)
+    r = _train(root, data, body, cfg, root / "aborted.pt", "--steps", "5")
+    assert r.exit_code != 0 and "Aborted" in r.output, r.output
+    assert not (root / "aborted.pt").exists() and not (root / "aborted.pt.json").exists()
+
+
 def test_train_device_option(setup):
     root, data, body, cfg = setup
     r = _train(root, data, body, cfg, root / "d.pt", "--device", "tpu")
@@ -142,6 +185,24 @@ def test_train_bad_inputs(setup):
     r = CliRunner().invoke(cli, ["bake", str(root / "g.obj"), str(root / "walk.npz"), "--method", "model", "--model",
                                  str(junk), "--body", str(body), "--out", str(root / "b2")])
     assert r.exit_code != 0 and "junk.pt" in r.output
+
+
+def test_train_config_binary_or_badly_typed_is_one_line(setup):
+    root, data, body, cfg = setup
+    binary = root / "binary.npz"
+    np.savez(binary, poses=np.zeros((2, 72)))
+    cases = [(binary, "binary"),
+             (root / "badval.json", "'lr': expected a finite number, got 'fast'"),
+             (root / "badint.json", "'steps': expected an integer"),
+             (root / "badmodel.json", "'hidden': expected an integer")]
+    cases[1][0].write_text(json.dumps({"train": {"lr": "fast"}}))
+    cases[2][0].write_text(json.dumps({"train": {"steps": 2.5}}))
+    cases[3][0].write_text(json.dumps({"model": {"hidden": "wide"}}))
+    for path, want in cases:
+        r = _train(root, data, body, path, root / "never.pt")
+        assert r.exit_code != 0 and isinstance(r.exception, SystemExit), r.output  # no traceback
+        assert "--config" in r.output and path.name in r.output and want in r.output, r.output
+        assert not (root / "never.pt").exists()
 
 
 def test_train_init_starts_from_a_model(setup):

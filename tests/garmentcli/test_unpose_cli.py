@@ -153,6 +153,8 @@ def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
     (["--pose", str(EXAMPLES / "walk.npz"), "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", str(EXAMPLES / "walk.npz"), "--frame", 9999], "expected a frame in 0..180"),
     (["--pose", "apose", "--out", "SELF"], "is GARMENT itself"),
+    (["--pose", "apose", "--out", "up9.usd"], "expected an .obj file (unpose writes an OBJ), got 'up9.usd'"),
+    (["--pose", "apose", "--out", "up15"], "expected an .obj file (unpose writes an OBJ), got 'up15'"),
 ])
 def test_unpose_bad_input_one_line_nothing_written(a_posed, args, needle):
     path, _ = a_posed
@@ -162,3 +164,32 @@ def test_unpose_bad_input_one_line_nothing_written(a_posed, args, needle):
     assert r.exit_code != 0 and needle in r.output.strip().splitlines()[-1], r.output
     assert "Traceback" not in r.output
     assert sorted(p.name for p in path.parent.iterdir()) == before
+
+
+def test_unpose_errors_and_warnings_name_the_input_not_the_output(tmp_path, caplog):
+    """A refused result and the rest-fit warning named the output file (and advised `garment unpose`)."""
+    g = read_obj(EXAMPLES / "skirt.obj")
+    zup = tmp_path / "zup.obj"
+    v = g.vertices
+    write_obj(zup, np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1), g.faces)  # Y-up to Z-up
+    r = invoke(["unpose", zup, "--pose", "apose", "--out", tmp_path / "result.obj"])
+    last = r.output.strip().splitlines()[-1]
+    assert r.exit_code != 0 and "zup.obj" in last and "result.obj" not in r.output, r.output
+    assert not (tmp_path / "result.obj").exists()
+    import logging
+
+    with caplog.at_level(logging.WARNING):
+        r = invoke(["unpose", EXAMPLES / "skirt.obj", "--pose", "tpose", "--betas", "100", "--out",
+                    tmp_path / "wide.obj"])
+    assert r.exit_code == 0, r.output
+    warning = next(m for m in (rec.getMessage() for rec in caplog.records) if "inside the body's rest surface" in m)
+    assert "skirt.obj" in warning and "wide.obj" not in warning and "`garment unpose`" not in warning, warning
+    assert "--betas" in warning
+
+
+def test_unpose_a_motion_given_as_garment_is_named_for_what_it_is(tmp_path):
+    motion = tmp_path / "walk.npz"
+    write_motion(motion, n_frames=3, fps=30.0)
+    r = invoke(["unpose", motion, "--pose", "apose", "--out", tmp_path / "out.obj"])
+    assert r.exit_code != 0 and "expected an OBJ or USD garment, got a NumPy .npz archive (a motion?)" in r.output
+    assert not (tmp_path / "out.obj").exists()
