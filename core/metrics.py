@@ -401,20 +401,17 @@ def compute_metrics(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray,
     per_frame = {name: fn(p, g, f) for name, fn in PER_FRAME_METRICS.items()}
 
     if body_points is not None and body_faces is not None and inside_fn is not None:
-        body_name = body_name or f"{pred_name} body"
-        b = _check_points(body_points, body_name)
-        if b.shape[0] != T:
-            raise InputError(f"'{body_name}': has {frames_text(b.shape[0])}, the garment has {T}: "
-                             "expected one body pose per frame")
-        bf = _check_faces(body_faces, b.shape[1], f"{body_name} faces")
+        def checked_body(points, faces, name):  # (points, faces), one pose per garment frame
+            b = _check_points(points, name)
+            if b.shape[0] != T:
+                raise InputError(f"'{name}': has {frames_text(b.shape[0])}, the garment has {T}: "
+                                 "expected one body pose per frame")
+            return b, _check_faces(faces, b.shape[1], f"{name} faces")
+
+        b, bf = checked_body(body_points, body_faces, body_name or f"{pred_name} body")
         per_frame["penetration_pct"] = penetration_pct(p, b, bf, inside_fn)
         if gt_body_points is not None and gt_body_faces is not None:
-            gt_body_name = gt_body_name or f"{gt_name} body"
-            b = _check_points(gt_body_points, gt_body_name)
-            if b.shape[0] != T:
-                raise InputError(f"'{gt_body_name}': has {frames_text(b.shape[0])}, the garment has {T}: "
-                                 "expected one body pose per frame")
-            bf = _check_faces(gt_body_faces, b.shape[1], f"{gt_body_name} faces")
+            b, bf = checked_body(gt_body_points, gt_body_faces, gt_body_name or f"{gt_name} body")
         per_frame["gt_penetration_pct"] = penetration_pct(g, b, bf, inside_fn)
 
     overall = {name: float(np.mean(v)) for name, v in per_frame.items()}

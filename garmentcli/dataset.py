@@ -37,22 +37,27 @@ DEFAULT_PREROLL = 10
 _W: dict = {}
 
 
-def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | None = None) -> dict:
-    """name -> Motion at `fps`: the files (read at `source_fps` when given), plus the built-in library
-    (core.motiongen.MOTION_LIBRARY) when asked."""
-    from core.motion import resample
+def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn) -> dict:
+    """name -> fn(Motion as read) of the files (read at `source_fps` when given), plus the built-in library
+    (core.motiongen.MOTION_LIBRARY) when asked; a library clip named like a file is refused."""
     from formats.motion import load_motion
 
-    motions = {name: resample(load_motion(p, fps=source_fps), fps)
-               for name, p in zip(motion_names(motion_paths), motion_paths)}
+    out = {name: fn(load_motion(p, fps=source_fps)) for name, p in zip(motion_names(motion_paths), motion_paths)}
     if library:
         from core.motiongen import generate_motion_library
 
         for name, m in generate_motion_library(fps=60.0).items():
-            if name in motions:
+            if name in out:
                 raise click.BadParameter(f"motion '{name}' is both a file and a library clip", param_hint="--motions")
-            motions[name] = resample(m, fps)
-    return motions
+            out[name] = fn(m)
+    return out
+
+
+def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | None = None) -> dict:
+    """name -> Motion at `fps` (`_motions_by_name`)."""
+    from core.motion import resample
+
+    return _motions_by_name(motion_paths, library, source_fps, lambda m: resample(m, fps))
 
 
 #: Highest --fps: beyond any capture or simulation rate (1e6 fps used 14 GB and 27 s just to plan).
@@ -64,18 +69,8 @@ MAX_BETAS_RANGE = 5.0
 def _motion_frame_counts(motion_paths, library: bool, fps: float, source_fps: float | None = None) -> dict:
     """name -> frames at `fps` of the motions `_load_motions` gives, counted without resampling any."""
     from core.motion import resampled_frame_count
-    from formats.motion import load_motion
 
-    counts = {name: resampled_frame_count(load_motion(p, fps=source_fps), fps)
-              for name, p in zip(motion_names(motion_paths), motion_paths)}
-    if library:
-        from core.motiongen import generate_motion_library
-
-        for name, m in generate_motion_library(fps=60.0).items():
-            if name in counts:
-                raise click.BadParameter(f"motion '{name}' is both a file and a library clip", param_hint="--motions")
-            counts[name] = resampled_frame_count(m, fps)
-    return counts
+    return _motions_by_name(motion_paths, library, source_fps, lambda m: resampled_frame_count(m, fps))
 
 
 def time_left(seconds: float) -> str:
