@@ -183,6 +183,11 @@ def _read_obj_directory(directory: Path) -> Sequence:
             raise InputError(f"garment sequence '{meta_path}': expected a JSON object like {{\"fps\": 30}}, "
                              f"got {type(meta).__name__}")
         fps = _fps(meta.get("fps"), f"garment sequence '{meta_path}'")
+        written = meta.get("frames")  # `write_obj_sequence` records how many frames it wrote
+        if isinstance(written, int) and not isinstance(written, bool) and written != len(files):
+            raise InputError(f"{where}: {SEQUENCE_JSON} says {_frames_text(written)} were written, got "
+                             f"{_frames_text(len(files))} ({files[0].name} to {files[-1].name}): frames missing "
+                             f"{'at the end' if written > len(files) else 'from the record'}?")
 
     first = parse_obj(files[0], label="garment sequence frame")
     # Quads are split along frame 0's shorter diagonal in every frame, so all frames share faces.

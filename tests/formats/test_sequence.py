@@ -255,6 +255,16 @@ def test_obj_frames_with_a_gap_are_refused_naming_the_missing_frame(tmp_path, na
     assert f"got no {missing} " in str(info.value) and "\n" not in str(info.value)
 
 
+def test_obj_frames_fewer_than_the_sequence_json_records_are_refused(tmp_path):
+    """A frame missing at the end leaves no gap among the files: `sequence.json`'s frame count tells."""
+    points, faces = _animated(n_frames=5)
+    write_obj_sequence(tmp_path, points, faces, fps=30)
+    (tmp_path / "frame_0004.obj").unlink()
+    with pytest.raises(InputError, match=r"sequence.json says 5 frames were written, got 4 frames "
+                                         r"\(frame_0000.obj to frame_0003.obj\): frames missing at the end\?"):
+        read_sequence(tmp_path)
+
+
 @pytest.mark.parametrize("names", [
     [f"skirt_{t:06d}" for t in (1, 2, 3)], [f"skirt.{t:04d}" for t in (101, 102, 103)], ["a_9", "a_10", "a_11"]])
 def test_obj_frames_numbered_from_any_start_are_read_in_order(tmp_path, names):
