@@ -270,9 +270,9 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
                          "rate (resample one of them to match)")
     check_comparable(p_seq.points, p_seq.faces, g_seq.points, g_seq.faces, str(pred), str(gt))
 
-    own = {s: s for s in (p_seq, g_seq) if s.body_points is not None and s.body_faces is not None}
-    body = next(iter(own), None)
-    gt_body = own.get(g_seq)  # GT's penetration against its own body where it has one
+    carry = [s for s in (p_seq, g_seq) if s.body_points is not None and s.body_faces is not None]
+    body = carry[0] if carry else None
+    gt_body = carry[-1] if carry and carry[-1] is g_seq else None  # GT's penetration against its own body
     if motion_file is not None:
         body = _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, p_seq.points.shape[0], betas,
                                     source_fps)

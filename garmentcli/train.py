@@ -255,7 +255,8 @@ def _run(out, ckpt_path, csv_path, json_path, main, rows, model_cfg, train_cfg, 
 
         trainer.progress = progress
         trainer.on_switch = snapshot
-        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(time_limit, world, device, interrupted))
+        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(time_limit, world, device,
+                                                                      interrupted if world == 1 else None))
         bar.close()
         checkpoint(trainer)
     last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
@@ -309,11 +310,12 @@ def _time_limit(minutes: float | None, world: int, device, interrupted: dict | N
 
     def should_stop() -> bool:
         stop = time.monotonic() > end or bool(interrupted and interrupted["hit"])
-        flag = torch.tensor([1.0 if stop else 0.0], device=device)
-        if world > 1:
-            import torch.distributed as dist
+        if world == 1:  # no tensor, no device sync per step
+            return stop
+        import torch.distributed as dist
 
-            dist.broadcast(flag, src=0)
+        flag = torch.tensor([1.0 if stop else 0.0], device=device)
+        dist.broadcast(flag, src=0)
         return bool(flag.item())
 
     return should_stop
