@@ -23,7 +23,7 @@ from typing import Callable
 
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, check_finite_points
 from core.garment import boundary_edges, mesh_edges
 from core.geometry import as_float, face_cross, face_normals, normalise, scatter_corners, vertex_normals  # noqa: F401
 
@@ -317,10 +317,7 @@ def _check_points(points: np.ndarray, name: str) -> np.ndarray:
         raise InputError(f"'{name}': expected at least one frame and one vertex, got shape {tuple(points.shape)}")
     if not np.issubdtype(points.dtype, np.number):
         raise InputError(f"'{name}': expected numeric points, got dtype {points.dtype}")
-    bad = ~np.isfinite(points).all(axis=-1)
-    if bad.any():
-        t, v = np.argwhere(bad)[0]
-        raise InputError(f"'{name}': expected finite coordinates, got NaN/Inf at frame {t}, vertex {v}")
+    check_finite_points(points, f"'{name}'")
     return points.astype(np.float64)
 
 

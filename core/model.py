@@ -159,12 +159,24 @@ class ModelConfig:
         return 3 * self.n_joints + 3
 
 
-def config_from_dict(values: dict, source: str = "model config") -> ModelConfig:
-    """A ModelConfig from a dict; unknown keys are an InputError naming the key and `source`."""
+def check_config_values(values: dict, source: str = "model config") -> dict:
+    """Raise InputError naming `source` and the key for an unknown key or a value of the wrong type (a string for a
+    string field, else an integer, not a bool) in a partial ModelConfig dict; returns the fields by name."""
     known = {f.name: f for f in dataclasses.fields(ModelConfig)}
-    for key in values:
+    for key, val in values.items():
         if key not in known:
             raise InputError(f"{source}: unknown key '{key}' (expected one of {', '.join(known)})")
+        want_str = known[key].type in (str, "str")
+        if not (isinstance(val, str) if want_str else isinstance(val, (int, np.integer)) and not isinstance(val, bool)):
+            raise InputError(f"{source}: model '{key}': expected {'a string' if want_str else 'an integer'}, "
+                             f"got {val!r}")
+    return known
+
+
+def config_from_dict(values: dict, source: str = "model config") -> ModelConfig:
+    """A ModelConfig from a dict (a --config's 'model' section, a checkpoint's config), checked by
+    `check_config_values`."""
+    known = check_config_values(values, source)
     cfg = ModelConfig(**{k: (str(v) if known[k].type in (str, "str") else int(v)) for k, v in values.items()})
     cfg.validate(source)
     return cfg

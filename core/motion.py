@@ -9,6 +9,7 @@ Z-up world. Poses are kept in the joint layout of the file they came from
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -29,6 +30,16 @@ Y_UP_TO_Z_UP = np.array([np.pi / 2, 0.0, 0.0])
 #: Source frame rates under this (Hz) are refused: no capture runs slower, and a BVH-style frame time (seconds per
 #: frame, 0.0167 for 60 fps) stored as the rate would turn 10 frames into 16,201.
 MIN_SOURCE_FPS = 1.0
+
+
+def check_frame_rate(fps: float, where: str, advice: str = "") -> None:
+    """Raise InputError naming `where` (the file and key, or the option) unless `fps` is a source frame rate:
+    finite and at least MIN_SOURCE_FPS (under it, read as seconds per frame). `advice` ends the message."""
+    if not (math.isfinite(fps) and fps > 0):
+        raise InputError(f"{where}: expected a positive frame rate, got {fps}")
+    if fps < MIN_SOURCE_FPS:
+        raise InputError(f"{where}: expected a frame rate of at least {MIN_SOURCE_FPS:g} Hz, got {fps:.4g}: seconds "
+                         f"per frame (a BVH Frame Time)? that is {1 / fps:.4g} fps{advice}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -33,6 +33,9 @@ from core.motion import Motion, poses_for_body
 DEFAULT_BUDGET_MM = 40.0
 #: Neighbours averaged for an expected error.
 K_NEAREST = 4
+#: The methods a calibration's configurations may name (`garment tradeoff --calibrate` leaves out psd: a fit
+#: belongs to one garment).
+CALIBRATED_METHODS = ("lbs", "model", "sim")
 #: Floors of the features before the logarithm (a skin-tight garment, a still pose).
 MIN_LOOSENESS_M, MIN_SPEED_M_S = 0.002, 0.05
 
@@ -79,13 +82,22 @@ class Calibration:
         try:
             data = json.loads(path.read_text())
             configs = data["configs"]
+            if not isinstance(configs, dict):
+                raise TypeError(f"'configs' must be an object of configurations, not {type(configs).__name__}")
             for name, c in configs.items():
-                float(c["ms_per_frame_per_kvert"])
+                if c.get("method") not in CALIBRATED_METHODS:
+                    raise ValueError(f"'{name}': method must be one of {', '.join(CALIBRATED_METHODS)}, "
+                                     f"not {c.get('method')!r}")
+                if not isinstance(c.get("options", {}), dict):
+                    raise TypeError(f"'{name}': options must be an object")
+                cost = float(c["ms_per_frame_per_kvert"])
+                if not (np.isfinite(cost) and cost >= 0):
+                    raise ValueError(f"'{name}': ms_per_frame_per_kvert must be a finite number >= 0, not {cost}")
                 if not c.get("reference"):
                     pts = np.asarray(c["points"], dtype=np.float64)
                     if pts.ndim != 2 or pts.shape[1] != 3 or not len(pts) or not np.isfinite(pts).all():
                         raise ValueError(f"'{name}': points must be a non-empty list of [looseness, speed, error]")
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
             raise InputError(f"quality calibration '{path}': expected the JSON `garment tradeoff --calibrate` writes, "
                              f"got {type(exc).__name__}: {exc}") from None
         return cls(configs=configs, source=str(path))
@@ -113,6 +125,9 @@ def choose(calibration: Calibration, features: dict, budget_mm: float, extra=())
     """The cheapest configuration expected within `budget_mm`: {"config", "method", "options", "expected_mm",
     "candidates": [{name, expected_mm, ms_per_frame}], "reason"}. extra: more candidates of that form (a
     garment's fitted blend shapes: `psd_candidate`)."""
+    if not calibration.configs:
+        raise InputError(f"quality calibration '{calibration.source}': expected configurations to choose from, "
+                         "got none: add scenes with `garment tradeoff --calibrate`")
     kvert = features["vertices"] / 1000.0
     cands = list(extra)
     for name, c in calibration.configs.items():

@@ -34,6 +34,9 @@ from core.garment import Garment
 
 #: Overridable skips (`bake --no-skip NAME`).
 SKIPS = ("joints", "body-faces", "self-contact", "floor")
+#: The methods whose work each skip saves (README "Work a scene does not need"): `bake --no-skip` of a skip for
+#: another method would change nothing, and is refused as --pin is.
+SKIP_METHODS = {"joints": ("lbs", "model"), "body-faces": ("sim",), "self-contact": ("sim",), "floor": ("sim",)}
 #: A joint whose LBS weight stays below this on every garment vertex is left out of its skinning.
 JOINT_WEIGHT_EPS = 1e-4
 #: Body faces further than this from the garment's LBS preview in every frame are left out of the collider.

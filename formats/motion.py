@@ -20,7 +20,7 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
 from core.errors import InputError
-from core.motion import MIN_SOURCE_FPS, Motion, validate_motion_values, warn_if_not_metres, warn_if_y_up
+from core.motion import Motion, check_frame_rate, validate_motion_values, warn_if_not_metres, warn_if_y_up
 from formats.atomic import atomic_file
 
 log = logging.getLogger(__name__)
@@ -121,12 +121,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         what = f"'{key}'"
     else:
         what = "the fps override"
-    if not (np.isfinite(fps) and fps > 0):
-        raise InputError(f"{src}: expected a positive frame rate in {what}, got {fps}")
-    if fps < MIN_SOURCE_FPS:
-        raise InputError(f"{src}: expected a frame rate of at least {MIN_SOURCE_FPS:g} Hz in {what}, got {fps:.4g}: "
-                         f"seconds per frame (a BVH Frame Time)? that is {1 / fps:.4g} fps; pass the motion's "
-                         f"frame rate with --source-fps")
+    check_frame_rate(fps, f"{src}, {what}", "; pass the motion's frame rate with --source-fps")
 
     gender = _read_gender(arrays.get("gender"))
     motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem)

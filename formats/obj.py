@@ -692,8 +692,9 @@ def _header_text(header: str | None) -> str:
 
 
 def mtllib_text(libraries) -> str:
-    """The `mtllib` line naming material library files (relative to the OBJ), or "" for none."""
-    return f"mtllib {' '.join(libraries)}\n" if libraries else ""
+    """The `mtllib` lines naming material library files (relative to the OBJ), one a line so that a name with
+    spaces reads as one file (`material_libraries`), or "" for none."""
+    return "".join(f"mtllib {name}\n" for name in libraries)
 
 
 def write_obj(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray,

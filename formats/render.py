@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, check_finite_points
 
 log = logging.getLogger(__name__)
 
@@ -158,10 +158,24 @@ class RenderOptions:
             raise InputError(f"--framing: expected one of {', '.join(FRAMINGS)}, got '{self.framing}'")
         if not (16 <= self.width <= 8192 and 16 <= self.height <= 8192):
             raise InputError(f"--size: expected 16..8192 pixels a side, got {self.width}x{self.height}")
-        if not math.isfinite(self.azimuth_deg):
-            raise InputError(f"--azimuth: expected a finite number of degrees, got {self.azimuth_deg}")
+        check_azimuth(self.azimuth_deg)
         if not (0.0 <= self.margin < 0.45):
             raise InputError(f"render margin: expected 0 <= margin < 0.45, got {self.margin}")
+
+
+def check_azimuth(degrees: float) -> None:
+    """--azimuth: a finite number of degrees (NaN or Inf would draw blank frames)."""
+    if not math.isfinite(degrees):
+        raise InputError(f"--azimuth: expected a finite number of degrees, got {degrees}")
+
+
+def check_value_range(value_range: tuple[float, float]) -> None:
+    """--range LO HI: finite, LO < HI (the colour bar's range)."""
+    lo, hi = value_range
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise InputError(f"--range: expected finite LO HI, got {lo} {hi}")
+    if not lo < hi:
+        raise InputError(f"--range: expected LO < HI, got {lo} {hi}")
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -251,15 +265,9 @@ def check_finite_sequence(seq, what: str = "garment sequence") -> None:
 
     Checks the garment points and, when present, the body points (frame numbers of the file, 0-based).
     """
-    for points, mesh in ((seq.points, ""), (seq.body_points, "body ")):
-        if points is None:
-            continue
-        bad = ~np.isfinite(np.asarray(points)).all(axis=-1)
-        if bad.any():
-            t, v = (int(i) for i in np.argwhere(bad)[0])
-            kind = "NaN" if np.isnan(points[t, v]).any() else "Inf"
-            raise InputError(f"{what} '{seq.source}': expected finite coordinates, got {kind} at frame {t}, "
-                             f"{mesh}vertex {v}")
+    for points, vertex in ((seq.points, "vertex"), (seq.body_points, "body vertex")):
+        if points is not None:
+            check_finite_points(points, f"{what} '{seq.source}'", vertex)
     points = np.asarray(seq.points)
     if points.shape[1] > 1 and not np.ptp(points, axis=1).any():
         far = float(np.abs(points).max())
@@ -279,8 +287,8 @@ def scene_from_sequence(seq, color: str = "plain", gt=None, scalars: np.ndarray 
     `scalars`, (T, V) for the whole sequence). frames: indices or a slice of the
     frames to keep (applied before the costly penetration test).
     """
-    if value_range is not None and not (np.isfinite(value_range).all() and value_range[0] < value_range[1]):
-        raise InputError(f"--range: expected finite LO < HI, got {value_range[0]} {value_range[1]}")
+    if value_range is not None:
+        check_value_range(value_range)
     check_finite_sequence(seq)
     if gt is not None:
         check_finite_sequence(gt, "--gt")

@@ -19,14 +19,15 @@ from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
 from core.provenance import software_versions
 from core.quality import DEFAULT_BUDGET_MM
-from core.scene import SKIPS, parse_no_skip
+from core.scene import SKIP_METHODS, SKIPS, parse_no_skip
 from formats.atomic import atomic_dir
 from garmentcli.common import (
-    OutputPath,
     FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,
     PIN_HELP,
+    FiniteFloatRange,
+    OutputPath,
     betas_option,
     body_option,
     check_preroll,
@@ -261,7 +262,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--quality", type=click.Choice(["auto"]), default=None,
               help="auto: choose the cheapest method expected within --budget-mm from the scene (garment looseness, "
                    "motion speed) and the model's calibration; the choice is printed and kept in summary.json.")
-@click.option("--budget-mm", type=click.FloatRange(min=0, min_open=True), default=None,
+@click.option("--budget-mm", type=FiniteFloatRange(min=0, min_open=True), default=None,
               help=f"--quality auto: error budget, mean vertex distance to the simulator in mm [default: "
                    f"{DEFAULT_BUDGET_MM:g}].")
 @click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False), default=None,
@@ -349,6 +350,10 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         method = method or "model"
         if no_contact_guard and method not in ("model", "psd"):
             raise click.UsageError(f"--no-contact-guard applies to --method model and psd only (got --method {method})")
+        for name in no_skip:
+            if name != "all" and method not in SKIP_METHODS[name]:
+                raise click.UsageError(f"--no-skip {name} applies to --method {' and '.join(SKIP_METHODS[name])} "
+                                       f"only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                  precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device)
     elif method is not None or precision is not None or push_out:
@@ -562,6 +567,8 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
     from core.model_deform import DEFAULT_MODEL
     from core.quality import Calibration, choose, scene_features
 
+    if model_path and not Path(model_path).is_file():  # before its calibration, which is named after it
+        raise click.BadParameter(f"'{model_path}': no such file", param_hint="--model")
     if calibration_path is None:
         model = Path(model_path) if model_path else DEFAULT_MODEL
         calibration_path = model.with_name(model.stem + ".calibration.json")

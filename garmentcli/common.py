@@ -15,7 +15,7 @@ import numpy as np
 
 from core.body import Body, default_body
 from core.errors import InputError
-from core.motion import MIN_SOURCE_FPS, parse_frame_range, preroll, resample, resampled_frame_count, settle
+from core.motion import check_frame_rate, parse_frame_range, preroll, resample, resampled_frame_count, settle
 
 #: `--pin` values (core.sim.PIN_MODES; repeated here so the CLI starts without importing the simulator).
 PIN_CHOICES = ("auto", "none")
@@ -105,6 +105,22 @@ def motion_names(paths) -> list[str]:
             break
         names = ["_".join(q[-depth:]).lstrip("/") if n in clashing else n for n, q in zip(names, parts)]
     return names
+
+
+def checked_by(check):
+    """A click callback running the library's `check(value)` on a given value when the command line is read, so a
+    bad value stops the command before any work; the InputError ("--option: expected ...") becomes click's
+    "Invalid value for '--option': expected ..."."""
+
+    def callback(ctx, param, value):
+        if value is not None:
+            try:
+                check(value)
+            except InputError as exc:
+                raise click.BadParameter(str(exc).removeprefix(f"{param.opts[0]}: ")) from None
+        return value
+
+    return callback
 
 
 def input_errors_as_click(func):
@@ -246,19 +262,11 @@ def betas_option(command):
                              "coefficients (missing ones 0; the body's own basis, e.g. the embedded body's 10).")(command)
 
 
-def _check_source_fps(ctx, param, value: float | None) -> float | None:
-    if value is not None and value < MIN_SOURCE_FPS:
-        raise click.BadParameter(f"expected a frame rate of at least {MIN_SOURCE_FPS:g} Hz, got {value:.4g}: seconds "
-                                 f"per frame (a BVH Frame Time)? that is --source-fps {1 / value:.4g}",
-                                 param_hint="--source-fps")
-    return value
-
-
 def source_fps_option(command):
     """--source-fps HZ: the motion files' frame rate, for files that carry none (or a wrong one); at least
-    MIN_SOURCE_FPS."""
-    return click.option("--source-fps", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
-                        callback=_check_source_fps,
+    MIN_SOURCE_FPS (`check_frame_rate`)."""
+    return click.option("--source-fps", type=float, default=None, metavar="HZ",
+                        callback=checked_by(lambda fps: check_frame_rate(fps, "--source-fps")),
                         help="The motions' own frame rate, overriding the file's (needed for files that carry "
                              "none).")(command)
 

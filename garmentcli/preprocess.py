@@ -10,7 +10,7 @@ import click
 from core.descriptor import DEFAULT_LANDMARKS
 from core.hierarchy import DEFAULT_LEVELS
 from core.preprocess import CACHE_KIND, MAX_LANDMARKS, MAX_LEVELS, Preprocessed, preprocess_garment
-from garmentcli.common import input_errors_as_click, load_body_option
+from garmentcli.common import OutputPath, input_errors_as_click, load_body_option
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +41,7 @@ def summary_lines(path: str, p: Preprocessed, cache_note: str) -> list[str]:
 @click.option("--cache-dir", type=click.Path(file_okay=False), default=None,
               help="Cache directory. Default: $GARMENT_CACHE_DIR, else ~/.cache/garment.")
 @click.option("--no-cache", is_flag=True, help="Compute without reading or writing the cache.")
-@click.option("--render", "render_dir", type=click.Path(file_okay=False), default=None, metavar="OUT_DIR",
+@click.option("--render", "render_dir", type=OutputPath(file_okay=False), default=None, metavar="OUT_DIR",
               help="Write OUT_DIR/<garment>_hierarchy.png with the levels side by side.")
 @input_errors_as_click
 def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache, render_dir):

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import click
@@ -10,7 +9,8 @@ from tqdm import tqdm
 
 from core.errors import InputError
 from formats.atomic import atomic_dir
-from garmentcli.common import OutputPath, input_errors_as_click
+from formats.render import check_azimuth, check_value_range
+from garmentcli.common import OutputPath, checked_by, input_errors_as_click
 
 COLORS = ("plain", "error", "penetration", "scalar")
 CAMERA_CHOICES = ("front", "side", "back", "orbit")
@@ -36,25 +36,6 @@ def _frame_slice(frames: str | None, every: int) -> slice:
     return slice(start, stop, step)
 
 
-def _check_finite(ctx, param, value):
-    """Click callback: a finite number (NaN or Inf would draw blank frames)."""
-    if value is not None and not math.isfinite(value):
-        raise click.BadParameter(f"expected a finite number of degrees, got {value}")
-    return value
-
-
-def _check_range(ctx, param, value):
-    """Click callback: LO HI finite with LO < HI (the colour bar's range)."""
-    if value is None:
-        return value
-    lo, hi = value
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise click.BadParameter(f"expected finite LO HI, got {lo} {hi}")
-    if not lo < hi:
-        raise click.BadParameter(f"expected LO < HI, got {lo} {hi}")
-    return value
-
-
 @click.command(name="render")
 @click.argument("input_path", metavar="INPUT", type=click.Path(exists=True, path_type=Path))
 @click.option("--out", "out_dir", type=OutputPath(file_okay=False, path_type=Path), default=None,
@@ -68,13 +49,13 @@ def _check_range(ctx, param, value):
               help="Ground-truth sequence for --color error (same mesh and frame count as INPUT).")
 @click.option("--scalars", "scalars_spec", metavar="FILE.npz[:KEY]", default=None,
               help="Per-vertex values (V,) or (T, V) for --color scalar.")
-@click.option("--range", "value_range", type=(float, float), default=None, metavar="LO HI", callback=_check_range,
+@click.option("--range", "value_range", type=(float, float), default=None, metavar="LO HI", callback=checked_by(check_value_range),
               help="Colour-bar range for error/scalar [default: 0 to the 99th percentile].")
 @click.option("--frames", default=None, metavar="START:STOP[:STEP]",
               help="Frames to render (Python slice, STOP exclusive; ::2 is every 2nd frame).")
 @click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Render every N-th frame.")
 @click.option("--size", default="1280x720", show_default=True, metavar="WxH", help="Image size in pixels.")
-@click.option("--azimuth", type=float, default=0.0, show_default=True, callback=_check_finite,
+@click.option("--azimuth", type=float, default=0.0, show_default=True, callback=checked_by(check_azimuth),
               help="Turn every camera preset by this many degrees about the up axis (Z).")
 @click.option("--framing", type=click.Choice(("auto", "fixed", "follow")), default="auto", show_default=True,
               help="fixed: one view of the whole animation; follow: track the body; auto: follow when it travels.")

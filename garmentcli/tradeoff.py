@@ -62,6 +62,9 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
         name, sep, path = spec.partition("=")
         if not sep or not name or not path:
             raise click.BadParameter(f"expected NAME=PATH, got {spec!r}", param_hint=option)
+        if name in out:  # one row each: the second would replace the first's
+            raise click.BadParameter(f"expected distinct names, got {name!r} twice ('{out[name]}', '{path}')",
+                                     param_hint=option)
         if not Path(path).is_file():
             raise click.BadParameter(f"{what} '{path}': no such file", param_hint=option)
         out[name] = path
@@ -93,7 +96,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
               help="Take the simulator rows from the earlier run in the result directory where it simulated the same "
                    "scene (garment, body, motion, frames, fps, simulator settings), so adding a model re-simulates "
                    "nothing; replaces that directory. Also takes the rows an interrupted run finished.")
-@click.option("--calibrate", "calibration_path", type=click.Path(dir_okay=False), default=None, metavar="FILE",
+@click.option("--calibrate", "calibration_path", type=OutputPath(dir_okay=False), default=None, metavar="FILE",
               help="Also add this scene to the --quality auto calibration FILE (created if missing), e.g. "
                    "<model>.calibration.json beside the model.")
 @click.option("--spread", is_flag=True,
@@ -119,6 +122,10 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     device = str(parse_device(device, auto=True))
     models = _models(model_specs)
     fits = _named_files(fit_specs, "--fit", "fit")
+    if calibration_path and Path(calibration_path).is_file():
+        from core.quality import Calibration
+
+        Calibration.load(calibration_path)  # one that is no calibration stops the run now, not after its hours
     try:
         import newton  # noqa: F401
     except ImportError:
@@ -200,6 +207,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     if calibration_path:
         from core.quality import Calibration, add_scene, scene_features
 
+        # read again (not the copy checked above): another run may have added its scene meanwhile
         cal = Calibration.load(calibration_path) if Path(calibration_path).is_file() else Calibration({})
         features = scene_features(garment, body, motion)
         add_scene(cal, features, [{**r, "options": {k: v for k, v in m.config.options.items() if k != "path"}}

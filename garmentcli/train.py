@@ -18,7 +18,7 @@ import torch
 from tqdm import tqdm
 
 from core.errors import InputError
-from core.model import ADDABLE_INPUTS, ModelConfig, config_from_dict, keep_levels
+from core.model import ADDABLE_INPUTS, ModelConfig, check_config_values, config_from_dict, keep_levels
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
 from garmentcli.common import OutputPath, input_errors_as_click, load_body_option, parse_device
 
@@ -41,13 +41,7 @@ def _read_config(path: str | None) -> tuple[dict, dict]:
         if not isinstance(data.get(section, {}), dict):
             raise InputError(f"--config '{path}': '{section}': expected an object of settings, "
                              f"got {data[section]!r}")
-    fields = {f.name: f for f in dataclasses.fields(ModelConfig)}
-    for key, val in data.get("model", {}).items():
-        want_str = key in fields and fields[key].type in (str, "str")
-        if key in fields and not (isinstance(val, str) if want_str else (isinstance(val, int) and
-                                                                         not isinstance(val, bool))):
-            raise InputError(f"--config '{path}': model '{key}': expected {'a string' if want_str else 'an integer'}, "
-                             f"got {val!r}")
+    check_config_values(data.get("model", {}), f"--config '{path}'")
     return dict(data.get("model", {})), dict(data.get("train", {}))
 
 
@@ -135,7 +129,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             raise click.BadParameter(f"expected a dataset directory, got '{d}' (not found)", param_hint="--data")
     data_dir = str(data_dir[0]) if len(data_dir) == 1 else [str(d) for d in data_dir]  # as the card records it
     out = Path(out_path)
-    ckpt_path, csv_path, json_path = (out.with_name(out.name + s) for s in (".ckpt", ".csv", ".json"))
+    ckpt_path, csv_path, json_path = _side_files(out)
     model_values, train_values = _read_config(config_path)
     body = load_body_option(body_path)
     init = None
@@ -193,9 +187,10 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
                 rows = [r for r in csv.DictReader(fh) if int(r["step"]) <= trainer.step]
     # Ctrl-C (SIGINT) while training finishes the step and stops as --time-limit does: checkpoint and model written.
     interrupted, restore_sigint = _defer_interrupt() if world == 1 else ({"hit": False}, lambda: None)
+    job = _Job(main=main, world=world, device=device, sequences_per_step=sequences_per_step, data_dir=data_dir,
+               init=init, init_path=init_path, body=body, time_limit=time_limit)
     try:
-        _run(out, ckpt_path, csv_path, json_path, main, rows, model_cfg, train_cfg, data, data_dir, init, init_path,
-             world, device, sequences_per_step, trainer, body, time_limit, interrupted)
+        _run(out, trainer, rows, job, interrupted)
     except BaseException:
         if main and not out.exists():  # no MODEL.json describing a model that was never written
             json_path.unlink(missing_ok=True)
@@ -206,18 +201,42 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         raise click.exceptions.Exit(130)
 
 
-def _run(out, ckpt_path, csv_path, json_path, main, rows, model_cfg, train_cfg, data, data_dir, init, init_path,
-         world, device, sequences_per_step, trainer, body, time_limit, interrupted):
+def _side_files(out: Path) -> tuple[Path, Path, Path]:
+    """The files `train` writes beside MODEL: its checkpoint, loss CSV and configs JSON."""
+    return tuple(out.with_name(out.name + s) for s in (".ckpt", ".csv", ".json"))
+
+
+@dataclasses.dataclass(frozen=True)
+class _Job:
+    """What `_run` needs of a train command besides the trainer: which process this is and what the card records."""
+    main: bool  # rank 0: the process that writes
+    world: int
+    device: torch.device
+    sequences_per_step: int
+    data_dir: str | list[str]
+    init: dict | None  # --init's checkpoint
+    init_path: str | None
+    body: object
+    time_limit: float | None
+
+
+def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: dict) -> None:
+    """Train `trainer` to its configured steps (or the time limit, or Ctrl-C) writing the CSV (after `rows`, those
+    of a resumed run), checkpoints, phase snapshots, then MODEL and its card."""
     import os
 
     from core.model_deform import joint_coverage
     from formats.checkpoint import save_checkpoint
 
+    ckpt_path, csv_path, json_path = _side_files(out)
+    model_cfg, train_cfg, data = trainer.model.config, trainer.config, trainer.data
+    main, world, device, init = job.main, job.world, job.device, job.init
+
     if main:
         out.parent.mkdir(parents=True, exist_ok=True)
         json_path.write_text(json.dumps({"model": dataclasses.asdict(model_cfg), "train": dataclasses.asdict(train_cfg),
-                                         "data": data_dir, "init": init_path, "processes": world,
-                                         "device": str(device), "sequences_per_step": sequences_per_step,
+                                         "data": job.data_dir, "init": job.init_path, "processes": world,
+                                         "device": str(device), "sequences_per_step": job.sequences_per_step,
                                          "sequences_missing": data.missing, "garments": sorted(data.garments)}, indent=2))
     # Only rank 0 writes: the others log into the null device.
     with (open(csv_path, "w", newline="") if main else open(os.devnull, "w")) as fh:
@@ -255,15 +274,15 @@ def _run(out, ckpt_path, csv_path, json_path, main, rows, model_cfg, train_cfg, 
 
         trainer.progress = progress
         trainer.on_switch = snapshot
-        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(time_limit, world, device,
+        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(job.time_limit, world, device,
                                                                       interrupted if world == 1 else None))
         bar.close()
         checkpoint(trainer)
     last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
-    meta = {"train_config": dataclasses.asdict(train_cfg), "data": data_dir, "init": init_path,
+    meta = {"train_config": dataclasses.asdict(train_cfg), "data": job.data_dir, "init": job.init_path,
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
-            "val_verts_mm": last_val.get("val_verts_mm"), "body": body.name, "joint_coverage": coverage,
+            "val_verts_mm": last_val.get("val_verts_mm"), "body": job.body.name, "joint_coverage": coverage,
             "lead_in_s": lead_in,
             "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
             "sequences_missing": data.missing, "garments": sorted(data.garments)}

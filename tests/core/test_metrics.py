@@ -337,7 +337,10 @@ def test_bad_inputs_raise_one_line_input_errors():
         compute_metrics(seq, seq[:, :-1], f, pred_name="p.npz", gt_name="g.npz")
     bad = seq.copy()
     bad[1, 7, 0] = np.nan
-    with pytest.raises(InputError, match=r"'g.npz'.*NaN/Inf at frame 1, vertex 7"):
+    with pytest.raises(InputError, match=r"'g.npz'.*got NaN at frame 1, vertex 7"):
+        compute_metrics(seq, bad, f, pred_name="p.npz", gt_name="g.npz")
+    bad[1, 7, 0] = -np.inf
+    with pytest.raises(InputError, match=r"'g.npz'.*got Inf at frame 1, vertex 7"):
         compute_metrics(seq, bad, f, pred_name="p.npz", gt_name="g.npz")
     with pytest.raises(InputError, match=r"expected points of shape \(T, V, 3\)"):
         compute_metrics(v, v, f)

@@ -124,6 +124,19 @@ def test_added_inputs_start_as_the_network_they_extend_then_see_shape_and_pose(b
         config_from_dict({"pose_codes": -1})
 
 
+def test_config_from_dict_refuses_unknown_keys_and_wrong_types():
+    """A checkpoint's or --config's model values: a string where a number goes, a float or a bool for an integer
+    (True would read as 1), a number for the pooling name: one line naming the source and the key."""
+    for values, expected in (({"hidden": "wide"}, "'hidden': expected an integer, got 'wide'"),
+                             ({"levels": 2.5}, "'levels': expected an integer, got 2.5"),
+                             ({"shape_input": True}, "'shape_input': expected an integer, got True"),
+                             ({"pooling": 3}, "'pooling': expected a string, got 3"),
+                             ({"hiden": 32}, "unknown key 'hiden'")):
+        with pytest.raises(InputError, match=f"ckpt.pt: .*{expected}"):
+            config_from_dict(values, source="ckpt.pt")
+    assert config_from_dict({"hidden": np.int64(16), "heads": 2}).hidden == 16
+
+
 def test_shapes_float32_and_starts_as_lbs(body):
     torch.manual_seed(0)
     model = GarmentModel(TINY_CONFIG)

@@ -405,3 +405,14 @@ def test_material_libraries_are_found_beside_the_file(tmp_path, caplog):
     assert g.source.libraries == (str((tmp_path / "my shirt.mtl").resolve()), str((tmp_path / "extra.mtl").resolve()))
     assert "material library 'gone.mtl' is not there" in caplog.text
     assert read_obj(_write(tmp_path, "mtllib extra.mtl\n" + tri + "f 1 2 3\n", "n.obj")).source is None
+
+
+def test_written_material_libraries_read_back_with_spaces_in_their_names(tmp_path):
+    """Several libraries, one named with a space (as a bake's OBJ frames name the garment's copies): one `mtllib`
+    line each, so that reading the file back finds every one (in one statement, 'my shirt.mtl' split in two)."""
+    (tmp_path / "extra.mtl").write_text("newmtl b\n")
+    (tmp_path / "my shirt.mtl").write_text("newmtl a\n")
+    path = tmp_path / "w.obj"
+    write_obj(path, np.eye(3), np.array([[0, 1, 2]]), materials=np.array(["a"]), libraries=["extra.mtl", "my shirt.mtl"])
+    assert read_obj(path).source.libraries == (str((tmp_path / "extra.mtl").resolve()),
+                                               str((tmp_path / "my shirt.mtl").resolve()))

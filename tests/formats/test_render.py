@@ -271,8 +271,10 @@ def test_a_chosen_vtk_window_that_cannot_open_gives_one_line(monkeypatch):
 def test_range_and_azimuth_must_be_finite_and_ordered():
     seq = two_spheres(1)
     gt = Sequence(points=seq.points * np.float32(1.1), faces=seq.faces, fps=30.0)
-    for bad in ((5.0, 1.0), (1.0, 1.0), (float("nan"), float("nan")), (0.0, float("inf"))):
-        with pytest.raises(InputError, match="--range: expected finite LO < HI"):
+    for bad, expected in (((5.0, 1.0), "LO < HI, got 5.0 1.0"), ((1.0, 1.0), "LO < HI"),
+                          ((float("nan"), float("nan")), "finite LO HI, got nan nan"),
+                          ((0.0, float("inf")), "finite LO HI")):
+        with pytest.raises(InputError, match=f"--range: expected {expected}"):
             R.scene_from_sequence(seq, color="error", gt=gt, value_range=bad)
     with pytest.raises(InputError, match="--azimuth: expected a finite number"):
         R.RenderOptions(azimuth_deg=float("nan"))

@@ -211,6 +211,13 @@ def test_bake_reports_scene_skips_and_no_skip_overrides_them(scene):
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
              "--no-skip", "faces"])
     assert_one_line_error(r, "--no-skip", "faces")
+    # a skip the method does not have would change nothing: refused, as --pin is for another method than sim
+    for name, needle in (("floor", "--no-skip floor applies to --method sim only (got --method lbs)"),
+                         ("body-faces", "--no-skip body-faces applies to --method sim only")):
+        r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"] / "x",
+                 "--no-skip", name])
+        assert_one_line_error(r, needle)
+        assert not (scene["out"] / "x").exists()
 
 
 def test_bake_workers_equal_one_process_and_report_throughput(scene):

@@ -34,7 +34,7 @@ def test_a_frame_time_for_a_frame_rate_is_refused_and_1_hz_bakes(scene):
     r = _bake(scene, d / "frametime.npz")
     assert_one_line_error(r, "frametime.npz", "0.01667", "seconds per frame", "60 fps", "--source-fps")
     r = _bake(scene, d / "frametime.npz", "--source-fps", "0.01667")
-    assert_one_line_error(r, "--source-fps", "0.01667", "seconds per frame", "--source-fps 59.99")
+    assert_one_line_error(r, "--source-fps", "0.01667", "seconds per frame", "59.99 fps")
     assert not scene["out"].exists()
     r = _bake(scene, d / "frametime.npz", "--source-fps", 60)
     assert r.exit_code == 0, r.output

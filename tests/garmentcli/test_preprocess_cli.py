@@ -69,3 +69,15 @@ def test_unwritable_cache_dir_is_one_line(scene):
     r = run("preprocess", scene["garment"], "--body", scene["body"], "--landmarks", "8",
             "--cache-dir", str(blocker / "sub"))
     assert r.exit_code == 1 and "cache directory" in r.output and "Traceback" not in r.output
+
+
+def test_a_render_folder_that_cannot_be_written_stops_before_any_work(scene):
+    """--render OUT_DIR under a file: refused when the command line is read, not after the garment is
+    preprocessed (nothing cached either)."""
+    blocker = scene["dir"] / "file"
+    blocker.write_text("x")
+    cache = scene["dir"] / "cache"
+    r = run("preprocess", scene["garment"], "--body", scene["body"], "--landmarks", "8", "--cache-dir", str(cache),
+            "--render", str(blocker / "renders"))
+    assert r.exit_code == 2 and "Invalid value for '--render'" in r.output and "is a file, not a folder" in r.output
+    assert "Traceback" not in r.output and "vertices" not in r.output and not cache.exists()

@@ -54,7 +54,9 @@ def test_auto_picks_lbs_for_tight_and_slow_and_model_for_loose_and_fast(auto_sce
 
 @pytest.mark.parametrize("extra, needle", [(["--method", "lbs"], "leave out --method"),
                                            (["--push-out"], "leave out --method"),
-                                           (["--calibration", "nope.json"], "nope.json")])
+                                           (["--calibration", "nope.json"], "nope.json"),
+                                           (["--budget-mm", "nan"], "expected a finite number > 0, got 'nan'"),
+                                           (["--budget-mm", "inf"], "expected a finite number > 0, got 'inf'")])
 def test_auto_bad_combinations(auto_scene, extra, needle):
     r = _auto(auto_scene, "tight.obj", "slow.npz", *extra)
     assert r.exit_code != 0 and needle in r.output and "Traceback" not in r.output
@@ -69,6 +71,10 @@ def test_budget_without_auto_and_model_without_calibration(auto_scene):
     (s["dir"] / "tiny.calibration.json").unlink()
     r = _auto(s, "tight.obj", "slow.npz")
     assert r.exit_code != 0 and "tiny.calibration.json" in r.output and not s["out"].exists()
+    # a --model that is not there is named as such, not as a model without a calibration
+    r = _auto(s, "tight.obj", "slow.npz", "--model", s["dir"] / "gone.pt")
+    assert r.exit_code != 0 and f"Invalid value for --model: '{s['dir'] / 'gone.pt'}': no such file" in r.output
+    assert "calibration" not in r.output and not s["out"].exists()
 
 
 def test_auto_with_a_fit_picks_it_where_it_is_expected_within_the_budget(auto_scene):
@@ -102,3 +108,19 @@ def test_auto_with_a_fit_picks_it_where_it_is_expected_within_the_budget(auto_sc
     assert json.loads((s["out"] / "loose_fast" / "summary.json").read_text())["method"] == "model"
     r = _auto(s, "tight.obj", "fast.npz", "--fit", s["dir"] / "good.psd.npz")
     assert r.exit_code != 0 and "fitted to another garment" in r.output
+
+
+@pytest.mark.parametrize("configs, needle", [({}, "expected configurations to choose from, got none"),
+                                             ([1, 2], "'configs' must be an object"),
+                                             ({"x": {"method": "magic", "ms_per_frame_per_kvert": 1,
+                                                     "points": [[0.02, 0.3, 1.0]]}}, "'x': method must be one of"),
+                                             ({"x": {"method": "lbs", "ms_per_frame_per_kvert": "nan",
+                                                     "points": [[0.02, 0.3, 1.0]]}}, "finite number >= 0, not nan")])
+def test_auto_with_a_calibration_of_the_wrong_form_is_one_line(auto_scene, configs, needle):
+    """A hand-edited calibration (no configurations, a method bake does not have, a cost that is no number) is
+    refused naming the file, before any work; it used to end in a traceback, or bake with a NaN cost."""
+    path = auto_scene["dir"] / "edited.json"
+    path.write_text(json.dumps({"configs": configs}))
+    r = _auto(auto_scene, "tight.obj", "slow.npz", "--calibration", path)
+    assert r.exit_code != 0 and f"quality calibration '{path}'" in r.output and needle in r.output
+    assert "Traceback" not in r.output and not auto_scene["out"].exists()

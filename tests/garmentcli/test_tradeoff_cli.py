@@ -324,3 +324,24 @@ def test_preroll_frames_are_deformed_timed_and_left_out_of_the_comparison(scene,
     assert lbs["e_verts"] == pytest.approx(10 * np.sqrt(3), abs=0.01)
     r = invoke([*base, "--preroll", 4, "--overwrite"])
     assert r.exit_code != 0 and "--preroll: expected --frames START:STOP" in r.output
+
+
+def test_a_calibrate_file_that_cannot_take_the_scene_or_a_name_given_twice_stops_before_any_work(scene, monkeypatch):
+    """--calibrate FILE that is no calibration (or cannot be written) and two --model rows of one NAME are refused
+    in one line before any configuration is measured; the calibration used to be read only after the whole run."""
+    import garmentcli.tradeoff
+
+    measured = []
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
+    base = ["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4",
+            "--out", scene["out"]]
+    notes = scene["dir"] / "notes.json"
+    notes.write_text("my notes\n")
+    r = invoke([*base, "--calibrate", notes])
+    assert r.exit_code != 0 and f"quality calibration '{notes}': expected the JSON" in r.output
+    r2 = invoke([*base, "--calibrate", notes / "cal.json"])
+    assert r2.exit_code != 0 and "Invalid value for '--calibrate'" in r2.output and "is a file, not a folder" in r2.output
+    r3 = invoke([*base, "--model", f"a={scene['garment']}", "--model", f"a={scene['body']}"])
+    assert r3.exit_code != 0 and "--model" in r3.output and "expected distinct names, got 'a' twice" in r3.output
+    assert not measured and not scene["out"].exists()
+    assert not any("Traceback" in x.output for x in (r, r2, r3))
