@@ -29,6 +29,7 @@ from core.garment import Garment
 from core.losses import rest_uv_frame, vertex_masses
 from core.model import (GarmentInputs, ModelConfig, MotionFeatures, body_distances, garment_inputs, motion_features,
                         shaped_rest, tensors_to)
+from core.geodesic import SELF_COLLISION_GEODESIC_M
 from core.preprocess import preprocess_garment
 from core.skinning import bind_garment
 
@@ -55,10 +56,15 @@ class GarmentData:
 
 
 def prepare_garment(garment: Garment, body: Body, config: ModelConfig, cache_dir=None,
-                    source: str | None = None) -> GarmentData:
-    """Preprocess (cached) and bind `garment` on `body` for a model of `config`."""
+                    source: str | None = None, near: bool = True) -> GarmentData:
+    """Preprocess (cached) and bind `garment` on `body` for a model of `config`.
+
+    near: build the rest neighbourhood of the self-collision loss (Eq. 6; training only). Its pairs grow as the
+    square of the vertex count at a given size (a 213k-vertex garment: about 10^9 pairs), so inference leaves
+    it out (`GarmentData.near` None)."""
     prep = preprocess_garment(garment, body, levels=config.levels, n_landmarks=config.n_landmarks,
-                              n_eigenvalues=config.n_eigenvalues, cache_dir=cache_dir)
+                              n_eigenvalues=config.n_eigenvalues, cache_dir=cache_dir,
+                              collision_radius_m=SELF_COLLISION_GEODESIC_M if near else 0.0)
     binding = bind_garment(garment, body, PRIOR_SMOOTH_ITERATIONS, 0.5, source=source)
     dm, area = rest_uv_frame(garment.vertices, garment.faces, garment.uvs, garment.face_uvs)
     return GarmentData(garment=garment, inputs=garment_inputs(prep, binding, garment.faces, config.levels),

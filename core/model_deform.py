@@ -227,7 +227,8 @@ class ModelDeformer(Deformer):
                              f"got '{body.name}' with {body.n_joints}")
         key = (garment.content_hash(), id(body))
         if key not in self._garments:
-            self._garments[key] = prepare_garment(garment, body, self.model.config, self.cache_dir, source)
+            self._garments[key] = prepare_garment(garment, body, self.model.config, self.cache_dir, source,
+                                                     near=False)
 
     def _shaped_inputs(self, garment: Garment, body: Body, motion_betas, device: torch.device) -> _Shaped:
         """The garment's `_Shaped` inputs on the body shaped by `motion_betas`, made once per garment, body shape,

@@ -71,7 +71,7 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     out = Path(out_dir or f"{Path(garment_path).stem}_{Path(motion_path).stem}_f{frame}_attribution")
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
-    g = prepare_garment(garment, body, model.config, source=garment_path).inputs
+    g = prepare_garment(garment, body, model.config, source=garment_path, near=False).inputs
     target = DeformationTarget(model, g, body, motion, frame, vertices)
     with click.progressbar(length=1, label=f"attribute ({steps} nodes)") as bar:
         att = integrated_gradients(target, target.input, target.baseline, steps)

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from core.descriptor import DEFAULT_LANDMARKS
+from core.geodesic import SELF_COLLISION_GEODESIC_M
 from core.hierarchy import DEFAULT_LEVELS
 from core.preprocess import CACHE_KIND, MAX_LANDMARKS, MAX_LEVELS, Preprocessed, preprocess_garment
 from garmentcli.common import OutputPath, input_errors_as_click, load_body_option
@@ -43,13 +44,16 @@ def summary_lines(path: str, p: Preprocessed, cache_note: str) -> list[str]:
 @click.option("--no-cache", is_flag=True, help="Compute without reading or writing the cache.")
 @click.option("--render", "render_dir", type=OutputPath(file_okay=False), default=None, metavar="OUT_DIR",
               help="Write OUT_DIR/<garment>_hierarchy.png with the levels side by side.")
+@click.option("--self-collision", is_flag=True,
+              help="Also the pairs within 10 cm along the rest surface that training's self-collision loss leaves "
+                   "out (what `garment train` builds; bake does not need them).")
 @input_errors_as_click
-def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache, render_dir):
+def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache, render_dir, self_collision=False):
     """Preprocess each GARMENT (OBJ or USD, on the body's rest pose) for the learned model.
 
-    Builds vertex features, the pooling hierarchy, the Nystrom style descriptor
-    and the self-collision near set, stores them in the cache (keyed by the
-    mesh's content, the settings and the body) and prints a summary.
+    Builds vertex features, the pooling hierarchy and the Nystrom style descriptor (with --self-collision also the
+    self-collision near set), stores them in the cache (keyed by the mesh's content, the settings and the body:
+    the entry `bake --method model` reads, or with --self-collision `garment train`'s) and prints a summary.
     """
     from formats.cache import cache_path, default_cache_dir
     from formats.obj import read_garment
@@ -58,7 +62,8 @@ def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache,
     directory = None if no_cache else Path(cache_dir) if cache_dir else default_cache_dir()
     for path in garment_paths:
         garment = read_garment(path)
-        p = preprocess_garment(garment, body, levels=levels, n_landmarks=landmarks, cache_dir=directory)
+        p = preprocess_garment(garment, body, levels=levels, n_landmarks=landmarks, cache_dir=directory,
+                               collision_radius_m=SELF_COLLISION_GEODESIC_M if self_collision else 0.0)
         if directory is None:
             note = "cache off"
         else:

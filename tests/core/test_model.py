@@ -3,6 +3,7 @@
 import dataclasses
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -455,3 +456,28 @@ def test_default_batch_frames_follow_the_device_and_the_garment_size():
     assert default_batch_frames("cpu", 50) == default_batch_frames("cpu", 50_000) == 2
     assert default_batch_frames("cuda", 4096) == 128 and default_batch_frames("cuda:1", 50_000) == 10
     assert default_batch_frames("cuda", 50) == GPU_MAX_BATCH_FRAMES and default_batch_frames("cuda", 10**7) == 1
+
+
+def test_a_bake_does_not_build_the_training_self_collision_neighbourhood(monkeypatch):
+    """The rest neighbourhood of the self-collision loss (Eq. 6) is training's alone: its pairs grow as the square
+    of the vertex count (a 213k-vertex garment took over 24 GB and was killed); the model deformer and
+    `prepare_garment(near=False)` leave it out, training's `prepare_garment` builds it."""
+    import core.preprocess as P
+    from core.body import default_body
+    from core.model_data import prepare_garment
+    from core.model_deform import load_model_deformer
+    from core.motion import Motion
+    from formats.obj import read_garment
+    from tests.extremes.test_extremes import still
+
+    calls = []
+    build = P.geodesic_neighbourhood
+    monkeypatch.setattr(P, "geodesic_neighbourhood", lambda *a, **k: calls.append(1) or build(*a, **k))
+    body = default_body()
+    garment = read_garment(Path(__file__).resolve().parents[2] / "examples" / "skirt.obj")
+    d = load_model_deformer()
+    out = d.deform(garment, body, Motion(poses=still(2), trans=np.zeros((2, 3), np.float32), fps=30))
+    assert np.isfinite(out).all() and calls == []
+    assert all(g.near is None for g in d._garments.values())
+    assert prepare_garment(garment, body, d.model.config, near=False).near is None and calls == []
+    assert prepare_garment(garment, body, d.model.config).near.nnz > 0 and calls == [1]

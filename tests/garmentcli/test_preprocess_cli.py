@@ -23,6 +23,12 @@ def test_happy_path_miss_then_hit(scene):
     r3 = run(*args[:-2], "--landmarks", "16", "--levels", "3")
     assert "cache miss" in r3.output and "level 3:" in r3.output
 
+    assert "self-collision" not in r.output  # bake's entry: no training neighbourhood
+    r4 = run(*args, "--self-collision")
+    assert r4.exit_code == 0 and "cache miss" in r4.output, r4.output
+    assert "self-collision: " in r4.output and "vertex pairs within 10 cm" in r4.output
+    assert len(list(cache.glob("preprocess-*.npz"))) == 3
+
 
 def test_env_cache_dir_and_no_cache(scene):
     env = {"GARMENT_CACHE_DIR": str(scene["dir"] / "envcache")}
