@@ -131,6 +131,9 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     except ImportError:
         raise click.ClickException("tradeoff needs the reference simulator: pip install 'garment[sim]'") from None
     target = Path(out_dir) / f"{Path(garment_path).stem}_{Path(motion_path).stem}"
+    if target.exists() and not target.is_dir():  # --overwrite replaces a result folder, not another file
+        raise click.ClickException(f"output '{target}' is a file: expected the scene's result folder there (remove "
+                                   "it, or choose another --out)")
     if target.exists() and not (overwrite or reuse_sim):
         raise click.ClickException(f"output '{target}' exists: pass --overwrite to replace it (or --reuse-sim to "
                                    "keep its simulations)")

@@ -2,6 +2,7 @@
 
 import csv
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -345,3 +346,10 @@ def test_a_calibrate_file_that_cannot_take_the_scene_or_a_name_given_twice_stops
     assert r3.exit_code != 0 and "--model" in r3.output and "expected distinct names, got 'a' twice" in r3.output
     assert not measured and not scene["out"].exists()
     assert not any("Traceback" in x.output for x in (r, r2, r3))
+    # a file where the scene's result folder goes: --overwrite replaced folders only (a traceback after the run)
+    scene["out"].mkdir()
+    taken = scene["out"] / f"{Path(scene['garment']).stem}_{Path(scene['motion']).stem}"
+    taken.write_text("not a folder\n")
+    r4 = invoke([*base, "--overwrite"])
+    assert r4.exit_code != 0 and f"output '{taken}' is a file: expected the scene's result folder" in r4.output
+    assert not measured and taken.read_text() == "not a folder\n" and "Traceback" not in r4.output
