@@ -507,6 +507,8 @@ def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None,
 
 #: Garment files read as USD stages (`formats.usd.read_usd_garment`); every other is read as OBJ.
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
+#: The USD files `formats.usd.write_usd_stage` writes: the crate (binary) format, or text for .usda.
+STAGE_SUFFIXES = (".usd", ".usda", ".usdc")
 
 
 def read_garment(path: str | os.PathLike) -> Garment:

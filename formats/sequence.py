@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from formats.obj import mtllib_text, obj_face_text, obj_vertex_text, parse_obj, triangulate
+from formats.obj import STAGE_SUFFIXES, mtllib_text, obj_face_text, obj_vertex_text, parse_obj, triangulate
 from formats.usd import read_usd
 
 log = logging.getLogger(__name__)
 
 SEQUENCE_JSON = "sequence.json"
-USD_SUFFIXES = (".usd", ".usda", ".usdc")
+USD_SUFFIXES = STAGE_SUFFIXES
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,6 +20,7 @@ from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 from core.errors import InputError
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
 from formats.atomic import atomic_file
+from formats.obj import STAGE_SUFFIXES
 
 ROOT = "/Root"
 
@@ -117,6 +118,22 @@ def _check_track(track: MeshTrack, n_frames: int | None) -> None:
                          f"got {np.asarray(track.uvs).shape}")
 
 
+def garment_track(garment, points: np.ndarray, name: str = "garment", color=(0.80, 0.33, 0.25)) -> MeshTrack:
+    """`garment` (a `core.garment.Garment`) at (T, V, 3) `points` as its file has it (`Garment.written`: its point
+    numbering, polygons, UV seams as a face-varying `st`, material subsets and their looks from its material
+    libraries)."""
+    from formats.mtl import read_libraries
+
+    points, faces, uvs, face_uvs, _ = garment.written(points)
+    face_uv = None
+    if uvs is not None and face_uvs is not None:
+        face_uv = uvs[face_uvs[faces >= 0]].reshape(-1, 2)  # face-varying, in corner order
+    source = garment.source
+    return MeshTrack(name, points, faces, uvs=face_uv, color=color,
+                     groups=None if source is None else source.material_groups(),
+                     looks=read_libraries(() if source is None else source.libraries))
+
+
 def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float, start_frame: int = 0,
                     up_axis: str = "Z", meters_per_unit: float = 1.0, metadata: dict | None = None) -> None:
     """Write time-sampled meshes to a USD stage.
@@ -133,7 +150,7 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
     leaves no partial stage.
     """
     path = Path(path)
-    if path.suffix.lower() not in (".usd", ".usda", ".usdc"):
+    if path.suffix.lower() not in STAGE_SUFFIXES:
         raise InputError(f"USD stage '{path}': expected a .usd, .usda or .usdc file name, got '{path.suffix}'")
     if not meshes:
         raise InputError(f"USD stage '{path}': expected at least one mesh track, got none")

@@ -106,24 +106,19 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
                        start_frame: int = 0) -> None:
     """USD stage (garment + body) and the OBJ sequence into `directory`. The garment is written as its file has
     it (`garment.source`: its point numbering, quads and UV seams), where that differs from the mesh deformed."""
-    from formats.mtl import copy_material_libraries, read_libraries
+    from formats.mtl import copy_material_libraries
     from formats.sequence import write_obj_sequence
-    from formats.usd import MeshTrack, write_usd_stage
+    from formats.usd import MeshTrack, garment_track, write_usd_stage
 
     fps = result.summary["fps"]
-    points, faces, uvs, face_uvs, materials = garment.written(result.garment_points)
-    face_uv = None
-    if uvs is not None and face_uvs is not None:
-        face_uv = uvs[face_uvs[faces >= 0]].reshape(-1, 2)  # face-varying, in corner order
     libraries = () if garment.source is None else garment.source.libraries
-    tracks = [MeshTrack("garment", points, faces, uvs=face_uv, color=(0.80, 0.33, 0.25),
-                        groups=None if garment.source is None else garment.source.material_groups(),
-                        looks=read_libraries(libraries))]
+    tracks = [garment_track(garment, result.garment_points)]
     if result.body_points is not None:
         tracks.append(MeshTrack("body", result.body_points, body.faces, uvs=None, color=(0.75, 0.75, 0.78)))
     write_usd_stage(directory / f"{stem}.usd", tracks, fps=fps, start_frame=start_frame,
                     metadata={"garment_method": result.summary["method"], "garment_settle_frames": result.summary["settle_frames"]})
     if write_obj:  # the material libraries copied beside the frames, their textures' paths leading to them
+        points, faces, uvs, face_uvs, materials = garment.written(result.garment_points)
         write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps, materials=materials,
                            libraries=copy_material_libraries(libraries, directory / "obj"), start=start_frame)
 

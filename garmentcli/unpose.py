@@ -10,6 +10,7 @@ import click
 import numpy as np
 
 from core.unpose import A_POSE_ARM_DEGREES
+from formats.obj import STAGE_SUFFIXES
 from garmentcli.common import OutputPath, body_option, input_errors_as_click, load_body_option, parse_betas
 
 
@@ -36,6 +37,26 @@ def _check_shape(ctx, param, value):
     return None if value is None else parse_betas(value)
 
 
+def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwrite: bool) -> None:
+    """`garment` at `rest_points` as its file has it (its points in order, its quads, UVs and materials), as bake
+    writes its outputs; its material libraries beside it (where it is written elsewhere than GARMENT's folder)."""
+    from formats.atomic import atomic_file
+    from formats.mtl import copy_material_libraries
+    from formats.obj import write_obj
+
+    *mesh, materials = garment.written(rest_points)
+    libraries = () if garment.source is None else garment.source.libraries
+    copies = [lib for lib in libraries if (out.parent / Path(lib).name).resolve() != Path(lib).resolve()]
+    taken = [out.parent / Path(lib).name for lib in copies if (out.parent / Path(lib).name).exists()]
+    if taken and not overwrite:
+        raise click.ClickException(f"output '{taken[0]}' (GARMENT's material library, written beside the result) "
+                                   f"exists: pass --overwrite to replace it")
+    names = [Path(lib).name for lib in libraries if lib not in copies]
+    names += copy_material_libraries(copies, out.parent)
+    with atomic_file(out) as tmp:
+        write_obj(tmp, *mesh, header=header, materials=materials, libraries=names)
+
+
 @click.command(name="unpose")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
 @click.option("--pose", "pose_spec", required=True, metavar="tpose|apose|POSE.npz",
@@ -51,7 +72,8 @@ def _check_shape(ctx, param, value):
 @click.option("--frame", type=click.IntRange(min=0), default=None, help="POSE.npz: the frame to use [default: 0].")
 @body_option
 @click.option("--out", "out_path", type=OutputPath(dir_okay=False), default=None,
-              help="Output OBJ [default: <garment>_rest.obj beside GARMENT].")
+              help="Output OBJ, or USD (.usd/.usda/.usdc: one static mesh, Y-up metres, its materials as "
+                   "UsdPreviewSurface) [default: <garment>_rest.obj beside GARMENT].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 @input_errors_as_click
 def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite, betas_text=None):
@@ -59,22 +81,21 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     and mean shape.
 
     Each vertex follows the body part it lies on, by the inverse of the linear blend skinning that
-    `bake --method lbs` applies. Writes an OBJ (UVs kept) that `bake` and the other commands accept.
+    `bake --method lbs` applies. Writes an OBJ or USD (UVs and materials kept) that `bake` and the other
+    commands accept.
     """
     from core.motion import poses_for_body
     from core.skinning import bind_garment
     from core.unpose import a_pose, unpose_garment
-    from formats.atomic import atomic_file
     from formats.motion import load_motion
-    from formats.mtl import copy_material_libraries
-    from formats.obj import read_garment, write_obj
+    from formats.obj import read_garment
 
     source = Path(garment_path)
     if not source.is_file():
         raise click.FileError(str(source), hint="no such file")
     out = Path(out_path) if out_path else source.with_name(f"{source.stem}_rest.obj")
-    if out.suffix.lower() != ".obj":
-        raise click.BadParameter(f"expected an .obj file (unpose writes an OBJ), got '{out}'", param_hint="--out")
+    if out.suffix.lower() not in (".obj", *STAGE_SUFFIXES):
+        raise click.BadParameter(f"expected an .obj, .usd, .usda or .usdc file, got '{out}'", param_hint="--out")
     if out.resolve() == source.resolve():
         raise click.BadParameter(f"'{out}' is GARMENT itself: write the result elsewhere", param_hint="--out")
     body = load_body_option(body_path)
@@ -121,20 +142,14 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         bind_garment(rest, body, source=f"{source}")
     finally:
         skinning_log.removeFilter(about_input)
-    # Written as the file has it (its points in order, its quads, UVs and materials), as bake writes its outputs;
-    # its material libraries beside it (where it is written elsewhere than GARMENT's folder).
-    *mesh, materials = garment.written(rest.vertices)
-    libraries = () if garment.source is None else garment.source.libraries
-    copies = [lib for lib in libraries if (out.parent / Path(lib).name).resolve() != Path(lib).resolve()]
-    taken = [out.parent / Path(lib).name for lib in copies if (out.parent / Path(lib).name).exists()]
-    if taken and not overwrite:
-        raise click.ClickException(f"output '{taken[0]}' (GARMENT's material library, written beside the result) "
-                                   f"exists: pass --overwrite to replace it")
-    names = [Path(lib).name for lib in libraries if lib not in copies]
-    names += copy_material_libraries(copies, out.parent)
-    with atomic_file(out) as tmp:
-        write_obj(tmp, *mesh, header=f"'{source.name}' unposed from {what} by `garment unpose` onto body '{body.name}'",
-                  materials=materials, libraries=names)
+    header = f"'{source.name}' unposed from {what} by `garment unpose` onto body '{body.name}'"
+    if out.suffix.lower() in STAGE_SUFFIXES:  # one static mesh in the rest frame (Y-up, metres), its looks inside
+        from formats.usd import garment_track, write_usd_stage
+
+        write_usd_stage(out, [garment_track(garment, rest.vertices[None])], fps=30.0, up_axis="Y",
+                        metadata={"garment_note": header})
+    else:
+        _write_obj(out, garment, rest.vertices, header, overwrite)
     target = "the rest pose" + (" and mean shape" if betas is not None else "")
     click.echo(f"{out}: {rest.n_vertices} vertices moved to {target} from {what} (largest move "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "

@@ -72,6 +72,34 @@ def test_unpose_keeps_the_material_library(a_posed, tmp_path):
     assert r.exit_code != 0 and "shirt.mtl' (GARMENT's material library" in r.output and not out.exists()
 
 
+def test_unpose_writes_usd_that_reads_back_as_its_obj_and_bakes(a_posed, tmp_path):
+    """--out .usda/.usd: one static mesh in the rest frame (Y-up, metres) with the OBJ's points, UVs and material
+    subsets (it was refused: unpose wrote OBJ only); bake takes it."""
+    from pxr import Usd, UsdGeom
+
+    from formats.obj import read_garment
+
+    path, _ = a_posed
+    folder = tmp_path / "asset"
+    folder.mkdir()
+    (folder / "shirt.mtl").write_text("newmtl cotton\nKd 0.2 0.4 0.6\n")
+    shirt = folder / "shirt.obj"
+    shirt.write_text("mtllib shirt.mtl\nusemtl cotton\n" + path.read_text())
+    obj, usd = tmp_path / "rest.obj", tmp_path / "rest.usda"
+    for out in (obj, usd):
+        r = invoke(["unpose", shirt, "--pose", "apose", "--out", out])
+        assert r.exit_code == 0, r.output
+    stage = Usd.Stage.Open(str(usd))
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.y and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/garment"))
+    assert [s.GetPrim().GetName() for s in UsdGeom.Subset.GetAllGeomSubsets(mesh)] == ["cotton"]
+    a, b = read_garment(obj), read_garment(usd)
+    np.testing.assert_allclose(b.vertices, a.vertices, atol=1e-6)
+    assert np.array_equal(b.faces, a.faces) and np.allclose(b.uvs[b.face_uvs], a.uvs[a.face_uvs], atol=1e-6)
+    r = invoke(["bake", usd, EXAMPLES / "walk.npz", "--frames", "0:2", "--method", "lbs", "--out", tmp_path / "b"])
+    assert r.exit_code == 0, r.output
+
+
 def test_unpose_writes_the_files_own_points(a_posed, tmp_path):
     """A stray vertex no face uses (the file's last) is written back where its nearest vertex went: the output has
     the input's points, in order."""
@@ -153,8 +181,8 @@ def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
     (["--pose", str(EXAMPLES / "walk.npz"), "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", str(EXAMPLES / "walk.npz"), "--frame", 9999], "expected a frame in 0..180"),
     (["--pose", "apose", "--out", "SELF"], "is GARMENT itself"),
-    (["--pose", "apose", "--out", "up9.usd"], "expected an .obj file (unpose writes an OBJ), got 'up9.usd'"),
-    (["--pose", "apose", "--out", "up15"], "expected an .obj file (unpose writes an OBJ), got 'up15'"),
+    (["--pose", "apose", "--out", "up9.usdz"], "expected an .obj, .usd, .usda or .usdc file, got 'up9.usdz'"),
+    (["--pose", "apose", "--out", "up15"], "expected an .obj, .usd, .usda or .usdc file, got 'up15'"),
 ])
 def test_unpose_bad_input_one_line_nothing_written(a_posed, args, needle):
     path, _ = a_posed
