@@ -22,6 +22,10 @@ from core.motion import Motion, poses_for_body, written
 PENETRATION_DEPTH_M = 0.002
 #: Penetration statistics are computed on at most this many frames (evenly spaced).
 MAX_CHECKED_FRAMES = 60
+#: ... and at most this many vertex-frames, but at least MIN_CHECKED_FRAMES frames: each garment vertex of a checked
+#: frame is a closest-point query on the body (60 frames of a 53k-vertex garment took 23 s, the LBS bake 0.4 s).
+MAX_CHECKED_VERTEX_FRAMES = 1_000_000
+MIN_CHECKED_FRAMES = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,12 +39,14 @@ class BakeResult:
 
 def penetration_stats(garment_points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
                       max_frames: int = MAX_CHECKED_FRAMES, depth: float = PENETRATION_DEPTH_M) -> dict:
-    """Share of garment vertices more than `depth` inside the body on evenly spaced frames.
+    """Share of garment vertices more than `depth` inside the body on evenly spaced frames: `max_frames`, fewer
+    for a garment of more than MAX_CHECKED_VERTEX_FRAMES / max_frames vertices (MIN_CHECKED_FRAMES at least).
 
     garment_points: (T, V, 3); body_points: (T, Vb, 3); body_faces: (Fb, 3).
     Returns a JSON-ready dict (percentages, the frames checked).
     """
-    T = garment_points.shape[0]
+    T, V = garment_points.shape[:2]
+    max_frames = min(max_frames, max(MIN_CHECKED_FRAMES, MAX_CHECKED_VERTEX_FRAMES // max(V, 1)))
     frames = np.unique(np.linspace(0, T - 1, min(T, max_frames)).round().astype(int))
     share = penetration_per_frame(garment_points[frames], body_points[frames], body_faces, depth) * 100.0
     return {
