@@ -409,8 +409,10 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     _check_memory(garment, body, [(mo, src_fps, m) for (mo, src_fps), m, _ in motions], method,
                   workers if not scheduler else 1)
     if method == "model":
-        deformer.prepare(garment, body, source=garment_path)
-        fallback = _training_range_guard(deformer, garment, body, garment_path, explicit)
+        fallback = _body_joints_guard(deformer, body, explicit)
+        if not fallback:
+            deformer.prepare(garment, body, source=garment_path)
+            fallback = _training_range_guard(deformer, garment, body, garment_path, explicit)
         if fallback:
             method, model_path, precision, device = "lbs", None, None, None
             deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
@@ -536,6 +538,23 @@ def _echo_throughput(frames: int, motions: int, seconds: float) -> None:
     if motions > 1:
         click.echo(f"baked {frames} frames of {motions} motions in {seconds:.1f} s: {frames / max(seconds, 1e-9):.1f} "
                    "frames/s (writing included)")
+
+
+def _body_joints_guard(deformer, body, explicit: bool) -> str:
+    """A body whose skeleton is not the model's (an SMPL+H or SMPL-X body for a model of SMPL's 24 joints): the
+    JSON of a fall-back to lbs when the model was not asked for by name, else a click error naming both."""
+    inner = getattr(deformer, "inner", deformer)  # under --push-out
+    want = inner.model.config.n_joints
+    if body.n_joints == want:
+        return ""
+    what = (f"model '{inner.model_name}' was trained for a body of {want} joints, got body '{body.name}' with "
+            f"{body.n_joints}")
+    if explicit:
+        raise click.ClickException(f"{what}: bake with --method lbs (or psd), or train a model on this body "
+                                   "(garment dataset/train --body)")
+    click.echo(f"{what}: baking with lbs instead", err=True)
+    return json.dumps({"from": "model", "to": "lbs", "model": inner.model_name, "reason": "body joints",
+                       "model_joints": want, "body_joints": body.n_joints})
 
 
 def _training_range_guard(deformer, garment, body, garment_path, explicit: bool) -> str:

@@ -79,6 +79,37 @@ def test_garment_outside_the_training_range_is_baked_with_lbs_unless_the_model_i
     assert summary["method"] == "model" and "method_fallback" not in summary
 
 
+def test_a_body_of_another_skeleton_is_baked_with_lbs_unless_the_model_is_asked_for(tmp_path):
+    """An SMPL+H-style body (52 joints: the default body with 30 finger joints on the wrists) for the 24-joint
+    model: the default method bakes with lbs, saying why, recorded in summary.json; --method model is one line
+    naming both skeletons (it was "expected a body with 24 joints" from deep in the model)."""
+    from core.body import default_body
+
+    body = default_body()
+    extra = 52 - body.n_joints
+    wrists = [20] * (extra // 2) + [21] * (extra - extra // 2)
+    parents = np.r_[body.parents, wrists].astype(np.int64)
+    kintree = np.stack([parents, np.arange(52)])
+    kintree[0, 0] = 2**32 - 1
+    path = tmp_path / "smplh_like.npz"
+    np.savez(path, v_template=body.v_template, shapedirs=body.shapedirs, f=body.faces.astype(np.uint32),
+             J_regressor=np.r_[body.J_regressor, body.J_regressor[wrists]],
+             weights=np.c_[body.weights, np.zeros((body.n_vertices, extra), np.float32)],
+             kintree_table=kintree.astype(np.int64))
+    skirt = ROOT / "examples" / "skirt.obj"
+    default, summary, out = _bake(skirt, tmp_path / "default", "--body", path)
+    assert "was trained for a body of 24 joints, got body 'smplh_like' with 52: baking with lbs instead" in out
+    assert summary["method"] == "lbs" and summary["method_fallback"]["body_joints"] == 52
+    lbs, _, _ = _bake(skirt, tmp_path / "lbs", "--body", path, "--method", "lbs")
+    np.testing.assert_allclose(default, lbs, atol=1e-6)
+    r = invoke_default(["bake", skirt, ROOT / "examples" / "run.npz", "--frames", "0:8", "--body", path,
+                        "--method", "model", "--out", tmp_path / "model"])
+    assert r.exit_code != 0 and "Traceback" not in r.output and not (tmp_path / "model").exists()
+    assert r.output.strip().splitlines()[-1].endswith(
+        "got body 'smplh_like' with 52: bake with --method lbs (or psd), or train a model on this body "
+        "(garment dataset/train --body)")
+
+
 def test_training_range_shares():
     from core.model_deform import training_range
 
