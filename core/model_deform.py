@@ -222,9 +222,9 @@ class ModelDeformer(Deformer):
             raise InputError(f"model lead-in: expected a non-negative number of seconds, got {lead_in_s!r}")
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
-        if body.n_joints != self.model.config.n_joints:
-            raise InputError(f"model '{self.model_name}': expected a body with {self.model.config.n_joints} joints, "
-                             f"got '{body.name}' with {body.n_joints}")
+        mismatch = skeleton_mismatch(self.model_name, self.model.config.n_joints, body)
+        if mismatch:
+            raise InputError(mismatch)
         key = (garment.content_hash(), id(body))
         if key not in self._garments:
             self._garments[key] = prepare_garment(garment, body, self.model.config, self.cache_dir, source,
@@ -320,6 +320,15 @@ class ModelDeformer(Deformer):
         self.report.update(guard)
         self.scene = scene.report
         return out
+
+
+def skeleton_mismatch(model_name: str, n_joints: int, body: Body) -> str:
+    """Why a model of `n_joints` cannot run on `body` (an SMPL+H or SMPL-X body for a model of SMPL's 24
+    joints), or "" when it can."""
+    if body.n_joints == n_joints:
+        return ""
+    return (f"model '{model_name}' was trained for a body of {n_joints} joints, got body '{body.name}' with "
+            f"{body.n_joints}")
 
 
 def load_model_deformer(path=None, **kwargs) -> ModelDeformer:

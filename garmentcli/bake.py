@@ -543,12 +543,13 @@ def _echo_throughput(frames: int, motions: int, seconds: float) -> None:
 def _body_joints_guard(deformer, body, explicit: bool) -> str:
     """A body whose skeleton is not the model's (an SMPL+H or SMPL-X body for a model of SMPL's 24 joints): the
     JSON of a fall-back to lbs when the model was not asked for by name, else a click error naming both."""
+    from core.model_deform import skeleton_mismatch
+
     inner = getattr(deformer, "inner", deformer)  # under --push-out
     want = inner.model.config.n_joints
-    if body.n_joints == want:
+    what = skeleton_mismatch(inner.model_name, want, body)
+    if not what:
         return ""
-    what = (f"model '{inner.model_name}' was trained for a body of {want} joints, got body '{body.name}' with "
-            f"{body.n_joints}")
     if explicit:
         raise click.ClickException(f"{what}: bake with --method lbs (or psd), or train a model on this body "
                                    "(garment dataset/train --body)")

@@ -55,6 +55,25 @@ def _models(specs: tuple) -> dict:
     return _named_files(specs, "--model", "model") if specs else {"model": None}  # None: the shipped model
 
 
+def _models_for_body(models: dict, body) -> dict:
+    """The models that run on `body`: a --model of another skeleton is refused, the shipped one's rows left out
+    with a line saying why (an SMPL+H or SMPL-X body for its 24 joints)."""
+    from core.model_deform import DEFAULT_MODEL, skeleton_mismatch
+    from formats.checkpoint import load_checkpoint
+
+    kept = {}
+    for name, path in models.items():
+        what = skeleton_mismatch(str(path or DEFAULT_MODEL), load_checkpoint(path or DEFAULT_MODEL)["config"]["n_joints"],
+                                 body)
+        if not what:
+            kept[name] = path
+        elif path is not None:
+            raise click.BadParameter(f"{what} (leave it out, or pass the --body it was made for)", param_hint="--model")
+        else:
+            click.echo(f"tradeoff: {what}: its rows are left out", err=True)
+    return kept
+
+
 def _named_files(specs: tuple, option: str, what: str) -> dict:
     """NAME=PATH specs of `option` -> {name: path}; BadParameter for a malformed one or a missing file."""
     out = {}
@@ -150,6 +169,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body)
     from formats.cache import default_cache_dir
 
+    models = _models_for_body(models, body)
     rows = configurations(models, spread=spread, fits=fits)
     scene = simulation_scene(garment, body, motion)
     results, failed, reused = [], [], []

@@ -353,3 +353,34 @@ def test_a_calibrate_file_that_cannot_take_the_scene_or_a_name_given_twice_stops
     r4 = invoke([*base, "--overwrite"])
     assert r4.exit_code != 0 and f"output '{taken}' is a file: expected the scene's result folder" in r4.output
     assert not measured and taken.read_text() == "not a folder\n" and "Traceback" not in r4.output
+
+
+def test_a_body_of_another_skeleton_leaves_the_shipped_models_rows_out_and_refuses_a_named_one(scene, monkeypatch):
+    """A 52-joint body (SMPL+H-like: the tiny body with 28 more joints on its last): the shipped model's rows are
+    left out with a line saying why (they stopped the run with the model's error), a --model of 24 joints is
+    refused before any row."""
+    import garmentcli.tradeoff
+    from core.model_deform import DEFAULT_MODEL
+    from tests.meshes import tiny_body
+
+    body = tiny_body()
+    extra = 52 - body.n_joints
+    parents = np.r_[body.parents, [body.n_joints - 1] * extra].astype(np.int64)
+    kintree = np.stack([parents, np.arange(52)])
+    kintree[0, 0] = 2**32 - 1
+    path = scene["dir"] / "body52.npz"
+    np.savez(path, v_template=body.v_template, shapedirs=body.shapedirs, f=body.faces.astype(np.uint32),
+             J_regressor=np.r_[body.J_regressor, np.repeat(body.J_regressor[-1:], extra, axis=0)],
+             weights=np.c_[body.weights, np.zeros((body.n_vertices, extra), np.float32)],
+             kintree_table=kintree.astype(np.int64))
+    measured = []
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
+    base = ["tradeoff", scene["garment"], scene["motion"], "--body", path, "--frames", "0:4", "--out", scene["out"]]
+    r = invoke([*base, "--model", f"mine={DEFAULT_MODEL}"])
+    assert r.exit_code != 0 and "Traceback" not in r.output and not measured
+    assert "was trained for a body of 24 joints, got body 'body52' with 52 (leave it out" in r.output
+    r = invoke(base)
+    assert r.exit_code == 0, r.output
+    assert "got body 'body52' with 52: its rows are left out" in r.output
+    assert measured and not any("float32" in name or "bfloat16" in name for name in measured)
+    assert "lbs" in measured and any(name.startswith("sim") for name in measured)
