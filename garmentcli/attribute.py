@@ -57,6 +57,7 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
 
     from core.attribution import DeformationTarget, attribution_table, integrated_gradients
     from core.model_data import prepare_garment
+    from core.model_deform import skeleton_mismatch
     from formats.atomic import atomic_dir
     from formats.checkpoint import load_model
     from formats.obj import read_garment
@@ -67,6 +68,9 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     model, _ = load_model(model_path)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
+    mismatch = skeleton_mismatch(str(model_path), model.config.n_joints, body)
+    if mismatch:
+        raise click.ClickException(f"{mismatch}: pass the --body it was made for")
     motion, _ = prepare_motion(motion_path, fps, None, 0, body=body)
     out = Path(out_dir or f"{Path(garment_path).stem}_{Path(motion_path).stem}_f{frame}_attribution")
     if out.exists() and not overwrite:

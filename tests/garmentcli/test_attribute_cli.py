@@ -1,5 +1,6 @@
 """`garment attribute`: outputs on a tiny scene, and every bad input refused with one clear line."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -61,3 +62,11 @@ def test_attribute_bad_inputs(scene, model_path, tmp_path):
     assert r.exit_code != 0 and "notamodel.pt" in r.output
     r = run("attribute", *base, "--out", tmp_path / "a")
     assert r.exit_code != 0 and "--frame" in r.output
+    # a model of another skeleton than the body's: one line naming both, before the progress bar
+    config52 = dataclasses.replace(TINY_CONFIG, n_joints=52)
+    other = save_checkpoint(tmp_path / "m52.pt", config52, perturbed_model(config52, 0.2).state_dict())
+    r = run("attribute", other, *base[1:], "--frame", 1, "--out", tmp_path / "a")
+    assert r.exit_code != 0 and "attribute (" not in r.output and not (tmp_path / "a").exists()
+    assert r.output.strip().splitlines()[-1].endswith(
+        f"model '{other}' was trained for a body of 52 joints, got body 'tiny_body' with 24: pass the --body it "
+        "was made for")
