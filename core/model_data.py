@@ -26,10 +26,10 @@ import torch
 from core.body import Body
 from core.errors import InputError
 from core.garment import Garment
+from core.geodesic import SELF_COLLISION_GEODESIC_M
 from core.losses import rest_uv_frame, vertex_masses
 from core.model import (GarmentInputs, ModelConfig, MotionFeatures, body_distances, garment_inputs, motion_features,
                         shaped_rest, tensors_to)
-from core.geodesic import SELF_COLLISION_GEODESIC_M
 from core.preprocess import preprocess_garment
 from core.skinning import bind_garment
 
@@ -43,7 +43,8 @@ PRIOR_SMOOTH_ITERATIONS = 10
 class GarmentData:
     """One garment ready for training and inference.
 
-    inputs: GarmentInputs. near: (V, V) sparse rest 10 cm neighbourhood (Eq. 6). masses: (V,) kg.
+    inputs: GarmentInputs. near: (V, V) sparse rest 10 cm neighbourhood (Eq. 6), None where not built
+    (`prepare_garment(near=False)`, inference). masses: (V,) kg.
     dm_inv: (F, 2, 2) rest (u, v) frames (Eq. 10); area: (F,) m^2.
     """
 
