@@ -25,6 +25,14 @@ from formats.atomic import atomic_file
 
 log = logging.getLogger(__name__)
 
+#: What a motion file of another format is, for the message refusing it (only SMPL parameters drive the body).
+_OTHER_MOTION_FORMATS = {
+    **dict.fromkeys((".bvh", ".fbx", ".c3d", ".trc"), "motion capture of a skeleton (BVH/FBX/C3D/TRC), not SMPL "
+                    "parameters: fit SMPL to it first (AMASS's MoSh, or a retargeting tool), then save the npz"),
+    ".pkl": "a Python pickle (SMPL parameters from a pose estimator? save its 'poses' (T, 72) and 'trans' (T, 3) "
+            "with np.savez, adding 'mocap_framerate')",
+    ".json": "a JSON file",
+}
 #: Where a frame rate is found (AMASS's two spellings first, then those of other SMPL pipelines).
 FRAMERATE_KEYS = ("mocap_framerate", "mocap_frame_rate", "mocap_fps", "fps", "framerate", "frame_rate")
 _VALUES_PER_FRAME = {3 * n: n for n in LAYOUT_JOINTS.values()}  # 72, 156, 165 -> joints
@@ -67,8 +75,9 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     if magic == b"\x93NUMPY":
         raise InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
     if not magic.startswith(b"PK"):
-        raise InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays), "
-                         f"got a file that is not one")
+        kind = _OTHER_MOTION_FORMATS.get(path.suffix.lower(), "a file that is not one")
+        raise InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays: SMPL joint rotations "
+                         f"'poses', 'trans', a frame rate), got {kind}")
     try:
         data = np.load(path, allow_pickle=False)
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
