@@ -511,12 +511,22 @@ USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 STAGE_SUFFIXES = (".usd", ".usda", ".usdc")
 
 
+#: Mesh formats that are not read, by suffix: what the refusal calls them.
+OTHER_MESH_FORMATS = {".ply": "PLY", ".stl": "STL", ".fbx": "FBX", ".glb": "glTF", ".gltf": "glTF",
+                      ".abc": "Alembic", ".dae": "COLLADA", ".blend": "Blender", ".zprj": "Marvelous Designer project",
+                      ".zpac": "Marvelous Designer garment", ".avt": "Marvelous Designer avatar"}
+
+
 def read_garment(path: str | os.PathLike) -> Garment:
     """A garment file: a USD stage (by its suffix, `USD_SUFFIXES`) or else an OBJ (`read_obj`)."""
-    if Path(path).suffix.lower() in USD_SUFFIXES:
+    suffix = Path(path).suffix.lower()
+    if suffix in USD_SUFFIXES:
         from formats.usd import read_usd_garment
 
         return read_usd_garment(path)
+    if suffix in OTHER_MESH_FORMATS and Path(path).is_file():
+        raise InputError(f"garment mesh '{path}': expected an OBJ or USD garment, got a {OTHER_MESH_FORMATS[suffix]} "
+                         "file: export the garment as OBJ (or USD) on the body's rest pose from the tool that made it")
     try:  # binary content is no OBJ: say what it is instead of finding no 'v' lines in it
         with open(path, "rb") as fh:
             head = fh.read(4096)

@@ -416,3 +416,17 @@ def test_written_material_libraries_read_back_with_spaces_in_their_names(tmp_pat
     write_obj(path, np.eye(3), np.array([[0, 1, 2]]), materials=np.array(["a"]), libraries=["extra.mtl", "my shirt.mtl"])
     assert read_obj(path).source.libraries == (str((tmp_path / "extra.mtl").resolve()),
                                                str((tmp_path / "my shirt.mtl").resolve()))
+
+
+@pytest.mark.parametrize("name, kind", [("dress.ply", "PLY"), ("dress.FBX", "FBX"), ("dress.glb", "glTF"),
+                                        ("dress.abc", "Alembic"), ("dress.zprj", "Marvelous Designer project")])
+def test_a_mesh_of_another_format_is_named_for_what_it_is(tmp_path, name, kind):
+    """A PLY (ASCII, so no binary content to tell) said "expected vertices ('v' lines), got none"."""
+    from formats.obj import read_garment
+
+    path = tmp_path / name
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 3\n")
+    with pytest.raises(InputError) as info:
+        read_garment(path)
+    assert str(info.value) == (f"garment mesh '{path}': expected an OBJ or USD garment, got a {kind} file: export the "
+                               "garment as OBJ (or USD) on the body's rest pose from the tool that made it")
