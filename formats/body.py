@@ -102,13 +102,18 @@ def body_from_file_arrays(arrays: dict, name: str, source: str) -> Body:
 def _read_npz(path: Path, label: str) -> dict:
     try:
         with np.load(path, allow_pickle=False) as data:
+            files = list(data.files)
             arrays = {}
-            for key in data.files:
+            for key in files:
                 if key in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table",
                            "parents", "f", "faces") or key.endswith(("_indices", "_values", "_shape")):
                     arrays[key] = data[key]
     except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
         raise InputError(f"{label}: cannot read it as a numpy .npz archive ({_reason(exc)})") from None
+    motion_key = next((k for k in ("poses", "pose_body", "root_orient") if k in files), None)
+    if motion_key and "v_template" not in arrays:
+        raise InputError(f"{label}: expected an SMPL-format body (v_template, shapedirs, ...), got a motion file (it "
+                         f"has '{motion_key}'): give motions as MOTION, the body with --body")
     for key in ("J_regressor", "weights"):
         if key not in arrays and f"{key}_indices" in arrays:
             try:

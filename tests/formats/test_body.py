@@ -204,6 +204,15 @@ def test_missing_keys_are_named(tmp_path, suffix):
     _one_line(e, f"m{suffix}", "missing keys", "weights", "kintree_table")
 
 
+def test_a_motion_given_as_the_body_is_named_for_what_it_is(tmp_path):
+    """An AMASS motion as --body listed six missing keys."""
+    p = tmp_path / "walk.npz"
+    np.savez(p, poses=np.zeros((2, 72)), trans=np.zeros((2, 3)), mocap_framerate=np.array(30.0))
+    with pytest.raises(InputError) as e:
+        load_body(p)
+    _one_line(e, "walk.npz", "expected an SMPL-format body", "got a motion file (it has 'poses')", "--body")
+
+
 @pytest.mark.parametrize("key,bad,needle", [
     ("weights", np.ones((V, 23)) / 23, "weights"),
     ("J_regressor", np.ones((24, V + 1)), "J_regressor"),
