@@ -47,6 +47,10 @@ from garmentcli.common import (
 
 log = logging.getLogger(__name__)
 
+#: --lbs-smooth's bound: each pass spreads the weights one ring further, so a few hundred reach across any garment
+#: (1,000,000, a typo, took minutes on a 2k-vertex skirt).
+MAX_LBS_SMOOTH = 1000
+
 
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
                   iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=(),
@@ -287,8 +291,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="Frames blending from the rest pose into the first frame, prepended to the output.")
 @preroll_option
-@click.option("--lbs-smooth", type=click.IntRange(min=0), default=LBSOptions.smooth_iterations, show_default=True,
-              help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
+@click.option("--lbs-smooth", type=click.IntRange(0, MAX_LBS_SMOOTH), default=LBSOptions.smooth_iterations,
+              show_default=True, help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="sim: cloth material JSON (fields of core.sim.Material; unknown keys are rejected).")
 @click.option("--self-contact", is_flag=True, help="sim: cloth-cloth contact (about 3-10x slower).")
@@ -343,6 +347,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                 raise click.UsageError(f"{name} applies to --quality auto only")
         explicit = method is not None
         method = method or "model"
+        if method != "lbs" and click.get_current_context().get_parameter_source("lbs_smooth") not in (
+                click.core.ParameterSource.DEFAULT, None):
+            raise click.UsageError(f"--lbs-smooth applies to --method lbs only (got --method {method})")
         if no_contact_guard and method not in ("model", "psd"):
             raise click.UsageError(f"--no-contact-guard applies to --method model and psd only (got --method {method})")
         for name in no_skip:
@@ -382,7 +389,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     # resample to more frames than fit (the cheapest method's copies, one at a time) is refused before it is.
     def check_frames(path):
         return lambda n, src_fps: _refuse_beyond_memory(garment, body, path, n, src_fps, fps,
-                                                        min(BAKE_COPIES.values()), 1)
+                                                        min(BAKE_COPIES.values()), 1, settle_frames)
 
     motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames, body=body,
                                check_frames=check_frames(m)), m, target)
@@ -407,7 +414,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         explicit = False
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
     _check_memory(garment, body, [(mo, src_fps, m) for (mo, src_fps), m, _ in motions], method,
-                  workers if not scheduler else 1)
+                  workers if not scheduler else 1, settle_frames)
     if method == "model":
         fallback = _body_joints_guard(deformer, body, explicit)
         if not fallback:
@@ -473,7 +480,7 @@ def _warnings_of(messages, motion_paths) -> tuple:
 BAKE_COPIES = {"lbs": 2.0, "model": 2.0, "psd": 2.0, "sim": 4.0}
 
 
-def _check_memory(garment, body, motions, method, parallel: int) -> None:
+def _check_memory(garment, body, motions, method, parallel: int, settle_frames: int = 0) -> None:
     """Refuse, before any work, a bake whose longest motion would not fit in the memory free now (`parallel`
     motions at once), naming the motion and the --frames that fit; a crash for want of memory writes nothing
     either, but says nothing. motions: (prepared motion, its source fps, path)."""
@@ -481,13 +488,14 @@ def _check_memory(garment, body, motions, method, parallel: int) -> None:
         return
     motion, source_fps, path = max(motions, key=lambda x: x[0].n_frames)
     _refuse_beyond_memory(garment, body, path, motion.n_frames, source_fps, motion.fps, BAKE_COPIES[method],
-                          max(1, min(parallel, len(motions))))
+                          max(1, min(parallel, len(motions))), settle_frames)
 
 
 def _refuse_beyond_memory(garment, body, path, n_frames: int, source_fps: float, fps: float, copies: float,
-                          at_once: int) -> None:
-    """The click error of `_check_memory` where `n_frames` frames at `fps` (of a motion at `source_fps`), `at_once`
-    motions at a time with `copies` (BAKE_COPIES), would not fit in the memory free now."""
+                          at_once: int, settle_frames: int = 0) -> None:
+    """The click error of `_check_memory` where `n_frames` frames at `fps` (of a motion at `source_fps`; the first
+    `settle_frames` of them --settle's), `at_once` motions at a time with `copies` (BAKE_COPIES), would not fit in
+    the memory free now."""
     import psutil
 
     per_frame = (garment.n_vertices + body.n_vertices) * 12 * copies
@@ -495,7 +503,12 @@ def _refuse_beyond_memory(garment, body, path, n_frames: int, source_fps: float,
     free = psutil.virtual_memory().available
     if need <= free:
         return
-    fit = int(free / per_frame / at_once * source_fps / fps)  # in source frames, as --frames counts
+    fit = int((free / per_frame / at_once - settle_frames) * source_fps / fps)  # in source frames, as --frames counts
+    if settle_frames and fit < 1:  # the settle blend alone does not fit
+        raise click.ClickException(
+            f"--settle {settle_frames}: {settle_frames} frames of a {garment.n_vertices}-vertex garment on a "
+            f"{body.n_vertices}-vertex body need about {settle_frames * per_frame * at_once / 1e9:.3g} GB, "
+            f"{free / 1e9:.3g} GB is free: lower --settle (a few frames blend the rest pose into the motion)")
     parts = f"bake it in parts of at most {fit} source frames with --frames START:STOP" if fit >= 1 else ""
     if fps > source_fps:  # --fps multiplies the frames
         lower = f"lower --fps {fps:g} (it makes {fps / source_fps:.3g} frames of each at {source_fps:g} fps)"

@@ -117,6 +117,14 @@ BAD_CASES = {
                                ["--preroll", "--frames START:STOP"]),
     "preroll and settle": (lambda s: ["bake", s["garment"], s["motion"], "--frames", "4:", "--preroll", 3,
                                       "--settle", 2], ["--settle and --preroll"]),
+    # 1,000,000 passes (a typo) took minutes; --lbs-smooth with another method did nothing
+    "lbs-smooth typo": (lambda s: ["bake", s["garment"], s["motion"], "--method", "lbs", "--lbs-smooth", 1_000_000],
+                        ["--lbs-smooth", "0<=x<=1000"]),
+    "lbs-smooth for the simulator": (lambda s: ["bake", s["garment"], s["motion"], "--method", "sim", "--lbs-smooth",
+                                                20], ["--lbs-smooth applies to --method lbs only (got --method sim)"]),
+    # the memory refusal advised --frames parts larger than the motion
+    "settle beyond memory": (lambda s: ["bake", s["garment"], s["motion"], "--method", "lbs", "--settle", 10**10],
+                             ["--settle 10000000000: 10000000000 frames", "lower --settle"]),
 }
 
 

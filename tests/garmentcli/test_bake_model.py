@@ -126,6 +126,10 @@ def test_model_option_needs_method_model(tmp_path):
                 "--out", tmp_path])
     assert r.exit_code != 0 and "--model applies to --method model only" in r.output
     assert not any(tmp_path.iterdir())
+    # --lbs-smooth with the default method, the model, did nothing
+    r = invoke_default(["bake", EXAMPLES[0], ROOT / "examples" / "walk.npz", "--lbs-smooth", 20, "--out", tmp_path])
+    assert r.exit_code != 0 and "--lbs-smooth applies to --method lbs only (got --method model)" in r.output
+    assert not any(tmp_path.iterdir())
 
 
 def test_contact_guard_is_the_default_and_can_be_left_out(tmp_path):
