@@ -9,6 +9,11 @@ class InputError(ValueError):
     """Bad user input: a file, an array or an option value that cannot be used."""
 
 
+def frames_text(n: int) -> str:
+    """"1 frame", "5 frames": a frame count for messages."""
+    return f"{n} frame" if n == 1 else f"{n} frames"
+
+
 def check_finite_points(points, where: str, vertex: str = "vertex") -> None:
     """Raise InputError naming `where`, the first frame and vertex of (T, V, 3) `points` not finite, and which
     (NaN or Inf); `vertex` names the mesh's vertices in the message ("body vertex")."""

@@ -23,7 +23,7 @@ from typing import Callable
 
 import numpy as np
 
-from core.errors import InputError, check_finite_points
+from core.errors import InputError, check_finite_points, frames_text
 from core.garment import boundary_edges, mesh_edges
 from core.geometry import as_float, face_cross, face_normals, normalise, scatter_corners, vertex_normals  # noqa: F401
 
@@ -275,11 +275,6 @@ def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points:
     if Tp != Tg:
         raise InputError(f"'{pred_name}' has {frames_text(Tp)}, '{gt_name}' has {Tg}: expected the same "
                          "frame count (trim or resample one of them to match)")
-
-
-def frames_text(n: int) -> str:
-    """"1 frame", "5 frames": a frame count for messages."""
-    return f"{n} frame" if n == 1 else f"{n} frames"
 
 
 def _edge_keys(faces: np.ndarray, n_vertices: int) -> np.ndarray:

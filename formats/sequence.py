@@ -19,14 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, frames_text
 from formats.obj import STAGE_SUFFIXES, mtllib_text, obj_face_text, obj_vertex_text, parse_obj, triangulate
 from formats.usd import read_usd
 
 log = logging.getLogger(__name__)
 
 SEQUENCE_JSON = "sequence.json"
-USD_SUFFIXES = STAGE_SUFFIXES
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,11 +47,6 @@ class Sequence:
     @property
     def n_frames(self) -> int:
         return int(self.points.shape[0])
-
-
-def _frames_text(n: int) -> str:
-    """"1 frame", "5 frames": a frame count for messages."""
-    return f"{n} frame" if n == 1 else f"{n} frames"
 
 
 def _natural_key(name: str):
@@ -144,7 +138,7 @@ def bake_directory_sequence(directory: Path) -> Path | None:
     and body), else its `obj/` frames; None for a directory that holds OBJ frames itself, or neither."""
     if _obj_files(directory):
         return None
-    stages = sorted(p for p in directory.iterdir() if p.suffix.lower() in USD_SUFFIXES and p.is_file())
+    stages = sorted(p for p in directory.iterdir() if p.suffix.lower() in STAGE_SUFFIXES and p.is_file())
     if len(stages) == 1:
         return stages[0]
     if (directory / "obj").is_dir():
@@ -185,8 +179,8 @@ def _read_obj_directory(directory: Path) -> Sequence:
         fps = _fps(meta.get("fps"), f"garment sequence '{meta_path}'")
         written = meta.get("frames")  # `write_obj_sequence` records how many frames it wrote
         if isinstance(written, int) and not isinstance(written, bool) and written != len(files):
-            raise InputError(f"{where}: {SEQUENCE_JSON} says {_frames_text(written)} were written, got "
-                             f"{_frames_text(len(files))} ({files[0].name} to {files[-1].name}): frames missing "
+            raise InputError(f"{where}: {SEQUENCE_JSON} says {frames_text(written)} were written, got "
+                             f"{frames_text(len(files))} ({files[0].name} to {files[-1].name}): frames missing "
                              f"{'at the end' if written > len(files) else 'from the record'}?")
 
     first = parse_obj(files[0], label="garment sequence frame")
@@ -229,7 +223,7 @@ def _read_npz(path: Path) -> Sequence:
     if "body_points" in arrays:
         body_points = _check_points(arrays["body_points"], "body_points", where)
         if body_points.shape[0] != points.shape[0]:
-            raise InputError(f"{where}: expected body_points with {_frames_text(points.shape[0])} like points, "
+            raise InputError(f"{where}: expected body_points with {frames_text(points.shape[0])} like points, "
                              f"got {body_points.shape[0]}")
     if "body_faces" in arrays:
         if body_points is None:
@@ -252,7 +246,7 @@ def _read_usd_sequence(path: Path, track: str) -> Sequence:
     body_points = body_faces = None
     if body is not None and body is not garment:
         if body.points.shape[0] != garment.points.shape[0]:
-            raise InputError(f"{where}: expected the body track to have {_frames_text(garment.points.shape[0])} "
+            raise InputError(f"{where}: expected the body track to have {frames_text(garment.points.shape[0])} "
                              f"like '{garment.name}', got {body.points.shape[0]}")
         body_points, body_faces = body.points.astype(np.float32), body.faces.astype(np.int64)
     return Sequence(points=garment.points.astype(np.float32), faces=garment.faces.astype(np.int64),
@@ -282,7 +276,7 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
     suffix = path.suffix.lower()
     if suffix == ".npz":
         return _read_npz(path)
-    if suffix in USD_SUFFIXES:
+    if suffix in STAGE_SUFFIXES:
         return _read_usd_sequence(path, track)
     if suffix == ".obj":
         return _read_single_obj(path)

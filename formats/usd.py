@@ -118,13 +118,13 @@ def _check_track(track: MeshTrack, n_frames: int | None) -> None:
                          f"got {np.asarray(track.uvs).shape}")
 
 
-def garment_track(garment, points: np.ndarray, name: str = "garment", color=(0.80, 0.33, 0.25)) -> MeshTrack:
-    """`garment` (a `core.garment.Garment`) at (T, V, 3) `points` as its file has it (`Garment.written`: its point
-    numbering, polygons, UV seams as a face-varying `st`, material subsets and their looks from its material
-    libraries)."""
+def garment_track(garment, written: tuple, name: str = "garment", color=(0.80, 0.33, 0.25)) -> MeshTrack:
+    """`garment` (a `core.garment.Garment`) as its file has it: `written` = `garment.written(points)` (its point
+    numbering, polygons, UVs), the UV seams as a face-varying `st`, material subsets and their looks from its
+    material libraries."""
     from formats.mtl import read_libraries
 
-    points, faces, uvs, face_uvs, _ = garment.written(points)
+    points, faces, uvs, face_uvs, _ = written
     face_uv = None
     if uvs is not None and face_uvs is not None:
         face_uv = uvs[face_uvs[faces >= 0]].reshape(-1, 2)  # face-varying, in corner order

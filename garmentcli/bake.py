@@ -116,13 +116,14 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
 
     fps = result.summary["fps"]
     libraries = () if garment.source is None else garment.source.libraries
-    tracks = [garment_track(garment, result.garment_points)]
+    written = garment.written(result.garment_points)  # the points in the file's numbering: made once
+    tracks = [garment_track(garment, written)]
     if result.body_points is not None:
         tracks.append(MeshTrack("body", result.body_points, body.faces, uvs=None, color=(0.75, 0.75, 0.78)))
     write_usd_stage(directory / f"{stem}.usd", tracks, fps=fps, start_frame=start_frame,
                     metadata={"garment_method": result.summary["method"], "garment_settle_frames": result.summary["settle_frames"]})
     if write_obj:  # the material libraries copied beside the frames, their textures' paths leading to them
-        points, faces, uvs, face_uvs, materials = garment.written(result.garment_points)
+        points, faces, uvs, face_uvs, materials = written
         write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps, materials=materials,
                            libraries=copy_material_libraries(libraries, directory / "obj"), start=start_frame)
 

@@ -337,6 +337,11 @@ def parse_device(text: str | None, auto: bool = False, check: bool = True):
     return dev
 
 
+#: Highest --fps of the commands that make motions or sequences (examples, dataset): beyond any capture or
+#: simulation rate (1e5 fps took minutes, 1e9 ran out of memory; a dataset plan at 1e6 fps used 14 GB).
+MAX_FPS = 1000.0
+
+
 class FiniteFloatRange(click.FloatRange):
     """click.FloatRange that also refuses nan and inf (FloatRange lets them through: nan compares false)."""
 

@@ -12,9 +12,10 @@ from tqdm import tqdm
 
 from core.provenance import software_versions
 from garmentcli.common import (
+    FLOOR_CHOICES,
+    MAX_FPS,
     FiniteFloatRange,
     OutputPath,
-    FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,
     PIN_HELP,
@@ -60,8 +61,6 @@ def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | N
     return _motions_by_name(motion_paths, library, source_fps, lambda m: resample(m, fps))
 
 
-#: Highest --fps: beyond any capture or simulation rate (1e6 fps used 14 GB and 27 s just to plan).
-MAX_FPS = 1000.0
 #: Largest --betas-range: the shape space's extremes the bodies support (sampled betas are uniform in [-R, R]).
 MAX_BETAS_RANGE = 5.0
 

@@ -7,9 +7,7 @@ from pathlib import Path
 import click
 
 from formats.atomic import atomic_dir
-from garmentcli.common import FiniteFloatRange, OutputPath, input_errors_as_click
-
-MAX_FPS = 1000.0  # beyond any capture or simulation rate; 1e5 fps took minutes, 1e9 ran out of memory
+from garmentcli.common import MAX_FPS, FiniteFloatRange, OutputPath, input_errors_as_click
 
 
 @click.command(name="examples")

@@ -88,7 +88,7 @@ def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_f
     body = load_body_option(None if body_file is None else str(body_file))
     motion, _ = prepare_motion(str(motion_file), fps, frames, settle_frames, betas, source_fps, body=body)
     if motion.n_frames != n_frames:
-        from core.metrics import frames_text
+        from core.errors import frames_text
 
         raise InputError(f"--motion '{motion_file}': expected {frames_text(n_frames)} like PRED, got {motion.n_frames} "
                          f"at --fps {fps:g} (pass the --fps, --frames and --settle of the bake)")
@@ -110,7 +110,7 @@ def _body_difference(a, b) -> str:
     """"" when two Sequence-like bodies are the same mesh in the same poses (within 1 mm), else how they differ."""
     pa, pb = np.asarray(a.body_points), np.asarray(b.body_points)
     if pa.shape != pb.shape:
-        from core.metrics import frames_text
+        from core.errors import frames_text
 
         return (f"{frames_text(pa.shape[0])} of {pa.shape[1]} points vs {frames_text(pb.shape[0])} of "
                 f"{pb.shape[1]} points")

@@ -146,7 +146,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     if out.suffix.lower() in STAGE_SUFFIXES:  # one static mesh in the rest frame (Y-up, metres), its looks inside
         from formats.usd import garment_track, write_usd_stage
 
-        write_usd_stage(out, [garment_track(garment, rest.vertices[None])], fps=30.0, up_axis="Y",
+        write_usd_stage(out, [garment_track(garment, garment.written(rest.vertices[None]))], fps=30.0, up_axis="Y",
                         metadata={"garment_note": header})
     else:
         _write_obj(out, garment, rest.vertices, header, overwrite)
