@@ -247,6 +247,13 @@ def load_simulation(path, config: Config, key: str) -> Measurement | None:
                            float(d["seconds_prepare"]), float(d["peak_memory_mb"]), int(d["runs"]))
 
 
+def memory_needed(n_rows: int, garment: Garment, body: Body, n_frames: int) -> int:
+    """Bytes a tradeoff run of `n_rows` configurations over `n_frames` frames (the lead frames included) holds
+    at most, about: every row's points (float32) kept until `compare`, one row more being measured, and the
+    posed body twice (the simulator's collider, `compare`'s penetration; float64)."""
+    return n_frames * (12 * (n_rows + 1) * garment.n_vertices + 2 * 24 * body.n_vertices)
+
+
 def compare(measurements: list[Measurement], garment: Garment, body: Body, motion: Motion) -> None:
     """Fill each measurement's metrics against the reference configuration's points (in place)."""
     from core.geometry import points_inside_mesh
@@ -282,6 +289,9 @@ def scene_summary(result: dict, model: str) -> dict:
     lbs, mdl = rows["lbs"], rows.get(f"{model} float32")
     if mdl is None:
         raise KeyError(f"{result['garment']}: no row '{model} float32' (rows: {', '.join(rows)})")
+    for r in (lbs, mdl):
+        if r.get("failed"):
+            raise KeyError(f"{result['garment']}: row '{r['config']}' failed ({r['failed']})")
     done = [r for r in result["rows"] if not r.get("failed")]
     spread = next((r["e_verts"] for r in done if r.get("spread")), float("nan"))
     by_method = {m: [r["seconds_per_frame"] for r in done if r["method"] == m and not r.get("spread")]

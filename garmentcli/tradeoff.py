@@ -23,6 +23,7 @@ from core.tradeoff import (
     configurations,
     load_simulation,
     measure,
+    memory_needed,
     pareto_front,
     save_simulation,
     sim_file_name,
@@ -72,6 +73,22 @@ def _models_for_body(models: dict, body) -> dict:
         else:
             click.echo(f"tradeoff: {what}: its rows are left out", err=True)
     return kept
+
+
+def _refuse_beyond_memory(n_rows: int, garment, body, n_frames: int, source_fps: float, fps: float,
+                          motion_path) -> None:
+    """A run whose rows' points would not fit in the memory free now stops before its first simulation (hours),
+    not after its last. n_frames: at `fps`, of a motion at `source_fps`."""
+    import psutil
+
+    need, free = memory_needed(n_rows, garment, body, n_frames), psutil.virtual_memory().available
+    if need > free:
+        fit = int(n_frames * free / need * source_fps / fps)  # in source frames, as --frames counts
+        raise click.ClickException(
+            f"motion '{motion_path}': {n_rows} configurations of {n_frames} frames of a "
+            f"{garment.n_vertices}-vertex garment need about {need / 1e9:.3g} GB, {free / 1e9:.3g} GB is free: "
+            + (f"measure a part of at most {fit} source frames with --frames START:STOP" if fit >= 1
+               else "not one frame fits"))
 
 
 def _named_files(specs: tuple, option: str, what: str) -> dict:
@@ -166,11 +183,13 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         shutil.rmtree(staged)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
-    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body)
-    from formats.cache import default_cache_dir
-
     models = _models_for_body(models, body)
     rows = configurations(models, spread=spread, fits=fits)
+    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body,
+                               check_frames=lambda n, src_fps: _refuse_beyond_memory(len(rows), garment, body, n,
+                                                                                     src_fps, fps, motion_path))
+    from formats.cache import default_cache_dir
+
     scene = simulation_scene(garment, body, motion)
     results, failed, reused = [], [], []
     bar = tqdm(rows, desc="tradeoff", unit="config", disable=None)
@@ -192,13 +211,16 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
             if bar.disable:  # no terminal (a log file, a batch job): one line per configuration
                 click.echo(f"tradeoff: {i}/{len(rows)} {config.name}: "
                            f"{results[-1].seconds_per_frame:.4g} s/frame", err=True)
-        except FloatingPointError as exc:  # an unstable configuration (e.g. too few substeps) is a result too
+        except Exception as exc:  # an unstable configuration (e.g. too few substeps) is a result too, and one row
+            # failing otherwise (out of memory, a device error) must not throw away the hours of the others
+            reason = str(exc) if isinstance(exc, FloatingPointError) else f"{type(exc).__name__}: {exc}"
             if config.reference:
                 kept = (f" (the finished simulator rows are kept in '{staged}' for --reuse-sim)"
                         if staged.is_dir() else "")
-                raise click.ClickException(f"tradeoff: the reference configuration '{config.name}' failed: {exc}{kept}")
-            click.echo(f"{config.name}: failed ({exc})", err=True)
-            failed.append((config, str(exc)))
+                raise click.ClickException(f"tradeoff: the reference configuration '{config.name}' failed: "
+                                           f"{reason}{kept}") from exc
+            click.echo(f"{config.name}: failed ({reason})", err=True)
+            failed.append((config, reason))
     compare(results, garment, body, motion)
     # The spread row is the reference again, not a configuration to choose: outside the front and the calibration.
     front = iter(pareto_front([(m.seconds_per_frame, m.metrics["e_verts"]) for m in results if not m.config.spread]))
@@ -243,8 +265,9 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                    f"the earlier run" + (f" ({', '.join(reused)})" if reused else ""))
     best = min((r for r in table if r["method"] == "model" and not r["failed"]), key=lambda r: r["e_verts"], default=None)
     lbs = next(r for r in table if r["method"] == "lbs")
-    click.echo(f"{target}: {len(table)} configurations on {motion.n_written} frames; lbs {lbs['e_verts']:.1f} mm at "
-               f"{lbs['seconds_per_frame'] * 1e3:.2f} ms/frame"
+    click.echo(f"{target}: {len(table)} configurations on {motion.n_written} frames; lbs "
+               + ("failed" if lbs["failed"] else
+                  f"{lbs['e_verts']:.1f} mm at {lbs['seconds_per_frame'] * 1e3:.2f} ms/frame")
                + (f", best model row '{best['config']}' {best['e_verts']:.1f} mm at "
                   f"{best['seconds_per_frame'] * 1e3:.1f} ms/frame" if best else "")
                + "".join(f"; the reference's spread {r['e_verts']:.1f} mm" for r in table

@@ -147,16 +147,16 @@ def test_tradeoff_missing_garment(scene):
     assert r.exit_code != 0 and "gone.obj" in r.output and not scene["out"].exists()
 
 
-def _fake_measure(fail):
+def _fake_measure(fail, error=None):
     """A stand-in for core.tradeoff.measure: LBS points for every row (shifted 1 cm but for the reference);
-    rows for which `fail(config)` holds raise the simulator's error."""
+    rows for which `fail(config)` holds raise `error` (default: the simulator's error)."""
     from core.deform import LBSDeformer
     from core.sim import SimulationError
     from core.tradeoff import Measurement
 
     def measure(config, garment, body, motion, repeats=3, cache_dir=None, device=None):
         if fail(config):
-            raise SimulationError(f"sim: frame 3 of motion '{motion.name}' failed after 3 tries")
+            raise error or SimulationError(f"sim: frame 3 of motion '{motion.name}' failed after 3 tries")
         pts = LBSDeformer().deform(garment, body, motion)[motion.n_lead:] + (0.0 if config.reference else 0.01)
         return Measurement(config, pts, 1.0 if config.method == "sim" else 0.01, 0.0, 0.0, 1)
 
@@ -194,6 +194,38 @@ def test_a_failing_configuration_is_a_row_that_says_so(scene, monkeypatch):
     assert r.exit_code != 0 and "reference configuration 'sim 20 substeps +self-contact' failed" in r.output
     assert "Traceback" not in r.output and not (scene["out"] / "second" / "shell_walk").exists()
     assert "finished simulator rows are kept in" in r.output  # hidden, for --reuse-sim
+
+
+def test_a_row_failing_otherwise_is_a_failed_row_too(scene, monkeypatch):
+    """Out of memory or a device error in one row (LBS here) does not throw away the simulations of the others."""
+    import garmentcli.tradeoff
+
+    monkeypatch.setattr(garmentcli.tradeoff, "measure",
+                        _fake_measure(lambda c: c.method == "lbs", RuntimeError("CUDA error: out of memory")))
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4",
+                "--out", scene["out"]])
+    assert r.exit_code == 0, r.output
+    assert "lbs: failed (RuntimeError: CUDA error: out of memory)" in r.output and "; lbs failed" in r.output
+    rows = {row["config"]: row for row in csv.DictReader(open(scene["out"] / "shell_walk" / "tradeoff.csv"))}
+    assert rows["lbs"]["failed"] == "RuntimeError: CUDA error: out of memory" and rows["lbs"]["e_verts"] == ""
+    assert float(rows["sim 10 substeps"]["e_verts"]) > 0
+    # the cross-garment summary names the failed row instead of a KeyError on its missing error
+    result = json.loads((scene["out"] / "shell_walk" / "tradeoff.json").read_text())
+    with pytest.raises(KeyError, match="row 'lbs' failed"):
+        scene_summary(result, "model")
+
+
+def test_a_run_beyond_memory_stops_before_its_first_row(scene, monkeypatch):
+    import garmentcli.tradeoff
+    import psutil
+
+    measured = []
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
+    monkeypatch.setattr(garmentcli.tradeoff, "memory_needed", lambda *a: 4 * psutil.virtual_memory().available)
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]])
+    assert r.exit_code != 0 and "Traceback" not in r.output and not measured
+    assert "GB is free: measure a part of at most" in r.output and "with --frames START:STOP" in r.output
+    assert not scene["out"].exists()
 
 
 def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkeypatch):
