@@ -64,6 +64,8 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     name = source or garment.name
     pose = np.asarray(pose, dtype=np.float32).reshape(body.n_joints, 3).copy()
     pose[0] = 0.0
+    if betas is not None:  # fitted to the body once: a count it does not have is warned about once, not per use
+        betas = body.fit_betas(betas)
     posed, _, A = body.pose_with_transforms(pose[None], None, betas)
     A = A[0, :, :3, :].astype(np.float64)  # (J, 3, 4)
     target = garment.vertices.astype(np.float64)
@@ -88,7 +90,7 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     M = blended(rest_mesh.closest(rest))
     reposed = np.einsum("vrc,vc->vr", M[:, :, :3], rest) + M[:, :, 3]
     if betas is not None:  # back to the mean shape the rest body has
-        rest = rest - np.einsum("vcs,s->vc", transfer_shapedirs(hit, body), body.fit_betas(betas).astype(np.float64))
+        rest = rest - np.einsum("vcs,s->vc", transfer_shapedirs(hit, body), betas.astype(np.float64))
     moved = np.linalg.norm(rest - target, axis=1)
     report = {"posed_median_distance_m": float(np.median(np.abs(signed))),
               "posed_inside_share": float(np.mean(signed < -REST_INSIDE_DEPTH_M)),

@@ -110,6 +110,25 @@ def read_manifest(data_dir: str | os.PathLike) -> dict | None:
         raise InputError(f"dataset manifest '{path}': expected JSON, could not parse it ({exc})") from None
 
 
+def body_difference(manifest: dict, body_path: str | os.PathLike | None) -> str:
+    """"" when the body at `body_path` (None: the embedded default) is the one the dataset of `manifest` was
+    simulated on (the same file content: `inputs.body.sha256`, None for the default) or the manifest does not
+    record it; else a sentence saying which body the dataset was simulated on and which was given."""
+    import hashlib
+
+    inputs = manifest.get("inputs") if isinstance(manifest, dict) else None
+    recorded = inputs.get("body") if isinstance(inputs, dict) else None
+    if not isinstance(recorded, dict) or "sha256" not in recorded:
+        return ""
+    given = None if body_path is None else hashlib.sha256(Path(body_path).read_bytes()).hexdigest()
+    if given == recorded["sha256"]:
+        return ""
+    simulated_on = ("the embedded default body" if recorded["sha256"] is None
+                    else f"body '{recorded.get('path')}' (sha256 {str(recorded['sha256'])[:8]})")
+    got = "the embedded default" if body_path is None else f"'{body_path}' (sha256 {given[:8]})"
+    return f"was simulated on {simulated_on}, got {got}"
+
+
 def copy_garment_template(data_dir: str | os.PathLike, source: str | os.PathLike, name: str) -> Path:
     """Copy a garment OBJ to DATA/garments/<name>.obj (atomically; an identical copy is left alone); a USD
     garment is written there as the OBJ of the garment it reads as."""

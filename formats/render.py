@@ -303,6 +303,9 @@ def scene_from_sequence(seq, color: str = "plain", gt=None, scalars: np.ndarray 
         from core.metrics import check_comparable
 
         check_comparable(seq.points, seq.faces, gt.points, gt.faces, seq.source or "INPUT", gt.source or "--gt")
+        if seq.fps is not None and gt.fps is not None and not np.isclose(seq.fps, gt.fps, rtol=1e-6):
+            raise InputError(f"--gt: '{gt.source}' is at {gt.fps:g} fps, '{seq.source}' at {seq.fps:g} fps: expected "
+                             "the same frame rate (resample one of them to match)")  # as `garment metrics` refuses
         values = vertex_error_mm(seq.points[idx], gt.points[idx])
         kwargs = dict(vertex_values=values, value_label="error (mm)",
                       value_range=value_range or robust_range(values))

@@ -61,6 +61,25 @@ def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | N
     return _motions_by_name(motion_paths, library, source_fps, lambda m: resample(m, fps))
 
 
+def _changed_inputs(old: dict, new: dict) -> str:
+    """"" when the body and the motions that two manifests' `inputs` both name have the same content (sha256),
+    else which differ: 'body 'model.npz' (sha256 94e84a1f -> 0c2d7e55)', ..."""
+    def short(sha):
+        return "none" if sha is None else str(sha)[:8]
+
+    changed = []
+    ob, nb = old.get("body"), new.get("body")
+    if isinstance(ob, dict) and isinstance(nb, dict) and "sha256" in ob and ob["sha256"] != nb.get("sha256"):
+        changed.append(f"body '{Path(str(nb.get('path'))).name}' (sha256 {short(ob['sha256'])} -> "
+                       f"{short(nb.get('sha256'))})")
+    old_motions = old.get("motions") if isinstance(old.get("motions"), dict) else {}
+    for name, rec in new.get("motions", {}).items():
+        was = old_motions.get(name)
+        if isinstance(was, dict) and "sha256" in was and was["sha256"] != rec["sha256"]:
+            changed.append(f"motion '{name}' (sha256 {short(was['sha256'])} -> {short(rec['sha256'])})")
+    return "; ".join(changed[:3]) + (f"; {len(changed) - 3} more" if len(changed) > 3 else "")
+
+
 #: Largest --betas-range: the shape space's extremes the bodies support (sampled betas are uniform in [-R, R]).
 MAX_BETAS_RANGE = 5.0
 
@@ -253,6 +272,13 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         else:
             raise click.ClickException(f"output '{out}' holds a dataset made with other settings or inputs "
                                        f"({diff or 'plan ' + str(old.get('plan_key'))}): use another --out")
+    if old is not None:
+        changed = _changed_inputs(old.get("inputs", {}), inputs)
+        if changed:  # the settings name files by name only: their sequences done came from the old contents
+            raise click.ClickException(f"output '{out}' holds a dataset made from other files of the same name "
+                                       f"({changed}): use another --out")
+        if "item_stats" in old:  # kept through a --dry-run, and through a run stopped before its end
+            manifest["item_stats"] = dict(old["item_stats"])
     from core.distributed import ItemsFailed, connect, run_items
 
     client = connect(scheduler) if scheduler else None  # before writing anything: an unreachable cluster fails fast
@@ -302,12 +328,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
             if client is not None:
                 client.close()
     if stats:
-        done = dict(old.get("item_stats", {})) if old else {}
-        done.update(stats)
-        manifest["item_stats"] = done
-        write_manifest(out, manifest)
-    elif old is not None and "item_stats" in old:
-        manifest["item_stats"] = old["item_stats"]
+        manifest["item_stats"] = {**manifest.get("item_stats", {}), **stats}
         write_manifest(out, manifest)
     if failed is not None:
         raise click.ClickException(f"{out}: {failed}; rerun the same command to resume")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import click
@@ -34,15 +35,19 @@ def examples(out_dir, fps, overwrite):
     from formats.motion import save_motion
     from formats.obj import write_obj
 
+    out = Path(out_dir)
+    if out.exists() and not overwrite:  # before the generators' seconds of work
+        raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     body = default_body()
     garments = generate_example_garments(body)
     motions = generate_example_motions(fps=fps)
-    out = Path(out_dir)
     keep = [p for p in out.iterdir() if p.suffix not in (".obj", ".npz")] if out.is_dir() else []
     with atomic_dir(out, overwrite) as tmp:
-        for p in keep:  # hand-written files (a README) survive a regeneration
-            if p.is_file():
-                (tmp / p.name).write_bytes(p.read_bytes())
+        for p in keep:  # hand-written files (a README) and folders (textures) survive a regeneration
+            if p.is_dir():
+                shutil.copytree(p, tmp / p.name, symlinks=True)
+            elif p.is_file():
+                shutil.copy2(p, tmp / p.name)
         for name, g in garments.items():
             write_obj(tmp / f"{name}.obj", g.vertices, g.faces, g.uvs, g.face_uvs,
                       header=f"garment example '{name}': made by `garment examples`, fitted to the default body")

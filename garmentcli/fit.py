@@ -30,7 +30,7 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     from core.deform import LBSDeformer
     from core.motion import sequence_motion
     from core.psd import DEFAULT_RANK, DEFAULT_RIDGE, PSDDeformer, fit_psd
-    from formats.dataset import read_manifest, read_sequence, sequence_path
+    from formats.dataset import body_difference, read_manifest, read_sequence, sequence_path
     from formats.obj import read_garment, read_obj
     from formats.psd import save_fit
 
@@ -49,6 +49,9 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
                                  param_hint="--data")
     garment = read_garment(source)
     body = load_body_option(body_path)
+    difference = body_difference(manifest, body_path)
+    if difference:  # a fit to cloth simulated on another body would be wrong everywhere, silently
+        raise click.BadParameter(f"dataset '{data}' {difference}: pass the dataset's body", param_hint="--body")
     templates = sorted((data / "garments").glob("*.obj"))
     names = [t.stem for t in templates if read_obj(t).content_hash() == garment.content_hash()]
     if not names:
@@ -65,8 +68,14 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     if not splits["train"]:
         raise click.BadParameter(f"'{data}': expected simulated training sequences of '{names[0]}', found none",
                                  param_hint="--data")
-    result = fit_psd(garment, body, splits["train"], rank or DEFAULT_RANK,
-                     DEFAULT_RIDGE if ridge is None else ridge)
+    ridge = DEFAULT_RIDGE if ridge is None else ridge
+    try:
+        result = fit_psd(garment, body, splits["train"], rank or DEFAULT_RANK, ridge)
+    except np.linalg.LinAlgError:  # no ridge and fewer independent frames than regressors: no unique fit
+        frames = sum(len(gt) for _, gt in splits["train"])
+        raise click.BadParameter(f"expected a weight that makes the fit unique, got {ridge:g}: the "
+                                 f"{frames} training frames do not determine the blend shapes alone (the "
+                                 f"default is {DEFAULT_RIDGE:g})", param_hint="--ridge") from None
     errors = {}
     psd, lbs = PSDDeformer(result), LBSDeformer()  # each binds the garment once, for every split
     for split in ("val", "test"):

@@ -295,7 +295,8 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
                              gt_body_name=body_name(gt_body))
     result.metadata.update({"pred": str(pred), "gt": str(gt)})
     if body is not None:
-        result.metadata.update({"body_from": str(pred if body is p_seq else gt), "penetration_depth_mm": depth_mm})
+        body_from = pred if body is p_seq else gt if body is g_seq else body.source  # else: posed by --motion
+        result.metadata.update({"body_from": str(body_from), "penetration_depth_mm": depth_mm})
         if gt_body is not None and gt_body is not body:
             result.metadata["gt_body_from"] = str(gt)
 

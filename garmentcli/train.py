@@ -132,6 +132,12 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     ckpt_path, csv_path, json_path = _side_files(out)
     model_values, train_values = _read_config(config_path)
     body = load_body_option(body_path)
+    from formats.dataset import body_difference, read_manifest
+
+    for d in [data_dir] if isinstance(data_dir, str) else data_dir:
+        difference = body_difference(read_manifest(d) or {}, body_path)
+        if difference:  # the network would learn cloth simulated on one body against another's
+            raise click.BadParameter(f"dataset '{d}' {difference}: pass the dataset's body", param_hint="--body")
     init = None
     if init_path is not None:
         if set(model_values) - set(ADDABLE_INPUTS) - {"levels"}:
@@ -185,8 +191,9 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         if csv_path.exists():
             with open(csv_path, newline="") as fh:
                 rows = [r for r in csv.DictReader(fh) if int(r["step"]) <= trainer.step]
-    # Ctrl-C (SIGINT) while training finishes the step and stops as --time-limit does: checkpoint and model written.
-    interrupted, restore_sigint = _defer_interrupt() if world == 1 else ({"hit": False}, lambda: None)
+    # Ctrl-C (SIGINT), or a scheduler's SIGTERM (preemption), while training finishes the step and stops as
+    # --time-limit does: checkpoint and model written.
+    interrupted, restore_sigint = _defer_interrupt(launched=world > 1)
     job = _Job(main=main, world=world, device=device, sequences_per_step=sequences_per_step, data_dir=data_dir,
                init=init, init_path=init_path, body=body, time_limit=time_limit)
     try:
@@ -197,8 +204,8 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         raise
     finally:
         restore_sigint()
-    if interrupted["hit"] and trainer.step < train_cfg.steps:  # stopped early: the shell's code for Ctrl-C
-        raise click.exceptions.Exit(130)
+    if interrupted["hit"] and trainer.step < train_cfg.steps:  # stopped early: the shell's code for the signal
+        raise click.exceptions.Exit(130 if interrupted["hit"] == "Ctrl-C" else 143)
 
 
 def _side_files(out: Path) -> tuple[Path, Path, Path]:
@@ -274,8 +281,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
 
         trainer.progress = progress
         trainer.on_switch = snapshot
-        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(job.time_limit, world, device,
-                                                                      interrupted if world == 1 else None))
+        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(job.time_limit, world, device, interrupted))
         bar.close()
         checkpoint(trainer)
     last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
@@ -290,31 +296,47 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
         return
     save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)
     val = last_val.get("val_verts_mm")
-    why = "interrupted (Ctrl-C): checkpoint '" + str(ckpt_path) + "' written" if interrupted["hit"] else \
-        "stopped at the time limit"
+    why = (f"interrupted ({interrupted['hit']}): checkpoint '{ckpt_path}' written" if interrupted["hit"] else
+           "stopped at the time limit")
     left = f" ({why}: --resume continues to {train_cfg.steps})" if trainer.step < train_cfg.steps else ""
     click.echo(f"{out}: {trainer.step} steps{left}, phase {trainer.phase.phase}, "
                + (f"validation E_verts {float(val):.2f} mm" if val not in (None, "") else "no validation yet"))
 
 
-def _defer_interrupt():
-    """({"hit": bool}, restore): until restore(), a first SIGINT only sets "hit" (the run stops after the step, as
-    at the time limit); a second one interrupts at once. Outside the main thread signals stay as they are."""
+#: The signals `train` stops at after the step (checkpoint and model written): Ctrl-C, and the SIGTERM a batch
+#: scheduler sends before it kills a job (SLURM: 30 s before, by default).
+DEFERRED_SIGNALS = {"SIGINT": "Ctrl-C", "SIGTERM": "SIGTERM"}
+
+
+def _defer_interrupt(launched: bool = False):
+    """({"hit": what stopped it, "" before}, restore): until restore(), a first SIGINT or SIGTERM only sets "hit"
+    (the run stops after the step, as at the time limit). A second one interrupts at once, but in a process of a
+    launcher (`launched`: torchrun), which forwards the terminal's Ctrl-C that its workers got already and kills
+    them itself after its own grace (30 s): there every later one is left to it. Outside the main thread signals
+    stay as they are."""
     import signal
     import threading
 
-    state = {"hit": False}
+    state = {"hit": ""}
     if threading.current_thread() is not threading.main_thread():
         return state, lambda: None
-    previous = signal.getsignal(signal.SIGINT)
+    previous = {name: signal.getsignal(getattr(signal, name)) for name in DEFERRED_SIGNALS}
 
     def handler(signum, frame):
         if state["hit"]:
+            if launched:
+                return
             raise KeyboardInterrupt
-        state["hit"] = True
+        state["hit"] = DEFERRED_SIGNALS[signal.Signals(signum).name]
 
-    signal.signal(signal.SIGINT, handler)
-    return state, lambda: signal.signal(signal.SIGINT, previous)
+    for name in DEFERRED_SIGNALS:
+        signal.signal(getattr(signal, name), handler)
+
+    def restore():
+        for name, h in previous.items():
+            signal.signal(getattr(signal, name), h)
+
+    return state, restore
 
 
 def _time_limit(minutes: float | None, world: int, device, interrupted: dict | None = None):

@@ -91,3 +91,13 @@ def test_a_transform_that_cannot_be_inverted_is_refused(tshirt, monkeypatch):
     monkeypatch.setattr("core.unpose.MIN_SINGULAR_VALUE", 2.0)  # rotations have singular values 1: all refused
     with pytest.raises(InputError, match=r"'shirt.obj': cannot unpose 6698 vertices"):
         unpose_garment(garment, body, a_pose(body), source="shirt.obj")
+
+
+def test_betas_of_another_count_than_the_bodys_are_warned_about_once(caplog):
+    """Betas of another length than the body's (an AMASS pose file's 16, a --betas of 2) are fitted to the body
+    once: one warning, not one per use inside the unposing."""
+    body = default_body()
+    skirt = read_obj(EXAMPLES / "skirt.obj")
+    with caplog.at_level(logging.WARNING):
+        unpose_garment(skirt, body, np.zeros((body.n_joints, 3), np.float32), np.array([0.5, -0.5], np.float32))
+    assert caplog.text.count("2 betas given") == 1

@@ -387,3 +387,42 @@ def test_a_motion_given_as_garment_is_named_for_what_it_is(scene):
     r = run("dataset", "--garments", binary, "--motions", scene["motion"], "--body", scene["body"],
             "--dry-run", "--out", scene["dir"] / "npz")
     assert r.exit_code != 0 and "blob.obj': expected an OBJ or USD garment, got binary content" in r.output
+
+
+def test_dataset_resume_refuses_another_body_or_motion_of_the_same_name_and_keeps_the_stats(scene):
+    """Settings name the body and motions by file name: resuming into a dataset from files of the same names
+    with other contents (smplh/male/model.npz, then smplh/female/model.npz; an edited motion) would mix their
+    sequences, so it is refused naming the file and nothing is written; a --dry-run over a dataset keeps the
+    per-item statistics its runs recorded."""
+    from tests.meshes import tiny_body
+
+    a, b = still_motions(scene["dir"])
+    male, female = scene["dir"] / "male", scene["dir"] / "female"
+    male.mkdir()
+    female.mkdir()
+    (male / "model.npz").write_bytes(Path(scene["body"]).read_bytes())
+    other = tiny_body(seed=1)
+    kintree = np.stack([other.parents, np.arange(other.n_joints)])
+    kintree[0, 0] = 2**32 - 1
+    np.savez(female / "model.npz", v_template=other.v_template * 1.05, shapedirs=other.shapedirs,
+             J_regressor=other.J_regressor, weights=other.weights, kintree_table=kintree.astype(np.int64),
+             f=other.faces.astype(np.uint32))
+    out = scene["dir"] / "data"
+    args = ["dataset", "--garments", scene["garment"], "--motions", a, "--motions", b, "--settle", 0, "--dry-run",
+            "--out", out]
+    assert run(*args, "--body", male / "model.npz").exit_code == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["item_stats"] = {manifest["items"][0]["id"]: {"seconds_per_frame": 1.5}}
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    r = run(*args, "--body", male / "model.npz")
+    assert r.exit_code == 0, r.output
+    assert json.loads((out / "manifest.json").read_text())["item_stats"] == manifest["item_stats"]
+    before = (out / "manifest.json").read_bytes()
+    r = run(*args, "--body", female / "model.npz")
+    assert r.exit_code != 0 and "Traceback" not in r.output
+    assert "other files of the same name (body 'model.npz' (sha256 " in r.output and "another --out" in r.output
+    assert (out / "manifest.json").read_bytes() == before
+    write_motion(a, n_frames=3, fps=30.0, seed=7)
+    r = run(*args, "--body", male / "model.npz")
+    assert r.exit_code != 0 and "motion 'a' (sha256 " in r.output
+    assert (out / "manifest.json").read_bytes() == before

@@ -85,3 +85,33 @@ def test_fit_refuses_a_non_finite_ridge_and_an_out_that_is_no_npz(setup, tmp_pat
     r = invoke(["fit", garment, "--data", data, "--body", body, *out, *args])
     assert r.exit_code == 2 and option in r.output and word in r.output and "Traceback" not in r.output, r.output
     assert not list(tmp_path.iterdir())
+
+
+def test_fit_refuses_a_body_other_than_the_datasets(setup, tmp_path):
+    """The body the dataset records (`inputs.body`) must be the one given: --body forgotten is refused, naming
+    the dataset's body; nothing is written."""
+    import hashlib
+    import shutil
+
+    root, data, body, garment = setup
+    ds = tmp_path / "ds"
+    shutil.copytree(data, ds)
+    manifest = json.loads((ds / "manifest.json").read_text())
+    manifest["inputs"] = {"body": {"path": str(body), "sha256": hashlib.sha256(body.read_bytes()).hexdigest()}}
+    (ds / "manifest.json").write_text(json.dumps(manifest))
+    r = invoke(["fit", garment, "--data", ds, "--rank", "4", "--out", tmp_path / "a.npz"])
+    assert r.exit_code != 0 and "Traceback" not in r.output
+    assert f"was simulated on body '{body}' (sha256 " in r.output and "got the embedded default" in r.output
+    assert not (tmp_path / "a.npz").exists()
+    r = invoke(["fit", garment, "--data", ds, "--body", body, "--rank", "4", "--out", tmp_path / "a.npz"])
+    assert r.exit_code == 0, r.output
+
+
+def test_fit_with_no_ridge_on_too_few_frames_is_one_line(setup, tmp_path):
+    """--ridge 0 (allowed: a plain least-squares fit) on 24 frames, fewer than the regressors: the system is
+    singular; one line naming --ridge, not numpy's traceback, and nothing written."""
+    root, data, body, garment = setup
+    r = invoke(["fit", garment, "--data", data, "--body", body, "--ridge", "0", "--out", tmp_path / "r0.npz"])
+    assert r.exit_code != 0 and "Traceback" not in r.output and not isinstance(r.exception, np.linalg.LinAlgError)
+    assert "--ridge" in r.output and "24 training frames" in r.output
+    assert not (tmp_path / "r0.npz").exists()

@@ -176,6 +176,9 @@ def test_body_from_motion_matches_bake_penetration(scene):
     m1 = json.loads((scene["dir"] / "m1" / "metrics.json").read_text())
     m2 = json.loads((scene["dir"] / "m2" / "metrics.json").read_text())
     assert m1["overall"]["penetration_pct"] == pytest.approx(m2["overall"]["penetration_pct"], abs=1e-6)
+    # the record names where the body came from: the stage, or the motion (not GT, which carries none)
+    assert m1["metadata"]["body_from"] == str(d / "shell_walk.usd")
+    assert m2["metadata"]["body_from"] == str(scene["motion"])
     # a motion prepared differently (no settle) has another frame count: a clear error
     bad = run([d / "obj", d / "obj", "--body", scene["body"], "--motion", scene["motion"]])
     assert_clean_failure(bad, "--motion", "frames")

@@ -161,3 +161,16 @@ def test_render_frames_accepts_a_step_and_refuses_a_bad_one(seqs, tmp_path):
     assert "expected one step, got both" in error_line(
         run("render", seqs["pred"], "--out", tmp_path / "b", "--frames", "::2", "--every", "2"))
     assert not (tmp_path / "b").exists()
+
+
+def test_render_error_refuses_a_gt_at_another_frame_rate(seqs, tmp_path):
+    """--gt at 60 fps against INPUT at 30 (the same frame count: half the duration) compares frames of other
+    times: refused as `garment metrics` refuses it, naming both rates; nothing written."""
+    from formats.sequence import read_sequence
+
+    gt = read_sequence(seqs["gt"])
+    fast = tmp_path / "gt60.npz"
+    write_npz_sequence(fast, gt.points, gt.faces, fps=60.0)
+    line = error_line(run("render", seqs["pred"], "--gt", fast, "--out", tmp_path / "r", "--size", "96x64"))
+    assert "60 fps" in line and "30 fps" in line and "gt60.npz" in line
+    assert not (tmp_path / "r").exists()

@@ -98,33 +98,77 @@ def test_train_time_limit_stops_early_and_resumes(setup):
     assert r.exit_code != 0 and "--time-limit" in r.output
 
 
-def test_train_ctrl_c_writes_the_checkpoint_and_resumes(setup, monkeypatch):
-    """Ctrl-C (SIGINT) finishes the step and stops as --time-limit does: checkpoint and model written, one line
-    says so, --resume continues; it used to leave MODEL.json and MODEL.csv of a model never written, no checkpoint."""
+@pytest.mark.parametrize("sig, code, what", [("SIGINT", 130, "Ctrl-C"), ("SIGTERM", 143, "SIGTERM")])
+def test_train_ctrl_c_writes_the_checkpoint_and_resumes(setup, monkeypatch, sig, code, what):
+    """Ctrl-C (SIGINT), or a scheduler's SIGTERM, finishes the step and stops as --time-limit does: checkpoint and
+    model written, one line says so, --resume continues; Ctrl-C used to leave MODEL.json and MODEL.csv of a model
+    never written, no checkpoint, and SIGTERM killed the run at once."""
     import os
     import signal
 
     from core.train import Trainer
 
     root, data, body, cfg = setup
-    out = root / "ctrlc.pt"
+    out = root / f"{sig}.pt"
     real_step = Trainer.train_step
 
-    def step_then_ctrl_c(self):
+    def step_then_signal(self):
         real_step(self)
         if self.step == 2:
-            os.kill(os.getpid(), signal.SIGINT)
+            os.kill(os.getpid(), getattr(signal, sig))
 
-    monkeypatch.setattr(Trainer, "train_step", step_then_ctrl_c)
+    monkeypatch.setattr(Trainer, "train_step", step_then_signal)
     r = _train(root, data, body, cfg, out, "--steps", "5", "--seed", "1", "--checkpoint-every", "0")
     monkeypatch.undo()
-    assert r.exit_code == 130 and "interrupted" in r.output and "ctrlc.pt.ckpt" in r.output, r.output
+    assert r.exit_code == code and f"interrupted ({what})" in r.output and f"{sig}.pt.ckpt" in r.output, r.output
     assert len(r.output.strip().splitlines()) == 1
-    assert out.is_file() and (root / "ctrlc.pt.ckpt").is_file() and (root / "ctrlc.pt.json").is_file()
-    assert [int(row["step"]) for row in csv.DictReader(open(root / "ctrlc.pt.csv"))] == [1, 2]
+    assert out.is_file() and (root / f"{sig}.pt.ckpt").is_file() and (root / f"{sig}.pt.json").is_file()
+    assert [int(row["step"]) for row in csv.DictReader(open(root / f"{sig}.pt.csv"))] == [1, 2]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL or sig == "SIGINT"  # the handlers are restored
     r = _train(root, data, body, cfg, out, "--steps", "3", "--seed", "1", "--resume")
     assert r.exit_code == 0, r.output
-    assert [int(row["step"]) for row in csv.DictReader(open(root / "ctrlc.pt.csv"))] == [1, 2, 3]
+    assert [int(row["step"]) for row in csv.DictReader(open(root / f"{sig}.pt.csv"))] == [1, 2, 3]
+
+
+def test_train_under_torchrun_stops_at_ctrl_c_with_its_checkpoint(setup, tmp_path):
+    """Ctrl-C in the terminal of a torchrun run reaches the launcher and every worker (one process group), and the
+    launcher forwards it to them once more: the workers finish the step together (rank 0 decides), rank 0 writes
+    the checkpoint and the model. It used to kill them mid-step with nothing written since the last checkpoint."""
+    import os
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    root, data, body, cfg = setup
+    out = tmp_path / "ddp.pt"
+    garment = shutil.which("garment") or pytest.skip("the garment command is not on PATH")
+    proc = subprocess.Popen([sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2",
+                             garment, "train", "--data", str(data), "--out", str(out), "--body", str(body),
+                             "--config", str(cfg), "--steps", "100000", "--checkpoint-every", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                            env={**os.environ, "OMP_NUM_THREADS": "1"})
+    csv_path = out.with_name("ddp.pt.csv")
+    try:
+        end = time.monotonic() + 120
+        while time.monotonic() < end and proc.poll() is None:
+            if csv_path.is_file() and len(csv_path.read_text().splitlines()) > 3:  # header and a few steps
+                break
+            time.sleep(0.2)
+        assert proc.poll() is None, proc.communicate()[0]
+        os.killpg(proc.pid, signal.SIGINT)  # what the terminal does at Ctrl-C
+        output = proc.communicate(timeout=60)[0]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode != 0
+    assert "interrupted (Ctrl-C): checkpoint" in output, output
+    steps = [int(row["step"]) for row in csv.DictReader(open(csv_path))]
+    assert out.is_file() and out.with_name("ddp.pt.ckpt").is_file() and 3 <= len(steps) < 100000
+    from formats.checkpoint import load_checkpoint
+
+    assert load_checkpoint(out)["meta"]["steps"] == steps[-1]
 
 
 def test_train_aborted_leaves_no_json_of_a_model_never_written(setup, monkeypatch):
@@ -389,3 +433,25 @@ def test_train_on_several_datasets(setup, tmp_path):
     r = _train(root, data, body, cfg, tmp_path / "n.pt", "--steps", "2", "--data", str(tmp_path / "nowhere"))
     assert r.exit_code != 0 and f"expected a dataset directory, got '{tmp_path / 'nowhere'}' (not found)" in r.output
     assert not (tmp_path / "n.pt").exists()
+
+
+def test_train_refuses_a_body_other_than_the_datasets(setup, tmp_path):
+    """A dataset records the body it was simulated on (`inputs.body`: its file's sha256, None for the embedded
+    one): training against another body (--body forgotten, or another file of the same name) is refused in one
+    line naming both; the dataset's own body passes."""
+    import hashlib
+    import shutil
+
+    root, data, body, cfg = setup
+    ds = tmp_path / "ds"
+    shutil.copytree(data, ds)
+    manifest = json.loads((ds / "manifest.json").read_text())
+    manifest["inputs"] = {"body": {"path": str(body), "sha256": hashlib.sha256(body.read_bytes()).hexdigest()}}
+    (ds / "manifest.json").write_text(json.dumps(manifest))
+    r = CliRunner().invoke(cli, ["train", "--data", str(ds), "--out", str(tmp_path / "a.pt"), "--config", str(cfg),
+                                 "--steps", "1"])
+    assert r.exit_code != 0 and "Traceback" not in r.output
+    assert f"dataset '{ds}' was simulated on body '{body}' (sha256 " in r.output and "the embedded default" in r.output
+    assert not (tmp_path / "a.pt").exists()
+    r = _train(root, ds, body, cfg, tmp_path / "b.pt", "--steps", "1")
+    assert r.exit_code == 0, r.output

@@ -176,6 +176,7 @@ def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
     (["--pose", "tpose", "--betas", "1", "--frame", 1], "--frame applies to a POSE.npz file only"),
     (["--pose", "tpose", "--betas", "1", "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", "nope.npz"], "'nope.npz': no such file"),
+    (["--pose", "NOPE.NPZ"], "'NOPE.NPZ': no such file"),  # a pose file, whatever the case of its suffix
     (["--pose", "apose", "--frame", 2], "--frame applies to a POSE.npz file only"),
     (["--pose", "apose", "--arm-angle", 200], "--arm-angle: expected degrees in [-90, 90], got 200.0"),
     (["--pose", str(EXAMPLES / "walk.npz"), "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
