@@ -33,6 +33,7 @@ from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body, prepend_blend
 from core.pushout import ContactAnchors, body_anchors, guard_contact, guard_report, guard_sequence
 from core.scene import SceneAnalysis, scene_levels
+from core.threads import ThreadTuner
 
 log = logging.getLogger(__name__)
 
@@ -217,6 +218,9 @@ class ModelDeformer(Deformer):
         #: The guard batch by batch on the network's device (True), or afterwards over the sequence on the CPU
         #: (False); None: on the network's device where that is not the CPU. The two agree to float32 rounding.
         self.guard_on_device: bool | None = None
+        #: On a CPU, choose the threads of the network's batches while they run (`core.threads.ThreadTuner`);
+        #: False: torch's count throughout.
+        self.tune_threads = True
         self.lead_in_s = DEFAULT_LEAD_IN_S if lead_in_s is None else float(lead_in_s)
         if not (np.isfinite(self.lead_in_s) and self.lead_in_s >= 0):
             raise InputError(f"model lead-in: expected a non-negative number of seconds, got {lead_in_s!r}")
@@ -288,20 +292,29 @@ class ModelDeformer(Deformer):
                                                     enabled=self.precision == "bfloat16"):
             t1 = time.perf_counter()
             copies = _CopiesBack(out, device)
-            for s in range(0, motion.n_frames, batch):
-                fr = torch.arange(lead + s, lead + min(s + batch, motion.n_frames), device=device)
-                win = window_index(fr, self.model.config.window)
-                res = self.model.forward_frames(shaped.fused, g, rest, mf.pose[win], mf.velocity[win], mf.transforms[fr],
-                                                skip_joints=scene.enabled("joints"))
-                verts = res.verts.float()
-                if guard_here:
-                    with torch.autocast(device.type, enabled=False):  # the body posed in float32
-                        at = slice(s, s + len(fr))
-                        verts, n = guard_contact(verts, body.pose_tensor(pose_t[at], trans_t[at], betas),
-                                                shaped.anchors)
-                    moved.append(n)
-                copies.put(s, verts)
-            copies.finish()
+            tuner = ThreadTuner() if device.type == "cpu" and self.tune_threads else None
+            try:
+                for s in range(0, motion.n_frames, batch):
+                    if tuner:
+                        tuner.before()
+                    fr = torch.arange(lead + s, lead + min(s + batch, motion.n_frames), device=device)
+                    win = window_index(fr, self.model.config.window)
+                    res = self.model.forward_frames(shaped.fused, g, rest, mf.pose[win], mf.velocity[win],
+                                                    mf.transforms[fr], skip_joints=scene.enabled("joints"))
+                    verts = res.verts.float()
+                    if guard_here:
+                        with torch.autocast(device.type, enabled=False):  # the body posed in float32
+                            at = slice(s, s + len(fr))
+                            verts, n = guard_contact(verts, body.pose_tensor(pose_t[at], trans_t[at], betas),
+                                                    shaped.anchors)
+                        moved.append(n)
+                    copies.put(s, verts)
+                    if tuner:
+                        tuner.after(len(fr))
+                copies.finish()
+            finally:
+                if tuner:
+                    tuner.close()
         t2 = time.perf_counter()
         guard = {}
         if guard_here:
@@ -315,6 +328,8 @@ class ModelDeformer(Deformer):
                        "precision": self.precision, "training_range": self.training_range(garment, body),
                        "lead_in_frames": lead, "prepare_seconds": t1 - t0,
                        "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
+        if tuner:
+            self.report["cpu_threads"] = tuner.report()
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
         self.report.update(guard)
