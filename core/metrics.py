@@ -269,8 +269,10 @@ def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points:
     if pf.shape != gf.shape or not (np.array_equal(pf, gf) or same_surface(pf, gf, Vp)):
         detail = (f"{pf.shape[0]} vs {gf.shape[0]} faces" if pf.shape != gf.shape
                   else f"first difference at face {int(np.argmax(np.any(pf != gf, axis=-1)))}")
+        hint = ("" if pf.shape != gf.shape else ": the same garment exported with its vertices in another order? "
+                "export both keeping the vertex order of one mesh")
         raise InputError(f"'{pred_name}' and '{gt_name}' have different faces ({detail}): "
-                         "expected the same garment mesh (same vertices and faces)")
+                         f"expected the same garment mesh (same vertices and faces){hint}")
     Tp, Tg = np.shape(pred_points)[0], np.shape(gt_points)[0]
     if Tp != Tg:
         raise InputError(f"'{pred_name}' has {frames_text(Tp)}, '{gt_name}' has {Tg}: expected the same "

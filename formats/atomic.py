@@ -51,6 +51,14 @@ def atomic_file(path: str | os.PathLike):
         tmp.unlink(missing_ok=True)
 
 
+def _remove(path: Path) -> None:
+    """Remove `path`, a folder (with what it holds) or a file, if it exists."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
+
+
 @contextmanager
 def atomic_dir(final: str | os.PathLike, overwrite: bool):
     """Yield a temporary directory beside `final`; on success it becomes `final`.
@@ -72,9 +80,9 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool):
         raise
     if final.exists():
         old = final.with_name(f".{final.name}.old")
-        shutil.rmtree(old, ignore_errors=True)
+        _remove(old)
         os.replace(final, old)
         os.replace(tmp, final)
-        shutil.rmtree(old, ignore_errors=True)
+        _remove(old)  # a folder, or the file --overwrite replaced with one
     else:
         os.replace(tmp, final)

@@ -299,7 +299,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
     why = (f"interrupted ({interrupted['hit']}): checkpoint '{ckpt_path}' written" if interrupted["hit"] else
            "stopped at the time limit")
     left = f" ({why}: --resume continues to {train_cfg.steps})" if trainer.step < train_cfg.steps else ""
-    click.echo(f"{out}: {trainer.step} steps{left}, phase {trainer.phase.phase}, "
+    click.echo(f"{out}: {trainer.step} step{'' if trainer.step == 1 else 's'}{left}, phase {trainer.phase.phase}, "
                + (f"validation E_verts {float(val):.2f} mm" if val not in (None, "") else "no validation yet"))
 
 

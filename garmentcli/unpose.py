@@ -129,7 +129,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
                                  param_hint="--pose")
     if betas_text is not None:
         betas = betas_text
-        what += f", shape {','.join(f'{b:g}' for b in betas)}"
+        shown = ",".join(f"{b:g}" for b in betas[:10]) + (f",... ({len(betas)} betas)" if len(betas) > 10 else "")
+        what += f", shape {shown}"
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     garment = read_garment(source)

@@ -393,8 +393,13 @@ def test_check_comparable_rejects_different_faces():
     f2[5] = [0, f.max(), f.max() // 2]  # a face across the sheet: another surface
     with pytest.raises(InputError, match=r"different faces \(first difference at face 5\)"):
         check_comparable(seq, f, seq, f2, "a", "b")
-    with pytest.raises(InputError, match=r"different faces \(50 vs 49 faces\)"):
+    with pytest.raises(InputError, match=r"different faces \(50 vs 49 faces\)") as e:
         check_comparable(seq, f, seq, f[:-1], "a", "b")
+    assert "another order" not in str(e.value)
+    # The same mesh with its vertices renumbered (an exporter that reorders them): the message says what to do.
+    order = np.random.default_rng(0).permutation(len(v))
+    with pytest.raises(InputError, match="its vertices in another order"):
+        check_comparable(seq, f, seq[:, order], np.argsort(order)[f], "a", "b")
 
 
 def test_check_comparable_accepts_the_same_quads_split_by_other_diagonals():
