@@ -27,6 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.throughput import dress_4k, repeated  # noqa: E402
+import garmentcli  # noqa: E402,F401  (the process settings `garment` makes: OpenBLAS threads, malloc)
 from core.body import default_body  # noqa: E402
 from core.model_deform import load_model_deformer  # noqa: E402
 from core.motion import resample  # noqa: E402

@@ -32,6 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" / "warp"))
 
+import garmentcli  # noqa: E402,F401  (the process settings `garment` makes: OpenBLAS threads, malloc)
 from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
 from core.model_deform import default_batch_frames, load_model_deformer, native_bfloat16  # noqa: E402
