@@ -95,6 +95,20 @@ def make_dataset(root: Path, T: int = 12, n_settle: int = 0, settle_shift_m: flo
     return root
 
 
+def copy_recording_body(data: Path, body: Path, dest: Path) -> Path:
+    """A copy of dataset `data` at `dest` whose manifest records `body` as the body it was simulated on (path and
+    sha256, as `garment dataset` writes). Returns dest."""
+    import hashlib
+    import json
+    import shutil
+
+    shutil.copytree(data, dest)
+    manifest = json.loads((dest / "manifest.json").read_text())
+    manifest["inputs"] = {"body": {"path": str(body), "sha256": hashlib.sha256(Path(body).read_bytes()).hexdigest()}}
+    (dest / "manifest.json").write_text(json.dumps(manifest))
+    return dest
+
+
 def perturbed_model(config: ModelConfig = TINY_CONFIG, scale: float = 0.2, seed: int = 0):
     """A GarmentModel whose every parameter got N(0, scale^2) noise: away from the LBS-reproducing start."""
     import torch

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from formats.psd import load_fit
-from tests.core.model_fixtures import make_dataset, tube, write_obj
+from tests.core.model_fixtures import copy_recording_body, make_dataset, tube, write_obj
 from tests.garmentcli.cli import invoke
 from tests.garmentcli.conftest import write_motion, write_tiny_body
 
@@ -90,15 +90,8 @@ def test_fit_refuses_a_non_finite_ridge_and_an_out_that_is_no_npz(setup, tmp_pat
 def test_fit_refuses_a_body_other_than_the_datasets(setup, tmp_path):
     """The body the dataset records (`inputs.body`) must be the one given: --body forgotten is refused, naming
     the dataset's body; nothing is written."""
-    import hashlib
-    import shutil
-
     root, data, body, garment = setup
-    ds = tmp_path / "ds"
-    shutil.copytree(data, ds)
-    manifest = json.loads((ds / "manifest.json").read_text())
-    manifest["inputs"] = {"body": {"path": str(body), "sha256": hashlib.sha256(body.read_bytes()).hexdigest()}}
-    (ds / "manifest.json").write_text(json.dumps(manifest))
+    ds = copy_recording_body(data, body, tmp_path / "ds")
     r = invoke(["fit", garment, "--data", ds, "--rank", "4", "--out", tmp_path / "a.npz"])
     assert r.exit_code != 0 and "Traceback" not in r.output
     assert f"was simulated on body '{body}' (sha256 " in r.output and "got the embedded default" in r.output

@@ -10,7 +10,7 @@ import torch
 from click.testing import CliRunner
 
 from garmentcli.main import cli
-from tests.core.model_fixtures import TINY_CONFIG, make_dataset, tube, write_obj
+from tests.core.model_fixtures import TINY_CONFIG, copy_recording_body, make_dataset, tube, write_obj
 from tests.meshes import tiny_body
 
 
@@ -439,15 +439,8 @@ def test_train_refuses_a_body_other_than_the_datasets(setup, tmp_path):
     """A dataset records the body it was simulated on (`inputs.body`: its file's sha256, None for the embedded
     one): training against another body (--body forgotten, or another file of the same name) is refused in one
     line naming both; the dataset's own body passes."""
-    import hashlib
-    import shutil
-
     root, data, body, cfg = setup
-    ds = tmp_path / "ds"
-    shutil.copytree(data, ds)
-    manifest = json.loads((ds / "manifest.json").read_text())
-    manifest["inputs"] = {"body": {"path": str(body), "sha256": hashlib.sha256(body.read_bytes()).hexdigest()}}
-    (ds / "manifest.json").write_text(json.dumps(manifest))
+    ds = copy_recording_body(data, body, tmp_path / "ds")
     r = CliRunner().invoke(cli, ["train", "--data", str(ds), "--out", str(tmp_path / "a.pt"), "--config", str(cfg),
                                  "--steps", "1"])
     assert r.exit_code != 0 and "Traceback" not in r.output
