@@ -27,6 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.garment import Garment  # noqa: E402
+from core.garmentgen import _subdivide_midpoint  # noqa: E402
 from formats.obj import read_garment, write_obj  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
 
@@ -40,14 +41,8 @@ COMMAND = ("import atexit, resource, runpy, sys; atexit.register(lambda: print('
 
 def subdivided(g: Garment) -> Garment:
     """Each triangle into four at its edges' midpoints (the new vertices after the old ones, as modellers do)."""
-    f = g.faces
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    uniq, inv = np.unique(e, axis=0, return_inverse=True)
-    ab, bc, ca = (len(g.vertices) + inv.reshape(3, -1)).astype(np.int64)
-    a, b, c = f.T
-    v = np.concatenate([g.vertices, g.vertices[uniq].mean(axis=1)]).astype(np.float32)
-    faces = np.concatenate([np.stack(t, 1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
-    return Garment(v, faces, name=g.name)
+    (v,), faces = _subdivide_midpoint([g.vertices], g.faces)
+    return Garment(v.astype(np.float32), faces, name=g.name)
 
 
 def bake(garment_path: Path, motion: Path, frames: str, out: Path, keep: bool) -> tuple[float, float, float]:

@@ -177,6 +177,17 @@ def load_body_option(body_path: str | None) -> Body:
     return load_body(body_path)
 
 
+def check_dataset_body(data, manifest: dict, body_path: str | None) -> None:
+    """BadParameter for --body where dataset `data` (its `manifest`) records another body as the one it was
+    simulated on (`formats.dataset.body_difference`): a model or fit of its cloth on another body is wrong
+    everywhere, silently."""
+    from formats.dataset import body_difference
+
+    difference = body_difference(manifest, body_path)
+    if difference:
+        raise click.BadParameter(f"dataset '{data}' {difference}: pass the dataset's body", param_hint="--body")
+
+
 #: Said where a motion's betas do not fit the body: why, and how to leave them out.
 MOTION_BETAS_NOTE = ("a motion's betas belong to the body model it was fitted to, e.g. SMPL+H; --betas mean "
                      "ignores them")

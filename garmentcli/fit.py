@@ -7,7 +7,14 @@ from pathlib import Path
 import click
 import numpy as np
 
-from garmentcli.common import FiniteFloatRange, OutputPath, body_option, input_errors_as_click, load_body_option
+from garmentcli.common import (
+    FiniteFloatRange,
+    OutputPath,
+    body_option,
+    check_dataset_body,
+    input_errors_as_click,
+    load_body_option,
+)
 
 
 @click.command(name="fit")
@@ -30,7 +37,7 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     from core.deform import LBSDeformer
     from core.motion import sequence_motion
     from core.psd import DEFAULT_RANK, DEFAULT_RIDGE, PSDDeformer, fit_psd
-    from formats.dataset import body_difference, read_manifest, read_sequence, sequence_path
+    from formats.dataset import read_manifest, read_sequence, sequence_path
     from formats.obj import read_garment, read_obj
     from formats.psd import save_fit
 
@@ -49,9 +56,7 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
                                  param_hint="--data")
     garment = read_garment(source)
     body = load_body_option(body_path)
-    difference = body_difference(manifest, body_path)
-    if difference:  # a fit to cloth simulated on another body would be wrong everywhere, silently
-        raise click.BadParameter(f"dataset '{data}' {difference}: pass the dataset's body", param_hint="--body")
+    check_dataset_body(data, manifest, body_path)
     templates = sorted((data / "garments").glob("*.obj"))
     names = [t.stem for t in templates if read_obj(t).content_hash() == garment.content_hash()]
     if not names:

@@ -20,7 +20,7 @@ from tqdm import tqdm
 from core.errors import InputError
 from core.model import ADDABLE_INPUTS, ModelConfig, check_config_values, config_from_dict, keep_levels
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
-from garmentcli.common import OutputPath, input_errors_as_click, load_body_option, parse_device
+from garmentcli.common import OutputPath, check_dataset_body, input_errors_as_click, load_body_option, parse_device
 
 CSV_COLUMNS = ("step", "phase", "item", "loss", *LOSS_COLUMNS, "val_verts_mm", "val_collision")
 
@@ -132,12 +132,10 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     ckpt_path, csv_path, json_path = _side_files(out)
     model_values, train_values = _read_config(config_path)
     body = load_body_option(body_path)
-    from formats.dataset import body_difference, read_manifest
+    from formats.dataset import read_manifest
 
     for d in [data_dir] if isinstance(data_dir, str) else data_dir:
-        difference = body_difference(read_manifest(d) or {}, body_path)
-        if difference:  # the network would learn cloth simulated on one body against another's
-            raise click.BadParameter(f"dataset '{d}' {difference}: pass the dataset's body", param_hint="--body")
+        check_dataset_body(d, read_manifest(d) or {}, body_path)
     init = None
     if init_path is not None:
         if set(model_values) - set(ADDABLE_INPUTS) - {"levels"}:
@@ -339,18 +337,16 @@ def _defer_interrupt(launched: bool = False):
     return state, restore
 
 
-def _time_limit(minutes: float | None, world: int, device, interrupted: dict | None = None):
+def _time_limit(minutes: float | None, world: int, device, interrupted: dict):
     """should_stop for Trainer.run: True once `minutes` have passed or `interrupted["hit"]` (all ranks agree: rank
     0's clock decides)."""
-    if minutes is None and interrupted is None:
-        return None
     import math
     import time
 
     end = time.monotonic() + 60.0 * minutes if minutes is not None else math.inf
 
     def should_stop() -> bool:
-        stop = time.monotonic() > end or bool(interrupted and interrupted["hit"])
+        stop = time.monotonic() > end or bool(interrupted["hit"])
         if world == 1:  # no tensor, no device sync per step
             return stop
         import torch.distributed as dist
