@@ -29,6 +29,7 @@ from garmentcli.common import (
     FiniteFloatRange,
     OutputPath,
     betas_option,
+    beyond_memory,
     body_option,
     check_preroll,
     collected_warnings,
@@ -497,18 +498,15 @@ def _refuse_beyond_memory(garment, body, path, n_frames: int, source_fps: float,
     """The click error of `_check_memory` where `n_frames` frames at `fps` (of a motion at `source_fps`; the first
     `settle_frames` of them --settle's), `at_once` motions at a time with `copies` (BAKE_COPIES), would not fit in
     the memory free now."""
-    import psutil
-
-    per_frame = (garment.n_vertices + body.n_vertices) * 12 * copies
-    need = n_frames * per_frame * at_once
-    free = psutil.virtual_memory().available
-    if need <= free:
+    per_frame = (garment.n_vertices + body.n_vertices) * 12 * copies * at_once
+    beyond = beyond_memory(per_frame, n_frames, source_fps, fps, settle_frames)
+    if beyond is None:
         return
-    fit = int((free / per_frame / at_once - settle_frames) * source_fps / fps)  # in source frames, as --frames counts
+    need, free, fit = beyond
     if settle_frames and fit < 1:  # the settle blend alone does not fit
         raise click.ClickException(
             f"--settle {settle_frames}: {settle_frames} frames of a {garment.n_vertices}-vertex garment on a "
-            f"{body.n_vertices}-vertex body need about {settle_frames * per_frame * at_once / 1e9:.3g} GB, "
+            f"{body.n_vertices}-vertex body need about {settle_frames * per_frame / 1e9:.3g} GB, "
             f"{free / 1e9:.3g} GB is free: lower --settle (a few frames blend the rest pose into the motion)")
     parts = f"bake it in parts of at most {fit} source frames with --frames START:STOP" if fit >= 1 else ""
     if fps > source_fps:  # --fps multiplies the frames

@@ -240,6 +240,19 @@ def _check_resample_memory(path: str, motion, fps: float, n_frames: int) -> None
             f"{n_frames} frames, about {need / 1e9:.3g} GB, {free / 1e9:.3g} GB is free: lower --fps")
 
 
+def beyond_memory(bytes_per_frame: float, n_frames: int, source_fps: float, fps: float,
+                  lead_frames: int = 0) -> tuple[float, float, int] | None:
+    """Where `n_frames` frames at `fps` holding `bytes_per_frame` each would not fit in the memory free now:
+    (bytes needed, bytes free, the source frames that fit, counted as --frames counts them: at `source_fps`, the
+    first `lead_frames` of the frames (--settle's) not among them); None where they fit."""
+    import psutil
+
+    need, free = n_frames * bytes_per_frame, psutil.virtual_memory().available
+    if need <= free:
+        return None
+    return need, free, int((free / bytes_per_frame - lead_frames) * source_fps / fps)
+
+
 def parse_betas(text: str, words: tuple[str, ...] = ()) -> np.ndarray:
     """--betas: comma-separated numbers -> (S,) float32; raises click.BadParameter naming what it found.
 

@@ -33,6 +33,7 @@ from core.tradeoff import (
 from garmentcli.common import (
     OutputPath,
     betas_option,
+    beyond_memory,
     body_option,
     check_preroll,
     frames_option,
@@ -79,11 +80,9 @@ def _refuse_beyond_memory(n_rows: int, garment, body, n_frames: int, source_fps:
                           motion_path) -> None:
     """A run whose rows' points would not fit in the memory free now stops before its first simulation (hours),
     not after its last. n_frames: at `fps`, of a motion at `source_fps`."""
-    import psutil
-
-    need, free = memory_needed(n_rows, garment, body, n_frames), psutil.virtual_memory().available
-    if need > free:
-        fit = int(n_frames * free / need * source_fps / fps)  # in source frames, as --frames counts
+    beyond = beyond_memory(memory_needed(n_rows, garment, body, 1), n_frames, source_fps, fps)
+    if beyond is not None:
+        need, free, fit = beyond
         raise click.ClickException(
             f"motion '{motion_path}': {n_rows} configurations of {n_frames} frames of a "
             f"{garment.n_vertices}-vertex garment need about {need / 1e9:.3g} GB, {free / 1e9:.3g} GB is free: "

@@ -221,10 +221,12 @@ def test_a_run_beyond_memory_stops_before_its_first_row(scene, monkeypatch):
 
     measured = []
     monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
-    monkeypatch.setattr(garmentcli.tradeoff, "memory_needed", lambda *a: 4 * psutil.virtual_memory().available)
+    # a frame needs a third of the memory free: 3 of the scene's frames fit, 6 of its 60 fps source
+    monkeypatch.setattr(garmentcli.tradeoff, "memory_needed",
+                        lambda rows, g, b, n: n * psutil.virtual_memory().available / 3)
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"]])
     assert r.exit_code != 0 and "Traceback" not in r.output and not measured
-    assert "GB is free: measure a part of at most" in r.output and "with --frames START:STOP" in r.output
+    assert "GB is free: measure a part of at most 6 source frames with --frames START:STOP" in r.output, r.output
     assert not scene["out"].exists()
 
 
