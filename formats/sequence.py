@@ -94,9 +94,10 @@ def _obj_files(directory: Path) -> list[Path]:
 _FRAME_NAME = re.compile(r"^(.*?)(\d+)$")
 
 
-def _frame_files(directory: Path, files: list[Path]) -> list[Path]:
+def _frame_files(directory: Path, files: list[Path], recorded_prefix: str | None = None) -> list[Path]:
     """The numbered frames among the `.obj` files of `directory` (`_obj_files`): the files whose stems end in a
-    number (frame_0003, Blender skirt_000001, Houdini skirt.0001) with the most common prefix, in frame order.
+    number (frame_0003, Blender skirt_000001, Houdini skirt.0001) with the prefix `sequence.json` records
+    (`recorded_prefix`) where some have it, else the most common prefix, in frame order.
     Other OBJ files are left out with a warning naming them; a frame number used twice, or missing between the
     first and the last frame, is an InputError naming the file expected."""
     where = f"garment sequence '{directory}'"
@@ -113,7 +114,9 @@ def _frame_files(directory: Path, files: list[Path]) -> list[Path]:
     if not groups:
         raise InputError(f"{where}: expected numbered OBJ frames (frame_0000.obj, ...), got "
                          f"{', '.join(p.name for p in files[:4])}{', ...' if len(files) > 4 else ''}")
-    prefix = max(groups, key=lambda k: (len(groups[k]), k == "frame_"))
+    # the key write_obj_sequence's names get (a recorded prefix ending in digits, f1 of f10000, groups as f)
+    recorded = None if recorded_prefix is None else _FRAME_NAME.match(f"{recorded_prefix}0000").group(1).lower()
+    prefix = max(groups, key=lambda k: (k == recorded, len(groups[k]), k == "frame_"))
     frames = sorted(groups.pop(prefix), key=lambda nf: nf[0])
     stray += [p for group in groups.values() for _, p in group]
     if stray:
@@ -158,14 +161,72 @@ def bake_batch(directory: Path) -> dict[str, Path] | None:
     return bakes or None
 
 
+def _recorded_number(meta: dict, key: str, meta_path: Path) -> int | None:
+    """`meta[key]` as a whole number >= 0, None when absent (or null); an InputError naming the key otherwise."""
+    value = meta.get(key)
+    if value is None:
+        return None
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+        raise InputError(f"garment sequence '{meta_path}': expected '{key}' as a whole number >= 0, got {value!r}")
+    return value
+
+
+def _check_recorded_frames(meta_path: Path, meta: dict, files: list[Path]) -> None:
+    """Hold the frames (`_frame_files`, consecutive) to what `write_obj_sequence` recorded in `sequence.json`:
+    their `prefix`, the first frame's number `start` and their count `frames`. Each key is checked only where
+    present (other tools write `{"fps": 30}` alone); a mismatch is an InputError naming expected and found files."""
+    where = f"garment sequence '{meta_path.parent}'"
+    prefix = meta.get("prefix")
+    if prefix is not None and not isinstance(prefix, str):
+        raise InputError(f"garment sequence '{meta_path}': expected 'prefix' as a string (frame_ of frame_0000.obj), "
+                         f"got {prefix!r}")
+    start = _recorded_number(meta, "start", meta_path)
+    written = _recorded_number(meta, "frames", meta_path)
+    found = f"{files[0].name} to {files[-1].name}" if len(files) > 1 else files[0].name
+    # The found frames' prefix, first number and its digits: the recorded prefix may itself end in digits (f1 of
+    # f10000.obj), so it is cut off the name rather than read by _FRAME_NAME.
+    stem = files[0].stem
+    if prefix is not None and stem.lower().startswith(prefix.lower()) and stem[len(prefix):].isdigit():
+        digits = stem[len(prefix):]
+        prefixes_match = all(p.stem.lower().startswith(prefix.lower()) and p.stem[len(prefix):].isdigit()
+                             for p in files)
+    else:
+        match = _FRAME_NAME.match(stem)
+        digits = match.group(2) if match else ""
+        prefixes_match = prefix is None
+    first = int(digits) if digits else None
+    starts_match = start is None or start == first
+    if not (prefixes_match and starts_match):
+        n = len(files) if written is None else written
+        name_prefix = prefix if prefix is not None else stem[:len(stem) - len(digits)]
+        name_start = start if start is not None else (first or 0)
+        width = max(len(digits) or 4, len(str(name_start + n - 1)))
+        expected = f"{name_prefix}{name_start:0{width}d}{files[0].suffix}"
+        if n > 1:
+            expected += f" to {name_prefix}{name_start + n - 1:0{width}d}{files[0].suffix}"
+        record = " and ".join(([f"prefix {prefix!r}"] if not prefixes_match else [])
+                              + ([f"start {start}"] if not starts_match else []))
+        # the files end where the record does, so the first ones are gone
+        tail = prefixes_match and first is not None and written is not None and first + len(files) == start + written
+        hint = "frames missing at the start?" if tail and first > start else \
+            "frames renamed or renumbered, or the sequence.json of other frames?"
+        raise InputError(f"garment sequence '{meta_path}': expected frames {expected} (it records {record}), got "
+                         f"{found}: {hint}")
+    if written is not None and written != len(files):
+        raise InputError(f"{where}: {SEQUENCE_JSON} says {frames_text(written)} were written, got "
+                         f"{frames_text(len(files))} ({found}): frames missing "
+                         f"{'at the end' if written > len(files) else 'from the record'}?")
+
+
 def _read_obj_directory(directory: Path) -> Sequence:
     where = f"garment sequence '{directory}'"
     files = _obj_files(directory)
     if not files:
         raise InputError(f"{where}: expected OBJ frames (frame_0000.obj, ...) or a `garment bake` output (its "
                          f".usd stage or obj/ frames), got a directory with neither")
-    files = _frame_files(directory, files)
-    fps = None
+    fps = meta = None
     meta_path = directory / SEQUENCE_JSON
     if meta_path.is_file():
         try:
@@ -177,11 +238,10 @@ def _read_obj_directory(directory: Path) -> Sequence:
             raise InputError(f"garment sequence '{meta_path}': expected a JSON object like {{\"fps\": 30}}, "
                              f"got {type(meta).__name__}")
         fps = _fps(meta.get("fps"), f"garment sequence '{meta_path}'")
-        written = meta.get("frames")  # `write_obj_sequence` records how many frames it wrote
-        if isinstance(written, int) and not isinstance(written, bool) and written != len(files):
-            raise InputError(f"{where}: {SEQUENCE_JSON} says {frames_text(written)} were written, got "
-                             f"{frames_text(len(files))} ({files[0].name} to {files[-1].name}): frames missing "
-                             f"{'at the end' if written > len(files) else 'from the record'}?")
+    recorded = meta.get("prefix") if meta is not None else None
+    files = _frame_files(directory, files, recorded if isinstance(recorded, str) else None)
+    if meta is not None:
+        _check_recorded_frames(meta_path, meta, files)
 
     first = parse_obj(files[0], label="garment sequence frame")
     # Quads are split along frame 0's shorter diagonal in every frame, so all frames share faces.
@@ -265,7 +325,9 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
     mesh named "body" as the body), or one `.obj` (a single frame).
     Returns a `Sequence` (points float32 metres, faces int64).
     Raises InputError naming the path for a missing path, an unknown suffix, an
-    empty directory, frames with differing topology, or wrong array shapes.
+    empty directory, OBJ frames with a gap in their numbers or differing topology,
+    OBJ frames other than `sequence.json` records (its `prefix`, `start` and
+    `frames`, each where present), or wrong array shapes.
     """
     path = Path(path)
     if not path.exists():

@@ -301,3 +301,94 @@ def test_one_frame_is_one_frame_in_messages(tmp_path):
     np.savez(tmp_path / "s.npz", points=points, faces=faces, body_points=body_points, body_faces=body_faces)
     with pytest.raises(InputError, match="expected body_points with 1 frame like points, got 2$"):
         read_sequence(tmp_path / "s.npz")
+
+
+@pytest.mark.parametrize("written, recorded, found, message", [
+    # frames renamed after writing: the prefix (and first number) differ
+    pytest.param(dict(prefix="shirt_", start=5), dict(prefix="frame_", start=0, frames=10),
+                 "shirt_0005.obj to shirt_0014.obj",
+                 "expected frames frame_0000.obj to frame_0009.obj (it records prefix 'frame_' and start 0), got "
+                 "shirt_0005.obj to shirt_0014.obj: frames renamed or renumbered, or the sequence.json of other "
+                 "frames?", id="other prefix"),
+    # the first frame is not the one recorded
+    pytest.param(dict(), dict(prefix="frame_", start=3, frames=10), "frame_0000.obj to frame_0009.obj",
+                 "expected frames frame_0003.obj to frame_0012.obj (it records start 3), got frame_0000.obj to "
+                 "frame_0009.obj: frames renamed or renumbered, or the sequence.json of other frames?",
+                 id="other start"),
+    # `start` alone (no prefix, no count) is held to the files too
+    pytest.param(dict(start=1001), dict(fps=30, start=1000), "frame_1001.obj to frame_1010.obj",
+                 "expected frames frame_1000.obj to frame_1009.obj (it records start 1000), got frame_1001.obj to "
+                 "frame_1010.obj: frames renamed or renumbered, or the sequence.json of other frames?",
+                 id="start alone"),
+])
+def test_obj_frames_other_than_sequence_json_records_are_refused(tmp_path, written, recorded, found, message):
+    """`write_obj_sequence` records its `prefix` and `start` beside `frames`: files that do not begin where the
+    record says, or carry another prefix, are refused naming sequence.json, the frames it records and those found."""
+    points, faces = _animated(n_frames=10, n=2)
+    write_obj_sequence(tmp_path, points, faces[:1], fps=30, **written)
+    (tmp_path / "sequence.json").write_text(json.dumps(recorded))
+    with pytest.raises(InputError) as info:
+        read_sequence(tmp_path)
+    assert str(info.value) == f"garment sequence '{tmp_path / 'sequence.json'}': {message}"
+    assert found in str(info.value)
+
+
+def test_obj_frames_missing_at_the_start_are_refused_by_the_sequence_json_start(tmp_path):
+    """A frame missing at the start leaves no gap among the files, and the count alone would blame the end."""
+    points, faces = _animated(n_frames=5)
+    write_obj_sequence(tmp_path, points, faces, fps=30)
+    (tmp_path / "frame_0000.obj").unlink()
+    with pytest.raises(InputError) as info:
+        read_sequence(tmp_path)
+    assert str(info.value) == (f"garment sequence '{tmp_path / 'sequence.json'}': expected frames frame_0000.obj "
+                               "to frame_0004.obj (it records start 0), got frame_0001.obj to frame_0004.obj: "
+                               "frames missing at the start?")
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("start", "3", "expected 'start' as a whole number >= 0, got '3'"),
+    ("start", -1, "expected 'start' as a whole number >= 0, got -1"),
+    ("frames", 2.5, "expected 'frames' as a whole number >= 0, got 2.5"),
+    ("prefix", 7, "expected 'prefix' as a string (frame_ of frame_0000.obj), got 7"),
+])
+def test_a_sequence_json_start_prefix_or_frames_of_the_wrong_kind_is_refused(tmp_path, key, value, message):
+    points, faces = _animated()
+    write_obj_sequence(tmp_path, points, faces, fps=30)
+    meta = json.loads((tmp_path / "sequence.json").read_text())
+    (tmp_path / "sequence.json").write_text(json.dumps({**meta, key: value}))
+    with pytest.raises(InputError) as info:
+        read_sequence(tmp_path)
+    assert str(info.value) == f"garment sequence '{tmp_path / 'sequence.json'}': {message}"
+
+
+@pytest.mark.parametrize("names, meta", [
+    ([f"skirt_{t:06d}" for t in (1, 2, 3)], {"fps": 24}),  # Blender, a sequence.json of another tool: fps alone
+    ([f"skirt.{t:04d}" for t in (101, 102, 103)], {"fps": 24, "frames": 3}),  # Houdini
+    (["a_9", "a_10", "a_11"], {"fps": 24, "start": 9.0}),  # unpadded, natural order; a JSON number 9.0 is 9
+    ([f"f1{t:04d}" for t in (0, 1, 2)], {"fps": 24, "prefix": "f1", "start": 0, "frames": 3}),  # prefix ends in 1
+    ([f"Frame_{t:04d}" for t in (7, 8, 9)], {"fps": 24, "prefix": "frame_", "start": 7, "frames": 3}),  # any case
+])
+def test_obj_frames_that_agree_with_sequence_json_or_meet_one_without_prefix_and_start_are_read(tmp_path, names,
+                                                                                                 meta):
+    points, faces = _animated(n_frames=3)
+    for name, pts in zip(names, points):
+        write_obj(tmp_path / f"{name}.obj", pts, faces)
+    (tmp_path / "sequence.json").write_text(json.dumps(meta))
+    seq = read_sequence(tmp_path)
+    np.testing.assert_allclose(seq.points, points, atol=1e-6)
+    assert seq.fps == 24
+    write_obj_sequence(tmp_path / "from_1001", points, faces, fps=30, start=1001, prefix="take2_")
+    np.testing.assert_allclose(read_sequence(tmp_path / "from_1001").points, points, atol=1e-6)
+
+
+def test_the_frames_sequence_json_records_are_read_beside_more_other_numbered_objs(tmp_path, caplog):
+    """The prefix sequence.json records picks the frames, even where other numbered OBJs outnumber them."""
+    points, faces = _animated(n_frames=3)
+    write_obj_sequence(tmp_path, points, faces, fps=30)
+    for t in range(5):
+        write_obj(tmp_path / f"shirt_{t:04d}.obj", points[0] + 1, faces)
+    with caplog.at_level("WARNING"):
+        seq = read_sequence(tmp_path)
+    np.testing.assert_allclose(seq.points, points, atol=1e-6)
+    assert any("left out 5 OBJ files not numbered like the frames (frame_0000.obj): shirt_0000.obj" in r.getMessage()
+               for r in caplog.records)
