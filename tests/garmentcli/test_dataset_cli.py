@@ -426,3 +426,45 @@ def test_dataset_resume_refuses_another_body_or_motion_of_the_same_name_and_keep
     r = run(*args, "--body", male / "model.npz")
     assert r.exit_code != 0 and "motion 'a' (sha256 " in r.output
     assert (out / "manifest.json").read_bytes() == before
+
+
+def test_dataset_resume_with_motions_added_or_removed_keeps_the_splits_planned(scene):
+    """Resuming with a motion added: the motions planned before keep their splits (a fresh plan of a, b, c moves
+    a from train to val) and one line says where the new one went; with one removed: its items leave the plan and
+    a line says so, its sequence simulated is left on disk."""
+    a, b = still_motions(scene["dir"])
+    c = scene["dir"] / "c.npz"
+    write_motion(c, n_frames=3, fps=30.0, seed=2)
+    out = scene["dir"] / "data"
+    base = ["dataset", "--garments", scene["garment"], "--body", scene["body"], "--bodies", 1, "--settle", 0,
+            "--dry-run", "--out", out]
+
+    def splits():
+        m = json.loads((out / "manifest.json").read_text())
+        assert {(it["motion"], it["split"]) for it in m["items"]} <= {(n, s) for s, ns in m["splits"]["motions"].items()
+                                                                      for n in ns}
+        return {n: s for s, ns in m["splits"]["motions"].items() for n in ns}, m
+
+    r = run(*base, "--motions", a, "--motions", b)
+    assert r.exit_code == 0, r.output
+    before, m = splits()
+    assert before == {"a": "train", "b": "test"}
+    r = run(*base, "--motions", a, "--motions", b)
+    assert r.exit_code == 0 and "new motions" not in r.output and "no longer in the plan" not in r.output
+    r = run(*base, "--motions", a, "--motions", b, "--motions", c)
+    assert r.exit_code == 0, r.output
+    assert f"{out}: new motions split among themselves, train: c (the motions planned before keep their splits)" \
+        in r.output
+    assert splits()[0] == {**before, "c": "train"}
+    # A sequence simulated for b (the file stands in for one), then b left out of the command.
+    done = out / "sequences" / f"{m['items'][1]['id']}.npz"
+    assert m["items"][1]["motion"] == "b"
+    done.parent.mkdir()
+    done.write_bytes(b"simulated")
+    r = run(*base, "--motions", a, "--motions", c)
+    assert r.exit_code == 0, r.output
+    assert (f"{out}: motion b no longer in the plan: left out of the manifest (1 sequence simulated for it "
+            f"stays in {out / 'sequences'})") in r.output and "new motions" not in r.output
+    after, m = splits()
+    assert after == {"a": "train", "c": "train"} and {it["motion"] for it in m["items"]} == {"a", "c"}
+    assert done.read_bytes() == b"simulated"
