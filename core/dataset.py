@@ -129,7 +129,8 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
                frames_per_clip: int | None = None, seed: int = 0,
                max_clips_per_motion: int | None = None, bodies_per_clip: int | None = None,
                held_out: str | bool | None = None, preroll: int = 0,
-               kept_splits: dict[str, str] | None = None) -> tuple[list[DatasetItem], dict]:
+               kept_splits: dict[str, str] | None = None,
+               kept_bodies: dict[tuple, list[int]] | None = None) -> tuple[list[DatasetItem], dict]:
     """Items over garments x motion clips x bodies and the split description.
 
     motion_frames: motion name -> frame count at the dataset's fps.
@@ -141,6 +142,8 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
     preroll: frames of the motion simulated ahead of a clip that does not start it (fewer where it starts sooner).
     kept_splits: motion name -> split of a resumed dataset's motions, which keep it (`split_motions`); they
       also take their bodies in turn before the motions added since, so a motion added keeps the items planned.
+    kept_bodies: (garment, motion, clip) -> the bodies a resumed dataset's plan gave that clip
+      (`manifest_bodies`), kept, so that a motion removed does not move the turns of the motions after it.
     Returns (items sorted by id, {"motions": {split: [...]}, "garments": {split: [...]}, "held_out_garments": [...]}).
     """
     if len(set(garment_names)) != len(garment_names):
@@ -159,7 +162,8 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
         garments = garment_names if split == "test" else [g for g in garment_names if g not in held]
         for c, (start, stop) in enumerate(clip_ranges(n, frames_per_clip)[:max_clips_per_motion]):
             for g in garments:
-                bodies = sorted({(turn + k) % n_bodies for k in range(per_clip)})
+                bodies = (kept_bodies or {}).get((g, motion, c)) or sorted({(turn + k) % n_bodies
+                                                                           for k in range(per_clip)})
                 turn += per_clip
                 for b in bodies:
                     items.append(DatasetItem(id=f"{g}__{motion}__c{c:02d}__b{b:02d}", garment=g, motion=motion, clip=c,
@@ -179,6 +183,15 @@ def manifest_motion_splits(manifest: dict) -> dict[str, str]:
     if isinstance(recorded, dict):
         return {m: s for s, names in recorded.items() for m in names}
     return {it["motion"]: it["split"] for it in manifest.get("items", [])}
+
+
+def manifest_bodies(manifest: dict) -> dict[tuple, list[int]]:
+    """(garment, motion, clip) -> the bodies of the plan a manifest holds: what a resume keeps
+    (`plan_items(kept_bodies=...)`)."""
+    out: dict[tuple, list[int]] = {}
+    for it in manifest.get("items", []):
+        out.setdefault((it["garment"], it["motion"], int(it["clip"])), []).append(int(it["body"]))
+    return {k: sorted(set(v)) for k, v in out.items()}
 
 
 def item_motion(motion: Motion, item: DatasetItem, betas: np.ndarray, settle_frames: int) -> Motion:

@@ -202,8 +202,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
     items), OUT/garments/*.obj and OUT/sequences/<item>.npz.
     """
-    from core.dataset import (build_manifest, item_frames, manifest_motion_splits, only_stop_checks_differ,
-                              plan_items, sample_betas, settings_difference)
+    from core.dataset import (build_manifest, item_frames, manifest_bodies, manifest_motion_splits,
+                              only_stop_checks_differ, plan_items, sample_betas, settings_difference)
     from core.sim import SIMULATOR_VERSION, Material, SimOptions, load_material
     from formats.dataset import (
         copy_garment_template,
@@ -248,7 +248,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     # are split among themselves.
     kept = manifest_motion_splits(old) if old is not None else {}
     items, splits = plan_items(sorted(garments), motion_frames, n_bodies, frames_per_clip, seed, max_clips_per_motion,
-                               bodies_per_clip, held_out, preroll, kept_splits=kept)
+                               bodies_per_clip, held_out, preroll, kept_splits=kept,
+                               kept_bodies=manifest_bodies(old) if old is not None else None)
     settings = {"library": library, "fps": fps, "source_fps": source_fps, "frames_per_clip": frames_per_clip,
                 "max_clips_per_motion": max_clips_per_motion, "settle": settle_frames, "bodies": n_bodies,
                 "bodies_per_clip": bodies_per_clip, "held_out": held_out,

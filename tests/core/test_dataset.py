@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from core.dataset import clip_ranges, plan_items, sample_betas, settings_difference, split_motions
+from core.dataset import (build_manifest, clip_ranges, manifest_bodies, manifest_motion_splits, plan_items, sample_betas,
+                          settings_difference, split_motions)
 from core.errors import InputError
 from formats.dataset import Sequence, read_sequence, write_sequence
 
@@ -70,6 +71,19 @@ def test_a_motion_added_on_resume_keeps_the_items_planned_before():
     after, _ = plan_items(["a", "b"], {"new": 40, **motions}, 3, bodies_per_clip=1, seed=0, kept_splits=kept)
     assert set(before) <= set(after) and {it.motion for it in set(after) - set(before)} == {"new"}
     assert plan_items(["a", "b"], motions, 3, bodies_per_clip=1, seed=0, kept_splits=kept)[0] == before
+
+
+def test_a_motion_removed_on_resume_keeps_the_other_motions_items():
+    """A motion removed would move the bodies' turns of the motions after it: the manifest's bodies are kept."""
+    motions = {f"m{i}": 40 for i in range(5)}
+    before, splits = plan_items(["a", "b"], motions, 3, bodies_per_clip=1, seed=0)
+    manifest = build_manifest({}, before, splits, np.zeros((3, 10)), {}, {})
+    fewer = {m: n for m, n in motions.items() if m != "m0"}
+    moved, _ = plan_items(["a", "b"], fewer, 3, bodies_per_clip=1, seed=0, kept_splits=manifest_motion_splits(manifest))
+    assert not set(moved) <= set(before)  # the turns moved: finished sequences would be simulated again
+    after, _ = plan_items(["a", "b"], fewer, 3, bodies_per_clip=1, seed=0, kept_splits=manifest_motion_splits(manifest),
+                          kept_bodies=manifest_bodies(manifest))
+    assert set(after) == {it for it in before if it.motion != "m0"}
 
 
 def test_clips_cover_the_motion_in_order():
