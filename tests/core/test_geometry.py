@@ -207,3 +207,106 @@ def test_bincount_rows_matches_add_at():
     want = np.zeros((9, 3))
     np.add.at(want, index, values)  # the naive scatter-add it replaces
     np.testing.assert_allclose(_bincount_rows(index, values, 9), want, atol=1e-12)
+
+
+def _naive_point_triangle(p, a, b, c):
+    """Distance from p to triangle abc by the plane projection when it falls inside, else the nearest of the three
+    clamped edge projections (no Voronoi regions: independent of Ericson's formulas). Plain floats, one at a time."""
+    n = np.cross(b - a, c - a)
+    nn = float(n @ n)
+    if nn > 1e-30:
+        q = p - (float((p - a) @ n) / nn) * n
+        # inside when q is on the inner side of all three edges
+        if all(float(np.cross(v - u, q - u) @ n) >= 0 for u, v in ((a, b), (b, c), (c, a))):
+            return float(np.linalg.norm(p - q))
+    best = np.inf
+    for u, v in ((a, b), (b, c), (c, a)):
+        e = v - u
+        ee = float(e @ e)
+        t = 0.0 if ee == 0 else min(1.0, max(0.0, float((p - u) @ e) / ee))
+        best = min(best, float(np.linalg.norm(p - (u + t * e))))
+    return best
+
+
+def _naive_best_of_nearest(points, verts, faces, k):
+    """The one-pass closest face (`TriangleMesh.closest(exact=False)`) written as loops: per point, the faces of
+    its k nearest centroids (every centroid's distance, sorted), each measured by `_naive_point_triangle`, the
+    nearest kept. Returns (distance (N,), face (N,), gap (N,): how much farther the second-best candidate is)."""
+    centroids = verts[faces].mean(axis=1)
+    out_d, out_f, gap = [], [], []
+    for p in points:
+        cand = np.argsort(np.linalg.norm(centroids - p, axis=1), kind="stable")[:k]
+        d = np.array([_naive_point_triangle(p, *verts[faces[f]]) for f in cand])
+        order = np.argsort(d, kind="stable")
+        out_d.append(d[order[0]])
+        out_f.append(cand[order[0]])
+        gap.append(d[order[1]] - d[order[0]] if len(d) > 1 else np.inf)
+    return np.array(out_d), np.array(out_f), np.array(gap)
+
+
+def _lumpy_body():
+    """A closed stretched icosphere with uneven triangles, plus three zero-area faces glued onto it (a collinear
+    sliver, a face with a repeated corner, a point face): the flat-face path of the closest-point formulas."""
+    v, f = icosphere(2, radius=0.3)
+    v = v * np.array([1.0, 1.6, 0.7])
+    v = v + 0.02 * np.sin(7 * v[:, [1, 2, 0]])
+    extra = np.array([[0.0, 0.0, 0.5], [0.05, 0.0, 0.5], [0.1, 0.0, 0.5]])
+    n = len(v)
+    return np.concatenate([v, extra]), np.concatenate([f, [[n, n + 1, n + 2], [n, n, n + 1], [n + 2, n + 2, n + 2]]])
+
+
+def test_one_pass_closest_matches_the_naive_loop_in_chunks_and_threads(monkeypatch):
+    """The penetration metric's kernel (`TriangleMesh.closest(exact=False)`, best of the 16 nearest centroids'
+    faces) against `_naive_best_of_nearest`; with all faces as candidates, against brute force over every face.
+    Taken in chunks of a few points on two threads (and in Z-order), it gives the same bits as in one piece."""
+    import core.geometry as G
+
+    v, f = _lumpy_body()
+    rng = np.random.default_rng(5)
+    pts = np.concatenate([rng.normal(size=(150, 3)) * 0.3, v[:20] * 1.03, v[20:40] * 0.97,
+                          [[0.05, 0.0, 0.52], [0.05, 0.01, 0.5]]])  # the last two: nearest the flat faces
+    mesh = TriangleMesh(v, f)
+    for k in (16, len(f)):
+        res = mesh.closest(pts, k=k, exact=False)
+        d_ref, f_ref, gap = _naive_best_of_nearest(pts, v, f, k)
+        np.testing.assert_allclose(res.distance, d_ref, rtol=0, atol=1e-12)
+        clear = gap > 1e-9  # a near tie (a shared edge or vertex) may go to either face
+        np.testing.assert_array_equal(res.face_index[clear], f_ref[clear])
+        np.testing.assert_allclose(np.linalg.norm(res.closest - pts, axis=1), res.distance, atol=1e-12)
+        np.testing.assert_allclose(np.einsum("nk,nkc->nc", res.barycentric, v[f[res.face_index]]), res.closest,
+                                   atol=1e-12)
+    d_all = np.array([min(_naive_point_triangle(p, *v[tri]) for tri in f) for p in pts])
+    np.testing.assert_allclose(mesh.closest(pts, k=len(f), exact=False).distance, d_all, rtol=0, atol=1e-12)
+    whole = mesh.closest(pts, exact=False)
+    exact = mesh.closest(pts, exact=True)
+    inside = points_inside_mesh(pts, v, f, depth=0.002)
+    monkeypatch.setattr(G, "CLOSEST_CHUNK_PAIRS", 48)  # 3 points a chunk: ~60 chunks, Z-ordered
+    monkeypatch.setattr(G, "CLOSEST_THREADS", 2)
+    for exact_mode, want in ((False, whole), (True, exact)):
+        got = TriangleMesh(v, f).closest(pts, exact=exact_mode)
+        for name in ("distance", "face_index", "barycentric", "closest"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name), err_msg=name)
+    np.testing.assert_array_equal(points_inside_mesh(pts, v, f, depth=0.002), inside)
+
+
+def test_closest_formulas_give_the_same_bits_with_per_face_flat_tolerance():
+    """`_closest_on_triangles_soa` with the per-face flat tolerance `TriangleMesh` gathers equals it computed per
+    pair, on random and degenerate triangles (repeated corners, collinear, points at corners and on edges)."""
+    from core.geometry import _closest_on_triangles_soa, _dot3_soa
+
+    rng = np.random.default_rng(6)
+    p = rng.normal(size=(3, 400, 1))
+    a, b, c = rng.normal(size=(3, 3, 400, 8))
+    b[:, :50], c[:, 50:100] = a[:, :50], 0.5 * (a[:, 50:100] + b[:, 50:100])
+    a[:, 100:120] = b[:, 100:120] = c[:, 100:120]
+    p[:, 120:140] = a[:, 120:140, :1]
+    p[:, 140:160] = 0.5 * (a[:, 140:160, :1] + c[:, 140:160, :1])
+    ab, ac = b - a, c - a
+    plain = _closest_on_triangles_soa(p, a, b, c)
+    tol = _closest_on_triangles_soa(p, a, b, c, flat_tol=1e-9 * _dot3_soa(ab, ab) * _dot3_soa(ac, ac))
+    for x, y in zip(plain, tol):
+        np.testing.assert_array_equal(x, y)
+    for i in (0, 50, 100, 120, 140, 399):  # and each pair against the one-triangle form
+        cp, bary = closest_point_on_triangles(p[:, i, 0], a[:, i, 3], b[:, i, 3], c[:, i, 3])
+        np.testing.assert_array_equal(cp, plain[0][:, i, 3])
+        np.testing.assert_array_equal(bary, plain[1][:, i, 3])

@@ -440,3 +440,17 @@ def test_self_intersection_pct_counts_faces_per_frame():
     folded[far, 0] = 0.3 - folded[far, 0]
     pct = self_intersection_pct(np.stack([v, folded]), f)
     assert pct.shape == (2,) and pct[0] == 0.0 and 0.0 < pct[1] < 100.0
+
+
+def test_topology_cache_keeps_meshes_apart():
+    """The edges and rim `e_edge` and `e_curv` cache per face array are those of the faces given, whichever came
+    before: a grid, then the same grid with one face dropped (a new rim), then the grid again."""
+    from core.garment import mesh_edges
+    from core.metrics import _topology
+
+    v, f = grid(3, 3, size=1.0)
+    for faces in (f, f[1:], f):
+        edges, rim = _topology(faces, len(v))
+        np.testing.assert_array_equal(edges, mesh_edges(faces))
+        np.testing.assert_array_equal(rim, boundary_vertex_mask(faces, len(v)))
+        np.testing.assert_allclose(gaussian_curvature(v, faces), gaussian_curvature(v.copy(), faces.copy()))
