@@ -326,7 +326,8 @@ def test_frames_inside_lifts_a_one_frame_test():
 def test_metrics_taken_a_few_frames_at_a_time_equal_all_at_once(monkeypatch, caplog):
     """`compute_metrics` works through METRIC_VERTEX_FRAMES vertex-frames at a time (its float64 temporaries took
     10 GB on 91 frames of a 213k-vertex garment): float32 input in parts of 1 or 2 frames gives every metric and
-    the penetration of all frames at once (to the rounding of float64 sums), and calls the inside test once per frame as before."""
+    the penetration of all frames at once (to the rounding of float64 sums), and calls the inside test once per frame
+    for PRED and GT together where they share the body (twice where GT has another)."""
     import core.metrics as M
 
     v, f = wavy_grid()
@@ -341,7 +342,21 @@ def test_metrics_taken_a_few_frames_at_a_time_equal_all_at_once(monkeypatch, cap
         return points[:, 2] > verts[:, 2].mean() - 0.2
 
     whole = compute_metrics(pred, gt, f, body, np.array([[0, 1, 2]]), frames_inside(inside))
+    assert calls == [np.float64] * 5
+    calls.clear()  # GT's own body, the same points: still one test a frame
+    same = compute_metrics(pred, gt, f, body, np.array([[0, 1, 2]]), frames_inside(inside),
+                           gt_body_points=body.copy(), gt_body_faces=np.array([[0, 1, 2]]))
+    assert calls == [np.float64] * 5 and same.per_frame.keys() == whole.per_frame.keys()
+    calls.clear()  # another body for GT: each garment against its own
+    other = compute_metrics(pred, gt, f, body, np.array([[0, 1, 2]]), frames_inside(inside),
+                            gt_body_points=body + 0.01, gt_body_faces=np.array([[0, 1, 2]]))
     assert calls == [np.float64] * 10
+    for b, garment, name in ((body, pred, "penetration_pct"), (body + 0.01, gt, "gt_penetration_pct")):
+        alone = np.array([100 * inside(garment[t].astype(np.float64), b[t], None).mean() for t in range(5)])
+        np.testing.assert_allclose(other.per_frame[name], alone, err_msg=name)
+        np.testing.assert_allclose(same.per_frame[name], whole.per_frame[name], err_msg=name)
+    np.testing.assert_allclose(whole.per_frame["penetration_pct"],
+                               [100 * inside(pred[t].astype(np.float64), body[t], None).mean() for t in range(5)])
     for frames in (1, 2):
         monkeypatch.setattr(M, "METRIC_VERTEX_FRAMES", frames * v.shape[0])
         parts = compute_metrics(pred, gt, f, body, np.array([[0, 1, 2]]), frames_inside(inside))
