@@ -85,6 +85,8 @@ MAX_UNCOVERED_SHARE = 0.05
 #: Frames per forward pass where ModelDeformer is not told: on a CPU 2, the fastest measured on a 2-core
 #: AMD EPYC for a 3,960-vertex dress (15 ms/frame against 20 at 4 and 23 at 8: the graph attention's
 #: per-layer temporaries of a few frames stay in cache; benchmarks/throughput.py); elsewhere `default_batch_frames`.
+#: Measured again with freed memory kept (benchmarks/results/cpu_batch.md, 2,016-12,816 vertices, 1 and 2
+#: threads): within 8 % of the fastest batch for every garment, 1.1-1.25x faster than 32.
 DEFAULT_BATCH_FRAMES = {"cpu": 2}
 
 #: On a GPU, vertex-frames per forward pass where ModelDeformer is not told (128 frames of a 4,096-vertex garment):
