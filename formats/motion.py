@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +55,14 @@ _SPLIT_KEYS = ("root_orient", "pose_body", "pose_jaw", "pose_eye", "pose_hand")
 #: needs allow_pickle) are left unread.
 _READ_KEYS = ("poses", *_SPLIT_KEYS, "trans", "betas", *FRAMERATE_KEYS, "gender")
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
+#: What reading an archive or one of its arrays raises for a damaged, truncated or unusual file: a corrupt deflate
+#: stream (zlib.error), an encrypted member (RuntimeError), a compression zipfile lacks (NotImplementedError), an
+#: array header declaring more values than memory holds (MemoryError).
+NPZ_READ_ERRORS = (zipfile.BadZipFile, zlib.error, ValueError, OSError, EOFError, KeyError, RuntimeError,
+                   NotImplementedError, MemoryError)
+#: How a zip archive (an .npz) starts: a local file header, or the end record of an empty archive. A file starting
+#: "PK" otherwise (a truncated or spanned zip) is none: numpy would try to unpickle it.
+ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 
 
 def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Motion:
@@ -70,31 +79,34 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     src = f"motion '{path}'"
     if not path.is_file():
         raise InputError(f"{src}: file not found")
-    with open(path, "rb") as f:
-        magic = f.read(6)
-    if magic == b"\x93NUMPY":
-        raise InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
-    if not magic.startswith(b"PK"):
-        kind = _OTHER_MOTION_FORMATS.get(path.suffix.lower(), "a file that is not one")
-        raise InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays: SMPL joint rotations "
-                         f"'poses', 'trans', a frame rate), got {kind}")
-    try:
-        data = np.load(path, allow_pickle=False)
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
-        raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
     arrays = {}
-    with data:
-        files = list(data.files)
-        for key in files:
-            if key not in _READ_KEYS:  # e.g. AMASS SMPL-X's markers_latent_vids, a pickled dict: never read
-                continue
-            try:
-                arrays[key] = data[key]
-            except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
-                if key == "gender":  # e.g. an object array: not needed
-                    log.warning("%s: skipping unreadable key '%s' (%s)", src, key, _short(exc))
+    with open(path, "rb") as fh:  # opened here so that a failed np.load leaves no file open
+        magic = fh.read(6)
+        fh.seek(0)
+        if magic == b"\x93NUMPY":
+            raise InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
+        if not magic.startswith(ZIP_MAGIC):
+            kind = _OTHER_MOTION_FORMATS.get(path.suffix.lower(), "a file that is not one")
+            if magic.startswith(b"PK") and kind == "a file that is not one":
+                kind = "a damaged or incomplete zip archive"
+            raise InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays: SMPL joint "
+                             f"rotations 'poses', 'trans', a frame rate), got {kind}")
+        try:
+            data = np.load(fh, allow_pickle=False)
+        except NPZ_READ_ERRORS as exc:
+            raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
+        with data:
+            files = list(data.files)
+            for key in files:
+                if key not in _READ_KEYS:  # e.g. AMASS SMPL-X's markers_latent_vids, a pickled dict: never read
                     continue
-                raise InputError(f"{src}: could not read array '{key}' ({_short(exc)})") from None
+                try:
+                    arrays[key] = data[key]
+                except NPZ_READ_ERRORS as exc:
+                    if key == "gender":  # e.g. an object array: not needed
+                        log.warning("%s: skipping unreadable key '%s' (%s)", src, key, _short(exc))
+                        continue
+                    raise InputError(f"{src}: could not read array '{key}' ({_short(exc)})") from None
 
     poses = _read_poses(arrays, src, files)
     T = poses.shape[0]
@@ -122,11 +134,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
             raise InputError(f"{src}: expected a frame rate under 'mocap_framerate' or 'mocap_frame_rate' (or "
                              f"{', '.join(repr(k) for k in FRAMERATE_KEYS[2:])}), found none: pass the motion's "
                              f"frame rate with --source-fps")
-        raw = arrays[key]
-        try:
-            fps = float(np.asarray(raw, dtype=np.float64).reshape(-1)[0])
-        except (ValueError, TypeError, IndexError):
-            raise InputError(f"{src}: expected a number under '{key}', got {raw!r}") from None
+        fps = _read_frame_rate(arrays[key], key, src)
         what = f"'{key}'"
     else:
         what = "the fps override"
@@ -244,12 +252,44 @@ def _split_poses(arrays: dict, src: str) -> np.ndarray:
     return flat.reshape(T, 55, 3)
 
 
-def _float_array(a, key: str, src: str) -> np.ndarray:
+def _read_frame_rate(raw, key: str, src: str) -> float:
+    """The one frame rate stored under `key` (a 0-d or 1-element array, or one value repeated per frame)."""
+    values = np.asarray(raw)
     try:
+        if values.dtype.kind not in _NUMBER_KINDS:
+            raise TypeError
+        rates = np.asarray(values, dtype=np.float64).reshape(-1)
+    except (ValueError, TypeError):
+        raise InputError(f"{src}: expected a number under '{key}', got {_value_text(values)}") from None
+    if rates.size == 0:
+        raise InputError(f"{src}: expected a number under '{key}', got an empty array")
+    if rates.size > 1 and not (rates == rates[0]).all():
+        raise InputError(f"{src}: expected one frame rate under '{key}', got {rates.size} different values "
+                         f"({_value_text(rates)}{', ...' if rates.size > 4 else ''})")
+    return float(rates[0])
+
+
+#: numpy dtype kinds read as numbers: floats, integers and text of numbers ('60'); not bool (True is no rotation or
+#: rate), complex (the imaginary part would be dropped), dates or durations.
+_NUMBER_KINDS = frozenset("fiuUS")
+
+
+def _value_text(values) -> str:
+    """The first values of an array as a message quotes them (`60.0, 30.0, 120.0`; `abc (dtype <U3)`)."""
+    a = np.asarray(values)
+    items = ", ".join(str(v) for v in a.reshape(-1)[:4].tolist())[:80]
+    return items if a.dtype.kind in "fiu" else f"{items} (dtype {a.dtype})"
+
+
+def _float_array(a, key: str, src: str) -> np.ndarray:
+    dtype = np.asarray(a).dtype
+    try:
+        if dtype.kind not in _NUMBER_KINDS:
+            raise TypeError
         with np.errstate(over="ignore"):  # float64 beyond float32's range becomes Inf, refused naming the frame
             return np.asarray(a, dtype=np.float32)
     except (ValueError, TypeError):
-        raise InputError(f"{src}: expected numbers in '{key}', got dtype {np.asarray(a).dtype}") from None
+        raise InputError(f"{src}: expected numbers in '{key}', got dtype {dtype}") from None
 
 
 def _read_gender(raw) -> str | None:

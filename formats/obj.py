@@ -29,6 +29,9 @@ log = logging.getLogger(__name__)
 WELD_DISTANCE_M = 1e-5
 #: Faces of up to this many vertices are read (5 or more split by `ear_clip`); larger ones are refused.
 MAX_POLYGON_VERTICES = 256
+#: The largest coordinate read: every reader keeps points as float32, where a larger one becomes Inf (and its square
+#: overflows float64 in the weld's distances); no garment in any unit comes near it.
+MAX_COORDINATE = float(np.finfo(np.float32).max)
 
 #: Statement keywords that carry nothing a garment needs (materials, smoothing, grouping).
 _IGNORED = frozenset({"vn", "o", "g", "s", "vp", "l", "p",
@@ -108,12 +111,24 @@ def _read_text(path: Path, label: str) -> str:
     return data.decode("utf-8-sig", errors="replace")
 
 
+def _physical_lines(text: str) -> list[str]:
+    """The lines of an OBJ's text, ended by \\n, \\r\\n or \\r alone as editors count them (not `str.splitlines`,
+    which also breaks at form feeds, \\x1c-\\x1e, NEL and U+2028, shifting every line number an error names after them;
+    within a line they are whitespace, as `str.split` takes them)."""
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    lines = text.split("\n")
+    if lines[-1] == "":
+        lines.pop()
+    return lines
+
+
 def _logical_lines(text: str):
     """(line number, line) of an OBJ's text, a line ending in a backslash joined with the next (the format's
     line continuation); a joined line is numbered by its last physical line. Comments are never continued: an
     exporter's "# C:\\models\\" must not swallow the vertex after it."""
     pending = ""
-    for lineno, line in enumerate(text.splitlines(), 1):
+    for lineno, line in enumerate(_physical_lines(text), 1):
         stripped = line.rstrip()
         if stripped.endswith("\\") and not (pending + stripped).lstrip().startswith("#"):
             pending += stripped[:-1] + " "
@@ -124,36 +139,64 @@ def _logical_lines(text: str):
         yield lineno, pending
 
 
+def _shown(token: str) -> str:
+    """A file's token as an error quotes it: control characters (a NUL, a form feed) escaped, not printed raw."""
+    return token if token.isprintable() else token.encode("unicode_escape").decode("ascii")
+
+
+def _plain_number(token: str) -> bool:
+    """Whether `token` is a number as C's strtod reads it: Python's float() also takes `1_000` and other scripts'
+    digits (`\u0663`), which other OBJ readers refuse: a corrupted or mistyped file, not a coordinate."""
+    return token.isascii() and "_" not in token
+
+
 def _floats(rows: list, line_numbers: list, width: int, what: str, label: str, path: Path) -> np.ndarray:
     """Rows of number strings -> (N, width) float64; on failure name the first bad line."""
     if not rows:
         return np.zeros((0, width), dtype=np.float64)
+    joined = " ".join(" ".join(row) for row in rows)
     try:
+        if not _plain_number(joined):
+            raise ValueError(joined)
         return np.array(rows, dtype=np.float64).reshape(len(rows), width)
     except ValueError:
         for row, lineno in zip(rows, line_numbers):
             for tok in row:
                 try:
+                    if not _plain_number(tok):
+                        raise ValueError(tok)
                     float(tok)
                 except ValueError:
                     raise InputError(f"{label} '{path}': expected a number in the {what} on line {lineno}, "
-                                     f"got '{tok}'") from None
+                                     f"got '{_shown(tok)}'") from None
         raise
 
 
 def _index(tok: str, count: int, lineno: int, kind: str, label: str, path: Path) -> int:
     """One OBJ index (1-based, or negative = relative to the `count` defined so far) -> 0-based."""
     try:
+        if not _plain_number(tok):  # int() takes `1_0` and other scripts' digits too
+            raise ValueError(tok)
         i = int(tok)
     except ValueError:
         raise InputError(f"{label} '{path}': expected an integer {kind} index on line {lineno}, "
-                         f"got '{tok}'") from None
+                         f"got '{_shown(tok)}'") from None
+    if i > _MAX_INDEX:
+        raise InputError(f"{label} '{path}': {kind} index {i} out of range on line {lineno}, beyond any file's "
+                         f"{kind} count")
     if i > 0:
         return i - 1
-    if i < 0 and count + i >= 0:
+    if i == 0:
+        raise InputError(f"{label} '{path}': {kind} index 0 out of range on line {lineno}: OBJ indices start at 1 "
+                         f"(or count back from -1, the last defined)")
+    if count + i >= 0:
         return count + i
     raise InputError(f"{label} '{path}': {kind} index {i} out of range on line {lineno}, "
                      f"only {count} defined before it")
+
+
+#: The largest OBJ index held: the polygons are int64.
+_MAX_INDEX = int(np.iinfo(np.int64).max)
 
 
 def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
@@ -215,6 +258,7 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
 
     vertices = _floats(v_rows, v_lines, 3, "vertex", label, path)
     uvs = _floats(vt_rows, vt_lines, 2, "texture coordinate", label, path)
+    _refuse_beyond_float32(vertices, v_lines, "vertex", label, path)
     if vertices.shape[0] == 0:
         raise InputError(f"{label} '{path}': expected vertices ('v' lines), got none")
     if not f_lines:
@@ -267,6 +311,12 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
             k = int(np.argmax(bad))
             raise InputError(f"{label} '{path}': {what} index {int(largest[k]) + 1} out of range on line "
                              f"{f_numbers[k]}, the file has {count} {plural}")
+    if all_uv:  # NaN or Inf texture coordinates that a face uses would be written into every output
+        used = np.unique(np.concatenate([polygon_uvs[polygon_uvs >= 0]] + [ngon[2] for ngon in ngons]))
+        bad = used[~np.isfinite(uvs[used]).all(axis=1)]
+        if len(bad):
+            raise InputError(f"{label} '{path}': expected finite texture coordinates, got "
+                             f"{_nonfinite_text(uvs[bad[0]])} on line {vt_lines[bad[0]]}")
     named = any(f_materials)
     written = None
     if ngons:
@@ -282,6 +332,22 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
     materials = np.array(f_materials, dtype=object) if named else None
     return ObjPolygons(vertices, polygons, uvs if all_uv else None, polygon_uvs if all_uv else None,
                        tuple(f_lines), len(vt_rows), relative, materials, written, tuple(libraries))
+
+
+def _nonfinite_text(values: np.ndarray) -> str:
+    return "NaN" if np.isnan(values).any() else "Inf"
+
+
+def _refuse_beyond_float32(vertices: np.ndarray, line_numbers: list, what: str, label: str, path: Path) -> None:
+    """InputError naming the line of the first finite coordinate past `MAX_COORDINATE` (NaN and Inf are
+    `validate_garment`'s to report, naming the vertex)."""
+    with np.errstate(invalid="ignore"):
+        big = np.isfinite(vertices) & (np.abs(vertices) > MAX_COORDINATE)
+    if big.any():
+        k = int(np.argmax(big.any(axis=1)))
+        value = float(vertices[k][big[k]][0])
+        raise InputError(f"{label} '{path}': expected coordinates within float32's range (+-3.4e+38), got {value:g} "
+                         f"in the {what} on line {line_numbers[k]}")
 
 
 def split_ngons(vertices, polygons, polygon_uvs, ngons, where, label, path):
@@ -387,7 +453,7 @@ def _parse_like(text: str, like: ObjPolygons) -> ObjPolygons | None:
     """
     if "\\\n" in text or "\\\r" in text:
         return None  # line continuations: the full parser joins them
-    lines = text.splitlines()
+    lines = _physical_lines(text)
     v_rows = [line[2:] for line in lines if line.startswith(("v ", "v\t"))]
     if len(v_rows) != like.vertices.shape[0]:
         return None
@@ -396,8 +462,8 @@ def _parse_like(text: str, like: ObjPolygons) -> ObjPolygons | None:
     if not like.same_faces(f_lines, len(v_rows), len(vt_rows)):
         return None
     vertices = _numbers(v_rows, 3)
-    if vertices is None:
-        return None
+    if vertices is None or not (np.abs(vertices) <= MAX_COORDINATE).all():
+        return None  # NaN, Inf or past float32: the full parser names the line
     uvs = None
     if like.polygon_uvs is not None:
         uvs = _numbers(vt_rows, 2)
@@ -575,15 +641,23 @@ def material_libraries(path: Path, statements) -> tuple[str, ...]:
     found = []
     for statement in statements:
         whole = path.parent / statement
-        names = [statement] if whole.is_file() else statement.split()
+        names = [statement] if _is_file(whole) else statement.split()
         for name in names:
             library = path.parent / name
-            if library.is_file():
+            if _is_file(library):
                 found.append(str(library.resolve()))
             else:
                 log.warning("garment mesh '%s': its material library '%s' is not there; the outputs name its "
-                            "materials only", path, name)
+                            "materials only", path, _shown(name))
     return tuple(dict.fromkeys(found))
+
+
+def _is_file(path: Path) -> bool:
+    """`Path.is_file`, False for a name no file can have (too long, a NUL in it) instead of raising."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
 
 
 def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
@@ -593,9 +667,10 @@ def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.nd
     and duplicate faces and unused vertices and UVs dropped (each warned), named after the file's stem.
     written: the file's faces as written where it has n-gons (its source mesh keeps them), else None."""
     file_vertices = vertices
-    faces, face_uvs, _ = triangulate(vertices, polygons, polygon_uvs)
-    faces, welded = _weld(vertices, faces, label, path)
-    vertices, faces, face_uvs = _clean(vertices, faces, face_uvs, label, path, welded)
+    with np.errstate(invalid="ignore", over="ignore"):  # Inf coordinates: validate_garment names the vertex
+        faces, face_uvs, _ = triangulate(vertices, polygons, polygon_uvs)
+        faces, welded = _weld(vertices, faces, label, path)
+        vertices, faces, face_uvs = _clean(vertices, faces, face_uvs, label, path, welded)
     garment_uvs = None
     if face_uvs is not None and len(faces):
         used_uv = np.unique(face_uvs)

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError, frames_text
+from formats.motion import ZIP_MAGIC
 from formats.obj import STAGE_SUFFIXES, mtllib_text, obj_face_text, obj_vertex_text, parse_obj, triangulate
 from formats.usd import read_usd
 
@@ -59,6 +60,8 @@ def _fps(value, where: str) -> float | None:
     if value is None:
         return None
     try:
+        if isinstance(value, bool) or np.asarray(value).dtype.kind in "bcmMO":  # True is no frame rate
+            raise TypeError
         fps = float(np.asarray(value).reshape(()))
     except (TypeError, ValueError):
         raise InputError(f"{where}: expected fps as one positive number, got {value!r}") from None
@@ -80,9 +83,11 @@ def _check_faces(faces: np.ndarray, n_points: int, what: str, where: str) -> np.
 def _check_points(points: np.ndarray, what: str, where: str) -> np.ndarray:
     points = np.asarray(points)
     if points.ndim != 3 or points.shape[2] != 3 or points.shape[0] == 0 or points.shape[1] == 0 \
-            or not np.issubdtype(points.dtype, np.number):
-        raise InputError(f"{where}: expected {what} (T, V, 3) numbers with T, V >= 1, got shape {points.shape}")
-    return points.astype(np.float32)
+            or points.dtype.kind not in "fiu":  # complex would lose its imaginary part, bool is no coordinate
+        raise InputError(f"{where}: expected {what} (T, V, 3) real numbers with T, V >= 1, got shape {points.shape} "
+                         f"{points.dtype}")
+    with np.errstate(over="ignore"):  # past float32's range becomes Inf, refused naming the frame and vertex
+        return points.astype(np.float32)
 
 
 def _obj_files(directory: Path) -> list[Path]:
@@ -268,11 +273,18 @@ def _read_single_obj(path: Path) -> Sequence:
 
 def _read_npz(path: Path) -> Sequence:
     where = f"garment sequence '{path}'"
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except Exception as exc:  # zipfile/pickle/OS errors all mean "not a readable npz"
-        raise InputError(f"{where}: cannot be read as .npz ({type(exc).__name__}: {exc})") from None
+    with open(path, "rb") as fh:  # opened here so that a failed np.load leaves no file open
+        head = fh.read(6)
+        if not head.startswith(ZIP_MAGIC):  # numpy would read an .npy, or try to unpickle anything else
+            got = "a single .npy array" if head == b"\x93NUMPY" else "no zip archive"
+            raise InputError(f"{where}: cannot be read as .npz (a zip of .npy arrays 'points', 'faces'): it is {got}")
+        fh.seek(0)
+        try:
+            with np.load(fh, allow_pickle=False) as data:
+                arrays = {k: data[k] for k in data.files}
+        except Exception as exc:  # zipfile/zlib/OS errors all mean "not a readable npz"
+            text = str(exc).splitlines()[0][:120] if str(exc) else ""
+            raise InputError(f"{where}: cannot be read as .npz ({type(exc).__name__}: {text})") from None
     for key in ("points", "faces"):
         if key not in arrays:
             raise InputError(f"{where}: expected key '{key}', got keys {sorted(arrays)}")

@@ -184,6 +184,31 @@ def test_corrupt_file(tmp_path, suffix):
     _one_line(e, f"bad{suffix}", "cannot read")
 
 
+def _corrupt_deflate(tmp_path):
+    np.savez_compressed(tmp_path / "c.npz", **smpl_arrays())
+    b = bytearray((tmp_path / "c.npz").read_bytes())
+    start = 30 + int.from_bytes(b[26:28], "little") + int.from_bytes(b[28:30], "little")  # the first member's data
+    for i in range(start + 5, start + 40):
+        b[i] ^= 0x5A
+    return bytes(b)
+
+
+def _npy(tmp_path):
+    np.save(tmp_path / "v.npy", smpl_arrays()["v_template"])
+    return (tmp_path / "v.npy").read_bytes()
+
+
+@pytest.mark.parametrize("make, needle", [
+    (_corrupt_deflate, "Error -3 while decompressing data"),  # zlib.error went past the reader: a traceback
+    (_npy, "it is a single .npy array"),  # np.load returned an array: TypeError (no context manager), a traceback
+])
+def test_a_damaged_npz_or_an_npy_is_one_line(tmp_path, make, needle):
+    (tmp_path / "bad.npz").write_bytes(make(tmp_path))
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "bad.npz")
+    _one_line(e, "bad.npz", "cannot read it as a numpy .npz archive", needle)
+
+
 def test_truncated_pickle(tmp_path):
     write_pkl(tmp_path / "m.pkl", smpl_arrays())
     data = (tmp_path / "m.pkl").read_bytes()

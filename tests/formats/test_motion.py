@@ -1,5 +1,6 @@
 """Tests of formats/motion.py: AMASS-style .npz reading, writing and validation."""
 
+import io
 import logging
 import zipfile
 
@@ -463,3 +464,85 @@ def test_a_glitch_frame_in_trans_far_from_the_origin_is_refused(tmp_path):
             load_motion(_write(tmp_path, "huge.npz", poses=_poses(40, 72), trans=trans, mocap_framerate=60.0))
     trans[5] = [9e3, 0.0, 0.0]
     load_motion(_write(tmp_path, "far.npz", poses=_poses(40, 72), trans=trans, mocap_framerate=60.0))
+
+
+def _motion_arrays(T=4):
+    return {"poses": _poses(T, 72), "trans": _trans(T), "mocap_framerate": np.array(60.0)}
+
+
+def _zip_flags(raw: bytes, flag: int | None = None, method: int | None = None) -> bytes:
+    """`raw` (a zip) with every member's general-purpose flag and/or compression method rewritten."""
+    b = bytearray(raw)
+    for signature, at in ((b"PK\x03\x04", 6), (b"PK\x01\x02", 8)):
+        i = b.find(signature)
+        while i >= 0:
+            if flag is not None:
+                b[i + at:i + at + 2] = flag.to_bytes(2, "little")
+            if method is not None:
+                b[i + at + 2:i + at + 4] = method.to_bytes(2, "little")
+            i = b.find(signature, i + 4)
+    return bytes(b)
+
+
+def _stored(tmp_path) -> bytes:
+    np.savez(tmp_path / "s.npz", **_motion_arrays())
+    return (tmp_path / "s.npz").read_bytes()
+
+
+def _damaged_deflate(tmp_path) -> bytes:
+    np.savez_compressed(tmp_path / "c.npz", **_motion_arrays())
+    b = bytearray((tmp_path / "c.npz").read_bytes())
+    start = 30 + int.from_bytes(b[26:28], "little") + int.from_bytes(b[28:30], "little")  # poses' deflate stream
+    for i in range(start + 5, start + 40):
+        b[i] ^= 0x5A
+    return bytes(b)
+
+
+def _huge_header() -> bytes:
+    header = b"{'descr': '<f4', 'fortran_order': False, 'shape': (100000000000, 72), }"
+    header += b" " * (118 - len(header)) + b"\n"
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        z.writestr("poses.npy", b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header + bytes(64))
+        z.writestr("mocap_framerate.npy", b"")
+    return out.getvalue()
+
+
+@pytest.mark.parametrize("make, message", [
+    # each raised past the reader (zlib.error, RuntimeError, NotImplementedError, MemoryError): a traceback
+    (_damaged_deflate, "could not read array 'poses' (Error -3 while decompressing data"),
+    (lambda tmp_path: _zip_flags(_stored(tmp_path), flag=1), "could not read array 'poses' (File 'poses.npy' is "
+     "encrypted"),
+    (lambda tmp_path: _zip_flags(_stored(tmp_path), method=9), "could not read array 'poses' (That compression "
+     "method is not supported)"),
+    (lambda tmp_path: _huge_header(), "could not read array 'poses' (Unable to allocate"),
+    # "PK" and then no zip: numpy tried to unpickle it, and the message spoke of pickles and allow_pickle
+    (lambda tmp_path: b"PK\x07\x08" + bytes(40), "got a damaged or incomplete zip archive"),
+])
+def test_a_damaged_or_unusual_archive_is_one_line(tmp_path, make, message):
+    path = tmp_path / "m.npz"
+    path.write_bytes(make(tmp_path))
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    assert str(info.value).startswith(f"motion '{path}': ") and message in str(info.value)
+    assert "\n" not in str(info.value) and "pickle" not in str(info.value)
+
+
+@pytest.mark.parametrize("key, value, message", [
+    # complex values lost their imaginary part (a ComplexWarning on stderr), bool and dates read as 0/1 and seconds
+    ("poses", _poses(4, 72).astype(np.complex64) + 1j, "expected numbers in 'poses', got dtype complex64"),
+    ("poses", _poses(4, 72) > 0, "expected numbers in 'poses', got dtype bool"),
+    ("poses", np.zeros((4, 72), "datetime64[s]"), "expected numbers in 'poses', got dtype datetime64[s]"),
+    ("trans", _trans(4) + 0j, "expected numbers in 'trans', got dtype complex64"),
+    ("betas", np.ones(10, bool), "expected numbers in 'betas', got dtype bool"),
+    # a frame rate per take of a session: the first was taken, the others dropped
+    ("mocap_framerate", np.array([60.0, 30.0, 120.0]), "expected one frame rate under 'mocap_framerate', got 3 "
+     "different values (60.0, 30.0, 120.0)"),
+    ("mocap_framerate", np.array(True), "expected a number under 'mocap_framerate', got True (dtype bool)"),
+    ("mocap_framerate", np.array(60 + 1j), "expected a number under 'mocap_framerate'"),
+])
+def test_values_of_the_wrong_kind_are_refused_not_converted(tmp_path, key, value, message):
+    path = _write(tmp_path, **{**_motion_arrays(), key: value})
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    assert str(info.value).startswith(f"motion '{path}': {message}")

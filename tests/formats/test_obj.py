@@ -1,6 +1,7 @@
 """Tests for formats/obj.py: the parser on hand-written OBJ text, cleaning, errors, round trips."""
 
 import logging
+import warnings
 
 import numpy as np
 import pytest
@@ -430,3 +431,54 @@ def test_a_mesh_of_another_format_is_named_for_what_it_is(tmp_path, name, kind):
         read_garment(path)
     assert str(info.value) == (f"garment mesh '{path}': expected an OBJ or USD garment, got a {kind} file: export the "
                                "garment as OBJ (or USD) on the body's rest pose from the tool that made it")
+
+
+_TRIANGLE = "v 0 0 0\nv 0.5 0 0\nv 0 0.5 0\n"
+
+
+@pytest.mark.parametrize("text, message", [
+    # an index past int64 raised OverflowError (a traceback) while filling the polygon array
+    (_TRIANGLE + "f 1 2 100000000000000000000000000000\n", "vertex index 100000000000000000000000000000 out of range on "
+     "line 4, beyond any file's vertex count"),
+    # 1e200 is finite, but its squared distances overflowed the weld's k-d tree (ValueError, a traceback)
+    ("v 0 0 0\nv 1e200 0 0\nv 0 0.5 0\nf 1 2 3\n", "expected coordinates within float32's range (+-3.4e+38), got "
+     "1e+200 in the vertex on line 2"),
+    # texture coordinates that every face uses, NaN: they went silently into every output
+    (_TRIANGLE + "vt 0 0\nvt nan 1\nvt 1 1\nf 1/1 2/2 3/3\n", "expected finite texture coordinates, got NaN on line 5"),
+    # Python's int() and float() take these, C's strtod (other OBJ readers) does not: read as 10, 1000 and 3
+    (_TRIANGLE + "f 1 2 1_0\n", "expected an integer vertex index on line 4, got '1_0'"),
+    ("v 0 0 0\nv 1_000 0 0\nv 0 0.5 0\nf 1 2 3\n", "expected a number in the vertex on line 2, got '1_000'"),
+    ("v 0 0 0\nv \u0663 0 0\nv 0 0.5 0\nf 1 2 3\n", "expected a number in the vertex on line 2, got '\u0663'"),
+    # a form feed inside a line ended it (str.splitlines), so every later line number was one too many
+    ("v 0 0 0\nv 0.5\x0c0 0\nv 0 0.5 0\nf 1 2 3\nf 1 2 9\n", "vertex index 9 out of range on line 5, the file has 3"),
+    # a NUL in a number was printed raw into the message
+    ("v 0 0 0\nv 0.5\x00 0 0\nv 0 0.5 0\nf 1 2 3\n", "expected a number in the vertex on line 2, got '0.5\\x00'"),
+    # index 0 said "only 3 defined before it", as if the file were short of vertices
+    (_TRIANGLE + "f 1 2 0\n", "vertex index 0 out of range on line 4: OBJ indices start at 1"),
+])
+def test_bad_input_found_by_fuzzing_is_one_clear_line(tmp_path, text, message):
+    path = tmp_path / "bad.obj"
+    path.write_bytes(text.encode())
+    with pytest.raises(InputError) as info:
+        read_obj(path)
+    assert f"garment mesh '{path}': " in str(info.value) and message in str(info.value)
+    assert "\n" not in str(info.value) and "\x00" not in str(info.value)
+
+
+def test_an_inf_coordinate_is_refused_without_numpy_warnings_on_stderr(tmp_path):
+    """The weld and the degenerate-face check printed RuntimeWarnings (with source lines) before the error."""
+    path = tmp_path / "inf.obj"
+    path.write_text("v 0 0 0\nv inf 0 0\nv 0 0.5 0\nv 0.5 0.5 0\nf 1 2 3\nf 2 4 3\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match="expected finite coordinates"):
+            read_obj(path)
+
+
+def test_a_material_library_name_no_file_can_have_is_warned_about_not_raised(tmp_path, caplog):
+    """`mtllib` with a 300-character name raised OSError (File name too long) from Path.is_file."""
+    path = tmp_path / "m.obj"
+    path.write_text("mtllib " + "m" * 300 + ".mtl\nusemtl a\n" + _TRIANGLE + "f 1 2 3\n")
+    with caplog.at_level(logging.WARNING):
+        garment = read_obj(path)
+    assert garment.source.libraries == () and "is not there" in caplog.text

@@ -1,6 +1,7 @@
 """Tests for formats/sequence.py: every form round-trips through read_sequence; bad input."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -392,3 +393,41 @@ def test_the_frames_sequence_json_records_are_read_beside_more_other_numbered_ob
     np.testing.assert_allclose(seq.points, points, atol=1e-6)
     assert any("left out 5 OBJ files not numbered like the frames (frame_0000.obj): shirt_0000.obj" in r.getMessage()
                for r in caplog.records)
+
+
+# Found by fuzzing the readers (2026-12-04).
+def _fuzz_points():
+    return np.zeros((2, 3, 3), np.float32) + np.eye(3, dtype=np.float32)
+
+
+@pytest.mark.parametrize("points, needle", [
+    (_fuzz_points() + 1j, "real numbers"),  # complex: the imaginary part was dropped (ComplexWarning), values read
+])
+def test_points_of_the_wrong_kind_are_refused(tmp_path, points, needle):
+    np.savez(tmp_path / "s.npz", points=points, faces=np.array([[0, 1, 2]]))
+    with pytest.raises(InputError, match=needle):
+        read_sequence(tmp_path / "s.npz")
+
+
+def test_points_past_float32_are_refused_without_an_overflow_warning(tmp_path):
+    np.savez(tmp_path / "s.npz", points=_fuzz_points().astype(np.float64) * 1e39, faces=np.array([[0, 1, 2]]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        seq = read_sequence(tmp_path / "s.npz")  # Inf: the caller names the frame and vertex (metrics, render)
+    assert np.isinf(seq.points).any()
+
+
+def test_an_npy_named_npz_is_named_for_what_it_is(tmp_path):
+    np.save(tmp_path / "s.npy", _fuzz_points())
+    (tmp_path / "s.npy").rename(tmp_path / "s.npz")
+    with pytest.raises(InputError, match="it is a single .npy array"):
+        read_sequence(tmp_path / "s.npz")
+
+
+def test_a_boolean_fps_is_refused(tmp_path):
+    (tmp_path / "seq").mkdir()
+    for t in range(2):
+        (tmp_path / "seq" / f"frame_{t:04d}.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "seq" / "sequence.json").write_text(json.dumps({"fps": True}))
+    with pytest.raises(InputError, match="expected fps as one positive number, got True"):
+        read_sequence(tmp_path / "seq")
