@@ -4,6 +4,10 @@ The CLI turns every `InputError` into one clear line and a non-zero exit, so the
 message must name the file or option, what was expected and what was found.
 """
 
+import errno
+import os
+import stat
+
 
 class InputError(ValueError):
     """Bad user input: a file, an array or an option value that cannot be used."""
@@ -25,3 +29,24 @@ def check_finite_points(points, where: str, vertex: str = "vertex") -> None:
         t, v = (int(i) for i in np.argwhere(bad)[0])
         kind = "NaN" if np.isnan(points[t, v]).any() else "Inf"
         raise InputError(f"{where}: expected finite coordinates, got {kind} at frame {t}, {vertex} {v}")
+
+
+def not_a_file(path) -> str | None:
+    """Why `path` cannot be read as an input file (None: it is a regular file, or a link to one): "no such
+    file", "a directory", "a pipe ..." (a shell's process substitution `<(...)`: read once, where the readers
+    seek and read again), "a device", "a socket", "a symbolic link loop"."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return "no such file"
+    except OSError as exc:
+        return "a symbolic link loop" if exc.errno == errno.ELOOP else (exc.strerror or str(exc)).lower()
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return "a directory, expected a file"
+    if stat.S_ISFIFO(mode):
+        return "a pipe (such as the shell's <(...)), expected a file: write it to a file first"
+    if stat.S_ISSOCK(mode):
+        return "a socket, expected a file"
+    return "a device, expected a file"

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from core.body import LAYOUT_JOINTS, Body, dense_from_sparse, body_from_arrays
-from core.errors import InputError
+from core.errors import InputError, not_a_file
 from formats.motion import NPZ_READ_ERRORS, ZIP_MAGIC
 
 log = logging.getLogger(__name__)
@@ -42,8 +42,8 @@ def load_body(path: str | Path) -> Body:
     """
     path = Path(path)
     label = f"body file '{path}'"
-    if not path.is_file():
-        raise InputError(f"{label}: not found" if not path.exists() else f"{label}: not a file")
+    if not_a_file(path):
+        raise InputError(f"{label}: " + ("not found" if not_a_file(path) == "no such file" else not_a_file(path)))
     suffix = path.suffix.lower()
     readers = {".npz": _read_npz, ".pkl": _read_pkl}
     if suffix not in readers:

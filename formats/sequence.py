@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError, frames_text
+from core.errors import InputError, frames_text, not_a_file
 from formats.motion import ZIP_MAGIC
 from formats.obj import STAGE_SUFFIXES, mtllib_text, obj_face_text, obj_vertex_text, parse_obj, triangulate
 from formats.usd import read_usd
@@ -347,6 +347,8 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
     if path.is_dir():
         inner = bake_directory_sequence(path)
         return _read_obj_directory(path) if inner is None else read_sequence(inner, track)
+    if not_a_file(path):  # a pipe, a device, a socket
+        raise InputError(f"garment sequence '{path}': {not_a_file(path)}")
     suffix = path.suffix.lower()
     if suffix == ".npz":
         return _read_npz(path)

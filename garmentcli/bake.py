@@ -16,6 +16,7 @@ from tqdm import tqdm
 from core.bake import bake_item
 from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
+from core.errors import not_a_file
 from core.motion import parse_frame_range
 from core.provenance import software_versions
 from core.quality import DEFAULT_BUDGET_MM
@@ -363,8 +364,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
                                "--precision and --push-out")
-    if not Path(garment_path).is_file():
-        raise click.FileError(garment_path, hint="no such file")
+    if not_a_file(garment_path):
+        raise click.FileError(garment_path, hint=not_a_file(garment_path))
     motion_paths = motion_files(motion_paths)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)

@@ -14,7 +14,7 @@ import click
 import numpy as np
 
 from core.body import Body, default_body
-from core.errors import InputError
+from core.errors import InputError, not_a_file
 from core.motion import check_frame_rate, parse_frame_range, preroll, resample, resampled_frame_count, settle
 
 #: `--pin` values (core.sim.PIN_MODES; repeated here so the CLI starts without importing the simulator).
@@ -78,7 +78,7 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
         elif path.is_file():
             files.append(str(arg))
         else:
-            raise click.FileError(str(arg), hint="no such file")
+            raise click.FileError(str(arg), hint=not_a_file(arg))
     kept: dict = {}
     for f in files:
         kept.setdefault(Path(f).resolve(), f)

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from core.errors import not_a_file
 from garmentcli.common import (
     FiniteFloatRange,
     OutputPath,
@@ -42,8 +43,8 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     from formats.psd import save_fit
 
     source = Path(garment_path)
-    if not source.is_file():
-        raise click.FileError(str(source), hint="no such file")
+    if not_a_file(source):
+        raise click.FileError(str(source), hint=not_a_file(source))
     out = Path(out_path) if out_path else source.with_name(f"{source.stem}.psd.npz")
     if out.suffix.lower() != ".npz":
         raise click.BadParameter(f"expected a .npz fit file (what is written), got '{out}'", param_hint="--out")

@@ -16,6 +16,7 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
+from core.errors import not_a_file
 from core.tradeoff import (
     METRIC_COLUMNS,
     SPREAD_JITTER_M,
@@ -151,8 +152,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     from formats.obj import read_garment
 
     for p in (garment_path, motion_path):
-        if not Path(p).is_file():
-            raise click.FileError(p, hint="no such file")
+        if not_a_file(p):
+            raise click.FileError(p, hint=not_a_file(p))
     check_preroll(preroll_frames, frames)
     device = str(parse_device(device, auto=True))
     models = _models(model_specs)

@@ -1,4 +1,5 @@
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -632,4 +633,26 @@ def test_bake_render_with_a_window_that_cannot_open_stops_before_any_work(scene,
     monkeypatch.setattr(garmentcli.bake, "bake_task", lambda *a, **k: pytest.fail("baked"))
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--render"])
     assert_one_line_error(r, "VTK_DEFAULT_OPENGL_WINDOW=vtkXOpenGLRenderWindow: expected an X display")
+    assert not scene["out"].exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes")
+def test_a_pipe_a_device_or_a_link_loop_is_named_for_what_it_is(scene):
+    """The shell's `<(...)` gives a pipe, read once where the readers seek and read again: said so, not 'no such
+    file' (what it said for the garment and the motion); a device as --body, a symbolic link loop likewise."""
+    d = scene["dir"]
+    os.mkfifo(d / "pipe.obj")
+    os.mkfifo(d / "pipe.npz")
+    (d / "loop_a.obj").symlink_to(d / "loop_b.obj")
+    (d / "loop_b.obj").symlink_to(d / "loop_a.obj")
+    pipe = "a pipe (such as the shell's <(...)), expected a file: write it to a file first"
+    base = ["--body", scene["body"], "--out", scene["out"]]
+    assert_one_line_error(invoke(["bake", d / "pipe.obj", scene["motion"], *base]), "pipe.obj'", pipe)
+    assert_one_line_error(invoke(["bake", scene["garment"], d / "pipe.npz", *base]), "pipe.npz'", pipe)
+    assert_one_line_error(invoke(["bake", d / "loop_a.obj", scene["motion"], *base]), "loop_a.obj'",
+                          "a symbolic link loop")
+    assert_one_line_error(invoke(["metrics", d / "pipe.npz", scene["garment"]]), "pipe.npz'", pipe)
+    if Path("/dev/null").exists():
+        assert_one_line_error(invoke(["bake", scene["garment"], scene["motion"], "--body", "/dev/null", "--out",
+                                      scene["out"]]), "body file '/dev/null': a device, expected a file")
     assert not scene["out"].exists()
