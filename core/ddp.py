@@ -112,6 +112,7 @@ class DistributedTrainer(Trainer):
         batch = self.draw_batch()
         k = self.sequences_per_rank
         mine = batch[self.rank * k:(self.rank + 1) * k]
+        self._step_cost = sum(len(f) * int(s.positions.shape[1]) for s, f in mine)
         phase = self.phase.phase
         frozen = phase >= 2
         loss, terms = (self._ddp or self._loss)(mine, phase, frozen)

@@ -10,7 +10,9 @@ a bake, so `ThreadTuner` times the batches themselves: from torch's count (the c
 threads), keeps the fastest, and tries again after a while, less often while the choice holds: a round costs two
 batches on other counts where it changes nothing (trying every count each round cost an idle 16-core machine
 13 %). The network's frames do not depend on the count (to float rounding; the
-same bits with 1 and 2 threads on the Zen 4: `tests/core/test_threads.py`).
+same bits with 1 and 2 threads on the Zen 4: `tests/core/test_threads.py`). `garment train --threads auto` times
+its steps with it too (by their vertex-frames; a training step's bits do depend on the count, so it is opt-in
+there: 327 against 151 ms a step beside a busy process, benchmarks/results/train_threads.md).
 """
 
 from __future__ import annotations

@@ -195,6 +195,10 @@ class Trainer:
         self.phase = PhaseState()
         self.rows: list[dict] = []
         self.on_switch = None
+        #: Chooses torch's CPU threads step by step where set (`core.threads.ThreadTuner`; `garment train
+        #: --threads auto`): the steps' float rounding then follows the counts chosen.
+        self.tuner = None
+        self._step_cost = 1
         self.val = data.splits.get("val") or data.splits["train"]
         if not data.splits.get("val"):
             log.warning("no 'val' split: validating on the training sequences")
@@ -205,6 +209,7 @@ class Trainer:
         train = self.data.splits["train"]
         seq = train[int(self.rng.integers(len(train)))]
         frames = seq.draw_frames(self.rng, self.config.frames_per_step)
+        self._step_cost = len(frames) * int(seq.positions.shape[1])  # vertex-frames: steps of larger garments take longer
         phase = self.phase.phase
         frozen = phase >= 2
         terms = frame_losses(self.model, self.data, seq, frames, phase, frozen)
@@ -282,7 +287,13 @@ class Trainer:
         """
         until = self.config.steps if until is None else until
         while self.step < until:
-            self.train_step()
+            if self.tuner is None:
+                self.train_step()
+            else:
+                self.tuner.before()
+                row = self.train_step()
+                if "val_verts_mm" not in row:  # a validation's time is no step's
+                    self.tuner.after(self._step_cost)
             if should_stop is not None and self.step < until and should_stop():
                 log.info("step %d: stopping early (time limit)", self.step)
                 break

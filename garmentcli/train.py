@@ -86,9 +86,15 @@ def _parse_phases(text: str) -> tuple:
 @click.option("--garment", "garments", multiple=True, metavar="NAME",
               help="Train on this garment's sequences only (repeatable; the dataset's garments/NAME.obj): with "
                    "--init, a garment's own fine-tune of a model.")
+@click.option("--threads", default=None, metavar="N|auto",
+              help="CPU threads of the network's steps (default: torch's, a thread per core or OMP_NUM_THREADS). "
+                   "auto: chosen while it trains, as bake does (beside other work, e.g. a `garment dataset` still "
+                   "running, a thread per core waits for busy cores: 2.9x slower steps measured); the steps' float "
+                   "rounding then follows the counts chosen, so a run is no longer bitwise repeatable.")
 @input_errors_as_click
 def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-          sequences_per_step=1, device="cpu", time_limit=None, init_path=None, partial=False, garments=()):
+          sequences_per_step=1, device="cpu", time_limit=None, init_path=None, partial=False, garments=(),
+          threads=None):
     """Train the garment model on a simulator dataset (phases switch on validation plateaus).
 
     Under `torchrun --nproc_per_node N` it trains with DistributedDataParallel (gloo on CPU); only
@@ -100,16 +106,21 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
     env = torchrun_env()
     if dev.type == "cuda" and env is not None and dev.index is None:
         dev = torch.device("cuda", env[2])  # one GPU per process: the local rank's
+    tune, fixed = _parse_threads(threads, dev, env is not None)
     rank, world = init_from_env(dev)
+    threads_before = torch.get_num_threads()
+    if fixed:
+        torch.set_num_threads(fixed)
     try:
         _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
                sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None,
-               dev, time_limit, init_path, partial, garments)
+               dev, time_limit, init_path, partial, garments, tune)
         if world > 1:
             import torch.distributed as dist
 
             dist.barrier()  # no rank tears the process group down while another still uses it
     finally:
+        torch.set_num_threads(threads_before)
         if torchrun_env() is not None:
             import torch.distributed as dist
 
@@ -119,7 +130,7 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
 
 def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
            sequences_per_step, rank, world, parallel_trainer, device=torch.device("cpu"), time_limit=None,
-           init_path=None, partial=False, garments=()):
+           init_path=None, partial=False, garments=(), tune=False):
     from core.model_data import ModelDataset
     from formats.checkpoint import load_checkpoint
 
@@ -170,6 +181,10 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         trainer = Trainer(data, model_cfg, train_cfg, device=device)
     else:
         trainer = parallel_trainer(data, model_cfg, train_cfg, sequences_per_rank=sequences_per_step, device=device)
+    if tune:
+        from core.threads import ThreadTuner
+
+        trainer.tuner = ThreadTuner()
     if init is not None:  # before --resume: a checkpoint's weights replace these
         missing, unexpected = trainer.model.load_state_dict(keep_levels(init["model"], model_cfg.levels), strict=False)
         # Only the zero-initialised layers of an input this --config adds may be missing: the network
@@ -204,6 +219,27 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         restore_sigint()
     if interrupted["hit"] and trainer.step < train_cfg.steps:  # stopped early: the shell's code for the signal
         raise click.exceptions.Exit(130 if interrupted["hit"] == "Ctrl-C" else 143)
+
+
+def _parse_threads(text: str | None, device, launched: bool) -> tuple[bool, int | None]:
+    """--threads as (auto: the trainer's ThreadTuner chooses, the count N or None). BadParameter for another
+    value, or auto off the CPU or under torchrun (each process's steps wait for the others' there: give each its
+    threads with N)."""
+    if text is None:
+        return False, None
+    if text == "auto":
+        if device.type != "cpu" or launched:
+            raise click.BadParameter("auto chooses the threads of one process on the CPU: "
+                                     + ("under torchrun give each process its threads with N" if launched
+                                        else f"got --device {device}"), param_hint="--threads")
+        return True, None
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise click.BadParameter(f"expected a number of threads >= 1 or auto, got {text!r}", param_hint="--threads")
+    return False, n
 
 
 def _side_files(out: Path) -> tuple[Path, Path, Path]:
@@ -289,7 +325,10 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
             "val_verts_mm": last_val.get("val_verts_mm"), "body": job.body.name, "joint_coverage": coverage,
             "lead_in_s": lead_in,
             "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
-            "sequences_missing": data.missing, "garments": sorted(data.garments)}
+            "sequences_missing": data.missing, "garments": sorted(data.garments),
+            "threads": trainer.tuner.report() if trainer.tuner is not None else {"fixed": torch.get_num_threads()}}
+    if trainer.tuner is not None:
+        trainer.tuner.close()
     if not main:
         return
     save_checkpoint(out, model_cfg, {k: v.cpu() for k, v in trainer.model.state_dict().items()}, meta=meta)
@@ -298,7 +337,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
            "stopped at the time limit")
     left = f" ({why}: --resume continues to {train_cfg.steps})" if trainer.step < train_cfg.steps else ""
     click.echo(f"{out}: {trainer.step} step{'' if trainer.step == 1 else 's'}{left}, phase {trainer.phase.phase}, "
-               + (f"validation E_verts {float(val):.2f} mm" if val not in (None, "") else "no validation yet"))
+               + (f"validation E_verts {float(val):.2f} mm" if val not in (None, "") else "no validation yet")
+               + (f", threads chosen: {trainer.tuner.chosen}" if trainer.tuner is not None else ""))
 
 
 #: The signals `train` stops at after the step (checkpoint and model written): Ctrl-C, and the SIGTERM a batch

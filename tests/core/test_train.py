@@ -262,3 +262,26 @@ def test_several_datasets_with_different_meshes_of_one_garment_are_refused(tmp_p
     with pytest.raises(InputError, match=r"dataset '.*b': expected its garment 'a' to be the mesh of '.*a/garments/"
                                          r"a.obj', got a different '.*b/garments/a.obj'"):
         ModelDataset([a, b], tiny_body(), TINY_CONFIG)
+
+
+def test_a_thread_tuner_times_the_steps_by_vertex_frames_and_not_the_validations(data):
+    """`Trainer.tuner` (garment train --threads auto) is told each step's vertex-frames (steps of larger garments
+    take longer), and nothing of a step that also validated."""
+
+    class Recorder:
+        def __init__(self):
+            self.calls = []
+
+        def before(self):
+            self.calls.append("before")
+
+        def after(self, cost):
+            self.calls.append(cost)
+
+    tr = Trainer(data, TINY_CONFIG, TrainConfig(steps=6, lr=1e-3, frames_per_step=4, val_every=3, phases=(1,)))
+    tr.tuner = Recorder()
+    tr.run()
+    n_vertices = {s.item_id: int(s.positions.shape[1]) for s in data.splits["train"]}
+    costs = [c for c in tr.tuner.calls if c != "before"]
+    assert tr.tuner.calls.count("before") == 6 and len(costs) == 4  # steps 3 and 6 validated
+    assert costs == [4 * n_vertices[r["item"]] for r in tr.rows if "val_verts_mm" not in r]

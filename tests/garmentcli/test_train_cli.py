@@ -448,3 +448,39 @@ def test_train_refuses_a_body_other_than_the_datasets(setup, tmp_path):
     assert not (tmp_path / "a.pt").exists()
     r = _train(root, ds, body, cfg, tmp_path / "b.pt", "--steps", "1")
     assert r.exit_code == 0, r.output
+
+
+def test_train_threads_fixed_or_chosen_while_it_trains(setup, monkeypatch):
+    """--threads N trains on N threads and gives torch its count back; auto hands the steps to a ThreadTuner (its
+    choice recorded in the model's meta, said at the end); a bad value, or auto off the CPU, is one line."""
+    import core.threads
+    from formats.checkpoint import load_checkpoint
+
+    root, data, body, cfg = setup
+    before = torch.get_num_threads()
+    seen = []
+    monkeypatch.setattr(torch, "set_num_threads", lambda n, real=torch.set_num_threads: (seen.append(n), real(n)))
+    r = _train(root, data, body, cfg, root / "t1.pt", "--steps", "2", "--threads", "2")
+    assert r.exit_code == 0, r.output
+    assert seen[0] == 2 and seen[-1] == before == torch.get_num_threads()
+    assert load_checkpoint(root / "t1.pt")["meta"]["threads"] == {"fixed": 2}
+    monkeypatch.setattr(core.threads, "WARMUP_BATCHES", 1)
+    monkeypatch.setattr(core.threads, "TRIAL_BATCHES", 1)
+    torch.set_num_threads(2)  # the counts tried: 2 and 1
+    try:
+        r = _train(root, data, body, cfg, root / "ta.pt", "--steps", "12", "--threads", "auto")
+        assert r.exit_code == 0, r.output
+        threads = load_checkpoint(root / "ta.pt")["meta"]["threads"]
+        assert threads["most"] == 2 and threads["rounds"] >= 1, threads
+        assert set(threads["frames_by_threads"]) == {"1", "2"}, threads  # the steps ran on both counts
+        assert f"threads chosen: {threads['chosen']}" in r.output and torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+    for value, needle in (("0", "expected a number of threads >= 1 or auto, got '0'"),
+                          ("many", "got 'many'")):
+        r = _train(root, data, body, cfg, root / "tb.pt", "--threads", value)
+        assert r.exit_code != 0 and "--threads" in r.output and needle in r.output and "Traceback" not in r.output
+    if not torch.cuda.is_available():  # auto chooses a CPU's threads; the device is refused first otherwise
+        return
+    r = _train(root, data, body, cfg, root / "tb.pt", "--threads", "auto", "--device", "cuda")
+    assert r.exit_code != 0 and "auto chooses the threads of one process on the CPU" in r.output
