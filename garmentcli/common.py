@@ -17,6 +17,8 @@ from core.body import Body, default_body
 from core.errors import InputError, not_a_file
 from core.motion import check_frame_rate, parse_frame_range, preroll, resample, resampled_frame_count, settle
 
+log = logging.getLogger(__name__)
+
 #: `--pin` values (core.sim.PIN_MODES; repeated here so the CLI starts without importing the simulator).
 PIN_CHOICES = ("auto", "none")
 PIN_HELP = ("auto: the waistband of a garment without shoulders (skirt, trousers, strapless dress) follows the "
@@ -215,6 +217,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
         source, note = ((f"motion '{path}'", MOTION_BETAS_NOTE) if betas in (None, "motion") else
                         (f"--betas (motion '{path}')", ""))
         motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note))
+        _check_betas_range(motion.betas, source)
     source_fps = motion.fps
     if frames:
         motion = preroll(motion, *parse_frame_range(frames), preroll_frames)
@@ -224,6 +227,30 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     _check_resample_memory(path, motion, fps, n_frames)
     motion = resample(motion, fps)
     return settle(motion, settle_frames), source_fps
+
+
+#: Betas beyond this (standard deviations of the body's shape space) are warned about: the methods are tested
+#: to +-5 (tests/extremes) and `garment dataset --betas-range` stops there; people lie within about +-3.
+BETAS_TESTED = 5.0
+#: Betas beyond this are refused: no human body, but another model's coefficients or a damaged file (betas of
+#: 1e30 baked a garment 40 % inside the body).
+BETAS_MAX = 20.0
+
+
+def _check_betas_range(betas, source: str) -> None:
+    """InputError for betas beyond BETAS_MAX, a warning beyond BETAS_TESTED, naming the coefficient."""
+    betas = np.asarray(betas, dtype=np.float64)
+    if not betas.size:
+        return
+    k = int(np.argmax(np.abs(betas)))
+    value = float(betas[k])
+    if abs(value) > BETAS_MAX:
+        raise InputError(f"{source}: expected betas within +-{BETAS_MAX:g} (standard deviations of the body's "
+                         f"shape; people lie within about +-3), got {value:g} at coefficient {k}: another body "
+                         "model's coefficients, or a damaged file? (--betas mean bakes the body's mean shape)")
+    if abs(value) > BETAS_TESTED:
+        log.warning("%s: beta %d is %.3g, beyond the +-%g the methods are tested at: an extreme body, check the "
+                    "result", source, k, value, BETAS_TESTED)
 
 
 def _check_resample_memory(path: str, motion, fps: float, n_frames: int) -> None:

@@ -8,6 +8,7 @@ import warnings
 import numpy as np
 
 from tests.garmentcli.cli import invoke
+from tests.garmentcli.conftest import write_motion
 
 
 def assert_one_line_error(result, *needles):
@@ -83,3 +84,27 @@ def test_betas_beyond_float32_are_refused_without_numpy_warnings(scene):
         r = _bake(scene, scene["motion"], "--betas", "1e40")
     assert_one_line_error(r, "--betas", "expected finite numbers, got '1e40'")
     assert "RuntimeWarning" not in r.output
+
+
+def test_betas_far_beyond_a_human_are_refused_and_extreme_ones_warned_about(scene, caplog):
+    """Betas of 1e30 baked a garment 40 % inside the body without a word: beyond +-20 they are refused (another
+    model's coefficients or a damaged file), beyond the +-5 the methods are tested at warned about; --betas too."""
+    d = scene["dir"]
+    base = ["--body", scene["body"], "--out", scene["out"]]
+    huge = np.zeros(16, np.float32)
+    huge[2] = 1e30
+    write_motion(d / "huge.npz", betas=huge)
+    assert_one_line_error(invoke(["bake", scene["garment"], d / "huge.npz", *base]), "huge.npz'",
+                          "expected betas within +-20", "got 1e+30 at coefficient 2")
+    assert_one_line_error(invoke(["bake", scene["garment"], scene["motion"], *base, "--betas", "0,-25"]),
+                          "--betas", "got -25 at coefficient 1")
+    assert not scene["out"].exists()
+    extreme = np.zeros(16, np.float32)
+    extreme[0] = 7.0
+    write_motion(d / "extreme.npz", betas=extreme)
+    with caplog.at_level("WARNING"):
+        r = invoke(["bake", scene["garment"], d / "extreme.npz", *base])
+    assert r.exit_code == 0, r.output
+    assert any("beta 0 is 7, beyond the +-5 the methods are tested at" in m for m in caplog.messages)
+    summary = json.loads((scene["out"] / "shell_extreme" / "summary.json").read_text())
+    assert any("beta 0 is 7" in w for w in summary["warnings"])
