@@ -22,7 +22,7 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, Body, dense_from_sparse, body_from_arrays
 from core.errors import InputError, not_a_file
-from formats.motion import NPZ_READ_ERRORS, ZIP_MAGIC
+from formats.motion import NPZ_READ_ERRORS, open_npz
 
 log = logging.getLogger(__name__)
 
@@ -101,19 +101,14 @@ def body_from_file_arrays(arrays: dict, name: str, source: str) -> Body:
 
 def _read_npz(path: Path, label: str) -> dict:
     try:
-        with open(path, "rb") as fh:  # opened here so that a failed np.load leaves no file open
-            head = fh.read(6)
-            if not head.startswith(ZIP_MAGIC):  # numpy would read an .npy, or try to unpickle anything else
-                got = "a single .npy array" if head == b"\x93NUMPY" else "no zip archive"
-                raise InputError(f"{label}: cannot read it as a numpy .npz archive (a zip of .npy arrays): it is {got}")
-            fh.seek(0)
-            with np.load(fh, allow_pickle=False) as data:
-                files = list(data.files)
-                arrays = {}
-                for key in files:
-                    if key in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table",
-                               "parents", "f", "faces") or key.endswith(("_indices", "_values", "_shape")):
-                        arrays[key] = data[key]
+        with open_npz(path, lambda got: InputError(f"{label}: cannot read it as a numpy .npz archive (a zip of .npy "
+                                                   f"arrays): it is {got}")) as data:
+            files = list(data.files)
+            arrays = {}
+            for key in files:
+                if key in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table",
+                           "parents", "f", "faces") or key.endswith(("_indices", "_values", "_shape")):
+                    arrays[key] = data[key]
     except InputError:
         raise
     except NPZ_READ_ERRORS as exc:

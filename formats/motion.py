@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import zipfile
 import zlib
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +64,20 @@ NPZ_READ_ERRORS = (zipfile.BadZipFile, zlib.error, ValueError, OSError, EOFError
 #: How a zip archive (an .npz) starts: a local file header, or the end record of an empty archive. A file starting
 #: "PK" otherwise (a truncated or spanned zip) is none: numpy would try to unpickle it.
 ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+
+
+@contextmanager
+def open_npz(path: Path, refuse):
+    """The NpzFile of `path` (no pickles), the file opened here so that a failed load leaves none open; a file
+    that is no zip archive (numpy would read an .npy, or try to unpickle anything else) raises refuse(what it is:
+    "a single .npy array" or "no zip archive"), an InputError naming the file."""
+    with open(path, "rb") as fh:
+        head = fh.read(6)
+        if not head.startswith(ZIP_MAGIC):
+            raise refuse("a single .npy array" if head == b"\x93NUMPY" else "no zip archive")
+        fh.seek(0)
+        with np.load(fh, allow_pickle=False) as data:
+            yield data
 
 
 def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Motion:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError, frames_text, not_a_file
-from formats.motion import ZIP_MAGIC
+from formats.motion import open_npz
 from formats.obj import STAGE_SUFFIXES, mtllib_text, obj_face_text, obj_vertex_text, parse_obj, triangulate
 from formats.usd import read_usd
 
@@ -273,18 +273,15 @@ def _read_single_obj(path: Path) -> Sequence:
 
 def _read_npz(path: Path) -> Sequence:
     where = f"garment sequence '{path}'"
-    with open(path, "rb") as fh:  # opened here so that a failed np.load leaves no file open
-        head = fh.read(6)
-        if not head.startswith(ZIP_MAGIC):  # numpy would read an .npy, or try to unpickle anything else
-            got = "a single .npy array" if head == b"\x93NUMPY" else "no zip archive"
-            raise InputError(f"{where}: cannot be read as .npz (a zip of .npy arrays 'points', 'faces'): it is {got}")
-        fh.seek(0)
-        try:
-            with np.load(fh, allow_pickle=False) as data:
-                arrays = {k: data[k] for k in data.files}
-        except Exception as exc:  # zipfile/zlib/OS errors all mean "not a readable npz"
-            text = str(exc).splitlines()[0][:120] if str(exc) else ""
-            raise InputError(f"{where}: cannot be read as .npz ({type(exc).__name__}: {text})") from None
+    try:
+        with open_npz(path, lambda got: InputError(f"{where}: cannot be read as .npz (a zip of .npy arrays 'points', "
+                                                   f"'faces'): it is {got}")) as data:
+            arrays = {k: data[k] for k in data.files}
+    except InputError:
+        raise
+    except Exception as exc:  # zipfile/zlib/OS errors all mean "not a readable npz"
+        text = str(exc).splitlines()[0][:120] if str(exc) else ""
+        raise InputError(f"{where}: cannot be read as .npz ({type(exc).__name__}: {text})") from None
     for key in ("points", "faces"):
         if key not in arrays:
             raise InputError(f"{where}: expected key '{key}', got keys {sorted(arrays)}")
