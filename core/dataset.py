@@ -182,7 +182,8 @@ def manifest_motion_splits(manifest: dict) -> dict[str, str]:
     recorded = manifest.get("splits", {}).get("motions")
     if isinstance(recorded, dict):
         return {m: s for s, names in recorded.items() for m in names}
-    return {it["motion"]: it["split"] for it in manifest.get("items", [])}
+    return {it["motion"]: it["split"] for it in manifest.get("items", [])
+            if isinstance(it, dict) and {"motion", "split"} <= set(it)}
 
 
 def manifest_bodies(manifest: dict) -> dict[tuple, list[int]]:
@@ -190,7 +191,8 @@ def manifest_bodies(manifest: dict) -> dict[tuple, list[int]]:
     (`plan_items(kept_bodies=...)`)."""
     out: dict[tuple, list[int]] = {}
     for it in manifest.get("items", []):
-        out.setdefault((it["garment"], it["motion"], int(it["clip"])), []).append(int(it["body"]))
+        if isinstance(it, dict) and {"garment", "motion", "clip", "body"} <= set(it):  # else planned afresh
+            out.setdefault((it["garment"], it["motion"], int(it["clip"])), []).append(int(it["body"]))
     return {k: sorted(set(v)) for k, v in out.items()}
 
 

@@ -64,7 +64,7 @@ def connect(scheduler: str, timeout_s: float = 20.0):
                          f"'distributed'), found it missing") from None
     try:
         return Client(scheduler, timeout=f"{timeout_s}s")
-    except (OSError, TimeoutError, ValueError) as exc:
+    except Exception as exc:  # refused, timed out, a malformed address (`5:2` raised MemoryError inside distributed)
         raise InputError(f"--scheduler '{scheduler}': expected a running Dask scheduler, could not connect "
                          f"({type(exc).__name__}: {str(exc).splitlines()[0][:120] if str(exc) else ''})") from None
 

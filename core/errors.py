@@ -47,6 +47,21 @@ def not_a_file(path) -> str | None:
         return "a directory, expected a file"
     if stat.S_ISFIFO(mode):
         return "a pipe (such as the shell's <(...)), expected a file: write it to a file first"
+    return f"{special_kind(path)}, expected a file"
+
+
+def special_kind(path) -> str | None:
+    """"a pipe", "a socket" or "a device" where `path` is one (after links), else None (a file, a folder, nothing).
+    Outputs are written beside their target and renamed over it: over /dev/null that replaced the device with a
+    file (`formats.atomic` refuses)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    if stat.S_ISFIFO(mode):
+        return "a pipe"
     if stat.S_ISSOCK(mode):
-        return "a socket, expected a file"
-    return "a device, expected a file"
+        return "a socket"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    return None

@@ -13,7 +13,7 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
-from core.errors import InputError
+from core.errors import InputError, special_kind
 
 
 def _umask() -> int:
@@ -31,13 +31,23 @@ def _writing(path: Path):
         raise InputError(f"output '{path}': cannot write in '{path.parent}' ({exc.strerror or exc})") from None
 
 
+def _refuse_special(path: Path) -> None:
+    """InputError where `path` is a device, pipe or socket: renamed over, /dev/null became a file."""
+    kind = special_kind(path)
+    if kind:
+        raise InputError(f"output '{path}' is {kind}: expected a file or folder to write (outputs are renamed into "
+                         "place, which would replace it)")
+
+
 @contextmanager
 def atomic_file(path: str | os.PathLike):
     """Yield a temporary path beside `path` (same suffix); on success it replaces `path`.
 
-    The parent directory is created. On an exception the temporary file is removed.
+    The parent directory is created. On an exception the temporary file is removed. A device, pipe or socket at
+    `path` is refused (InputError).
     """
     path = Path(path)
+    _refuse_special(path)
     with _writing(path):
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".partial" + path.suffix, dir=path.parent)
@@ -67,6 +77,7 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool):
     exception the temporary directory is removed and `final` is untouched.
     """
     final = Path(final)
+    _refuse_special(final)
     if final.exists() and not overwrite:
         raise InputError(f"output '{final}' exists: pass --overwrite to replace it")
     with _writing(final):

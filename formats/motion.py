@@ -96,8 +96,11 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         raise InputError(f"{src}: file not found")
     arrays = {}
     with open(path, "rb") as fh:  # opened here so that a failed np.load leaves no file open
-        magic = fh.read(6)
-        fh.seek(0)
+        try:
+            magic = fh.read(6)
+            fh.seek(0)
+        except OSError as exc:  # e.g. /proc/self/mem: EIO
+            raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
         if magic == b"\x93NUMPY":
             raise InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
         if not magic.startswith(ZIP_MAGIC):

@@ -19,10 +19,17 @@ def _read_vertices(path: str) -> np.ndarray:
         text = Path(path).read_text()
     except OSError as exc:
         raise InputError(f"--vertices '{path}': cannot read it ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"--vertices '{path}': expected whitespace- or comma-separated vertex indices (text), "
+                         "got binary content") from None
     try:
         return np.array([int(tok) for tok in text.replace(",", " ").split()], dtype=np.int64)
     except ValueError:
         raise InputError(f"--vertices '{path}': expected whitespace- or comma-separated vertex indices") from None
+
+
+#: Most --steps: far beyond the nodes a smooth path integral needs (2**31 ran the process out of memory).
+MAX_STEPS = 1000
 
 
 @click.command(name="attribute")
@@ -30,7 +37,7 @@ def _read_vertices(path: str) -> np.ndarray:
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False, exists=True))
 @click.argument("motion_path", metavar="MOTION", type=click.Path(dir_okay=False, exists=True))
 @click.option("--frame", type=click.IntRange(min=0), required=True, help="Output frame to explain (after --fps).")
-@click.option("--steps", type=click.IntRange(min=1), default=50, show_default=True,
+@click.option("--steps", type=click.IntRange(min=1, max=MAX_STEPS), default=50, show_default=True,
               help="Gauss-Legendre nodes N_s of the path integral.")
 @click.option("--vertices", "vertices_path", type=click.Path(dir_okay=False), default=None,
               help="Explain the mean deformation of these vertices only (text file of indices). Default: all.")

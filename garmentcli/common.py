@@ -14,7 +14,7 @@ import click
 import numpy as np
 
 from core.body import Body, default_body
-from core.errors import InputError, not_a_file
+from core.errors import InputError, not_a_file, special_kind
 from core.motion import check_frame_rate, parse_frame_range, preroll, resample, resampled_frame_count, settle
 
 log = logging.getLogger(__name__)
@@ -35,6 +35,13 @@ def unwritable_reason(path: str | Path) -> str | None:
     process can make entries in: tried by making and removing a temporary one (permissions alone miss read-only
     and virtual file systems, and root passes every permission check)."""
     folder = Path(path).absolute().parent
+    kind = special_kind(path)
+    if kind:  # renamed over, /dev/null became a file
+        return f"it is {kind}, expected a file or folder to write"
+    try:
+        Path(path).exists()  # a name longer than the file system takes (ENAMETOOLONG) raises here
+    except OSError as exc:
+        return f"{exc.strerror or exc}"
     try:
         while not folder.exists():
             folder = folder.parent
@@ -52,6 +59,8 @@ class OutputPath(click.Path):
 
     def convert(self, value, param, ctx):
         value = super().convert(value, param, ctx)
+        if not str(value).strip():
+            self.fail(f"expected a path, got {value!r}", param, ctx)
         reason = unwritable_reason(value)
         if reason:
             self.fail(f"'{value}' cannot be written: {reason}", param, ctx)
@@ -89,7 +98,10 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
 
 def _holds_poses(path: Path) -> bool:
     try:
-        with np.load(path, allow_pickle=False) as archive:
+        archive = np.load(path, allow_pickle=False)
+        if not isinstance(archive, np.lib.npyio.NpzFile):  # a .npy array named .npz
+            return True
+        with archive:
             return any(k in archive.files for k in MOTION_KEYS)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile):  # not an archive numpy reads: named as a
         return True                                             # motion, it is refused with the reason
@@ -387,6 +399,9 @@ def parse_device(text: str | None, auto: bool = False, check: bool = True):
                                  param_hint="--device")
     return dev
 
+
+#: --seed's range: the seeds numpy's generators take (a negative one raised ValueError) and torch's too.
+SEED_RANGE = click.IntRange(0, 2**32 - 1)
 
 #: Highest --fps of the commands that make motions or sequences (examples, dataset): beyond any capture or
 #: simulation rate (1e5 fps took minutes, 1e9 ran out of memory; a dataset plan at 1e6 fps used 14 GB).

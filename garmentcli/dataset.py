@@ -19,6 +19,7 @@ from garmentcli.common import (
     FLOOR_HELP,
     PIN_CHOICES,
     PIN_HELP,
+    SEED_RANGE,
     input_errors_as_click,
     motion_files,
     motion_names,
@@ -143,6 +144,10 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
     return item.id, motion.n_frames, time.perf_counter() - t0, r["report"]["checks"]
 
 
+#: Most --bodies: beyond any dataset simulated (2**31 shapes ran out of memory drawing their betas).
+MAX_BODIES = 10000
+
+
 @click.command(name="dataset")
 @click.option("--garments", "garment_paths", multiple=True, required=True, type=click.Path(dir_okay=False, exists=True),
               help="Garment OBJ on the body's rest pose (repeat the option for several).")
@@ -150,7 +155,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
               help="AMASS-style motion .npz, or a directory: every motion .npz under it (repeat the option).")
 @click.option("--library", is_flag=True, help="Add the built-in motion library (30 generated clips: walks, runs, turns, "
               "jumps, arm swings, bends, kicks, sitting down).")
-@click.option("--bodies", "n_bodies", type=click.IntRange(min=1), default=3, show_default=True,
+@click.option("--bodies", "n_bodies", type=click.IntRange(min=1, max=MAX_BODIES), default=3, show_default=True,
               help="Body shapes: the mean shape plus N-1 sampled ones.")
 @click.option("--betas-range", type=FiniteFloatRange(min=0.0, max=MAX_BETAS_RANGE), default=2.0, show_default=True,
               help="Sampled betas are uniform in [-R, R] (R at most 5).")
@@ -183,7 +188,7 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
               help="Frames of the motion simulated ahead of every clip that does not start it (after the settle "
                    "blend; stored and flagged with it by n_settle), so the cloth enters the clip moving with the "
                    "body instead of starting there at rest, as `bake --preroll`. The first clip has none.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of body shapes and splits.")
+@click.option("--seed", type=SEED_RANGE, default=0, show_default=True, help="Seed of body shapes and splits.")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="Cloth material JSON (fields of core.sim.Material).")
 @click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 3-10x slower).")

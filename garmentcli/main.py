@@ -22,7 +22,22 @@ from garmentcli import (
 from garmentcli import train as train_cmd
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Group(click.Group):
+    """click.Group whose commands' file-system errors on a named path (a name longer than the file system takes,
+    a device that fails to read) end as one line naming the path, not a traceback."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except OSError as exc:
+            if exc.filename is None or isinstance(exc, click.ClickException):
+                raise
+            name = str(exc.filename)
+            shown = name if len(name) <= 80 else f"{name[:40]}...{name[-20:]} ({len(name)} characters)"
+            raise click.ClickException(f"'{shown}': {exc.strerror or exc}") from None
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-v", "--verbose", is_flag=True, help="Log more detail to stderr.")
 @click.version_option(package_name="garment")
 def cli(verbose: bool) -> None:

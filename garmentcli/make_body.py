@@ -13,7 +13,7 @@ import click
 import numpy as np
 
 from core.body import DEFAULT_BODY_RESOURCE
-from garmentcli.common import OutputPath
+from garmentcli.common import SEED_RANGE, OutputPath
 from formats.atomic import atomic_file
 
 
@@ -26,7 +26,7 @@ def _default_out() -> Path:
               help="Output .npz (default: the package's core/assets/default_body.npz).")
 @click.option("--samples", type=click.IntRange(min=20), default=400, show_default=True,
               help="Adult phenotype samples for the shape PCA.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed of the phenotype sampler.")
+@click.option("--seed", type=SEED_RANGE, default=0, show_default=True, help="Random seed of the phenotype sampler.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 def make_body(out: Path | None, samples: int, seed: int, overwrite: bool) -> None:
     """Build the default SMPL-format body (24 joints, 10 betas) from anny and save it."""

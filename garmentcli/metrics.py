@@ -9,7 +9,13 @@ import numpy as np
 
 from core.errors import InputError
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
-from garmentcli.common import OutputPath, betas_option, input_errors_as_click, source_fps_option
+from garmentcli.common import (
+    FiniteFloatRange,
+    OutputPath,
+    betas_option,
+    input_errors_as_click,
+    source_fps_option,
+)
 
 _FORMATS = {"json": ("json",), "csv": ("csv",), "md": ("md",), "all": ("json", "csv", "md")}
 
@@ -153,7 +159,7 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
               help="With --motion: the settle frames of the bake.")
 @betas_option
 @source_fps_option
-@click.option("--depth-mm", type=click.FloatRange(min=0.0), default=None,
+@click.option("--depth-mm", type=FiniteFloatRange(min=0.0), default=None,
               help="A garment vertex counts as penetrating when more than this inside the body "
                    "[default: as garment bake, 2 mm].")
 @click.option("--plots", is_flag=True,

@@ -20,7 +20,14 @@ from tqdm import tqdm
 from core.errors import InputError
 from core.model import ADDABLE_INPUTS, ModelConfig, check_config_values, config_from_dict, keep_levels
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
-from garmentcli.common import OutputPath, check_dataset_body, input_errors_as_click, load_body_option, parse_device
+from garmentcli.common import (
+    SEED_RANGE,
+    OutputPath,
+    check_dataset_body,
+    input_errors_as_click,
+    load_body_option,
+    parse_device,
+)
 
 CSV_COLUMNS = ("step", "phase", "item", "loss", *LOSS_COLUMNS, "val_verts_mm", "val_collision")
 
@@ -62,7 +69,7 @@ def _parse_phases(text: str) -> tuple:
 @click.option("--out", "out_path", required=True, type=OutputPath(dir_okay=False), help="Model file to write.")
 @click.option("--phases", default="1,2,3", show_default=True, help="Training phases: 1, 1,2 or 1,2,3.")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Optimizer steps (default from config).")
-@click.option("--seed", type=int, default=None, help="Seed of initialisation and sampling (default 0).")
+@click.option("--seed", type=SEED_RANGE, default=None, help="Seed of initialisation and sampling (default 0).")
 @click.option("--resume", is_flag=True, help="Continue from <MODEL>.ckpt exactly where it stopped.")
 @click.option("--checkpoint-every", type=click.IntRange(min=0), default=None, help="Steps between checkpoints.")
 @click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
@@ -175,6 +182,8 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     train_cfg: TrainConfig = train_config_from_dict(train_values, source=f"--config '{config_path}'")
     if not resume and ckpt_path.exists():
         raise click.ClickException(f"checkpoint '{ckpt_path}' exists: pass --resume to continue it, or remove it")
+    if not resume and out.exists():  # another file of that name (a garment, the shipped model) is not replaced
+        raise click.ClickException(f"output '{out}' exists: remove it, or choose another --out")
 
     data = ModelDataset(data_dir, body, model_cfg, cache_dir=cache_dir, partial=partial, garments=garments or None)
     if parallel_trainer is None:
@@ -221,6 +230,11 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         raise click.exceptions.Exit(130 if interrupted["hit"] == "Ctrl-C" else 143)
 
 
+#: Most --threads: far beyond any machine's cores (100000 killed the process as torch made them; 2**31
+#: overflowed torch's int).
+MAX_THREADS = 1024
+
+
 def _parse_threads(text: str | None, device, launched: bool) -> tuple[bool, int | None]:
     """--threads as (auto: the trainer's ThreadTuner chooses, the count N or None). BadParameter for another
     value, or auto off the CPU or under torchrun (each process's steps wait for the others' there: give each its
@@ -237,8 +251,9 @@ def _parse_threads(text: str | None, device, launched: bool) -> tuple[bool, int 
         n = int(text)
     except ValueError:
         n = 0
-    if n < 1:
-        raise click.BadParameter(f"expected a number of threads >= 1 or auto, got {text!r}", param_hint="--threads")
+    if not 1 <= n <= MAX_THREADS:
+        raise click.BadParameter(f"expected a number of threads from 1 to {MAX_THREADS} or auto, got {text!r}",
+                                 param_hint="--threads")
     return False, n
 
 

@@ -84,6 +84,9 @@ def test_a_motion_removed_on_resume_keeps_the_other_motions_items():
     after, _ = plan_items(["a", "b"], fewer, 3, bodies_per_clip=1, seed=0, kept_splits=manifest_motion_splits(manifest),
                           kept_bodies=manifest_bodies(manifest))
     assert set(after) == {it for it in before if it.motion != "m0"}
+    # a manifest of another make (items without clip or body) keeps what it can and plans the rest afresh
+    odd = {"items": [{"id": "x", "motion": "m1", "split": "val"}, "junk", {"garment": "a", "motion": "m2"}]}
+    assert manifest_bodies(odd) == {} and manifest_motion_splits(odd) == {"m1": "val"}
 
 
 def test_clips_cover_the_motion_in_order():

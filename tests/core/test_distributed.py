@@ -128,3 +128,6 @@ def test_bad_scheduler_address_is_one_line():
 
     with pytest.raises(InputError, match="--scheduler 'tcp://127.0.0.1:9': expected a running Dask scheduler"):
         connect("tcp://127.0.0.1:9", timeout_s=1.0)
+    # `5:2` made distributed allocate exabytes (MemoryError): whatever connecting raises is the same one line
+    with pytest.raises(InputError, match="--scheduler '5:2': expected a running Dask scheduler, could not connect"):
+        connect("5:2", timeout_s=1.0)

@@ -1,9 +1,11 @@
 """formats.atomic: outputs appear whole or not at all."""
 
+import os
+
 import pytest
 
 from core.errors import InputError
-from formats.atomic import atomic_dir
+from formats.atomic import atomic_dir, atomic_file
 
 
 def test_atomic_dir_replaces_a_folder_or_a_file_and_leaves_nothing_beside(tmp_path):
@@ -29,3 +31,23 @@ def test_atomic_dir_replaces_a_folder_or_a_file_and_leaves_nothing_beside(tmp_pa
             raise RuntimeError("stop")
     assert sorted(p.name for p in out.iterdir()) == ["b.txt"] and sorted(p.name for p in tmp_path.iterdir()) == [
         "file", "out"]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes")
+def test_a_device_or_pipe_is_never_renamed_over(tmp_path):
+    """Outputs are renamed into place: `--out /dev/null` once replaced the device with a regular file. A pipe (as a
+    device, which tests cannot make without root) at the target is refused, and stays what it was."""
+    import stat
+
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    for write in (lambda: atomic_file(pipe), lambda: atomic_dir(pipe, overwrite=True)):
+        with pytest.raises(InputError, match=f"output '{pipe}' is a pipe: expected a file or folder to write"):
+            with write():
+                pass
+        assert stat.S_ISFIFO(os.stat(pipe).st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pipe"]  # no temporary left
+    if os.path.exists("/dev/null"):
+        with pytest.raises(InputError, match="is a device"):
+            with atomic_file("/dev/null"):
+                pass

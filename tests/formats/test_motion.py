@@ -546,3 +546,10 @@ def test_values_of_the_wrong_kind_are_refused_not_converted(tmp_path, key, value
     with pytest.raises(InputError) as info:
         load_motion(path)
     assert str(info.value).startswith(f"motion '{path}': {message}")
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/mem"), reason="Linux /proc")
+def test_a_file_that_fails_to_read_is_one_line_naming_it():
+    """/proc/self/mem is a file whose first read fails (EIO): an OSError without a file name, a traceback before."""
+    with pytest.raises(InputError, match=r"motion '/proc/self/mem': cannot read it \(Input/output error\)"):
+        load_motion("/proc/self/mem")

@@ -54,6 +54,12 @@ def test_attribute_bad_inputs(scene, model_path, tmp_path):
     (tmp_path / "bad.txt").write_text("1 2 x")
     r = run("attribute", *base, "--frame", 1, "--vertices", tmp_path / "bad.txt", "--out", tmp_path / "a")
     assert r.exit_code != 0 and "--vertices" in r.output and not (tmp_path / "a").exists()
+    (tmp_path / "binary.txt").write_bytes(b"\x80\xff\x00")  # raised UnicodeDecodeError
+    r = run("attribute", *base, "--frame", 1, "--vertices", tmp_path / "binary.txt", "--out", tmp_path / "a")
+    assert r.exit_code != 0 and isinstance(r.exception, SystemExit) and "--vertices" in r.output, r.output
+    assert "binary" in r.output and not (tmp_path / "a").exists()
+    r = run("attribute", *base, "--frame", 1, "--steps", 2**31, "--out", tmp_path / "a")  # ran out of memory
+    assert r.exit_code == 2 and "--steps" in r.output and not (tmp_path / "a").exists()
     (tmp_path / "far.txt").write_text("5000")
     r = run("attribute", *base, "--frame", 1, "--vertices", tmp_path / "far.txt", "--out", tmp_path / "a")
     assert r.exit_code != 0 and "0..641" in r.output

@@ -597,6 +597,32 @@ def test_an_output_that_cannot_be_written_stops_before_any_work(scene, tmp_path,
     assert list(readonly.iterdir()) == []
 
 
+def test_an_empty_or_too_long_name_is_one_line_naming_it(scene, tmp_path):
+    """--out '' or a name longer than the file system takes (ENAMETOOLONG: pathlib raised it from exists()), as
+    --out or as MOTION: one line, no traceback, nothing written."""
+    base = ["bake", scene["garment"], scene["motion"], "--body", scene["body"]]
+    long_name = "x" * 300
+    r = run([*base, "--out", ""])
+    assert_one_line_error(r, "'--out'", "expected a path, got ''")
+    r = run([*base, "--out", tmp_path / long_name])
+    assert_one_line_error(r, "'--out'", "File name too long")
+    r = run(["bake", scene["garment"], tmp_path / long_name, "--body", scene["body"], "--out", tmp_path / "o"])
+    assert_one_line_error(r, "x" * 20 + " (", " characters)': File name too long")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_npy_array_named_npz_in_a_motion_folder_is_refused_as_a_motion(scene, tmp_path):
+    """A .npy array saved under an .npz name in a MOTION folder (np.load gives an array, not an archive: the
+    folder scan raised TypeError): taken as a motion file and refused with the reason, in one line."""
+    folder = tmp_path / "motions"
+    folder.mkdir()
+    with open(folder / "array.npz", "wb") as f:
+        np.save(f, np.zeros(3))
+    r = run(["bake", scene["garment"], folder, "--body", scene["body"], "--out", tmp_path / "o"])
+    assert_one_line_error(r, "array.npz")
+    assert not (tmp_path / "o").exists()
+
+
 def test_every_output_option_is_checked_when_read():
     import click
 

@@ -368,7 +368,9 @@ def test_dataset_plans_without_resampling_and_refuses_absurd_options(scene, monk
                                 (["--bodies", 2, "--bodies-per-clip", 5], "--bodies-per-clip", "at most --bodies (2)"),
                                 (["--betas-range", "1e9"], "--betas-range", "5"),
                                 (["--betas-range", "inf"], "--betas-range", "5"),
-                                (["--garments", twin / "shell.obj"], "--garments", "'shell' twice")):
+                                (["--garments", twin / "shell.obj"], "--garments", "'shell' twice"),
+                                (["--seed", -1], "--seed", "0<=x<=4294967295"),  # numpy raised ValueError
+                                (["--bodies", 2**31], "--bodies", "1<=x<=10000")):  # MemoryError drawing betas
         out = scene["dir"] / "refused"
         r = run(*base, *extra, "--out", out)
         assert r.exit_code != 0 and option in r.output and word in r.output, (extra, r.output)

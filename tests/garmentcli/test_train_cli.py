@@ -231,6 +231,22 @@ def test_train_bad_inputs(setup):
     assert r.exit_code != 0 and "junk.pt" in r.output
 
 
+def test_train_refuses_an_existing_out_an_empty_one_and_absurd_threads_or_seed(setup, tmp_path):
+    """--out naming a file that exists (a garment, the shipped model: it was replaced) without --resume, --out '',
+    --threads 2**31 (overflowed torch's int; 100000 killed the process as torch made them), --seed -1: one line, nothing written."""
+    root, data, body, cfg = setup
+    garment = tmp_path / "garment.obj"
+    garment.write_text("v 0 0 0\n")
+    r = _train(root, data, body, cfg, garment, "--steps", 1)
+    assert r.exit_code != 0 and isinstance(r.exception, SystemExit) and f"output '{garment}' exists" in r.output
+    assert garment.read_text() == "v 0 0 0\n" and not (tmp_path / "garment.obj.ckpt").exists()
+    for extra, needle in (([], "expected a path, got ''"), (["--threads", 2**31], "from 1 to 1024"), (["--seed", -1], "0<=x<=4294967295")):
+        out = "" if not extra else tmp_path / "m.pt"
+        r = _train(root, data, body, cfg, out, "--steps", 1, *extra)
+        assert r.exit_code != 0 and isinstance(r.exception, SystemExit), (extra, r.output)
+        assert needle in r.output and not (tmp_path / "m.pt").exists(), (extra, r.output)
+
+
 def test_train_config_binary_or_badly_typed_is_one_line(setup):
     root, data, body, cfg = setup
     binary = root / "binary.npz"
@@ -476,7 +492,7 @@ def test_train_threads_fixed_or_chosen_while_it_trains(setup, monkeypatch):
         assert f"threads chosen: {threads['chosen']}" in r.output and torch.get_num_threads() == 2
     finally:
         torch.set_num_threads(before)
-    for value, needle in (("0", "expected a number of threads >= 1 or auto, got '0'"),
+    for value, needle in (("0", "expected a number of threads from 1 to 1024 or auto, got '0'"),
                           ("many", "got 'many'")):
         r = _train(root, data, body, cfg, root / "tb.pt", "--threads", value)
         assert r.exit_code != 0 and "--threads" in r.output and needle in r.output and "Traceback" not in r.output
