@@ -47,7 +47,7 @@ def not_a_file(path) -> str | None:
         return "a directory, expected a file"
     if stat.S_ISFIFO(mode):
         return "a pipe (such as the shell's <(...)), expected a file: write it to a file first"
-    return f"{special_kind(path)}, expected a file"
+    return f"{_special(mode)}, expected a file"
 
 
 def special_kind(path) -> str | None:
@@ -55,9 +55,13 @@ def special_kind(path) -> str | None:
     Outputs are written beside their target and renamed over it: over /dev/null that replaced the device with a
     file (`formats.atomic` refuses)."""
     try:
-        mode = os.stat(path).st_mode
+        return _special(os.stat(path).st_mode)
     except OSError:
         return None
+
+
+def _special(mode: int) -> str | None:
+    """`special_kind` of a file of st_mode `mode`."""
     if stat.S_ISFIFO(mode):
         return "a pipe"
     if stat.S_ISSOCK(mode):

@@ -287,13 +287,11 @@ class Trainer:
         """
         until = self.config.steps if until is None else until
         while self.step < until:
-            if self.tuner is None:
-                self.train_step()
-            else:
+            if self.tuner is not None:
                 self.tuner.before()
-                row = self.train_step()
-                if "val_verts_mm" not in row:  # a validation's time is no step's
-                    self.tuner.after(self._step_cost)
+            row = self.train_step()
+            if self.tuner is not None and "val_verts_mm" not in row:  # a validation's time is no step's
+                self.tuner.after(self._step_cost)
             if should_stop is not None and self.step < until and should_stop():
                 log.info("step %d: stopping early (time limit)", self.step)
                 break

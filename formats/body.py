@@ -42,8 +42,9 @@ def load_body(path: str | Path) -> Body:
     """
     path = Path(path)
     label = f"body file '{path}'"
-    if not_a_file(path):
-        raise InputError(f"{label}: " + ("not found" if not_a_file(path) == "no such file" else not_a_file(path)))
+    reason = not_a_file(path)
+    if reason:
+        raise InputError(f"{label}: " + ("not found" if reason == "no such file" else reason))
     suffix = path.suffix.lower()
     readers = {".npz": _read_npz, ".pkl": _read_pkl}
     if suffix not in readers:

@@ -344,8 +344,9 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
     if path.is_dir():
         inner = bake_directory_sequence(path)
         return _read_obj_directory(path) if inner is None else read_sequence(inner, track)
-    if not_a_file(path):  # a pipe, a device, a socket
-        raise InputError(f"garment sequence '{path}': {not_a_file(path)}")
+    reason = not_a_file(path)
+    if reason:  # a pipe, a device, a socket
+        raise InputError(f"garment sequence '{path}': {reason}")
     suffix = path.suffix.lower()
     if suffix == ".npz":
         return _read_npz(path)

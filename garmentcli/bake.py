@@ -16,7 +16,6 @@ from tqdm import tqdm
 from core.bake import bake_item
 from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
-from core.errors import not_a_file
 from core.motion import parse_frame_range
 from core.provenance import software_versions
 from core.quality import DEFAULT_BUDGET_MM
@@ -41,6 +40,7 @@ from garmentcli.common import (
     motion_names,
     parse_device,
     prepare_motion,
+    require_file,
     preroll_option,
     scheduler_options,
     source_fps_option,
@@ -364,8 +364,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
                                "--precision and --push-out")
-    if not_a_file(garment_path):
-        raise click.FileError(garment_path, hint=not_a_file(garment_path))
+    require_file(garment_path)
     motion_paths = motion_files(motion_paths)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)

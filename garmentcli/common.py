@@ -71,6 +71,14 @@ class OutputPath(click.Path):
 MOTION_KEYS = ("poses", "root_orient", "pose_body")
 
 
+def require_file(path) -> None:
+    """click.FileError naming `path` where it is no readable input file (`core.errors.not_a_file`: missing, a
+    folder, a pipe, a device, a link loop)."""
+    reason = not_a_file(path)
+    if reason:
+        raise click.FileError(str(path), hint=reason)
+
+
 def motion_files(args, hint: str = "MOTION") -> list[str]:
     """MOTION arguments as motion files: a file as given; a directory, every `.npz` under it (recursively, in
     sorted order) that holds poses (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold a body shape
@@ -89,7 +97,7 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
         elif path.is_file():
             files.append(str(arg))
         else:
-            raise click.FileError(str(arg), hint=not_a_file(arg))
+            require_file(arg)
     kept: dict = {}
     for f in files:
         kept.setdefault(Path(f).resolve(), f)

@@ -7,7 +7,6 @@ from pathlib import Path
 import click
 import numpy as np
 
-from core.errors import not_a_file
 from garmentcli.common import (
     FiniteFloatRange,
     OutputPath,
@@ -15,6 +14,7 @@ from garmentcli.common import (
     check_dataset_body,
     input_errors_as_click,
     load_body_option,
+    require_file,
 )
 
 
@@ -43,8 +43,7 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     from formats.psd import save_fit
 
     source = Path(garment_path)
-    if not_a_file(source):
-        raise click.FileError(str(source), hint=not_a_file(source))
+    require_file(source)
     out = Path(out_path) if out_path else source.with_name(f"{source.stem}.psd.npz")
     if out.suffix.lower() != ".npz":
         raise click.BadParameter(f"expected a .npz fit file (what is written), got '{out}'", param_hint="--out")

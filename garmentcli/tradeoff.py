@@ -16,7 +16,6 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from core.errors import not_a_file
 from core.tradeoff import (
     METRIC_COLUMNS,
     SPREAD_JITTER_M,
@@ -40,6 +39,7 @@ from garmentcli.common import (
     frames_option,
     input_errors_as_click,
     load_body_option,
+    require_file,
     parse_device,
     prepare_motion,
     preroll_option,
@@ -152,8 +152,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     from formats.obj import read_garment
 
     for p in (garment_path, motion_path):
-        if not_a_file(p):
-            raise click.FileError(p, hint=not_a_file(p))
+        require_file(p)
     check_preroll(preroll_frames, frames)
     device = str(parse_device(device, auto=True))
     models = _models(model_specs)

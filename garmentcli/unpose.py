@@ -9,10 +9,16 @@ from pathlib import Path
 import click
 import numpy as np
 
-from core.errors import not_a_file
 from core.unpose import A_POSE_ARM_DEGREES
 from formats.obj import STAGE_SUFFIXES
-from garmentcli.common import OutputPath, body_option, input_errors_as_click, load_body_option, parse_betas
+from garmentcli.common import (
+    OutputPath,
+    body_option,
+    input_errors_as_click,
+    load_body_option,
+    parse_betas,
+    require_file,
+)
 
 
 class _AboutTheInput(logging.Filter):
@@ -92,8 +98,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     from formats.obj import read_garment
 
     source = Path(garment_path)
-    if not_a_file(source):
-        raise click.FileError(str(source), hint=not_a_file(source))
+    require_file(source)
     out = Path(out_path) if out_path else source.with_name(f"{source.stem}_rest.obj")
     if out.suffix.lower() not in (".obj", *STAGE_SUFFIXES):
         raise click.BadParameter(f"expected an .obj, .usd, .usda or .usdc file, got '{out}'", param_hint="--out")
