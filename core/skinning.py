@@ -46,6 +46,14 @@ FRAME_FIX_MEDIAN_M = 0.10
 #: any fix: 1.3 times at most).
 FRAME_FIX_SUSPECT_MEDIAN_M = 0.06
 FRAME_FIX_GAIN = 2.0
+#: A garment whose top lies more than ABOVE_HEAD_M above the rest body's head with none of it more than
+#: FLOOR_SLACK_M below y = 0, that the drop to the body's soles puts on the body (at most REST_INSIDE_WARN_SHARE
+#: inside, its top then no more than ABOVE_HEAD_M above the head), was authored on a body standing at y = 0, however loose: a flared
+#: skirt lifted by the default body's soles reaches 15 cm above its head (a dress 46 cm), and its hem, 10-30 cm
+#: from the legs, hangs about the chest no further from it than when worn (medians 0.7-1.4 times as far). A hat
+#: or a hood on the head is not moved into the chest.
+ABOVE_HEAD_M = 0.10
+FLOOR_SLACK_M = 0.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,8 +124,10 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     negative inside). Raises InputError, naming the fix when one of `FRAME_FIXES` puts the garment on the body,
     when the garment is far from the body (median distance over MAX_MEDIAN_BODY_DISTANCE_M, its closest 5 %
     over MAX_NEAR_BODY_DISTANCE_M) or more than REST_INSIDE_FRAME_SHARE of its vertices are inside and a fix
-    explains it, or when a fix puts it FRAME_FIX_GAIN times closer to the body (`FRAME_FIX_SUSPECT_MEDIAN_M`);
-    logs a warning above REST_INSIDE_WARN_SHARE otherwise.
+    explains it, or when a fix puts it FRAME_FIX_GAIN times closer to the body (`FRAME_FIX_SUSPECT_MEDIAN_M`),
+    or when it reaches above the body's head standing on y = 0 and the drop to the soles puts it on the body
+    (`ABOVE_HEAD_M`: a loose skirt authored on a body standing on the floor); logs a warning above
+    REST_INSIDE_WARN_SHARE otherwise.
     """
     body_piece = _body_piece(garment, body, signed)
     if body_piece:
@@ -132,10 +142,16 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
         fix = _frame_fix(garment.vertices, body, mesh, closer_than=(median, near))
     else:
         fix = None
-    if not (far or fix) and inside <= REST_INSIDE_WARN_SHARE:
+    lift = None if fix else _lifted_by_floor(garment, body, mesh)
+    if not (far or fix or lift) and inside <= REST_INSIDE_WARN_SHARE:
         return
-    hint = f"; {fix}" if fix else ""
     expected = "expected a garment authored on the body's rest pose (Y-up, T-pose, metres"
+    if lift and not far and inside <= REST_INSIDE_FRAME_SHARE:
+        above = float(garment.vertices[:, 1].max() - body.v_template[:, 1].max())
+        raise InputError(f"garment mesh '{name}': {expected}, resting on it), got its top {above:.2f} m above the "
+                         f"body's head and none of it below y = 0 (the floor); {lift}")
+    fix = fix or lift
+    hint = f"; {fix}" if fix else ""
     if far or (fix and inside <= REST_INSIDE_FRAME_SHARE):
         raise InputError(f"garment mesh '{name}': {expected}, resting on it), got a median distance of {median:.2f} m "
                          f"and its closest 5 % {near:.2f} m or more from the body{hint}")
@@ -210,6 +226,21 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
                                              and near * FRAME_FIX_GAIN <= closer_than[1]))):
             return "it fits when " + what.format(drop=drop)
     return None
+
+
+def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh) -> str | None:
+    """The drop fix of `FRAME_FIXES` ("it fits when moved down by ...") for a garment authored on a body standing
+    at y = 0 (see ABOVE_HEAD_M), else None."""
+    y = garment.vertices[:, 1].astype(np.float64)
+    head = float(body.v_template[:, 1].max())
+    soles = -float(body.v_template[:, 1].min())
+    if (soles <= 0.0 or y.max() <= head + ABOVE_HEAD_M or y.min() < -FLOOR_SLACK_M
+            or y.max() - soles > head + ABOVE_HEAD_M):
+        return None
+    dropped = garment.vertices.astype(np.float64) - [0.0, soles, 0.0]
+    if np.mean(mesh.signed_distance(dropped, exact=False) < -REST_INSIDE_DEPTH_M) > REST_INSIDE_WARN_SHARE:
+        return None
+    return "it fits when " + _DROP.format(drop=soles)
 
 
 def shaped_garment(vertices: np.ndarray, binding: GarmentBinding, betas: np.ndarray) -> np.ndarray:

@@ -174,6 +174,29 @@ def test_skirt_authored_on_a_body_standing_on_the_floor_is_refused(trousers_on_b
                           y_bottom=lv["knees"] + 0.3 * (lv["hips"] - lv["knees"]), ease=0.05, flare_from_y=lv["hips"],
                           flare_slope=1.0)
     assert np.median(bind_garment(loose, body).body_distance) > 0.15
+    # Lifted the same way it stays as near the body (its hem by the chest, 20 cm median, where its hem stood 15 cm
+    # from the legs), but reaches above the head and stands on y = 0: refused naming the drop.
+    lifted = Garment(loose.vertices + np.float32([0.0, soles, 0.0]), loose.faces, name="loose.obj")
+    with pytest.raises(InputError) as err:
+        bind_garment(lifted, body)
+    assert "resting on it), got its top 0.15 m above the body's head and none of it below y = 0 (the floor); it " \
+           "fits when moved down by 0.90 m" in str(err.value)
+
+
+def test_a_tall_hat_on_the_head_is_not_taken_for_a_garment_lifted_by_the_floor(trousers_on_body, caplog):
+    """A cylinder on the head reaching 19 cm above it, none of it below y = 0, like a garment lifted by the floor:
+    moved down by the soles it would lie inside the chest, so it binds without a word."""
+    _, body = trousers_on_body
+    head = body.v_template[body.v_template[:, 1] > 0.6]
+    centre = head.mean(axis=0)
+    radius = float(np.abs(head[:, [0, 2]] - centre[[0, 2]]).max()) + 0.01
+    unit, faces = grid(40, 12)  # x: round the head (a seam left open), y: up
+    angle, height = unit[:, 0] * 2 * np.pi, 0.62 + 0.36 * unit[:, 1]
+    v = np.stack([centre[0] + radius * np.cos(angle), height, centre[2] + radius * np.sin(angle)], axis=1)
+    assert v[:, 1].max() > body.v_template[:, 1].max() + 0.15
+    with caplog.at_level(logging.WARNING):
+        bind_garment(Garment(v.astype(np.float32), faces, name="hat.obj"), body)
+    assert "hat.obj" not in caplog.text
 
 
 def test_a_garment_file_holding_the_body_itself_is_refused(trousers_on_body):
