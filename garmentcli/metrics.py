@@ -35,13 +35,15 @@ def _inside_fn(depth_m: float):
     return frames_inside(lambda points, verts, faces: points_inside_mesh(points, verts, faces, depth=depth_m))
 
 
+#: (unit, metres per unit): the units other tools write garments in.
+_UNITS = (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254))
 #: (what to tell, matrix applied to one side's points as row vectors): frame and unit mix-ups of another tool's
-#: output; the last undoes a Y-up to Z-up turn made by a file that declared Y-up wrongly.
-_FIXES = (("is Y-up: turned to Z-up", Y_UP_TO_Z_UP_MATRIX.T),
-          ("is in centimetres", np.eye(3) * 0.01),
-          ("is Y-up and in centimetres", Y_UP_TO_Z_UP_MATRIX.T * 0.01),
-          ("was turned from Y-up to Z-up but was Z-up already (does its file declare Y-up wrongly?)",
-           Y_UP_TO_Z_UP_MATRIX))
+#: output, one change before two; the last undoes a Y-up to Z-up turn made by a file that declared Y-up wrongly.
+_FIXES = ((("is Y-up: turned to Z-up", Y_UP_TO_Z_UP_MATRIX.T),)
+          + tuple((f"is in {unit}", np.eye(3) * scale) for unit, scale in _UNITS)
+          + tuple((f"is Y-up and in {unit}", Y_UP_TO_Z_UP_MATRIX.T * scale) for unit, scale in _UNITS)
+          + (("was turned from Y-up to Z-up but was Z-up already (does its file declare Y-up wrongly?)",
+              Y_UP_TO_Z_UP_MATRIX),))
 
 #: A garment's plausible size (largest extent of a frame, metres), and how far below the floor (z = 0) it may reach.
 _GARMENT_SIZE_M = (0.1, 3.0)
@@ -81,6 +83,26 @@ def frame_hint(pred: np.ndarray, gt: np.ndarray) -> tuple[str, str]:
         return "", ""
     odd = [side for side, points in (("GT", gt), ("PRED", pred)) if not _plausible(points)]
     return next((f for f in found if len(odd) == 1 and f[0] == odd[0]), found[0])
+
+
+def size_hint(pred: np.ndarray, gt: np.ndarray) -> str:
+    """"" or, when a side's first frame is no garment in metres (`_GARMENT_SIZE_M` across) and no `_FIXES` matched
+    (`frame_hint`), what is wrong in size: both sides ("PRED and GT are 1.7e+03 and 1.7e+03 m across ...: the
+    figures are then in thousandths of that unit") or one ("GT is 1e+30 m across, 1e+30 times PRED ...")."""
+    low, high = _GARMENT_SIZE_M
+    sizes = {side: _extent(np.asarray(points, dtype=np.float64)) for side, points in (("PRED", pred), ("GT", gt))}
+    odd = [side for side, size in sizes.items() if not (low <= size <= high)]
+    if not odd or min(sizes.values()) <= 1e-9:
+        return ""
+    expected = f"expected a garment {low:g}-{high:g} m across in metres"
+    if len(odd) == 2:
+        return (f"PRED and GT are {sizes['PRED']:,.3g} and {sizes['GT']:,.3g} m across ({expected}): in another "
+                "unit, both? the figures are then in thousandths of that unit, not millimetres, and the "
+                "penetration against a body in metres means nothing")
+    side, other = odd[0], "GT" if odd[0] == "PRED" else "PRED"
+    ratio = sizes[side] / sizes[other]
+    return (f"{side} is {sizes[side]:,.3g} m across, {ratio:,.3g} times {other} ({expected}): convert it to this "
+            "tool's world (metres, Z-up)")
 
 
 def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="motion",
@@ -312,6 +334,9 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
     if hint:
         click.echo(f"warning: '{pred if side == 'PRED' else gt}' {hint}", err=True)
         result.metadata["frame_hint"] = f"{side} {hint}"
+    elif size := size_hint(p_seq.points[0], g_seq.points[0]):
+        click.echo(f"warning: {size}", err=True)
+        result.metadata["frame_hint"] = size
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)  # an existing directory: write_report puts metrics.* inside
         for path in write_report(result, out_dir, formats):

@@ -194,7 +194,10 @@ def test_a_ground_truth_in_another_frame_is_pointed_out(tmp_path, seq):
     a = save_seq(tmp_path / "a.npz", pts, f)
     to_y_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=np.float64)  # (x, y, z) -> (x, z, -y)
     for name, gt, needle in (("yup.npz", pts @ to_y_up, "looks as if it is Y-up"),
-                             ("cm.npz", pts * 100, "looks as if it is in centimetres")):
+                             ("cm.npz", pts * 100, "looks as if it is in centimetres"),
+                             ("mm.npz", pts * 1000, "looks as if it is in millimetres"),
+                             ("inch.npz", pts / 0.0254, "looks as if it is in inches"),
+                             ("yup_mm.npz", pts @ to_y_up * 1000, "looks as if it is Y-up and in millimetres")):
         b = save_seq(tmp_path / name, gt + 0.001, f)
         r = run([a, b, "--out", tmp_path / name.replace(".npz", "")])
         assert r.exit_code == 0 and "E_verts" in r.output
@@ -203,6 +206,29 @@ def test_a_ground_truth_in_another_frame_is_pointed_out(tmp_path, seq):
         assert needle in meta["frame_hint"]
     r = run([a, save_seq(tmp_path / "same.npz", pts + 0.001, f)])
     assert r.exit_code == 0 and "warning" not in r.output
+
+
+def test_sides_of_no_garment_size_that_no_fix_explains_are_pointed_out(tmp_path, seq):
+    """Both sides in millimetres (E_verts then in micrometres' worth of the unit), or one side at 1e30 (an absurd
+    unit no fix matches): the metrics are printed, with one warning naming the sizes; the same sides in metres
+    get none."""
+    pts, f = seq
+    pts = pts - pts[0].mean(axis=0) * [1, 1, 0] + [0.0, 0.0, 1.0]
+    assert 0.1 <= np.ptp(pts[0], axis=0).max() <= 3.0
+    for name, pred, gt, needle in (
+            ("mm", pts * 1000, pts * 1000 + 1.0, "warning: PRED and GT are "),
+            ("huge", pts, pts * 1e30, "warning: GT is 5e+29 m across, 1e+30 times PRED (expected a garment 0.1-3 m "
+                                      "across in metres): convert it")):
+        p, g = save_seq(tmp_path / f"{name}_p.npz", pred, f), save_seq(tmp_path / f"{name}_g.npz", gt, f)
+        r = run([p, g, "--out", tmp_path / name])
+        assert r.exit_code == 0 and "E_verts" in r.output, r.output
+        warnings = [line for line in r.output.splitlines() if line.startswith("warning")]
+        assert len(warnings) == 1 and warnings[0].startswith(needle), r.output
+        meta = json.loads((tmp_path / name / "metrics.json").read_text())["metadata"]
+        assert meta["frame_hint"] == warnings[0].removeprefix("warning: ")
+    assert "in another unit, both?" in run([tmp_path / "mm_p.npz", tmp_path / "mm_g.npz"]).output
+    r = run([save_seq(tmp_path / "m_p.npz", pts, f), save_seq(tmp_path / "m_g.npz", pts + 0.001, f)])
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
 
 
 def _bake_dir(root, name, points, faces):
