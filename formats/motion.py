@@ -4,8 +4,10 @@ Accepted layouts: `poses` with 72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X) values pe
 frame, or 66 (the 22 body joints alone; the SMPL hands are then at rest), or the same
 as a (T, J, 3) array, or, when `poses` is absent, the SMPL-X split keys
 `root_orient (T,3)`, `pose_body (T,63)` and optional `pose_jaw (T,3)`, `pose_eye (T,6)`,
-`pose_hand (T,90)`. Also read: `trans (T,3)` metres Z-up (zeros, with a warning, when
-missing), `betas` (any length; per frame (T, S) as video fits write them: their mean),
+`pose_hand (T,90)`, or, when neither is there, the `smplx` library's forward arguments
+`global_orient` + `body_pose` (23 joints: SMPL; 21: SMPL-X/SMPL+H, with optional `jaw_pose`, `leye_pose`,
+`reye_pose`, `left_hand_pose`, `right_hand_pose`), each as axis-angle or rotation matrices (T, K, 3, 3), and
+`transl`. Also read: `trans (T,3)` metres Z-up (zeros, with a warning, when missing), `betas` (any length; per frame (T, S) as video fits write them: their mean),
 `mocap_framerate` or `mocap_frame_rate` (Hz; or `mocap_fps`, `fps`, `framerate`,
 `frame_rate`), `gender`.
 """
@@ -31,8 +33,8 @@ log = logging.getLogger(__name__)
 _OTHER_MOTION_FORMATS = {
     **dict.fromkeys((".bvh", ".fbx", ".c3d", ".trc"), "motion capture of a skeleton (BVH/FBX/C3D/TRC), not SMPL "
                     "parameters: fit SMPL to it first (AMASS's MoSh, or a retargeting tool), then save the npz"),
-    ".pkl": "a Python pickle (SMPL parameters from a pose estimator? save its 'poses' (T, 72) and 'trans' (T, 3) "
-            "with np.savez, adding 'mocap_framerate')",
+    ".pkl": "a Python pickle (SMPL parameters from a pose estimator? save its 'global_orient', 'body_pose', "
+            "'transl' and 'betas' (or 'poses' (T, 72) and 'trans' (T, 3)) with np.savez, adding 'mocap_framerate')",
     ".json": "a JSON file",
 }
 #: Where a frame rate is found (AMASS's two spellings first, then those of other SMPL pipelines).
@@ -52,9 +54,17 @@ DEGREES_MAX_NORM = 4 * np.pi
 #: mean in some frame and coefficient are warned about: the motion is baked with the mean shape.
 BETAS_SPREAD_WARN = 0.1
 _SPLIT_KEYS = ("root_orient", "pose_body", "pose_jaw", "pose_eye", "pose_hand")
+#: The `smplx` library's forward arguments, as pose estimators and fitters save them (SMPLify-X, SMPLer-X, GVHMR,
+#: TRAM; 4D-Humans/HMR2 as rotation matrices): read when neither 'poses' nor 'root_orient' is there. (key, joints)
+#: after global_orient and body_pose, in SMPL-X's joint order.
+_SMPLX_ARG_EXTRAS = (("jaw_pose", 1), ("leye_pose", 1), ("reye_pose", 1), ("left_hand_pose", 15),
+                     ("right_hand_pose", 15))
+_SMPLX_ARG_KEYS = ("global_orient", "body_pose", *(key for key, _ in _SMPLX_ARG_EXTRAS))
 #: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
-#: needs allow_pickle) are left unread.
-_READ_KEYS = ("poses", *_SPLIT_KEYS, "trans", "betas", *FRAMERATE_KEYS, "gender")
+#: needs allow_pickle, a face's expression) are left unread. `transl` is the smplx arguments' `trans`.
+_READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender")
+#: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
+ROTATION_MATRIX_TOL = 1e-3
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
 #: What reading an archive or one of its arrays raises for a damaged, truncated or unusual file: a corrupt deflate
 #: stream (zlib.error), an encrypted member (RuntimeError), a compression zipfile lacks (NotImplementedError), an
@@ -132,14 +142,15 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         raise InputError(f"{src}: expected at least 1 frame, got 0")
     _refuse_degrees(poses, src)
 
-    if "trans" in arrays:
-        trans = _float_array(arrays["trans"], "trans", src)
+    trans_key = next((k for k in ("trans", "transl") if k in arrays), None)
+    if trans_key is not None:
+        trans = _float_array(arrays[trans_key], trans_key, src)
         if trans.ndim == 1 and trans.shape == (3,) and T == 1:
             trans = trans[None]
         if trans.ndim != 2 or trans.shape[1] != 3:
-            raise InputError(f"{src}: expected trans of shape ({T}, 3), got {tuple(trans.shape)}")
+            raise InputError(f"{src}: expected {trans_key} of shape ({T}, 3), got {tuple(trans.shape)}")
         if trans.shape[0] != T:
-            raise InputError(f"{src}: trans has {trans.shape[0]} frames but poses have {T}")
+            raise InputError(f"{src}: {trans_key} has {trans.shape[0]} frames but poses have {T}")
     else:
         log.warning("%s: no 'trans' key, using zero translation", src)
         trans = np.zeros((T, 3), dtype=np.float32)
@@ -242,8 +253,68 @@ def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:
         return poses.reshape(poses.shape[0], _VALUES_PER_FRAME[n], 3)
     if "root_orient" in arrays and "pose_body" in arrays:
         return _split_poses(arrays, src)
-    raise InputError(f"{src}: expected a 'poses' array or SMPL-X 'root_orient' + 'pose_body', "
-                     f"found keys {sorted(files)}")
+    if "global_orient" in arrays and "body_pose" in arrays:
+        return _smplx_arg_poses(arrays, src)
+    raise InputError(f"{src}: expected a 'poses' array, SMPL-X 'root_orient' + 'pose_body' or the smplx arguments "
+                     f"'global_orient' + 'body_pose', found keys {sorted(files)}")
+
+
+def _smplx_arg_poses(arrays: dict, src: str) -> np.ndarray:
+    """(T, 24|55, 3) poses from the smplx forward arguments (`_SMPLX_ARG_KEYS`): a body_pose of 23 joints is SMPL's
+    (global_orient first), one of 21 SMPL-X's (or SMPL+H's) body, followed by the jaw, the eyes and the hands where
+    given (at rest where not; hands given as PCA coefficients of the body model's own basis are warned about and
+    left at rest)."""
+    glob = _rotations(arrays["global_orient"], "global_orient", src)
+    body = _rotations(arrays["body_pose"], "body_pose", src)
+    T, K = body.shape[:2]
+    if K not in (21, 23):
+        raise InputError(f"{src}: expected body_pose of 23 (SMPL) or 21 (SMPL-X, SMPL+H) joints (69 or 63 values "
+                         f"per frame), got {K} joints")
+    if glob.shape[1] != 1:
+        raise InputError(f"{src}: expected global_orient of one joint (3 values per frame), got {glob.shape[1]}")
+    parts = {"global_orient": glob, "body_pose": body}
+    for key, n in _SMPLX_ARG_EXTRAS if K == 21 else ():
+        raw = arrays.get(key)
+        if raw is not None and key.endswith("hand_pose") and np.ndim(raw) == 2 and np.shape(raw)[1] != 3 * n:
+            log.warning("%s: %s has %d values per frame, not %d: PCA coefficients of the body model's hand basis? "
+                        "the hands are left at rest (save them as axis-angle: smplx's use_pca=False)",
+                        src, key, np.shape(raw)[1], 3 * n)
+            raw = None
+        parts[key] = np.zeros((T, n, 3), dtype=np.float32) if raw is None else _rotations(raw, key, src)
+        if parts[key].shape[1] != n:
+            raise InputError(f"{src}: expected {key} of {n} joint(s) ({3 * n} values per frame), got "
+                             f"{parts[key].shape[1]}")
+    for key, a in parts.items():
+        if a.shape[0] != T:
+            raise InputError(f"{src}: {key} has {a.shape[0]} frames but body_pose has {T}")
+    return np.concatenate(list(parts.values()), axis=1)
+
+
+def _rotations(raw, key: str, src: str) -> np.ndarray:
+    """(T, K, 3) float32 axis-angle joint rotations from axis-angle (K*3,), (T, K*3) or (T, K, 3), or from rotation
+    matrices (T, 3, 3) (one joint) or (T, K, 3, 3), as pose estimators write them."""
+    a = _float_array(raw, key, src)
+    if a.ndim == 4 or (a.ndim == 3 and a.shape[1:] == (3, 3)):
+        if a.shape[-2:] != (3, 3):
+            raise InputError(f"{src}: expected {key} as rotation matrices (T, K, 3, 3), got {tuple(a.shape)}")
+        m = a.reshape(a.shape[0], -1, 3, 3).astype(np.float64)
+        if not np.isfinite(m).all():
+            raise InputError(f"{src}: {key} contains NaN or Inf")
+        off = float(np.abs(m @ np.swapaxes(m, -1, -2) - np.eye(3)).max(initial=0.0))
+        if off > ROTATION_MATRIX_TOL or (m.size and np.linalg.det(m).min() < 0):
+            raise InputError(f"{src}: expected {key} as rotation matrices (orthonormal, determinant +1), got "
+                             f"matrices {off:.3g} from orthonormal or mirroring")
+        from core.rotations import matrix_to_axis_angle
+
+        return matrix_to_axis_angle(m).astype(np.float32)
+    if a.ndim == 1:
+        a = a[None]
+    if a.ndim == 3 and a.shape[2] == 3:
+        return a
+    if a.ndim != 2 or a.shape[1] % 3:
+        raise InputError(f"{src}: expected {key} as axis-angle (T, K*3) or (T, K, 3), or rotation matrices "
+                         f"(T, K, 3, 3), got {tuple(a.shape)}")
+    return a.reshape(a.shape[0], -1, 3)
 
 
 def _split_poses(arrays: dict, src: str) -> np.ndarray:

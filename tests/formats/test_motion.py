@@ -86,6 +86,68 @@ def test_smplx_split_keys_without_hands(tmp_path):
     np.testing.assert_array_equal(m.poses[:, 22:], 0.0)
 
 
+@pytest.mark.parametrize("as_matrices", [False, True])
+def test_smplx_forward_arguments_of_an_smpl_fit(tmp_path, as_matrices):
+    """global_orient + body_pose of 23 joints + transl (+ per-frame betas), as pose estimators save the smplx
+    library's arguments, as axis-angle or as rotation matrices (4D-Humans: (T, 1, 3, 3), (T, 23, 3, 3)): the SMPL
+    layout, the same rotations."""
+    from core.rotations import axis_angle_to_matrix
+
+    T = 4
+    poses = _poses(T, 72).reshape(T, 24, 3)
+    glob, body = poses[:, :1], poses[:, 1:]
+    if as_matrices:
+        glob, body = axis_angle_to_matrix(glob), axis_angle_to_matrix(body)
+    else:
+        glob, body = glob.reshape(T, 3), body.reshape(T, 69)
+    m = load_motion(_write(tmp_path, global_orient=glob, body_pose=body, transl=_trans(T),
+                           betas=np.ones((T, 10)), mocap_fps=30))
+    assert m.poses.shape == (T, 24, 3) and m.betas.shape == (10,)
+    np.testing.assert_allclose(m.poses, poses, atol=1e-5)
+    np.testing.assert_allclose(m.trans, _trans(T))
+
+
+def test_smplx_forward_arguments_of_an_smplx_fit(tmp_path, caplog):
+    """body_pose of 21 joints: SMPL-X's layout, jaw, eyes and hands in its order; hands as PCA coefficients
+    (6 per hand) are warned about and left at rest."""
+    T = 3
+    rng = np.random.default_rng(2)
+    parts = {"global_orient": rng.normal(size=(T, 3)), "body_pose": rng.normal(size=(T, 63)),
+             "jaw_pose": rng.normal(size=(T, 3)), "leye_pose": rng.normal(size=(T, 3)),
+             "reye_pose": rng.normal(size=(T, 3)), "left_hand_pose": rng.normal(size=(T, 45)),
+             "right_hand_pose": rng.normal(size=(T, 15, 3))}
+    m = load_motion(_write(tmp_path, transl=_trans(T), fps=30, expression=np.zeros((T, 10)), **parts))
+    assert m.poses.shape == (T, 55, 3)
+    np.testing.assert_allclose(m.poses.reshape(T, -1), np.concatenate([a.reshape(T, -1) for a in parts.values()], 1),
+                               rtol=1e-6)
+    pca = {**parts, "left_hand_pose": np.zeros((T, 6)), "right_hand_pose": np.zeros((T, 6))}
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(_write(tmp_path, "pca.npz", transl=_trans(T), fps=30, **pca))
+    assert "left_hand_pose has 6 values per frame, not 45: PCA coefficients" in caplog.text
+    np.testing.assert_array_equal(m.poses[:, 25:], 0.0)
+    np.testing.assert_allclose(m.poses[:, 22], parts["jaw_pose"], rtol=1e-6)
+
+
+@pytest.mark.parametrize("arrays, fragments", [
+    ({"global_orient": np.zeros((3, 3)), "body_pose": np.zeros((3, 60))}, ("body_pose", "23 (SMPL) or 21", "got 20")),
+    ({"global_orient": np.zeros((3, 6)), "body_pose": np.zeros((3, 69))}, ("global_orient", "one joint", "got 2")),
+    ({"global_orient": np.zeros((2, 3)), "body_pose": np.zeros((3, 69))}, ("global_orient has 2 frames", "3")),
+    ({"global_orient": np.zeros((3, 1, 3, 3)), "body_pose": np.zeros((3, 23, 3, 3))},
+     ("global_orient", "rotation matrices (orthonormal, determinant +1)")),
+    ({"global_orient": np.tile(np.diag([1.0, 1.0, -1.0]), (3, 1, 1)), "body_pose": np.zeros((3, 69))},
+     ("global_orient", "mirroring")),
+    ({"global_orient": np.zeros((3, 2, 2, 2)), "body_pose": np.zeros((3, 69))}, ("global_orient", "(3, 2, 2, 2)")),
+    ({"global_orient": np.zeros((3, 3)), "body_pose": np.zeros((3, 63)), "jaw_pose": np.zeros((3, 6))},
+     ("jaw_pose", "1 joint(s)", "got 2")),
+    ({"global_orient": np.zeros((3, 3)), "body_pose": np.zeros((3, 69)), "transl": np.zeros((3, 2))},
+     ("transl", "(3, 3)", "(3, 2)")),
+])
+def test_smplx_forward_arguments_malformed_are_one_line(tmp_path, arrays, fragments):
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, mocap_framerate=30, **arrays))
+    _assert_one_line(info, "m.npz", *fragments)
+
+
 def test_poses_preferred_over_split_keys(tmp_path):
     m = load_motion(_write(tmp_path, poses=_poses(2, 72), root_orient=np.ones((2, 3)), pose_body=np.ones((2, 63)),
                            trans=_trans(2), mocap_framerate=30))
@@ -262,7 +324,7 @@ def test_corrupt_member(tmp_path):
 def test_missing_poses_keys(tmp_path):
     with pytest.raises(InputError) as info:
         load_motion(_write(tmp_path, trans=_trans(3), mocap_framerate=30))
-    _assert_one_line(info, "m.npz", "poses", "root_orient")
+    _assert_one_line(info, "m.npz", "poses", "root_orient", "global_orient")
 
 
 @pytest.mark.parametrize("n_values", [69, 63, 168, 3, 64])

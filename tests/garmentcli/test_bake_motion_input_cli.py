@@ -108,3 +108,29 @@ def test_betas_far_beyond_a_human_are_refused_and_extreme_ones_warned_about(scen
     assert any("beta 0 is 7, beyond the +-5 the methods are tested at" in m for m in caplog.messages)
     summary = json.loads((scene["out"] / "shell_extreme" / "summary.json").read_text())
     assert any("beta 0 is 7" in w for w in summary["warnings"])
+
+
+def test_a_pose_estimators_smplx_arguments_bake_as_the_same_motion_in_amass_layout(scene):
+    """The scene's walk saved as 4D-Humans saves an SMPL fit (global_orient (T, 1, 3, 3), body_pose
+    (T, 23, 3, 3) rotation matrices, transl, per-frame betas, no frame rate: --source-fps) bakes the same garment
+    as the AMASS file."""
+    from core.rotations import axis_angle_to_matrix
+    from formats.sequence import read_sequence
+
+    d = scene["dir"]
+    with np.load(scene["motion"]) as walk:
+        poses, trans, betas = walk["poses"].reshape(-1, 24, 3), walk["trans"], walk["betas"]
+        fps = float(walk["mocap_framerate"])
+    T = len(poses)
+    np.savez(d / "hmr.npz", global_orient=axis_angle_to_matrix(poses[:, :1]).astype(np.float32),
+             body_pose=axis_angle_to_matrix(poses[:, 1:]).astype(np.float32), transl=trans,
+             betas=np.tile(betas, (T, 1)))
+    assert_one_line_error(_bake(scene, d / "hmr.npz"), "hmr.npz", "frame rate", "--source-fps")
+    for motion, options in ((scene["motion"], ()), (d / "hmr.npz", ("--source-fps", fps))):
+        r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
+                    "--method", "lbs", *options])
+        assert r.exit_code == 0, r.output
+    a = read_sequence(scene["out"] / "shell_walk" / "obj").points
+    b = read_sequence(scene["out"] / "shell_hmr" / "obj").points
+    assert a.shape == b.shape
+    np.testing.assert_allclose(a, b, atol=1e-5)
