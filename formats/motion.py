@@ -2,7 +2,7 @@
 
 Accepted layouts: `poses` with 72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X) values per
 frame, or 66 (the 22 body joints alone; the SMPL hands are then at rest), or the same
-as a (T, J, 3) array, or, when `poses` is absent, the SMPL-X split keys
+as a (T, J, 3) array or as rotation matrices (T, J, 3, 3), or, when `poses` is absent, the SMPL-X split keys
 `root_orient (T,3)`, `pose_body (T,63)` and optional `pose_jaw (T,3)`, `pose_eye (T,6)`,
 `pose_hand (T,90)`, or, when neither is there, the `smplx` library's forward arguments
 `global_orient` + `body_pose` (23 joints: SMPL; 21: SMPL-X/SMPL+H, with optional `jaw_pose`, `leye_pose`,
@@ -237,6 +237,8 @@ def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:
         poses = _float_array(arrays["poses"], "poses", src)
         if poses.ndim == 1:  # a single frame stored flat
             poses = poses[None]
+        if poses.ndim == 4:  # rotation matrices (T, J, 3, 3)
+            poses = _rotations(poses, "poses", src)
         if poses.ndim == 3:
             if poses.shape[2] == 3 and poses.shape[1] == _BODY_ONLY_JOINTS:
                 return _body_only(poses)

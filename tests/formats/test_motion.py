@@ -107,6 +107,18 @@ def test_smplx_forward_arguments_of_an_smpl_fit(tmp_path, as_matrices):
     np.testing.assert_allclose(m.trans, _trans(T))
 
 
+def test_poses_as_rotation_matrices(tmp_path):
+    from core.rotations import axis_angle_to_matrix
+
+    poses = _poses(3, 66).reshape(3, 22, 3)
+    m = load_motion(_write(tmp_path, poses=axis_angle_to_matrix(poses), trans=_trans(3), mocap_framerate=30))
+    assert m.poses.shape == (3, 24, 3)  # the 22 body joints, the hands at rest
+    np.testing.assert_allclose(m.poses[:, :22], poses, atol=1e-5)
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, "bad.npz", poses=np.ones((3, 24, 3, 3)), trans=_trans(3), mocap_framerate=30))
+    _assert_one_line(info, "bad.npz", "poses", "rotation matrices (orthonormal")
+
+
 def test_smplx_forward_arguments_of_an_smplx_fit(tmp_path, caplog):
     """body_pose of 21 joints: SMPL-X's layout, jaw, eyes and hands in its order; hands as PCA coefficients
     (6 per hand) are warned about and left at rest."""
