@@ -271,6 +271,35 @@ def body_up_share(motion: Motion) -> dict:
     return {"z": float(np.mean(up[:, 2] > Y_UP_COSINE)), "y": float(np.mean(up[:, 1] > Y_UP_COSINE))}
 
 
+def y_up_to_z_up(motion: Motion, pelvis: np.ndarray) -> Motion:
+    """The motion of a Y-up world (most video pose estimators': GVHMR, WHAM, TRAM) in the Z-up world motions are read
+    in: the whole posed body turned +90 degrees about X (`Y_UP_TO_Z_UP`) about the world's origin, exactly.
+
+    pelvis: (3,) the root joint of the body's rest pose at the motion's shape (the root turns about it, so the
+    translation turns with it: trans' = Q (pelvis + trans) - pelvis)."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+    from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+    q = Y_UP_TO_Z_UP_MATRIX
+    poses = np.array(motion.poses, dtype=np.float32)
+    poses[:, 0] = matrix_to_axis_angle(q @ axis_angle_to_matrix(poses[:, 0].astype(np.float64)))
+    pelvis = np.asarray(pelvis, dtype=np.float64)
+    trans = (motion.trans.astype(np.float64) + pelvis) @ q.T - pelvis
+    return replace(motion, poses=poses, trans=trans.astype(np.float32))
+
+
+def warn_if_z_up(motion: Motion, source: str) -> bool:
+    """Log a warning, for a motion given as Y-up (`--motion-up y`), when its body already stands along world +Z
+    (Y_UP_SHARE of the frames, never along +Y): turned, it would lie on its front. Returns whether it warned."""
+    share = body_up_share(motion)
+    if share["z"] < Y_UP_SHARE or share["y"] > 0.0:
+        return False
+    log.warning("motion '%s': given as Y-up (--motion-up y), but the body stands along world +Z in %.0f %% of its "
+                "frames and along +Y in none: it looks Z-up already, and turned it lies on its front; leave out "
+                "--motion-up y", source, share["z"] * 100)
+    return True
+
+
 def warn_if_y_up(motion: Motion, source: str) -> bool:
     """Log a warning when the body stands along world +Y (Y_UP_SHARE of the frames, never along +Z): a Y-up
     motion read as Z-up lies on its back, and the simulator's gravity pulls along its body. Returns whether it
@@ -280,8 +309,8 @@ def warn_if_y_up(motion: Motion, source: str) -> bool:
         return False
     log.warning("motion '%s': the body stands along world +Y in %.0f %% of its frames and along +Z in none: it "
                 "looks Y-up, but motions are read "
-                "as AMASS's Z-up world, where it lies on its back and gravity pulls along the body; turn its root "
-                "orientation and translation +90 degrees about X", source, share["y"] * 100)
+                "as AMASS's Z-up world, where it lies on its back and gravity pulls along the body: pass --motion-up y "
+                "(or turn its root orientation and translation +90 degrees about X)", source, share["y"] * 100)
     return True
 
 

@@ -219,10 +219,11 @@ RESAMPLE_BYTES_PER_JOINT = 512
 
 def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
-                   check_frames=None):
-    """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas, --frames
-    (source frames) with --preroll (source frames before them, deformed and not written: `Motion.n_lead`),
-    --fps and --settle, in that order.
+                   check_frames=None, motion_up: str = "z"):
+    """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
+    --motion-up y (the motion turned from its Y-up world to Z-up about the pelvis of `body`, the embedded one when
+    None, at the motion's betas), --frames (source frames) with --preroll (source frames before them, deformed and
+    not written: `Motion.n_lead`), --fps and --settle, in that order.
 
     body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
     once, naming the motion. check_frames(n_frames, source_fps): called with the frame count of the prepared
@@ -230,7 +231,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     checked against the memory free in any case."""
     from formats.motion import load_motion
 
-    motion = load_motion(path, fps=source_fps)
+    motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z")
     if betas is not None and betas != "motion":
         motion = replace(motion, betas=None if betas == "mean" else parse_betas(betas))
     if body is not None and motion.betas is not None:
@@ -238,6 +239,8 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
                         (f"--betas (motion '{path}')", ""))
         motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note))
         _check_betas_range(motion.betas, source)
+    if motion_up == "y":
+        motion = turned_z_up(motion, body, path)
     source_fps = motion.fps
     if frames:
         motion = preroll(motion, *parse_frame_range(frames), preroll_frames)
@@ -247,6 +250,26 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     _check_resample_memory(path, motion, fps, n_frames)
     motion = resample(motion, fps)
     return settle(motion, settle_frames), source_fps
+
+
+def turned_z_up(motion, body: Body | None, path: str):
+    """`core.motion.y_up_to_z_up` about the pelvis of `body` (the embedded one when None) at the motion's betas,
+    with the world checks `load_motion` leaves to it (Z-up already? metres?)."""
+    from core.body import default_body
+    from core.motion import warn_if_not_metres, warn_if_z_up, y_up_to_z_up
+
+    warn_if_z_up(motion, path)
+    _, joints = (body or default_body()).shaped(motion.betas)
+    motion = y_up_to_z_up(motion, joints[0])
+    warn_if_not_metres(motion, path)
+    return motion
+
+
+def motion_up_option(command):
+    """--motion-up z|y: the motions' world up axis (`prepare_motion`)."""
+    return click.option("--motion-up", type=click.Choice(["z", "y"]), default="z", show_default=True,
+                        help="The motions' world up axis: z (AMASS) or y (the world of most video pose estimators: "
+                             "GVHMR, WHAM, TRAM), turned to Z-up exactly (about the body's pelvis).")(command)
 
 
 #: Betas beyond this (standard deviations of the body's shape space) are warned about: the methods are tested

@@ -23,6 +23,7 @@ from garmentcli.common import (
     input_errors_as_click,
     motion_files,
     motion_names,
+    motion_up_option,
     scheduler_options,
     source_fps_option,
 )
@@ -39,12 +40,19 @@ DEFAULT_PREROLL = 10
 _W: dict = {}
 
 
-def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn) -> dict:
-    """name -> fn(Motion as read) of the files (read at `source_fps` when given), plus the built-in library
-    (core.motiongen.MOTION_LIBRARY) when asked; a library clip named like a file is refused."""
+def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, motion_up: str = "z",
+                     body=None) -> dict:
+    """name -> fn(Motion as read) of the files (read at `source_fps` when given; turned from a Y-up world about
+    `body`'s pelvis at their betas with --motion-up y), plus the built-in library (core.motiongen.MOTION_LIBRARY)
+    when asked; a library clip named like a file is refused."""
     from formats.motion import load_motion
+    from garmentcli.common import turned_z_up
 
-    out = {name: fn(load_motion(p, fps=source_fps)) for name, p in zip(motion_names(motion_paths), motion_paths)}
+    def read(path):
+        motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z")
+        return turned_z_up(motion, body, path) if motion_up == "y" else motion
+
+    out = {name: fn(read(p)) for name, p in zip(motion_names(motion_paths), motion_paths)}
     if library:
         from core.motiongen import generate_motion_library
 
@@ -55,11 +63,12 @@ def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn) 
     return out
 
 
-def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | None = None) -> dict:
+def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | None = None, motion_up: str = "z",
+                  body=None) -> dict:
     """name -> Motion at `fps` (`_motions_by_name`)."""
     from core.motion import resample
 
-    return _motions_by_name(motion_paths, library, source_fps, lambda m: resample(m, fps))
+    return _motions_by_name(motion_paths, library, source_fps, lambda m: resample(m, fps), motion_up, body)
 
 
 def _changed_inputs(old: dict, new: dict) -> str:
@@ -85,11 +94,13 @@ def _changed_inputs(old: dict, new: dict) -> str:
 MAX_BETAS_RANGE = 5.0
 
 
-def _motion_frame_counts(motion_paths, library: bool, fps: float, source_fps: float | None = None) -> dict:
+def _motion_frame_counts(motion_paths, library: bool, fps: float, source_fps: float | None = None,
+                         motion_up: str = "z", body=None) -> dict:
     """name -> frames at `fps` of the motions `_load_motions` gives, counted without resampling any."""
     from core.motion import resampled_frame_count
 
-    return _motions_by_name(motion_paths, library, source_fps, lambda m: resampled_frame_count(m, fps))
+    return _motions_by_name(motion_paths, library, source_fps, lambda m: resampled_frame_count(m, fps), motion_up,
+                            body)
 
 
 def time_left(seconds: float) -> str:
@@ -100,14 +111,15 @@ def time_left(seconds: float) -> str:
     return f"{minutes} min" if minutes < 60 else f"{minutes // 60} h {minutes % 60:02d} min"
 
 
-def _worker_init(garment_paths, motion_paths, library, body_path, fps, material, options, source_fps=None):
+def _worker_init(garment_paths, motion_paths, library, body_path, fps, material, options, source_fps=None,
+                 motion_up="z"):
     from core.sim import SimDeformer
     from formats.obj import read_garment
     from garmentcli.common import load_body_option
 
     _W["garments"] = {Path(p).stem: read_garment(p) for p in garment_paths}
-    _W["motions"] = _load_motions(motion_paths, library, fps, source_fps)
     _W["body"] = load_body_option(body_path)
+    _W["motions"] = _load_motions(motion_paths, library, fps, source_fps, motion_up, _W["body"])
     _W["deformer"] = SimDeformer(material, options)
 
 
@@ -166,6 +178,7 @@ MAX_BODIES = 10000
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
               help="Frame rate of the simulated sequences (1 to 1000).")
 @source_fps_option
+@motion_up_option
 @click.option("--frames-per-clip", type=click.IntRange(min=2), default=None,
               help="Cut motions into clips of at most this many frames (default: whole motions).")
 @click.option("--max-clips-per-motion", type=click.IntRange(min=1), default=None,
@@ -201,7 +214,7 @@ MAX_BODIES = 10000
 def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_path, out_dir, workers, fps, frames_per_clip,
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
             pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None, no_held_out=False,
-            dry_run=False, source_fps=None, floor="auto", first=(), preroll=DEFAULT_PREROLL):
+            dry_run=False, source_fps=None, floor="auto", first=(), preroll=DEFAULT_PREROLL, motion_up="z"):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
@@ -243,9 +256,10 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     if not motion_paths and not library:
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
     motion_paths = motion_files(motion_paths, "--motions")
-    motion_frames = _motion_frame_counts(motion_paths, library, fps, source_fps)  # the plan needs no resampled motion
-    file_motions = motion_names(motion_paths)  # the names `_load_motions` gave the files' motions
     body = load_body_option(body_path)
+    # The plan needs no resampled motion.
+    motion_frames = _motion_frame_counts(motion_paths, library, fps, source_fps, motion_up, body)
+    file_motions = motion_names(motion_paths)  # the names `_load_motions` gave the files' motions
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
     old = read_manifest(out)
@@ -266,6 +280,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 "garment_meshes": {k: g.content_hash() for k, g in sorted(garments.items())}}
     if any(it.preroll for it in items):  # a plan whose clips all start their motions is the same without it
         settings["preroll"] = preroll
+    if motion_up != "z":  # likewise: the datasets made before the option resume
+        settings["motion_up"] = motion_up
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
               "motions": {name: {"path": str(p), "sha256": _sha256(p)} for name, p in zip(file_motions, motion_paths)},
@@ -321,11 +337,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         return
     stats = {}
     task_out = out
-    init = (list(garment_paths), list(motion_paths), library, body_path, fps, material, options, source_fps)
+    init = (list(garment_paths), list(motion_paths), library, body_path, fps, material, options, source_fps, motion_up)
     if scheduler:  # workers run elsewhere: absolute paths (on the shared file system)
         task_out = out.resolve()
         init = ([str(Path(p).resolve()) for p in garment_paths], [str(Path(p).resolve()) for p in motion_paths],
-                library, str(Path(body_path).resolve()) if body_path else None, fps, material, options, source_fps)
+                library, str(Path(body_path).resolve()) if body_path else None, fps, material, options, source_fps,
+                motion_up)
     calls = [(init, it, betas[it.body], settle_frames, task_out, body_id) for it in todo]
     frames_of = {it.id: item_frames(it, settings) for it in todo}
     failed, finished = None, 0

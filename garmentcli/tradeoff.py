@@ -39,10 +39,11 @@ from garmentcli.common import (
     frames_option,
     input_errors_as_click,
     load_body_option,
-    require_file,
+    motion_up_option,
     parse_device,
     prepare_motion,
     preroll_option,
+    require_file,
     source_fps_option,
 )
 
@@ -115,6 +116,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @body_option
 @betas_option
 @source_fps_option
+@motion_up_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the scene is baked at.")
 @frames_option
 @preroll_option
@@ -142,7 +144,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
              reuse_sim=False, calibration_path=None, spread=False, betas="motion", source_fps=None, fit_specs=(),
-             preroll_frames=0, device=None):
+             preroll_frames=0, device=None, motion_up="z"):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each --fit (psd); each model in float32 and bfloat16, with and without penetration push-out; the
@@ -186,7 +188,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     rows = configurations(models, spread=spread, fits=fits)
     motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body,
                                check_frames=lambda n, src_fps: _refuse_beyond_memory(len(rows), garment, body, n,
-                                                                                     src_fps, fps, motion_path))
+                                                                                     src_fps, fps, motion_path),
+                               motion_up=motion_up)
     from formats.cache import default_cache_dir
 
     scene = simulation_scene(garment, body, motion)

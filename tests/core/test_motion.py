@@ -317,3 +317,28 @@ def test_validate_motion_values_refuses_trans_beyond_10_km_naming_the_first_fram
     trans[::2] += [10.0, -10.0, 0.0]
     trans[5] = [9e3, 0.0, 0.0]
     validate_motion_values(Motion(poses=m.poses, trans=trans, fps=30.0), "teleport.npz")
+
+
+def test_y_up_to_z_up_turns_the_posed_body_exactly():
+    """A motion of a Y-up world, turned: every posed vertex of the body (a shape away from the mean, the pelvis
+    off the origin) lands where the +90-degree turn about X puts the Y-up pose's; the other joints are kept."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+    from core.motion import y_up_to_z_up
+    from tests.meshes import tiny_body
+
+    from dataclasses import replace
+
+    body = tiny_body()
+    body = replace(body, v_template=body.v_template + np.float32([0.01, -0.22, 0.03]))  # SMPL's pelvis offset
+    rng = np.random.default_rng(3)
+    betas = rng.normal(size=body.n_betas).astype(np.float32)
+    poses = rng.normal(scale=0.4, size=(5, 24, 3)).astype(np.float32)
+    trans = rng.normal(size=(5, 3)).astype(np.float32)
+    y_up = Motion(poses=poses, trans=trans, fps=30.0, betas=betas)
+    pelvis = body.shaped(betas)[1][0]
+    assert np.linalg.norm(pelvis) > 0.01
+    z_up = y_up_to_z_up(y_up, pelvis)
+    before, _ = body.pose(y_up.poses, y_up.trans, betas)
+    after, _ = body.pose(z_up.poses, z_up.trans, betas)
+    np.testing.assert_allclose(after, before.astype(np.float64) @ Y_UP_TO_Z_UP_MATRIX.T, atol=2e-5)
+    np.testing.assert_array_equal(z_up.poses[:, 1:], poses[:, 1:])

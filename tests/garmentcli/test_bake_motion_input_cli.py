@@ -134,3 +134,41 @@ def test_a_pose_estimators_smplx_arguments_bake_as_the_same_motion_in_amass_layo
     b = read_sequence(scene["out"] / "shell_hmr" / "obj").points
     assert a.shape == b.shape
     np.testing.assert_allclose(a, b, atol=1e-5)
+
+
+def test_a_y_up_motion_bakes_with_motion_up_y_as_its_z_up_original(scene, caplog):
+    """The scene's Z-up walk turned into a Y-up world (as GVHMR or WHAM write): baked as it is it is warned about,
+    naming --motion-up y; with --motion-up y it bakes the original's garment (recorded in summary.json); the Z-up
+    original given --motion-up y is warned about as Z-up already."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+    from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+    from formats.sequence import read_sequence
+
+    d = scene["dir"]
+    with np.load(scene["motion"]) as walk:
+        arrays = dict(walk)
+    poses = arrays["poses"].reshape(len(arrays["poses"]), -1, 3).astype(np.float64)
+    back = Y_UP_TO_Z_UP_MATRIX.T  # the tiny body's pelvis is at the origin: trans turns alone
+    poses[:, 0] = matrix_to_axis_angle(back @ axis_angle_to_matrix(poses[:, 0]))
+    arrays.update(poses=poses.reshape(len(poses), -1).astype(np.float32),
+                  trans=((arrays["trans"] + [0.3, -0.2, 0.1]) @ back.T).astype(np.float32))
+    np.savez(d / "yup.npz", **arrays)
+    np.savez(d / "zup.npz", **{**dict(np.load(scene["motion"])), "trans": arrays["trans"] @ back})
+    out = {}
+    for motion, options in (("zup", ()), ("yup", ("--motion-up", "y")), ("yup", ())):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            r = invoke(["bake", scene["garment"], d / f"{motion}.npz", "--body", scene["body"], "--method", "lbs",
+                        "--out", d / f"out_{motion}{len(options)}", *options])
+        assert r.exit_code == 0, r.output
+        out[motion, bool(options)] = read_sequence(d / f"out_{motion}{len(options)}" / f"shell_{motion}" / "obj").points
+        looks_y_up = "it looks Y-up" in caplog.text and "pass --motion-up y" in caplog.text
+        assert looks_y_up == (motion == "yup" and not options), caplog.text
+    summary = json.loads((d / "out_yup2" / "shell_yup" / "summary.json").read_text())
+    assert summary["options"]["motion_up"] == "y"
+    np.testing.assert_allclose(out["yup", True], out["zup", False], atol=1e-5)
+    assert np.abs(out["yup", False] - out["zup", False]).max() > 0.1  # lying on its back
+    with caplog.at_level(logging.WARNING):
+        r = invoke(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs",
+                    "--out", d / "out_wrong", "--motion-up", "y"])
+    assert r.exit_code == 0 and "it looks Z-up already" in caplog.text and "leave out --motion-up y" in caplog.text

@@ -215,6 +215,28 @@ def test_dataset_source_fps_reads_motions_without_a_frame_rate(scene):
     assert m["settings"]["source_fps"] == 10.0 and {it["n_frames"] for it in m["items"]} == {7}
 
 
+def test_dataset_motion_up_y_reads_y_up_motions_turned_and_keys_the_plan(scene):
+    """A motion standing along +Y (root at rest, a Y-up world) read with --motion-up y is the Z-up one (root turned
+    +90 degrees about X, the tiny body's pelvis at the origin); the plan records the option only when given."""
+    from garmentcli.dataset import _load_motions
+    from formats.body import load_body
+
+    d = scene["dir"]
+    poses = np.zeros((3, 72), np.float32)
+    trans = np.float32([[0.0, 1.0, 0.5]] * 3)
+    np.savez(d / "yup.npz", poses=poses, trans=trans, mocap_framerate=30.0)
+    turned = _load_motions([d / "yup.npz"], False, 30.0, motion_up="y", body=load_body(scene["body"]))["yup"]
+    np.testing.assert_allclose(turned.poses[:, 0], [[np.pi / 2, 0, 0]] * 3, atol=1e-6)
+    np.testing.assert_allclose(turned.trans, [[0.0, -0.5, 1.0]] * 3, atol=1e-6)
+    args = ["dataset", "--garments", scene["garment"], "--motions", d / "yup.npz", "--body", scene["body"],
+            "--settle", 0, "--dry-run", "--no-held-out"]
+    for options, recorded in (((), None), (("--motion-up", "y"), "y")):
+        r = run(*args, *options, "--out", d / f"plan{len(options)}")
+        assert r.exit_code == 0, r.output
+        settings = json.loads((d / f"plan{len(options)}" / "manifest.json").read_text())["settings"]
+        assert settings.get("motion_up") == recorded
+
+
 def test_dataset_motions_from_a_directory_tree(scene):
     """--motions DIR takes every motion under it (AMASS's shape.npz, a body shape only, left out); two motions of
     one file name in different folders are two items named by their folders."""

@@ -351,7 +351,7 @@ def test_the_frame_hint_names_the_side_out_of_line_and_skips_a_degenerate_one(tm
 
 
 @pytest.mark.parametrize("option, value", [("--fps", "60"), ("--frames", "0:3"), ("--settle", "2"),
-                                           ("--betas", "mean"), ("--source-fps", "120"),
+                                           ("--betas", "mean"), ("--source-fps", "120"), ("--motion-up", "y"),
                                            ("--fps", "30")])  # the default value, given: refused too
 def test_motion_options_without_motion_are_refused(tmp_path, seq, option, value):
     pts, f = seq
