@@ -22,15 +22,37 @@ from garmentcli import (
 from garmentcli import train as train_cmd
 
 
+#: An error line's word (a value between spaces) longer than this is shortened to its ends: no file path of a
+#: real tree is this long, but a value given by mistake (a file's content pasted as an option) can be megabytes.
+LONG_WORD = 300
+#: An error line longer than this (after its words are shortened) keeps its start and end.
+LONG_LINE = 2000
+
+
+def shortened(text: str) -> str:
+    """`text` with every word longer than LONG_WORD cut to its first 120 and last 40 characters, and the whole
+    cut to LONG_LINE, each cut saying how long it was."""
+    def cut(value: str, head: int, tail: int) -> str:
+        return f"{value[:head]}...({len(value):,} characters)...{value[-tail:]}"
+
+    words = [cut(w, 120, 40) if len(w) > LONG_WORD else w for w in text.split(" ")]
+    text = " ".join(words)
+    return cut(text, LONG_LINE - 400, 300) if len(text) > LONG_LINE else text
+
+
 class _Group(click.Group):
     """click.Group whose commands' file-system errors on a named path (a name longer than the file system takes,
-    a device that fails to read) end as one line naming the path, not a traceback."""
+    a device that fails to read) end as one line naming the path, not a traceback; and whose error lines repeat a
+    value given of any length only by its ends (`shortened`), click's own messages too."""
 
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except click.ClickException as exc:
+            exc.message = shortened(exc.message)
+            raise
         except OSError as exc:
-            if exc.filename is None or isinstance(exc, click.ClickException):
+            if exc.filename is None:
                 raise
             name = str(exc.filename)
             shown = name if len(name) <= 80 else f"{name[:40]}...{name[-20:]} ({len(name)} characters)"

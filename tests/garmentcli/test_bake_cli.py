@@ -611,6 +611,19 @@ def test_an_empty_or_too_long_name_is_one_line_naming_it(scene, tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_an_error_repeats_a_huge_value_by_its_ends(scene, tmp_path):
+    """A value of 100,000 characters (a file pasted as an option) in our message and in click's own: the error is
+    one short line naming the option and the value's length; a value of ordinary length is repeated whole."""
+    base = ["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", tmp_path / "o"]
+    for option, needle in (("--frames", "--frames: expected START:STOP"), ("--lbs-smooth", "'--lbs-smooth'")):
+        r = run([*base, option, "1" * 100_000])
+        assert_one_line_error(r, needle, "...(100,00")
+        assert len(r.output) < 1000, len(r.output)
+    r = run([*base, "--frames", "1" * 250])
+    assert_one_line_error(r, "1" * 250)
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_npy_array_named_npz_in_a_motion_folder_is_refused_as_a_motion(scene, tmp_path):
     """A .npy array saved under an .npz name in a MOTION folder (np.load gives an array, not an archive: the
     folder scan raised TypeError): taken as a motion file and refused with the reason, in one line."""
