@@ -64,7 +64,7 @@ def prepare_garment(garment: Garment, body: Body, config: ModelConfig, cache_dir
     square of the vertex count at a given size (a 213k-vertex garment: about 10^9 pairs), so inference leaves
     it out (`GarmentData.near` None)."""
     prep = preprocess_garment(garment, body, levels=config.levels, n_landmarks=config.n_landmarks,
-                              n_eigenvalues=config.n_eigenvalues, cache_dir=cache_dir,
+                              n_eigenvalues=config.n_eigenvalues, cache_dir=cache_dir, cache_optional=True,
                               collision_radius_m=SELF_COLLISION_GEODESIC_M if near else 0.0)
     binding = bind_garment(garment, body, PRIOR_SMOOTH_ITERATIONS, 0.5, source=source)
     dm, area = rest_uv_frame(garment.vertices, garment.faces, garment.uvs, garment.face_uvs)

@@ -180,14 +180,15 @@ def preprocess_garment(garment: Garment, body: Body, levels: int = DEFAULT_LEVEL
                        n_landmarks: int = DEFAULT_LANDMARKS, seed: int = 0, *,
                        n_eigenvalues: int = DEFAULT_EIGENVALUES, sigma_m: float = DEFAULT_SIGMA_M,
                        collision_radius_m: float = SELF_COLLISION_GEODESIC_M, betas: np.ndarray | None = None,
-                       cache_dir: str | os.PathLike | None = None) -> Preprocessed:
+                       cache_dir: str | os.PathLike | None = None, cache_optional: bool = False) -> Preprocessed:
     """Preprocess `garment` (rest mesh on `body` shaped by `betas`) for the learned model.
 
     garment: Garment (vertices (V, 3) metres, rest frame). body: SMPL-format Body. levels: pooling
     levels L. n_landmarks: Nystrom N*. seed: first-landmark direction (see `core.descriptor`).
     cache_dir: None computes without a cache; a directory (e.g. `formats.cache.default_cache_dir()`)
     reuses an entry whose key (garment content hash, settings, body joints) matches, else computes
-    and stores one. `Preprocessed.cache_hit` says which happened.
+    and stores one. `Preprocessed.cache_hit` says which happened. cache_optional: an entry that cannot be
+    stored (a full disk, a read-only folder) is warned about and the result returned (else InputError).
     Raises InputError for settings out of range.
     """
     settings = PreprocessSettings(levels=levels, n_landmarks=n_landmarks, n_eigenvalues=n_eigenvalues,
@@ -211,6 +212,12 @@ def preprocess_garment(garment: Garment, body: Body, levels: int = DEFAULT_LEVEL
         except (KeyError, ValueError, TypeError) as exc:
             log.warning("cache '%s' is incomplete (%s): recomputing", path, exc)
     p = compute_preprocessed(garment, body, settings, betas)
-    write_cache(path, to_arrays(p), meta)
+    try:
+        write_cache(path, to_arrays(p), meta)
+    except InputError as exc:
+        if not cache_optional:
+            raise
+        log.warning("%s: the preprocessing is used without being cached", exc)
+        return p
     log.info("preprocess '%s': cache miss, wrote %s", garment.name, path)
     return p

@@ -2,11 +2,14 @@
 
 Every writer uses these, so an interrupted or failed write never leaves a
 half-written file or directory under the final name, and what is written gets
-the ordinary permissions the user's umask gives (not mkstemp's private 0600).
+the ordinary permissions the user's umask gives (not mkstemp's private 0600). A write
+that runs out of room (a full disk or quota) is one line naming the output and the
+space left.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import tempfile
@@ -29,6 +32,57 @@ def _writing(path: Path):
         yield
     except OSError as exc:
         raise InputError(f"output '{path}': cannot write in '{path.parent}' ({exc.strerror or exc})") from None
+
+
+#: errno values of a write that ran out of room: the disk or the user's quota full, a file over the size limit.
+OUT_OF_ROOM = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+#: Free space under this on an output's file system is named when a writer fails without saying why (USD's).
+LOW_SPACE_BYTES = 64 * 2**20
+
+
+def size_text(n: int) -> str:
+    for unit, size in (("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
+        if n >= size:
+            return f"{n / size:.1f} {unit}"
+    return f"{n} bytes"
+
+
+def free_space(path: str | os.PathLike) -> int | None:
+    """Bytes free to the user on the file system holding `path` (its nearest existing folder), None if unknown."""
+    folder = Path(path).absolute()
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    try:
+        return shutil.disk_usage(folder).free
+    except OSError:
+        return None
+
+
+def low_space_note(path: str | os.PathLike) -> str:
+    """"" or, where the file system holding `path` has under LOW_SPACE_BYTES free, "; 8.0 kB free on its file
+    system (full?)", for the message of a writer that failed without saying why."""
+    free = free_space(path)
+    return "" if free is None or free >= LOW_SPACE_BYTES else f"; {size_text(free)} free on its file system (full?)"
+
+
+@contextmanager
+def _written(path: Path):
+    """An OSError of a write that ran out of room (`OUT_OF_ROOM`) in the block as one InputError line naming
+    `path` and the space left."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno not in OUT_OF_ROOM:
+            raise
+        raise out_of_room(path, exc) from None
+
+
+def out_of_room(path, exc: OSError) -> InputError:
+    """The one line of a write to `path` (None: unknown) that ran out of room, with the space left there."""
+    free = None if path is None else free_space(path)
+    left = "" if free is None else f"; {size_text(free)} free on its file system"
+    return InputError(f"{'the outputs' if path is None else f'output {str(path)!r}'}: could not be written "
+                      f"({exc.strerror or exc}{left})")
 
 
 def _refuse_special(path: Path) -> None:
@@ -54,7 +108,8 @@ def atomic_file(path: str | os.PathLike):
     os.close(fd)
     tmp = Path(tmp)
     try:
-        yield tmp
+        with _written(path):
+            yield tmp
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     finally:
@@ -85,7 +140,11 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool):
         tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
     os.chmod(tmp, 0o777 & ~_umask())
     try:
-        yield tmp
+        with _written(final):
+            yield tmp
+    except InputError as exc:  # a writer's message names what it wrote by its final path, not the hidden one
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise InputError(str(exc).replace(str(tmp), str(final))) from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

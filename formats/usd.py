@@ -19,7 +19,7 @@ from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 
 from core.errors import InputError
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
-from formats.atomic import atomic_file
+from formats.atomic import atomic_file, low_space_note
 from formats.obj import STAGE_SUFFIXES
 
 ROOT = "/Root"
@@ -218,10 +218,11 @@ def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float
         try:
             ok = stage.GetRootLayer().Export(str(tmp))
         except Tf.ErrorException as exc:
-            raise InputError(f"USD stage '{path}': could not be written ({' '.join(str(exc).split())[-200:]})") \
-                from None
+            raise InputError(f"USD stage '{path}': could not be written ({' '.join(str(exc).split())[-200:]}"
+                             f"{low_space_note(path)})") from None
         if not ok:
-            raise InputError(f"USD stage '{path}': could not be written")
+            note = low_space_note(path)
+            raise InputError(f"USD stage '{path}': could not be written" + (f" ({note[2:]})" if note else ""))
     # A layer of the same path still open in this process would otherwise keep the old content.
     layer = Sdf.Layer.Find(str(path))
     if layer:

@@ -146,7 +146,9 @@ def checked_by(check):
 
 
 def input_errors_as_click(func):
-    """Decorator: an `InputError` from core/formats becomes a one-line `click.ClickException`."""
+    """Decorator: an `InputError` from core/formats becomes a one-line `click.ClickException`; so does a write
+    that ran out of room outside the atomic writers (`formats.atomic.OUT_OF_ROOM`: a full disk or quota), naming
+    the command's output and the space left."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
@@ -154,6 +156,13 @@ def input_errors_as_click(func):
             return func(*args, **kwargs)
         except InputError as exc:
             raise click.ClickException(str(exc)) from None
+        except OSError as exc:
+            from formats.atomic import OUT_OF_ROOM, out_of_room
+
+            if exc.errno not in OUT_OF_ROOM:
+                raise
+            out = exc.filename or next((v for k, v in kwargs.items() if k.startswith("out") and v), None)
+            raise click.ClickException(str(out_of_room(out, exc))) from None
 
     return wrapper
 

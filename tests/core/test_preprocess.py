@@ -53,6 +53,28 @@ def test_cache_hit_returns_identical_arrays(body, shell, tmp_path):
     assert not list(tmp_path.glob("*.partial*"))
 
 
+def test_a_cache_entry_that_cannot_be_stored_is_warned_about_where_the_cache_is_optional(body, shell, tmp_path,
+                                                                                         monkeypatch, caplog):
+    """A full disk under the cache (ENOSPC while the entry is written): `garment preprocess`, whose work is the
+    entry, stops with one line naming it; a bake or training (cache_optional) warns and goes on with the result,
+    the same as computed without a cache; no partial entry is left."""
+    import logging
+
+    import formats.cache
+
+    def disk_full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(formats.cache.np, "savez", disk_full)
+    with pytest.raises(InputError, match=r"output '.*preprocess-.*\.npz': could not be written \(No space left"):
+        preprocess_garment(shell, body, n_landmarks=16, cache_dir=tmp_path)
+    with caplog.at_level(logging.WARNING):
+        p = preprocess_garment(shell, body, n_landmarks=16, cache_dir=tmp_path, cache_optional=True)
+    assert "No space left on device" in caplog.text and "used without being cached" in caplog.text
+    assert_same(p, preprocess_garment(shell, body, n_landmarks=16))
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_changed_mesh_settings_or_body_are_never_served_stale(body, shell, tmp_path):
     base = preprocess_garment(shell, body, n_landmarks=16, cache_dir=tmp_path)
     moved = shell.vertices.copy()

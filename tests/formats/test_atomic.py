@@ -51,3 +51,52 @@ def test_a_device_or_pipe_is_never_renamed_over(tmp_path):
         with pytest.raises(InputError, match="is a device"):
             with atomic_file("/dev/null"):
                 pass
+
+
+def _disk_full(*args, **kwargs):
+    raise OSError(28, "No space left on device")
+
+
+def test_a_write_that_runs_out_of_room_is_one_line_naming_the_output_and_leaves_nothing(tmp_path, monkeypatch):
+    """ENOSPC (a full disk) while writing a file or a folder's contents: an InputError naming the final output,
+    not the hidden temporary one, with the space left; nothing left beside it. Another OSError is not renamed."""
+    import formats.atomic
+
+    monkeypatch.setattr(formats.atomic, "free_space", lambda path: 8192)
+    with pytest.raises(InputError) as err:
+        with atomic_file(tmp_path / "a.json") as tmp:
+            tmp.write_text("{")
+            _disk_full()
+    assert str(err.value) == f"output '{tmp_path / 'a.json'}': could not be written (No space left on device; " \
+                             "8.0 kB free on its file system)"
+    with pytest.raises(InputError) as err:
+        with atomic_dir(tmp_path / "bake", overwrite=False) as tmp:
+            raise InputError(f"USD stage '{tmp / 'bake.usd'}': could not be written")
+    assert str(err.value) == f"USD stage '{tmp_path / 'bake' / 'bake.usd'}': could not be written"
+    with pytest.raises(InputError, match=r"output '.*bake2': could not be written \(No space left"):
+        with atomic_dir(tmp_path / "bake2", overwrite=False):
+            _disk_full()
+    with pytest.raises(FileNotFoundError):
+        with atomic_file(tmp_path / "b.json"):
+            raise FileNotFoundError(2, "No such file or directory")
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_low_space_note_names_the_space_left_only_when_little_is(tmp_path, monkeypatch):
+    """Under 64 MB free: named, for a writer that fails without saying why (USD's); the folder asked about is the
+    nearest that exists."""
+    from types import SimpleNamespace
+
+    import formats.atomic
+    from formats.atomic import LOW_SPACE_BYTES, low_space_note
+
+    asked = []
+
+    def usage(free):
+        return lambda path: asked.append(path) or SimpleNamespace(free=free)
+
+    monkeypatch.setattr(formats.atomic.shutil, "disk_usage", usage(1536))
+    assert low_space_note(tmp_path / "new" / "deeper" / "a.usd") == "; 1.5 kB free on its file system (full?)"
+    assert asked == [tmp_path]
+    monkeypatch.setattr(formats.atomic.shutil, "disk_usage", usage(LOW_SPACE_BYTES))
+    assert low_space_note(tmp_path / "a.usd") == ""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -229,6 +230,48 @@ def test_sides_of_no_garment_size_that_no_fix_explains_are_pointed_out(tmp_path,
     assert "in another unit, both?" in run([tmp_path / "mm_p.npz", tmp_path / "mm_g.npz"]).output
     r = run([save_seq(tmp_path / "m_p.npz", pts, f), save_seq(tmp_path / "m_g.npz", pts + 0.001, f)])
     assert r.exit_code == 0 and "warning" not in r.output, r.output
+
+
+def test_reports_onto_a_full_disk_are_one_line_naming_the_file(tmp_path, seq, monkeypatch):
+    """ENOSPC while a report is written (it was a traceback): one line naming the report and the space left."""
+    import pathlib
+
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+
+    def disk_full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(pathlib.Path, "write_text", disk_full)
+    r = run([a, a, "--out", tmp_path / "m"])
+    assert r.exit_code == 1 and "Traceback" not in r.output, r.output
+    line = r.output.strip().splitlines()[-1]
+    assert line.startswith(f"Error: output '{tmp_path / 'm' / 'metrics.json'}': could not be written (No space left "
+                           "on device; ") and line.endswith(" free on its file system)")
+    assert list((tmp_path / "m").iterdir()) == []
+
+
+def test_an_out_of_room_error_outside_the_atomic_writers_names_the_output(tmp_path):
+    """A command's OSError of a full disk or quota that no atomic writer caught: one line naming the command's
+    --out (or the file the error names); any other OSError is left as it is."""
+    import click
+
+    from garmentcli.common import input_errors_as_click
+
+    @input_errors_as_click
+    def command(out_dir=None, errno_=28, filename=None):
+        raise OSError(errno_, os.strerror(errno_), filename)
+
+    with pytest.raises(click.ClickException) as err:
+        command(out_dir=str(tmp_path / "o"), errno_=122)  # EDQUOT: the user's quota
+    assert err.value.message.startswith(f"output '{tmp_path / 'o'}': could not be written (Disk quota exceeded; ")
+    with pytest.raises(click.ClickException) as err:
+        command(filename=str(tmp_path / "log.csv"))
+    assert err.value.message.startswith(f"output '{tmp_path / 'log.csv'}': could not be written (No space left")
+    with pytest.raises(click.ClickException, match=r"^the outputs: could not be written \(No space left on device\)$"):
+        command()
+    with pytest.raises(PermissionError):
+        command(out_dir="x", errno_=13)
 
 
 def _bake_dir(root, name, points, faces):
