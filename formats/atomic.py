@@ -13,7 +13,7 @@ import errno
 import os
 import shutil
 import tempfile
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from core.errors import InputError, special_kind
@@ -114,6 +114,14 @@ def atomic_file(path: str | os.PathLike):
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+@contextmanager
+def atomic_files(paths):
+    """`atomic_file` for several outputs at once: yields their temporary paths (in order); each replaces its output
+    only when the block wrote them all (a set of reports is whole, or as it was)."""
+    with ExitStack() as stack:
+        yield [stack.enter_context(atomic_file(path)) for path in paths]
 
 
 def _remove(path: Path) -> None:

@@ -24,7 +24,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.metrics import METRICS, MetricsResult
-from formats.atomic import atomic_file
+from formats.atomic import atomic_files
 
 REPORT_FORMATS = ("json", "csv", "md")
 #: File names written into a report directory.
@@ -79,8 +79,14 @@ def markdown_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], digits
 
 
 def _atomic_write_text(path: Path, text: str) -> None:
-    with atomic_file(path) as tmp:
-        tmp.write_text(text, encoding="utf-8", newline="")
+    _atomic_write_texts({path: text})
+
+
+def _atomic_write_texts(texts: dict) -> None:
+    """Each {path: text} written as UTF-8, all replacing their files together (`formats.atomic.atomic_files`)."""
+    with atomic_files(list(texts)) as tmps:
+        for tmp, text in zip(tmps, texts.values()):
+            tmp.write_text(text, encoding="utf-8", newline="")
 
 
 def write_markdown(path: str | os.PathLike, lines: Sequence[str], show: bool = False) -> Path:
@@ -98,7 +104,11 @@ def write_markdown(path: str | os.PathLike, lines: Sequence[str], show: bool = F
 
 def write_json(path: str | os.PathLike, obj: Any) -> Path:
     """Write `obj` (JSON-serialisable; numpy scalars/arrays allowed) as indented JSON; returns the path."""
+    _atomic_write_text(Path(path), _json_text(obj))
+    return Path(path)
 
+
+def _json_text(obj: Any) -> str:
     def default(o):
         if isinstance(o, np.ndarray):
             return o.tolist()
@@ -108,19 +118,22 @@ def write_json(path: str | os.PathLike, obj: Any) -> Path:
             return os.fspath(o)
         raise TypeError(f"cannot write {type(o).__name__} as JSON")
 
-    _atomic_write_text(Path(path), json.dumps(obj, indent=2, default=default, allow_nan=False) + "\n")
-    return Path(path)
+    return json.dumps(obj, indent=2, default=default, allow_nan=False) + "\n"
 
 
 def write_csv_rows(path: str | os.PathLike, headers: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
     """Write a CSV file: one header line, then one line per row (floats at full precision)."""
+    _atomic_write_text(Path(path), _csv_text(headers, rows))
+    return Path(path)
+
+
+def _csv_text(headers: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(headers)
     for r in rows:
         w.writerow([repr(float(c)) if isinstance(c, (float, np.floating)) else c for c in r])
-    _atomic_write_text(Path(path), buf.getvalue())
-    return Path(path)
+    return buf.getvalue()
 
 
 # ---------------------------------------------------------------------------
@@ -254,7 +267,7 @@ def write_report(result: MetricsResult, path_or_dir: str | os.PathLike,
     """Write `result` in each of `formats` ("json", "csv", "md"); returns the paths written.
 
     metadata: extra key -> value (e.g. pred/gt paths) for JSON and Markdown.
-    See `report_paths` for where the files go. Each file is written atomically.
+    See `report_paths` for where the files go. The files are written atomically, together: all or none.
     """
     formats = list(dict.fromkeys(formats))
     for f in formats:
@@ -262,12 +275,14 @@ def write_report(result: MetricsResult, path_or_dir: str | os.PathLike,
             raise InputError(f"report format: expected one of {', '.join(REPORT_FORMATS)}, got '{f}'")
     paths = report_paths(path_or_dir, formats)
     names = _names(result)
+    texts = {}
     for f, path in paths.items():
         if f == "json":
-            write_json(path, result_to_dict(result, metadata))
+            texts[path] = _json_text(result_to_dict(result, metadata))
         elif f == "csv":
             rows = [[t] + [float(result.per_frame[n][t]) for n in names] for t in range(result.n_frames)]
-            write_csv_rows(path, ["frame"] + names, rows)
+            texts[path] = _csv_text(["frame"] + names, rows)
         else:
-            _atomic_write_text(path, result_to_markdown(result, metadata))
+            texts[path] = result_to_markdown(result, metadata)
+    _atomic_write_texts(texts)
     return list(paths.values())

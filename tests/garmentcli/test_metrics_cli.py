@@ -233,22 +233,34 @@ def test_sides_of_no_garment_size_that_no_fix_explains_are_pointed_out(tmp_path,
 
 
 def test_reports_onto_a_full_disk_are_one_line_naming_the_file(tmp_path, seq, monkeypatch):
-    """ENOSPC while a report is written (it was a traceback): one line naming the report and the space left."""
+    """ENOSPC while the last report is written (it was a traceback, the first two left in place): one line naming
+    it and the space left; the reports are written together, so none is left, and over earlier ones (--overwrite)
+    those stay as they were."""
     import pathlib
 
     pts, f = seq
     a = save_seq(tmp_path / "a.npz", pts, f)
+    write_text = pathlib.Path.write_text
 
-    def disk_full(*args, **kwargs):
-        raise OSError(28, "No space left on device")
+    def disk_full_at_md(self, *args, **kwargs):
+        if self.suffix == ".md":
+            raise OSError(28, "No space left on device")
+        return write_text(self, *args, **kwargs)
 
-    monkeypatch.setattr(pathlib.Path, "write_text", disk_full)
+    monkeypatch.setattr(pathlib.Path, "write_text", disk_full_at_md)
     r = run([a, a, "--out", tmp_path / "m"])
     assert r.exit_code == 1 and "Traceback" not in r.output, r.output
     line = r.output.strip().splitlines()[-1]
-    assert line.startswith(f"Error: output '{tmp_path / 'm' / 'metrics.json'}': could not be written (No space left "
+    assert line.startswith(f"Error: output '{tmp_path / 'm' / 'metrics.md'}': could not be written (No space left "
                            "on device; ") and line.endswith(" free on its file system)")
     assert list((tmp_path / "m").iterdir()) == []
+    monkeypatch.setattr(pathlib.Path, "write_text", write_text)
+    assert run([a, a, "--out", tmp_path / "m"]).exit_code == 0
+    before = {p.name: p.read_bytes() for p in (tmp_path / "m").iterdir()}
+    monkeypatch.setattr(pathlib.Path, "write_text", disk_full_at_md)
+    b = save_seq(tmp_path / "b.npz", pts + 0.01, f)
+    assert run([a, b, "--out", tmp_path / "m", "--overwrite"]).exit_code == 1
+    assert {p.name: p.read_bytes() for p in (tmp_path / "m").iterdir()} == before
 
 
 def test_an_out_of_room_error_outside_the_atomic_writers_names_the_output(tmp_path):
