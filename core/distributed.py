@@ -109,15 +109,30 @@ def _run_local(task, calls, names, workers: int):
     failures = []
     with ProcessPoolExecutor(max_workers=workers, mp_context=pool_context()) as pool:
         futures = {pool.submit(task, *args): name for name, args in zip(names, calls)}
-        for fut in as_completed(futures):
-            exc = fut.exception()
-            if exc is not None:  # said now, raised when the others have finished (they are kept)
-                log.warning("item '%s' failed: %s: %s", futures[fut], type(exc).__name__, exc)
-                failures.append((futures[fut], exc))
-            else:
-                yield futures[fut], fut.result()
+        try:
+            for fut in as_completed(futures):
+                exc = fut.exception()
+                if exc is not None:  # said now, raised when the others have finished (they are kept)
+                    log.warning("item '%s' failed: %s: %s", futures[fut], type(exc).__name__, exc)
+                    failures.append((futures[fut], exc))
+                else:
+                    yield futures[fut], fut.result()
+        except (KeyboardInterrupt, SystemExit):  # Ctrl-C, or SIGTERM (garmentcli.main): stop the workers too
+            _stop_workers(pool)
+            raise
     if failures:
         raise ItemsFailed(failures, len(calls))
+
+
+def _stop_workers(pool) -> None:
+    """Cancel `pool`'s waiting items and send its worker processes SIGTERM: forked from the command, they unwind as
+    it does (`garmentcli.main._terminate_as_exit`), removing what they were writing, instead of finishing their
+    items while the command waits in the pool's shutdown."""
+    for fut in list(getattr(pool, "_pending_work_items", {}).values()):
+        fut.future.cancel()
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.terminate()
 
 
 def pool_context():

@@ -1,0 +1,65 @@
+"""SIGTERM (`kill`, a batch scheduler stopping a job) unwinds a command like Ctrl-C: what it was writing is removed
+and its worker processes stop. Each case runs in its own process, stopped while it writes."""
+
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import psutil
+
+ROOT = Path(__file__).resolve().parents[2]
+
+PRELUDE = """
+import signal, sys, time
+from pathlib import Path
+from formats.atomic import atomic_dir
+from garmentcli.main import _terminate_as_exit
+
+def write_slowly(out, name):
+    with atomic_dir(Path(out) / name, overwrite=False) as tmp:
+        (tmp / "frame_0000.png").write_bytes(b"x")
+        print("ready", flush=True)
+        time.sleep(120)
+"""
+
+
+def _stopped(script: str, out: Path, readies: int):
+    """Run `script` (after PRELUDE) with `out`, wait for `readies` lines "ready", send SIGTERM to it alone;
+    returns (exit status, its child processes that outlived it)."""
+    proc = subprocess.Popen([sys.executable, "-c", PRELUDE + textwrap.dedent(script), str(out)], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        for _ in range(readies):
+            assert proc.stdout.readline().strip() == b"ready", proc.stderr.read().decode()
+        children = psutil.Process(proc.pid).children(recursive=True)
+        proc.send_signal(signal.SIGTERM)
+        status = proc.wait(timeout=60)
+        _, alive = psutil.wait_procs(children, timeout=20)
+        return status, alive
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def test_sigterm_removes_the_output_being_written_and_exits_143(tmp_path):
+    status, _ = _stopped("""
+        signal.signal(signal.SIGTERM, _terminate_as_exit)
+        write_slowly(sys.argv[1], "render")
+    """, tmp_path, 1)
+    assert status == 128 + signal.SIGTERM
+    assert list(tmp_path.iterdir()) == []  # no hidden '.render.*.partial' left
+
+
+def test_sigterm_to_the_command_stops_its_local_workers_and_their_outputs(tmp_path):
+    """`--workers 2`: the workers (forked) were left simulating and writing their items after the command had
+    died; now they unwind with it."""
+    status, alive = _stopped("""
+        from core.distributed import run_items
+        signal.signal(signal.SIGTERM, _terminate_as_exit)
+        for _ in run_items(write_slowly, [(sys.argv[1], "a"), (sys.argv[1], "b")], ["a", "b"], workers=2):
+            pass
+    """, tmp_path, 2)
+    assert status == 128 + signal.SIGTERM and alive == []
+    assert list(tmp_path.iterdir()) == []
