@@ -80,11 +80,13 @@ ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 def open_npz(path: Path, refuse):
     """The NpzFile of `path` (no pickles), the file opened here so that a failed load leaves none open; a file
     that is no zip archive (numpy would read an .npy, or try to unpickle anything else) raises refuse(what it is:
-    "a single .npy array" or "no zip archive"), an InputError naming the file."""
+    "a single .npy array", "a damaged or incomplete zip archive" or "no zip archive"), an InputError naming the
+    file."""
     with open(path, "rb") as fh:
         head = fh.read(6)
         if not head.startswith(ZIP_MAGIC):
-            raise refuse("a single .npy array" if head == b"\x93NUMPY" else "no zip archive")
+            raise refuse("a single .npy array" if head == b"\x93NUMPY" else
+                         "a damaged or incomplete zip archive" if head.startswith(b"PK") else "no zip archive")
         fh.seek(0)
         with np.load(fh, allow_pickle=False) as data:
             yield data
@@ -104,26 +106,17 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     src = f"motion '{path}'"
     if not path.is_file():
         raise InputError(f"{src}: file not found")
+    def refuse(got: str) -> InputError:
+        if got == "a single .npy array":
+            return InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
+        kind = _OTHER_MOTION_FORMATS.get(path.suffix.lower(), "a file that is not one" if got == "no zip archive"
+                                         else got)
+        return InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays: SMPL joint rotations "
+                          f"'poses', 'trans', a frame rate), got {kind}")
+
     arrays = {}
-    with open(path, "rb") as fh:  # opened here so that a failed np.load leaves no file open
-        try:
-            magic = fh.read(6)
-            fh.seek(0)
-        except OSError as exc:  # e.g. /proc/self/mem: EIO
-            raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
-        if magic == b"\x93NUMPY":
-            raise InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
-        if not magic.startswith(ZIP_MAGIC):
-            kind = _OTHER_MOTION_FORMATS.get(path.suffix.lower(), "a file that is not one")
-            if magic.startswith(b"PK") and kind == "a file that is not one":
-                kind = "a damaged or incomplete zip archive"
-            raise InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays: SMPL joint "
-                             f"rotations 'poses', 'trans', a frame rate), got {kind}")
-        try:
-            data = np.load(fh, allow_pickle=False)
-        except NPZ_READ_ERRORS as exc:
-            raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
-        with data:
+    try:
+        with open_npz(path, refuse) as data:
             files = list(data.files)
             for key in files:
                 if key not in _READ_KEYS:  # e.g. AMASS SMPL-X's markers_latent_vids, a pickled dict: never read
@@ -135,6 +128,12 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
                         log.warning("%s: skipping unreadable key '%s' (%s)", src, key, _short(exc))
                         continue
                     raise InputError(f"{src}: could not read array '{key}' ({_short(exc)})") from None
+    except InputError:
+        raise
+    except NPZ_READ_ERRORS as exc:
+        if isinstance(exc, OSError) and exc.errno is not None:  # the system's (e.g. /proc/self/mem: EIO)
+            raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+        raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
 
     poses = _read_poses(arrays, src, files)
     T = poses.shape[0]

@@ -201,6 +201,7 @@ def _npy(tmp_path):
 @pytest.mark.parametrize("make, needle", [
     (_corrupt_deflate, "Error -3 while decompressing data"),  # zlib.error went past the reader: a traceback
     (_npy, "it is a single .npy array"),  # np.load returned an array: TypeError (no context manager), a traceback
+    (lambda tmp_path: b"PK\x07\x08" + bytes(60), "it is a damaged or incomplete zip archive"),  # a spanned zip's start
 ])
 def test_a_damaged_npz_or_an_npy_is_one_line(tmp_path, make, needle):
     (tmp_path / "bad.npz").write_bytes(make(tmp_path))
