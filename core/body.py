@@ -290,6 +290,9 @@ BODY_SPAN_M = (0.5, 2.5)
 #: Each vertex's skinning weights sum to 1 within this (SMPL / SMPL-X files: float32 rounding, under 1e-6); rows
 #: that do not shrink or drag the posed body (rows of 0.5: the body posed at half its size).
 WEIGHT_SUM_TOLERANCE = 1e-3
+#: Rows further off than WEIGHT_SUM_TOLERANCE but within this (weights a tool quantised, e.g. glTF's 8-bit ones: up
+#: to about 2 % off with 4 influences) are scaled to sum to 1, with a warning; rows further off are refused.
+WEIGHT_SUM_RESCALE = 0.05
 
 
 def validate_body_arrays(arrays: dict, source: str) -> None:
@@ -332,8 +335,26 @@ def validate_body_arrays(arrays: dict, source: str) -> None:
     if off.any():
         worst = int(np.argmax(np.abs(sums - 1.0)))
         raise InputError(f"body '{source}': expected skinning weights whose rows sum to 1 (within "
-                         f"{WEIGHT_SUM_TOLERANCE:g}), got rows that do not at {int(off.sum()):,} of {V:,} vertices "
-                         f"(the worst sums to {sums[worst]:.4g}, at vertex {worst})")
+                         f"{WEIGHT_SUM_TOLERANCE:g}; within {WEIGHT_SUM_RESCALE:g} they are scaled to it), got rows "
+                         f"that do not at {int(off.sum()):,} of {V:,} vertices (the worst sums to {sums[worst]:.4g}, "
+                         f"at vertex {worst})")
+
+
+def _rescaled_weights(weights: np.ndarray, source: str) -> np.ndarray:
+    """`weights` (V, J) with the rows that sum to 1 within WEIGHT_SUM_RESCALE but not WEIGHT_SUM_TOLERANCE scaled
+    to sum to 1 (warned about); as given where any row is further off (`validate_body_arrays` refuses it)."""
+    sums = weights.astype(np.float64).sum(axis=1)
+    off = np.abs(sums - 1.0)
+    rescale = off > WEIGHT_SUM_TOLERANCE
+    if not rescale.any() or off.max() > WEIGHT_SUM_RESCALE:
+        return weights
+    worst = int(np.argmax(off))
+    log.warning("body '%s': the skinning weights of %s of %s vertices sum to 1 only within %.2g (the worst to %.4g, "
+                "at vertex %d: quantised by the tool that wrote them?): scaled to sum to 1", source,
+                f"{int(rescale.sum()):,}", f"{len(sums):,}", float(off.max()), sums[worst], worst)
+    out = weights.astype(np.float64)
+    out[rescale] /= sums[rescale, None]
+    return out.astype(np.float32)
 
 
 def body_from_arrays(arrays: dict, name: str, source: str | None = None) -> Body:
@@ -354,6 +375,8 @@ def body_from_arrays(arrays: dict, name: str, source: str | None = None) -> Body
         Jr = Jr.toarray()
     a["J_regressor"] = np.asarray(Jr, dtype=np.float32)
     a["weights"] = np.asarray(arrays["weights"], dtype=np.float32)
+    if a["weights"].ndim == 2:
+        a["weights"] = _rescaled_weights(a["weights"], source)
     if "parents" in arrays:
         par = np.asarray(arrays["parents"]).astype(np.int64).reshape(-1)
     else:

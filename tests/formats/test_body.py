@@ -281,6 +281,27 @@ def test_weights_whose_rows_do_not_sum_to_one_are_refused(tmp_path):
     load_body(tmp_path / "rounded.npz")
 
 
+def test_weights_quantised_by_another_tool_are_scaled_to_sum_to_one_with_a_warning(tmp_path, caplog):
+    """Weights rounded to 8 bits (as glTF stores them; rows off by up to a few per cent, under
+    WEIGHT_SUM_RESCALE): the body loads, every row summing to 1, with one warning naming the file, how many rows
+    and the worst; rows exact to float32 are left as they are."""
+    from core.body import WEIGHT_SUM_RESCALE
+
+    arrays = smpl_arrays()
+    w = np.round(np.asarray(arrays["weights"], dtype=np.float64) * 255) / 255
+    off = np.abs(w.sum(1) - 1)
+    assert 1e-3 < off.max() <= WEIGHT_SUM_RESCALE
+    arrays["weights"] = w
+    write_npz(tmp_path / "gltf.npz", arrays)
+    with caplog.at_level(logging.WARNING):
+        body = load_body(tmp_path / "gltf.npz")
+    np.testing.assert_allclose(body.weights.sum(1), 1.0, atol=1e-6)
+    exact = off <= 1e-3
+    np.testing.assert_array_equal(body.weights[exact], w[exact].astype(np.float32))
+    assert "gltf.npz" in caplog.text and f"{int((~exact).sum()):,} of {V:,} vertices sum to 1 only within" in \
+        caplog.text and "scaled to sum to 1" in caplog.text
+
+
 @pytest.mark.parametrize("scale,unit", [(100.0, "is it in centimetres? scale it by 0.01"),
                                         (1000.0, "is it in millimetres? scale it by 0.001")])
 def test_body_in_centimetres_or_millimetres_is_refused(tmp_path, scale, unit):
