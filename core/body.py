@@ -82,8 +82,9 @@ class Body:
     def layout(self) -> str | None:
         return layout_for_joint_count(self.n_joints)
 
-    def fit_betas(self, betas: np.ndarray | None, source: str = "", note: str = "") -> np.ndarray:
-        """Pad with zeros or truncate `betas` to this body's coefficient count (warns when changed).
+    def fit_betas(self, betas: np.ndarray | None, source: str = "", note: str = "", warn: bool = True) -> np.ndarray:
+        """Pad with zeros or truncate `betas` to this body's coefficient count (warns when changed, unless not
+        `warn`).
 
         betas: (S',) or None -> (S,) float32. source: where they come from, leading the warning (e.g. the
         motion file); note: said after it, in parentheses. A caller that fits a motion's betas once (the CLI's
@@ -101,8 +102,9 @@ class Body:
             what = "padded with zeros"
         else:
             return out
-        log.warning("%s%d betas given, body '%s' has %d shape coefficients: %s%s", f"{source}: " if source else "",
-                    len(betas), self.name, self.n_betas, what, f" ({note})" if note else "")
+        if warn:
+            log.warning("%s%d betas given, body '%s' has %d shape coefficients: %s%s", f"{source}: " if source else "",
+                        len(betas), self.name, self.n_betas, what, f" ({note})" if note else "")
         return out
 
     def shaped(self, betas: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:

@@ -48,10 +48,10 @@ FRAME_FIX_SUSPECT_MEDIAN_M = 0.06
 FRAME_FIX_GAIN = 2.0
 #: A garment whose top lies more than ABOVE_HEAD_M above the rest body's head with none of it more than
 #: FLOOR_SLACK_M below y = 0, that the drop to the body's soles puts on the body (at most REST_INSIDE_WARN_SHARE
-#: inside, its top then no more than ABOVE_HEAD_M above the head), was authored on a body standing at y = 0, however loose: a flared
-#: skirt lifted by the default body's soles reaches 15 cm above its head (a dress 46 cm), and its hem, 10-30 cm
-#: from the legs, hangs about the chest no further from it than when worn (medians 0.7-1.4 times as far). A hat
-#: or a hood on the head is not moved into the chest.
+#: inside, its top then no more than ABOVE_HEAD_M above the head), was authored on a body standing at y = 0,
+#: however loose: a flared skirt lifted by the default body's soles reaches 15 cm above its head (a dress 46 cm),
+#: and its hem, 10-30 cm from the legs, hangs about the chest no further from it than when worn (medians 0.7-1.4
+#: times as far). A hat or a hood on the head is not moved into the chest.
 ABOVE_HEAD_M = 0.10
 FLOOR_SLACK_M = 0.01
 

@@ -268,7 +268,8 @@ def turned_z_up(motion, body: Body | None, path: str):
     from core.motion import warn_if_not_metres, warn_if_z_up, y_up_to_z_up
 
     warn_if_z_up(motion, path)
-    _, joints = (body or default_body()).shaped(motion.betas)
+    body = body or default_body()
+    _, joints = body.shaped(body.fit_betas(motion.betas, warn=False))  # warned about where the bake fits them
     motion = y_up_to_z_up(motion, joints[0])
     warn_if_not_metres(motion, path)
     return motion
