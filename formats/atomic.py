@@ -41,6 +41,7 @@ LOW_SPACE_BYTES = 64 * 2**20
 
 
 def size_text(n: int) -> str:
+    """A byte count as a message says it: '8.0 kB', '1.5 GB', '12 bytes'."""
     for unit, size in (("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
         if n >= size:
             return f"{n / size:.1f} {unit}"
@@ -81,8 +82,8 @@ def out_of_room(path, exc: OSError) -> InputError:
     """The one line of a write to `path` (None: unknown) that ran out of room, with the space left there."""
     free = None if path is None else free_space(path)
     left = "" if free is None else f"; {size_text(free)} free on its file system"
-    return InputError(f"{'the outputs' if path is None else f'output {str(path)!r}'}: could not be written "
-                      f"({exc.strerror or exc}{left})")
+    what = "the outputs" if path is None else f"output '{path}'"
+    return InputError(f"{what}: could not be written ({exc.strerror or exc}{left})")
 
 
 def _refuse_special(path: Path) -> None:
