@@ -185,3 +185,48 @@ def validate_garment(garment: Garment, source: str) -> None:
                          f"{extent:.1f} units{hint}")
     if extent < 1e-3:
         raise InputError(f"garment mesh '{source}': expected metres, got an extent of {extent:.2e} units")
+
+
+def consistent_winding(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Faces wound alike across every edge two of them share, per connected piece (faces joined by such edges).
+
+    faces: (F, 3) int. Returns (faces (F, 3) int64, each face that disagreed with the piece's first face (its
+    smallest index) turned by swapping its last two corners; piece (F,) int64 label of each face). Across a
+    shared edge, faces wound alike run it in opposite directions. An edge of three or more faces joins nothing; a
+    piece that cannot be wound alike (a Moebius strip) keeps the winding of a spanning tree from its first face.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    faces = np.asarray(faces, dtype=np.int64)
+    F = len(faces)
+    if F == 0:
+        return faces, np.zeros(0, dtype=np.int64)
+    directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)  # (3F, 2): a->b, b->c, c->a
+    key = np.sort(directed, axis=1)
+    _, edge, uses = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    edge = edge.reshape(-1)
+    shared = np.flatnonzero(uses[edge] == 2)  # half-edges of the edges exactly two faces share
+    order = shared[np.argsort(edge[shared], kind="stable")]
+    first, second = order[0::2], order[1::2]
+    fa, fb = first // 3, second // 3
+    alike = directed[first, 0] == directed[second, 0]  # both run the edge the same way: wound oppositely
+    graph = coo_matrix((np.ones(len(fa)), (fa, fb)), shape=(F, F)).tocsr()
+    _, piece = connected_components(graph, directed=False)
+    # A spanning tree of each piece from its first face; a face turns when the turns along its path to the root
+    # do not cancel (the path's XOR, by pointer jumping).
+    up = np.arange(F)
+    for root in np.unique(piece, return_index=True)[1]:
+        visit, parent = breadth_first_order(graph, int(root), directed=False, return_predecessors=True)
+        up[visit[1:]] = parent[visit[1:]]
+    pair = np.concatenate([fa * F + fb, fb * F + fa])
+    sorter = np.argsort(pair)
+    bits = np.concatenate([alike, alike])[sorter]
+    has_parent = up != np.arange(F)
+    turn = np.zeros(F, dtype=bool)
+    turn[has_parent] = bits[np.searchsorted(pair[sorter], up[has_parent] * F + np.flatnonzero(has_parent))]
+    while np.any(up != up[up]):
+        turn, up = turn ^ turn[up], up[up]
+    out = faces.copy()
+    out[turn] = out[turn][:, [0, 2, 1]]
+    return out, piece.astype(np.int64)

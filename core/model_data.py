@@ -31,7 +31,7 @@ from core.losses import rest_uv_frame, vertex_masses
 from core.model import (GarmentInputs, ModelConfig, MotionFeatures, body_distances, garment_inputs, motion_features,
                         shaped_rest, tensors_to)
 from core.preprocess import preprocess_garment
-from core.skinning import bind_garment
+from core.skinning import bind_garment, oriented_outward
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +63,7 @@ def prepare_garment(garment: Garment, body: Body, config: ModelConfig, cache_dir
     near: build the rest neighbourhood of the self-collision loss (Eq. 6; training only). Its pairs grow as the
     square of the vertex count at a given size (a 213k-vertex garment: about 10^9 pairs), so inference leaves
     it out (`GarmentData.near` None)."""
+    garment = oriented_outward(garment, body, source)  # the network reads the rest normals
     prep = preprocess_garment(garment, body, levels=config.levels, n_landmarks=config.n_landmarks,
                               n_eigenvalues=config.n_eigenvalues, cache_dir=cache_dir, cache_optional=True,
                               collision_radius_m=SELF_COLLISION_GEODESIC_M if near else 0.0)

@@ -9,7 +9,7 @@ between the legs) do not tear between neighbouring joints.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -241,6 +241,39 @@ def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh) -> str | 
     if np.mean(mesh.signed_distance(dropped, exact=False) < -REST_INSIDE_DEPTH_M) > REST_INSIDE_WARN_SHARE:
         return None
     return "it fits when " + _DROP.format(drop=soles)
+
+
+def oriented_outward(garment: Garment, body: Body, source: str | None = None) -> Garment:
+    """`garment` with its faces wound alike across shared edges (`core.garment.consistent_winding`) and each
+    connected piece facing away from the rest body (the faces' area, signed by whether their normal points away
+    from the closest body point, sums positive), as the example garments all do; `garment` itself where nothing
+    changes, else warned about. The model reads the rest normals: a dress written facing the body baked 48 mm
+    (mean) from itself written facing out. face_uvs follow their faces; the file's own mesh (`source`) is kept."""
+    from core.garment import consistent_winding
+
+    faces, piece = consistent_winding(garment.faces)
+    rewound = int(np.count_nonzero((faces != garment.faces).any(axis=1)))
+    tri = garment.vertices.astype(np.float64)[faces]
+    centroid = tri.mean(axis=1)
+    area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    away = centroid - TriangleMesh(body.v_template, body.faces).closest(centroid, exact=False).closest
+    vote = np.sign(np.einsum("ij,ij->i", area, away)) * np.linalg.norm(area, axis=1)
+    inward = np.flatnonzero(np.bincount(piece, weights=vote) < 0)
+    turned = np.isin(piece, inward)
+    faces[turned] = faces[turned][:, [0, 2, 1]]
+    changed = (faces != garment.faces).any(axis=1)
+    if not changed.any():
+        return garment
+    log.warning("garment mesh '%s': %s of its %s faces turned for the model's normals (%s): the file is left as "
+                "it is", source or garment.name, f"{int(changed.sum()):,}", f"{len(faces):,}",
+                "; ".join(what for what, n in (
+                    (f"{rewound:,} wound against their neighbours", rewound),
+                    (f"{len(inward)} of its {int(piece.max()) + 1} pieces faced the body", len(inward))) if n))
+    face_uvs = garment.face_uvs
+    if face_uvs is not None:  # a changed face had its last two corners swapped once (twice is no change)
+        face_uvs = face_uvs.copy()
+        face_uvs[changed] = face_uvs[changed][:, [0, 2, 1]]
+    return replace(garment, faces=faces, face_uvs=face_uvs)
 
 
 def shaped_garment(vertices: np.ndarray, binding: GarmentBinding, betas: np.ndarray) -> np.ndarray:

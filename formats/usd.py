@@ -263,6 +263,21 @@ def _polygon_starts(counts: np.ndarray) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if len(counts) else np.zeros(0, np.int64)
 
 
+def _counter_clockwise(mesh: UsdGeom.Mesh, counts: np.ndarray, code: Usd.TimeCode) -> np.ndarray | None:
+    """None where `mesh`'s faces wind counter-clockwise seen from their front once placed (orientation
+    rightHanded, as OBJ and this tool's outputs, under a transform that does not mirror), else the order of the face
+    vertex arrays that makes them: each face's corners after its first reversed (the fan's diagonals kept).
+    Houdini writes its meshes leftHanded; a mirroring transform (a scale of -1) turns the winding as well."""
+    left = mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded
+    m = np.array(UsdGeom.Xformable(mesh.GetPrim()).ComputeLocalToWorldTransform(code), dtype=np.float64)
+    if left == (np.linalg.det(m[:3, :3]) < 0) or not len(counts):
+        return None
+    starts = _polygon_starts(counts)
+    face = np.repeat(np.arange(len(counts)), counts)
+    local = np.arange(int(counts.sum())) - starts[face]
+    return starts[face] + np.where(local == 0, 0, counts[face] - local)
+
+
 def _placed(points: np.ndarray, prim: Usd.Prim, code: Usd.TimeCode, to_frame: np.ndarray | None) -> np.ndarray:
     """(V, 3) `points` of `prim` at `code` placed by its local-to-world transform and then by `to_frame` (4, 4)
     for row vectors (the stage's units and up axis into ours; None: none); float64, or `points` itself when
@@ -330,6 +345,9 @@ def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str, to_world: np.ndarray |
     if counts.sum() != len(indices):
         raise InputError(f"{where}: mesh '{name}' expected {int(counts.sum())} face vertex indices, "
                          f"got {len(indices)}")
+    order = _counter_clockwise(mesh, counts, codes[0])
+    if order is not None:
+        indices = indices[order]
     faces, corners = _triangles(counts, indices, points[0])
     if faces.size and (faces.min() < 0 or faces.max() >= points.shape[1]):
         raise InputError(f"{where}: mesh '{name}' face index {int(faces.max())} out of range for "
@@ -339,7 +357,8 @@ def _read_mesh(mesh: UsdGeom.Mesh, name: str, where: str, to_world: np.ndarray |
     if st and st.HasValue() and st.GetInterpolation() == UsdGeom.Tokens.faceVarying:
         flat = st.ComputeFlattened()
         if flat is not None and len(flat) == len(indices):
-            uvs = np.asarray(flat, dtype=np.float32).reshape(-1, 2)[corners.ravel()]
+            corner = corners.ravel() if order is None else order[corners.ravel()]
+            uvs = np.asarray(flat, dtype=np.float32).reshape(-1, 2)[corner]
     color = None
     dc = mesh.GetDisplayColorPrimvar()
     if dc and dc.HasValue():
@@ -426,12 +445,16 @@ def read_usd_garment(path: str | os.PathLike):
     if bad.any():
         raise InputError(f"{where}: expected faces of 3 to {MAX_POLYGON_VERTICES} vertices, got a face with "
                          f"{int(counts[np.argmax(bad)])} vertices (face {int(np.argmax(bad))})")
+    order = _counter_clockwise(mesh, counts, code)
+    if order is not None:
+        indices = indices[order]
     uvs, uv_index = None, None
     st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
     if st and st.HasValue():
         flat = st.ComputeFlattened(code)
         if flat is not None and st.GetInterpolation() == UsdGeom.Tokens.faceVarying and len(flat) == len(indices):
-            uvs, uv_index = np.asarray(flat, dtype=np.float64).reshape(-1, 2), np.arange(len(indices))
+            uvs = np.asarray(flat, dtype=np.float64).reshape(-1, 2)
+            uv_index = np.arange(len(indices)) if order is None else order
         elif flat is not None and st.GetInterpolation() in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) \
                 and len(flat) == len(vertices):
             uvs, uv_index = np.asarray(flat, dtype=np.float64).reshape(-1, 2), indices

@@ -276,3 +276,48 @@ def test_a_usd_garment_keeps_its_material_subsets(tmp_path):
     g = read_garment(path)
     assert g.source.materials.tolist() == ["cotton", "back"]
     assert g.source.polygons.tolist() == [[0, 1, 2, 3, -1], [1, 4, 6, 5, 2]]
+
+
+def test_a_left_handed_or_mirrored_garment_reads_with_the_faces_of_its_right_handed_twin(tmp_path):
+    """Houdini writes meshes leftHanded (corners clockwise seen from the front); a mirroring transform turns the
+    winding too. Either reads as the same garment as its rightHanded twin: the same triangles (the fans' diagonals
+    kept) and face-varying UVs, so the model sees its normals facing out (facing the body, the example dress's
+    bake moved 48 mm on average, 245 mm at most); both at once cancel."""
+    from formats.usd import read_usd_garment
+
+    xs, ys = np.meshgrid(np.arange(4.0), np.arange(3.0), indexing="ij")
+    points = np.stack([xs.ravel() * 0.1, ys.ravel() * 0.1, 0.2 + 0.01 * xs.ravel() ** 2], 1)
+    quads = [[3 * i + j, 3 * (i + 1) + j, 3 * (i + 1) + j + 1, 3 * i + j + 1] for i in range(3) for j in range(2)]
+    clockwise = [[q[0], q[3], q[2], q[1]] for q in quads]
+
+    def write(name, pts, polygons, orientation=None, mirror=False):
+        stage = Usd.Stage.CreateNew(str(tmp_path / name))
+        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+        if mirror:
+            UsdGeom.Xform.Define(stage, "/set").AddScaleOp().Set(Gf.Vec3f(-1.0, 1.0, 1.0))
+        mesh = UsdGeom.Mesh.Define(stage, "/set/cloth" if mirror else "/cloth")
+        mesh.CreatePointsAttr([Gf.Vec3f(*map(float, p)) for p in pts])
+        mesh.CreateFaceVertexCountsAttr([len(q) for q in polygons])
+        mesh.CreateFaceVertexIndicesAttr([int(i) for q in polygons for i in q])
+        uv = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                     UsdGeom.Tokens.faceVarying)
+        uv.Set([Gf.Vec2f(float(points[i][0]), float(points[i][1])) for q in polygons for i in q])
+        if orientation:
+            mesh.CreateOrientationAttr(orientation)
+        stage.Save()
+        return read_usd_garment(tmp_path / name)
+
+    def facing(g):  # the sum of the faces' area vectors
+        v = g.vertices[g.faces]
+        return np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]).sum(axis=0)
+
+    twin = write("right.usda", points, quads)
+    # The same surface, front side alike: clockwise corners in a leftHanded mesh, or in a rightHanded one under a
+    # mirroring scale (the points mirrored back by it).
+    for g in (write("left.usda", points, clockwise, UsdGeom.Tokens.leftHanded),
+              write("mirrored.usda", points * [-1, 1, 1], clockwise, mirror=True)):
+        np.testing.assert_allclose(g.vertices, twin.vertices, atol=1e-6)
+        np.testing.assert_array_equal(g.faces, twin.faces)
+        np.testing.assert_allclose(g.uvs[g.face_uvs], twin.uvs[twin.face_uvs], atol=1e-6)
+    both = write("both.usda", points * [-1, 1, 1], clockwise, UsdGeom.Tokens.leftHanded, mirror=True)
+    np.testing.assert_allclose(facing(both), -facing(twin), atol=1e-6)  # its front is the other side
