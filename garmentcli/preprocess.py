@@ -55,13 +55,14 @@ def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache,
     self-collision near set), stores them in the cache (keyed by the mesh's content, the settings and the body:
     the entry `bake --method model` reads, or with --self-collision `garment train`'s) and prints a summary.
     """
+    from core.skinning import oriented_outward
     from formats.cache import cache_path, default_cache_dir
     from formats.obj import read_garment
 
     body = load_body_option(body_path)
     directory = None if no_cache else Path(cache_dir) if cache_dir else default_cache_dir()
     for path in garment_paths:
-        garment = read_garment(path)
+        garment = oriented_outward(read_garment(path), body, path)  # as the model prepares it: bake's entry
         p = preprocess_garment(garment, body, levels=levels, n_landmarks=landmarks, cache_dir=directory,
                                collision_radius_m=SELF_COLLISION_GEODESIC_M if self_collision else 0.0)
         if directory is None:

@@ -1,5 +1,8 @@
 """`garment preprocess`: summary, cache hit/miss, render, and one-line errors for bad input."""
 
+import logging
+from pathlib import Path
+
 import pytest
 from click.testing import CliRunner
 
@@ -87,3 +90,26 @@ def test_a_render_folder_that_cannot_be_written_stops_before_any_work(scene):
             "--render", str(blocker / "renders"))
     assert r.exit_code == 2 and "Invalid value for '--render'" in r.output and "is a file, not a folder" in r.output
     assert "Traceback" not in r.output and "vertices" not in r.output and not cache.exists()
+
+
+def test_a_garment_facing_the_body_is_turned_as_bake_turns_it(scene, caplog):
+    """The shell with its faces reversed (facing the body): turned with a warning, as `bake --method model`
+    prepares it, so the entry written is the one the bake reads."""
+    from core.preprocess import CACHE_KIND, preprocess_garment
+    from core.skinning import oriented_outward
+    from formats.body import load_body
+    from formats.cache import cache_path
+    from formats.obj import read_garment
+
+    text = Path(scene["garment"]).read_text().splitlines()
+    flipped = scene["dir"] / "inward.obj"
+    flipped.write_text("\n".join(" ".join(["f", *line.split()[:0:-1]]) if line.startswith("f ") else line
+                                 for line in text) + "\n")
+    cache = scene["dir"] / "cache"
+    with caplog.at_level(logging.WARNING):
+        r = run("preprocess", str(flipped), "--body", scene["body"], "--landmarks", "8", "--cache-dir", str(cache))
+    assert r.exit_code == 0, r.output
+    assert "faces turned for the model's normals (1 of its 1 pieces faced the body)" in caplog.text
+    turned = oriented_outward(read_garment(flipped), load_body(scene["body"]))
+    key = preprocess_garment(turned, load_body(scene["body"]), n_landmarks=8, collision_radius_m=0.0).key
+    assert cache_path(cache, CACHE_KIND, key).is_file()
