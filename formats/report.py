@@ -199,23 +199,24 @@ def batch_rows(results: dict[str, MetricsResult]) -> tuple[list[str], list[str],
 
 def write_batch_report(results: dict[str, MetricsResult], directory: str | os.PathLike,
                        formats: Sequence[str] = REPORT_FORMATS, metadata: dict | None = None) -> list[Path]:
-    """Write the batch table (`batch_rows`) into `directory` as BATCH_REPORT_NAMES; returns the paths."""
+    """Write the batch table (`batch_rows`) into `directory` as BATCH_REPORT_NAMES, all files together (as
+    `write_report`); returns the paths."""
     names, titles, rows = batch_rows(results)
-    paths = []
+    texts = {}
     for f in dict.fromkeys(formats):
         path = Path(directory) / BATCH_REPORT_NAMES[f]
         if f == "json":
-            write_json(path, {"metadata": dict(metadata or {}), "units": {n: METRICS.get(n, (n, ""))[1] for n in names},
-                              "bakes": {row[0]: {"frames": row[1], **dict(zip(names, map(float, row[2:])))}
-                                        for row in rows}})
+            texts[path] = _json_text({
+                "metadata": dict(metadata or {}), "units": {n: METRICS.get(n, (n, ""))[1] for n in names},
+                "bakes": {row[0]: {"frames": row[1], **dict(zip(names, map(float, row[2:])))} for row in rows}})
         elif f == "csv":
-            write_csv_rows(path, ["bake", "frames"] + names, rows)
+            texts[path] = _csv_text(["bake", "frames"] + names, rows)
         else:
-            _atomic_write_text(path, "# Garment metrics, bake by bake\n\n"
-                               + "".join(f"- {k}: `{v}`\n" for k, v in (metadata or {}).items())
-                               + "\n" + markdown_table(titles, rows))
-        paths.append(path)
-    return paths
+            texts[path] = ("# Garment metrics, bake by bake\n\n"
+                           + "".join(f"- {k}: `{v}`\n" for k, v in (metadata or {}).items())
+                           + "\n" + markdown_table(titles, rows))
+    _atomic_write_texts(texts)
+    return list(texts)
 
 
 def overall_markdown(result: MetricsResult) -> str:
