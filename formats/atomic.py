@@ -10,13 +10,17 @@ space left.
 from __future__ import annotations
 
 import errno
+import logging
 import os
 import shutil
+import socket
 import tempfile
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from core.errors import InputError, special_kind
+
+log = logging.getLogger(__name__)
 
 
 def _umask() -> int:
@@ -86,6 +90,33 @@ def out_of_room(path, exc: OSError) -> InputError:
     return InputError(f"{what}: could not be written ({exc.strerror or exc}{left})")
 
 
+def _host() -> str:
+    return socket.gethostname().replace(".", "_")  # a temporary name's parts are split at dots
+
+
+def _owner() -> str:
+    """This process as the temporary names it writes say it ('host@pid'), for `_sweep`."""
+    return f"{_host()}@{os.getpid()}"
+
+
+def _sweep(folder: Path, name: str) -> None:
+    """Remove the temporary files and folders a killed run (SIGKILL: the out-of-memory killer, a scheduler after
+    its grace) left for the output `name` in `folder`: those of a process of this host that no longer exists.
+    Others' (another host's, a living process's) are left alone."""
+    import glob
+
+    import psutil
+
+    host = _host()
+    for leftover in folder.glob(f".{glob.escape(name)}.*@*.*partial*"):
+        owner = leftover.name[len(name) + 2:].split(".", 1)[0]
+        owner_host, _, pid = owner.rpartition("@")
+        if owner_host != host or not pid.isdigit() or psutil.pid_exists(int(pid)):
+            continue
+        _remove(leftover)
+        log.info("removed '%s', left by an interrupted run", leftover)
+
+
 def _refuse_special(path: Path) -> None:
     """InputError where `path` is a device, pipe or socket: renamed over, /dev/null became a file."""
     kind = special_kind(path)
@@ -105,7 +136,9 @@ def atomic_file(path: str | os.PathLike):
     _refuse_special(path)
     with _writing(path):
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".partial" + path.suffix, dir=path.parent)
+        _sweep(path.parent, path.stem)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.{_owner()}.", suffix=".partial" + path.suffix,
+                                   dir=path.parent)
     os.close(fd)
     tmp = Path(tmp)
     try:
@@ -146,7 +179,8 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool):
         raise InputError(f"output '{final}' exists: pass --overwrite to replace it")
     with _writing(final):
         final.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".partial", dir=final.parent))
+        _sweep(final.parent, final.name)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.{_owner()}.", suffix=".partial", dir=final.parent))
     os.chmod(tmp, 0o777 & ~_umask())
     try:
         with _written(final):

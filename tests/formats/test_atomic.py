@@ -100,3 +100,30 @@ def test_a_low_space_note_names_the_space_left_only_when_little_is(tmp_path, mon
     assert asked == [tmp_path]
     monkeypatch.setattr(formats.atomic.shutil, "disk_usage", usage(LOW_SPACE_BYTES))
     assert low_space_note(tmp_path / "a.usd") == ""
+
+
+def test_leftovers_of_a_killed_run_are_removed_when_the_output_is_written_again(tmp_path):
+    """A run killed outright (SIGKILL) leaves its hidden temporary folder and files: the next write of the same
+    output removes those of this host's processes that no longer exist, and leaves a living process's, another
+    host's and another output's alone."""
+    import subprocess
+    import sys
+
+    import formats.atomic
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    me, host = os.getpid(), formats.atomic._host()
+    leftovers = {f".render.{host}@{dead.pid}.k2j3.partial": False, f".render.{host}@{me}.a1b2.partial": True,
+                 f".render.other_host@{dead.pid}.x9y8.partial": True, f".renders.{host}@{dead.pid}.q1w2.partial": True,
+                 f".metrics.{host}@{dead.pid}.z7.partial.json": False}
+    for name in leftovers:
+        (tmp_path / name).mkdir() if not name.endswith(".json") else (tmp_path / name).write_text("{")
+        if not name.endswith(".json"):
+            (tmp_path / name / "frame_0000.png").write_bytes(b"x")
+    with atomic_dir(tmp_path / "render", overwrite=False) as tmp:
+        (tmp / "frame_0000.png").write_bytes(b"y")
+    with atomic_file(tmp_path / "metrics.json") as tmp:
+        tmp.write_text("{}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["render", "metrics.json", *(name for name, kept in leftovers.items() if kept)])
