@@ -31,8 +31,11 @@ def _stopped(script: str, out: Path, readies: int):
     proc = subprocess.Popen([sys.executable, "-c", PRELUDE + textwrap.dedent(script), str(out)], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        for _ in range(readies):
-            assert proc.stdout.readline().strip() == b"ready", proc.stderr.read().decode()
+        seen = b""
+        while seen.count(b"ready") < readies:  # workers' lines may interleave ("readyready")
+            line = proc.stdout.readline()
+            assert line, proc.stderr.read().decode()  # ended before it was ready
+            seen += line
         children = psutil.Process(proc.pid).children(recursive=True)
         proc.send_signal(signal.SIGTERM)
         status = proc.wait(timeout=60)
