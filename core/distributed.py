@@ -24,6 +24,7 @@ Pure orchestration: no files, no printing; logging via `logging.getLogger(__name
 from __future__ import annotations
 
 import logging
+import signal
 import uuid
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
@@ -107,7 +108,7 @@ def _run_local(task, calls, names, workers: int):
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     failures = []
-    with ProcessPoolExecutor(max_workers=workers, mp_context=pool_context()) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(), initializer=unwind_on_sigterm) as pool:
         futures = {pool.submit(task, *args): name for name, args in zip(names, calls)}
         try:
             for fut in as_completed(futures):
@@ -124,9 +125,23 @@ def _run_local(task, calls, names, workers: int):
         raise ItemsFailed(failures, len(calls))
 
 
+def _terminate_as_exit(signum, frame):
+    """SIGTERM (`kill`, a batch scheduler stopping a job) unwinds the process as Ctrl-C does, so the outputs it
+    was writing are removed (`formats.atomic`: a render's frames, a bake's folder) and its worker processes
+    stopped (`_stop_workers`); exit status 143. A second SIGTERM ends the process at once."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    raise SystemExit(128 + signal.SIGTERM)
+
+
+def unwind_on_sigterm() -> None:
+    """Install `_terminate_as_exit` for SIGTERM: the `garment` command does, and so does each local worker process
+    (a spawned one does not inherit it)."""
+    signal.signal(signal.SIGTERM, _terminate_as_exit)
+
+
 def _stop_workers(pool) -> None:
     """Cancel `pool`'s waiting items and send its worker processes SIGTERM: forked from the command, they unwind as
-    it does (`garmentcli.main._terminate_as_exit`), removing what they were writing, instead of finishing their
+    it does (`unwind_on_sigterm`), removing what they were writing, instead of finishing their
     items while the command waits in the pool's shutdown."""
     for fut in list(getattr(pool, "_pending_work_items", {}).values()):
         fut.future.cancel()

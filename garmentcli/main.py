@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import signal
 
 import click
 
@@ -83,17 +82,11 @@ cli.add_command(unpose.unpose)
 cli.add_command(fit.fit)
 
 
-def _terminate_as_exit(signum, frame):
-    """SIGTERM (`kill`, a batch scheduler stopping a job) unwinds the command as Ctrl-C does, so the outputs it
-    was writing are removed (`formats.atomic`: a render's frames, a bake's folder) and its worker processes
-    stopped (`core.distributed`); exit status 143. A second SIGTERM ends the process at once."""
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    raise SystemExit(128 + signal.SIGTERM)
-
-
 def main() -> None:
-    """The `garment` command: `cli` with SIGTERM unwinding it (`_terminate_as_exit`)."""
-    signal.signal(signal.SIGTERM, _terminate_as_exit)
+    """The `garment` command: `cli` with SIGTERM unwinding it like Ctrl-C (`core.distributed.unwind_on_sigterm`)."""
+    from core.distributed import unwind_on_sigterm
+
+    unwind_on_sigterm()
     cli()
 
 

@@ -15,7 +15,7 @@ PRELUDE = """
 import signal, sys, time
 from pathlib import Path
 from formats.atomic import atomic_dir
-from garmentcli.main import _terminate_as_exit
+from core.distributed import unwind_on_sigterm
 
 def write_slowly(out, name):
     with atomic_dir(Path(out) / name, overwrite=False) as tmp:
@@ -48,7 +48,7 @@ def _stopped(script: str, out: Path, readies: int):
 
 def test_sigterm_removes_the_output_being_written_and_exits_143(tmp_path):
     status, _ = _stopped("""
-        signal.signal(signal.SIGTERM, _terminate_as_exit)
+        unwind_on_sigterm()
         write_slowly(sys.argv[1], "render")
     """, tmp_path, 1)
     assert status == 128 + signal.SIGTERM
@@ -60,7 +60,7 @@ def test_sigterm_to_the_command_stops_its_local_workers_and_their_outputs(tmp_pa
     died; now they unwind with it."""
     status, alive = _stopped("""
         from core.distributed import run_items
-        signal.signal(signal.SIGTERM, _terminate_as_exit)
+        unwind_on_sigterm()
         for _ in run_items(write_slowly, [(sys.argv[1], "a"), (sys.argv[1], "b")], ["a", "b"], workers=2):
             pass
     """, tmp_path, 2)
