@@ -151,7 +151,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         if trans.shape[0] != T:
             raise InputError(f"{src}: {trans_key} has {trans.shape[0]} frames but poses have {T}")
     else:
-        log.warning("%s: no 'trans' key, using zero translation", src)
+        log.warning("%s: no 'trans' (or 'transl') key, using zero translation", src)
         trans = np.zeros((T, 3), dtype=np.float32)
 
     betas = _read_betas(arrays["betas"], T, src) if "betas" in arrays else None
@@ -298,7 +298,7 @@ def _rotations(raw, key: str, src: str) -> np.ndarray:
     if a.ndim == 4 or (a.ndim == 3 and a.shape[1:] == (3, 3)):
         if a.shape[-2:] != (3, 3):
             raise InputError(f"{src}: expected {key} as rotation matrices (T, K, 3, 3), got {tuple(a.shape)}")
-        m = a.reshape(a.shape[0], -1, 3, 3).astype(np.float64)
+        m = a.reshape(a.shape[0], int(np.prod(a.shape[1:-2])), 3, 3).astype(np.float64)  # (T, 3, 3): one joint
         if not np.isfinite(m).all():
             raise InputError(f"{src}: {key} contains NaN or Inf")
         off = float(np.abs(m @ np.swapaxes(m, -1, -2) - np.eye(3)).max(initial=0.0))
@@ -315,7 +315,7 @@ def _rotations(raw, key: str, src: str) -> np.ndarray:
     if a.ndim != 2 or a.shape[1] % 3:
         raise InputError(f"{src}: expected {key} as axis-angle (T, K*3) or (T, K, 3), or rotation matrices "
                          f"(T, K, 3, 3), got {tuple(a.shape)}")
-    return a.reshape(a.shape[0], -1, 3)
+    return a.reshape(a.shape[0], a.shape[1] // 3, 3)  # explicit: an empty array has no -1 to infer
 
 
 def _split_poses(arrays: dict, src: str) -> np.ndarray:

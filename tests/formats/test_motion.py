@@ -153,6 +153,10 @@ def test_smplx_forward_arguments_of_an_smplx_fit(tmp_path, caplog):
      ("jaw_pose", "1 joint(s)", "got 2")),
     ({"global_orient": np.zeros((3, 3)), "body_pose": np.zeros((3, 69)), "transl": np.zeros((3, 2))},
      ("transl", "(3, 3)", "(3, 2)")),
+    # empty arrays (a reshape inferring -1 from nothing raised ValueError: found by fuzzing 3,000 files)
+    ({"global_orient": np.zeros((0, 3)), "body_pose": np.zeros((0, 23, 3, 3))}, ("at least 1 frame", "got 0")),
+    ({"global_orient": np.zeros((0, 3, 3)), "body_pose": np.zeros((0, 69))}, ("at least 1 frame", "got 0")),
+    ({"global_orient": np.zeros((3, 3)), "body_pose": np.zeros((3, 0))}, ("body_pose", "got 0 joints")),
 ])
 def test_smplx_forward_arguments_malformed_are_one_line(tmp_path, arrays, fragments):
     with pytest.raises(InputError) as info:
