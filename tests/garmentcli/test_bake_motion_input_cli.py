@@ -172,3 +172,27 @@ def test_a_y_up_motion_bakes_with_motion_up_y_as_its_z_up_original(scene, caplog
         r = invoke(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs",
                     "--out", d / "out_wrong", "--motion-up", "y"])
     assert r.exit_code == 0 and "it looks Z-up already" in caplog.text and "leave out --motion-up y" in caplog.text
+
+
+def test_a_fitted_motions_betas_on_the_embedded_body_are_warned_about(scene, caplog):
+    """An SMPL fit's 10 betas (a pose estimator's) on the embedded body, whose 10 coefficients are anny's own
+    basis: the count matches, so nothing was said; now one warning naming the motion, --body and --betas mean.
+    Zero betas, --betas mean and a body file of the motion's model are quiet."""
+    from core.body import default_body
+    from garmentcli.common import prepare_motion
+    from tests.garmentcli.conftest import write_motion
+
+    d = scene["dir"]
+    write_motion(d / "fit.npz", betas=np.linspace(-1, 1, 10).astype(np.float32))
+    body = default_body()
+    for motion, betas, on, expected in (("fit", "motion", body, True), ("fit", "mean", body, False),
+                                        ("walk", "motion", body, False), ("fit", "motion", scene["tiny"], False)):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            prepared, _ = prepare_motion(str(d / f"{motion}.npz"), 30.0, None, 0, betas, body=on)
+        said = [r.getMessage() for r in caplog.records if "fitted to another body model" in r.getMessage()]
+        assert len(said) == int(expected), (motion, betas, caplog.text)
+        if expected:
+            assert said[0].startswith(f"motion '{d / 'fit.npz'}': its betas") and "--body" in said[0] \
+                and "--betas mean" in said[0] and "betas given" not in caplog.text
+            np.testing.assert_allclose(prepared.betas, np.linspace(-1, 1, 10), rtol=1e-6)
