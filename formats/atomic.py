@@ -52,13 +52,19 @@ def size_text(n: int) -> str:
     return f"{n} bytes"
 
 
+def nearest_existing(path: str | os.PathLike) -> Path:
+    """`path` made absolute, or the nearest of its parents that exists (the root at worst): where an output that is
+    not there yet would be made."""
+    found = Path(path).absolute()
+    while not found.exists() and found != found.parent:
+        found = found.parent
+    return found
+
+
 def free_space(path: str | os.PathLike) -> int | None:
     """Bytes free to the user on the file system holding `path` (its nearest existing folder), None if unknown."""
-    folder = Path(path).absolute()
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
     try:
-        return shutil.disk_usage(folder).free
+        return shutil.disk_usage(nearest_existing(path)).free
     except OSError:
         return None
 

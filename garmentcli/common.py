@@ -15,6 +15,7 @@ import numpy as np
 
 from core.body import Body, default_body
 from core.errors import InputError, not_a_file, special_kind
+from formats.atomic import nearest_existing
 from core.motion import check_frame_rate, parse_frame_range, preroll, resample, resampled_frame_count, settle
 
 log = logging.getLogger(__name__)
@@ -43,8 +44,7 @@ def unwritable_reason(path: str | Path) -> str | None:
     except OSError as exc:
         return f"{exc.strerror or exc}"
     try:
-        while not folder.exists():
-            folder = folder.parent
+        folder = nearest_existing(folder)
         if not folder.is_dir():
             return f"'{folder}' is a file, not a folder"
         Path(tempfile.mkdtemp(prefix=".garment-write-check.", dir=folder)).rmdir()
