@@ -338,20 +338,26 @@ def beyond_memory(bytes_per_frame: float, n_frames: int, source_fps: float, fps:
     return need, free, int((free / bytes_per_frame - lead_frames) * source_fps / fps)
 
 
-def parse_betas(text: str, words: tuple[str, ...] = ()) -> np.ndarray:
-    """--betas: comma-separated numbers -> (S,) float32; raises click.BadParameter naming what it found.
-
-    words: the option's other accepted values, named in the message ('motion', 'mean' for bake's --betas)."""
+def parse_numbers(text: str, option: str, words: tuple[str, ...] = (), count: int | None = None) -> np.ndarray:
+    """`option`'s comma-separated numbers -> (N,) float32 (exactly `count` of them when given); raises
+    click.BadParameter naming what it found. words: the option's other accepted values, named in the message."""
+    expected = "".join(f"'{w}', " for w in words[:-1]) + (f"'{words[-1]}' or " if words else "")
+    expected += "comma-separated numbers" if count is None else f"{count} comma-separated numbers"
     try:
         values = np.array([float(v) for v in text.split(",")], dtype=np.float64)
     except ValueError:
-        expected = "".join(f"'{w}', " for w in words[:-1]) + (f"'{words[-1]}' or " if words else "")
-        raise click.BadParameter(f"expected {expected}comma-separated numbers, got '{text}'",
-                                 param_hint="--betas") from None
+        raise click.BadParameter(f"expected {expected}, got '{text}'", param_hint=option) from None
+    if count is not None and len(values) != count:
+        raise click.BadParameter(f"expected {expected}, got {len(values)} in '{text}'", param_hint=option)
     # float32's range checked before the cast, which would warn of the overflow
     if not np.all(np.isfinite(values)) or np.any(np.abs(values) > np.finfo(np.float32).max):
-        raise click.BadParameter(f"expected finite numbers, got '{text}'", param_hint="--betas")
+        raise click.BadParameter(f"expected finite numbers, got '{text}'", param_hint=option)
     return values.astype(np.float32)
+
+
+def parse_betas(text: str, words: tuple[str, ...] = ()) -> np.ndarray:
+    """--betas: comma-separated numbers -> (S,) float32 (`parse_numbers`)."""
+    return parse_numbers(text, "--betas", words)
 
 
 #: bake's --betas values besides numbers.

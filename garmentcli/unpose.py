@@ -1,9 +1,10 @@
-"""`garment unpose GARMENT --pose tpose|apose|POSE.npz [--betas B0,...]`: move a garment authored on a posed or
-shaped body to the rest pose and mean shape."""
+"""`garment unpose GARMENT --pose tpose|apose|POSE.npz [--betas B0,...] [--move DX,DY,DZ]`: move a garment
+authored on a posed, shaped or otherwise placed body to the rest pose and mean shape."""
 
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -17,6 +18,7 @@ from garmentcli.common import (
     input_errors_as_click,
     load_body_option,
     parse_betas,
+    parse_numbers,
     require_file,
 )
 
@@ -42,6 +44,20 @@ class _AboutTheInput(logging.Filter):
 
 def _check_shape(ctx, param, value):
     return None if value is None else parse_betas(value)
+
+
+#: --move: at most this far (metres) on each axis; a garment further off is not on the body (a unit mix-up?).
+MAX_MOVE_M = 10.0
+
+
+def _check_move(ctx, param, value):
+    if value is None:
+        return None
+    move = parse_numbers(value, "--move", count=3)
+    if np.abs(move).max() > MAX_MOVE_M:
+        raise click.BadParameter(f"expected metres, at most {MAX_MOVE_M:g} on each axis, got '{value}'",
+                                 param_hint="--move")
+    return move
 
 
 def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwrite: bool) -> None:
@@ -74,6 +90,9 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
               help="The body shape the garment was authored on (coefficients of the body's own basis, missing ones "
                    "0), taken off as well: the result fits the mean shape that bake shapes to each motion's "
                    "betas [default: a POSE.npz's betas, else the mean shape].")
+@click.option("--move", "move", default=None, callback=_check_move, metavar="DX,DY,DZ",
+              help="Metres to move the garment by first, in the body's frame (Y up): for a garment authored on a "
+                   "body whose origin stands elsewhere (bake names the move).")
 @click.option("--arm-angle", type=float, default=None,
               help=f"apose: degrees each arm is lowered from the T-pose [default: {A_POSE_ARM_DEGREES:g}].")
 @click.option("--frame", type=click.IntRange(min=0), default=None, help="POSE.npz: the frame to use [default: 0].")
@@ -83,9 +102,9 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
                    "UsdPreviewSurface) [default: <garment>_rest.obj beside GARMENT].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 @input_errors_as_click
-def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite, betas_text=None):
-    """Move GARMENT (OBJ or USD), authored on the body in another pose or shape, to the body's rest pose (T-pose)
-    and mean shape.
+def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite, betas_text=None, move=None):
+    """Move GARMENT (OBJ or USD), authored on the body in another pose, shape or place, to the body's rest pose
+    (T-pose) and mean shape.
 
     Each vertex follows the body part it lies on, by the inverse of the linear blend skinning that
     `bake --method lbs` applies. Writes an OBJ or USD (UVs and materials kept) that `bake` and the other
@@ -111,8 +130,9 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     if pose_spec == "tpose":
         if frame is not None:
             raise click.UsageError("--frame applies to a POSE.npz file only (got --pose tpose)")
-        if betas_text is None:
-            raise click.UsageError("--pose tpose takes off the body shape only: give it with --betas B0,B1,...")
+        if betas_text is None and move is None:
+            raise click.UsageError("--pose tpose takes off the body shape and place only: give them with --betas "
+                                   "B0,B1,... or --move DX,DY,DZ")
         pose = np.zeros((body.n_joints, 3), dtype=np.float32)
         what = "the rest pose"
     elif pose_spec == "apose":
@@ -137,10 +157,16 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         betas = betas_text
         shown = ",".join(f"{b:g}" for b in betas[:10]) + (f",... ({len(betas)} betas)" if len(betas) > 10 else "")
         what += f", shape {shown}"
+    if move is not None:
+        what += ", moved by " + ",".join(f"{m:g}" for m in move) + " m"
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     garment = read_garment(source)
+    authored = garment.vertices
+    if move is not None:
+        garment = replace(garment, vertices=garment.vertices + move)
     rest, report = unpose_garment(garment, body, pose, betas, source=str(source))
+    report["max_move_m"] = float(np.linalg.norm(rest.vertices - authored, axis=1).max(initial=0.0))
     # The result must be what bake accepts: refused or warned here, naming GARMENT (what the user can fix).
     about_input = _AboutTheInput(source, what)
     skinning_log = logging.getLogger("core.skinning")
@@ -158,7 +184,9 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     else:
         _write_obj(out, garment, rest.vertices, header, overwrite)
     target = "the rest pose" + (" and mean shape" if betas is not None else "")
-    click.echo(f"{out}: {rest.n_vertices} vertices moved to {target} from {what} (largest move "
+    moved = (f"moved to {target} from {what}" if pose_spec != "tpose" or betas is not None else
+             "moved by " + ",".join(f"{m:g}" for m in move) + " m")
+    click.echo(f"{out}: {rest.n_vertices} vertices {moved} (largest move "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "
                f"mm from the input at most; on the posed body: median distance "
                f"{report['posed_median_distance_m'] * 100:.1f} cm, {report['posed_inside_share']:.1%} inside)")

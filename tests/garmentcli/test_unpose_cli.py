@@ -170,9 +170,39 @@ def test_unpose_from_a_pose_file_uses_its_frame(a_posed, tmp_path):
                                atol=1e-5)
 
 
+def test_a_garment_authored_lower_is_refused_by_bake_and_moved_back_by_the_command_it_names(tmp_path):
+    """The example t-shirt as it sits authored on SMPL's rest body (0.23 m lower): bake refuses it with one line
+    naming `garment unpose ... --move`; that command, run as named, writes the t-shirt back within the move's
+    rounding (the 2 cm the search steps by, at most) and bake takes it without a warning."""
+    import re
+
+    g = read_obj(EXAMPLES / "tshirt.obj")
+    low = tmp_path / "low.obj"
+    write_obj(low, g.vertices - np.float32([0.0, 0.23, 0.0]), g.faces, g.uvs, g.face_uvs)
+    r = invoke(["bake", low, EXAMPLES / "walk.npz", "--frames", "0:2", "--out", tmp_path / "bake"])
+    assert r.exit_code != 0 and "Traceback" not in r.output and not (tmp_path / "bake").exists()
+    command = re.search(r"`garment unpose (\S+) --pose tpose --move (0,0\.\d\d,0)`$", r.output.strip())
+    assert command and command[1] == str(low), r.output
+    r = invoke(["unpose", low, "--pose", "tpose", "--move", command[2]])
+    assert r.exit_code == 0, r.output
+    assert f"6698 vertices moved by {command[2]} m (largest move {float(command[2].split(',')[1]) * 100:.1f} cm" \
+        in r.output
+    back = read_obj(tmp_path / "low_rest.obj")
+    assert np.abs(back.vertices - g.vertices - [0.0, float(command[2].split(",")[1]) - 0.23, 0.0]).max() < 1e-5
+    assert np.abs(back.vertices - g.vertices).max() < 0.025
+    r = invoke(["bake", tmp_path / "low_rest.obj", EXAMPLES / "walk.npz", "--frames", "0:2", "--out",
+                tmp_path / "bake"])
+    assert r.exit_code == 0 and "WARNING" not in r.output, r.output
+
+
 @pytest.mark.parametrize("args, needle", [
     (["--pose", "bpose"], "expected 'tpose', 'apose' or an AMASS-style .npz file, got 'bpose'"),
-    (["--pose", "tpose"], "--pose tpose takes off the body shape only: give it with --betas"),
+    (["--pose", "tpose"], "--pose tpose takes off the body shape and place only: give them with --betas B0,B1,... "
+                          "or --move DX,DY,DZ"),
+    (["--pose", "tpose", "--move", "0,0.2"], "--move: expected 3 comma-separated numbers, got 2 in '0,0.2'"),
+    (["--pose", "tpose", "--move", "0,up,0"], "--move: expected 3 comma-separated numbers, got '0,up,0'"),
+    (["--pose", "tpose", "--move", "0,inf,0"], "--move: expected finite numbers, got '0,inf,0'"),
+    (["--pose", "tpose", "--move", "0,25,0"], "--move: expected metres, at most 10 on each axis, got '0,25,0'"),
     (["--pose", "tpose", "--betas", "1,x"], "expected comma-separated numbers, got '1,x'"),
     (["--pose", "tpose", "--betas", "1", "--frame", 1], "--frame applies to a POSE.npz file only"),
     (["--pose", "tpose", "--betas", "1", "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
