@@ -422,12 +422,15 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                   workers if not scheduler else 1, settle_frames)
     if method == "model":
         fallback = _body_joints_guard(deformer, body, explicit)
-        if not fallback:
+        prepared = not fallback
+        if prepared:
             deformer.prepare(garment, body, source=garment_path)
             fallback = _training_range_guard(deformer, garment, body, garment_path, explicit)
         if fallback:
             method, model_path, precision, device = "lbs", None, None, None
             deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
+            if prepared:
+                _prepare_unwarned(deformer, garment, body, garment_path)
     if (method == "model" and precision == "bfloat16"
             and parse_device(device, auto=True, check=not scheduler).type == "cpu"):
         from core.model_deform import native_bfloat16
@@ -571,6 +574,18 @@ def _body_joints_guard(deformer, body, explicit: bool) -> str:
     click.echo(f"{what}: baking with lbs instead", err=True)
     return json.dumps({"from": "model", "to": "lbs", "model": inner.model_name, "reason": "body joints",
                        "model_joints": want, "body_joints": body.n_joints})
+
+
+def _prepare_unwarned(deformer, garment, body, garment_path) -> None:
+    """The lbs that the model gave way to, prepared without the binding's warnings: the model's preparation bound
+    the same garment and gave them (a garment partly inside the body was warned about twice)."""
+    log = logging.getLogger("core.skinning")
+    quiet = logging.Filter("nothing")  # passes no record of core.skinning
+    log.addFilter(quiet)
+    try:
+        deformer.prepare(garment, body, source=garment_path)
+    finally:
+        log.removeFilter(quiet)
 
 
 def _training_range_guard(deformer, garment, body, garment_path, explicit: bool) -> str:

@@ -79,6 +79,25 @@ def test_garment_outside_the_training_range_is_baked_with_lbs_unless_the_model_i
     assert summary["method"] == "model" and "method_fallback" not in summary
 
 
+def test_a_garment_partly_inside_that_falls_back_to_lbs_is_warned_about_once(tmp_path, caplog):
+    """The model's preparation bound the garment and warned that it lies partly inside the body; the lbs it gave
+    way to bound it again and warned again, on stderr and in summary.json."""
+    import logging
+
+    from formats.obj import read_obj, write_obj
+
+    g = read_obj(ROOT / "examples" / "tshirt.obj")
+    centre = g.vertices.mean(axis=0)
+    shrunk = tmp_path / "shrunk.obj"
+    write_obj(shrunk, centre + 0.9 * (g.vertices - centre), g.faces, g.uvs, g.face_uvs)
+    with caplog.at_level(logging.WARNING):
+        _, summary, out = _bake(shrunk, tmp_path / "bake", "--model", _restricted_model(tmp_path))
+    assert summary["method"] == "lbs" and "baking with lbs instead" in out
+    inside = [r for r in caplog.records if "inside the body's rest surface" in r.getMessage()]
+    assert len(inside) == 1 and "shrunk.obj" in inside[0].getMessage()
+    assert sum("inside the body's rest surface" in w for w in summary["warnings"]) == 1
+
+
 def test_a_body_of_another_skeleton_is_baked_with_lbs_unless_the_model_is_asked_for(tmp_path):
     """An SMPL+H-style body (52 joints: the default body with 30 finger joints on the wrists) for the 24-joint
     model: the default method bakes with lbs, saying why, recorded in summary.json; --method model is one line
