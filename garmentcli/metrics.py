@@ -106,7 +106,7 @@ def size_hint(pred: np.ndarray, gt: np.ndarray) -> str:
             "tool's world (metres, Z-up)")
 
 
-def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="motion",
+def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="auto",
                          source_fps=None, motion_up="z"):
     """The body posed by the motion exactly as `garment bake` prepares it, as a Sequence-like record."""
     from types import SimpleNamespace
@@ -194,7 +194,7 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
 @input_errors_as_click
 def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Path | None,
             motion_file: Path | None, fps: float, frames: str | None, settle_frames: int, depth_mm: float | None,
-            overwrite: bool, plots: bool = False, betas: str = "motion", source_fps: float | None = None,
+            overwrite: bool, plots: bool = False, betas: str = "auto", source_fps: float | None = None,
             motion_up: str = "z") -> None:
     """Compare a predicted garment sequence PRED with a ground truth GT.
 
@@ -288,7 +288,7 @@ def _bake_pairs(pred: Path, gt: Path) -> dict | None:
 
 
 def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: float, plots: bool, body_file=None,
-             motion_file=None, fps=30.0, frames=None, settle_frames=0, betas="motion", source_fps=None,
+             motion_file=None, fps=30.0, frames=None, settle_frames=0, betas="auto", source_fps=None,
              quiet: bool = False, motion_up="z"):
     """Compare one PRED with one GT: print the overall table (unless `quiet`), write the reports (and plots) into
     `out_dir` when given; returns the MetricsResult."""

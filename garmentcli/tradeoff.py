@@ -143,7 +143,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
                    "row's error. A row of the table and a dashed line in the plot; one more reference run of time.")
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
-             reuse_sim=False, calibration_path=None, spread=False, betas="motion", source_fps=None, fit_specs=(),
+             reuse_sim=False, calibration_path=None, spread=False, betas="auto", source_fps=None, fit_specs=(),
              preroll_frames=0, device=None, motion_up="z"):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 

@@ -289,11 +289,12 @@ def test_summary_records_the_warnings_of_its_own_inputs(scene, workers):
 
 def test_betas_option_sets_the_body_shape_and_rejects_garbage(scene):
     """--betas mean bakes the mean body whatever the motion says; a list sets the coefficients (padded);
-    'motion' (default) keeps the motion's; summary.json records the option and the betas baked."""
+    'motion' keeps the motion's, and so does 'auto' (default) on a --body; summary.json records the option and the
+    betas baked."""
     d = scene["dir"]
     write_motion(d / "shaped.npz", betas=np.full(16, 1.5, np.float32))
     outs = {}
-    for option in ("motion", "mean", "0.5,-0.5"):
+    for option in ("auto", "motion", "mean", "0.5,-0.5"):
         out = d / f"out_{option}"
         r = run(["bake", scene["garment"], d / "shaped.npz", "--body", scene["body"], "--out", out, "--no-obj",
                  "--betas", option])
@@ -302,13 +303,13 @@ def test_betas_option_sets_the_body_shape_and_rejects_garbage(scene):
         assert summary["options"]["betas"] == option
         outs[option] = summary["body"]["betas"]
     n = len(outs["mean"])
-    assert outs["mean"] == [0.0] * n and outs["motion"] == [1.5] * n
+    assert outs["mean"] == [0.0] * n and outs["motion"] == outs["auto"] == [1.5] * n
     assert outs["0.5,-0.5"] == [0.5, -0.5] + [0.0] * (n - 2)
     for bad in ("tall", "1,nan"):
         r = run(["bake", scene["garment"], d / "shaped.npz", "--body", scene["body"], "--out", d / "x", "--betas", bad])
         assert_one_line_error(r, "--betas")
         assert not (d / "x").exists()
-    assert "expected 'motion', 'mean' or comma-separated numbers, got 'tall'" in run(
+    assert "expected 'auto', 'motion', 'mean' or comma-separated numbers, got 'tall'" in run(
         ["bake", scene["garment"], d / "shaped.npz", "--out", d / "x", "--betas", "tall"]).output
 
 

