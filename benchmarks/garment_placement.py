@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import logging
 import os
 import platform
 import re
@@ -39,37 +38,23 @@ from core.garmentgen import _levels, _RestBody, _tube_garment, generate_example_
 from core.skinning import bind_garment  # noqa: E402
 from formats.obj import read_garment  # noqa: E402
 from formats.report import markdown_table  # noqa: E402
+from garmentcli.common import collected_warnings  # noqa: E402
 
 MOVES_M = (-0.30, -0.23, -0.15, 0.15, 0.23)
 
 
-class _Warnings(logging.Handler):
-    def __init__(self):
-        super().__init__(logging.WARNING)
-        self.messages: list[str] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.messages.append(record.getMessage())
-
-
 def judge(garment: Garment, body) -> tuple[str, str]:
     """(outcome: bound, warned, move, refused; the move named or the message's fix, else "")."""
-    handler = _Warnings()
-    log = logging.getLogger("core.skinning")
-    log.addHandler(handler)
-    log.setLevel(logging.WARNING)
-    log.propagate = False
-    try:
-        bind_garment(garment, body)
-    except InputError as err:
-        found = re.search(r"moved (up|down) by (\d+\.\d\d) m \(authored on a body whose origin", str(err))
-        if found:
-            return "move", f"{'+' if found[1] == 'up' else '-'}{found[2]} m"
-        fix = str(err).split("; ", 1)
-        return "refused", fix[1][:60] if len(fix) > 1 else str(err).split("got ", 1)[-1][:60]
-    finally:
-        log.removeHandler(handler)
-    inside = [m for m in handler.messages if "inside the body's rest surface" in m]
+    with collected_warnings() as warned:
+        try:
+            bind_garment(garment, body)
+        except InputError as err:
+            found = re.search(r"moved (up|down) by (\d+\.\d\d) m \(authored on a body whose origin", str(err))
+            if found:
+                return "move", f"{'+' if found[1] == 'up' else '-'}{found[2]} m"
+            fix = str(err).split("; ", 1)
+            return "refused", fix[1][:60] if len(fix) > 1 else str(err).split("got ", 1)[-1][:60]
+    inside = [m for m in warned if "inside the body's rest surface" in m]
     return ("warned", "") if inside else ("bound", "")
 
 
@@ -95,7 +80,6 @@ def main(argv=None) -> None:
     ap.add_argument("--garment", type=Path, action="append", default=[], help="a garment file to judge too")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "garment_placement.md")
     args = ap.parse_args(argv)
-    logging.basicConfig(level=logging.ERROR)
     body = default_body()
     examples = generate_example_garments(body)
     groups: dict[str, dict[str, Garment]] = {"examples as authored": examples}
