@@ -291,6 +291,18 @@ def turned_z_up(motion, body: Body | None, path: str):
     return motion
 
 
+def turned_for_shape(motion, body: Body | None, turned_at):
+    """A motion that `turned_z_up` turned about the pelvis at the betas `turned_at` (the file's), as turned about
+    the pelvis at its own betas (another shape's: a dataset item's): its translation moved by (Q - I)(p - p0), Q
+    the turn, p and p0 the two pelvises (a few millimetres between body shapes)."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+
+    body = body or default_body()
+    pelvis = [body.shaped(body.fit_betas(b, warn=False))[1][0].astype(np.float64) for b in (motion.betas, turned_at)]
+    offset = (Y_UP_TO_Z_UP_MATRIX - np.eye(3)) @ (pelvis[0] - pelvis[1])
+    return replace(motion, trans=(motion.trans + offset).astype(np.float32))
+
+
 def motion_up_option(command):
     """--motion-up z|y: the motions' world up axis (`prepare_motion`)."""
     return click.option("--motion-up", type=click.Choice(["z", "y"]), default="z", show_default=True,

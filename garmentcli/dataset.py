@@ -24,6 +24,7 @@ from garmentcli.common import (
     motion_files,
     motion_names,
     motion_up_option,
+    turned_for_shape,
     scheduler_options,
     source_fps_option,
 )
@@ -120,6 +121,7 @@ def _worker_init(garment_paths, motion_paths, library, body_path, fps, material,
     _W["garments"] = {Path(p).stem: read_garment(p) for p in garment_paths}
     _W["body"] = load_body_option(body_path)
     _W["motions"] = _load_motions(motion_paths, library, fps, source_fps, motion_up, _W["body"])
+    _W["turned"] = set(motion_names(motion_paths)) if motion_up == "y" else set()  # the files, not the library
     _W["deformer"] = SimDeformer(material, options)
 
 
@@ -146,7 +148,10 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
     from formats.dataset import Sequence, sequence_path, write_sequence
 
     garment = _W["garments"][item.garment]
-    motion = item_motion(_W["motions"][item.motion], item, betas, settle_frames)
+    source = _W["motions"][item.motion]
+    motion = item_motion(source, item, betas, settle_frames)
+    if item.motion in _W.get("turned", ()):  # turned from Y-up about the pelvis at the file's betas, not the item's
+        motion = turned_for_shape(motion, _W["body"], source.betas)
     t0 = time.perf_counter()
     r = simulate_item(garment, _W["body"], motion, _W["deformer"], item.preroll)
     write_sequence(sequence_path(out_dir, item.id),

@@ -237,6 +237,42 @@ def test_dataset_motion_up_y_reads_y_up_motions_turned_and_keys_the_plan(scene):
         assert settings.get("motion_up") == recorded
 
 
+def test_dataset_motion_up_y_turns_each_item_about_its_own_shapes_pelvis():
+    """--motion-up y turns a file's motion about the pelvis at the file's betas; each dataset item then takes a
+    body shape of its own, whose pelvis stands elsewhere, so its body stood millimetres off where the Y-up world,
+    posed at that shape and turned whole, puts it. `turned_for_shape` (what each item now gets) puts every joint
+    there."""
+    from dataclasses import replace
+
+    from core.body import default_body
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+    from core.motion import Motion, y_up_to_z_up
+    from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+    from garmentcli.common import turned_for_shape
+
+    # The embedded body's pelvis stays at the origin for every shape; an SMPL body's moves (here: every vertex by
+    # 2 cm up and 3 cm forward per unit of the first coefficient).
+    body = default_body()
+    shapedirs = body.shapedirs.copy()
+    shapedirs[:, :, 0] += [0.0, 0.02, 0.03]
+    body = replace(body, shapedirs=shapedirs)
+    rng = np.random.default_rng(0)
+    file_betas, item_betas = rng.uniform(-2.0, 2.0, (2, body.n_betas)).astype(np.float32)
+    poses = rng.normal(0.0, 0.3, (4, 24, 3)).astype(np.float32)
+    trans = rng.normal(0.0, 0.5, (4, 3)).astype(np.float32)
+    q = Y_UP_TO_Z_UP_MATRIX
+    pelvis = body.shaped(file_betas)[1][0].astype(np.float64)
+    yup_poses = poses.copy()  # the file as a Y-up world has it: the turn undone about the file shape's pelvis
+    yup_poses[:, 0] = matrix_to_axis_angle(q.T @ axis_angle_to_matrix(poses[:, 0].astype(np.float64)))
+    yup_trans = (trans + pelvis) @ q - pelvis
+    yup = Motion(poses=yup_poses, trans=yup_trans.astype(np.float32), fps=30.0, betas=file_betas)
+    item = replace(y_up_to_z_up(yup, pelvis), betas=item_betas)  # as read, then given the item's shape
+    want = body.pose(yup.poses, yup.trans, item_betas)[1] @ q.T.astype(np.float32)  # the whole world turned
+    assert np.abs(body.pose(item.poses, item.trans, item_betas)[1] - want).max() > 1e-3
+    fixed = turned_for_shape(item, body, file_betas)
+    np.testing.assert_allclose(body.pose(fixed.poses, fixed.trans, item_betas)[1], want, atol=1e-5)
+
+
 def test_dataset_motions_from_a_directory_tree(scene):
     """--motions DIR takes every motion under it (AMASS's shape.npz, a body shape only, left out); two motions of
     one file name in different folders are two items named by their folders."""
