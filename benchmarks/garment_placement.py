@@ -2,15 +2,15 @@
 it names, over garments placed right and wrong, in one run.
 
 Groups (the embedded body unless --body):
-- the example garments as authored, and moved straight down and up by 0.15-0.30 m (as garments authored on a
-  body whose origin stands elsewhere, such as SMPL's rest body, sit on this one);
+- the example garments as authored, and moved down and up by 0.15-0.30 m (as garments authored on a body whose
+  origin stands elsewhere, such as SMPL's rest body, sit on this one), sideways, forwards and back;
 - 96 loose tube skirts and dresses (2 waists or tops, 4 hems, 3 eases, 4 flares: `core.garmentgen`'s tube);
 - the example t-shirt, trousers and dress generated on other body shapes (betas 0-3 drawn in [-3, 3], seed 0):
   garments authored on another body, which no move puts right;
 - any --garment files (e.g. garments authored on SMPL's rest body).
 
 Writes benchmarks/results/garment_placement.md: per group, how many were bound without a word, warned about
-(inside the body), refused naming a move up or down, or refused otherwise (the loosest tubes, whose closest 5 %
+(inside the body), refused naming a move back, or refused otherwise (the loosest tubes, whose closest 5 %
 stand more than 5 cm from the body: not resting on it); then a row per moved, given or refused garment.
 
     python benchmarks/garment_placement.py [--shapes 12] [--garment PATH ...]
@@ -40,7 +40,10 @@ from formats.obj import read_garment  # noqa: E402
 from formats.report import markdown_table  # noqa: E402
 from garmentcli.common import collected_warnings  # noqa: E402
 
-MOVES_M = (-0.30, -0.23, -0.15, 0.15, 0.23)
+#: (x, y, z) metres: down and up (as on a body whose origin stands higher or lower, such as SMPL's), sideways, forwards
+#: and back (an object exported away from the origin), and all three.
+MOVES_M = ((0.0, -0.30, 0.0), (0.0, -0.23, 0.0), (0.0, -0.15, 0.0), (0.0, 0.15, 0.0), (0.0, 0.23, 0.0),
+           (0.30, 0.0, 0.0), (-0.15, 0.0, 0.0), (0.0, 0.0, 0.10), (0.0, 0.0, -0.20), (0.20, -0.10, 0.10))
 
 
 def judge(garment: Garment, body) -> tuple[str, str]:
@@ -49,9 +52,9 @@ def judge(garment: Garment, body) -> tuple[str, str]:
         try:
             bind_garment(garment, body)
         except InputError as err:
-            found = re.search(r"moved (up|down) by (\d+\.\d\d) m \(authored on a body whose origin", str(err))
+            found = re.search(r"--move (\S+)`$", str(err))
             if found:
-                return "move", f"{'+' if found[1] == 'up' else '-'}{found[2]} m"
+                return "move", found[1]
             fix = str(err).split("; ", 1)
             return "refused", fix[1][:60] if len(fix) > 1 else str(err).split("got ", 1)[-1][:60]
     inside = [m for m in warned if "inside the body's rest surface" in m]
@@ -83,8 +86,8 @@ def main(argv=None) -> None:
     body = default_body()
     examples = generate_example_garments(body)
     groups: dict[str, dict[str, Garment]] = {"examples as authored": examples}
-    groups["examples moved"] = {f"{name} moved {dy:+.2f} m": dataclasses.replace(g, vertices=g.vertices + np.float32(
-        [0.0, dy, 0.0])) for name, g in examples.items() for dy in MOVES_M}
+    groups["examples moved"] = {f"{name} moved {','.join(f'{m:g}' for m in move)}": dataclasses.replace(
+        g, vertices=g.vertices + np.float32(move)) for name, g in examples.items() for move in MOVES_M}
     groups["loose tubes"] = tubes(body)
     rng = np.random.default_rng(0)
     shaped = {}
@@ -111,7 +114,7 @@ def main(argv=None) -> None:
             f"Made by `python benchmarks/garment_placement.py --shapes {args.shapes}"
             + "".join(f" --garment {p.name}" for p in args.garment)
             + f"` on {platform.machine()} ({os.cpu_count()} cores), body '{body.name}'. `move`: refused naming "
-            "a move up (+) or down (-) by 0.12-0.45 m (`core.skinning.SHIFT_RANGE_M`); `warned`: bound with the "
+            "the `--move X,Y,Z` back (`core.skinning.SHIFT_RANGE_M`, `SHIFT_SIDE_RANGE_M`); `warned`: bound with the "
             "warning of a garment partly inside the body; `refused`: refused naming another fix or none.", "",
             markdown_table(["group", "garments", "bound", "warned", "move", "refused"], counts), "",
             markdown_table(["group", "garment", "outcome", "move named / fix"], rows)]

@@ -55,8 +55,8 @@ FRAME_FIX_GAIN = 2.0
 ABOVE_HEAD_M = 0.10
 FLOOR_SLACK_M = 0.01
 #: A garment more than SHIFT_DEEP_SHARE of which lies more than SHIFT_DEEP_M inside the rest body (the example and
-#: generated garments, however loose: none) and that no fix above explains is tried moved straight up and down by
-#: SHIFT_RANGE_M: authored on a body whose origin stands elsewhere, such as SMPL's rest body (SNUG's five garments,
+#: generated garments, however loose: none) and that no fix above explains is tried moved up and down by
+#: SHIFT_RANGE_M (then sideways, forwards and back: SHIFT_SIDE_RANGE_M): authored on a body whose origin stands elsewhere, such as SMPL's rest body (SNUG's five garments,
 #: authored on it, fit the embedded body best 0.24-0.27 m higher). It is refused naming the move when the move makes
 #: its `_shift_score` SHIFT_GAIN times smaller or more and leaves no more than 1.25 times as much of it that deep,
 #: plus 1 % (SNUG's: 1.65-5.6 times; the examples moved by 0.15-0.30 m: 2.1-5.3 times, but for the loose dress, 1.1-1.4:
@@ -67,6 +67,10 @@ SHIFT_DEEP_M = 0.01
 SHIFT_DEEP_SHARE = 0.01
 SHIFT_RANGE_M = (0.12, 0.45)
 SHIFT_GAIN = 1.5
+#: Then sideways and forwards or back by SHIFT_SIDE_RANGE_M (an object exported away from the origin), where a move
+#: along that axis makes the score SHIFT_AXIS_GAIN times smaller (the examples and SNUG's garments: no such move).
+SHIFT_SIDE_RANGE_M = (0.06, 0.45)
+SHIFT_AXIS_GAIN = 1.2
 #: At most this many of a garment's vertices (evenly through the file) are moved in that search (about 6 ms a move).
 SHIFT_SAMPLE = 2000
 
@@ -258,32 +262,48 @@ def _shift_score(mesh: TriangleMesh, points: np.ndarray) -> tuple[float, float, 
 
 def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) -> str | None:
     """"it fits better when moved up by ..." (naming `garment unpose` for the file `name`) for a garment that moving
-    straight up or down (`SHIFT_RANGE_M`) puts on the body (see SHIFT_DEEP_SHARE), else None. Searches in 2 cm
-    steps for the least `_shift_score`, then, in whole centimetres within 3 cm of it (the move as it is told),
-    for the least share inside (to 0.5 %; a tight collar 1.5 cm too low is inside), then the least score."""
+    straight up or down (`SHIFT_RANGE_M`), then sideways and forwards or back (`SHIFT_SIDE_RANGE_M`), puts on the
+    body (see SHIFT_DEEP_SHARE), else None. Along each axis in turn, twice over (a move sideways first taken for
+    one up or down is undone in the second round): 2 cm steps for the least `_shift_score`, then whole
+    centimetres within 3 cm of it (the move as it is told) for the least share inside (to 0.5 %; a tight collar
+    1.5 cm too low is inside), then the least score; that axis is left unmoved unless the move makes the score
+    SHIFT_AXIS_GAIN times smaller than unmoved."""
     v = np.asarray(vertices, dtype=np.float64)
     if len(v) > SHIFT_SAMPLE:
         v = v[np.linspace(0, len(v) - 1, SHIFT_SAMPLE).round().astype(np.int64)]
     score, deep, _ = _shift_score(mesh, v)
     if deep <= SHIFT_DEEP_SHARE:
         return None
-    low, high = SHIFT_RANGE_M
+    move = np.zeros(3)
+    best = (score, deep)
+    for axis, (low, high) in 2 * ((1, SHIFT_RANGE_M), (0, SHIFT_SIDE_RANGE_M), (2, SHIFT_SIDE_RANGE_M)):
+        def tried(steps: np.ndarray) -> list[tuple[float, float, float, float]]:
+            steps = steps[(np.abs(steps) >= low - 1e-9) & (np.abs(steps) <= high + 1e-9)]
+            out = []
+            for d in steps:
+                m = move.copy()
+                m[axis] = d
+                out.append((*_shift_score(mesh, v + m), float(d)))
+            return out
 
-    def tried(moves: np.ndarray) -> list[tuple[float, float, float, float]]:
-        moves = moves[(np.abs(moves) >= low - 1e-9) & (np.abs(moves) <= high + 1e-9)]
-        return [(*_shift_score(mesh, v + [0.0, dy, 0.0]), float(dy)) for dy in moves]
-
-    coarse = np.arange(low, high + 1e-9, 0.02)
-    dy = min(tried(np.concatenate([-coarse[::-1], coarse])))[3]
-    moved_score, moved_deep, _, dy = min(tried(np.round(dy + np.arange(-0.03, 0.03 + 1e-9, 0.01), 2)),
-                                         key=lambda t: (round(t[2] * 200), t[0]))
-    if moved_score * SHIFT_GAIN > score or moved_deep > 1.25 * deep + 0.01:
+        still = move.copy()
+        still[axis] = 0.0
+        here = _shift_score(mesh, v + still)[:2]  # this axis left alone
+        coarse = np.arange(low, high + 1e-9, 0.02)
+        d = min(tried(np.concatenate([-coarse[::-1], coarse])))[3]
+        found = min(tried(np.round(d + np.arange(-0.03, 0.03 + 1e-9, 0.01), 2)),
+                    key=lambda t: (round(t[2] * 200), t[0]))
+        move[axis], best = (found[3], found[:2]) if found[0] * SHIFT_AXIS_GAIN <= here[0] else (0.0, here)
+    if not move.any() or best[0] * SHIFT_GAIN > score or best[1] > 1.25 * deep + 0.01:
         return None
-    smpl = ("; garments authored on SMPL's rest body sit 0.24-0.27 m low on this one" if body.name == "default"
-            else "")
-    return (f"it fits better when moved {'up' if dy > 0 else 'down'} by {abs(dy):.2f} m (authored on a body whose "
-            f"origin stands {'lower' if dy > 0 else 'higher'}{smpl}): pass the body it was authored on with --body, "
-            f"or move it: `garment unpose {name} --pose tpose --move 0,{dy:.2f},0`")
+    words = [f"{'up' if move[1] > 0 else 'down'} by {abs(move[1]):.2f} m" if move[1] else "",
+             f"{abs(move[0]):.2f} m to the body's {'left' if move[0] > 0 else 'right'}" if move[0] else "",
+             f"{abs(move[2]):.2f} m {'forwards' if move[2] > 0 else 'back'}" if move[2] else ""]
+    smpl = ("; garments authored on SMPL's rest body sit 0.24-0.27 m low on this one"
+            if body.name == "default" and move[1] > 0 and not move[[0, 2]].any() else "")
+    return (f"it fits better when moved {' and '.join(w for w in words if w)} (authored on a body whose origin "
+            f"stands elsewhere{smpl}): pass the body it was authored on with --body, or move it: `garment unpose "
+            f"{name} --pose tpose --move {','.join(f'{m + 0.0:.2f}'.rstrip('0').rstrip('.') for m in move)}`")
 
 
 def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh) -> str | None:
