@@ -56,11 +56,12 @@ ABOVE_HEAD_M = 0.10
 FLOOR_SLACK_M = 0.01
 #: A garment more than SHIFT_DEEP_SHARE of which lies more than SHIFT_DEEP_M inside the rest body (the example and
 #: generated garments, however loose: none) and that no fix above explains is tried moved up and down by
-#: SHIFT_RANGE_M (then sideways, forwards and back: SHIFT_SIDE_RANGE_M): authored on a body whose origin stands elsewhere, such as SMPL's rest body (SNUG's five garments,
-#: authored on it, fit the embedded body best 0.24-0.27 m higher). It is refused naming the move when the move makes
-#: its `_shift_score` SHIFT_GAIN times smaller or more and leaves no more than 1.25 times as much of it that deep,
-#: plus 1 % (SNUG's: 1.65-5.6 times; the examples moved by 0.15-0.30 m: 2.1-5.3 times, but for the loose dress, 1.1-1.4:
-#: warned as inside, as before; the example t-shirt, trousers and dress generated on 12 other body shapes: 2 of 36
+#: SHIFT_RANGE_M (then sideways, forwards and back: SHIFT_SIDE_RANGE_M): authored on a body whose origin stands
+#: elsewhere, such as SMPL's rest body (SNUG's five garments, authored on it, fit the embedded body best 0.24-0.27 m
+#: higher). It is refused naming the move when the move makes its `_shift_score` SHIFT_GAIN times smaller or more
+#: and leaves no more than 1.25 times as much of it that deep, plus 1 % (SNUG's: 1.65-5.6 times; the examples moved
+#: by 0.15-0.30 m: 2.1-5.3 times, but for the loose dress, 1.1-1.4: warned as inside, as before; the example
+#: t-shirt, trousers and dress generated on 12 other body shapes: 2 of 36
 #: refused, moved by 0.12 and 0.45 m, which the error also names as another body: benchmarks/garment_placement.py).
 #: The range starts above the height differences of body shapes and ends below the floor's drop (`FRAME_FIXES`).
 SHIFT_DEEP_M = 0.01

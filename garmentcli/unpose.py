@@ -157,8 +157,9 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         betas = betas_text
         shown = ",".join(f"{b:g}" for b in betas[:10]) + (f",... ({len(betas)} betas)" if len(betas) > 10 else "")
         what += f", shape {shown}"
+    moved_by = "" if move is None else "moved by " + ",".join(f"{m:g}" for m in move) + " m"
     if move is not None:
-        what += ", moved by " + ",".join(f"{m:g}" for m in move) + " m"
+        what += ", " + moved_by
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     garment = read_garment(source)
@@ -184,8 +185,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     else:
         _write_obj(out, garment, rest.vertices, header, overwrite)
     target = "the rest pose" + (" and mean shape" if betas is not None else "")
-    moved = (f"moved to {target} from {what}" if pose_spec != "tpose" or betas is not None else
-             "moved by " + ",".join(f"{m:g}" for m in move) + " m")
+    moved = f"moved to {target} from {what}" if pose_spec != "tpose" or betas is not None else moved_by
     click.echo(f"{out}: {rest.n_vertices} vertices {moved} (largest move "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "
                f"mm from the input at most; on the posed body: median distance "
