@@ -401,7 +401,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                for m, target in targets]
     choice, fallback = "", ""
     if quality == "auto":
-        pick = _choose_quality(garment, body, [mo for (mo, _), _, _ in motions], model_path, calibration_path,
+        pick = _choose_quality(garment, body, [(mo, m) for (mo, _), m, _ in motions], model_path, calibration_path,
                                DEFAULT_BUDGET_MM if budget_mm is None else budget_mm, fit_path, garment_path)
         method, opts = pick["method"], pick["options"]
         precision, push_out = opts.get("precision"), bool(opts.get("push_out", False))
@@ -414,8 +414,13 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                  precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device)
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
-                                                   "features", "reason", "candidates")})
+                                                   "motion", "features", "reason", "candidates",
+                                                   "outside_calibration", "outside_motions")})
         click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
+        if pick["outside_motions"]:
+            log.warning("--quality auto: motion %s beyond the calibration's scenes: expected errors there are "
+                        "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "
+                        "such a motion measures them", ", ".join(f"'{m}'" for m in pick["outside_motions"]))
         explicit = False
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
     _check_memory(garment, body, [(mo, src_fps, m) for (mo, src_fps), m, _ in motions], method,
@@ -607,10 +612,11 @@ def _training_range_guard(deformer, garment, body, garment_path, explicit: bool)
 
 def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm, fit_path=None,
                     garment_path=None) -> dict:
-    """--quality auto: the choice for the most demanding motion (the fastest) of the batch; with --fit, the
-    garment's fitted blend shapes are a candidate too (`core.quality.psd_candidate`)."""
+    """--quality auto: the choice for the most demanding motion of the batch (motions: [(Motion, path)]): the
+    costliest of their choices; with --fit, the garment's fitted blend shapes are a candidate too
+    (`core.quality.psd_candidate`)."""
     from core.model_deform import DEFAULT_MODEL
-    from core.quality import Calibration, choose, scene_features
+    from core.quality import Calibration, choose, psd_candidate, scene_features
 
     if model_path and not Path(model_path).is_file():  # before its calibration, which is named after it
         raise click.BadParameter(f"'{model_path}': no such file", param_hint="--model")
@@ -624,16 +630,20 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
     elif not Path(calibration_path).is_file():
         raise click.BadParameter(f"'{calibration_path}': no such file", param_hint="--calibration")
     calibration = Calibration.load(calibration_path)
-    features = max((scene_features(garment, body, m) for m in motions), key=lambda f: f["speed_m_s"])
-    extra = []
     if fit_path is not None:
-        from core.quality import psd_candidate
         from formats.psd import psd_deformer
 
         psd = psd_deformer(fit_path)
         psd.check(garment, body, source=str(garment_path))  # before it is offered as a candidate
-        extra.append(psd_candidate(calibration, features, psd.fit.meta))
-    pick = choose(calibration, features, budget_mm, extra)
+    picks = []
+    for motion, path in motions:
+        features = scene_features(garment, body, motion)
+        extra = [] if fit_path is None else [psd_candidate(calibration, features, psd.fit.meta)]
+        picks.append({**choose(calibration, features, budget_mm, extra), "motion": Path(path).name})
+    # One method for the batch: the one the most demanding motion needs (the costliest pick, then the largest
+    # expected error); a motion beyond the calibration is named whichever motion the choice came from.
+    pick = max(picks, key=lambda p: (p["ms_per_frame"], p["expected_mm"]))
+    pick["outside_motions"] = [p["motion"] for p in picks if p["outside_calibration"]]
     if pick["method"] == "model" and model_path:
         pick["options"] = {**pick["options"], "path": str(model_path)}
     return pick

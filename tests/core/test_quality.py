@@ -90,3 +90,32 @@ def test_psd_candidate_scales_lbs_by_the_share_the_fit_kept():
     assert psd_candidate(cal, scene, {})["expected_mm"] == pytest.approx(lbs)  # nothing measured: LBS's
     with pytest.raises(InputError, match="no 'lbs' configuration"):
         psd_candidate(Calibration({}), scene, {})
+
+
+def test_a_scene_beyond_the_calibration_expects_the_learned_methods_no_better_than_lbs():
+    cal = synthetic_calibration()  # looseness 0.005-0.1 m, speeds 0.2-6 m/s
+    still = {"looseness_m": 0.09, "speed_m_s": 0.05, "vertices": 1000}
+    lbs, model = cal.expected_error("lbs", still), cal.expected_error("model float32", still)
+    assert model < 15.0 < lbs < 30.0  # the calibration alone would take the model within 15 mm
+    pick = choose(cal, still, budget_mm=15.0)
+    assert pick["config"] == "sim" and pick["outside_calibration"] == [
+        {"feature": "speed_m_s", "value": 0.05, "calibrated": [0.2, 6.0]}]
+    m = next(c for c in pick["candidates"] if c["config"] == "model float32")
+    assert m["expected_mm"] == pytest.approx(lbs) and m["expected_mm_calibration"] == pytest.approx(model)
+    assert "speed 0.05 m/s, under the smallest calibrated, 0.2" in pick["reason"]
+    assert "no better than lbs" in pick["reason"]
+    assert choose(cal, still, budget_mm=30.0)["config"] == "lbs"  # as good and cheaper
+    # Within OUTSIDE_FACTOR of the range it is a calibrated scene; beyond it on either side or feature, not.
+    for features, outside in (({"looseness_m": 0.09, "speed_m_s": 0.2 / 1.2}, []),
+                              ({"looseness_m": 0.09, "speed_m_s": 6.0 * 1.2}, []),
+                              ({"looseness_m": 0.09, "speed_m_s": 6.0 * 1.3}, ["speed_m_s"]),
+                              ({"looseness_m": 0.3, "speed_m_s": 1.0}, ["looseness_m"]),
+                              ({"looseness_m": 0.001, "speed_m_s": 100.0}, ["looseness_m", "speed_m_s"])):
+        pick = choose(cal, {**features, "vertices": 1000}, budget_mm=1000.0)
+        assert [o["feature"] for o in pick["outside_calibration"]] == outside
+        assert ("beyond the calibration" in pick["reason"]) == bool(outside)
+    # Without an lbs configuration the scene is still named beyond the calibration, the expectations kept.
+    del cal.configs["lbs"]
+    pick = choose(cal, still, budget_mm=15.0)
+    assert pick["config"] == "model float32" and pick["outside_calibration"]
+    assert "no better than lbs" not in pick["reason"]

@@ -28,6 +28,7 @@ def auto_scene(scene):
     fast[:, 0] = np.arange(8) * 0.17  # 5.1 m/s
     write_motion(d / "slow.npz", n_frames=8, fps=30.0, poses=poses, trans=slow)
     write_motion(d / "fast.npz", n_frames=8, fps=30.0, poses=poses, trans=fast)
+    write_motion(d / "still.npz", n_frames=8, fps=30.0, poses=poses, trans=np.zeros((8, 3), np.float32))
     return {**scene, "model": model}
 
 
@@ -50,6 +51,33 @@ def test_auto_picks_lbs_for_tight_and_slow_and_model_for_loose_and_fast(auto_sce
     assert summary["method"] == "model" and summary["quality"]["config"] == "model float32"
     assert summary["quality"]["features"]["speed_m_s"] == pytest.approx(5.1, rel=1e-3)
     assert "'lbs' is cheaper but expected" in summary["quality"]["reason"]
+
+
+def test_auto_over_motions_takes_the_costliest_choice_and_names_a_motion_beyond_the_calibration(auto_scene,
+                                                                                              caplog):
+    """A still motion lies below the calibration's slowest scene: there the model is expected no better than
+    lbs (the calibration alone expects it at 40 % of lbs's error), so alone it is baked with lbs, warned about;
+    baked with the fast motion, every motion takes the model the fast one needs, and the summaries say which
+    motion chose it and which lies beyond the calibration."""
+    import logging
+
+    s = auto_scene
+    with caplog.at_level(logging.WARNING):
+        r = _auto(s, "loose.obj", "still.npz", "--budget-mm", 250)
+    assert r.exit_code == 0, r.output
+    q = json.loads((s["out"] / "loose_still" / "summary.json").read_text())["quality"]
+    assert q["config"] == "lbs" and q["motion"] == "still.npz" and q["outside_motions"] == ["still.npz"]
+    assert [o["feature"] for o in q["outside_calibration"]] == ["speed_m_s"]
+    model = next(c for c in q["candidates"] if c["config"] == "model float32")
+    assert model["expected_mm"] == q["expected_mm"] > model["expected_mm_calibration"]
+    warned = [rec.getMessage() for rec in caplog.records if "beyond the calibration" in rec.getMessage()]
+    assert len(warned) == 1 and "'still.npz'" in warned[0]
+    r = _auto(s, "loose.obj", "still.npz", s["dir"] / "fast.npz", "--budget-mm", 250, "--overwrite")
+    assert r.exit_code == 0, r.output
+    for name in ("loose_still", "loose_fast"):
+        q = json.loads((s["out"] / name / "summary.json").read_text())["quality"]
+        assert q["config"] == "model float32" and q["motion"] == "fast.npz" and q["outside_motions"] == ["still.npz"]
+        assert q["features"]["speed_m_s"] == pytest.approx(5.1, rel=1e-3)
 
 
 @pytest.mark.parametrize("extra, needle", [(["--method", "lbs"], "leave out --method"),
