@@ -7,7 +7,8 @@ as a (T, J, 3) array or as rotation matrices (T, J, 3, 3), or, when `poses` is a
 `pose_hand (T,90)`, or, when neither is there, the `smplx` library's forward arguments
 `global_orient` + `body_pose` (23 joints: SMPL; 21: SMPL-X/SMPL+H, with optional `jaw_pose`, `leye_pose`,
 `reye_pose`, `left_hand_pose`, `right_hand_pose`), each as axis-angle or rotation matrices (T, K, 3, 3), and
-`transl`. Also read: `trans (T,3)` metres Z-up (zeros, with a warning, when missing), `betas` (any length; per frame (T, S) as video fits write them: their mean),
+`transl`; or AIST++'s `smpl_poses`, with `smpl_trans` / `smpl_scaling` as the translation. Also read:
+`trans (T,3)` metres Z-up (zeros, with a warning, when missing), `betas` (any length; per frame (T, S) as video fits write them: their mean),
 `mocap_framerate` or `mocap_frame_rate` (Hz; or `mocap_fps`, `fps`, `framerate`,
 `frame_rate`), `gender`.
 """
@@ -62,7 +63,11 @@ _SMPLX_ARG_EXTRAS = (("jaw_pose", 1), ("leye_pose", 1), ("reye_pose", 1), ("left
 _SMPLX_ARG_KEYS = ("global_orient", "body_pose", *(key for key, _ in _SMPLX_ARG_EXTRAS))
 #: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
 #: needs allow_pickle, a face's expression) are left unread. `transl` is the smplx arguments' `trans`.
-_READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender")
+#: AIST++'s keys (its motions, pickles, saved as .npz with the same names): SMPL poses, and a translation in the
+#: units of the body scaled by `smpl_scaling` (about 95-100: centimetres of a body scaled to metres).
+_AIST_KEYS = ("smpl_poses", "smpl_trans", "smpl_scaling")
+_READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender",
+              *_AIST_KEYS)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
 ROTATION_MATRIX_TOL = 1e-3
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
@@ -135,6 +140,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
             raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
         raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
 
+    _from_aist(arrays, src)
     poses = _read_poses(arrays, src, files)
     T = poses.shape[0]
     if T < 1:
@@ -228,6 +234,23 @@ def _refuse_degrees(poses: np.ndarray, src: str) -> None:
 def _body_only(poses: np.ndarray) -> np.ndarray:
     """(T, 24, 3): 22-joint body poses with the SMPL hand joints (22, 23) at rest."""
     return np.concatenate([poses, np.zeros((poses.shape[0], 2, 3), dtype=poses.dtype)], axis=1)
+
+
+def _from_aist(arrays: dict, src: str) -> None:
+    """AIST++'s `smpl_poses` and `smpl_trans` / `smpl_scaling` (metres) as `poses` and `trans`, in place, where
+    the file has no `poses` or translation of its own. Its world is Y-up and it records no frame rate (60 Hz):
+    the Y-up warning and --source-fps say so."""
+    if "smpl_poses" in arrays and "poses" not in arrays:
+        arrays["poses"] = arrays.pop("smpl_poses")
+    if "smpl_trans" in arrays and not {"trans", "transl"} & arrays.keys():
+        trans = _float_array(arrays.pop("smpl_trans"), "smpl_trans", src)
+        if "smpl_scaling" in arrays:
+            scale = _float_array(arrays.pop("smpl_scaling"), "smpl_scaling", src).ravel()
+            if scale.size != 1 or not np.isfinite(scale[0]) or scale[0] <= 0:
+                raise InputError(f"{src}: expected smpl_scaling to be one finite number > 0, got "
+                                 f"{scale.size} value(s) {scale[:3].tolist()}")
+            trans = trans / scale[0]
+        arrays["trans"] = trans
 
 
 def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:

@@ -133,6 +133,25 @@ def test_a_per_image_estimate_without_a_frame_axis_reads_as_one_frame(tmp_path, 
         np.testing.assert_allclose(one.poses[0, 1:1 + joints["body_pose"]], parts["body_pose"])
 
 
+def test_aist_keys_read_as_poses_and_a_translation_in_metres(tmp_path):
+    """AIST++'s motions (pickles of smpl_poses, smpl_trans, smpl_scaling, smpl_loss) saved as .npz: smpl_poses are
+    the poses, smpl_trans / smpl_scaling the translation in metres (the file's own is in the units of a body
+    scaled about 98 times); they were refused as having no 'poses'. A scaling that is no positive number is
+    refused naming it."""
+    T = 5
+    poses, trans = _poses(T, 72), _trans(T)
+    m = load_motion(_write(tmp_path, "aist.npz", smpl_poses=poses, smpl_trans=trans * 98.0,
+                           smpl_scaling=np.float32([98.0]), smpl_loss=np.float64(1.8)), fps=60.0)
+    np.testing.assert_array_equal(m.poses.reshape(T, 72), poses)
+    np.testing.assert_allclose(m.trans, trans, rtol=1e-6)
+    unscaled = load_motion(_write(tmp_path, "plain.npz", smpl_poses=poses, smpl_trans=trans), fps=60.0)
+    np.testing.assert_allclose(unscaled.trans, trans)
+    for bad in (np.float32([0.0]), np.float32([1.0, 2.0]), np.float32([np.nan])):
+        with pytest.raises(InputError) as info:
+            load_motion(_write(tmp_path, "bad.npz", smpl_poses=poses, smpl_trans=trans, smpl_scaling=bad), fps=60.0)
+        _assert_one_line(info, "bad.npz", "smpl_scaling", "one finite number > 0")
+
+
 def test_poses_as_rotation_matrices(tmp_path):
     from core.rotations import axis_angle_to_matrix
 
