@@ -183,8 +183,13 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     if fix:
         raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
                          f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body{hint}")
-    unposed = _fits_unposed(garment, body, mesh, inside, float(np.median(np.abs(signed))))
-    shift = None if unposed else _shift_fix(garment.vertices, body, mesh, name)
+    key = (_content_key(garment.vertices, garment.faces, body.v_template, body.faces), name)
+    if key not in _SEARCHED:  # a second binding of the same garment (lbs after the model) searches no more
+        unposed = _fits_unposed(garment, body, mesh, inside, float(np.median(np.abs(signed))))
+        _SEARCHED[key] = (unposed, None if unposed else _shift_fix(garment.vertices, body, mesh, name))
+        while len(_SEARCHED) > 8:
+            _SEARCHED.pop(next(iter(_SEARCHED)))
+    unposed, shift = _SEARCHED[key]
     if shift:
         raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
                          f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body; {shift}")
@@ -214,6 +219,22 @@ def _body_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
         if on_skin >= BODY_PIECE_SHARE:
             return f"piece {k + 1} of {n} ({sizes[k]:,} vertices, {on_skin:.0%} of them on the body's skin)"
     return ""
+
+
+#: The outcomes of the unpose and move searches of the last garments bound, by content (`_content_key`) and name:
+#: (fits unposed, the move's text or None).
+_SEARCHED: dict = {}
+
+
+def _content_key(*arrays: np.ndarray) -> str:
+    import hashlib
+
+    h = hashlib.sha1()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype, a.shape)).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 def _fits_unposed(garment: Garment, body: Body, mesh: TriangleMesh, inside: float, median: float) -> bool:

@@ -277,6 +277,28 @@ def test_garment_moved_three_ways_that_no_axis_alone_puts_right_is_refused_namin
     assert np.abs(np.array([float(x) for x in found[1].split(",")]) - [-0.2, 0.1, -0.1]).max() <= 0.0201
 
 
+def test_binding_a_garment_again_reuses_its_searches_and_refuses_it_the_same(trousers_on_body, monkeypatch):
+    """The model falling back to lbs binds the garment twice: the unpose and move searches (2-4 s for a garment
+    over 1 cm inside the body) ran twice. They run once per garment content, body and name; a refusal is the
+    same the second time."""
+    import core.skinning as skinning
+
+    g, body = trousers_on_body
+    calls = []
+    search = skinning._shift_fix
+    monkeypatch.setattr(skinning, "_SEARCHED", {})  # not the searches of the tests before
+    monkeypatch.setattr(skinning, "_shift_fix", lambda *a: calls.append(a[-1]) or search(*a))
+    moved = Garment(g.vertices + np.float32([0.3, 0.0, 0.0]), g.faces, name="aside.obj")
+    errors = []
+    for garment in (moved, moved, Garment(moved.vertices.copy(), moved.faces, name="aside.obj"),
+                    Garment(moved.vertices + np.float32([0.0, 0.0, 0.01]), moved.faces, name="aside.obj")):
+        with pytest.raises(InputError) as err:
+            bind_garment(garment, body)
+        errors.append(str(err.value))
+    assert calls == ["aside.obj", "aside.obj"]  # the same content once; moved by 1 cm more, searched again
+    assert errors[0] == errors[1] == errors[2] and "--move -0.3,0,0" in errors[0]
+
+
 def test_garment_partly_inside_without_a_fix_warns_and_far_off_is_refused_without_one(trousers_on_body, caplog):
     g, body = trousers_on_body
     centre = g.vertices.mean(axis=0)
