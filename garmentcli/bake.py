@@ -436,6 +436,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
             if prepared:
                 _prepare_unwarned(deformer, garment, body, garment_path)
+        elif quality != "auto":  # --quality auto has said so in its choice
+            _warn_beyond_calibration(garment, body, [(mo, m) for (mo, _), m, _ in motions], model_path)
     if (method == "model" and precision == "bfloat16"
             and parse_device(device, auto=True, check=not scheduler).type == "cpu"):
         from core.model_deform import native_bfloat16
@@ -608,6 +610,27 @@ def _training_range_guard(deformer, garment, body, garment_path, explicit: bool)
         return ""
     click.echo(f"{what}: baking with lbs instead (--method model uses the model anyway)", err=True)
     return json.dumps({"from": "model", "to": "lbs", "model": inner.model_name, **rng})
+
+
+def _warn_beyond_calibration(garment, body, motions, model_path) -> None:
+    """Warn, for the model, about each motion (motions: [(Motion, path)]) beyond the scenes of its calibration
+    (`<model>.calibration.json`, where there is one: `core.quality.Calibration.outside`), where its gain over lbs
+    is not known."""
+    from core.model_deform import DEFAULT_MODEL
+    from core.quality import OUTSIDE_MEASURED, Calibration, describe_outside, scene_features
+
+    model = Path(model_path) if model_path else DEFAULT_MODEL
+    path = model.with_name(model.stem + ".calibration.json")
+    if not path.is_file():
+        return
+    calibration = Calibration.load(path)
+    for motion, motion_path in motions:
+        outside = calibration.outside(scene_features(garment, body, motion))
+        if outside:
+            log.warning("motion '%s': beyond the scenes the model's calibration measured (%s): expect little gain "
+                        "over lbs (%s); `garment tradeoff` measures it on this motion", motion_path,
+                        "; ".join(describe_outside(o) for o in outside),
+                        OUTSIDE_MEASURED if model_path is None else "unmeasured for this model")
 
 
 def _choose_quality(garment, body, motions, model_path, calibration_path, budget_mm, fit_path=None,

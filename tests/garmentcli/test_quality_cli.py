@@ -80,6 +80,25 @@ def test_auto_over_motions_takes_the_costliest_choice_and_names_a_motion_beyond_
         assert q["features"]["speed_m_s"] == pytest.approx(5.1, rel=1e-3)
 
 
+def test_the_model_on_a_motion_beyond_its_calibration_is_warned_about_in_that_motions_summary(auto_scene, caplog):
+    """Baked with the model (the default method), a motion beyond the scenes of the model's calibration (the still
+    one, slower than any) is warned about, naming it, in its own summary.json only; one within them is not."""
+    import logging
+
+    s = auto_scene
+    with caplog.at_level(logging.WARNING):
+        r = invoke(["bake", s["dir"] / "loose.obj", s["dir"] / "still.npz", s["dir"] / "fast.npz", "--body", s["body"],
+                    "--model", s["model"], "--method", "model", "--out", s["out"], "--no-obj"])
+    assert r.exit_code == 0, r.output
+    warned = [rec.getMessage() for rec in caplog.records if "beyond the scenes the model's calibration" in
+              rec.getMessage()]
+    assert len(warned) == 1 and "still.npz" in warned[0] and "speed 0 m/s, under the smallest calibrated" in warned[0]
+    for name, expected in (("loose_still", 1), ("loose_fast", 0)):
+        summary = json.loads((s["out"] / name / "summary.json").read_text())
+        assert summary["method"] == "model"
+        assert sum("beyond the scenes the model's calibration" in w for w in summary["warnings"]) == expected
+
+
 @pytest.mark.parametrize("extra, needle", [(["--method", "lbs"], "leave out --method"),
                                            (["--push-out"], "leave out --method"),
                                            (["--calibration", "nope.json"], "nope.json"),
