@@ -272,7 +272,7 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
     ngons = []  # (face, corners, corner uvs) of the faces with more than 4 vertices
     polygons = np.full((n_faces, 4), -1, dtype=np.int64)
     polygon_uvs = np.full((n_faces, 4), -1, dtype=np.int64)
-    all_uv = True
+    any_uv, missing = False, []  # faces with texture coordinates; the faces of corners without
     for k, line in enumerate(f_lines):
         parts = line.split()
         lineno = f_numbers[k]
@@ -292,11 +292,21 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
                 row[j] = _index(sub[0], nv, lineno, "vertex", label, path)
                 if len(sub) > 1 and sub[1]:
                     row_uv[j] = _index(sub[1], nvt, lineno, "texture coordinate", label, path)
-                else:
-                    all_uv = False
+                    any_uv = True
+                    continue
             else:
                 row[j] = _index(tok, nv, lineno, "vertex", label, path)
-                all_uv = False
+            row_uv[j] = _NO_UV
+            if not missing or missing[-1] != k:
+                missing.append(k)
+    all_uv = any_uv
+    if any_uv and missing:  # some faces without: given (0, 0), so that the others keep theirs
+        uvs = np.concatenate([uvs, np.zeros((1, 2))])
+        for rows in [polygon_uvs] + [ngon[2] for ngon in ngons]:
+            rows[rows == _NO_UV] = len(uvs) - 1
+        log.warning("%s '%s': %d of %d faces have no texture coordinates (from line %d, as 'f a//n' or 'f a'): "
+                    "given (0, 0), so that the others keep theirs", label, path, len(missing), n_faces,
+                    f_numbers[missing[0]])
 
     n_v = vertices.shape[0]
     checks = [("vertex", polygons, n_v, 1, "vertices")]
@@ -332,6 +342,10 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
     materials = np.array(f_materials, dtype=object) if named else None
     return ObjPolygons(vertices, polygons, uvs if all_uv else None, polygon_uvs if all_uv else None,
                        tuple(f_lines), len(vt_rows), relative, materials, written, tuple(libraries))
+
+
+#: A face corner without a texture coordinate, while the faces are read.
+_NO_UV = -2
 
 
 def _nonfinite_text(values: np.ndarray) -> str:

@@ -88,8 +88,10 @@ def test_read_mixed_features(tmp_path, caplog):
     assert g.vertices.dtype == np.float32 and g.faces.dtype == np.int64
     # The quad's diagonal b-d (1.41) is shorter than a-c (1.80): (a b d)(b c d).
     np.testing.assert_array_equal(g.faces, [[0, 1, 3], [1, 2, 3], [4, 5, 6], [5, 7, 6]])
-    # Not every face had texture indices: no UVs.
-    assert g.uvs is None and g.face_uvs is None
+    # Not every face had texture indices: those without get (0, 0), the others keep theirs (they were all dropped).
+    np.testing.assert_array_equal(g.uvs[g.face_uvs[:3]], 0.0)
+    np.testing.assert_array_equal(g.uvs[g.face_uvs[3]], [[0, 0], [1, 0], [1, 1]])
+    assert "5 of 7 faces have no texture coordinates (from line 16" in caplog.text
     assert g.name == "g"
     # Both objects ended up in one mesh, and they share no vertex.
     assert set(np.unique(g.faces[:2])) == {0, 1, 2, 3} and set(np.unique(g.faces[2:])) == {4, 5, 6, 7}
@@ -170,6 +172,21 @@ def test_read_uvs_when_every_face_has_them(tmp_path, caplog):
     np.testing.assert_allclose(g.uvs, [[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]])
     np.testing.assert_array_equal(g.face_uvs, [[0, 1, 2], [0, 2, 3], [1, 4, 2]])
     assert g.uvs.dtype == np.float32 and g.face_uvs.dtype == np.int64
+
+
+@pytest.mark.parametrize("bare", ["5//1", "5"])
+def test_a_face_without_texture_coordinates_leaves_the_others_theirs(tmp_path, caplog, bare):
+    """One face written without texture coordinates ('f a//n', or 'f a': a hanger exported with a dress) dropped
+    every face's, without a word: the USD and OBJ outputs had none. That face's corners are given (0, 0), with
+    one warning naming the count and its line."""
+    text = UV_OBJ.replace("f 2/2/1 -1/-1/1 3/3/1", f"f 2//1 {bare} 3//1")
+    assert text != UV_OBJ
+    with caplog.at_level(logging.WARNING, logger="formats.obj"):
+        g = read_obj(_write(tmp_path, text, "part.obj"))
+    np.testing.assert_array_equal(g.faces, [[0, 1, 2], [0, 2, 3], [1, 4, 2]])
+    np.testing.assert_allclose(g.uvs, [[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]])  # 'vt 0.5 0.5', unused, left out
+    np.testing.assert_array_equal(g.face_uvs, [[0, 1, 2], [0, 2, 3], [4, 4, 4]])
+    assert "part.obj" in caplog.text and "1 of 2 faces have no texture coordinates (from line" in caplog.text
 
 
 def test_triangulate_against_naive_split():
