@@ -45,6 +45,15 @@ FRAME_FIX_MEDIAN_M = 0.10
 #: (the example skirt and dress: 3.1 and 4.9 times; the examples, generated garments and loose tube dresses with
 #: any fix: 1.3 times at most).
 FRAME_FIX_SUSPECT_MEDIAN_M = 0.06
+#: A fix also puts a garment on the body, far from it or more than REST_INSIDE_FRAME_SHARE inside, when it makes
+#: its `_fit_score` this many times smaller, its median distance at most FRAME_FIX_MEDIAN_M, however much of it is
+#: then still inside: a garment authored on another body (SMPL's, a mannequin's) in another frame, which no frame
+#: puts on this body without some of it inside (real garments: trousers and t-shirts authored on bodies standing
+#: on the floor, 3.4-12 times; a Z-up outfit authored on SMPL, 2.8 times; the fix's text says how much is inside).
+FRAME_FIX_SCORE_GAIN = 2.0
+#: Two such fixes whose scores are within this factor leave the choice open: neither is named (a t-shirt of
+#: GarmentTransfer's, turned about X either way: 1.2).
+FRAME_FIX_TIE = 1.25
 FRAME_FIX_GAIN = 2.0
 #: A garment whose top lies more than ABOVE_HEAD_M above the rest body's head with none of it more than
 #: FLOOR_SLACK_M below y = 0, that the drop to the body's soles puts on the body (at most REST_INSIDE_WARN_SHARE
@@ -72,8 +81,11 @@ SHIFT_GAIN = 1.5
 #: along that axis makes the score SHIFT_AXIS_GAIN times smaller (the examples and SNUG's garments: no such move).
 SHIFT_SIDE_RANGE_M = (0.06, 0.45)
 SHIFT_AXIS_GAIN = 1.2
-#: An up move named with at most this much aside or forwards (SNUG's t-shirt and long-sleeve top: 1-2 cm) is still
-#: said to be SMPL's, on the embedded body.
+#: An up move of SMPL_UP_M with at most SMPL_ASIDE_M aside or forwards (SNUG's t-shirt and long-sleeve top: 1-2 cm)
+#: is said to be SMPL's, on the embedded body, and named where it makes the score SHIFT_AXIS_GAIN times smaller (not
+#: SHIFT_GAIN): SMPL's garments are the commonest real ones, and tight trousers authored on SMPL's thinner legs stay
+#: inside this body wherever they are put (ISP's trousers moved up 0.25 m: 1.25 times smaller, 9 % still inside).
+SMPL_UP_M = (0.20, 0.30)
 SMPL_ASIDE_M = 0.03
 #: At most this many steps of `_shift_climb` (26 moves each) after the axes' search.
 SHIFT_CLIMB_STEPS = 40
@@ -162,12 +174,12 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
     far = median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M
     if far or inside > REST_INSIDE_FRAME_SHARE:
-        fix = _frame_fix(garment.vertices, body, mesh)
+        fix = _frame_fix(garment.vertices, body, mesh, name=name)
     elif median > FRAME_FIX_SUSPECT_MEDIAN_M:  # near the body, but a fix may put it far closer
-        fix = _frame_fix(garment.vertices, body, mesh, closer_than=(median, near))
+        fix = _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name)
     else:
         fix = None
-    lift = None if fix else _lifted_by_floor(garment, body, mesh)
+    lift = None if fix else _lifted_by_floor(garment, body, mesh, name)
     if not (far or fix or lift) and inside <= REST_INSIDE_WARN_SHARE:
         return
     expected = "expected a garment authored on the body's rest pose (Y-up, T-pose, metres"
@@ -183,18 +195,19 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     if fix:
         raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
                          f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body{hint}")
-    key = (_content_key(garment.vertices, garment.faces, body.v_template, body.faces), name)
+    key = (_content_key(garment.vertices, garment.faces, body.v_template, body.faces), body.name, name)
     if key not in _SEARCHED:  # a second binding of the same garment (lbs after the model) searches no more
         unposed = _fits_unposed(garment, body, mesh, inside, float(np.median(np.abs(signed))))
-        _SEARCHED[key] = (unposed, None if unposed else _shift_fix(garment.vertices, body, mesh, name))
+        _SEARCHED[key] = (unposed, (None, None) if unposed else _shift_fix(garment.vertices, body, mesh, name))
         while len(_SEARCHED) > 8:
             _SEARCHED.pop(next(iter(_SEARCHED)))
-    unposed, shift = _SEARCHED[key]
+    unposed, (shift, nearer) = _SEARCHED[key]
     if shift:
         raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
                          f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body; {shift}")
     cause = (f"it fits when unposed from an A-pose: `garment unpose {name} --pose apose`" if unposed else
-             "authored on another body shape? pass that body with --body; in another pose? `garment unpose`")
+             "authored on another body shape? pass that body with --body; in another pose? `garment unpose`"
+             + (f"; {nearer}" if nearer else ""))
     log.warning("garment mesh '%s': %.1f %% of its vertices lie more than %.0f mm inside the body's rest surface "
                 "(%s); expect them inside the body (--push-out moves them out)", name, inside * 100,
                 REST_INSIDE_DEPTH_M * 1e3, cause)
@@ -221,8 +234,8 @@ def _body_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
     return ""
 
 
-#: The outcomes of the unpose and move searches of the last garments bound, by content (`_content_key`) and name:
-#: (fits unposed, the move's text or None).
+#: The outcomes of the unpose and move searches of the last garments bound, by content (`_content_key`), the body's
+#: name (which the move's text speaks of) and the garment's: (fits unposed, `_shift_fix`'s (refusal, hint)).
 _SEARCHED: dict = {}
 
 
@@ -256,13 +269,16 @@ def _fits_unposed(garment: Garment, body: Body, mesh: TriangleMesh, inside: floa
 
 
 def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
-               closer_than: tuple[float, float] | None = None) -> str | None:
+               closer_than: tuple[float, float] | None = None, name: str = "GARMENT") -> str | None:
     """The first of `FRAME_FIXES` that puts the garment on the body (median distance at most
-    FRAME_FIX_MEDIAN_M, at most REST_INSIDE_WARN_SHARE of it inside), as "it fits when ...", or None.
+    FRAME_FIX_MEDIAN_M, at most REST_INSIDE_WARN_SHARE of it inside, or, without `closer_than`, its `_fit_score`
+    FRAME_FIX_SCORE_GAIN times smaller), as "it fits when ..." (`_fix_text`), or None.
     closer_than: (median, closest 5 %) distances of the garment as it is (metres): the fix must also make both
     FRAME_FIX_GAIN times smaller or more."""
     v = np.asarray(vertices, dtype=np.float64)
     soles = -float(body.v_template[:, 1].min())  # how far the body's soles are below its origin
+    base = _fit_score(mesh.signed_distance(v, exact=False)) if closer_than is None else None
+    scored = []  # (score, text) of the fixes that put it near the body, but partly inside
     for what, rotation, on_floor in FRAME_FIXES:
         if on_floor and soles <= 0.0:
             continue  # a body standing on y = 0 itself: no floor to take off
@@ -271,11 +287,38 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
         moved[:, 1] -= drop
         signed = mesh.signed_distance(moved, exact=False)
         median, near = np.percentile(np.abs(signed), [50, 5])
-        if (median <= FRAME_FIX_MEDIAN_M and np.mean(signed < -REST_INSIDE_DEPTH_M) <= REST_INSIDE_WARN_SHARE
-                and (closer_than is None or (median * FRAME_FIX_GAIN <= closer_than[0]
-                                             and near * FRAME_FIX_GAIN <= closer_than[1]))):
-            return "it fits when " + what.format(drop=drop)
-    return None
+        inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
+        text = _fix_text(what.format(drop=drop), drop if np.allclose(rotation, np.eye(3)) else None, inside, name)
+        fits = median <= FRAME_FIX_MEDIAN_M and inside <= REST_INSIDE_WARN_SHARE
+        if closer_than is not None:
+            fits = fits and median * FRAME_FIX_GAIN <= closer_than[0] and near * FRAME_FIX_GAIN <= closer_than[1]
+        elif not fits and median <= FRAME_FIX_MEDIAN_M:
+            scored.append((_fit_score(signed), text))
+        if fits:
+            return text
+    # None fits outright (in order): the one that fits best, FRAME_FIX_SCORE_GAIN times better than as it is, unless
+    # another fits nearly as well (within FRAME_FIX_TIE): then neither is told.
+    scored.sort(key=lambda t: t[0])
+    if (not scored or base is None or scored[0][0] * FRAME_FIX_SCORE_GAIN > base
+            or (len(scored) > 1 and scored[1][0] <= FRAME_FIX_TIE * scored[0][0])):
+        return None
+    return scored[0][1]
+
+
+def _fix_text(what: str, drop: float | None, inside: float, name: str) -> str:
+    """ "it fits when <what>", naming the `garment unpose --move` that makes a drop (`drop` metres; None for a
+    turn), and how much of the garment the fix still leaves inside the body (share `inside`) where that is over
+    REST_INSIDE_WARN_SHARE."""
+    move = f": `garment unpose {name} --pose tpose --move 0,-{drop:.2f},0`" if drop is not None else ""
+    still = (f" ({inside:.0%} of it then still inside the body: authored on another body shape too? pass it with "
+             f"--body)" if inside > REST_INSIDE_WARN_SHARE else "")
+    return f"it fits when {what}{still}{move}"
+
+
+def _fit_score(signed: np.ndarray) -> float:
+    """How badly points with these signed distances to the body's rest surface (metres, negative inside) sit on it:
+    their mean distance plus 5 times their mean depth inside, metres."""
+    return float(np.abs(signed).mean() + 5.0 * np.clip(-signed, 0.0, None).mean())
 
 
 def _shift_score(mesh: TriangleMesh, points: np.ndarray) -> tuple[float, float, float]:
@@ -283,14 +326,16 @@ def _shift_score(mesh: TriangleMesh, points: np.ndarray) -> tuple[float, float, 
     their mean depth inside it, in metres; the share of them more than SHIFT_DEEP_M inside; the share more than
     REST_INSIDE_DEPTH_M inside)."""
     signed = mesh.signed_distance(points, exact=False)
-    return (float(np.abs(signed).mean() + 5.0 * np.clip(-signed, 0.0, None).mean()),
-            float(np.mean(signed < -SHIFT_DEEP_M)), float(np.mean(signed < -REST_INSIDE_DEPTH_M)))
+    return (_fit_score(signed), float(np.mean(signed < -SHIFT_DEEP_M)), float(np.mean(signed < -REST_INSIDE_DEPTH_M)))
 
 
-def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) -> str | None:
-    """"it fits better when moved up by ..." (naming `garment unpose` for the file `name`) for a garment that moving
-    straight up or down (`SHIFT_RANGE_M`), then sideways and forwards or back (`SHIFT_SIDE_RANGE_M`), puts on the
-    body (see SHIFT_DEEP_SHARE), else None. Along each axis in turn, twice over (a move sideways first taken for
+def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) -> tuple[str | None, str | None]:
+    """(refusal, hint): "it fits better when moved up by ..." (naming `garment unpose` for the file `name`) for a
+    garment that moving straight up or down (`SHIFT_RANGE_M`), then sideways and forwards or back
+    (`SHIFT_SIDE_RANGE_M`), puts on the body (see SHIFT_DEEP_SHARE), else None; hint: for a nearer move that makes
+    the score SHIFT_GAIN times smaller and halves the share deep inside, "it fits better moved ...", for the
+    warning of a garment partly inside (NeuralClothSim's SMPL t-shirt: 3 cm up and 4 cm forwards, 17 % deep inside
+    to 1.7 %), else None. Along each axis in turn, twice over (a move sideways first taken for
     one up or down is undone in the second round): 2 cm steps for the least `_shift_score`, then whole
     centimetres within 3 cm of it (the move as it is told) for the least share inside (to 0.5 %; a tight collar
     1.5 cm too low is inside), then the least score; that axis is left unmoved unless the move makes the score
@@ -300,7 +345,7 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) 
         v = v[np.linspace(0, len(v) - 1, SHIFT_SAMPLE).round().astype(np.int64)]
     score, deep, _ = _shift_score(mesh, v)
     if deep <= SHIFT_DEEP_SHARE:
-        return None
+        return None, None
     move = np.zeros(3)
     for axis, (low, high) in 2 * ((1, SHIFT_RANGE_M), (0, SHIFT_SIDE_RANGE_M), (2, SHIFT_SIDE_RANGE_M)):
         def tried(steps: np.ndarray) -> list[tuple[float, float, float, float]]:
@@ -323,16 +368,35 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) 
     best = _shift_score(mesh, v + move)
     if best[1] > SHIFT_DEEP_SHARE:  # the axes' move leaves it inside: moved several ways at once?
         move, best = _shift_climb(mesh, v, move, best)
-    if (not _shift_reaches(move) or best[0] * SHIFT_GAIN > score or best[1] > 1.25 * deep + 0.01):
-        return None
-    words = [f"{'up' if move[1] > 0 else 'down'} by {abs(move[1]):.2f} m" if move[1] else "",
-             f"{abs(move[0]):.2f} m to the body's {'left' if move[0] > 0 else 'right'}" if move[0] else "",
-             f"{abs(move[2]):.2f} m {'forwards' if move[2] > 0 else 'back'}" if move[2] else ""]
-    smpl = ("; garments authored on SMPL's rest body sit 0.24-0.27 m low on this one"
-            if body.name == "default" and move[1] > 0 and np.abs(move[[0, 2]]).max() <= SMPL_ASIDE_M + 1e-9 else "")
-    return (f"it fits better when moved {' and '.join(w for w in words if w)} (authored on a body whose origin "
-            f"stands elsewhere{smpl}): pass the body it was authored on with --body, or move it: `garment unpose "
-            f"{name} --pose tpose --move {','.join(f'{m + 0.0:.2f}'.rstrip('0').rstrip('.') for m in move)}`")
+    smpl = body.name == "default" and _smpl_like(move)
+    words = " and ".join(w for w in (
+        f"{'up' if move[1] > 0 else 'down'} by {abs(move[1]):.2f} m" if move[1] else "",
+        f"{abs(move[0]):.2f} m to the body's {'left' if move[0] > 0 else 'right'}" if move[0] else "",
+        f"{abs(move[2]):.2f} m {'forwards' if move[2] > 0 else 'back'}" if move[2] else "") if w)
+    command = (f"`garment unpose {name} --pose tpose --move "
+               f"{','.join(f'{m + 0.0:.2f}'.rstrip('0').rstrip('.') for m in move)}`")
+    if move.any() and not _shift_reaches(move) and best[0] * SHIFT_GAIN <= score and best[1] <= deep / 2:
+        return None, f"it fits better moved {words}: {command}"  # a nearer move: a hint, not a refusal
+    if (not _shift_reaches(move) or _at_edge(move) or best[0] * (SHIFT_AXIS_GAIN if smpl else SHIFT_GAIN) > score
+            or best[1] > 1.25 * deep + 0.01):
+        return None, None
+    smpl = "; garments authored on SMPL's rest body sit 0.24-0.27 m low on this one" if smpl else ""
+    return (f"it fits better when moved {words} (authored on a body whose origin stands elsewhere{smpl}): pass the "
+            f"body it was authored on with --body, or move it: {command}"), None
+
+
+def _smpl_like(move: np.ndarray) -> bool:
+    """Whether `move` is SMPL's rest body's offset on the embedded one: up by SMPL_UP_M, at most SMPL_ASIDE_M aside
+    or forwards."""
+    return bool(SMPL_UP_M[0] - 1e-9 <= move[1] <= SMPL_UP_M[1] + 1e-9
+                and np.abs(move[[0, 2]]).max() <= SMPL_ASIDE_M + 1e-9)
+
+
+def _at_edge(move: np.ndarray) -> bool:
+    """Whether `move` reaches the end of the searched range along some axis: the best move may lie beyond it (a
+    skirt authored on a body 0.66 m tall: told 0.45 m up, it then sat on the head)."""
+    reach = np.array([SHIFT_SIDE_RANGE_M[1], SHIFT_RANGE_M[1], SHIFT_SIDE_RANGE_M[1]])
+    return bool(np.any(np.abs(move) >= reach - 0.005))
 
 
 def _shift_reaches(move: np.ndarray) -> bool:
@@ -370,9 +434,10 @@ def _shift_climb(mesh: TriangleMesh, v: np.ndarray, move: np.ndarray, start: tup
     return min([(best, climbed), *around(climbed, 0.01)], key=lambda t: (round(t[0][2] * 200), t[0][0]))[::-1]
 
 
-def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh) -> str | None:
+def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str = "GARMENT") -> str | None:
     """The drop fix of `FRAME_FIXES` ("it fits when moved down by ...") for a garment authored on a body standing
-    at y = 0 (see ABOVE_HEAD_M), else None."""
+    at y = 0 (see ABOVE_HEAD_M), else None: dropped, at most REST_INSIDE_WARN_SHARE of it inside, or its
+    `_fit_score` FRAME_FIX_SCORE_GAIN times smaller (a garment authored on another body standing on the floor)."""
     y = garment.vertices[:, 1].astype(np.float64)
     head = float(body.v_template[:, 1].max())
     soles = -float(body.v_template[:, 1].min())
@@ -380,9 +445,12 @@ def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh) -> str | 
             or y.max() - soles > head + ABOVE_HEAD_M):
         return None
     dropped = garment.vertices.astype(np.float64) - [0.0, soles, 0.0]
-    if np.mean(mesh.signed_distance(dropped, exact=False) < -REST_INSIDE_DEPTH_M) > REST_INSIDE_WARN_SHARE:
+    signed = mesh.signed_distance(dropped, exact=False)
+    inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
+    if (inside > REST_INSIDE_WARN_SHARE and _fit_score(signed) * FRAME_FIX_SCORE_GAIN
+            > _fit_score(mesh.signed_distance(garment.vertices.astype(np.float64), exact=False))):
         return None
-    return "it fits when " + _DROP.format(drop=soles)
+    return _fix_text(_DROP.format(drop=soles), soles, inside, name)
 
 
 def oriented_outward(garment: Garment, body: Body, source: str | None = None) -> Garment:

@@ -144,8 +144,12 @@ def test_garment_in_another_frame_is_refused_naming_the_fix(trousers_on_body, fi
     moved = Garment(v.astype(np.float32), g.faces, name="moved.obj")
     with pytest.raises(InputError, match="moved.obj") as err:
         bind_garment(moved, body)
-    assert str(err.value).endswith("it fits when " + what.format(drop=drop))
+    text = "it fits when " + what.format(drop=drop)
+    if np.allclose(rotation, np.eye(3)):  # a drop alone: the command that makes it
+        text += f": `garment unpose moved.obj --pose tpose --move 0,-{drop:.2f},0`"
+    assert str(err.value).endswith(text)
     assert ("0.90 m" in str(err.value)) == on_floor  # the default body's soles are 0.90 m below its origin
+    assert "still inside the body" not in str(err.value)  # the trousers fit this body
 
 
 @pytest.mark.parametrize("name", ["skirt", "dress"])
@@ -166,7 +170,8 @@ def test_skirt_authored_on_a_body_standing_on_the_floor_is_refused(trousers_on_b
     with pytest.raises(InputError, match="floor.obj") as err:
         bind_garment(lifted, body)
     assert "resting on it), got a median distance of 0.16 m" in str(err.value)
-    assert str(err.value).endswith("; it fits when moved down by 0.90 m (authored on a body standing at y = 0)")
+    assert str(err.value).endswith("; it fits when moved down by 0.90 m (authored on a body standing at y = 0): "
+                                   "`garment unpose floor.obj --pose tpose --move 0,-0.90,0`")
     bind_garment(g, body)
     rest = _RestBody(body)
     lv = _levels(rest)
