@@ -86,6 +86,9 @@ SHIFT_AXIS_GAIN = 1.2
 #: SHIFT_GAIN): SMPL's garments are the commonest real ones, and tight trousers authored on SMPL's thinner legs stay
 #: inside this body wherever they are put (ISP's trousers moved up 0.25 m: 1.25 times smaller, 9 % still inside).
 SMPL_UP_M = (0.20, 0.30)
+#: Unless a move further up fits better (the example t-shirt moved 0.6 m down fits 0.21 m up better than where it
+#: is, and far better 0.6 m up).
+SMPL_BEYOND_M = (0.35, 0.45, 0.55, 0.65)
 SMPL_ASIDE_M = 0.03
 #: At most this many steps of `_shift_climb` (26 moves each) after the axes' search.
 SHIFT_CLIMB_STEPS = 40
@@ -123,9 +126,12 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
     return GarmentBinding(weights=weights, shapedirs=shapedirs, body_distance=hit.distance.astype(np.float32))
 
 
-_TURNS = (("rotated -90 degrees about X (Z-up to Y-up)", Y_UP_TO_Z_UP_MATRIX.T),
-          ("rotated +90 degrees about X", Y_UP_TO_Z_UP_MATRIX),
-          ("turned 180 degrees about Y (it faces backwards)", ((-1, 0, 0), (0, 1, 0), (0, 0, -1))))
+#: The turns `garment unpose --turn` makes, by name: the rotations of `_TURNS`.
+TURNS = {"z-up": Y_UP_TO_Z_UP_MATRIX.T, "x+90": Y_UP_TO_Z_UP_MATRIX,
+         "backwards": np.array([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])}
+_TURNS = (("rotated -90 degrees about X (Z-up to Y-up)", TURNS["z-up"]),
+          ("rotated +90 degrees about X", TURNS["x+90"]),
+          ("turned 180 degrees about Y (it faces backwards)", TURNS["backwards"]))
 _DROP = "moved down by {drop:.2f} m (authored on a body standing at y = 0)"
 #: Frame mix-ups a garment file can come with, tried in this order (one change before two, so that a symmetric
 #: skirt lifted by the floor is told to move down, not to turn and move down): (the fix, as told to the user;
@@ -288,7 +294,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
         signed = mesh.signed_distance(moved, exact=False)
         median, near = np.percentile(np.abs(signed), [50, 5])
         inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
-        text = _fix_text(what.format(drop=drop), drop if np.allclose(rotation, np.eye(3)) else None, inside, name)
+        text = _fix_text(what.format(drop=drop), rotation, drop, inside, name)
         fits = median <= FRAME_FIX_MEDIAN_M and inside <= REST_INSIDE_WARN_SHARE
         if closer_than is not None:
             fits = fits and median * FRAME_FIX_GAIN <= closer_than[0] and near * FRAME_FIX_GAIN <= closer_than[1]
@@ -305,14 +311,15 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     return scored[0][1]
 
 
-def _fix_text(what: str, drop: float | None, inside: float, name: str) -> str:
-    """ "it fits when <what>", naming the `garment unpose --move` that makes a drop (`drop` metres; None for a
-    turn), and how much of the garment the fix still leaves inside the body (share `inside`) where that is over
-    REST_INSIDE_WARN_SHARE."""
-    move = f": `garment unpose {name} --pose tpose --move 0,-{drop:.2f},0`" if drop is not None else ""
+def _fix_text(what: str, rotation, drop: float, inside: float, name: str) -> str:
+    """ "it fits when <what>", naming the `garment unpose` that makes the fix (`rotation`: one of `TURNS` or the
+    identity, then a drop of `drop` metres), and how much of the garment the fix still leaves inside the body
+    (share `inside`) where that is over REST_INSIDE_WARN_SHARE."""
+    turn = next((f" --turn {t}" for t, r in TURNS.items() if np.allclose(r, rotation)), "")
+    move = f" --move 0,-{drop:.2f},0" if drop else ""
     still = (f" ({inside:.0%} of it then still inside the body: authored on another body shape too? pass it with "
              f"--body)" if inside > REST_INSIDE_WARN_SHARE else "")
-    return f"it fits when {what}{still}{move}"
+    return f"it fits when {what}{still}: `garment unpose {name} --pose tpose{turn}{move}`"
 
 
 def _fit_score(signed: np.ndarray) -> float:
@@ -368,7 +375,8 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) 
     best = _shift_score(mesh, v + move)
     if best[1] > SHIFT_DEEP_SHARE:  # the axes' move leaves it inside: moved several ways at once?
         move, best = _shift_climb(mesh, v, move, best)
-    smpl = body.name == "default" and _smpl_like(move)
+    smpl = body.name == "default" and _smpl_like(move) and not any(
+        _shift_score(mesh, v + [move[0], up, move[2]])[0] < best[0] for up in SMPL_BEYOND_M)
     words = " and ".join(w for w in (
         f"{'up' if move[1] > 0 else 'down'} by {abs(move[1]):.2f} m" if move[1] else "",
         f"{abs(move[0]):.2f} m to the body's {'left' if move[0] > 0 else 'right'}" if move[0] else "",
@@ -450,7 +458,7 @@ def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str
     if (inside > REST_INSIDE_WARN_SHARE and _fit_score(signed) * FRAME_FIX_SCORE_GAIN
             > _fit_score(mesh.signed_distance(garment.vertices.astype(np.float64), exact=False))):
         return None
-    return _fix_text(_DROP.format(drop=soles), soles, inside, name)
+    return _fix_text(_DROP.format(drop=soles), np.eye(3), soles, inside, name)
 
 
 def oriented_outward(garment: Garment, body: Body, source: str | None = None) -> Garment:

@@ -1,4 +1,4 @@
-"""`garment unpose GARMENT --pose tpose|apose|POSE.npz [--betas B0,...] [--move DX,DY,DZ]`: move a garment
+"""`garment unpose GARMENT --pose tpose|apose|POSE.npz [--betas B0,...] [--turn T] [--move DX,DY,DZ]`: move a garment
 authored on a posed, shaped or otherwise placed body to the rest pose and mean shape."""
 
 from __future__ import annotations
@@ -90,6 +90,9 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
               help="The body shape the garment was authored on (coefficients of the body's own basis, missing ones "
                    "0), taken off as well: the result fits the mean shape that bake shapes to each motion's "
                    "betas [default: a POSE.npz's betas, else the mean shape].")
+@click.option("--turn", type=click.Choice(["z-up", "x+90", "backwards"]), default=None,
+              help="Turn the garment first, as bake names it for a garment written in another frame: z-up (-90 "
+                   "degrees about X: authored Z-up), x+90 (+90 degrees about X), backwards (180 degrees about Y).")
 @click.option("--move", "move", default=None, callback=_check_move, metavar="DX,DY,DZ",
               help="Metres to move the garment by first, in the body's frame (Y up): for a garment authored on a "
                    "body whose origin stands elsewhere (bake names the move).")
@@ -102,7 +105,8 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
                    "UsdPreviewSurface) [default: <garment>_rest.obj beside GARMENT].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 @input_errors_as_click
-def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite, betas_text=None, move=None):
+def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite, betas_text=None, move=None,
+           turn=None):
     """Move GARMENT (OBJ or USD), authored on the body in another pose, shape or place, to the body's rest pose
     (T-pose) and mean shape.
 
@@ -130,9 +134,9 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     if pose_spec == "tpose":
         if frame is not None:
             raise click.UsageError("--frame applies to a POSE.npz file only (got --pose tpose)")
-        if betas_text is None and move is None:
-            raise click.UsageError("--pose tpose takes off the body shape and place only: give them with --betas "
-                                   "B0,B1,... or --move DX,DY,DZ")
+        if betas_text is None and move is None and turn is None:
+            raise click.UsageError("--pose tpose takes off the body shape, place and frame only: give them with "
+                                   "--betas B0,B1,..., --move DX,DY,DZ or --turn")
         pose = np.zeros((body.n_joints, 3), dtype=np.float32)
         what = "the rest pose"
     elif pose_spec == "apose":
@@ -157,13 +161,18 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         betas = betas_text
         shown = ",".join(f"{b:g}" for b in betas[:10]) + (f",... ({len(betas)} betas)" if len(betas) > 10 else "")
         what += f", shape {shown}"
-    moved_by = "" if move is None else "moved by " + ",".join(f"{m:g}" for m in move) + " m"
-    if move is not None:
+    moved_by = ", ".join(([f"turned {turn}"] if turn else [])
+                         + ([] if move is None else ["moved by " + ",".join(f"{m:g}" for m in move) + " m"]))
+    if moved_by:
         what += ", " + moved_by
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     garment = read_garment(source)
     authored = garment.vertices
+    if turn is not None:
+        from core.skinning import TURNS
+
+        garment = replace(garment, vertices=(garment.vertices.astype(np.float64) @ TURNS[turn].T).astype(np.float32))
     if move is not None:
         garment = replace(garment, vertices=garment.vertices + move)
     rest, report = unpose_garment(garment, body, pose, betas, source=str(source))

@@ -199,10 +199,41 @@ def test_a_garment_authored_lower_is_refused_by_bake_and_moved_back_by_the_comma
     assert not [rec for rec in caplog.records if rec.levelno >= logging.WARNING], caplog.text
 
 
+@pytest.mark.parametrize("turn", ["z-up", "x+90", "backwards"])
+def test_a_garment_in_another_frame_is_turned_back_by_the_command_bake_names(tmp_path, turn):
+    """The example trousers written Z-up, turned the other way about X, or facing backwards (and lifted onto a
+    floor, for the Z-up ones): bake refuses them naming `garment unpose ... --turn T [--move ...]`; that command,
+    run as named, writes the trousers back (within the drop's rounding) and bake takes them."""
+    import re
+
+    from core.skinning import TURNS
+
+    assert set(TURNS) == {"z-up", "x+90", "backwards"}  # --turn's choices
+    g = read_obj(EXAMPLES / "trousers.obj")
+    lift = 0.9 if turn == "z-up" else 0.0
+    off = tmp_path / "off.obj"
+    write_obj(off, ((g.vertices.astype(np.float64) + [0.0, lift, 0.0]) @ TURNS[turn]).astype(np.float32), g.faces,
+              g.uvs, g.face_uvs)
+    r = invoke(["bake", off, EXAMPLES / "walk.npz", "--frames", "0:2", "--out", tmp_path / "bake"])
+    assert r.exit_code != 0 and "Traceback" not in r.output and not (tmp_path / "bake").exists()
+    command = re.search(r"`garment unpose (\S+) --pose tpose --turn (\S+)( --move \S+)?`$", r.output.strip())
+    assert command and command[1] == str(off) and command[2] == turn, r.output
+    assert bool(command[3]) == bool(lift)
+    r = invoke(["unpose", off, "--pose", "tpose", "--turn", turn, *(command[3].split() if command[3] else [])])
+    assert r.exit_code == 0, r.output
+    assert f"turned {turn}" in r.output
+    back = read_obj(tmp_path / "off_rest.obj")
+    assert np.abs(back.vertices - g.vertices).max() < 0.0051
+    r = invoke(["bake", tmp_path / "off_rest.obj", EXAMPLES / "walk.npz", "--frames", "0:2", "--out",
+                tmp_path / "bake", "--method", "lbs"])
+    assert r.exit_code == 0, r.output
+
+
 @pytest.mark.parametrize("args, needle", [
     (["--pose", "bpose"], "expected 'tpose', 'apose' or an AMASS-style .npz file, got 'bpose'"),
-    (["--pose", "tpose"], "--pose tpose takes off the body shape and place only: give them with --betas B0,B1,... "
-                          "or --move DX,DY,DZ"),
+    (["--pose", "tpose"], "--pose tpose takes off the body shape, place and frame only: give them with --betas "
+                          "B0,B1,..., --move DX,DY,DZ or --turn"),
+    (["--pose", "tpose", "--turn", "sideways"], "Invalid value for '--turn': 'sideways' is not one of"),
     (["--pose", "tpose", "--move", "0,0.2"], "--move: expected 3 comma-separated numbers, got 2 in '0,0.2'"),
     (["--pose", "tpose", "--move", "0,up,0"], "--move: expected 3 comma-separated numbers, got '0,up,0'"),
     (["--pose", "tpose", "--move", "0,inf,0"], "--move: expected finite numbers, got '0,inf,0'"),
