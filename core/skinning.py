@@ -51,6 +51,9 @@ FRAME_FIX_SUSPECT_MEDIAN_M = 0.06
 #: puts on this body without some of it inside (real garments: trousers and t-shirts authored on bodies standing
 #: on the floor, 3.4-12 times; a Z-up outfit authored on SMPL, 2.8 times; the fix's text says how much is inside).
 FRAME_FIX_SCORE_GAIN = 2.0
+#: A garment far from the body that spans more than this (metres) is said to be in other units (`core.garment`
+#: refuses one over 10 units, naming the units that fit; a Maya export of 5.95 units fitted none).
+GARMENT_MAX_SPAN_M = 3.0
 #: Two such fixes whose scores are within this factor leave the choice open: neither is named (a t-shirt of
 #: GarmentTransfer's, turned about X either way: 1.2).
 FRAME_FIX_TIE = 1.25
@@ -195,6 +198,10 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
                          f"body's head and none of it below y = 0 (the floor); {lift}")
     fix = fix or lift
     hint = f"; {fix}" if fix else ""
+    span = float(np.ptp(garment.vertices[np.unique(garment.faces)], axis=0).max())
+    if far and not fix and span > GARMENT_MAX_SPAN_M:  # under the unit check's 10 units, over any garment
+        hint = (f"; it spans {span:.2f} m, more than a garment does (under {GARMENT_MAX_SPAN_M:g} m): in other "
+                f"units? scale it to metres")
     if far or (fix and inside <= REST_INSIDE_FRAME_SHARE):
         raise InputError(f"garment mesh '{name}': {expected}, resting on it), got a median distance of {median:.2f} m "
                          f"and its closest 5 % {near:.2f} m or more from the body{hint}")

@@ -369,7 +369,14 @@ def test_garment_partly_inside_without_a_fix_warns_and_far_off_is_refused_withou
     far = Garment(g.vertices + np.float32([2.0, 0.0, 0.0]), g.faces, name="far.obj")
     with pytest.raises(InputError, match="far.obj.*median distance") as err:
         bind_garment(far, body)
-    assert "it fits when" not in str(err.value)
+    assert "it fits when" not in str(err.value) and "it spans" not in str(err.value)
+    # In some unit that makes it 3-10 units across (a Maya export's 5.95: no unit the mesh check knows fits it).
+    span = float(np.ptp(g.vertices, axis=0).max())
+    big = Garment(g.vertices * np.float32(4.0 / span), g.faces, name="big.obj")
+    with pytest.raises(InputError, match="big.obj.*median distance") as err:
+        bind_garment(big, body)
+    assert str(err.value).endswith("; it spans 4.00 m, more than a garment does (under 3 m): in other units? scale "
+                                   "it to metres")
 
 
 def test_garment_mostly_far_from_the_body_but_resting_on_it_binds(trousers_on_body):
