@@ -73,8 +73,8 @@ FLOOR_SLACK_M = 0.01
 #: higher). It is refused naming the move when the move makes its `_shift_score` SHIFT_GAIN times smaller or more
 #: and leaves no more than 1.25 times as much of it that deep, plus 1 % (SNUG's: 1.65-5.6 times; the examples moved
 #: by 0.15-0.30 m: 2.1-5.3 times, but for the loose dress, 1.1-1.4: warned as inside, as before; the example
-#: t-shirt, trousers and dress generated on 12 other body shapes: 1 of 36
-#: refused, moved by 0.45 m, which the error also names as another body: benchmarks/garment_placement.py).
+#: t-shirt, trousers and dress generated on 12 other body shapes: none refused, the move at the search's end not
+#: named: benchmarks/garment_placement.py).
 #: The range starts above the height differences of body shapes and ends below the floor's drop (`FRAME_FIXES`).
 SHIFT_DEEP_M = 0.01
 SHIFT_DEEP_SHARE = 0.01
