@@ -45,6 +45,7 @@ FRAME_FIX_MEDIAN_M = 0.10
 #: (the example skirt and dress: 3.1 and 4.9 times; the examples, generated garments and loose tube dresses with
 #: any fix: 1.3 times at most).
 FRAME_FIX_SUSPECT_MEDIAN_M = 0.06
+FRAME_FIX_GAIN = 2.0
 #: A fix also puts a garment on the body, far from it or more than REST_INSIDE_FRAME_SHARE inside, when it makes
 #: its `_fit_score` this many times smaller, its median distance at most FRAME_FIX_MEDIAN_M, however much of it is
 #: then still inside: a garment authored on another body (SMPL's, a mannequin's) in another frame, which no frame
@@ -57,7 +58,6 @@ GARMENT_MAX_SPAN_M = 3.0
 #: Two such fixes whose scores are within this factor leave the choice open: neither is named (a t-shirt of
 #: GarmentTransfer's, turned about X either way: 1.2).
 FRAME_FIX_TIE = 1.25
-FRAME_FIX_GAIN = 2.0
 #: A garment whose top lies more than ABOVE_HEAD_M above the rest body's head with none of it more than
 #: FLOOR_SLACK_M below y = 0, that the drop to the body's soles puts on the body (at most REST_INSIDE_WARN_SHARE
 #: inside, its top then no more than ABOVE_HEAD_M above the head), was authored on a body standing at y = 0,
