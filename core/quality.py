@@ -195,7 +195,6 @@ def choose(calibration: Calibration, features: dict, budget_mm: float, extra=())
             "outside_calibration": outside}
 
 
-
 def describe_outside(o: dict) -> str:
     """One feature of `Calibration.outside` in words: "speed 0.048 m/s, under the smallest calibrated, 0.69"."""
     _, _, name, scale, unit = next(f for f in FEATURES if f[0] == o["feature"])

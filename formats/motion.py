@@ -61,11 +61,11 @@ _SPLIT_KEYS = ("root_orient", "pose_body", "pose_jaw", "pose_eye", "pose_hand")
 _SMPLX_ARG_EXTRAS = (("jaw_pose", 1), ("leye_pose", 1), ("reye_pose", 1), ("left_hand_pose", 15),
                      ("right_hand_pose", 15))
 _SMPLX_ARG_KEYS = ("global_orient", "body_pose", *(key for key, _ in _SMPLX_ARG_EXTRAS))
-#: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
-#: needs allow_pickle, a face's expression) are left unread. `transl` is the smplx arguments' `trans`.
 #: AIST++'s keys (its motions, pickles, saved as .npz with the same names): SMPL poses, and a translation in the
 #: units of the body scaled by `smpl_scaling` (about 95-100: centimetres of a body scaled to metres).
 _AIST_KEYS = ("smpl_poses", "smpl_trans", "smpl_scaling")
+#: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
+#: needs allow_pickle, a face's expression) are left unread. `transl` is the smplx arguments' `trans`.
 _READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender",
               *_AIST_KEYS)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
