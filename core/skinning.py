@@ -58,6 +58,8 @@ GARMENT_MAX_SPAN_M = 3.0
 #: Two such fixes whose scores are within this factor leave the choice open: neither is named (a t-shirt of
 #: GarmentTransfer's, turned about X either way: 1.2).
 FRAME_FIX_TIE = 1.25
+#: After such a fix the garment is climbed (`_shift_climb`) at most this far on each axis (metres: x, y, z).
+FRAME_FIX_CLIMB_M = np.array([0.1, 0.35, 0.1])
 #: A garment whose top lies more than ABOVE_HEAD_M above the rest body's head with none of it more than
 #: FLOOR_SLACK_M below y = 0, that the drop to the body's soles puts on the body (at most REST_INSIDE_WARN_SHARE
 #: inside, its top then no more than ABOVE_HEAD_M above the head), was authored on a body standing at y = 0,
@@ -301,29 +303,42 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
         signed = mesh.signed_distance(moved, exact=False)
         median, near = np.percentile(np.abs(signed), [50, 5])
         inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
-        text = _fix_text(what.format(drop=drop), rotation, drop, inside, name)
         fits = median <= FRAME_FIX_MEDIAN_M and inside <= REST_INSIDE_WARN_SHARE
         if closer_than is not None:
             fits = fits and median * FRAME_FIX_GAIN <= closer_than[0] and near * FRAME_FIX_GAIN <= closer_than[1]
         elif not fits and median <= FRAME_FIX_MEDIAN_M:
-            scored.append((_fit_score(signed), text))
+            scored.append((_fit_score(signed), what.format(drop=drop), rotation, drop, moved))
         if fits:
-            return text
+            return _fix_text(what.format(drop=drop), rotation, np.array([0.0, -drop, 0.0]), inside, name)
     # None fits outright (in order): the one that fits best, FRAME_FIX_SCORE_GAIN times better than as it is, unless
-    # another fits nearly as well (within FRAME_FIX_TIE): then neither is told.
+    # another fits nearly as well (within FRAME_FIX_TIE): then neither is told. Authored on another body, it may sit
+    # higher or lower on this one (a mannequin's shirt, dropped to this body's soles, reached the chin; a Z-up
+    # outfit of SMPL's, turned, sat 0.25 m low): climbed from there (`_shift_climb`), the move is told too.
     scored.sort(key=lambda t: t[0])
     if (not scored or base is None or scored[0][0] * FRAME_FIX_SCORE_GAIN > base
             or (len(scored) > 1 and scored[1][0] <= FRAME_FIX_TIE * scored[0][0])):
         return None
-    return scored[0][1]
+    _, what, rotation, drop, moved = scored[0]
+    sample = moved[np.linspace(0, len(moved) - 1, min(len(moved), SHIFT_SAMPLE)).round().astype(np.int64)]
+    start = _shift_score(mesh, sample)
+    ups = np.round(np.arange(-FRAME_FIX_CLIMB_M[1], FRAME_FIX_CLIMB_M[1] + 1e-9, 0.02), 2)
+    up = min(ups, key=lambda dy: _shift_score(mesh, sample + [0.0, dy, 0.0])[0])  # first up or down, 2 cm steps
+    shift, best = _shift_climb(mesh, sample, np.array([0.0, up, 0.0]),
+                               _shift_score(mesh, sample + [0.0, up, 0.0]), reach=FRAME_FIX_CLIMB_M)
+    if best[0] * SHIFT_AXIS_GAIN > start[0]:
+        shift = np.zeros(3)  # no better than the fix alone
+    if shift.any():
+        what += f", then moved {_move_words(shift)}"
+    inside = float(np.mean(mesh.signed_distance(moved + shift, exact=False) < -REST_INSIDE_DEPTH_M))
+    return _fix_text(what, rotation, shift - [0.0, drop, 0.0], inside, name)
 
 
-def _fix_text(what: str, rotation, drop: float, inside: float, name: str) -> str:
+def _fix_text(what: str, rotation, move: np.ndarray, inside: float, name: str) -> str:
     """ "it fits when <what>", naming the `garment unpose` that makes the fix (`rotation`: one of `TURNS` or the
-    identity, then a drop of `drop` metres), and how much of the garment the fix still leaves inside the body
-    (share `inside`) where that is over REST_INSIDE_WARN_SHARE."""
+    identity, then `move`, metres), and how much of the garment the fix still leaves inside the body (share
+    `inside`) where that is over REST_INSIDE_WARN_SHARE."""
     turn = next((f" --turn {t}" for t, r in TURNS.items() if np.allclose(r, rotation)), "")
-    move = f" --move 0,-{drop:.2f},0" if drop else ""
+    move = f" --move {_move_option(move)}" if np.any(np.round(move, 2)) else ""
     still = (f" ({inside:.0%} of it then still inside the body: authored on another body shape too? pass it with "
              f"--body)" if inside > REST_INSIDE_WARN_SHARE else "")
     return f"it fits when {what}{still}: `garment unpose {name} --pose tpose{turn}{move}`"
@@ -384,12 +399,8 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) 
         move, best = _shift_climb(mesh, v, move, best)
     smpl = body.name == "default" and _smpl_like(move) and not any(
         _shift_score(mesh, v + [move[0], up, move[2]])[0] < best[0] for up in SMPL_BEYOND_M)
-    words = " and ".join(w for w in (
-        f"{'up' if move[1] > 0 else 'down'} by {abs(move[1]):.2f} m" if move[1] else "",
-        f"{abs(move[0]):.2f} m to the body's {'left' if move[0] > 0 else 'right'}" if move[0] else "",
-        f"{abs(move[2]):.2f} m {'forwards' if move[2] > 0 else 'back'}" if move[2] else "") if w)
-    command = (f"`garment unpose {name} --pose tpose --move "
-               f"{','.join(f'{m + 0.0:.2f}'.rstrip('0').rstrip('.') for m in move)}`")
+    words = _move_words(move)
+    command = f"`garment unpose {name} --pose tpose --move {_move_option(move)}`"
     if move.any() and not _shift_reaches(move) and best[0] * SHIFT_GAIN <= score and best[1] <= deep / 2:
         return None, f"it fits better moved {words}: {command}"  # a nearer move: a hint, not a refusal
     if (not _shift_reaches(move) or _at_edge(move) or best[0] * (SHIFT_AXIS_GAIN if smpl else SHIFT_GAIN) > score
@@ -398,6 +409,19 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) 
     smpl = "; garments authored on SMPL's rest body sit 0.24-0.27 m low on this one" if smpl else ""
     return (f"it fits better when moved {words} (authored on a body whose origin stands elsewhere{smpl}): pass the "
             f"body it was authored on with --body, or move it: {command}"), None
+
+
+def _move_words(move: np.ndarray) -> str:
+    """`move` (metres, body frame) in words: "up by 0.25 m and 0.01 m forwards"."""
+    return " and ".join(w for w in (
+        f"{'up' if move[1] > 0 else 'down'} by {abs(move[1]):.2f} m" if move[1] else "",
+        f"{abs(move[0]):.2f} m to the body's {'left' if move[0] > 0 else 'right'}" if move[0] else "",
+        f"{abs(move[2]):.2f} m {'forwards' if move[2] > 0 else 'back'}" if move[2] else "") if w)
+
+
+def _move_option(move: np.ndarray) -> str:
+    """`move` as `garment unpose --move` takes it: "0,0.25,0.01"."""
+    return ",".join(f"{m + 0.0:.2f}".rstrip("0").rstrip(".") for m in np.round(move, 2))
 
 
 def _smpl_like(move: np.ndarray) -> bool:
@@ -421,15 +445,18 @@ def _shift_reaches(move: np.ndarray) -> bool:
     return bool(np.any(np.abs(move) >= reach - 1e-9))
 
 
-def _shift_climb(mesh: TriangleMesh, v: np.ndarray, move: np.ndarray, start: tuple) -> tuple[np.ndarray, tuple]:
+def _shift_climb(mesh: TriangleMesh, v: np.ndarray, move: np.ndarray, start: tuple,
+                 reach=None) -> tuple[np.ndarray, tuple]:
     """A garment moved several ways at once, for which no single axis, or only one, helped (the example t-shirt
     moved 0.2 m aside, 0.1 m down and 0.1 m forwards): from `move`, steps of 4, 2, then 1 cm along every
     combination of the three axes (26 neighbours) while one makes the `_shift_score` of `v` smaller, within the
     searched reach and SHIFT_CLIMB_STEPS steps. Taken where it makes the score SHIFT_AXIS_GAIN times smaller than
     `move` (so the axes' own choice stands for a garment moved along one of them), then the whole centimetre
     around it with the least share inside (to 0.5 %), then the least score, as the axes' search ends.
-    start: `_shift_score` at `move`. (move, `_shift_score` there)."""
-    reach = np.array([SHIFT_SIDE_RANGE_M[1], SHIFT_RANGE_M[1], SHIFT_SIDE_RANGE_M[1]])
+    start: `_shift_score` at `move`; reach: (3,) metres on each axis (default the searched ranges' ends). (move,
+    `_shift_score` there)."""
+    if reach is None:
+        reach = np.array([SHIFT_SIDE_RANGE_M[1], SHIFT_RANGE_M[1], SHIFT_SIDE_RANGE_M[1]])
     dirs = np.array([d for d in np.ndindex(3, 3, 3) if d != (1, 1, 1)], dtype=np.float64) - 1.0
 
     def around(m: np.ndarray, step: float) -> list[tuple[tuple, np.ndarray]]:
@@ -465,7 +492,7 @@ def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str
     if (inside > REST_INSIDE_WARN_SHARE and _fit_score(signed) * FRAME_FIX_SCORE_GAIN
             > _fit_score(mesh.signed_distance(garment.vertices.astype(np.float64), exact=False))):
         return None
-    return _fix_text(_DROP.format(drop=soles), np.eye(3), soles, inside, name)
+    return _fix_text(_DROP.format(drop=soles), np.eye(3), np.array([0.0, -soles, 0.0]), inside, name)
 
 
 def oriented_outward(garment: Garment, body: Body, source: str | None = None) -> Garment:
