@@ -631,8 +631,8 @@ def read_obj(path: str | os.PathLike) -> Garment:
     groups and components form one mesh; vertices at one position (the seams of panels exported
     separately) are welded into one (`WELD_DISTANCE_M`, warned). Degenerate faces (a repeated vertex or
     zero area), duplicate faces (same vertex set) and unused vertices are
-    removed with a logged warning. `uvs`/`face_uvs` are set only when every
-    face has texture indices. Normals, materials, groups and smoothing are ignored.
+    removed with a logged warning. `uvs`/`face_uvs` are set when any face has
+    texture indices (the faces without are given (0, 0), warned). Normals, groups and smoothing are ignored.
     Returns Garment(vertices (V, 3) float32 metres, faces (F, 3) int64,
     uvs (U, 2) float32 | None, face_uvs (F, 3) int64 | None, name = file stem).
     Raises InputError (one line naming the file) for bad input; see `parse_obj`
