@@ -99,6 +99,9 @@ SMPL_ASIDE_M = 0.03
 SHIFT_CLIMB_STEPS = 40
 #: At most this many of a garment's vertices (evenly through the file) are moved in that search (about 6 ms a move).
 SHIFT_SAMPLE = 2000
+#: The searched moves' nearest and furthest reach on each axis (x, y, z; metres).
+_SHIFT_NEAREST = np.array([SHIFT_SIDE_RANGE_M[0], SHIFT_RANGE_M[0], SHIFT_SIDE_RANGE_M[0]])
+_SHIFT_FURTHEST = np.array([SHIFT_SIDE_RANGE_M[1], SHIFT_RANGE_M[1], SHIFT_SIDE_RANGE_M[1]])
 
 
 @dataclass(frozen=True, eq=False)
@@ -293,7 +296,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     v = np.asarray(vertices, dtype=np.float64)
     soles = -float(body.v_template[:, 1].min())  # how far the body's soles are below its origin
     base = _fit_score(mesh.signed_distance(v, exact=False)) if closer_than is None else None
-    scored = []  # (score, text) of the fixes that put it near the body, but partly inside
+    scored = []  # (score, what, rotation, drop, moved vertices) of the fixes putting it near the body, partly inside
     for what, rotation, on_floor in FRAME_FIXES:
         if on_floor and soles <= 0.0:
             continue  # a body standing on y = 0 itself: no floor to take off
@@ -319,7 +322,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
             or (len(scored) > 1 and scored[1][0] <= FRAME_FIX_TIE * scored[0][0])):
         return None
     _, what, rotation, drop, moved = scored[0]
-    sample = moved[np.linspace(0, len(moved) - 1, min(len(moved), SHIFT_SAMPLE)).round().astype(np.int64)]
+    sample = _shift_sample(moved)
     start = _shift_score(mesh, sample)
     ups = np.round(np.arange(-FRAME_FIX_CLIMB_M[1], FRAME_FIX_CLIMB_M[1] + 1e-9, 0.02), 2)
     up = min(ups, key=lambda dy: _shift_score(mesh, sample + [0.0, dy, 0.0])[0])  # first up or down, 2 cm steps
@@ -369,9 +372,7 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) 
     centimetres within 3 cm of it (the move as it is told) for the least share inside (to 0.5 %; a tight collar
     1.5 cm too low is inside), then the least score; that axis is left unmoved unless the move makes the score
     SHIFT_AXIS_GAIN times smaller than unmoved."""
-    v = np.asarray(vertices, dtype=np.float64)
-    if len(v) > SHIFT_SAMPLE:
-        v = v[np.linspace(0, len(v) - 1, SHIFT_SAMPLE).round().astype(np.int64)]
+    v = _shift_sample(np.asarray(vertices, dtype=np.float64))
     score, deep, _ = _shift_score(mesh, v)
     if deep <= SHIFT_DEEP_SHARE:
         return None, None
@@ -411,6 +412,13 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) 
             f"body it was authored on with --body, or move it: {command}"), None
 
 
+def _shift_sample(v: np.ndarray) -> np.ndarray:
+    """At most SHIFT_SAMPLE of the points `v`, evenly through them: those a move search moves."""
+    if len(v) <= SHIFT_SAMPLE:
+        return v
+    return v[np.linspace(0, len(v) - 1, SHIFT_SAMPLE).round().astype(np.int64)]
+
+
 def _move_words(move: np.ndarray) -> str:
     """`move` (metres, body frame) in words: "up by 0.25 m and 0.01 m forwards"."""
     return " and ".join(w for w in (
@@ -434,15 +442,13 @@ def _smpl_like(move: np.ndarray) -> bool:
 def _at_edge(move: np.ndarray) -> bool:
     """Whether `move` reaches the end of the searched range along some axis: the best move may lie beyond it (a
     skirt authored on a body 0.66 m tall: told 0.45 m up, it then sat on the head)."""
-    reach = np.array([SHIFT_SIDE_RANGE_M[1], SHIFT_RANGE_M[1], SHIFT_SIDE_RANGE_M[1]])
-    return bool(np.any(np.abs(move) >= reach - 0.005))
+    return bool(np.any(np.abs(move) >= _SHIFT_FURTHEST - 0.005))
 
 
 def _shift_reaches(move: np.ndarray) -> bool:
     """Whether `move` goes as far as a move is searched along some axis (SHIFT_RANGE_M up or down,
     SHIFT_SIDE_RANGE_M sideways, forwards or back): nearer moves are left to body shapes."""
-    reach = np.array([SHIFT_SIDE_RANGE_M[0], SHIFT_RANGE_M[0], SHIFT_SIDE_RANGE_M[0]])
-    return bool(np.any(np.abs(move) >= reach - 1e-9))
+    return bool(np.any(np.abs(move) >= _SHIFT_NEAREST - 1e-9))
 
 
 def _shift_climb(mesh: TriangleMesh, v: np.ndarray, move: np.ndarray, start: tuple,
@@ -456,7 +462,7 @@ def _shift_climb(mesh: TriangleMesh, v: np.ndarray, move: np.ndarray, start: tup
     start: `_shift_score` at `move`; reach: (3,) metres on each axis (default the searched ranges' ends). (move,
     `_shift_score` there)."""
     if reach is None:
-        reach = np.array([SHIFT_SIDE_RANGE_M[1], SHIFT_RANGE_M[1], SHIFT_SIDE_RANGE_M[1]])
+        reach = _SHIFT_FURTHEST
     dirs = np.array([d for d in np.ndindex(3, 3, 3) if d != (1, 1, 1)], dtype=np.float64) - 1.0
 
     def around(m: np.ndarray, step: float) -> list[tuple[tuple, np.ndarray]]:

@@ -612,15 +612,21 @@ def _training_range_guard(deformer, garment, body, garment_path, explicit: bool)
     return json.dumps({"from": "model", "to": "lbs", "model": inner.model_name, **rng})
 
 
+def _calibration_beside(model_path) -> Path:
+    """`<model>.calibration.json` beside the model (the shipped one where `model_path` is None)."""
+    from core.model_deform import DEFAULT_MODEL
+
+    model = Path(model_path) if model_path else DEFAULT_MODEL
+    return model.with_name(model.stem + ".calibration.json")
+
+
 def _warn_beyond_calibration(garment, body, motions, model_path) -> None:
     """Warn, for the model, about each motion (motions: [(Motion, path)]) beyond the scenes of its calibration
     (`<model>.calibration.json`, where there is one: `core.quality.Calibration.outside`), where its gain over lbs
     is not known."""
-    from core.model_deform import DEFAULT_MODEL
     from core.quality import OUTSIDE_MEASURED, Calibration, describe_outside, scene_features
 
-    model = Path(model_path) if model_path else DEFAULT_MODEL
-    path = model.with_name(model.stem + ".calibration.json")
+    path = _calibration_beside(model_path)
     if not path.is_file():
         return
     calibration = Calibration.load(path)
@@ -644,12 +650,11 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
     if model_path and not Path(model_path).is_file():  # before its calibration, which is named after it
         raise click.BadParameter(f"'{model_path}': no such file", param_hint="--model")
     if calibration_path is None:
-        model = Path(model_path) if model_path else DEFAULT_MODEL
-        calibration_path = model.with_name(model.stem + ".calibration.json")
+        calibration_path = _calibration_beside(model_path)
         if not calibration_path.is_file():
-            raise click.ClickException(f"--quality auto: model '{model}' has no calibration '{calibration_path.name}' "
-                                       "beside it: make one with `garment tradeoff --calibrate`, or pass "
-                                       "--calibration or --method")
+            raise click.ClickException(f"--quality auto: model '{model_path or DEFAULT_MODEL}' has no calibration "
+                                       f"'{calibration_path.name}' beside it: make one with `garment tradeoff "
+                                       "--calibrate`, or pass --calibration or --method")
     elif not Path(calibration_path).is_file():
         raise click.BadParameter(f"'{calibration_path}': no such file", param_hint="--calibration")
     calibration = Calibration.load(calibration_path)
