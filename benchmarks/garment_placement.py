@@ -5,12 +5,14 @@ Groups (the embedded body unless --body):
 - the example garments as authored, and moved down and up by 0.15-0.30 m (as garments authored on a body whose
   origin stands elsewhere, such as SMPL's rest body, sit on this one), sideways, forwards and back;
 - 96 loose tube skirts and dresses (2 waists or tops, 4 hems, 3 eases, 4 flares: `core.garmentgen`'s tube);
+- the example garments scaled as by a unit mix-up (inches read as centimetres and back, millimetres read as
+  centimetres and back), and the loose tubes scaled by 2.54;
 - the example t-shirt, trousers and dress generated on other body shapes (betas 0-3 drawn in [-3, 3], seed 0):
   garments authored on another body, which no move puts right;
 - any --garment files (e.g. garments authored on SMPL's rest body).
 
 Writes benchmarks/results/garment_placement.md: per group, how many were bound without a word, warned about
-(inside the body), refused naming a move back, or refused otherwise (the loosest tubes, whose closest 5 %
+(inside the body), refused naming a move back, refused naming a scale back, or refused otherwise (the loosest tubes, whose closest 5 %
 stand more than 5 cm from the body: not resting on it); then a row per moved, given or refused garment.
 
     python benchmarks/garment_placement.py [--shapes 12] [--garment PATH ...]
@@ -44,10 +46,12 @@ from garmentcli.common import collected_warnings  # noqa: E402
 #: and back (an object exported away from the origin), and all three.
 MOVES_M = ((0.0, -0.30, 0.0), (0.0, -0.23, 0.0), (0.0, -0.15, 0.0), (0.0, 0.15, 0.0), (0.0, 0.23, 0.0),
            (0.30, 0.0, 0.0), (-0.15, 0.0, 0.0), (0.0, 0.0, 0.10), (0.0, 0.0, -0.20), (0.20, -0.10, 0.10))
+#: Scales a unit mix-up gives: inches read as centimetres and back, millimetres read as centimetres and back.
+MIXUPS = (0.01 / 0.0254, 2.54, 0.1, 10.0)
 
 
 def judge(garment: Garment, body) -> tuple[str, str]:
-    """(outcome: bound, warned, move, refused; the move named or the message's fix, else "")."""
+    """(outcome: bound, warned, move, scale, refused; the move or scale named or the message's fix, else "")."""
     with collected_warnings() as warned:
         try:
             bind_garment(garment, body)
@@ -55,6 +59,9 @@ def judge(garment: Garment, body) -> tuple[str, str]:
             found = re.search(r"--move (\S+)`$", str(err))
             if found:
                 return "move", found[1]
+            found = re.search(r"--pose tpose (--scale [^`]+)`$", str(err))
+            if found:
+                return "scale", found[1]
             fix = str(err).split("; ", 1)
             return "refused", fix[1][:60] if len(fix) > 1 else str(err).split("got ", 1)[-1][:60]
     inside = [m for m in warned if "inside the body's rest surface" in m]
@@ -88,7 +95,11 @@ def main(argv=None) -> None:
     groups: dict[str, dict[str, Garment]] = {"examples as authored": examples}
     groups["examples moved"] = {f"{name} moved {','.join(f'{m:g}' for m in move)}": dataclasses.replace(
         g, vertices=g.vertices + np.float32(move)) for name, g in examples.items() for move in MOVES_M}
+    groups["examples in mixed-up units"] = {f"{name} scaled by {s:.4g}": dataclasses.replace(
+        g, vertices=(g.vertices * s).astype(np.float32)) for name, g in examples.items() for s in MIXUPS}
     groups["loose tubes"] = tubes(body)
+    groups["loose tubes scaled by 2.54"] = {f"{name} scaled by 2.54": dataclasses.replace(
+        g, vertices=g.vertices * np.float32(2.54)) for name, g in groups["loose tubes"].items()}
     rng = np.random.default_rng(0)
     shaped = {}
     for k in range(args.shapes):
@@ -104,20 +115,22 @@ def main(argv=None) -> None:
     counts, rows = [], []
     for group, garments in groups.items():
         outcomes = {name: judge(g, body) for name, g in garments.items()}
-        tally = {k: sum(o == k for o, _ in outcomes.values()) for k in ("bound", "warned", "move", "refused")}
+        tally = {k: sum(o == k for o, _ in outcomes.values()) for k in ("bound", "warned", "move", "scale", "refused")}
         counts.append([group, len(garments), *tally.values()])
         for name, (outcome, fix) in outcomes.items():
-            if group in ("examples moved", "given files") or outcome in ("move", "refused"):
+            if group in ("examples moved", "examples in mixed-up units", "given files") or outcome in (
+                    "move", "scale", "refused"):
                 rows.append([group, name, outcome, fix])
         print(group, tally, flush=True)
     text = ["# Where a garment sits on the rest body: bound, warned or refused", "",
             f"Made by `python benchmarks/garment_placement.py --shapes {args.shapes}"
             + "".join(f" --garment {p.name}" for p in args.garment)
             + f"` on {platform.machine()} ({os.cpu_count()} cores), body '{body.name}'. `move`: refused naming "
-            "the `--move X,Y,Z` back (`core.skinning.SHIFT_RANGE_M`, `SHIFT_SIDE_RANGE_M`); `warned`: bound with the "
+            "the `--move X,Y,Z` back (`core.skinning.SHIFT_RANGE_M`, `SHIFT_SIDE_RANGE_M`); `scale`: refused naming the "
+            "`--scale S` back (`core.skinning.UNIT_MIXUPS`); `warned`: bound with the "
             "warning of a garment partly inside the body; `refused`: refused naming another fix or none.", "",
-            markdown_table(["group", "garments", "bound", "warned", "move", "refused"], counts), "",
-            markdown_table(["group", "garment", "outcome", "move named / fix"], rows)]
+            markdown_table(["group", "garments", "bound", "warned", "move", "scale", "refused"], counts), "",
+            markdown_table(["group", "garment", "outcome", "move or scale named / fix"], rows)]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text("\n".join(text))
     print(f"wrote {args.out}")

@@ -153,21 +153,26 @@ UNIT_GUESSES = (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254
 GARMENT_SPAN_M = (0.2, 2.5)
 
 
-def unit_hint(extent: float, span_m: tuple[float, float]) -> str:
+def unit_hint(extent: float, span_m: tuple[float, float], command: str = "", scaled: float = 1.0) -> str:
     """The hint for a file `extent` units across that is too large for metres: each of `UNIT_GUESSES` that makes
     it span_m (low, high) metres, as "; is it in centimetres? scale it by 0.01", or "; is it in centimetres
     (scale it by 0.01) or inches (scale it by 0.0254)?" where several do (a 51-unit skirt: 51 cm or 1.3 m); ""
-    where none does."""
-    units = [(name, s) for name, s in UNIT_GUESSES if span_m[0] <= extent * s <= span_m[1]]
+    where none does. command: the command that scales the file, "{scale}" standing for the scale (after the
+    single unit's hint it is given with that scale: ": `garment unpose ... --scale 0.01`"). scaled: what the
+    file's coordinates were multiplied by to give `extent`: the scales named are the file's."""
+    units = [(name, s * scaled) for name, s in UNIT_GUESSES if span_m[0] <= extent * s <= span_m[1]]
     if len(units) == 1:
-        return f"; is it in {units[0][0]}? scale it by {units[0][1]:g}"
+        return f"; is it in {units[0][0]}? scale it by {units[0][1]:g}" + (
+            f": {command.format(scale=f'{units[0][1]:g}')}" if command else "")
     if units:
-        return "; is it in " + " or ".join(f"{name} (scale it by {s:g})" for name, s in units) + "?"
+        return "; is it in " + " or ".join(f"{name} (scale it by {s:g})" for name, s in units) + "?" + (
+            f" {command.format(scale='S')} scales it" if command else "")
     return ""
 
 
-def validate_garment(garment: Garment, source: str) -> None:
-    """Checks every garment must pass before it is deformed; raise InputError naming `source`."""
+def validate_garment(garment: Garment, source: str, scale: float = 1.0) -> None:
+    """Checks every garment must pass before it is deformed; raise InputError naming `source`. scale: what the
+    file's coordinates were multiplied by (`garment unpose --scale`): a unit's scale named is relative to the file."""
     v, f = garment.vertices, garment.faces
     if v.shape[0] == 0:
         raise InputError(f"garment mesh '{source}': expected vertices, got an empty mesh")
@@ -180,7 +185,7 @@ def validate_garment(garment: Garment, source: str) -> None:
     if extent > 10.0:
         # The units whose metres fit a garment: centimetres or millimetres (Marvelous Designer's and CLO's default
         # export), inches; all of those that could be it, as the file does not say.
-        hint = unit_hint(extent, GARMENT_SPAN_M)
+        hint = unit_hint(extent, GARMENT_SPAN_M, f"`garment unpose {source} --pose tpose --scale {{scale}}`", scale)
         raise InputError(f"garment mesh '{source}': expected metres (a garment spans under 3 m), got an extent of "
                          f"{extent:.1f} units{hint}")
     if extent < 1e-3:

@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from core.body import Body
 from core.errors import InputError
-from core.garment import Garment, mesh_edges
+from core.garment import UNIT_GUESSES, Garment, mesh_edges
 from core.geometry import Y_UP_TO_Z_UP_MATRIX, TriangleMesh
 
 log = logging.getLogger(__name__)
@@ -119,16 +119,18 @@ class GarmentBinding:
 
 
 def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smooth_strength: float = 0.5,
-                 source: str | None = None) -> GarmentBinding:
+                 source: str | None = None, placed: Placement | None = None) -> GarmentBinding:
     """Transfer skinning weights and shape blend shapes from the nearest body face.
 
     smooth_iterations: passes of neighbour averaging of the weights over the
     garment graph (x <- (1-s) x + s mean(neighbours)); 0 keeps the raw transfer.
     Raises InputError when the garment is not near the body's rest surface.
+    placed: what was done to the file `source` to make `garment` (see `unpose_command`): the fixes named follow
+    it.
     """
     mesh = TriangleMesh(body.v_template, body.faces)
     hit, signed = mesh.signed_closest(garment.vertices)
-    check_rest_fit(garment, body, mesh, signed, source or garment.name)
+    check_rest_fit(garment, body, mesh, signed, source or garment.name, placed)
     weights = transfer_weights(hit, body, garment.faces, smooth_iterations, smooth_strength)
     shapedirs = transfer_shapedirs(hit, body, np.float32).astype(np.float32)
     return GarmentBinding(weights=weights, shapedirs=shapedirs, body_distance=hit.distance.astype(np.float32))
@@ -149,6 +151,74 @@ FRAME_FIXES = (tuple((what, rotation, False) for what, rotation in _TURNS)
                + ((_DROP, ((1, 0, 0), (0, 1, 0), (0, 0, 1)), True),)
                + tuple((f"{what}, then {_DROP}", rotation, True) for what, rotation in _TURNS))
 
+#: File units a garment may have been written in and read in (name, metres per unit): a garment scaled to metres
+#: by the wrong one (written in inches, scaled by 0.01 as centimetres: a doll's dress 0.39 times its size) is
+#: scaled back by their ratio (`_scale_fix`).
+_UNITS = (("metres", 1.0), *UNIT_GUESSES)
+UNIT_MIXUPS = tuple((written / read, f"{w} read as {r}") for w, written in _UNITS for r, read in _UNITS if w != r)
+#: Scaled back, a garment must lie on the body this closely (median distance, metres; the examples: 1.6-5 cm, or
+#: 0.9 cm to its closest 5 %): the example t-shirt lifted 0.15-0.3 m and scaled by 0.39 fits about the shins with
+#: a median of 8.8-9.9 cm.
+SCALE_FIX_MEDIAN_M = 0.06
+
+
+@dataclass(frozen=True)
+class Placement:
+    """What `garment unpose` does to a garment file's vertices, in this order: scaled by `scale` about the origin,
+    turned by each of `turns` (names in `TURNS`) in turn, moved by `move` (metres, the body's frame); then the
+    pose and shape its `pose` options (" --pose tpose", " --pose apose --betas 1,2") name are taken off."""
+
+    scale: float = 1.0
+    turns: tuple[str, ...] = ()
+    move: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    pose: str = " --pose tpose"
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """(3, 3) the turns, one after the other."""
+        rotation = np.eye(3)
+        for turn in self.turns:
+            rotation = TURNS[turn] @ rotation
+        return rotation
+
+    def apply(self, vertices: np.ndarray) -> np.ndarray:
+        """(V, 3) float64: `vertices` scaled, turned and moved (the pose is not taken off)."""
+        return np.asarray(vertices, dtype=np.float64) * self.scale @ self.rotation.T + np.asarray(self.move)
+
+    def then(self, fix: Placement) -> Placement:
+        """This placement followed by `fix` (scaled, turned and moved, as found on this one's result), as one.
+        A fix found on a garment unposed from another pose is made before the pose is taken off: a unit or frame
+        mix-up is the file's (the command's result is checked again)."""
+        rotation = fix.rotation @ self.rotation
+        turns = self.turns + fix.turns
+        if np.allclose(rotation, np.eye(3)):
+            turns = ()  # a turn and its undoing
+        elif _turn_name(rotation) is not None:
+            turns = (_turn_name(rotation),)
+        move = fix.scale * fix.rotation @ np.asarray(self.move, dtype=np.float64) + np.asarray(fix.move)
+        return Placement(self.scale * fix.scale, turns, tuple(float(m) for m in np.round(move, 2)), self.pose)
+
+    def options(self) -> str:
+        """The `garment unpose` options that make it, but the pose's: " --scale 2.54 --turn z-up --move 0,-0.2,0"
+        ("" for none)."""
+        return "".join(((f" --scale {self.scale:.6g}" if abs(self.scale - 1.0) > 1e-9 else ""),
+                        "".join(f" --turn {turn}" for turn in self.turns),
+                        (f" --move {_move_option(np.array(self.move))}" if np.any(np.round(self.move, 2)) else "")))
+
+
+def _turn_name(rotation) -> str | None:
+    """The name in `TURNS` of `rotation` (3, 3), or None (the identity, or no turn of theirs)."""
+    return next((t for t, r in TURNS.items() if np.allclose(r, rotation)), None)
+
+
+def unpose_command(name: str, fix: Placement, placed: Placement | None = None) -> str:
+    """The `garment unpose` command that places the garment file `name` so: `fix` after `placed` (what the command
+    that found the fix had done to the file already: its options), as one command (`Placement.then`)."""
+    whole = fix if placed is None else placed.then(fix)
+    if whole.pose == " --pose tpose" and not whole.options():
+        return f"bake the file as it is (`garment bake {name} ...`), without `garment unpose`"
+    return f"`garment unpose {name}{whole.pose}{whole.options()}`"
+
 
 def transfer_weights(hit, body: Body, faces: np.ndarray, smooth_iterations: int = 0,
                      smooth_strength: float = 0.5) -> np.ndarray:
@@ -168,7 +238,8 @@ def transfer_shapedirs(hit, body: Body, dtype=np.float64) -> np.ndarray:
     return np.einsum("vk,vkcs->vcs", hit.barycentric.astype(dtype), body.shapedirs[body.faces[hit.face_index]])
 
 
-def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.ndarray, name: str) -> None:
+def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.ndarray, name: str,
+                   placed: Placement | None = None) -> None:
     """Refuse a garment that is not on the body's rest surface, warn about one partly inside it.
 
     mesh: the body's rest surface; signed: (V,) signed distances of the garment's vertices to it (metres,
@@ -178,7 +249,8 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     explains it, or when a fix puts it FRAME_FIX_GAIN times closer to the body (`FRAME_FIX_SUSPECT_MEDIAN_M`),
     or when it reaches above the body's head standing on y = 0 and the drop to the soles puts it on the body
     (`ABOVE_HEAD_M`: a loose skirt authored on a body standing on the floor); logs a warning above
-    REST_INSIDE_WARN_SHARE otherwise.
+    REST_INSIDE_WARN_SHARE otherwise. A garment written in other units than it was read in (`UNIT_MIXUPS`) is
+    refused naming the scale that puts it on the body. placed: see `bind_garment`.
     """
     body_piece = _body_piece(garment, body, signed)
     if body_piece:
@@ -188,12 +260,13 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
     far = median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M
     if far or inside > REST_INSIDE_FRAME_SHARE:
-        fix = _frame_fix(garment.vertices, body, mesh, name=name)
+        fix = (_scale_fix(garment.vertices, body, mesh, name, placed)
+               or _frame_fix(garment.vertices, body, mesh, name=name, placed=placed))
     elif median > FRAME_FIX_SUSPECT_MEDIAN_M:  # near the body, but a fix may put it far closer
-        fix = _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name)
+        fix = _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name, placed=placed)
     else:
         fix = None
-    lift = None if fix else _lifted_by_floor(garment, body, mesh, name)
+    lift = None if fix else _lifted_by_floor(garment, body, mesh, name, placed)
     if not (far or fix or lift) and inside <= REST_INSIDE_WARN_SHARE:
         return
     expected = "expected a garment authored on the body's rest pose (Y-up, T-pose, metres"
@@ -206,17 +279,19 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     span = float(np.ptp(garment.vertices[np.unique(garment.faces)], axis=0).max())
     if far and not fix and span > GARMENT_MAX_SPAN_M:  # under the unit check's 10 units, over any garment
         hint = (f"; it spans {span:.2f} m, more than a garment does (under {GARMENT_MAX_SPAN_M:g} m): in other "
-                f"units? scale it to metres")
+                f"units? scale it to metres (S metres per unit): "
+                f"{unpose_command(name, Placement(scale=0.0), placed).replace('--scale 0', '--scale S')}")
     if far or (fix and inside <= REST_INSIDE_FRAME_SHARE):
         raise InputError(f"garment mesh '{name}': {expected}, resting on it), got a median distance of {median:.2f} m "
                          f"and its closest 5 % {near:.2f} m or more from the body{hint}")
     if fix:
         raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
                          f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body{hint}")
-    key = (_content_key(garment.vertices, garment.faces, body.v_template, body.faces), body.name, name)
+    key = (_content_key(garment.vertices, garment.faces, body.v_template, body.faces), body.name, name, placed)
     if key not in _SEARCHED:  # a second binding of the same garment (lbs after the model) searches no more
         unposed = _fits_unposed(garment, body, mesh, inside, float(np.median(np.abs(signed))))
-        _SEARCHED[key] = (unposed, (None, None) if unposed else _shift_fix(garment.vertices, body, mesh, name))
+        _SEARCHED[key] = (unposed, (None, None) if unposed else _shift_fix(garment.vertices, body, mesh, name,
+                                                                                         placed))
         while len(_SEARCHED) > 8:
             _SEARCHED.pop(next(iter(_SEARCHED)))
     unposed, (shift, nearer) = _SEARCHED[key]
@@ -287,7 +362,8 @@ def _fits_unposed(garment: Garment, body: Body, mesh: TriangleMesh, inside: floa
 
 
 def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
-               closer_than: tuple[float, float] | None = None, name: str = "GARMENT") -> str | None:
+               closer_than: tuple[float, float] | None = None, name: str = "GARMENT",
+               placed: Placement | None = None) -> str | None:
     """The first of `FRAME_FIXES` that puts the garment on the body (median distance at most
     FRAME_FIX_MEDIAN_M, at most REST_INSIDE_WARN_SHARE of it inside, or, without `closer_than`, its `_fit_score`
     FRAME_FIX_SCORE_GAIN times smaller), as "it fits when ..." (`_fix_text`), or None.
@@ -312,7 +388,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
         elif not fits and median <= FRAME_FIX_MEDIAN_M:
             scored.append((_fit_score(signed), what.format(drop=drop), rotation, drop, moved))
         if fits:
-            return _fix_text(what.format(drop=drop), rotation, np.array([0.0, -drop, 0.0]), inside, name)
+            return _fix_text(what.format(drop=drop), rotation, np.array([0.0, -drop, 0.0]), inside, name, placed)
     # None fits outright (in order): the one that fits best, FRAME_FIX_SCORE_GAIN times better than as it is, unless
     # another fits nearly as well (within FRAME_FIX_TIE): then neither is told. Authored on another body, it may sit
     # higher or lower on this one (a mannequin's shirt, dropped to this body's soles, reached the chin; a Z-up
@@ -333,18 +409,52 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     if shift.any():
         what += f", then moved {_move_words(shift)}"
     inside = float(np.mean(mesh.signed_distance(moved + shift, exact=False) < -REST_INSIDE_DEPTH_M))
-    return _fix_text(what, rotation, shift - [0.0, drop, 0.0], inside, name)
+    return _fix_text(what, rotation, shift - [0.0, drop, 0.0], inside, name, placed)
 
 
-def _fix_text(what: str, rotation, move: np.ndarray, inside: float, name: str) -> str:
-    """ "it fits when <what>", naming the `garment unpose` that makes the fix (`rotation`: one of `TURNS` or the
-    identity, then `move`, metres), and how much of the garment the fix still leaves inside the body (share
-    `inside`) where that is over REST_INSIDE_WARN_SHARE."""
-    turn = next((f" --turn {t}" for t, r in TURNS.items() if np.allclose(r, rotation)), "")
-    move = f" --move {_move_option(move)}" if np.any(np.round(move, 2)) else ""
+def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str,
+               placed: Placement | None = None) -> str | None:
+    """ "it fits when scaled by 2.54 (inches read as centimetres?)" (naming `garment unpose`) for a garment that one
+    of `UNIT_MIXUPS` (about the origin, then as it is or with one of `FRAME_FIXES`) puts on the body outright (median
+    distance at most SCALE_FIX_MEDIAN_M, at most REST_INSIDE_WARN_SHARE inside), the first that fits within
+    FRAME_FIX_TIE of the best (a symmetric skirt is not turned as well), else None. Only scales that leave it spanning `GARMENT_SPAN_M` are tried: one or two of them."""
+    from core.garment import GARMENT_SPAN_M
+
+    v = _shift_sample(np.asarray(vertices, dtype=np.float64))
+    span = float(np.ptp(v, axis=0).max())
+    soles = -float(body.v_template[:, 1].min())
+    found = []  # (fit score, scale, what, rotation, drop)
+    for ratio, mixup in UNIT_MIXUPS:
+        if not GARMENT_SPAN_M[0] <= span * ratio <= GARMENT_SPAN_M[1]:
+            continue
+        for what, rotation, on_floor in (("", np.eye(3), False), *FRAME_FIXES):
+            if on_floor and soles <= 0.0:
+                continue
+            drop = soles if on_floor else 0.0
+            signed = mesh.signed_distance(ratio * v @ np.asarray(rotation, dtype=np.float64).T - [0.0, drop, 0.0],
+                                          exact=False)
+            if (np.median(np.abs(signed)) <= SCALE_FIX_MEDIAN_M
+                    and np.mean(signed < -REST_INSIDE_DEPTH_M) <= REST_INSIDE_WARN_SHARE):
+                scaled = f"scaled by {ratio:.4g} ({mixup}?)"
+                found.append((_fit_score(signed), ratio, f"{scaled}, then {what.format(drop=drop)}" if what
+                              else scaled, rotation, drop))
+    if not found:
+        return None
+    best = min(t[0] for t in found)  # the first found (a scale alone before a scale and a turn) that fits as well
+    _, ratio, what, rotation, drop = next(t for t in found if t[0] <= FRAME_FIX_TIE * best)
+    return _fix_text(what, rotation, np.array([0.0, -drop, 0.0]), 0.0, name, placed, scale=ratio)
+
+
+def _fix_text(what: str, rotation, move: np.ndarray, inside: float, name: str,
+              placed: Placement | None = None, scale: float = 1.0) -> str:
+    """ "it fits when <what>", naming the `garment unpose` that makes the fix (`scale`, then `rotation`: one of
+    `TURNS` or the identity, then `move`, metres; after `placed`: `unpose_command`), and how much of the garment
+    the fix still leaves inside the body (share `inside`) where that is over REST_INSIDE_WARN_SHARE."""
+    turn = _turn_name(rotation)
+    fix = Placement(scale, () if turn is None else (turn,), tuple(float(m) for m in np.round(move, 2)))
     still = (f" ({inside:.0%} of it then still inside the body: authored on another body shape too? pass it with "
              f"--body)" if inside > REST_INSIDE_WARN_SHARE else "")
-    return f"it fits when {what}{still}: `garment unpose {name} --pose tpose{turn}{move}`"
+    return f"it fits when {what}{still}: {unpose_command(name, fix, placed)}"
 
 
 def _fit_score(signed: np.ndarray) -> float:
@@ -361,7 +471,8 @@ def _shift_score(mesh: TriangleMesh, points: np.ndarray) -> tuple[float, float, 
     return (_fit_score(signed), float(np.mean(signed < -SHIFT_DEEP_M)), float(np.mean(signed < -REST_INSIDE_DEPTH_M)))
 
 
-def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) -> tuple[str | None, str | None]:
+def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str,
+               placed: Placement | None = None) -> tuple[str | None, str | None]:
     """(refusal, hint): "it fits better when moved up by ..." (naming `garment unpose` for the file `name`) for a
     garment that moving straight up or down (`SHIFT_RANGE_M`), then sideways and forwards or back
     (`SHIFT_SIDE_RANGE_M`), puts on the body (see SHIFT_DEEP_SHARE), else None; hint: for a nearer move that makes
@@ -401,7 +512,7 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str) 
     smpl = body.name == "default" and _smpl_like(move) and not any(
         _shift_score(mesh, v + [move[0], up, move[2]])[0] < best[0] for up in SMPL_BEYOND_M)
     words = _move_words(move)
-    command = f"`garment unpose {name} --pose tpose --move {_move_option(move)}`"
+    command = unpose_command(name, Placement(move=tuple(float(m) for m in move)), placed)
     if move.any() and not _shift_reaches(move) and best[0] * SHIFT_GAIN <= score and best[1] <= deep / 2:
         return None, f"it fits better moved {words}: {command}"  # a nearer move: a hint, not a refusal
     if (not _shift_reaches(move) or _at_edge(move) or best[0] * (SHIFT_AXIS_GAIN if smpl else SHIFT_GAIN) > score
@@ -482,7 +593,8 @@ def _shift_climb(mesh: TriangleMesh, v: np.ndarray, move: np.ndarray, start: tup
     return min([(best, climbed), *around(climbed, 0.01)], key=lambda t: (round(t[0][2] * 200), t[0][0]))[::-1]
 
 
-def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str = "GARMENT") -> str | None:
+def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str = "GARMENT",
+                    placed: Placement | None = None) -> str | None:
     """The drop fix of `FRAME_FIXES` ("it fits when moved down by ...") for a garment authored on a body standing
     at y = 0 (see ABOVE_HEAD_M), else None: dropped, at most REST_INSIDE_WARN_SHARE of it inside, or its
     `_fit_score` FRAME_FIX_SCORE_GAIN times smaller (a garment authored on another body standing on the floor)."""
@@ -498,7 +610,7 @@ def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str
     if (inside > REST_INSIDE_WARN_SHARE and _fit_score(signed) * FRAME_FIX_SCORE_GAIN
             > _fit_score(mesh.signed_distance(garment.vertices.astype(np.float64), exact=False))):
         return None
-    return _fix_text(_DROP.format(drop=soles), np.eye(3), np.array([0.0, -soles, 0.0]), inside, name)
+    return _fix_text(_DROP.format(drop=soles), np.eye(3), np.array([0.0, -soles, 0.0]), inside, name, placed)
 
 
 def oriented_outward(garment: Garment, body: Body, source: str | None = None) -> Garment:

@@ -597,13 +597,14 @@ OTHER_MESH_FORMATS = {".ply": "PLY", ".stl": "STL", ".fbx": "FBX", ".glb": "glTF
                       ".zpac": "Marvelous Designer garment", ".avt": "Marvelous Designer avatar"}
 
 
-def read_garment(path: str | os.PathLike) -> Garment:
-    """A garment file: a USD stage (by its suffix, `USD_SUFFIXES`) or else an OBJ (`read_obj`)."""
+def read_garment(path: str | os.PathLike, scale: float = 1.0) -> Garment:
+    """A garment file: a USD stage (by its suffix, `USD_SUFFIXES`) or else an OBJ (`read_obj`); its coordinates
+    times `scale` (metres per unit of a file in other units: `garment unpose --scale`)."""
     suffix = Path(path).suffix.lower()
     if suffix in USD_SUFFIXES:
         from formats.usd import read_usd_garment
 
-        return read_usd_garment(path)
+        return read_usd_garment(path, scale)
     if suffix in OTHER_MESH_FORMATS and Path(path).is_file():
         raise InputError(f"garment mesh '{path}': expected an OBJ or USD garment, got a {OTHER_MESH_FORMATS[suffix]} "
                          "file: export the garment as OBJ (or USD) on the body's rest pose from the tool that made it")
@@ -621,10 +622,10 @@ def read_garment(path: str | os.PathLike) -> Garment:
                          f"named '{Path(path).suffix or 'without a suffix'}' (name it .usd or .usdc)")
     if b"\x00" in head:
         raise InputError(f"garment mesh '{path}': expected an OBJ or USD garment, got binary content")
-    return read_obj(path)
+    return read_obj(path, scale)
 
 
-def read_obj(path: str | os.PathLike) -> Garment:
+def read_obj(path: str | os.PathLike, scale: float = 1.0) -> Garment:
     """Read a garment mesh from an OBJ file into a validated `Garment`.
 
     Triangles, quads (split along the shorter diagonal) and larger polygons (`ear_clip`); all objects,
@@ -634,15 +635,15 @@ def read_obj(path: str | os.PathLike) -> Garment:
     removed with a logged warning. `uvs`/`face_uvs` are set when any face has
     texture indices (the faces without are given (0, 0), warned). Normals, groups and smoothing are ignored.
     Returns Garment(vertices (V, 3) float32 metres, faces (F, 3) int64,
-    uvs (U, 2) float32 | None, face_uvs (F, 3) int64 | None, name = file stem).
-    Raises InputError (one line naming the file) for bad input; see `parse_obj`
+    uvs (U, 2) float32 | None, face_uvs (F, 3) int64 | None, name = file stem); the coordinates times `scale`
+    first (a file in other units). Raises InputError (one line naming the file) for bad input; see `parse_obj`
     and `core.garment.validate_garment`.
     """
     path = Path(path)
     label = "garment mesh"
     obj = parse_obj(path, label)
     garment = garment_from_polygons(obj.vertices, obj.polygons, obj.uvs, obj.polygon_uvs, label, path, obj.materials,
-                                    obj.written)
+                                    obj.written, scale)
     if garment.source is None or garment.source.materials is None or not obj.libraries:
         return garment
     return replace(garment, source=replace(garment.source, libraries=material_libraries(path, obj.libraries)))
@@ -676,10 +677,15 @@ def _is_file(path: Path) -> bool:
 
 def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.ndarray | None,
                           polygon_uvs: np.ndarray | None, label: str, path: Path,
-                          materials: np.ndarray | None = None, written: FilePolygons | None = None) -> Garment:
-    """The validated `Garment` of a file's polygons (see `ObjPolygons`): quads split, seams welded, degenerate
-    and duplicate faces and unused vertices and UVs dropped (each warned), named after the file's stem.
-    written: the file's faces as written where it has n-gons (its source mesh keeps them), else None."""
+                          materials: np.ndarray | None = None, written: FilePolygons | None = None,
+                          scale: float = 1.0) -> Garment:
+    """The validated `Garment` of a file's polygons (see `ObjPolygons`), its coordinates times `scale`: quads split,
+    seams welded, degenerate and duplicate faces and unused vertices and UVs dropped (each warned), named after the
+    file's stem. written: the file's faces as written where it has n-gons (its source mesh keeps them), else
+    None."""
+    if scale != 1.0:
+        with np.errstate(invalid="ignore", over="ignore"):
+            vertices = np.asarray(vertices, dtype=np.float64) * scale
     file_vertices = vertices
     with np.errstate(invalid="ignore", over="ignore"):  # Inf coordinates: validate_garment names the vertex
         faces, face_uvs, _ = triangulate(vertices, polygons, polygon_uvs)
@@ -696,7 +702,7 @@ def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.nd
         face_uvs = None
     garment = Garment(vertices=vertices.astype(np.float32), faces=faces.astype(np.int64),
                       uvs=garment_uvs, face_uvs=face_uvs, name=path.stem)
-    validate_garment(garment, source=str(path))
+    validate_garment(garment, source=str(path), scale=scale)
     if written is not None:
         polygons, polygon_uvs, materials = written.polygons, written.polygon_uvs, written.materials
     return replace(garment, source=source_mesh(file_vertices, polygons, uvs, polygon_uvs, garment, materials))

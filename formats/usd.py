@@ -407,10 +407,10 @@ def _stage_to(stage: Usd.Stage, up: str) -> np.ndarray:
     return m
 
 
-def read_usd_garment(path: str | os.PathLike):
+def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
     """A garment from a USD stage: its one mesh (or its mesh named 'garment', as a bake's stage has), at the
     static value or else the first time sample, placed by its transforms, in the body's rest frame (metres,
-    Y-up: a stage that authors Z-up is turned, other units scaled). Quads and larger polygons split, seams
+    Y-up: a stage that authors Z-up is turned, other units scaled; then times `scale`). Quads and larger polygons split, seams
     welded and the result cleaned as `formats.obj.read_obj` does; `st` (face-varying or per vertex) kept.
     Raises InputError naming the file.
     """
@@ -477,7 +477,7 @@ def read_usd_garment(path: str | os.PathLike):
         polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons, lambda k: f"(face {k})",
                                             label, path)
     return garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path,
-                                 written=written)
+                                 written=written, scale=scale)
 
 
 def _face_materials(mesh: UsdGeom.Mesh, n_faces: int) -> np.ndarray | None:

@@ -1,5 +1,6 @@
-"""`garment unpose GARMENT --pose tpose|apose|POSE.npz [--betas B0,...] [--turn T] [--move DX,DY,DZ]`: move a garment
-authored on a posed, shaped or otherwise placed body to the rest pose and mean shape."""
+"""`garment unpose GARMENT --pose tpose|apose|POSE.npz [--betas B0,...] [--scale S] [--turn T] [--move DX,DY,DZ]`:
+move a garment authored on a posed, shaped or otherwise placed body, or written in other units, to the rest pose
+and mean shape."""
 
 from __future__ import annotations
 
@@ -60,6 +61,20 @@ def _check_move(ctx, param, value):
     return move
 
 
+#: --scale: a file's metres per unit lie within these (a garment in micrometres or kilometres is no unit mix-up).
+SCALE_RANGE = (1e-4, 1e3)
+
+
+def _check_scale(ctx, param, value):
+    if value is None:
+        return None
+    if not SCALE_RANGE[0] <= value <= SCALE_RANGE[1]:
+        raise click.BadParameter(f"expected metres per unit of the file, {SCALE_RANGE[0]:g} to {SCALE_RANGE[1]:g} "
+                                 f"(0.01: centimetres, 0.001: millimetres, 0.0254: inches), got {value:g}",
+                                 param_hint="--scale")
+    return value
+
+
 def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwrite: bool) -> None:
     """`garment` at `rest_points` as its file has it (its points in order, its quads, UVs and materials), as bake
     writes its outputs; its material libraries beside it (where it is written elsewhere than GARMENT's folder)."""
@@ -90,9 +105,13 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
               help="The body shape the garment was authored on (coefficients of the body's own basis, missing ones "
                    "0), taken off as well: the result fits the mean shape that bake shapes to each motion's "
                    "betas [default: a POSE.npz's betas, else the mean shape].")
-@click.option("--turn", type=click.Choice(["z-up", "x+90", "backwards"]), default=None,
-              help="Turn the garment first, as bake names it for a garment written in another frame: z-up (-90 "
-                   "degrees about X: authored Z-up), x+90 (+90 degrees about X), backwards (180 degrees about Y).")
+@click.option("--scale", type=float, default=None, callback=_check_scale, metavar="S",
+              help="Metres per unit of GARMENT, multiplied in first, about the origin: 0.01 for a file in "
+                   "centimetres, 0.001 millimetres, 0.0254 inches (bake names it for a garment in other units).")
+@click.option("--turn", "turns", type=click.Choice(["z-up", "x+90", "backwards"]), multiple=True,
+              help="Turn the garment first (after --scale), as bake names it for a garment written in another frame: "
+                   "z-up (-90 degrees about X: authored Z-up), x+90 (+90 degrees about X), backwards (180 degrees "
+                   "about Y); given several times, each in turn.")
 @click.option("--move", "move", default=None, callback=_check_move, metavar="DX,DY,DZ",
               help="Metres to move the garment by first, in the body's frame (Y up): for a garment authored on a "
                    "body whose origin stands elsewhere (bake names the move).")
@@ -106,7 +125,7 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 @input_errors_as_click
 def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overwrite, betas_text=None, move=None,
-           turn=None):
+           turns=(), scale=None):
     """Move GARMENT (OBJ or USD), authored on the body in another pose, shape or place, to the body's rest pose
     (T-pose) and mean shape.
 
@@ -115,7 +134,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     commands accept.
     """
     from core.motion import poses_for_body
-    from core.skinning import bind_garment
+    from core.skinning import Placement, bind_garment
     from core.unpose import a_pose, unpose_garment
     from formats.motion import load_motion
     from formats.obj import read_garment
@@ -134,9 +153,9 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     if pose_spec == "tpose":
         if frame is not None:
             raise click.UsageError("--frame applies to a POSE.npz file only (got --pose tpose)")
-        if betas_text is None and move is None and turn is None:
-            raise click.UsageError("--pose tpose takes off the body shape, place and frame only: give them with "
-                                   "--betas B0,B1,..., --move DX,DY,DZ or --turn")
+        if betas_text is None and move is None and not turns and scale is None:
+            raise click.UsageError("--pose tpose takes off the body shape, place, frame and units only: give them "
+                                   "with --betas B0,B1,..., --move DX,DY,DZ, --turn or --scale")
         pose = np.zeros((body.n_joints, 3), dtype=np.float32)
         what = "the rest pose"
     elif pose_spec == "apose":
@@ -161,20 +180,23 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         betas = betas_text
         shown = ",".join(f"{b:g}" for b in betas[:10]) + (f",... ({len(betas)} betas)" if len(betas) > 10 else "")
         what += f", shape {shown}"
-    moved_by = ", ".join(([f"turned {turn}"] if turn else [])
+    moved_by = ", ".join(([f"scaled by {scale:g}"] if scale is not None else [])
+                         + [f"turned {turn}" for turn in turns]
                          + ([] if move is None else ["moved by " + ",".join(f"{m:g}" for m in move) + " m"]))
     if moved_by:
         what += ", " + moved_by
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
-    garment = read_garment(source)
-    authored = garment.vertices
-    if turn is not None:
-        from core.skinning import TURNS
-
-        garment = replace(garment, vertices=(garment.vertices.astype(np.float64) @ TURNS[turn].T).astype(np.float32))
-    if move is not None:
-        garment = replace(garment, vertices=garment.vertices + move)
+    # What this command does to the file before the pose and shape are taken off: a fix named on its result
+    # follows it, in one command (`core.skinning.unpose_command`).
+    given = Placement(1.0 if scale is None else scale, tuple(turns), (0.0, 0.0, 0.0) if move is None else tuple(move),
+                      "".join((f" --pose {pose_spec}", "" if arm_angle is None else f" --arm-angle {arm_angle:g}",
+                               "" if frame is None else f" --frame {frame}",
+                               "" if betas_text is None else " --betas " + ",".join(f"{b:g}" for b in betas_text))))
+    garment = read_garment(source, given.scale)  # scaled as read: the seams are welded in metres
+    authored = garment.vertices  # as scaled: the largest move reported is in metres
+    if turns or move is not None:
+        garment = replace(garment, vertices=replace(given, scale=1.0).apply(garment.vertices).astype(np.float32))
     rest, report = unpose_garment(garment, body, pose, betas, source=str(source))
     report["max_move_m"] = float(np.linalg.norm(rest.vertices - authored, axis=1).max(initial=0.0))
     # The result must be what bake accepts: refused or warned here, naming GARMENT (what the user can fix).
@@ -182,7 +204,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     skinning_log = logging.getLogger("core.skinning")
     skinning_log.addFilter(about_input)
     try:
-        bind_garment(rest, body, source=f"{source}")
+        bind_garment(rest, body, source=f"{source}", placed=given)
     finally:
         skinning_log.removeFilter(about_input)
     header = f"'{source.name}' unposed from {what} by `garment unpose` onto body '{body.name}'"

@@ -353,7 +353,7 @@ def test_binding_a_garment_again_reuses_its_searches_and_refuses_it_the_same(tro
     calls = []
     search = skinning._shift_fix
     monkeypatch.setattr(skinning, "_SEARCHED", {})  # not the searches of the tests before
-    monkeypatch.setattr(skinning, "_shift_fix", lambda *a: calls.append(a[-1]) or search(*a))
+    monkeypatch.setattr(skinning, "_shift_fix", lambda *a: calls.append(a[3]) or search(*a))
     moved = Garment(g.vertices + np.float32([0.3, 0.0, 0.0]), g.faces, name="aside.obj")
     errors = []
     for garment in (moved, moved, Garment(moved.vertices.copy(), moved.faces, name="aside.obj"),
@@ -363,6 +363,68 @@ def test_binding_a_garment_again_reuses_its_searches_and_refuses_it_the_same(tro
         errors.append(str(err.value))
     assert calls == ["aside.obj", "aside.obj"]  # the same content once; moved by 1 cm more, searched again
     assert errors[0] == errors[1] == errors[2] and "--move -0.3,0,0" in errors[0]
+
+
+@pytest.mark.parametrize("name", ["trousers", "dress"])
+@pytest.mark.parametrize("ratio, mixup", [(0.01 / 0.0254, "centimetres read as inches"),
+                                          (2.54, "inches read as centimetres"),
+                                          (10.0, "centimetres read as millimetres"),
+                                          (0.1, "millimetres read as centimetres")])
+def test_a_garment_scaled_by_a_unit_mixup_is_refused_naming_the_scale_back(name, ratio, mixup):
+    """The example trousers and dress scaled as a garment read in the wrong units is (a dress in inches scaled by
+    0.01 as centimetres: a doll's dress, which the move search put about the thigh): refused naming the scale
+    that undoes it, and the mix-up, not a move."""
+    from pathlib import Path
+
+    from core.body import default_body
+    from formats.obj import read_obj
+
+    g = read_obj(Path(__file__).resolve().parents[2] / "examples" / f"{name}.obj")
+    scaled = Garment((g.vertices * np.float32(1.0 / ratio)), g.faces, name="scaled.obj")
+    with pytest.raises(InputError) as err:
+        bind_garment(scaled, default_body())
+    assert str(err.value).endswith(f"it fits when scaled by {ratio:.4g} ({mixup}?): `garment unpose scaled.obj "
+                                   f"--pose tpose --scale {ratio:.6g}`"), str(err.value)
+
+
+def test_a_lifted_t_shirt_is_told_its_move_not_a_scale(trousers_on_body):
+    """The example t-shirt lifted 0.15-0.3 m, scaled by 0.39 and dropped to the soles, fits about the shins with a
+    median distance of 9-10 cm: no scale is named (SCALE_FIX_MEDIAN_M), the move down is."""
+    from pathlib import Path
+
+    from formats.obj import read_obj
+
+    _, body = trousers_on_body
+    g = read_obj(Path(__file__).resolve().parents[2] / "examples" / "tshirt.obj")
+    with pytest.raises(InputError) as err:
+        bind_garment(Garment(g.vertices + np.float32([0.0, 0.3, 0.0]), g.faces, name="up.obj"), body)
+    assert "--scale" not in str(err.value) and "--move 0,-0.3" in str(err.value), str(err.value)
+
+
+def test_placements_compose_as_applied_one_after_the_other():
+    """`Placement.then` against applying both (every pair of turns, with scales and moves), in as few turns as
+    make it; `unpose_command` names the one command, keeping the pose it was given."""
+    from core.skinning import TURNS, Placement, unpose_command
+
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(20, 3))
+    turns = {}
+    for t1 in ((), *((t,) for t in TURNS)):
+        for t2 in ((), *((t,) for t in TURNS)):
+            first = Placement(2.54, t1, (0.1, -0.2, 0.3))
+            fix = Placement(0.5, t2, (0.0, 0.9, -0.05))
+            whole = first.then(fix)
+            assert np.allclose(whole.apply(v), fix.apply(first.apply(v)), atol=6e-3)  # moves told to the cm
+            turns[t1 + t2] = whole.turns
+    assert turns[("z-up", "x+90")] == turns[("backwards", "backwards")] == ()  # undone
+    assert turns[("z-up",)] == ("z-up",) and turns[("z-up", "z-up")] == ("z-up", "z-up")  # 180 about X: two
+    assert Placement(0.01, ("z-up",), (0.0, -0.9, 0.0)).options() == " --scale 0.01 --turn z-up --move 0,-0.9,0"
+    assert unpose_command("g.obj", Placement(move=(0.0, -0.21, 0.0)), Placement(move=(0.0, -0.1, 0.0))) == \
+        "`garment unpose g.obj --pose tpose --move 0,-0.31,0`"
+    assert unpose_command("g.obj", Placement(turns=("x+90",)), Placement(turns=("z-up",))).startswith(
+        "bake the file as it is")
+    assert unpose_command("g.obj", Placement(scale=2.54), Placement(0.01, pose=" --pose apose --betas 1")) == \
+        "`garment unpose g.obj --pose apose --betas 1 --scale 0.0254`"
 
 
 def test_garment_partly_inside_without_a_fix_warns_and_far_off_is_refused_without_one(trousers_on_body, caplog):
@@ -382,7 +444,7 @@ def test_garment_partly_inside_without_a_fix_warns_and_far_off_is_refused_withou
     with pytest.raises(InputError, match="big.obj.*median distance") as err:
         bind_garment(big, body)
     assert str(err.value).endswith("; it spans 4.00 m, more than a garment does (under 3 m): in other units? scale "
-                                   "it to metres")
+                                   "it to metres (S metres per unit): `garment unpose big.obj --pose tpose --scale S`")
 
 
 def test_garment_mostly_far_from_the_body_but_resting_on_it_binds(trousers_on_body):

@@ -300,6 +300,22 @@ def test_bad_input(tmp_path, text, message):
     assert f"'{path}'" in msg and "\n" not in msg
 
 
+def test_a_file_in_other_units_is_named_the_unpose_that_scales_it_and_read_scaled(tmp_path):
+    """A file in centimetres: the error names `garment unpose ... --scale 0.01`; read with that scale (as unpose
+    reads it), it is the garment in metres, its seams welded in metres; read already scaled by 1.5 (150 units:
+    centimetres), the scale named is still the file's."""
+    path = _write(tmp_path, "v 0 0 0\nv 100 0 0\nv 0 100 0\nv 100 0.0005 0\nf 1 2 3\nf 4 3 2\n", "cm.obj")
+    with pytest.raises(InputError) as err:
+        read_obj(path)
+    assert str(err.value).endswith(f"is it in centimetres? scale it by 0.01: `garment unpose {path} --pose tpose "
+                                   f"--scale 0.01`")
+    with pytest.raises(InputError) as err:
+        read_obj(path, scale=1.5)
+    assert str(err.value).endswith(f"scale it by 0.015: `garment unpose {path} --pose tpose --scale 0.015`")
+    g = read_obj(path, scale=0.01)
+    assert np.allclose(g.vertices.max(axis=0), [1.0, 1.0, 0.0]) and len(g.vertices) == 3  # 5 um apart: welded
+
+
 def test_missing_file_and_directory(tmp_path):
     with pytest.raises(InputError, match=r"garment mesh '.*nope\.obj': file not found"):
         read_obj(tmp_path / "nope.obj")

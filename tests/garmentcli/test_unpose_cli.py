@@ -229,10 +229,62 @@ def test_a_garment_in_another_frame_is_turned_back_by_the_command_bake_names(tmp
     assert r.exit_code == 0, r.output
 
 
+def test_a_garment_in_other_units_is_scaled_back_by_the_command_bake_names(tmp_path):
+    """The example dress written in inches: bake refuses it naming the units it may be in and `garment unpose
+    --scale S`; scaled by the wrong guess (centimetres: a doll's dress), unpose refuses it naming the file's
+    scale, which, run as named, writes the dress back, and bake takes it. Unposed from the A-pose with the wrong
+    scale, the scale named keeps the pose."""
+    import re
+
+    g = read_obj(EXAMPLES / "dress.obj")
+    inches = tmp_path / "dress_in.obj"
+    write_obj(inches, (g.vertices / np.float32(0.0254)), g.faces, g.uvs, g.face_uvs)
+    r = invoke(["bake", inches, EXAMPLES / "walk.npz", "--frames", "0:2", "--out", tmp_path / "bake"])
+    assert r.exit_code != 0 and not (tmp_path / "bake").exists()
+    assert r.output.strip().endswith("is it in centimetres (scale it by 0.01) or inches (scale it by 0.0254)? "
+                                     f"`garment unpose {inches} --pose tpose --scale S` scales it"), r.output
+    r = invoke(["unpose", inches, "--pose", "tpose", "--scale", "0.01"])
+    assert r.exit_code != 0 and not (tmp_path / "dress_in_rest.obj").exists()
+    command = re.search(r"it fits when scaled by 2\.54 \(inches read as centimetres\?\): `garment unpose (\S+) "
+                        r"--pose tpose --scale (\S+)`$", r.output.strip())
+    assert command and command[1] == str(inches) and command[2] == "0.0254", r.output
+    r = invoke(["unpose", inches, "--pose", "tpose", "--scale", command[2]])
+    assert r.exit_code == 0 and "3240 vertices scaled by 0.0254 (" in r.output, r.output
+    back = read_obj(tmp_path / "dress_in_rest.obj")
+    assert np.abs(back.vertices - g.vertices).max() < 1e-5
+    r = invoke(["bake", tmp_path / "dress_in_rest.obj", EXAMPLES / "walk.npz", "--frames", "0:2", "--out",
+                tmp_path / "bake", "--method", "lbs"])
+    assert r.exit_code == 0, r.output
+    r = invoke(["unpose", inches, "--pose", "apose", "--scale", "0.01", "--out", tmp_path / "a.obj"])
+    assert r.exit_code != 0 and r.output.strip().endswith(
+        f"`garment unpose {inches} --pose apose --scale 0.0254`"), r.output
+
+
+def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
+    """The example t-shirt lifted 0.3 m and moved down by only 0.1 m: the move named is the whole of it, on the
+    file as given (it was the rest of it, as if on the file: run as named, the shirt stayed 0.1 m high)."""
+    import re
+
+    g = read_obj(EXAMPLES / "tshirt.obj")
+    up = tmp_path / "up.obj"
+    write_obj(up, g.vertices + np.float32([0.0, 0.3, 0.0]), g.faces, g.uvs, g.face_uvs)
+    r = invoke(["unpose", up, "--pose", "tpose", "--move", "0,-0.1,0"])
+    assert r.exit_code != 0
+    command = re.search(rf"`garment unpose {re.escape(str(up))} --pose tpose --move (0,-0\.\d+,0)`$",
+                        r.output.strip())
+    assert command and abs(float(command[1].split(",")[1]) + 0.3) <= 0.02, r.output
+    r = invoke(["unpose", up, "--pose", "tpose", "--move", command[1]])
+    assert r.exit_code == 0, r.output
+    assert np.abs(read_obj(tmp_path / "up_rest.obj").vertices - g.vertices).max() <= 0.0201
+
+
 @pytest.mark.parametrize("args, needle", [
     (["--pose", "bpose"], "expected 'tpose', 'apose' or an AMASS-style .npz file, got 'bpose'"),
-    (["--pose", "tpose"], "--pose tpose takes off the body shape, place and frame only: give them with --betas "
-                          "B0,B1,..., --move DX,DY,DZ or --turn"),
+    (["--pose", "tpose"], "--pose tpose takes off the body shape, place, frame and units only: give them with "
+                          "--betas B0,B1,..., --move DX,DY,DZ, --turn or --scale"),
+    (["--pose", "tpose", "--scale", "0"], "--scale: expected metres per unit of the file, 0.0001 to 1000 (0.01: "
+                                          "centimetres, 0.001: millimetres, 0.0254: inches), got 0"),
+    (["--pose", "tpose", "--scale", "cm"], "'cm' is not a valid float"),
     (["--pose", "tpose", "--turn", "sideways"], "Invalid value for '--turn': 'sideways' is not one of"),
     (["--pose", "tpose", "--move", "0,0.2"], "--move: expected 3 comma-separated numbers, got 2 in '0,0.2'"),
     (["--pose", "tpose", "--move", "0,up,0"], "--move: expected 3 comma-separated numbers, got '0,up,0'"),
