@@ -217,7 +217,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         _write_obj(out, garment, rest.vertices, header, overwrite)
     target = "the rest pose" + (" and mean shape" if betas is not None else "")
     moved = f"moved to {target} from {what}" if pose_spec != "tpose" or betas is not None else moved_by
-    click.echo(f"{out}: {rest.n_vertices} vertices {moved} (largest move "
+    written = rest.n_vertices if garment.source is None else len(garment.source.vertex_of)  # the file's, unwelded
+    click.echo(f"{out}: {written} vertices {moved} (largest move "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "
                f"mm from the input at most; on the posed body: median distance "
                f"{report['posed_median_distance_m'] * 100:.1f} cm, {report['posed_inside_share']:.1%} inside)")

@@ -340,3 +340,18 @@ def test_unpose_a_motion_given_as_garment_is_named_for_what_it_is(tmp_path):
     r = invoke(["unpose", motion, "--pose", "apose", "--out", tmp_path / "out.obj"])
     assert r.exit_code != 0 and "expected an OBJ or USD garment, got a NumPy .npz archive (a motion?)" in r.output
     assert not (tmp_path / "out.obj").exists()
+
+
+def test_unpose_counts_the_vertices_of_the_file_it_writes(tmp_path):
+    """A t-shirt exported as two panels (the seam's vertices written twice, welded as read): the count printed is
+    of the file written, which keeps the file's points, not of the welded mesh."""
+    g = read_obj(EXAMPLES / "tshirt.obj")
+    faces = g.faces.copy()
+    half = len(faces) // 2
+    faces[:half] += len(g.vertices)  # the first panel's own copies of its vertices
+    panels = tmp_path / "panels.obj"
+    write_obj(panels, np.concatenate([g.vertices, g.vertices]) + np.float32([0.0, 0.3, 0.0]), faces)
+    r = invoke(["unpose", panels, "--pose", "tpose", "--move", "0,-0.3,0"])
+    assert r.exit_code == 0, r.output
+    lines = sum(line.startswith("v ") for line in (tmp_path / "panels_rest.obj").read_text().splitlines())
+    assert lines == 2 * len(g.vertices) and f"{lines} vertices moved by 0,-0.3,0 m" in r.output, r.output
