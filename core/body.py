@@ -54,6 +54,8 @@ class Body:
     weights: (V, J) float32, rows sum to 1.
     parents: (J,) int64, parents[0] == -1, parents[j] < j.
     faces: (F, 3) int64.
+    path: the file it was read from (`formats.body.load_body`: the commands that messages name pass it with
+    --body), or None (the embedded body, or built from arrays).
     """
 
     v_template: np.ndarray
@@ -65,6 +67,7 @@ class Body:
     faces: np.ndarray
     name: str = "body"
     joint_names: tuple[str, ...] = field(default=())
+    path: str | None = None
 
     @property
     def n_vertices(self) -> int:

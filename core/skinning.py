@@ -126,7 +126,7 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
     garment graph (x <- (1-s) x + s mean(neighbours)); 0 keeps the raw transfer.
     Raises InputError when the garment is not near the body's rest surface.
     placed: what was done to the file `source` to make `garment` (see `unpose_command`): the fixes named follow
-    it.
+    it [default: nothing, on the body's file (`Body.path`)].
     """
     mesh = TriangleMesh(body.v_template, body.faces)
     hit, signed = mesh.signed_closest(garment.vertices)
@@ -166,12 +166,14 @@ SCALE_FIX_MEDIAN_M = 0.06
 class Placement:
     """What `garment unpose` does to a garment file's vertices, in this order: scaled by `scale` about the origin,
     turned by each of `turns` (names in `TURNS`) in turn, moved by `move` (metres, the body's frame); then the
-    pose and shape its `pose` options (" --pose tpose", " --pose apose --betas 1,2") name are taken off."""
+    pose and shape its `pose` options (" --pose tpose", " --pose apose --betas 1,2") name are taken off, for the
+    body its `body` option names (" --body smpl.npz"; "" for the embedded one)."""
 
     scale: float = 1.0
     turns: tuple[str, ...] = ()
     move: tuple[float, float, float] = (0.0, 0.0, 0.0)
     pose: str = " --pose tpose"
+    body: str = ""
 
     @property
     def rotation(self) -> np.ndarray:
@@ -196,7 +198,8 @@ class Placement:
         elif _turn_name(rotation) is not None:
             turns = (_turn_name(rotation),)
         move = fix.scale * fix.rotation @ np.asarray(self.move, dtype=np.float64) + np.asarray(fix.move)
-        return Placement(self.scale * fix.scale, turns, tuple(float(m) for m in np.round(move, 2)), self.pose)
+        return Placement(self.scale * fix.scale, turns, tuple(float(m) for m in np.round(move, 2)), self.pose,
+                         self.body)
 
     def options(self) -> str:
         """The `garment unpose` options that make it, but the pose's: " --scale 2.54 --turn z-up --move 0,-0.2,0"
@@ -217,7 +220,7 @@ def unpose_command(name: str, fix: Placement, placed: Placement | None = None) -
     whole = fix if placed is None else placed.then(fix)
     if whole.pose == " --pose tpose" and not whole.options():
         return f"bake the file as it is (`garment bake {name} ...`), without `garment unpose`"
-    return f"`garment unpose {name}{whole.pose}{whole.options()}`"
+    return f"`garment unpose {name}{whole.pose}{whole.options()}{whole.body}`"
 
 
 def transfer_weights(hit, body: Body, faces: np.ndarray, smooth_iterations: int = 0,
@@ -252,6 +255,8 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     REST_INSIDE_WARN_SHARE otherwise. A garment written in other units than it was read in (`UNIT_MIXUPS`) is
     refused naming the scale that puts it on the body. placed: see `bind_garment`.
     """
+    if placed is None:  # the commands named put the garment on this body
+        placed = Placement(body="" if body.path is None else f" --body {body.path}")
     body_piece = _body_piece(garment, body, signed)
     if body_piece:
         raise InputError(f"garment mesh '{name}': expected the garment alone, got {body_piece}: the avatar exported "

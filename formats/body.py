@@ -16,6 +16,7 @@ import _compat_pickle
 import importlib
 import logging
 import pickle
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +51,7 @@ def load_body(path: str | Path) -> Body:
     if suffix not in readers:
         raise InputError(f"{label}: expected a .npz or .pkl SMPL-format file, got suffix '{path.suffix}'")
     arrays = readers[suffix](path, label)
-    return body_from_file_arrays(arrays, name=path.stem, source=str(path))
+    return replace(body_from_file_arrays(arrays, name=path.stem, source=str(path)), path=str(path))
 
 
 def body_from_file_arrays(arrays: dict, name: str, source: str) -> Body:

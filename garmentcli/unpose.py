@@ -192,7 +192,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     given = Placement(1.0 if scale is None else scale, tuple(turns), (0.0, 0.0, 0.0) if move is None else tuple(move),
                       "".join((f" --pose {pose_spec}", "" if arm_angle is None else f" --arm-angle {arm_angle:g}",
                                "" if frame is None else f" --frame {frame}",
-                               "" if betas_text is None else " --betas " + ",".join(f"{b:g}" for b in betas_text))))
+                               "" if betas_text is None else " --betas " + ",".join(f"{b:g}" for b in betas_text))),
+                      "" if body_path is None else f" --body {body_path}")
     garment = read_garment(source, given.scale)  # scaled as read: the seams are welded in metres
     authored = garment.vertices  # as scaled: the largest move reported is in metres
     if turns or move is not None:

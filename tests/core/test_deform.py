@@ -401,6 +401,21 @@ def test_a_lifted_t_shirt_is_told_its_move_not_a_scale(trousers_on_body):
     assert "--scale" not in str(err.value) and "--move 0,-0.3" in str(err.value), str(err.value)
 
 
+def test_the_command_named_for_a_body_read_from_a_file_passes_that_body(trousers_on_body, monkeypatch):
+    """The garment moved aside, bound to a body read from a file (bake --body): the unpose named passes the same
+    --body, which checks its result on that body (without it, on the embedded one)."""
+    from dataclasses import replace
+
+    import core.skinning as skinning
+
+    g, body = trousers_on_body
+    monkeypatch.setattr(skinning, "_SEARCHED", {})
+    moved = Garment(g.vertices + np.float32([0.3, 0.0, 0.0]), g.faces, name="aside.obj")
+    with pytest.raises(InputError) as err:
+        bind_garment(moved, replace(body, path="bodies/smpl.npz"))
+    assert str(err.value).endswith("`garment unpose aside.obj --pose tpose --move -0.3,0,0 --body bodies/smpl.npz`")
+
+
 def test_placements_compose_as_applied_one_after_the_other():
     """`Placement.then` against applying both (every pair of turns, with scales and moves), in as few turns as
     make it; `unpose_command` names the one command, keeping the pose it was given."""
