@@ -154,12 +154,22 @@ FRAME_FIXES = (tuple((what, rotation, False) for what, rotation in _TURNS)
 #: File units a garment may have been written in and read in (name, metres per unit): a garment scaled to metres
 #: by the wrong one (written in inches, scaled by 0.01 as centimetres: a doll's dress 0.39 times its size) is
 #: scaled back by their ratio (`_scale_fix`).
-_UNITS = (("metres", 1.0), *UNIT_GUESSES)
-UNIT_MIXUPS = tuple((written / read, f"{w} read as {r}") for w, written in _UNITS for r, read in _UNITS if w != r)
-#: Scaled back, a garment must lie on the body this closely (median distance, metres; the examples: 1.6-5 cm, or
-#: 0.9 cm to its closest 5 %): the example t-shirt lifted 0.15-0.3 m and scaled by 0.39 fits about the shins with
-#: a median of 8.8-9.9 cm.
-SCALE_FIX_MEDIAN_M = 0.06
+#: The pairs it may be mixed up between are those `core.garment.unit_hint` names together for one file (20-98
+#: units: centimetres or inches; 200-250: centimetres or millimetres): (scale back, "inches read as centimetres").
+_MIXED = {("inches", "centimetres"), ("centimetres", "inches"), ("centimetres", "millimetres"),
+          ("millimetres", "centimetres")}
+UNIT_MIXUPS = tuple((written / read, f"{w} read as {r}") for w, written in UNIT_GUESSES for r, read in UNIT_GUESSES
+                    if (w, r) in _MIXED)
+#: Scaled back, at its best place, a garment's fit score over its span must be SCALE_GAIN times smaller than its own
+#: at its best place (`_scale_fix`; real garments of SMPL's, scaled by 0.39 or 2.54: 1.6-2.9 times), SCALE_TENFOLD_GAIN
+#: times for a tenfold scale (the examples scaled by 0.1 or 10: 3.1-11; a Maya export 4.3 units across, in none of
+#: these units, scaled by 0.1: 1.6).
+SCALE_GAIN = 1.5
+SCALE_TENFOLD_GAIN = 2.5
+#: The scale search moves at most this many of a garment's vertices, evenly through them, up and down in steps of
+#: SCALE_HEIGHT_STEP_M (metres).
+SCALE_SAMPLE = 500
+SCALE_HEIGHT_STEP_M = 0.10
 
 
 @dataclass(frozen=True)
@@ -268,7 +278,8 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
         fix = (_scale_fix(garment.vertices, body, mesh, name, placed)
                or _frame_fix(garment.vertices, body, mesh, name=name, placed=placed))
     elif median > FRAME_FIX_SUSPECT_MEDIAN_M:  # near the body, but a fix may put it far closer
-        fix = _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name, placed=placed)
+        fix = (_scale_fix(garment.vertices, body, mesh, name, placed)
+               or _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name, placed=placed))
     else:
         fix = None
     lift = None if fix else _lifted_by_floor(garment, body, mesh, name, placed)
@@ -419,35 +430,68 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
 
 def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str,
                placed: Placement | None = None) -> str | None:
-    """ "it fits when scaled by 2.54 (inches read as centimetres?)" (naming `garment unpose`) for a garment that one
-    of `UNIT_MIXUPS` (about the origin, then as it is or with one of `FRAME_FIXES`) puts on the body outright (median
-    distance at most SCALE_FIX_MEDIAN_M, at most REST_INSIDE_WARN_SHARE inside), the first that fits within
-    FRAME_FIX_TIE of the best (a symmetric skirt is not turned as well), else None. Only scales that leave it spanning `GARMENT_SPAN_M` are tried: one or two of them."""
+    """ "it fits when scaled by 2.54 (inches read as centimetres?)[, then <a frame fix>][, then moved ...]" (naming
+    `garment unpose`) for a garment that one of `UNIT_MIXUPS` (about the origin; the nearest to 1 first) puts on the
+    body far better than it is, else None. Far better: at its best place (`_best_place`, not at the end of its
+    heights), its `_fit_score` over its span (a small garment sits near the body anywhere: the example trousers
+    scaled by 0.39 fit 2.7 times better 0.55 m down than 0.3 m aside, where they belong) SCALE_GAIN times smaller
+    (SCALE_TENFOLD_GAIN for a tenfold scale) than the garment's own at its best place, its median distance then at most FRAME_FIX_MEDIAN_M. Only scales
+    that leave it spanning `GARMENT_SPAN_M` are tried."""
     from core.garment import GARMENT_SPAN_M
 
-    v = _shift_sample(np.asarray(vertices, dtype=np.float64))
+    v = _shift_sample(np.asarray(vertices, dtype=np.float64), SCALE_SAMPLE)
     span = float(np.ptp(v, axis=0).max())
-    soles = -float(body.v_template[:, 1].min())
-    found = []  # (fit score, scale, what, rotation, drop)
-    for ratio, mixup in UNIT_MIXUPS:
-        if not GARMENT_SPAN_M[0] <= span * ratio <= GARMENT_SPAN_M[1]:
+    tried = sorted(((ratio, mixup) for ratio, mixup in UNIT_MIXUPS
+                    if GARMENT_SPAN_M[0] <= span * ratio <= GARMENT_SPAN_M[1]), key=lambda t: abs(np.log(t[0])))
+    own = _best_place(mesh, v, body)[0] / span if tried else 0.0
+    for ratio, mixup in tried:
+        score, what, rotation, drop, dy = _best_place(mesh, ratio * v, body)
+        gain = SCALE_TENFOLD_GAIN if abs(np.log10(ratio)) > 0.5 else SCALE_GAIN
+        if score / (ratio * span) * gain > own or abs(dy) >= SHIFT_RANGE_M[1] - 0.005:
             continue
-        for what, rotation, on_floor in (("", np.eye(3), False), *FRAME_FIXES):
-            if on_floor and soles <= 0.0:
-                continue
-            drop = soles if on_floor else 0.0
-            signed = mesh.signed_distance(ratio * v @ np.asarray(rotation, dtype=np.float64).T - [0.0, drop, 0.0],
-                                          exact=False)
-            if (np.median(np.abs(signed)) <= SCALE_FIX_MEDIAN_M
-                    and np.mean(signed < -REST_INSIDE_DEPTH_M) <= REST_INSIDE_WARN_SHARE):
-                scaled = f"scaled by {ratio:.4g} ({mixup}?)"
-                found.append((_fit_score(signed), ratio, f"{scaled}, then {what.format(drop=drop)}" if what
-                              else scaled, rotation, drop))
-    if not found:
-        return None
-    best = min(t[0] for t in found)  # the first found (a scale alone before a scale and a turn) that fits as well
-    _, ratio, what, rotation, drop = next(t for t in found if t[0] <= FRAME_FIX_TIE * best)
-    return _fix_text(what, rotation, np.array([0.0, -drop, 0.0]), 0.0, name, placed, scale=ratio)
+        move = np.array([0.0, dy - drop, 0.0])
+        moved = ratio * np.asarray(vertices, dtype=np.float64) @ np.asarray(rotation, dtype=np.float64).T + move
+        signed = mesh.signed_distance(moved, exact=False)
+        if np.median(np.abs(signed)) > FRAME_FIX_MEDIAN_M:
+            continue
+        told = ", then ".join(w for w in (f"scaled by {ratio:.4g} ({mixup}?)", what) if w)
+        if dy:
+            told += f", then moved {_move_words(np.array([0.0, dy, 0.0]))}"
+        return _fix_text(told, rotation, move, float(np.mean(signed < -REST_INSIDE_DEPTH_M)), name, placed,
+                         scale=ratio)
+    return None
+
+
+def _best_place(mesh: TriangleMesh, v: np.ndarray, body: Body) -> tuple[float, str, np.ndarray, float, float]:
+    """Where points `v` (N, 3) sit best on the body's rest surface `mesh`: as they are or with one of `FRAME_FIXES`
+    (the first within FRAME_FIX_TIE of the best: a symmetric skirt is not turned), then moved up or down by up
+    to SHIFT_RANGE_M's end (SCALE_HEIGHT_STEP_M steps, then whole centimetres about the best: the least share
+    inside, then the least score; none unless that makes the score SHIFT_AXIS_GAIN times smaller): (`_fit_score` there, the fix as told ("" for none), its rotation, its drop to
+    the body's soles and the height then, metres: the whole move up is height - drop)."""
+    soles = -float(body.v_template[:, 1].min())
+    heights = np.arange(-SHIFT_RANGE_M[1], SHIFT_RANGE_M[1] + 1e-9, SCALE_HEIGHT_STEP_M)
+
+    def at(points: np.ndarray, dy: float) -> tuple[float, float]:
+        signed = mesh.signed_distance(points + [0.0, dy, 0.0], exact=False)
+        return _fit_score(signed), float(np.mean(signed < -REST_INSIDE_DEPTH_M))
+
+    found = []  # (score, what, rotation, drop, height)
+    for what, rotation, on_floor in (("", np.eye(3), False), *FRAME_FIXES):
+        if on_floor and soles <= 0.0:
+            continue
+        drop = soles if on_floor else 0.0
+        turned = v @ np.asarray(rotation, dtype=np.float64).T - [0.0, drop, 0.0]
+        found.append(min((at(turned, dy)[0], what.format(drop=drop), rotation, drop, dy) for dy in heights))
+    best = min(t[0] for t in found)
+    _, what, rotation, drop, dy = next(t for t in found if t[0] <= FRAME_FIX_TIE * best)
+    turned = v @ np.asarray(rotation, dtype=np.float64).T - [0.0, drop, 0.0]
+    near = np.round(dy + np.arange(-SCALE_HEIGHT_STEP_M, SCALE_HEIGHT_STEP_M + 1e-9, 0.01), 2)
+    near = near[np.abs(near) <= SHIFT_RANGE_M[1] + 1e-9]
+    (score, _), dy = min(((at(turned, h), h) for h in near), key=lambda t: (round(t[0][1] * 200), t[0][0]))
+    unmoved = at(turned, 0.0)[0]
+    if score * SHIFT_AXIS_GAIN > unmoved:  # no move unless it helps (a garment where it belongs stays there)
+        return unmoved, what, rotation, drop, 0.0
+    return score, what, rotation, drop, float(dy)
 
 
 def _fix_text(what: str, rotation, move: np.ndarray, inside: float, name: str,
@@ -528,11 +572,11 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str,
             f"body it was authored on with --body, or move it: {command}"), None
 
 
-def _shift_sample(v: np.ndarray) -> np.ndarray:
-    """At most SHIFT_SAMPLE of the points `v`, evenly through them: those a move search moves."""
-    if len(v) <= SHIFT_SAMPLE:
+def _shift_sample(v: np.ndarray, n: int = SHIFT_SAMPLE) -> np.ndarray:
+    """At most `n` of the points `v`, evenly through them: those a move search moves."""
+    if len(v) <= n:
         return v
-    return v[np.linspace(0, len(v) - 1, SHIFT_SAMPLE).round().astype(np.int64)]
+    return v[np.linspace(0, len(v) - 1, n).round().astype(np.int64)]
 
 
 def _move_words(move: np.ndarray) -> str:

@@ -1,4 +1,5 @@
 import logging
+import re
 
 import numpy as np
 import pytest
@@ -385,6 +386,32 @@ def test_a_garment_scaled_by_a_unit_mixup_is_refused_naming_the_scale_back(name,
         bind_garment(scaled, default_body())
     assert str(err.value).endswith(f"it fits when scaled by {ratio:.4g} ({mixup}?): `garment unpose scaled.obj "
                                    f"--pose tpose --scale {ratio:.6g}`"), str(err.value)
+
+
+@pytest.mark.parametrize("ratio", [2.54, 0.01 / 0.0254])
+def test_a_garment_of_another_body_in_mixed_up_units_is_told_the_scale_and_the_move(trousers_on_body, ratio):
+    """The example t-shirt as authored on a slimmer body standing 0.25 m lower (shrunk by 10 % about its middle,
+    moved down: as SMPL's garments sit on this body, partly inside it wherever they are put), then scaled as by a
+    unit mix-up: 2.54 times its size it was bound without a word (median 0.2 m from the body, its closest 5 %
+    under 5 cm: not far), 0.39 times it was told a wrong move. It is told the scale back, the move up and how
+    much of it is then still inside."""
+    from pathlib import Path
+
+    from formats.obj import read_obj
+
+    _, body = trousers_on_body
+    g = read_obj(Path(__file__).resolve().parents[2] / "examples" / "tshirt.obj")
+    centre = g.vertices.mean(axis=0)
+    other = (centre + 0.9 * (g.vertices - centre) - np.float32([0.0, 0.25, 0.0])) * np.float32(ratio)
+    with pytest.raises(InputError) as err:
+        bind_garment(Garment(other.astype(np.float32), g.faces, name="other.obj"), body)
+    told = re.search(r"it fits when scaled by (\S+) \((.+?)\?\), then moved up by (0\.\d\d) m \((\d+)% of it then "
+                     r"still inside the body.*`garment unpose other.obj --pose tpose --scale (\S+) --move 0,(\S+),0`$",
+                     str(err.value))
+    assert told, str(err.value)
+    assert float(told[1]) == pytest.approx(1 / ratio, rel=1e-3) and float(told[5]) == pytest.approx(1 / ratio, 1e-5)
+    assert told[2] == ("centimetres read as inches" if ratio > 1 else "inches read as centimetres")
+    assert 0.2 <= float(told[3]) == float(told[6]) <= 0.3 and int(told[4]) > 2
 
 
 def test_a_lifted_t_shirt_is_told_its_move_not_a_scale(trousers_on_body):
