@@ -56,12 +56,12 @@ def judge(garment: Garment, body) -> tuple[str, str]:
         try:
             bind_garment(garment, body)
         except InputError as err:
-            found = re.search(r"--move (\S+)`$", str(err))
-            if found:
-                return "move", found[1]
             found = re.search(r"--pose tpose (--scale [^`]+)`$", str(err))
             if found:
                 return "scale", found[1]
+            found = re.search(r"--move (\S+)`$", str(err))
+            if found:
+                return "move", found[1]
             fix = str(err).split("; ", 1)
             return "refused", fix[1][:60] if len(fix) > 1 else str(err).split("got ", 1)[-1][:60]
     inside = [m for m in warned if "inside the body's rest surface" in m]

@@ -151,20 +151,22 @@ FRAME_FIXES = (tuple((what, rotation, False) for what, rotation in _TURNS)
                + ((_DROP, ((1, 0, 0), (0, 1, 0), (0, 0, 1)), True),)
                + tuple((f"{what}, then {_DROP}", rotation, True) for what, rotation in _TURNS))
 
-#: File units a garment may have been written in and read in (name, metres per unit): a garment scaled to metres
-#: by the wrong one (written in inches, scaled by 0.01 as centimetres: a doll's dress 0.39 times its size) is
-#: scaled back by their ratio (`_scale_fix`).
-#: The pairs it may be mixed up between are those `core.garment.unit_hint` names together for one file (20-98
-#: units: centimetres or inches; 200-250: centimetres or millimetres): (scale back, "inches read as centimetres").
+#: A garment scaled to metres by the wrong unit (written in inches, scaled by 0.01 as centimetres: a doll's dress
+#: 0.39 times its size) is scaled back by the two units' ratio (`_scale_fix`). The units mixed up are those
+#: `core.garment.unit_hint` names together for one file (20-98 units: centimetres or inches; 200-250: centimetres
+#: or millimetres): (scale back, "inches read as centimetres").
 _MIXED = {("inches", "centimetres"), ("centimetres", "inches"), ("centimetres", "millimetres"),
           ("millimetres", "centimetres")}
 UNIT_MIXUPS = tuple((written / read, f"{w} read as {r}") for w, written in UNIT_GUESSES for r, read in UNIT_GUESSES
                     if (w, r) in _MIXED)
 #: Scaled back, at its best place, a garment's fit score over its span must be SCALE_GAIN times smaller than its own
-#: at its best place (`_scale_fix`; real garments of SMPL's, scaled by 0.39 or 2.54: 1.6-2.9 times), SCALE_TENFOLD_GAIN
-#: times for a tenfold scale (the examples scaled by 0.1 or 10: 3.1-11; a Maya export 4.3 units across, in none of
-#: these units, scaled by 0.1: 1.6).
+#: at its best place (`_scale_fix`) where it is enlarged (real garments authored on SMPL, scaled by 0.39: 1.6-3),
+#: SCALE_SHRINK_GAIN times where it is shrunk (a loose garment fits closer shrunk: the loose tubes of
+#: benchmarks/garment_placement.py with 12 cm of ease, shrunk by 0.39, up to 2.07; real garments of SMPL's scaled
+#: by 2.54: 1.4-5.1, 5 of 9 over 2.2; the examples: 2.4), SCALE_TENFOLD_GAIN times for a tenfold scale (the
+#: examples scaled by 0.1 or 10: 3.1-11; a Maya export 4.3 units across, in none of these units, scaled by 0.1: 1.6).
 SCALE_GAIN = 1.5
+SCALE_SHRINK_GAIN = 2.2
 SCALE_TENFOLD_GAIN = 2.5
 #: The scale search moves at most this many of a garment's vertices, evenly through them, up and down in steps of
 #: SCALE_HEIGHT_STEP_M (metres).
@@ -275,10 +277,10 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
     far = median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M
     if far or inside > REST_INSIDE_FRAME_SHARE:
-        fix = (_scale_fix(garment.vertices, body, mesh, name, placed)
+        fix = (_scale_fix(garment.vertices, body, mesh, name, near, inside, placed)
                or _frame_fix(garment.vertices, body, mesh, name=name, placed=placed))
     elif median > FRAME_FIX_SUSPECT_MEDIAN_M:  # near the body, but a fix may put it far closer
-        fix = (_scale_fix(garment.vertices, body, mesh, name, placed)
+        fix = (_scale_fix(garment.vertices, body, mesh, name, near, inside, placed)
                or _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name, placed=placed))
     else:
         fix = None
@@ -295,8 +297,8 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     span = float(np.ptp(garment.vertices[np.unique(garment.faces)], axis=0).max())
     if far and not fix and span > GARMENT_MAX_SPAN_M:  # under the unit check's 10 units, over any garment
         hint = (f"; it spans {span:.2f} m, more than a garment does (under {GARMENT_MAX_SPAN_M:g} m): in other "
-                f"units? scale it to metres (S metres per unit): "
-                f"{unpose_command(name, Placement(scale=0.0), placed).replace('--scale 0', '--scale S')}")
+                f"units? scale it to metres (S metres per unit): `garment unpose {name}{placed.pose} --scale S"
+                f"{placed.body}`")
     if far or (fix and inside <= REST_INSIDE_FRAME_SHARE):
         raise InputError(f"garment mesh '{name}': {expected}, resting on it), got a median distance of {median:.2f} m "
                          f"and its closest 5 % {near:.2f} m or more from the body{hint}")
@@ -428,25 +430,30 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     return _fix_text(what, rotation, shift - [0.0, drop, 0.0], inside, name, placed)
 
 
-def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str,
+def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, near: float, inside: float,
                placed: Placement | None = None) -> str | None:
     """ "it fits when scaled by 2.54 (inches read as centimetres?)[, then <a frame fix>][, then moved ...]" (naming
     `garment unpose`) for a garment that one of `UNIT_MIXUPS` (about the origin; the nearest to 1 first) puts on the
     body far better than it is, else None. Far better: at its best place (`_best_place`, not at the end of its
     heights), its `_fit_score` over its span (a small garment sits near the body anywhere: the example trousers
     scaled by 0.39 fit 2.7 times better 0.55 m down than 0.3 m aside, where they belong) SCALE_GAIN times smaller
-    (SCALE_TENFOLD_GAIN for a tenfold scale) than the garment's own at its best place, its median distance then at most FRAME_FIX_MEDIAN_M. Only scales
-    that leave it spanning `GARMENT_SPAN_M` are tried."""
+    (SCALE_SHRINK_GAIN shrunk, SCALE_TENFOLD_GAIN for a tenfold scale) than the garment's own at its best place, its median distance then
+    at most FRAME_FIX_MEDIAN_M. Only scales that leave it spanning `GARMENT_SPAN_M` are tried; smaller ones only
+    where its closest 5 % lie over MAX_NEAR_BODY_DISTANCE_M from the body (`near`, metres: a garment too large
+    rests on it nowhere, a loose one does, and fits closer shrunk), larger ones only where over
+    REST_INSIDE_WARN_SHARE of it is inside (`inside`: a garment too small)."""
     from core.garment import GARMENT_SPAN_M
 
     v = _shift_sample(np.asarray(vertices, dtype=np.float64), SCALE_SAMPLE)
     span = float(np.ptp(v, axis=0).max())
     tried = sorted(((ratio, mixup) for ratio, mixup in UNIT_MIXUPS
-                    if GARMENT_SPAN_M[0] <= span * ratio <= GARMENT_SPAN_M[1]), key=lambda t: abs(np.log(t[0])))
+                    if GARMENT_SPAN_M[0] <= span * ratio <= GARMENT_SPAN_M[1]
+                    and (near > MAX_NEAR_BODY_DISTANCE_M if ratio < 1.0 else inside > REST_INSIDE_WARN_SHARE)),
+                   key=lambda t: abs(np.log(t[0])))
     own = _best_place(mesh, v, body)[0] / span if tried else 0.0
     for ratio, mixup in tried:
         score, what, rotation, drop, dy = _best_place(mesh, ratio * v, body)
-        gain = SCALE_TENFOLD_GAIN if abs(np.log10(ratio)) > 0.5 else SCALE_GAIN
+        gain = SCALE_TENFOLD_GAIN if abs(np.log10(ratio)) > 0.5 else SCALE_GAIN if ratio > 1.0 else SCALE_SHRINK_GAIN
         if score / (ratio * span) * gain > own or abs(dy) >= SHIFT_RANGE_M[1] - 0.005:
             continue
         move = np.array([0.0, dy - drop, 0.0])
@@ -466,8 +473,9 @@ def _best_place(mesh: TriangleMesh, v: np.ndarray, body: Body) -> tuple[float, s
     """Where points `v` (N, 3) sit best on the body's rest surface `mesh`: as they are or with one of `FRAME_FIXES`
     (the first within FRAME_FIX_TIE of the best: a symmetric skirt is not turned), then moved up or down by up
     to SHIFT_RANGE_M's end (SCALE_HEIGHT_STEP_M steps, then whole centimetres about the best: the least share
-    inside, then the least score; none unless that makes the score SHIFT_AXIS_GAIN times smaller): (`_fit_score` there, the fix as told ("" for none), its rotation, its drop to
-    the body's soles and the height then, metres: the whole move up is height - drop)."""
+    inside, then the least score; none unless that makes the score SHIFT_AXIS_GAIN times smaller): (`_fit_score`
+    there, the fix as told ("" for none), its rotation, its drop to the body's soles and the height then, metres:
+    the whole move up is height - drop)."""
     soles = -float(body.v_template[:, 1].min())
     heights = np.arange(-SHIFT_RANGE_M[1], SHIFT_RANGE_M[1] + 1e-9, SCALE_HEIGHT_STEP_M)
 
