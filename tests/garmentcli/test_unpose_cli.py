@@ -355,3 +355,17 @@ def test_unpose_counts_the_vertices_of_the_file_it_writes(tmp_path):
     assert r.exit_code == 0, r.output
     lines = sum(line.startswith("v ") for line in (tmp_path / "panels_rest.obj").read_text().splitlines())
     assert lines == 2 * len(g.vertices) and f"{lines} vertices moved by 0,-0.3,0 m" in r.output, r.output
+
+
+def test_turn_given_twice_turns_twice(tmp_path):
+    """The example trousers upside down (180 degrees about X): `--turn z-up --turn z-up` turns them back (a fix
+    named on a file already turned joins the turns so), and `--scale` scales first."""
+    from core.skinning import TURNS
+
+    g = read_obj(EXAMPLES / "trousers.obj")
+    upside = tmp_path / "upside.obj"
+    flipped = g.vertices.astype(np.float64) @ TURNS["x+90"].T @ TURNS["x+90"].T / 0.01
+    write_obj(upside, flipped.astype(np.float32), g.faces)
+    r = invoke(["unpose", upside, "--pose", "tpose", "--scale", "0.01", "--turn", "z-up", "--turn", "z-up"])
+    assert r.exit_code == 0 and "scaled by 0.01, turned z-up, turned z-up" in r.output, r.output
+    assert np.abs(read_obj(tmp_path / "upside_rest.obj").vertices - g.vertices).max() < 1e-5
