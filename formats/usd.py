@@ -410,8 +410,9 @@ def _stage_to(stage: Usd.Stage, up: str) -> np.ndarray:
 def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
     """A garment from a USD stage: its one mesh (or its mesh named 'garment', as a bake's stage has), at the
     static value or else the first time sample, placed by its transforms, in the body's rest frame (metres,
-    Y-up: a stage that authors Z-up is turned, other units scaled; then times `scale`). Quads and larger polygons split, seams
-    welded and the result cleaned as `formats.obj.read_obj` does; `st` (face-varying or per vertex) kept.
+    Y-up: a stage that authors Z-up is turned, other units scaled; then times `scale`). Quads and larger polygons
+    split, seams welded and the result cleaned as `formats.obj.read_obj` does; `st` (face-varying or per vertex)
+    kept.
     Raises InputError naming the file.
     """
     from formats.obj import MAX_POLYGON_VERTICES, file_polygons, garment_from_polygons, split_ngons
