@@ -276,16 +276,20 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     median, near = (float(d) for d in np.percentile(np.abs(signed), [50, 5]))
     inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
     far = median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M
-    if far or inside > REST_INSIDE_FRAME_SHARE:
-        fix = (_scale_fix(garment.vertices, body, mesh, name, near, inside, placed)
-               or _frame_fix(garment.vertices, body, mesh, name=name, placed=placed))
+    fix = maybe = None
+    if far or inside > REST_INSIDE_FRAME_SHARE or median > FRAME_FIX_SUSPECT_MEDIAN_M:
+        fix, maybe = _scale_fix(garment.vertices, body, mesh, name, near, inside, placed)
+    if fix:
+        pass
+    elif far or inside > REST_INSIDE_FRAME_SHARE:
+        fix = _frame_fix(garment.vertices, body, mesh, name=name, placed=placed)
     elif median > FRAME_FIX_SUSPECT_MEDIAN_M:  # near the body, but a fix may put it far closer
-        fix = (_scale_fix(garment.vertices, body, mesh, name, near, inside, placed)
-               or _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name, placed=placed))
-    else:
-        fix = None
+        fix = _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name, placed=placed)
     lift = None if fix else _lifted_by_floor(garment, body, mesh, name, placed)
     if not (far or fix or lift) and inside <= REST_INSIDE_WARN_SHARE:
+        if maybe:  # 2.5 times too large, or loose: told, not refused
+            log.warning("garment mesh '%s': it rests on the body nowhere (its closest 5 %% %.0f cm or more from it); "
+                        "%s: in other units? (a loose garment fits closer shrunk too)", name, near * 100, maybe)
         return
     expected = "expected a garment authored on the body's rest pose (Y-up, T-pose, metres"
     if lift and not far and inside <= REST_INSIDE_FRAME_SHARE:
@@ -293,7 +297,7 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
         raise InputError(f"garment mesh '{name}': {expected}, resting on it), got its top {above:.2f} m above the "
                          f"body's head and none of it below y = 0 (the floor); {lift}")
     fix = fix or lift
-    hint = f"; {fix}" if fix else ""
+    hint = f"; {fix}" if fix else f"; {maybe}: in other units?" if maybe else ""
     span = float(np.ptp(garment.vertices[np.unique(garment.faces)], axis=0).max())
     if far and not fix and span > GARMENT_MAX_SPAN_M:  # under the unit check's 10 units, over any garment
         hint = (f"; it spans {span:.2f} m, more than a garment does (under {GARMENT_MAX_SPAN_M:g} m): in other "
@@ -431,10 +435,11 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
 
 
 def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, near: float, inside: float,
-               placed: Placement | None = None) -> str | None:
-    """ "it fits when scaled by 2.54 (inches read as centimetres?)[, then <a frame fix>][, then moved ...]" (naming
-    `garment unpose`) for a garment that one of `UNIT_MIXUPS` (about the origin; the nearest to 1 first) puts on the
-    body far better than it is, else None. Far better: at its best place (`_best_place`, not at the end of its
+               placed: Placement | None = None) -> tuple[str | None, str | None]:
+    """(fix, maybe): "it fits when scaled by 2.54 (inches read as centimetres?)[, then <a frame fix>][, then moved
+    ...]" (naming `garment unpose`) for a garment that one of `UNIT_MIXUPS` (about the origin; the nearest to 1
+    first) puts on the body far better than it is, else None; maybe: for a shrink that fits only SCALE_GAIN times
+    better ("it fits 1.7 times better for its size when scaled by ..."), else None. Far better: at its best place (`_best_place`, not at the end of its
     heights), its `_fit_score` over its span (a small garment sits near the body anywhere: the example trousers
     scaled by 0.39 fit 2.7 times better 0.55 m down than 0.3 m aside, where they belong) SCALE_GAIN times smaller
     (SCALE_SHRINK_GAIN shrunk, SCALE_TENFOLD_GAIN for a tenfold scale) than the garment's own at its best place, its median distance then
@@ -451,10 +456,11 @@ def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, 
                     and (near > MAX_NEAR_BODY_DISTANCE_M if ratio < 1.0 else inside > REST_INSIDE_WARN_SHARE)),
                    key=lambda t: abs(np.log(t[0])))
     own = _best_place(mesh, v, body)[0] / span if tried else 0.0
+    maybe = None
     for ratio, mixup in tried:
         score, what, rotation, drop, dy = _best_place(mesh, ratio * v, body)
         gain = SCALE_TENFOLD_GAIN if abs(np.log10(ratio)) > 0.5 else SCALE_GAIN if ratio > 1.0 else SCALE_SHRINK_GAIN
-        if score / (ratio * span) * gain > own or abs(dy) >= SHIFT_RANGE_M[1] - 0.005:
+        if score / (ratio * span) * SCALE_GAIN > own or abs(dy) >= SHIFT_RANGE_M[1] - 0.005:
             continue
         move = np.array([0.0, dy - drop, 0.0])
         moved = ratio * np.asarray(vertices, dtype=np.float64) @ np.asarray(rotation, dtype=np.float64).T + move
@@ -464,9 +470,13 @@ def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, 
         told = ", then ".join(w for w in (f"scaled by {ratio:.4g} ({mixup}?)", what) if w)
         if dy:
             told += f", then moved {_move_words(np.array([0.0, dy, 0.0]))}"
-        return _fix_text(told, rotation, move, float(np.mean(signed < -REST_INSIDE_DEPTH_M)), name, placed,
+        text = _fix_text(told, rotation, move, float(np.mean(signed < -REST_INSIDE_DEPTH_M)), name, placed,
                          scale=ratio)
-    return None
+        if score / (ratio * span) * gain <= own:
+            return text, None
+        maybe = maybe or text.replace("it fits when", f"it fits {own * ratio * span / score:.1f} times better for "
+                                                      f"its size when", 1)
+    return None, maybe
 
 
 def _best_place(mesh: TriangleMesh, v: np.ndarray, body: Body) -> tuple[float, str, np.ndarray, float, float]:

@@ -414,6 +414,29 @@ def test_a_garment_of_another_body_in_mixed_up_units_is_told_the_scale_and_the_m
     assert 0.2 <= float(told[3]) == float(told[6]) <= 0.3 and int(told[4]) > 2
 
 
+def test_a_garment_resting_nowhere_that_fits_better_shrunk_is_bound_with_a_warning(trousers_on_body, caplog):
+    """A tube skirt with 12 cm of ease all round (touching the body nowhere) fits 2.1 times better for its size
+    shrunk by 0.39, as a garment 2.54 times too large does (ISP's t-shirt: 1.7 times): too little to refuse it (a
+    loose garment fits closer shrunk), so it is bound, told the scale in a warning; a tighter one is not."""
+    from core.garmentgen import _levels, _RestBody, _tube_garment
+
+    _, body = trousers_on_body
+    rest = _RestBody(body)
+    lv = _levels(rest)
+    warned = {}
+    for ease, told in ((0.12, True), (0.05, False)):
+        tube = _tube_garment(rest, "tube", y_top=lv["pelvis"] + 0.5 * (lv["spine1"] - lv["pelvis"]),
+                             y_bottom=lv["knees"] - 0.06, ease=ease, flare_from_y=lv["hips"], flare_slope=0.6)
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            bind_garment(Garment(tube.vertices, tube.faces, name="tube.obj"), body)
+        warned[ease] = [r.getMessage() for r in caplog.records if "rests on the body nowhere" in r.getMessage()]
+        assert bool(warned[ease]) == told, caplog.text
+    assert re.search(r"it fits 2\.\d times better for its size when scaled by 0\.3937 \(centimetres read as "
+                     r"inches\?\), then moved up by 0\.\d\d m.*`garment unpose tube.obj --pose tpose --scale 0\.393701 "
+                     r"--move 0,0\.\d\d,0`: in other units\? \(a loose garment fits closer shrunk too\)$", warned[0.12][0]), warned
+
+
 def test_a_lifted_t_shirt_is_told_its_move_not_a_scale(trousers_on_body):
     """The example t-shirt lifted 0.15-0.3 m, scaled by 0.39 and dropped to the soles, fits about the shins with a
     median distance of 9-10 cm: no scale is named (SCALE_FIX_MEDIAN_M), the move down is."""
