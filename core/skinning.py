@@ -204,11 +204,11 @@ class Placement:
         A fix found on a garment unposed from another pose is made before the pose is taken off: a unit or frame
         mix-up is the file's (the command's result is checked again)."""
         rotation = fix.rotation @ self.rotation
-        turns = self.turns + fix.turns
+        turns, one = self.turns + fix.turns, _turn_name(rotation)
         if np.allclose(rotation, np.eye(3)):
             turns = ()  # a turn and its undoing
-        elif _turn_name(rotation) is not None:
-            turns = (_turn_name(rotation),)
+        elif one is not None:
+            turns = (one,)
         move = fix.scale * fix.rotation @ np.asarray(self.move, dtype=np.float64) + np.asarray(fix.move)
         return Placement(self.scale * fix.scale, turns, tuple(float(m) for m in np.round(move, 2)), self.pose,
                          self.body)
@@ -279,12 +279,9 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     fix = maybe = None
     if far or inside > REST_INSIDE_FRAME_SHARE or median > FRAME_FIX_SUSPECT_MEDIAN_M:
         fix, maybe = _scale_fix(garment.vertices, body, mesh, name, near, inside, placed)
-    if fix:
-        pass
-    elif far or inside > REST_INSIDE_FRAME_SHARE:
-        fix = _frame_fix(garment.vertices, body, mesh, name=name, placed=placed)
-    elif median > FRAME_FIX_SUSPECT_MEDIAN_M:  # near the body, but a fix may put it far closer
-        fix = _frame_fix(garment.vertices, body, mesh, closer_than=(median, near), name=name, placed=placed)
+        if not fix:  # no unit mix-up: a frame mix-up? (a garment near the body must be put far closer by it)
+            closer = None if far or inside > REST_INSIDE_FRAME_SHARE else (median, near)
+            fix = _frame_fix(garment.vertices, body, mesh, closer_than=closer, name=name, placed=placed)
     lift = None if fix else _lifted_by_floor(garment, body, mesh, name, placed)
     if not (far or fix or lift) and inside <= REST_INSIDE_WARN_SHARE:
         if maybe:  # 2.5 times too large, or loose: told, not refused
@@ -438,15 +435,16 @@ def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, 
                placed: Placement | None = None) -> tuple[str | None, str | None]:
     """(fix, maybe): "it fits when scaled by 2.54 (inches read as centimetres?)[, then <a frame fix>][, then moved
     ...]" (naming `garment unpose`) for a garment that one of `UNIT_MIXUPS` (about the origin; the nearest to 1
-    first) puts on the body far better than it is, else None; maybe: for a shrink that fits only SCALE_GAIN times
-    better ("it fits 1.7 times better for its size when scaled by ..."), else None. Far better: at its best place (`_best_place`, not at the end of its
-    heights), its `_fit_score` over its span (a small garment sits near the body anywhere: the example trousers
-    scaled by 0.39 fit 2.7 times better 0.55 m down than 0.3 m aside, where they belong) SCALE_GAIN times smaller
-    (SCALE_SHRINK_GAIN shrunk, SCALE_TENFOLD_GAIN for a tenfold scale) than the garment's own at its best place, its median distance then
-    at most FRAME_FIX_MEDIAN_M. Only scales that leave it spanning `GARMENT_SPAN_M` are tried; smaller ones only
-    where its closest 5 % lie over MAX_NEAR_BODY_DISTANCE_M from the body (`near`, metres: a garment too large
-    rests on it nowhere, a loose one does, and fits closer shrunk), larger ones only where over
-    REST_INSIDE_WARN_SHARE of it is inside (`inside`: a garment too small)."""
+    first) puts on the body far better than it is, else None; maybe: for the first scale that fits SCALE_GAIN
+    times better but not as much better as its own gain asks (a shrink, a tenfold scale), "it fits 1.7 times
+    better for its size when scaled by ...", else None. Far better: at its best place (`_best_place`, not at the
+    end of its heights), its `_fit_score` over its span (a small garment sits near the body anywhere: the example
+    trousers scaled by 0.39 fit 2.7 times better 0.55 m down than 0.3 m aside, where they belong) SCALE_GAIN
+    times smaller (SCALE_SHRINK_GAIN shrunk, SCALE_TENFOLD_GAIN for a tenfold scale) than the garment's own at its
+    best place, its median distance then at most FRAME_FIX_MEDIAN_M. Only scales that leave it spanning
+    `GARMENT_SPAN_M` are tried; smaller ones only where its closest 5 % lie over MAX_NEAR_BODY_DISTANCE_M from the
+    body (`near`, metres: a garment too large rests on it nowhere, a loose one does, and fits closer shrunk),
+    larger ones only where over REST_INSIDE_WARN_SHARE of it is inside (`inside`: a garment too small)."""
     from core.garment import GARMENT_SPAN_M
 
     v = _shift_sample(np.asarray(vertices, dtype=np.float64), SCALE_SAMPLE)
