@@ -12,10 +12,7 @@ faces (F,3); others (gender, landmarks, hand PCA...) are ignored.
 
 from __future__ import annotations
 
-import _compat_pickle
-import importlib
 import logging
-import pickle
 from dataclasses import replace
 from pathlib import Path
 
@@ -24,6 +21,7 @@ import numpy as np
 from core.body import LAYOUT_JOINTS, Body, dense_from_sparse, body_from_arrays
 from core.errors import InputError, not_a_file
 from formats.motion import NPZ_READ_ERRORS, open_npz
+from formats.pickles import ChumpyStandIn, FastRestrictedUnpickler
 
 log = logging.getLogger(__name__)
 
@@ -131,7 +129,7 @@ def _read_npz(path: Path, label: str) -> dict:
 def _read_pkl(path: Path, label: str) -> dict:
     try:
         with open(path, "rb") as fh:
-            data = _SMPLUnpickler(fh, label).load()
+            data = FastRestrictedUnpickler(fh, label, "an SMPL-format file").load()
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - any failure to unpickle is an unreadable file
@@ -146,66 +144,3 @@ def _reason(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-class ChumpyStandIn:
-    """Takes the place of a chumpy `Ch` while unpickling; `.array` is its value.
-
-    A pickled `Ch` stores its value under 'x' of its state dict (other entries
-    are chumpy bookkeeping).
-    """
-
-    array = None
-
-    def __init__(self, *args, **kwargs):
-        if args:
-            self.array = np.asarray(args[0])
-
-    def __setstate__(self, state):
-        if isinstance(state, tuple):  # (dict, slots) from objects with __slots__
-            state = next((s for s in state if isinstance(s, dict)), {})
-        if not isinstance(state, dict):
-            return
-        value = state.get("x")
-        if value is None:
-            value = next((v for v in state.values() if isinstance(v, np.ndarray)), None)
-        if isinstance(value, ChumpyStandIn):
-            value = value.array
-        self.array = None if value is None else np.asarray(value)
-
-
-_NUMPY_NAMES = {"_reconstruct", "ndarray", "dtype", "scalar", "_frombuffer"}
-_BUILTIN_NAMES = {"object", "set", "frozenset", "slice", "complex", "bytearray", "list", "dict", "tuple",
-                  "int", "float", "str", "bytes", "bool"}
-
-
-class _SMPLUnpickler(pickle.Unpickler):
-    """Unpickler for SMPL files: Python-2 latin1 strings, chumpy -> stand-in, and only
-    the globals such a file needs (numpy arrays, scipy.sparse matrices)."""
-
-    def __init__(self, fh, label: str):
-        super().__init__(fh, encoding="latin1")
-        self.label = label
-
-    def find_class(self, module: str, name: str):
-        # Python-2 names (__builtin__, copy_reg), as the default find_class maps them.
-        if (module, name) in _compat_pickle.NAME_MAPPING:
-            module, name = _compat_pickle.NAME_MAPPING[(module, name)]
-        module = _compat_pickle.IMPORT_MAPPING.get(module, module)
-        if module == "chumpy" or module.startswith("chumpy."):
-            return ChumpyStandIn
-        if module.startswith("scipy.sparse") and name.endswith(("_matrix", "_array")):
-            import scipy.sparse
-
-            if hasattr(scipy.sparse, name):
-                return getattr(scipy.sparse, name)
-        if module.split(".")[0] == "numpy" and (name in _NUMPY_NAMES or name.endswith("DType")):
-            # numpy 2 moved numpy.core to numpy._core; old pickles name the former.
-            for mod in (module.replace("numpy.core", "numpy._core", 1), module):
-                try:
-                    return getattr(importlib.import_module(mod), name)
-                except (ImportError, AttributeError):
-                    continue
-        if (module, name) in (("copyreg", "_reconstructor"), ("_codecs", "encode"),
-                              ("collections", "OrderedDict")) or (module == "builtins" and name in _BUILTIN_NAMES):
-            return super().find_class(module, name)
-        raise InputError(f"{self.label}: the pickle refers to '{module}.{name}', which an SMPL-format file "
-                         f"does not use (refused)")

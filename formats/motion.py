@@ -1,4 +1,5 @@
-"""AMASS-style motion files (.npz): read them into a `core.motion.Motion`, write them back.
+"""Motion files: AMASS-style .npz archives, and the same parameters pickled; read into a `core.motion.Motion`;
+written back as .npz.
 
 Accepted layouts: `poses` with 72 (SMPL), 156 (SMPL+H) or 165 (SMPL-X) values per
 frame, or 66 (the 22 body joints alone; the SMPL hands are then at rest), or the same
@@ -10,7 +11,10 @@ as a (T, J, 3) array or as rotation matrices (T, J, 3, 3), or, when `poses` is a
 `transl`; or AIST++'s `smpl_poses`, with `smpl_trans` / `smpl_scaling` as the translation. Also read:
 `trans (T,3)` metres Z-up (zeros, with a warning, when missing), `betas` (any length; per frame (T, S) as video fits write them: their mean),
 `mocap_framerate` or `mocap_frame_rate` (Hz; or `mocap_fps`, `fps`, `framerate`,
-`frame_rate`), `gender`.
+`frame_rate`), `gender`. WHAM's world motion `pose_world`, `trans_world` (or, without them, VIBE's and WHAM's
+camera-frame `pose`) where no other poses are there. Pickles (`PICKLE_SUFFIXES`: AIST++'s motions, the results
+WHAM and VIBE write with joblib, one dict per tracked person: the longest is read) and PyTorch files
+(`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
 from core.errors import InputError
 from core.motion import Motion, check_frame_rate, validate_motion_values, warn_if_not_metres, warn_if_not_z_up
 from formats.atomic import atomic_file
+from formats.pickles import load_pickle
 
 log = logging.getLogger(__name__)
 
@@ -34,8 +39,6 @@ log = logging.getLogger(__name__)
 _OTHER_MOTION_FORMATS = {
     **dict.fromkeys((".bvh", ".fbx", ".c3d", ".trc"), "motion capture of a skeleton (BVH/FBX/C3D/TRC), not SMPL "
                     "parameters: fit SMPL to it first (AMASS's MoSh, or a retargeting tool), then save the npz"),
-    ".pkl": "a Python pickle (SMPL parameters from a pose estimator? save its 'global_orient', 'body_pose', "
-            "'transl' and 'betas' (or 'poses' (T, 72) and 'trans' (T, 3)) with np.savez, adding 'mocap_framerate')",
     ".json": "a JSON file",
 }
 #: Where a frame rate is found (AMASS's two spellings first, then those of other SMPL pipelines).
@@ -64,10 +67,24 @@ _SMPLX_ARG_KEYS = ("global_orient", "body_pose", *(key for key, _ in _SMPLX_ARG_
 #: AIST++'s keys (its motions, pickles, saved as .npz with the same names): SMPL poses, and a translation in the
 #: units of the body scaled by `smpl_scaling` (about 95-100: centimetres of a body scaled to metres).
 _AIST_KEYS = ("smpl_poses", "smpl_trans", "smpl_scaling")
+#: A pose estimator's keys (`_from_estimator`): WHAM's world motion, VIBE's and WHAM's camera-frame 'pose', a
+#: track's video frames.
+_ESTIMATOR_KEYS = ("pose_world", "trans_world", "pose", "frame_ids")
 #: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
 #: needs allow_pickle, a face's expression) are left unread. `transl` is the smplx arguments' `trans`.
 _READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender",
-              *_AIST_KEYS)
+              *_AIST_KEYS, *_ESTIMATOR_KEYS)
+#: Pickled motions, read through a restricted unpickler (`formats.pickles`: no code in them runs): AIST++'s motion
+#: pickles; pose estimators' results saved with pickle or joblib (WHAM, VIBE: a dict per tracked person).
+PICKLE_SUFFIXES = (".pkl", ".pickle", ".joblib")
+#: PyTorch files, read with torch.load(weights_only=True) (tensors and containers only): GVHMR's hmr4d_results.pt.
+TORCH_SUFFIXES = (".pt", ".pth")
+#: A dict in a pickled motion that holds it: GVHMR's world parameters (preferred) or its camera-frame ones.
+_NESTED_KEYS = ("smpl_params_global", "smpl_params_incam")
+#: Keys whose length is a tracked person's number of frames.
+_POSE_KEYS = ("poses", "pose", "pose_world", "smpl_poses", "global_orient", "root_orient", "body_pose")
+#: What a motion file's name ends with (the case aside).
+MOTION_SUFFIXES = (".npz", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
 ROTATION_MATRIX_TOL = 1e-3
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
@@ -98,7 +115,7 @@ def open_npz(path: Path, refuse):
 
 
 def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Motion:
-    """Read an AMASS-style .npz motion.
+    """Read a motion: an AMASS-style .npz, or a pickle or PyTorch file of the same parameters (module docstring).
 
     path: file path. fps: frame rate in Hz that overrides (or replaces a missing)
     `mocap_framerate` / `mocap_frame_rate`. world_checks: warn when the motion looks Y-up (or -Y) or its
@@ -111,36 +128,12 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     src = f"motion '{path}'"
     if not path.is_file():
         raise InputError(f"{src}: file not found")
-    def refuse(got: str) -> InputError:
-        if got == "a single .npy array":
-            return InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
-        kind = _OTHER_MOTION_FORMATS.get(path.suffix.lower(), "a file that is not one" if got == "no zip archive"
-                                         else got)
-        return InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays: SMPL joint rotations "
-                          f"'poses', 'trans', a frame rate), got {kind}")
-
-    arrays = {}
-    try:
-        with open_npz(path, refuse) as data:
-            files = list(data.files)
-            for key in files:
-                if key not in _READ_KEYS:  # e.g. AMASS SMPL-X's markers_latent_vids, a pickled dict: never read
-                    continue
-                try:
-                    arrays[key] = data[key]
-                except NPZ_READ_ERRORS as exc:
-                    if key == "gender":  # e.g. an object array: not needed
-                        log.warning("%s: skipping unreadable key '%s' (%s)", src, key, _short(exc))
-                        continue
-                    raise InputError(f"{src}: could not read array '{key}' ({_short(exc)})") from None
-    except InputError:
-        raise
-    except NPZ_READ_ERRORS as exc:
-        if isinstance(exc, OSError) and exc.errno is not None:  # the system's (e.g. /proc/self/mem: EIO)
-            raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
-        raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
-
+    if path.suffix.lower() in PICKLE_SUFFIXES + TORCH_SUFFIXES:
+        arrays, files = _pickled_arrays(path, src)
+    else:
+        arrays, files = _npz_arrays(path, src)
     _from_aist(arrays, src)
+    _from_estimator(arrays, src)
     poses = _read_poses(arrays, src, files)
     T = poses.shape[0]
     if T < 1:
@@ -181,6 +174,105 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         warn_if_not_z_up(motion, str(path))
         warn_if_not_metres(motion, str(path))
     return motion
+
+
+def _npz_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
+    """(the arrays load_motion reads, every key) of the .npz `path`; InputError naming `src` otherwise."""
+    def refuse(got: str) -> InputError:
+        if got == "a single .npy array":
+            return InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
+        kind = _OTHER_MOTION_FORMATS.get(path.suffix.lower(), "a file that is not one" if got == "no zip archive"
+                                         else got)
+        return InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays: SMPL joint rotations "
+                          f"'poses', 'trans', a frame rate), got {kind}")
+
+    arrays = {}
+    try:
+        with open_npz(path, refuse) as data:
+            files = list(data.files)
+            for key in files:
+                if key not in _READ_KEYS:  # e.g. AMASS SMPL-X's markers_latent_vids, a pickled dict: never read
+                    continue
+                try:
+                    arrays[key] = data[key]
+                except NPZ_READ_ERRORS as exc:
+                    if key == "gender":  # e.g. an object array: not needed
+                        log.warning("%s: skipping unreadable key '%s' (%s)", src, key, _short(exc))
+                        continue
+                    raise InputError(f"{src}: could not read array '{key}' ({_short(exc)})") from None
+    except InputError:
+        raise
+    except NPZ_READ_ERRORS as exc:
+        if isinstance(exc, OSError) and exc.errno is not None:  # the system's (e.g. /proc/self/mem: EIO)
+            raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+        raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
+    return arrays, files
+
+
+def _pickled_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
+    """(the arrays load_motion reads, every key of the dict read) of a pickled motion (`PICKLE_SUFFIXES`,
+    `TORCH_SUFFIXES`): its one person's SMPL parameters (`_motion_dict`); InputError naming `src` otherwise."""
+    data = _motion_dict(_unpickled(path, src), src)
+    return {str(k): _plain(v) for k, v in data.items() if str(k) in _READ_KEYS}, [str(k) for k in data]
+
+
+def pickled_motion_keys(path: Path) -> list[str]:
+    """The keys of the one person's SMPL parameters in the pickled motion `path` (`_motion_dict`); InputError
+    where it cannot be read or holds no dict."""
+    src = f"motion '{path}'"
+    return [str(k) for k in _motion_dict(_unpickled(path, src), src, quiet=True)]
+
+
+def _unpickled(path: Path, src: str):
+    """What the pickled motion `path` holds (a PyTorch file through torch.load(weights_only=True), another through
+    `formats.pickles.load_pickle`); InputError naming `src` where it cannot be read."""
+    torch_file = path.suffix.lower() in TORCH_SUFFIXES
+    try:
+        if torch_file:
+            import torch
+
+            data = torch.load(path, map_location="cpu", weights_only=True)
+        else:
+            data = load_pickle(path, src, "a motion file")
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any failure to unpickle is an unreadable file
+        raise InputError(f"{src}: cannot read it as {'a PyTorch file' if torch_file else 'a Python pickle'} "
+                         f"({type(exc).__name__}: {_short(exc)})") from None
+    return data
+
+
+def _motion_dict(data, src: str, quiet: bool = False) -> dict:
+    """One person's SMPL parameters in the pickled `data`: the dict itself; GVHMR's `smpl_params_global` in it
+    (`_NESTED_KEYS`); of a dict of tracked people (WHAM, VIBE: {track id: dict}), the person tracked longest, warned
+    about where there are others (quiet: not)."""
+    if not isinstance(data, dict):
+        raise InputError(f"{src}: expected a pickled dict of SMPL parameters ('poses', 'trans', ...; or one such "
+                         f"dict per tracked person), got {type(data).__name__}")
+    nested = next((k for k in _NESTED_KEYS if isinstance(data.get(k), dict)), None)
+    data = data[nested] if nested else data
+    if data and all(isinstance(v, dict) for v in data.values()):
+        frames = {k: max((len(v[p]) for p in _POSE_KEYS if hasattr(v.get(p), "__len__")), default=0)
+                  for k, v in data.items()}
+        person = max(frames, key=frames.get)
+        if len(data) > 1 and not quiet:
+            log.warning("%s: holds %d tracked people (%s): reading '%s', tracked longest (save another's arrays as "
+                        "an .npz to bake them)", src, len(data),
+                        ", ".join(f"'{k}' {n} frames" for k, n in list(frames.items())[:6])
+                        + (", ..." if len(data) > 6 else ""), person)
+        data = data[person]
+    return data
+
+
+def _plain(value) -> np.ndarray:
+    """A pickled value as a numpy array (a tensor's values; an object array where it is no array of numbers)."""
+    if hasattr(value, "detach"):  # a torch tensor
+        value = value.detach().cpu()
+        return (value.float() if value.is_floating_point() else value).numpy()
+    try:
+        return np.asarray(value)
+    except (ValueError, TypeError):  # ragged lists
+        return np.array(None, dtype=object)
 
 
 def save_motion(path, motion: Motion) -> None:
@@ -251,6 +343,28 @@ def _from_aist(arrays: dict, src: str) -> None:
                                  f"{scale.size} value(s) {scale[:3].tolist()}")
             trans = trans / scale[0]
         arrays["trans"] = trans
+
+
+def _from_estimator(arrays: dict, src: str) -> None:
+    """A pose estimator's keys as load_motion's, in place, where the file has no poses of another name: WHAM's
+    world motion ('pose_world', 'trans_world'; without the latter, no translation: its 'trans' is the camera's view)
+    in place of its camera-frame one, else a 'pose' (VIBE's, WHAM's in the camera's frame: SMPL's 72 values per
+    frame) as 'poses'. A track's 'frame_ids' that skip frames of the video are warned about."""
+    if not {"poses", "root_orient", "global_orient"} & arrays.keys():
+        if "pose_world" in arrays:
+            arrays["poses"] = arrays.pop("pose_world")
+            arrays.pop("trans", None)
+            if "trans_world" in arrays:
+                arrays["trans"] = arrays.pop("trans_world")
+        elif "pose" in arrays:
+            arrays["poses"] = arrays.pop("pose")
+    ids = np.asarray(arrays.get("frame_ids", ()))
+    if ids.ndim == 1 and ids.size > 1 and ids.dtype.kind in "iu":
+        skipped = int(np.clip(np.diff(ids.astype(np.int64)) - 1, 0, None).sum())
+        if skipped:
+            log.warning("%s: the person is not tracked in %d of the video's frames between its first and last "
+                        "('frame_ids'): the %d tracked are played one after another, jumping over the others",
+                        src, skipped, ids.size)
 
 
 def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:

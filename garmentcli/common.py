@@ -67,8 +67,9 @@ class OutputPath(click.Path):
         return value
 
 
-#: Keys of an archive that holds a motion (`formats.motion.load_motion`): AMASS's poses, SMPL-X's split keys.
-MOTION_KEYS = ("poses", "root_orient", "pose_body")
+#: Keys of an archive or pickle that holds a motion (`formats.motion.load_motion`): AMASS's poses, SMPL-X's split
+#: keys, the smplx library's arguments, AIST++'s and pose estimators' poses.
+MOTION_KEYS = ("poses", "root_orient", "pose_body", "global_orient", "smpl_poses", "pose", "pose_world")
 
 
 def require_file(path) -> None:
@@ -80,17 +81,21 @@ def require_file(path) -> None:
 
 
 def motion_files(args, hint: str = "MOTION") -> list[str]:
-    """MOTION arguments as motion files: a file as given; a directory, every `.npz` under it (recursively, in
-    sorted order) that holds poses (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold a body shape
-    only, are left out). A file given twice is taken once. Raises click errors for a path that is not there
-    and for a directory without motions."""
+    """MOTION arguments as motion files: a file as given; a directory, every `.npz` or pickle (`.pkl`, as AIST++'s
+    motions and WHAM's results are) under it (recursively, in sorted order) that holds poses (`MOTION_KEYS`;
+    AMASS's shape.npz and *_stagei.npz, which hold a body shape only, are left out; PyTorch files only named). A
+    file given twice is taken once. Raises click errors for a path that is not there and for a directory without
+    motions."""
+    from formats.motion import PICKLE_SUFFIXES
+
     files: list[str] = []
     for arg in args:
         path = Path(arg)
         if path.is_dir():
-            found = [str(f) for f in sorted(path.rglob("*.npz")) if f.is_file() and _holds_poses(f)]
+            found = [str(f) for f in sorted(path.rglob("*")) if f.suffix.lower() in (".npz", *PICKLE_SUFFIXES)
+                     and f.is_file() and _holds_poses(f)]
             if not found:
-                raise click.BadParameter(f"directory '{arg}': expected motion .npz files under it (with "
+                raise click.BadParameter(f"directory '{arg}': expected motion files under it (.npz or .pkl, with "
                                          f"{' or '.join(repr(k) for k in MOTION_KEYS[:2])}), found none",
                                          param_hint=hint)
             files += found
@@ -105,6 +110,15 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
 
 
 def _holds_poses(path: Path) -> bool:
+    """Whether the archive or pickle `path` holds poses; True for one that cannot be read (named as a motion, it
+    is refused with the reason)."""
+    if path.suffix.lower() != ".npz":
+        from formats.motion import pickled_motion_keys
+
+        try:
+            return any(k in pickled_motion_keys(path) for k in MOTION_KEYS)
+        except Exception:  # noqa: BLE001 - any failure to read it is told when it is read as a motion
+            return True
     try:
         archive = np.load(path, allow_pickle=False)
         if not isinstance(archive, np.lib.npyio.NpzFile):  # a .npy array named .npz

@@ -170,7 +170,8 @@ MAX_BODIES = 10000
 @click.option("--garments", "garment_paths", multiple=True, required=True, type=click.Path(dir_okay=False, exists=True),
               help="Garment OBJ on the body's rest pose (repeat the option for several).")
 @click.option("--motions", "motion_paths", multiple=True, type=click.Path(exists=True),
-              help="AMASS-style motion .npz, or a directory: every motion .npz under it (repeat the option).")
+              help="AMASS-style motion .npz (or .pkl, .pt), or a directory: every motion .npz and .pkl under "
+                   "it (repeat the option).")
 @click.option("--library", is_flag=True, help="Add the built-in motion library (30 generated clips: walks, runs, turns, "
               "jumps, arm swings, bends, kicks, sitting down).")
 @click.option("--bodies", "n_bodies", type=click.IntRange(min=1, max=MAX_BODIES), default=3, show_default=True,

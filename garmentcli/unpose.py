@@ -136,7 +136,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     from core.motion import poses_for_body
     from core.skinning import Placement, bind_garment
     from core.unpose import a_pose, unpose_garment
-    from formats.motion import load_motion
+    from formats.motion import MOTION_SUFFIXES, load_motion
     from formats.obj import read_garment
 
     source = Path(garment_path)
@@ -163,7 +163,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
             raise click.UsageError("--frame applies to a POSE.npz file only (got --pose apose)")
         pose = a_pose(body, A_POSE_ARM_DEGREES if arm_angle is None else arm_angle)
         what = f"A-pose, arms lowered {A_POSE_ARM_DEGREES if arm_angle is None else arm_angle:g} degrees"
-    elif pose_spec.lower().endswith(".npz"):  # POSE.NPZ too, as every other command reads a motion
+    elif pose_spec.lower().endswith(MOTION_SUFFIXES):  # POSE.NPZ too, as every other command reads a motion
         if not Path(pose_spec).is_file():
             raise click.BadParameter(f"'{pose_spec}': no such file", param_hint="--pose")
         motion = load_motion(pose_spec, fps=30.0, world_checks=False)  # rotations only: no fps, root or trans
@@ -174,7 +174,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         pose, betas = poses_for_body(motion, body.n_joints)[k], motion.betas
         what = f"frame {k} of '{pose_spec}'"
     else:
-        raise click.BadParameter(f"expected 'tpose', 'apose' or an AMASS-style .npz file, got '{pose_spec}'",
+        raise click.BadParameter(f"expected 'tpose', 'apose' or a motion file (.npz; .pkl, .pt), got '{pose_spec}'",
                                  param_hint="--pose")
     if betas_text is not None:
         betas = betas_text

@@ -1,0 +1,120 @@
+"""Tests of pickled motions (formats/motion.py, formats/pickles.py): AIST++'s pickles, WHAM's and VIBE's joblib
+results, GVHMR's PyTorch file, read without running code in them."""
+
+import importlib.util
+import logging
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from formats.motion import load_motion
+from formats.pickles import load_pickle
+from tests.formats.test_motion import _assert_one_line, _poses, _trans
+
+DATA = Path(__file__).parent / "data"
+
+
+def _fixture_people() -> dict:
+    """The people the joblib fixtures hold (`data/make_joblib_fixtures.py`, written by joblib 1.6.0)."""
+    spec = importlib.util.spec_from_file_location("make_joblib_fixtures", DATA / "make_joblib_fixtures.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.people()
+
+
+@pytest.mark.parametrize("name", ["wham_like.pkl", "wham_like_zlib.pkl"])
+def test_a_joblib_file_of_tracked_people_gives_the_longest_tracks_world_motion(name, caplog):
+    people = _fixture_people()
+    read = load_pickle(DATA / name, "x", "a motion file")  # the arrays joblib wrote after its pickled header
+    assert sorted(read) == sorted(people)
+    for track, arrays in people.items():
+        for key, value in arrays.items():
+            assert read[track][key].dtype == value.dtype
+            np.testing.assert_array_equal(read[track][key], value)
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(DATA / name, fps=30)
+    person = people[0]  # 6 frames against 4: WHAM's world motion, not its camera-frame 'pose' and 'trans'
+    np.testing.assert_array_equal(m.poses.reshape(6, 72), person["pose_world"])
+    np.testing.assert_array_equal(m.trans, person["trans_world"])
+    np.testing.assert_allclose(m.betas, person["betas"].mean(axis=0), rtol=1e-6)
+    text = caplog.text
+    assert "holds 2 tracked people ('0' 6 frames, '7' 4 frames): reading '0'" in text
+    assert "not tracked in 1 of the video's frames" in text
+
+
+def test_an_aist_pickle_and_a_vibe_like_one_read_as_their_npz(tmp_path, caplog):
+    poses = _poses(5, 72)
+    aist = tmp_path / "gBR_sBM_cAll_d04_mBR0_ch01.pkl"  # AIST++'s motions: a dict pickled by Python 3
+    with open(aist, "wb") as fh:
+        pickle.dump({"smpl_loss": 1.5, "smpl_poses": poses, "smpl_trans": _trans(5) * 95.0,
+                     "smpl_scaling": np.array([95.0], dtype=np.float32)}, fh)
+    m = load_motion(aist, fps=60)
+    np.testing.assert_array_equal(m.poses.reshape(5, 72), poses)
+    np.testing.assert_allclose(m.trans, _trans(5), rtol=1e-6)
+    vibe = tmp_path / "vibe_output.pkl"  # VIBE: {track: {'pose' (T, 72) in the camera's frame, ...}}, no translation
+    with open(vibe, "wb") as fh:
+        pickle.dump({1: {"pose": poses, "betas": np.zeros((5, 10)), "pred_cam": np.ones((5, 3)),
+                         "frame_ids": np.arange(5)}}, fh, protocol=2)
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(vibe, fps=25)
+    np.testing.assert_array_equal(m.poses.reshape(5, 72), poses)
+    assert np.all(m.trans == 0) and "no 'trans'" in caplog.text and "tracked people" not in caplog.text
+    assert "not tracked" not in caplog.text  # its frames are consecutive
+
+
+def test_a_gvhmr_torch_file_gives_its_world_parameters(tmp_path):
+    torch = pytest.importorskip("torch")
+    T = 4
+    world = {"global_orient": torch.zeros(T, 3), "body_pose": torch.full((T, 63), 0.1),
+             "transl": torch.tensor(_trans(T)), "betas": torch.zeros(T, 10)}
+    incam = {**world, "body_pose": torch.full((T, 63), -0.2)}
+    path = tmp_path / "hmr4d_results.pt"
+    torch.save({"smpl_params_global": world, "smpl_params_incam": incam, "K_fullimg": torch.eye(3)[None]}, path)
+    m = load_motion(path, fps=30)
+    assert m.poses.shape == (T, 55, 3)  # 21 body joints: SMPL-X's layout, its jaw, eyes and hands at rest
+    np.testing.assert_allclose(m.poses[:, 1:22].reshape(T, 63), 0.1)
+    np.testing.assert_allclose(m.trans, _trans(T))
+
+
+class _RunsCode:
+    def __reduce__(self):
+        return (Path.touch, (Path(self.marker),))
+
+
+def test_a_pickle_that_would_run_code_is_refused_without_running_it(tmp_path):
+    marker = tmp_path / "ran"
+    payload = _RunsCode()
+    payload.marker = str(marker)
+    path = tmp_path / "evil.pkl"
+    with open(path, "wb") as fh:
+        pickle.dump({"poses": _poses(2, 72), "x": payload}, fh)
+    with pytest.raises(InputError) as info:
+        load_motion(path, fps=30)
+    _assert_one_line(info, "evil.pkl", "refers to 'pathlib.Path.touch'", "which a motion file does not use")
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("content, expected", [
+    (pickle.dumps([1, 2, 3]), "expected a pickled dict of SMPL parameters ('poses', 'trans', ...; or one such dict "
+                              "per tracked person), got list"),
+    (pickle.dumps({"poses": _poses(3, 72)})[:40], "cannot read it as a Python pickle ("),
+    (b"not a pickle at all", "cannot read it as a Python pickle (UnpicklingError: invalid load key, b'n')"),
+    (pickle.dumps({"verts": np.zeros((2, 3))}), "expected a 'poses' array"),
+])
+def test_a_broken_or_foreign_pickle_is_one_line(tmp_path, content, expected):
+    path = tmp_path / "m.pkl"
+    path.write_bytes(content)
+    with pytest.raises(InputError) as info:
+        load_motion(path, fps=30)
+    _assert_one_line(info, "m.pkl", expected)
+
+
+def test_a_damaged_torch_file_is_one_line(tmp_path):
+    path = tmp_path / "hmr4d_results.pt"
+    path.write_bytes(b"PK\x03\x04 truncated")
+    with pytest.raises(InputError) as info:
+        load_motion(path, fps=30)
+    _assert_one_line(info, "hmr4d_results.pt", "cannot read it as a PyTorch file (")
