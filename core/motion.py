@@ -140,17 +140,33 @@ def resample(motion: Motion, fps: float) -> Motion:
         t_src = t0 * motion.fps + np.arange(n_out) * (motion.fps / fps)  # output times in source-frame units
         i0 = np.clip(np.floor(t_src).astype(np.int64), 0, motion.n_frames - 1)
         i1 = np.minimum(i0 + 1, motion.n_frames - 1)
-        a = (t_src - i0).clip(0.0, 1.0)
-        q = axis_angle_to_quat(motion.poses)
-        qi = quat_slerp(q[i0], q[i1], a[:, None])
-        poses = quat_to_axis_angle(qi).astype(np.float32)
-        trans = ((1 - a)[:, None] * motion.trans[i0] + a[:, None] * motion.trans[i1]).astype(np.float32)
+        poses, trans = interpolate_frames(motion.poses, motion.trans, i0, i1, (t_src - i0).clip(0.0, 1.0))
     except MemoryError:  # callers check `resampled_frame_count` first; this is the net under them
         raise InputError(f"--fps {fps:g}: resampling motion '{motion.name}' ({motion.n_frames} frames at "
                          f"{motion.fps:g} fps) to {n_out} frames needs more memory than is free: lower --fps") from None
     # Settle frames keep their share of the clip's time.
     n_settle = min(n_out, int(np.ceil(motion.n_settle * fps / motion.fps - 1e-9)))
     return replace(motion, poses=poses, trans=trans, fps=float(fps), n_settle=n_settle, n_lead=n_lead)
+
+
+def interpolate_frames(poses: np.ndarray, trans: np.ndarray, i0: np.ndarray, i1: np.ndarray,
+                       a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(K, J, 3) float32 poses and (K, 3) translations a share `a` (K,) of the way from frames `i0` to `i1` (K,):
+    joint rotations slerped, the translation linear."""
+    q = axis_angle_to_quat(poses)
+    out = quat_to_axis_angle(quat_slerp(q[i0], q[i1], a[:, None])).astype(np.float32)
+    return out, ((1 - a)[:, None] * trans[i0] + a[:, None] * trans[i1]).astype(np.float32)
+
+
+def fill_untracked(poses: np.ndarray, trans: np.ndarray, frame_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (T, J, 3) poses and (T, 3) translations of a person tracked in the video frames `frame_ids` (T,
+    increasing), on every frame from the first to the last: those between interpolated (`interpolate_frames`)."""
+    ids = np.asarray(frame_ids, dtype=np.int64)
+    every = np.arange(ids[0], ids[-1] + 1)
+    i1 = np.searchsorted(ids, every)  # the first tracked frame at or after each
+    i0 = np.where(ids[i1] == every, i1, i1 - 1)
+    a = (every - ids[i0]) / np.maximum(ids[i1] - ids[i0], 1)
+    return interpolate_frames(poses, trans, i0, i1, a)
 
 
 def resampled_frame_count(motion: Motion, fps: float) -> int:

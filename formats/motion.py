@@ -29,7 +29,8 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
 from core.errors import InputError
-from core.motion import Motion, check_frame_rate, validate_motion_values, warn_if_not_metres, warn_if_not_z_up
+from core.motion import (Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
+                         warn_if_not_z_up)
 from formats.atomic import atomic_file
 from formats.pickles import load_pickle
 
@@ -83,6 +84,8 @@ TORCH_SUFFIXES = (".pt", ".pth")
 _NESTED_KEYS = ("smpl_params_global", "smpl_params_incam")
 #: Keys whose length is a tracked person's number of frames.
 _POSE_KEYS = ("poses", "pose", "pose_world", "smpl_poses", "global_orient", "root_orient", "body_pose")
+#: A track's frames filled in where it was not tracked (`_fill_untracked`) at the most: an hour at 30 fps.
+MAX_FILLED_FRAMES = 108_000
 #: What a motion file's name ends with (the case aside).
 MOTION_SUFFIXES = (".npz", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
@@ -153,6 +156,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         log.warning("%s: no 'trans' (or 'transl') key, using zero translation", src)
         trans = np.zeros((T, 3), dtype=np.float32)
 
+    poses, trans = _fill_untracked(poses, trans, arrays.get("frame_ids"), src)
     betas = _read_betas(arrays["betas"], T, src) if "betas" in arrays else None
 
     if fps is None:
@@ -349,7 +353,7 @@ def _from_estimator(arrays: dict, src: str) -> None:
     """A pose estimator's keys as load_motion's, in place, where the file has no poses of another name: WHAM's
     world motion ('pose_world', 'trans_world'; without the latter, no translation: its 'trans' is the camera's view)
     in place of its camera-frame one, else a 'pose' (VIBE's, WHAM's in the camera's frame: SMPL's 72 values per
-    frame) as 'poses'. A track's 'frame_ids' that skip frames of the video are warned about."""
+    frame) as 'poses'."""
     if not {"poses", "root_orient", "global_orient"} & arrays.keys():
         if "pose_world" in arrays:
             arrays["poses"] = arrays.pop("pose_world")
@@ -358,13 +362,31 @@ def _from_estimator(arrays: dict, src: str) -> None:
                 arrays["trans"] = arrays.pop("trans_world")
         elif "pose" in arrays:
             arrays["poses"] = arrays.pop("pose")
-    ids = np.asarray(arrays.get("frame_ids", ()))
-    if ids.ndim == 1 and ids.size > 1 and ids.dtype.kind in "iu":
-        skipped = int(np.clip(np.diff(ids.astype(np.int64)) - 1, 0, None).sum())
-        if skipped:
-            log.warning("%s: the person is not tracked in %d of the video's frames between its first and last "
-                        "('frame_ids'): the %d tracked are played one after another, jumping over the others",
-                        src, skipped, ids.size)
+
+
+def _fill_untracked(poses: np.ndarray, trans: np.ndarray, raw, src: str) -> tuple[np.ndarray, np.ndarray]:
+    """`poses`, `trans` on every video frame from the first to the last a person was tracked in, where 'frame_ids'
+    (`raw`, None where absent: a pose estimator's track) skip some: those filled in (`core.motion.fill_untracked`)
+    and warned about; ids that are not one increasing frame number per frame are warned about and left unused."""
+    if raw is None:
+        return poses, trans
+    ids = np.asarray(raw)
+    T = len(poses)
+    if not (ids.shape == (T,) and ids.dtype.kind in "iu" and np.all(np.diff(ids.astype(np.int64)) > 0)):
+        log.warning("%s: 'frame_ids' left unused: expected %d increasing frame numbers, one per frame, got %s of "
+                    "dtype %s", src, T, tuple(ids.shape), ids.dtype)
+        return poses, trans
+    span = int(ids[-1]) - int(ids[0]) + 1
+    if span == T:
+        return poses, trans
+    if span > MAX_FILLED_FRAMES:
+        raise InputError(f"{src}: expected 'frame_ids' of a track in one video, got frames {int(ids[0])} to "
+                         f"{int(ids[-1])} for {T} tracked (over {MAX_FILLED_FRAMES} frames to fill in)")
+    gap = int(np.diff(ids.astype(np.int64)).max()) - 1
+    log.warning("%s: the person is not tracked in %d of the video's %d frames from its first to its last "
+                "('frame_ids'; %d in a row at the most): filled in, joint rotations slerped and the translation "
+                "interpolated between the frames around them", src, span - T, span, gap)
+    return fill_untracked(poses, trans, ids)
 
 
 def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:

@@ -345,3 +345,29 @@ def test_y_up_to_z_up_turns_the_posed_body_exactly(up):
     assert turn @ np.array([0.0, 1.0 if up == "y" else -1.0, 0.0]) == pytest.approx([0.0, 0.0, 1.0])
     np.testing.assert_allclose(after, before.astype(np.float64) @ turn.T, atol=2e-5)
     np.testing.assert_array_equal(z_up.poses[:, 1:], poses[:, 1:])
+
+
+def test_fill_untracked_slerps_each_missing_frame_as_scipy_does_and_keeps_the_tracked_ones():
+    """A track seen in video frames 5, 6, 9, 10, 14: frames 7-8 and 11-13 are filled in, each joint's rotation
+    slerped (scipy's Slerp between the two tracked frames around it, a naive loop) and the translation linear."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    from core.motion import fill_untracked
+
+    ids = np.array([5, 6, 9, 10, 14])
+    m = _random_motion(len(ids), 24, seed=3)
+    poses, trans = fill_untracked(m.poses, m.trans, ids)
+    assert poses.shape == (10, 24, 3) and trans.shape == (10, 3) and poses.dtype == np.float32
+    for k, frame in enumerate(range(5, 15)):
+        i1 = int(np.searchsorted(ids, frame))
+        if ids[i1] == frame:  # tracked: as read
+            np.testing.assert_array_equal(poses[k], m.poses[i1])
+            np.testing.assert_array_equal(trans[k], m.trans[i1])
+            continue
+        i0, a = i1 - 1, (frame - ids[i1 - 1]) / (ids[i1] - ids[i1 - 1])
+        for j in range(24):
+            ends = Rotation.from_rotvec(np.stack([m.poses[i0, j], m.poses[i1, j]]).astype(np.float64))
+            want = Slerp([0.0, 1.0], ends)([a])
+            got = Rotation.from_rotvec(poses[k, j][None].astype(np.float64))
+            assert (want.inv() * got).magnitude()[0] < 1e-5, (frame, j)
+        np.testing.assert_allclose(trans[k], (1 - a) * m.trans[i0] + a * m.trans[i1], atol=1e-6)

@@ -37,12 +37,32 @@ def test_a_joblib_file_of_tracked_people_gives_the_longest_tracks_world_motion(n
     with caplog.at_level(logging.WARNING):
         m = load_motion(DATA / name, fps=30)
     person = people[0]  # 6 frames against 4: WHAM's world motion, not its camera-frame 'pose' and 'trans'
-    np.testing.assert_array_equal(m.poses.reshape(6, 72), person["pose_world"])
-    np.testing.assert_array_equal(m.trans, person["trans_world"])
+    tracked = person["frame_ids"]  # 0, 1, 2, 4, 5, 6: frame 3 filled in (core.motion.fill_untracked)
+    assert m.n_frames == 7
+    np.testing.assert_array_equal(m.poses.reshape(7, 72)[tracked], person["pose_world"])
+    np.testing.assert_array_equal(m.trans[tracked], person["trans_world"])
+    np.testing.assert_allclose(m.trans[3], person["trans_world"][2:4].mean(axis=0), rtol=1e-6)
     np.testing.assert_allclose(m.betas, person["betas"].mean(axis=0), rtol=1e-6)
     text = caplog.text
     assert "holds 2 tracked people ('0' 6 frames, '7' 4 frames): reading '0'" in text
-    assert "not tracked in 1 of the video's frames" in text
+    assert "not tracked in 1 of the video's 7 frames from its first to its last ('frame_ids'; 1 in a row" in text
+
+
+def test_frame_ids_not_one_increasing_number_per_frame_are_left_unused_and_an_absurd_span_refused(tmp_path, caplog):
+    poses = _poses(3, 72)
+    for ids, told in ((np.array([0, 2, 1]), "expected 3 increasing frame numbers, one per frame, got (3,) of dtype "),
+                      (np.arange(4), "got (4,)"), (np.array([0.0, 1.0, 2.0]), "dtype float64")):
+        path = tmp_path / "m.pkl"
+        path.write_bytes(pickle.dumps({"pose": poses, "trans": _trans(3), "frame_ids": ids}))
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            m = load_motion(path, fps=30)
+        assert m.n_frames == 3 and "'frame_ids' left unused: expected 3 increasing" in caplog.text, caplog.text
+        assert told in caplog.text, caplog.text
+    path.write_bytes(pickle.dumps({"pose": poses, "trans": _trans(3), "frame_ids": np.array([0, 1, 10 ** 9])}))
+    with pytest.raises(InputError) as info:
+        load_motion(path, fps=30)
+    _assert_one_line(info, "m.pkl", "expected 'frame_ids' of a track in one video, got frames 0 to 1000000000 for 3")
 
 
 def test_an_aist_pickle_and_a_vibe_like_one_read_as_their_npz(tmp_path, caplog):
@@ -62,7 +82,7 @@ def test_an_aist_pickle_and_a_vibe_like_one_read_as_their_npz(tmp_path, caplog):
         m = load_motion(vibe, fps=25)
     np.testing.assert_array_equal(m.poses.reshape(5, 72), poses)
     assert np.all(m.trans == 0) and "no 'trans'" in caplog.text and "tracked people" not in caplog.text
-    assert "not tracked" not in caplog.text  # its frames are consecutive
+    assert "not tracked" not in caplog.text and m.n_frames == 5  # its frames are consecutive
 
 
 def test_a_gvhmr_torch_file_gives_its_world_parameters(tmp_path):
