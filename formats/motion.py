@@ -14,7 +14,8 @@ as a (T, J, 3) array or as rotation matrices (T, J, 3, 3), or, when `poses` is a
 `frame_rate`), `gender`. WHAM's world motion `pose_world`, `trans_world` (or, without them, VIBE's and WHAM's
 camera-frame `pose`) where no other poses are there. Pickles (`PICKLE_SUFFIXES`: AIST++'s motions, the results
 WHAM and VIBE write with joblib, one dict per tracked person: the longest is read) and PyTorch files
-(`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them.
+(`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
+a single .npy array of Motion-X's SMPL-X parameters (T, 322) too.
 """
 
 from __future__ import annotations
@@ -84,6 +85,10 @@ TORCH_SUFFIXES = (".pt", ".pth")
 _NESTED_KEYS = ("smpl_params_global", "smpl_params_incam")
 #: Keys whose length is a tracked person's number of frames.
 _POSE_KEYS = ("poses", "pose", "pose_world", "smpl_poses", "global_orient", "root_orient", "body_pose")
+#: Motion-X's SMPL-X parameters, one row of 322 values per frame (a .npy array): the columns of those read.
+MOTION_X_VALUES = 322
+MOTION_X_COLUMNS = {"root_orient": (0, 3), "pose_body": (3, 66), "pose_hand": (66, 156), "pose_jaw": (156, 159),
+                    "trans": (309, 312), "betas": (312, 322)}
 #: A track's frames filled in where it was not tracked (`_fill_untracked`) at the most: an hour at 30 fps.
 MAX_FILLED_FRAMES = 108_000
 #: What a motion file's name ends with (the case aside).
@@ -133,6 +138,8 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         raise InputError(f"{src}: file not found")
     if path.suffix.lower() in PICKLE_SUFFIXES + TORCH_SUFFIXES:
         arrays, files = _pickled_arrays(path, src)
+    elif _starts_with(path, b"\x93NUMPY"):
+        arrays, files = _motion_x_arrays(path, src)
     else:
         arrays, files = _npz_arrays(path, src)
     _from_aist(arrays, src)
@@ -183,8 +190,6 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
 def _npz_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
     """(the arrays load_motion reads, every key) of the .npz `path`; InputError naming `src` otherwise."""
     def refuse(got: str) -> InputError:
-        if got == "a single .npy array":
-            return InputError(f"{src}: expected an .npz archive of named arrays, got a single .npy array")
         kind = _OTHER_MOTION_FORMATS.get(path.suffix.lower(), "a file that is not one" if got == "no zip archive"
                                          else got)
         return InputError(f"{src}: expected an AMASS-style .npz archive (a zip of .npy arrays: SMPL joint rotations "
@@ -211,6 +216,35 @@ def _npz_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
             raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
         raise InputError(f"{src}: expected an AMASS-style .npz archive, could not read it ({_short(exc)})") from None
     return arrays, files
+
+
+def _starts_with(path: Path, magic: bytes) -> bool:
+    """Whether `path` starts with `magic` (False where it cannot be read: the reader that follows says why)."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(magic)) == magic
+    except OSError:
+        return False
+
+
+def _motion_x_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
+    """(the arrays load_motion reads, their keys) of a single .npy array: Motion-X's SMPL-X parameters, (T, 322)
+    (`MOTION_X_COLUMNS`; its face's expression and shape left unread); InputError naming `src` otherwise."""
+    expected = (f"{src}: expected an .npz archive of named arrays, or Motion-X's SMPL-X parameters as one .npy "
+                f"array of shape (T, {MOTION_X_VALUES}), got")
+    try:
+        values = np.load(path, allow_pickle=False)
+    except ValueError as exc:  # a pickled object (a dict saved with np.save): never unpickled here
+        if "allow_pickle" in str(exc):
+            raise InputError(f"{expected} a pickled object array: save its SMPL parameters with np.savez (or "
+                             f"pickle.dump them to a .pkl)") from None
+        raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
+    except (OSError, EOFError) as exc:
+        raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
+    if values.ndim != 2 or values.shape[1] != MOTION_X_VALUES:
+        raise InputError(f"{expected} a single .npy array of shape {tuple(values.shape)}")
+    arrays = {key: values[:, a:b] for key, (a, b) in MOTION_X_COLUMNS.items()}
+    return arrays, list(arrays)
 
 
 def _pickled_arrays(path: Path, src: str) -> tuple[dict, list[str]]:

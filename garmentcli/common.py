@@ -81,22 +81,23 @@ def require_file(path) -> None:
 
 
 def motion_files(args, hint: str = "MOTION") -> list[str]:
-    """MOTION arguments as motion files: a file as given; a directory, every `.npz` or pickle (`.pkl`, as AIST++'s
-    motions and WHAM's results are) under it (recursively, in sorted order) that holds poses (`MOTION_KEYS`;
-    AMASS's shape.npz and *_stagei.npz, which hold a body shape only, are left out; PyTorch files only named). A
-    file given twice is taken once. Raises click errors for a path that is not there and for a directory without
-    motions."""
+    """MOTION arguments as motion files: a file as given; a directory, every `.npz`, pickle (`.pkl`, as AIST++'s
+    motions and WHAM's results are) or Motion-X `.npy` under it (recursively, in sorted order) that holds poses
+    (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold a body shape only, are left out; PyTorch files
+    only named). A file given twice is taken once. Raises click errors for a path that is not there and for a
+    directory without motions."""
     from formats.motion import PICKLE_SUFFIXES
 
     files: list[str] = []
     for arg in args:
         path = Path(arg)
         if path.is_dir():
-            found = [str(f) for f in sorted(path.rglob("*")) if f.suffix.lower() in (".npz", *PICKLE_SUFFIXES)
+            found = [str(f) for f in sorted(path.rglob("*")) if f.suffix.lower() in (".npz", ".npy",
+                                                                                     *PICKLE_SUFFIXES)
                      and f.is_file() and _holds_poses(f)]
             if not found:
-                raise click.BadParameter(f"directory '{arg}': expected motion files under it (.npz or .pkl, with "
-                                         f"{' or '.join(repr(k) for k in MOTION_KEYS[:2])}), found none",
+                raise click.BadParameter(f"directory '{arg}': expected motion files under it (.npz, .pkl or .npy, "
+                                         f"with {' or '.join(repr(k) for k in MOTION_KEYS[:2])}), found none",
                                          param_hint=hint)
             files += found
         elif path.is_file():
@@ -112,6 +113,13 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
 def _holds_poses(path: Path) -> bool:
     """Whether the archive or pickle `path` holds poses; True for one that cannot be read (named as a motion, it
     is refused with the reason)."""
+    if path.suffix.lower() == ".npy":  # Motion-X's (T, 322) array
+        from formats.motion import MOTION_X_VALUES
+
+        try:
+            return np.load(path, mmap_mode="r", allow_pickle=False).shape[1:] == (MOTION_X_VALUES,)
+        except (OSError, ValueError, EOFError):
+            return True
     if path.suffix.lower() != ".npz":
         from formats.motion import pickled_motion_keys
 

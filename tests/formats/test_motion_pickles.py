@@ -138,3 +138,27 @@ def test_a_damaged_torch_file_is_one_line(tmp_path):
     with pytest.raises(InputError) as info:
         load_motion(path, fps=30)
     _assert_one_line(info, "hmr4d_results.pt", "cannot read it as a PyTorch file (")
+
+
+def test_a_motion_x_array_reads_as_the_same_smplx_parameters_in_an_npz(tmp_path):
+    """Motion-X's (T, 322) rows: root_orient, pose_body, pose_hand, pose_jaw, the face's expression and shape
+    (unread), trans, betas."""
+    T, rng = 4, np.random.default_rng(2)
+    values = rng.normal(scale=0.2, size=(T, 322)).astype(np.float32)
+    values[:, 312:] = rng.normal(size=10)  # one shape, repeated per frame
+    np.save(tmp_path / "Act_Cute.npy", values)
+    np.savez(tmp_path / "same.npz", root_orient=values[:, :3], pose_body=values[:, 3:66], pose_hand=values[:, 66:156],
+             pose_jaw=values[:, 156:159], trans=values[:, 309:312], betas=values[0, 312:])
+    a, b = load_motion(tmp_path / "Act_Cute.npy", fps=30), load_motion(tmp_path / "same.npz", fps=30)
+    assert a.poses.shape == (T, 55, 3)
+    for field in ("poses", "trans", "betas"):
+        np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+    np.save(tmp_path / "wide.npy", values[:, :321])
+    with pytest.raises(InputError) as info:
+        load_motion(tmp_path / "wide.npy", fps=30)
+    _assert_one_line(info, "wide.npy", "Motion-X's SMPL-X parameters as one .npy array of shape (T, 322), got a "
+                                       "single .npy array of shape (4, 321)")
+    np.save(tmp_path / "hps_track_0.npy", {"pred_rotmat": np.eye(3)}, allow_pickle=True)  # TRAM's: a pickled dict
+    with pytest.raises(InputError) as info:
+        load_motion(tmp_path / "hps_track_0.npy", fps=30)
+    _assert_one_line(info, "hps_track_0.npy", "got a pickled object array: save its SMPL parameters with np.savez")

@@ -517,7 +517,7 @@ def test_bake_motions_from_a_directory_tree_keep_one_output_each(scene):
     assert "of 2 motions" in r.output
     (scene["dir"] / "empty").mkdir()
     r = run(["bake", scene["garment"], scene["dir"] / "empty", "--body", scene["body"], "--out", scene["dir"] / "e"])
-    assert_one_line_error(r, "expected motion files under it (.npz or .pkl")
+    assert_one_line_error(r, "expected motion files under it (.npz, .pkl or .npy")
     assert not (scene["dir"] / "e").exists()
 
 

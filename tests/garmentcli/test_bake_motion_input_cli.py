@@ -239,8 +239,8 @@ def test_a_fitted_motions_betas_on_the_embedded_body_give_way_to_its_mean_shape(
 def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_amass_original(scene):
     """A folder holding the scene's walk as WHAM pickles its results ({track: {'pose_world', 'trans_world', ...}}),
     as the smplx arguments a fitter saves (global_orient, body_pose: such files used to be left out of a folder,
-    which was refused as holding no motion) and a body shape alone (AMASS's shape.npz: left out) bakes the two
-    motions, each the garment of the AMASS file."""
+    which was refused as holding no motion), as Motion-X's (T, 322) .npy and a body shape alone (AMASS's
+    shape.npz: left out) bakes the three motions, each the garment of the AMASS file."""
     import pickle
 
     from formats.sequence import read_sequence
@@ -248,19 +248,25 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
     d = scene["dir"] / "estimates"
     d.mkdir()
     with np.load(scene["motion"]) as walk:
-        poses, trans, betas = walk["poses"], walk["trans"], walk["betas"]
+        poses, trans, betas = walk["poses"].copy(), walk["trans"], walk["betas"]
         fps = float(walk["mocap_framerate"])
+    poses[:, 66:] = 0  # the SMPL hand joints at rest, as SMPL-X's layout (Motion-X's) leaves them
+    (scene["dir"] / "amass").mkdir()
+    np.savez(scene["dir"] / "amass" / "walk.npz", poses=poses, trans=trans, betas=betas, mocap_framerate=fps)
     with open(d / "wham_output.pkl", "wb") as fh:
         pickle.dump({0: {"pose": np.zeros_like(poses), "trans": trans + 5, "pose_world": poses, "trans_world": trans,
                          "betas": np.tile(betas, (len(poses), 1)), "frame_ids": np.arange(len(poses))}}, fh)
     np.savez(d / "fit.npz", global_orient=poses[:, :3], body_pose=poses[:, 3:72], transl=trans, betas=betas)
+    motion_x = np.zeros((len(poses), 322), dtype=np.float32)  # Motion-X's rows: the 22 body joints, hands at rest
+    motion_x[:, :66], motion_x[:, 309:312], motion_x[:, 312:] = poses[:, :66], trans, betas[:10]
+    np.save(d / "motionx.npy", motion_x)
     np.savez(d / "shape.npz", betas=betas, gender="neutral")
-    for motion, options in ((scene["motion"], ()), (d, ("--source-fps", fps))):
+    for motion, options in ((scene["dir"] / "amass" / "walk.npz", ()), (d, ("--source-fps", fps))):
         r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
                     "--method", "lbs", *options])
         assert r.exit_code == 0, r.output
     baked = sorted(p.name for p in scene["out"].iterdir())
-    assert baked == ["shell_fit", "shell_walk", "shell_wham_output"], baked
+    assert baked == ["shell_fit", "shell_motionx", "shell_walk", "shell_wham_output"], baked
     a = read_sequence(scene["out"] / "shell_walk" / "obj").points
-    for name in ("shell_fit", "shell_wham_output"):
+    for name in ("shell_fit", "shell_motionx", "shell_wham_output"):
         np.testing.assert_allclose(read_sequence(scene["out"] / name / "obj").points, a, atol=1e-5)
