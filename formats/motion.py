@@ -15,7 +15,8 @@ as a (T, J, 3) array or as rotation matrices (T, J, 3, 3), or, when `poses` is a
 camera-frame `pose`) where no other poses are there. Pickles (`PICKLE_SUFFIXES`: AIST++'s motions, the results
 WHAM and VIBE write with joblib, one dict per tracked person: the longest is read) and PyTorch files
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
-a single .npy array of Motion-X's SMPL-X parameters (T, 322) too.
+a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
+`bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`).
 """
 
 from __future__ import annotations
@@ -69,13 +70,22 @@ _SMPLX_ARG_KEYS = ("global_orient", "body_pose", *(key for key, _ in _SMPLX_ARG_
 #: AIST++'s keys (its motions, pickles, saved as .npz with the same names): SMPL poses, and a translation in the
 #: units of the body scaled by `smpl_scaling` (about 95-100: centimetres of a body scaled to metres).
 _AIST_KEYS = ("smpl_poses", "smpl_trans", "smpl_scaling")
+#: Meshcapade's SMPLCodec `.smpl` files (an npz of camelCase keys): the pose by part, the translation, the shape,
+#: the frame rate and the model (`smplVersion`; SUPR, SMPL++ and SKEL are refused: no SMPL-family joints).
+_CODEC_KEYS = ("smplVersion", "shapeParameters", "frameRate", "bodyTranslation", "bodyPose", "headPose",
+               "leftHandPose", "rightHandPose")
+#: smplVersion -> (the model, the pose's parts after bodyPose: (key, joints)), as the codec writes them.
+_CODEC_MODELS = {0: ("SMPL", ()), 1: ("SMPL-H", (("leftHandPose", 15), ("rightHandPose", 15))),
+                 2: ("SMPL-X", (("headPose", 3), ("leftHandPose", 15), ("rightHandPose", 15)))}
+_CODEC_OTHER_MODELS = {3: "SUPR", 4: "SMPL++", 5: "SKEL"}
+_CODEC_GENDERS = ("neutral", "male", "female")
 #: A pose estimator's keys (`_from_estimator`): WHAM's world motion, VIBE's and WHAM's camera-frame 'pose', a
 #: track's video frames.
 _ESTIMATOR_KEYS = ("pose_world", "trans_world", "pose", "frame_ids")
 #: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
 #: needs allow_pickle, a face's expression) are left unread. `transl` is the smplx arguments' `trans`.
 _READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender",
-              *_AIST_KEYS, *_ESTIMATOR_KEYS)
+              *_AIST_KEYS, *_ESTIMATOR_KEYS, *_CODEC_KEYS)
 #: Pickled motions, read through a restricted unpickler (`formats.pickles`: no code in them runs): AIST++'s motion
 #: pickles; pose estimators' results saved with pickle or joblib (WHAM, VIBE: a dict per tracked person).
 PICKLE_SUFFIXES = (".pkl", ".pickle", ".joblib")
@@ -92,7 +102,7 @@ MOTION_X_COLUMNS = {"root_orient": (0, 3), "pose_body": (3, 66), "pose_hand": (6
 #: A track's frames filled in where it was not tracked (`_fill_untracked`) at the most: an hour at 30 fps.
 MAX_FILLED_FRAMES = 108_000
 #: What a motion file's name ends with (the case aside).
-MOTION_SUFFIXES = (".npz", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
+MOTION_SUFFIXES = (".npz", ".smpl", ".npy", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
 ROTATION_MATRIX_TOL = 1e-3
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
@@ -142,6 +152,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         arrays, files = _motion_x_arrays(path, src)
     else:
         arrays, files = _npz_arrays(path, src)
+    _from_smpl_codec(arrays, src)
     _from_aist(arrays, src)
     _from_estimator(arrays, src)
     poses = _read_poses(arrays, src, files)
@@ -364,6 +375,39 @@ def _refuse_degrees(poses: np.ndarray, src: str) -> None:
 def _body_only(poses: np.ndarray) -> np.ndarray:
     """(T, 24, 3): 22-joint body poses with the SMPL hand joints (22, 23) at rest."""
     return np.concatenate([poses, np.zeros((poses.shape[0], 2, 3), dtype=poses.dtype)], axis=1)
+
+
+def _from_smpl_codec(arrays: dict, src: str) -> None:
+    """An SMPLCodec file's keys (`_CODEC_KEYS`) as load_motion's, in place, where it has a 'bodyPose' and no
+    'poses': the parts of the pose (`_CODEC_MODELS`; missing ones at rest) as 'poses', 'bodyTranslation' as
+    'trans', 'shapeParameters' as 'betas', 'frameRate', and its gender's number as its name."""
+    if "bodyPose" not in arrays or "poses" in arrays:
+        return
+    version = np.asarray(arrays.pop("smplVersion", 2)).reshape(-1)
+    version = int(version[0]) if version.size and version.dtype.kind in "iu" else -1
+    if version not in _CODEC_MODELS:
+        raise InputError(f"{src}: expected an SMPL, SMPL-H or SMPL-X pose (smplVersion 0, 1 or 2), got smplVersion "
+                         f"{version}" + (f" ({_CODEC_OTHER_MODELS[version]}: its pose is no rotations of SMPL's "
+                                          f"joints)" if version in _CODEC_OTHER_MODELS else ""))
+    body = _float_array(arrays.pop("bodyPose"), "bodyPose", src)
+    body = body[None] if body.ndim == 2 and body.shape[1] == 3 else body  # one pose without a frame axis
+    if body.ndim != 3 or body.shape[2] != 3:
+        raise InputError(f"{src}: expected bodyPose of shape (T, J, 3), got {tuple(body.shape)}")
+    T = body.shape[0]
+    parts = [body]
+    for key, n in _CODEC_MODELS[version][1]:
+        part = _float_array(arrays.pop(key), key, src) if key in arrays else np.zeros((T, n, 3), np.float32)
+        part = part[None] if part.ndim == 2 else part
+        if part.shape != (T, n, 3):
+            raise InputError(f"{src}: expected {key} of shape ({T}, {n}, 3), got {tuple(part.shape)}")
+        parts.append(part)
+    arrays["poses"] = np.concatenate(parts, axis=1)
+    for key, new in (("bodyTranslation", "trans"), ("shapeParameters", "betas"), ("frameRate", "mocap_framerate")):
+        if key in arrays:
+            arrays[new] = arrays.pop(key)
+    gender = np.asarray(arrays.get("gender", "")).reshape(-1)
+    if gender.size == 1 and gender.dtype.kind in "iu" and 0 <= int(gender[0]) < len(_CODEC_GENDERS):
+        arrays["gender"] = _CODEC_GENDERS[int(gender[0])]
 
 
 def _from_aist(arrays: dict, src: str) -> None:

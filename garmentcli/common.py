@@ -69,7 +69,7 @@ class OutputPath(click.Path):
 
 #: Keys of an archive or pickle that holds a motion (`formats.motion.load_motion`): AMASS's poses, SMPL-X's split
 #: keys, the smplx library's arguments, AIST++'s and pose estimators' poses.
-MOTION_KEYS = ("poses", "root_orient", "pose_body", "global_orient", "smpl_poses", "pose", "pose_world")
+MOTION_KEYS = ("poses", "root_orient", "pose_body", "global_orient", "smpl_poses", "pose", "pose_world", "bodyPose")
 
 
 def require_file(path) -> None:
@@ -81,7 +81,7 @@ def require_file(path) -> None:
 
 
 def motion_files(args, hint: str = "MOTION") -> list[str]:
-    """MOTION arguments as motion files: a file as given; a directory, every `.npz`, pickle (`.pkl`, as AIST++'s
+    """MOTION arguments as motion files: a file as given; a directory, every `.npz` (`.smpl`), pickle (`.pkl`, as AIST++'s
     motions and WHAM's results are) or Motion-X `.npy` under it (recursively, in sorted order) that holds poses
     (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold a body shape only, are left out; PyTorch files
     only named). A file given twice is taken once. Raises click errors for a path that is not there and for a
@@ -92,7 +92,7 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
     for arg in args:
         path = Path(arg)
         if path.is_dir():
-            found = [str(f) for f in sorted(path.rglob("*")) if f.suffix.lower() in (".npz", ".npy",
+            found = [str(f) for f in sorted(path.rglob("*")) if f.suffix.lower() in (".npz", ".smpl", ".npy",
                                                                                      *PICKLE_SUFFIXES)
                      and f.is_file() and _holds_poses(f)]
             if not found:
@@ -120,7 +120,7 @@ def _holds_poses(path: Path) -> bool:
             return np.load(path, mmap_mode="r", allow_pickle=False).shape[1:] == (MOTION_X_VALUES,)
         except (OSError, ValueError, EOFError):
             return True
-    if path.suffix.lower() != ".npz":
+    if path.suffix.lower() not in (".npz", ".smpl"):
         from formats.motion import pickled_motion_keys
 
         try:

@@ -162,3 +162,43 @@ def test_a_motion_x_array_reads_as_the_same_smplx_parameters_in_an_npz(tmp_path)
     with pytest.raises(InputError) as info:
         load_motion(tmp_path / "hps_track_0.npy", fps=30)
     _assert_one_line(info, "hps_track_0.npy", "got a pickled object array: save its SMPL parameters with np.savez")
+
+
+@pytest.mark.parametrize("version, joints", [(0, 24), (1, 52), (2, 55)])
+def test_an_smpl_codec_file_reads_as_the_amass_layout_of_its_model(tmp_path, version, joints):
+    """Meshcapade's SMPLCodec `.smpl`: an npz of camelCase keys, the pose by part (SMPL: bodyPose of 24 joints;
+    SMPL-H: 22 and the hands; SMPL-X: 22, headPose (jaw, eyes) and the hands), the order of AMASS's poses."""
+    T, rng = 3, np.random.default_rng(version)
+    poses = rng.normal(scale=0.2, size=(T, joints, 3)).astype(np.float32)
+    body = 24 if version == 0 else 22
+    parts = {"bodyPose": poses[:, :body]}
+    if version == 2:
+        parts["headPose"] = poses[:, 22:25]
+    if version:
+        parts["leftHandPose"], parts["rightHandPose"] = poses[:, -30:-15], poses[:, -15:]
+    path = tmp_path / "avatar.smpl"
+    with open(path, "wb") as fh:  # np.savez would add .npz to the name
+        np.savez(fh, codecVersion=np.int32(2), smplVersion=np.int32(version), gender=np.int32(2),
+                 shapeParameters=np.arange(16, dtype=np.float32) / 10, frameCount=np.int32(T),
+                 frameRate=np.float32(120), bodyTranslation=_trans(T), **parts)
+    m = load_motion(path)
+    np.testing.assert_array_equal(m.poses, poses)
+    np.testing.assert_array_equal(m.trans, _trans(T))
+    np.testing.assert_array_equal(m.betas, np.arange(16, dtype=np.float32) / 10)
+    assert m.fps == 120 and m.gender == "female"
+
+
+def test_an_smpl_codec_file_of_another_model_or_a_misshapen_part_is_one_line(tmp_path):
+    path = tmp_path / "avatar_skel.smpl"
+    with open(path, "wb") as fh:
+        np.savez(fh, smplVersion=np.int32(5), bodyPose=np.zeros((2, 46), np.float32), frameRate=np.float32(30))
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    _assert_one_line(info, "avatar_skel.smpl", "expected an SMPL, SMPL-H or SMPL-X pose (smplVersion 0, 1 or 2), got "
+                                               "smplVersion 5 (SKEL: its pose is no rotations of SMPL's joints)")
+    with open(path, "wb") as fh:
+        np.savez(fh, smplVersion=np.int32(2), bodyPose=np.zeros((2, 22, 3), np.float32),
+                 leftHandPose=np.zeros((2, 12, 3), np.float32), frameRate=np.float32(30))
+    with pytest.raises(InputError) as info:
+        load_motion(path)
+    _assert_one_line(info, "expected leftHandPose of shape (2, 15, 3), got (2, 12, 3)")
