@@ -35,6 +35,8 @@ _COMPRESSED = ((b"\x1f\x8b", lambda fh: gzip.GzipFile(fileobj=fh)), (b"BZh", bz2
                (b"\xfd7zXZ", lzma.LZMAFile), (b"\x5d\x00", lzma.LZMAFile), (b"\x78", None))  # None: a zlib stream
 #: Bytes read at a time from a joblib array's data.
 _CHUNK = 1 << 24
+#: A joblib array larger than this (bytes) is read only when asked for (`LazyArray`).
+LAZY_BYTES = 1 << 24
 
 
 class ChumpyStandIn:
@@ -78,6 +80,12 @@ class _JoblibArray:
         if self.state.get("numpy_array_alignment_bytes") is not None:  # a byte giving the padding, the padding
             fh.read(int.from_bytes(fh.read(1), "little"))
         size = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        fortran = self.state.get("order") == "F"
+        if unpickler.path is not None and size > LAZY_BYTES:  # left in the file until asked for
+            offset = fh.tell()
+            if fh.seek(size, io.SEEK_CUR) > unpickler.path.stat().st_size:
+                raise EOFError(f"the file ends inside an array of {size} bytes")
+            return LazyArray(unpickler.path, offset, dtype, shape, fortran)
         data = np.empty(size, dtype=np.uint8)  # read into in place: a video's vertices may be most of the file
         view, got = memoryview(data), 0
         while got < size:
@@ -85,8 +93,30 @@ class _JoblibArray:
             if not n:
                 raise EOFError(f"the file ends inside an array ({got} of its {size} bytes)")
             got += n
-        array = data.view(dtype)
-        return array.reshape(shape[::-1]).T if self.state.get("order") == "F" else array.reshape(shape)
+        return _shaped(data.view(dtype), shape, fortran)
+
+
+def _shaped(flat: np.ndarray, shape: tuple, fortran: bool) -> np.ndarray:
+    return flat.reshape(shape[::-1]).T if fortran else flat.reshape(shape)
+
+
+class LazyArray:
+    """A joblib array over `LAZY_BYTES` left in its (uncompressed) file until np.asarray asks for it: the vertices
+    a pose estimator writes per frame are most of its file, and never read here."""
+
+    def __init__(self, path: Path, offset: int, dtype: np.dtype, shape: tuple, fortran: bool):
+        self.path, self.offset, self.dtype, self.shape, self.fortran = path, offset, dtype, shape, fortran
+
+    def __len__(self) -> int:
+        return self.shape[0] if self.shape else 0
+
+    def __array__(self, dtype=None, copy=None):
+        count = int(np.prod(self.shape, dtype=np.int64))
+        flat = np.fromfile(self.path, dtype=self.dtype, count=count, offset=self.offset)
+        if flat.size < count:
+            raise EOFError(f"'{self.path}' ends inside an array ({flat.size} of its {count} values)")
+        array = _shaped(flat, self.shape, self.fortran)
+        return array if dtype is None else array.astype(dtype)
 
 
 class _Restricted:
@@ -127,9 +157,9 @@ class _RestrictedUnpickler(_Restricted, pickle._Unpickler):
 
     dispatch = pickle._Unpickler.dispatch.copy()
 
-    def __init__(self, fh, label: str, what: str):
+    def __init__(self, fh, label: str, what: str, path: Path | None = None):
         super().__init__(fh, encoding="latin1")
-        self.file_handle, self.label, self.what = fh, label, what
+        self.file_handle, self.label, self.what, self.path = fh, label, what, path
 
     def load(self):
         try:
@@ -157,14 +187,15 @@ class FastRestrictedUnpickler(_Restricted, pickle.Unpickler):
 
 def load_pickle(path: Path, label: str, what: str):
     """The object pickled in `path` (a plain pickle, or a joblib file, compressed or not) through the restricted
-    unpickler. Raises InputError naming `label` for a global `what` does not use; other failures (a truncated or
-    damaged file) propagate as the unpickler raises them."""
+    unpickler; an uncompressed joblib file's large arrays come as `LazyArray`s. Raises InputError naming `label`
+    for a global `what` does not use; other failures (a truncated or damaged file) propagate as the unpickler
+    raises them."""
     with open(path, "rb") as raw:
         head = raw.read(6)
         raw.seek(0)
         opener = next((o for magic, o in _COMPRESSED if head.startswith(magic)), False)
         if opener is False:
-            return _RestrictedUnpickler(raw, label, what).load()
+            return _RestrictedUnpickler(raw, label, what, Path(path)).load()
         if opener is None:  # joblib's zlib: one raw stream
             return _RestrictedUnpickler(io.BytesIO(zlib.decompress(raw.read())), label, what).load()
         with opener(raw) as fh:

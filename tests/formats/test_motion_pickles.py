@@ -65,6 +65,26 @@ def test_frame_ids_not_one_increasing_number_per_frame_are_left_unused_and_an_ab
     _assert_one_line(info, "m.pkl", "expected 'frame_ids' of a track in one video, got frames 0 to 1000000000 for 3")
 
 
+def test_a_joblib_files_large_arrays_stay_in_the_file_until_asked_for(monkeypatch, tmp_path):
+    """Over LAZY_BYTES (here every array), an uncompressed file's arrays are read when np.asarray asks: the per-frame
+    vertices (most of a video's file) never are; what is read is what joblib wrote."""
+    import formats.pickles as pickles
+
+    monkeypatch.setattr(pickles, "LAZY_BYTES", 0)
+    people = _fixture_people()
+    read = load_pickle(DATA / "wham_like.pkl", "x", "a motion file")
+    assert isinstance(read[0]["verts"], pickles.LazyArray) and len(read[0]["verts"]) == 6
+    for key, value in people[7].items():
+        np.testing.assert_array_equal(np.asarray(read[7][key]), value)
+    m = load_motion(DATA / "wham_like.pkl", fps=30)
+    np.testing.assert_array_equal(m.trans[people[0]["frame_ids"]], people[0]["trans_world"])
+    cut = tmp_path / "cut.pkl"  # damaged: the file ends inside its arrays
+    cut.write_bytes((DATA / "wham_like.pkl").read_bytes()[:3000])
+    with pytest.raises(InputError) as info:
+        load_motion(cut, fps=30)
+    _assert_one_line(info, "cut.pkl", "cannot read it as a Python pickle (EOFError: ")
+
+
 def test_an_aist_pickle_and_a_vibe_like_one_read_as_their_npz(tmp_path, caplog):
     poses = _poses(5, 72)
     aist = tmp_path / "gBR_sBM_cAll_d04_mBR0_ch01.pkl"  # AIST++'s motions: a dict pickled by Python 3
