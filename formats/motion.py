@@ -16,7 +16,8 @@ camera-frame `pose`) where no other poses are there. Pickles (`PICKLE_SUFFIXES`:
 WHAM and VIBE write with joblib, one dict per tracked person: the longest is read) and PyTorch files
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
-`bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`).
+`bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
+a BVH of the SMPL skeleton (`formats.bvh`).
 """
 
 from __future__ import annotations
@@ -34,14 +35,16 @@ from core.errors import InputError
 from core.motion import (Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
+from formats.bvh import read_bvh
 from formats.pickles import load_pickle
 
 log = logging.getLogger(__name__)
 
 #: What a motion file of another format is, for the message refusing it (only SMPL parameters drive the body).
 _OTHER_MOTION_FORMATS = {
-    **dict.fromkeys((".bvh", ".fbx", ".c3d", ".trc"), "motion capture of a skeleton (BVH/FBX/C3D/TRC), not SMPL "
-                    "parameters: fit SMPL to it first (AMASS's MoSh, or a retargeting tool), then save the npz"),
+    **dict.fromkeys((".fbx", ".c3d", ".trc"), "motion capture of a skeleton or markers (FBX/C3D/TRC), not SMPL "
+                    "parameters: fit SMPL to it first (AMASS's MoSh, or a retargeting tool), then save the npz (or a "
+                    "BVH of the SMPL skeleton)"),
     ".json": "a JSON file",
 }
 #: Where a frame rate is found (AMASS's two spellings first, then those of other SMPL pipelines).
@@ -102,7 +105,7 @@ MOTION_X_COLUMNS = {"root_orient": (0, 3), "pose_body": (3, 66), "pose_hand": (6
 #: A track's frames filled in where it was not tracked (`_fill_untracked`) at the most: an hour at 30 fps.
 MAX_FILLED_FRAMES = 108_000
 #: What a motion file's name ends with (the case aside).
-MOTION_SUFFIXES = (".npz", ".smpl", ".npy", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
+MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
 ROTATION_MATRIX_TOL = 1e-3
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
@@ -148,6 +151,9 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         raise InputError(f"{src}: file not found")
     if path.suffix.lower() in PICKLE_SUFFIXES + TORCH_SUFFIXES:
         arrays, files = _pickled_arrays(path, src)
+    elif path.suffix.lower() == ".bvh":
+        arrays = read_bvh(path, src)
+        files = list(arrays)
     elif _starts_with(path, b"\x93NUMPY"):
         arrays, files = _motion_x_arrays(path, src)
     else:

@@ -347,11 +347,12 @@ def test_not_an_npz(tmp_path):
     with pytest.raises(InputError) as info:
         load_motion(path)
     _assert_one_line(info, "text.npz", "npz", "not one")
-    # a capture in a skeleton format is named for what it is, with what to do (pickles: test_motion_pickles.py)
-    (tmp_path / "walk.bvh").write_text("HIERARCHY\nROOT Hips\n")
+    # a capture in a skeleton format is named for what it is, with what to do (pickles: test_motion_pickles.py;
+    # BVH: test_bvh.py)
+    (tmp_path / "walk.fbx").write_text("Kaydara FBX Binary  \x00")
     with pytest.raises(InputError) as info:
-        load_motion(tmp_path / "walk.bvh")
-    _assert_one_line(info, "walk.bvh", "AMASS-style .npz", "skeleton (BVH/FBX/C3D/TRC)")
+        load_motion(tmp_path / "walk.fbx")
+    _assert_one_line(info, "walk.fbx", "AMASS-style .npz", "skeleton or markers (FBX/C3D/TRC)", "or a BVH of the SMPL")
 
 
 def test_npy_instead_of_npz(tmp_path):

@@ -270,3 +270,25 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
     a = read_sequence(scene["out"] / "shell_walk" / "obj").points
     for name in ("shell_fit", "shell_motionx", "shell_wham_output"):
         np.testing.assert_allclose(read_sequence(scene["out"] / name / "obj").points, a, atol=1e-5)
+
+
+def test_a_bvh_of_the_smpl_skeleton_bakes_as_its_npz_and_another_rigs_is_refused(scene):
+    """The scene's walk exported as a BVH of SMPL's skeleton (as smpl2bvh writes one: centimetres, ZYX Euler
+    angles) bakes the garment of the AMASS file; a BVH of another rig is one line naming retargeting."""
+    from formats.sequence import read_sequence
+    from tests.formats.test_bvh import write_bvh
+
+    with np.load(scene["motion"]) as walk:
+        poses, trans, fps = walk["poses"].reshape(-1, 24, 3), walk["trans"], float(walk["mocap_framerate"])
+    bvh = write_bvh(scene["dir"] / "walk_bvh.bvh", poses, trans, fps)
+    for motion in (scene["motion"], bvh):
+        r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
+                    "--method", "lbs"])
+        assert r.exit_code == 0, r.output
+    np.testing.assert_allclose(read_sequence(scene["out"] / "shell_walk_bvh" / "obj").points,
+                               read_sequence(scene["out"] / "shell_walk" / "obj").points, atol=1e-4)
+    other = bvh.read_text().replace("Left_knee", "LeftLeg")
+    (scene["dir"] / "rig.bvh").write_text(other)
+    assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "lacks 1 of its 22 body joints "
+                          "(left_knee; it has Pelvis", "retargeting to SMPL first")
+    assert not scene["out"].joinpath("shell_rig").exists()
