@@ -13,7 +13,8 @@ as a (T, J, 3) array or as rotation matrices (T, J, 3, 3), or, when `poses` is a
 `mocap_framerate` or `mocap_frame_rate` (Hz; or `mocap_fps`, `fps`, `framerate`,
 `frame_rate`), `gender`. WHAM's world motion `pose_world`, `trans_world` (or, without them, VIBE's and WHAM's
 camera-frame `pose`) where no other poses are there. Pickles (`PICKLE_SUFFIXES`: AIST++'s motions, the results
-WHAM and VIBE write with joblib, one dict per tracked person: the longest is read) and PyTorch files
+WHAM and VIBE write with joblib, one dict per tracked person: the longest is read; PHALP's and 4D-Humans', a dict
+per video frame of its detections: the person tracked in most frames) and PyTorch files
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
@@ -306,17 +307,63 @@ def _motion_dict(data, src: str, quiet: bool = False) -> dict:
                          f"dict per tracked person), got {type(data).__name__}")
     nested = next((k for k in _NESTED_KEYS if isinstance(data.get(k), dict)), None)
     data = data[nested] if nested else data
+    if data and all(isinstance(v, dict) and "smpl" in v and "tid" in v for v in data.values()):
+        return _phalp_person(data, src, quiet)
     if data and all(isinstance(v, dict) for v in data.values()):
         frames = {k: max((len(v[p]) for p in _POSE_KEYS if hasattr(v.get(p), "__len__")), default=0)
                   for k, v in data.items()}
-        person = max(frames, key=frames.get)
-        if len(data) > 1 and not quiet:
-            log.warning("%s: holds %d tracked people (%s): reading '%s', tracked longest (save another's arrays as "
-                        "an .npz to bake them)", src, len(data),
-                        ", ".join(f"'{k}' {n} frames" for k, n in list(frames.items())[:6])
-                        + (", ..." if len(data) > 6 else ""), person)
-        data = data[person]
+        data = data[_longest(frames, src, quiet)]
     return data
+
+
+def _longest(frames: dict, src: str, quiet: bool):
+    """The person of `frames` ({id: frames tracked}) tracked longest (the first of them), the others warned about
+    (quiet: not)."""
+    person = max(frames, key=frames.get)
+    if len(frames) > 1 and not quiet:
+        log.warning("%s: holds %d tracked people (%s): reading '%s', tracked longest (save another's arrays as an "
+                    ".npz to bake them)", src, len(frames),
+                    ", ".join(f"'{k}' {n} frames" for k, n in list(frames.items())[:6])
+                    + (", ..." if len(frames) > 6 else ""), person)
+    return person
+
+
+def _phalp_person(data: dict, src: str, quiet: bool) -> dict:
+    """One person's smplx arguments (global_orient, body_pose, betas, transl: its 'camera' translation; frame_ids:
+    the frames' 'time') from PHALP's and 4D-Humans' results: {frame: {'time', 'tid': [track id per detection],
+    'smpl': [{'global_orient', 'body_pose', 'betas'} per detection], 'camera': [(3,) per detection], ...}}; the
+    person tracked in most frames (`_longest`)."""
+    frames = sorted(data.items(), key=lambda kv: (_plain(kv[1].get("time", -1)).reshape(-1)[:1].tolist(),
+                                                  str(kv[0])))
+    counts: dict = {}
+    for _, frame in frames:
+        for tid in list(frame["tid"]):
+            counts[_plain(tid).item()] = counts.get(_plain(tid).item(), 0) + 1
+    if not counts:
+        raise InputError(f"{src}: expected PHALP's tracked people ('tid', 'smpl' per detection), found none tracked")
+    person = _longest(counts, src, quiet)
+    parts: dict = {"global_orient": [], "body_pose": [], "betas": [], "transl": [], "frame_ids": []}
+    for k, (_, frame) in enumerate(frames):
+        tids = [_plain(t).item() for t in frame["tid"]]
+        if person not in tids:
+            continue
+        i = tids.index(person)
+        smpl, cameras = frame["smpl"][i], list(frame.get("camera", ()))
+        for key in ("global_orient", "body_pose", "betas"):
+            parts[key].append(_plain(smpl.get(key)))
+        parts["transl"].append(_plain(cameras[i]).reshape(-1) if i < len(cameras) else None)
+        time = _plain(frame.get("time", k)).reshape(-1)
+        parts["frame_ids"].append(time[0] if time.size == 1 else k)
+    if any(t is None for t in parts["transl"]):
+        del parts["transl"]
+    try:
+        stacked = {key: np.stack(values) for key, values in parts.items()}
+    except ValueError as exc:
+        raise InputError(f"{src}: expected PHALP's SMPL parameters of one shape in every frame ({_short(exc)})") \
+            from None
+    stacked["global_orient"] = stacked["global_orient"].reshape(len(stacked["frame_ids"]), 1, 3, 3) \
+        if stacked["global_orient"].size == 9 * len(stacked["frame_ids"]) else stacked["global_orient"]
+    return stacked
 
 
 def _plain(value) -> np.ndarray:

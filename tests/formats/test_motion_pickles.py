@@ -222,3 +222,33 @@ def test_an_smpl_codec_file_of_another_model_or_a_misshapen_part_is_one_line(tmp
     with pytest.raises(InputError) as info:
         load_motion(path)
     _assert_one_line(info, "expected leftHandPose of shape (2, 15, 3), got (2, 12, 3)")
+
+
+def test_a_phalp_result_gives_the_person_tracked_in_most_frames_as_smplx_arguments(tmp_path, caplog):
+    """PHALP's and 4D-Humans' results: {frame: {'time', 'tid', 'smpl', 'camera', ... per detection}}; person 3 is
+    seen in frames 0, 1, 3, 4 (frame 2 filled in), person 5 in frames 1 and 2; masks and features left unread."""
+    from core.rotations import axis_angle_to_matrix
+
+    rng = np.random.default_rng(4)
+    poses = rng.normal(scale=0.3, size=(5, 24, 3)).astype(np.float32)
+    camera = np.stack([np.zeros(5), np.linspace(0, 0.2, 5), np.full(5, 4.0)], 1).astype(np.float32)
+    frames = {}
+    for t in range(5):
+        people = [p for p, seen in ((5, t in (1, 2)), (3, t != 2)) if seen]
+        frames[f"outputs/img/{t:06d}.jpg"] = {
+            "time": t, "shot": 0, "tid": people, "mask": [{"size": [4, 4], "counts": b"abc"} for _ in people],
+            "appe": [np.zeros(8, np.float32) for _ in people], "camera": [camera[t] + p for p in people],
+            "smpl": [{"global_orient": axis_angle_to_matrix(poses[t, :1]) + p - 3,
+                      "body_pose": axis_angle_to_matrix(poses[t, 1:]), "betas": np.zeros(10, np.float32)}
+                     for p in people]}
+    path = tmp_path / "demo_video.pkl"
+    path.write_bytes(pickle.dumps(dict(reversed(list(frames.items())))))  # in any order: 'time' orders them
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(path, fps=30, world_checks=False)
+    seen = [0, 1, 3, 4]
+    assert m.poses.shape == (5, 24, 3)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses[seen]), axis_angle_to_matrix(poses[seen]), atol=1e-5)
+    np.testing.assert_allclose(m.trans[seen], camera[seen] + 3, atol=1e-6)
+    np.testing.assert_allclose(m.trans[2], (camera[1] + camera[3]) / 2 + 3, atol=1e-6)
+    assert "holds 2 tracked people ('3' 4 frames, '5' 2 frames): reading '3'" in caplog.text
+    assert "not tracked in 1 of the video's 5 frames" in caplog.text
