@@ -37,7 +37,7 @@ from core.motion import (Motion, check_frame_rate, fill_untracked, validate_moti
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
 from formats.bvh import read_bvh
-from formats.pickles import load_pickle
+from formats.pickles import load_npy_pickle, load_pickle
 
 log = logging.getLogger(__name__)
 
@@ -83,9 +83,10 @@ _CODEC_MODELS = {0: ("SMPL", ()), 1: ("SMPL-H", (("leftHandPose", 15), ("rightHa
                  2: ("SMPL-X", (("headPose", 3), ("leftHandPose", 15), ("rightHandPose", 15)))}
 _CODEC_OTHER_MODELS = {3: "SUPR", 4: "SMPL++", 5: "SKEL"}
 _CODEC_GENDERS = ("neutral", "male", "female")
-#: A pose estimator's keys (`_from_estimator`): WHAM's world motion, VIBE's and WHAM's camera-frame 'pose', a
-#: track's video frames.
-_ESTIMATOR_KEYS = ("pose_world", "trans_world", "pose", "frame_ids")
+#: A pose estimator's keys (`_from_estimator`): WHAM's world motion, VIBE's and WHAM's camera-frame 'pose', TRAM's
+#: camera-frame ones, a track's video frames.
+_ESTIMATOR_KEYS = ("pose_world", "trans_world", "pose", "pred_rotmat", "pred_trans", "pred_shape", "frame",
+                   "frame_ids")
 #: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
 #: needs allow_pickle, a face's expression) are left unread. `transl` is the smplx arguments' `trans`.
 _READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender",
@@ -156,7 +157,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         arrays = read_bvh(path, src)
         files = list(arrays)
     elif _starts_with(path, b"\x93NUMPY"):
-        arrays, files = _motion_x_arrays(path, src)
+        arrays, files = _npy_arrays(path, src)
     else:
         arrays, files = _npz_arrays(path, src)
     _from_smpl_codec(arrays, src)
@@ -245,18 +246,26 @@ def _starts_with(path: Path, magic: bytes) -> bool:
         return False
 
 
-def _motion_x_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
+def _npy_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
     """(the arrays load_motion reads, their keys) of a single .npy array: Motion-X's SMPL-X parameters, (T, 322)
-    (`MOTION_X_COLUMNS`; its face's expression and shape left unread); InputError naming `src` otherwise."""
+    (`MOTION_X_COLUMNS`; its face's expression and shape left unread), or a pickled dict (TRAM's
+    hps_track_K.npy: `formats.pickles.load_npy_pickle`); InputError naming `src` otherwise."""
     expected = (f"{src}: expected an .npz archive of named arrays, or Motion-X's SMPL-X parameters as one .npy "
                 f"array of shape (T, {MOTION_X_VALUES}), got")
     try:
         values = np.load(path, allow_pickle=False)
-    except ValueError as exc:  # a pickled object (a dict saved with np.save): never unpickled here
-        if "allow_pickle" in str(exc):
-            raise InputError(f"{expected} a pickled object array: save its SMPL parameters with np.savez (or "
-                             f"pickle.dump them to a .pkl)") from None
-        raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
+    except ValueError as exc:  # a pickled object (a dict saved with np.save): through the restricted unpickler
+        if "allow_pickle" not in str(exc):
+            raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
+        try:
+            data = load_npy_pickle(path, src, "a motion file")
+        except InputError:
+            raise
+        except Exception as err:  # noqa: BLE001 - any failure to unpickle is an unreadable file
+            raise InputError(f"{src}: cannot read its pickled object ({type(err).__name__}: {_short(err)})") \
+                from None
+        data = _motion_dict(data, src)
+        return {str(k): _plain(v) for k, v in data.items() if str(k) in _READ_KEYS}, [str(k) for k in data]
     except (OSError, EOFError) as exc:
         raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
     if values.ndim != 2 or values.shape[1] != MOTION_X_VALUES:
@@ -484,7 +493,7 @@ def _from_estimator(arrays: dict, src: str) -> None:
     """A pose estimator's keys as load_motion's, in place, where the file has no poses of another name: WHAM's
     world motion ('pose_world', 'trans_world'; without the latter, no translation: its 'trans' is the camera's view)
     in place of its camera-frame one, else a 'pose' (VIBE's, WHAM's in the camera's frame: SMPL's 72 values per
-    frame) as 'poses'."""
+    frame) as 'poses', else TRAM's 'pred_rotmat', 'pred_trans', 'pred_shape' and 'frame'."""
     if not {"poses", "root_orient", "global_orient"} & arrays.keys():
         if "pose_world" in arrays:
             arrays["poses"] = arrays.pop("pose_world")
@@ -493,6 +502,13 @@ def _from_estimator(arrays: dict, src: str) -> None:
                 arrays["trans"] = arrays.pop("trans_world")
         elif "pose" in arrays:
             arrays["poses"] = arrays.pop("pose")
+        elif "pred_rotmat" in arrays:  # TRAM's: rotation matrices (T, 24, 3, 3), trans (T, 1, 3)
+            arrays["poses"] = arrays.pop("pred_rotmat")
+            for key, new in (("pred_trans", "trans"), ("pred_shape", "betas"), ("frame", "frame_ids")):
+                if key in arrays and new not in arrays:
+                    value = np.asarray(arrays.pop(key))
+                    arrays[new] = value.reshape(len(value), 3) if new == "trans" and value.size == 3 * len(value) \
+                        else value
 
 
 def _fill_untracked(poses: np.ndarray, trans: np.ndarray, raw, src: str) -> tuple[np.ndarray, np.ndarray]:

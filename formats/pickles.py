@@ -1,7 +1,8 @@
 """Python pickles read without running their code: SMPL body files and pose estimators' motion files.
 
 A restricted unpickler resolves only the globals such files need (numpy arrays and dtypes, scipy.sparse matrices,
-a few builtins and collections) and refuses every other with an InputError naming the file; chumpy `Ch` objects
+a few builtins and collections, torch tensors rebuilt through torch.load(weights_only=True)) and refuses every
+other with an InputError naming the file; chumpy `Ch` objects
 (the official SMPL pickles) become `ChumpyStandIn`, holding their array. `load_pickle` also reads joblib's
 files (WHAM, VIBE and other estimators save their results with `joblib.dump`: the arrays follow their pickled
 header in the stream, optionally compressed) without importing joblib.
@@ -146,6 +147,12 @@ class _Restricted:
                     return getattr(importlib.import_module(mod), name)
                 except (ImportError, AttributeError):
                     continue
+        if (module, name) == ("torch._utils", "_rebuild_tensor_v2"):  # a tensor pickled (TRAM's results)
+            import torch._utils
+
+            return torch._utils._rebuild_tensor_v2
+        if (module, name) == ("torch.storage", "_load_from_bytes"):  # its storage, through torch's own restrictions
+            return _storage_from_bytes
         if (module, name) in _OTHER_GLOBALS or (module == "builtins" and name in _BUILTIN_NAMES):
             return getattr(importlib.import_module(module), name)
         raise InputError(f"{self.label}: the pickle refers to '{module}.{name}', which {self.what} does not use "
@@ -183,6 +190,28 @@ class FastRestrictedUnpickler(_Restricted, pickle.Unpickler):
     def __init__(self, fh, label: str, what: str):
         super().__init__(fh, encoding="latin1")
         self.label, self.what = label, what
+
+
+def _storage_from_bytes(data: bytes):
+    """A pickled tensor's storage: torch.load(weights_only=True) of its bytes (torch's own `_load_from_bytes` loads
+    them with weights_only=False: any code)."""
+    import torch
+
+    return torch.load(io.BytesIO(data), weights_only=True)
+
+
+def load_npy_pickle(path: Path, label: str, what: str):
+    """The object a .npy file of a pickled object array holds (`np.save` of a dict: its 0-d array's item),
+    through the restricted unpickler; ValueError where the file holds no object array."""
+    with open(path, "rb") as fh:
+        version = np.lib.format.read_magic(fh)
+        read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
+            np.lib.format.read_array_header_2_0
+        shape, _, dtype = read_header(fh)
+        if not dtype.hasobject:
+            raise ValueError(f"a .npy array of {dtype}, not of pickled objects")
+        array = _RestrictedUnpickler(fh, label, what).load()
+    return array.item() if isinstance(array, np.ndarray) and array.shape == () else array
 
 
 def load_pickle(path: Path, label: str, what: str):

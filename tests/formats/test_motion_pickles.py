@@ -178,10 +178,36 @@ def test_a_motion_x_array_reads_as_the_same_smplx_parameters_in_an_npz(tmp_path)
         load_motion(tmp_path / "wide.npy", fps=30)
     _assert_one_line(info, "wide.npy", "Motion-X's SMPL-X parameters as one .npy array of shape (T, 322), got a "
                                        "single .npy array of shape (4, 321)")
-    np.save(tmp_path / "hps_track_0.npy", {"pred_rotmat": np.eye(3)}, allow_pickle=True)  # TRAM's: a pickled dict
+    np.save(tmp_path / "list.npy", np.array([[1, 2], "x"], dtype=object), allow_pickle=True)
     with pytest.raises(InputError) as info:
-        load_motion(tmp_path / "hps_track_0.npy", fps=30)
-    _assert_one_line(info, "hps_track_0.npy", "got a pickled object array: save its SMPL parameters with np.savez")
+        load_motion(tmp_path / "list.npy", fps=30)
+    _assert_one_line(info, "list.npy", "expected a pickled dict of SMPL parameters")
+
+
+def test_a_tram_track_of_torch_tensors_saved_with_np_save_reads_without_running_code(tmp_path):
+    """TRAM's hps_track_K.npy: np.save of a dict of torch tensors (pred_rotmat (T, 24, 3, 3), pred_trans (T, 1, 3),
+    pred_shape, frame); its tensors rebuilt through torch.load(weights_only=True), a pickled callable refused."""
+    torch = pytest.importorskip("torch")
+    from core.rotations import axis_angle_to_matrix
+
+    T, poses = 4, _poses(4, 72).reshape(4, 24, 3)
+    track = {"pred_cam": torch.zeros(T, 3), "pred_shape": torch.full((T, 10), 0.5),
+             "pred_rotmat": torch.tensor(axis_angle_to_matrix(poses)), "pred_trans": torch.tensor(_trans(T)[:, None]),
+             "frame": torch.tensor([10, 11, 12, 14])}
+    np.save(tmp_path / "hps_track_0.npy", track, allow_pickle=True)
+    m = load_motion(tmp_path / "hps_track_0.npy", fps=30, world_checks=False)
+    assert m.n_frames == 5  # frame 13 filled in
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses[[0, 1, 2, 4]]), axis_angle_to_matrix(poses), atol=1e-5)
+    np.testing.assert_allclose(m.trans[[0, 1, 2, 4]], _trans(T), atol=1e-6)
+    np.testing.assert_allclose(m.betas, 0.5)
+    marker = tmp_path / "ran"
+    payload = _RunsCode()
+    payload.marker = str(marker)
+    np.save(tmp_path / "evil.npy", {"pred_rotmat": payload}, allow_pickle=True)
+    with pytest.raises(InputError) as info:
+        load_motion(tmp_path / "evil.npy", fps=30)
+    _assert_one_line(info, "evil.npy", "refers to 'pathlib.Path.touch', which a motion file does not use")
+    assert not marker.exists()
 
 
 @pytest.mark.parametrize("version, joints", [(0, 24), (1, 52), (2, 55)])
