@@ -257,15 +257,7 @@ def _npy_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
     except ValueError as exc:  # a pickled object (a dict saved with np.save): through the restricted unpickler
         if "allow_pickle" not in str(exc):
             raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
-        try:
-            data = load_npy_pickle(path, src, "a motion file")
-        except InputError:
-            raise
-        except Exception as err:  # noqa: BLE001 - any failure to unpickle is an unreadable file
-            raise InputError(f"{src}: cannot read its pickled object ({type(err).__name__}: {_short(err)})") \
-                from None
-        data = _motion_dict(data, src)
-        return {str(k): _plain(v) for k, v in data.items() if str(k) in _READ_KEYS}, [str(k) for k in data]
+        return _pickled_arrays(path, src, npy=True)
     except (OSError, EOFError) as exc:
         raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
     if values.ndim != 2 or values.shape[1] != MOTION_X_VALUES:
@@ -274,10 +266,11 @@ def _npy_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
     return arrays, list(arrays)
 
 
-def _pickled_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
+def _pickled_arrays(path: Path, src: str, npy: bool = False) -> tuple[dict, list[str]]:
     """(the arrays load_motion reads, every key of the dict read) of a pickled motion (`PICKLE_SUFFIXES`,
-    `TORCH_SUFFIXES`): its one person's SMPL parameters (`_motion_dict`); InputError naming `src` otherwise."""
-    data = _motion_dict(_unpickled(path, src), src)
+    `TORCH_SUFFIXES`; npy: a .npy of a pickled object): its one person's SMPL parameters (`_motion_dict`);
+    InputError naming `src` otherwise."""
+    data = _motion_dict(_unpickled(path, src, npy), src)
     return {str(k): _plain(v) for k, v in data.items() if str(k) in _READ_KEYS}, [str(k) for k in data]
 
 
@@ -285,26 +278,27 @@ def pickled_motion_keys(path: Path) -> list[str]:
     """The keys of the one person's SMPL parameters in the pickled motion `path` (`_motion_dict`); InputError
     where it cannot be read or holds no dict."""
     src = f"motion '{path}'"
-    return [str(k) for k in _motion_dict(_unpickled(path, src), src, quiet=True)]
+    return [str(k) for k in _motion_dict(_unpickled(path, src, _starts_with(path, b"\x93NUMPY")), src, quiet=True)]
 
 
-def _unpickled(path: Path, src: str):
-    """What the pickled motion `path` holds (a PyTorch file through torch.load(weights_only=True), another through
-    `formats.pickles.load_pickle`); InputError naming `src` where it cannot be read."""
+def _unpickled(path: Path, src: str, npy: bool = False):
+    """What the pickled motion `path` holds (a PyTorch file through torch.load(weights_only=True), a .npy of a
+    pickled object (npy) through `formats.pickles.load_npy_pickle`, another through `formats.pickles.load_pickle`);
+    InputError naming `src` where it cannot be read."""
     torch_file = path.suffix.lower() in TORCH_SUFFIXES
+    kind = "a .npy array's pickled object" if npy else "a PyTorch file" if torch_file else "a Python pickle"
     try:
+        if npy:
+            return load_npy_pickle(path, src, "a motion file")
         if torch_file:
             import torch
 
-            data = torch.load(path, map_location="cpu", weights_only=True)
-        else:
-            data = load_pickle(path, src, "a motion file")
+            return torch.load(path, map_location="cpu", weights_only=True)
+        return load_pickle(path, src, "a motion file")
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - any failure to unpickle is an unreadable file
-        raise InputError(f"{src}: cannot read it as {'a PyTorch file' if torch_file else 'a Python pickle'} "
-                         f"({type(exc).__name__}: {_short(exc)})") from None
-    return data
+        raise InputError(f"{src}: cannot read it as {kind} ({type(exc).__name__}: {_short(exc)})") from None
 
 
 def _motion_dict(data, src: str, quiet: bool = False) -> dict:

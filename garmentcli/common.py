@@ -69,7 +69,8 @@ class OutputPath(click.Path):
 
 #: Keys of an archive or pickle that holds a motion (`formats.motion.load_motion`): AMASS's poses, SMPL-X's split
 #: keys, the smplx library's arguments, AIST++'s and pose estimators' poses.
-MOTION_KEYS = ("poses", "root_orient", "pose_body", "global_orient", "smpl_poses", "pose", "pose_world", "bodyPose")
+MOTION_KEYS = ("poses", "root_orient", "pose_body", "global_orient", "smpl_poses", "pose", "pose_world", "bodyPose",
+               "pred_rotmat")
 
 
 def require_file(path) -> None:
@@ -113,12 +114,15 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
 def _holds_poses(path: Path) -> bool:
     """Whether the archive or pickle `path` holds poses; True for one that cannot be read (named as a motion, it
     is refused with the reason)."""
-    if path.suffix.lower() == ".npy":  # Motion-X's (T, 322) array
+    if path.suffix.lower() == ".npy":  # Motion-X's (T, 322) array, or a pickled dict (TRAM's track)
         from formats.motion import MOTION_X_VALUES
 
         try:
             return np.load(path, mmap_mode="r", allow_pickle=False).shape[1:] == (MOTION_X_VALUES,)
-        except (OSError, ValueError, EOFError):
+        except ValueError as exc:  # numpy's words for an object array (memory-mapped, or not)
+            if "Python objects" not in str(exc) and "allow_pickle" not in str(exc):
+                return True
+        except (OSError, EOFError):
             return True
     if path.suffix.lower() not in (".npz", ".smpl"):
         from formats.motion import pickled_motion_keys

@@ -239,9 +239,12 @@ def test_a_fitted_motions_betas_on_the_embedded_body_give_way_to_its_mean_shape(
 def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_amass_original(scene):
     """A folder holding the scene's walk as WHAM pickles its results ({track: {'pose_world', 'trans_world', ...}}),
     as the smplx arguments a fitter saves (global_orient, body_pose: such files used to be left out of a folder,
-    which was refused as holding no motion), as Motion-X's (T, 322) .npy and a body shape alone (AMASS's
-    shape.npz: left out) bakes the three motions, each the garment of the AMASS file."""
+    which was refused as holding no motion), as Motion-X's (T, 322) .npy, as TRAM's hps_track_0.npy beside its
+    camera.npy (no motion: left out), and a body shape alone (AMASS's shape.npz: left out) bakes the four motions,
+    each the garment of the AMASS file."""
     import pickle
+
+    import torch
 
     from formats.sequence import read_sequence
 
@@ -260,15 +263,21 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
     motion_x = np.zeros((len(poses), 322), dtype=np.float32)  # Motion-X's rows: the 22 body joints, hands at rest
     motion_x[:, :66], motion_x[:, 309:312], motion_x[:, 312:] = poses[:, :66], trans, betas[:10]
     np.save(d / "motionx.npy", motion_x)
+    from core.rotations import axis_angle_to_matrix  # TRAM's track and camera, np.save of dicts of tensors
+
+    np.save(d / "hps_track_0.npy", {"pred_rotmat": torch.tensor(axis_angle_to_matrix(poses.reshape(-1, 24, 3))),
+                                    "pred_trans": torch.tensor(trans[:, None]), "pred_shape": torch.zeros(1, 10)},
+            allow_pickle=True)
+    np.save(d / "camera.npy", {"pred_cam_R": torch.eye(3)[None], "img_focal": 600.0}, allow_pickle=True)
     np.savez(d / "shape.npz", betas=betas, gender="neutral")
     for motion, options in ((scene["dir"] / "amass" / "walk.npz", ()), (d, ("--source-fps", fps))):
         r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
                     "--method", "lbs", *options])
         assert r.exit_code == 0, r.output
     baked = sorted(p.name for p in scene["out"].iterdir())
-    assert baked == ["shell_fit", "shell_motionx", "shell_walk", "shell_wham_output"], baked
+    assert baked == ["shell_fit", "shell_hps_track_0", "shell_motionx", "shell_walk", "shell_wham_output"], baked
     a = read_sequence(scene["out"] / "shell_walk" / "obj").points
-    for name in ("shell_fit", "shell_motionx", "shell_wham_output"):
+    for name in ("shell_fit", "shell_hps_track_0", "shell_motionx", "shell_wham_output"):
         np.testing.assert_allclose(read_sequence(scene["out"] / name / "obj").points, a, atol=1e-5)
 
 
