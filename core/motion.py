@@ -54,6 +54,7 @@ class Motion:
     n_settle: leading frames added by `settle` (blend from the rest pose).
     n_lead: leading frames deformed but not written (`preroll`: the motion before the frames asked for, so a
       simulated or learned garment arrives at the first written frame moving with the body, not at rest).
+    up: the world axis the file's body stood along as read, "z", or "y" / "-y" turned to Z-up (`y_up_to_z_up`).
     """
 
     poses: np.ndarray
@@ -64,6 +65,7 @@ class Motion:
     name: str = "motion"
     n_settle: int = 0
     n_lead: int = 0
+    up: str = "z"
 
     def __post_init__(self):
         if self.poses.ndim != 3 or self.poses.shape[2] != 3 or layout_for_joint_count(self.poses.shape[1]) is None:
@@ -317,7 +319,7 @@ def y_up_to_z_up(motion: Motion, pelvis: np.ndarray, up: str = "y") -> Motion:
     poses[:, 0] = matrix_to_axis_angle(q @ axis_angle_to_matrix(poses[:, 0].astype(np.float64)))
     pelvis = np.asarray(pelvis, dtype=np.float64)
     trans = (motion.trans.astype(np.float64) + pelvis) @ q.T - pelvis
-    return replace(motion, poses=poses, trans=trans.astype(np.float32))
+    return replace(motion, poses=poses, trans=trans.astype(np.float32), up=up)
 
 
 def _lies(axis: str, up: str) -> str:

@@ -212,7 +212,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
                    "body": str(spec.body_path) if spec.body_path else "embedded default (anny)"},
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
-                    "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up},
+                    "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,
+                    "motion_up_as_read": motion.up},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
     })

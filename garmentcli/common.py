@@ -256,8 +256,8 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
                    check_frames=None, motion_up: str = "z"):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
-    --motion-up y or -y (the motion turned from its Y-up (-Y-up) world to Z-up about the pelvis of `body`, the embedded one when
-    None, at the motion's betas), --frames (source frames) with --preroll (source frames before them, deformed and
+    --motion-up y, -y or auto (`resolved_up`; the motion turned from its Y-up (-Y-up) world to Z-up about the pelvis
+    of `body`, the embedded one when None, at the motion's betas), --frames (source frames) with --preroll (source frames before them, deformed and
     not written: `Motion.n_lead`), --fps and --settle, in that order.
 
     body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
@@ -267,6 +267,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     from formats.motion import load_motion
 
     motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z")
+    motion_up = resolved_up(motion, path, motion_up)
     # A motion's betas were fitted to the body model it was captured with (SMPL, SMPL+H, SMPL-X), never to the
     # embedded body, whose coefficients are anny's own basis: there they would shape another person.
     fitted = motion.betas is not None and bool(np.any(motion.betas != 0))
@@ -304,6 +305,27 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     return settle(motion, settle_frames), source_fps
 
 
+def resolved_up(motion, path: str, motion_up: str) -> str:
+    """--motion-up for the motion read from `path`: as given, or for "auto" the world axis its body stands along
+    (`core.motion.standing_axis`: +Z, +Y or -Y in most frames and along no other in any), else "z" (told, with the
+    metres check `load_motion` leaves to it)."""
+    if motion_up != "auto":
+        return motion_up
+    from core.motion import standing_axis, warn_if_not_metres
+
+    axis, share = standing_axis(motion)
+    if axis is None:
+        log.info("motion '%s': --motion-up auto: the body stands along no one world axis (+Z %.0f %%, +Y %.0f %%, "
+                 "-Y %.0f %% of its frames): read as Z-up", path, share["z"] * 100, share["y"] * 100,
+                 share["-y"] * 100)
+    else:
+        log.info("motion '%s': --motion-up auto: the body stands along world %s in %.0f %% of its frames: read as "
+                 "%s up", path, {"z": "+Z", "y": "+Y", "-y": "-Y"}[axis], share[axis] * 100, axis)
+    if (axis or "z") == "z":
+        warn_if_not_metres(motion, path)
+    return axis or "z"
+
+
 def turned_z_up(motion, body: Body | None, path: str, up: str = "y"):
     """`core.motion.y_up_to_z_up` (from the world axis `up`, "y" or "-y") about the pelvis of `body` (the embedded
     one when None) at the motion's betas, with the world checks `load_motion` leaves to it (along another axis?
@@ -331,12 +353,13 @@ def turned_for_shape(motion, body: Body | None, turned_at, up: str = "y"):
 
 
 def motion_up_option(command):
-    """--motion-up z|y|-y: the motions' world up axis (`prepare_motion`)."""
-    return click.option("--motion-up", type=click.Choice(["z", "y", "-y"]), default="z", show_default=True,
+    """--motion-up z|y|-y|auto: the motions' world up axis (`prepare_motion`, `resolved_up`)."""
+    return click.option("--motion-up", type=click.Choice(["z", "y", "-y", "auto"]), default="z", show_default=True,
                         help="The motions' world up axis: z (AMASS), y (the world of most video pose estimators: "
                              "GVHMR, WHAM, TRAM) or -y (camera coordinates, y down the image: per-image estimators "
                              "such as SMPLer-X, 4D-Humans), turned to Z-up exactly (about the body's "
-                             "pelvis).")(command)
+                             "pelvis); auto: per motion, the axis its body stands along in most frames (z where "
+                             "none).")(command)
 
 
 #: Betas beyond this (standard deviations of the body's shape space) are warned about: the methods are tested

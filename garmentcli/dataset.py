@@ -47,11 +47,12 @@ def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, 
     about `body`'s pelvis at their betas with --motion-up y (-y)), plus the built-in library (core.motiongen.MOTION_LIBRARY)
     when asked; a library clip named like a file is refused."""
     from formats.motion import load_motion
-    from garmentcli.common import turned_z_up
+    from garmentcli.common import resolved_up, turned_z_up
 
     def read(path):
         motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z")
-        return turned_z_up(motion, body, path, motion_up) if motion_up != "z" else motion
+        up = resolved_up(motion, path, motion_up)
+        return turned_z_up(motion, body, path, up) if up != "z" else motion
 
     out = {name: fn(read(p)) for name, p in zip(motion_names(motion_paths), motion_paths)}
     if library:
@@ -121,8 +122,6 @@ def _worker_init(garment_paths, motion_paths, library, body_path, fps, material,
     _W["garments"] = {Path(p).stem: read_garment(p) for p in garment_paths}
     _W["body"] = load_body_option(body_path)
     _W["motions"] = _load_motions(motion_paths, library, fps, source_fps, motion_up, _W["body"])
-    _W["turned"] = set(motion_names(motion_paths)) if motion_up != "z" else set()  # the files, not the library
-    _W["motion_up"] = motion_up
     _W["deformer"] = SimDeformer(material, options)
 
 
@@ -151,8 +150,8 @@ def _run_item(item, betas, settle_frames, out_dir, body_id):
     garment = _W["garments"][item.garment]
     source = _W["motions"][item.motion]
     motion = item_motion(source, item, betas, settle_frames)
-    if item.motion in _W.get("turned", ()):  # turned about the pelvis at the file's betas, not the item's
-        motion = turned_for_shape(motion, _W["body"], source.betas, _W["motion_up"])
+    if source.up != "z":  # turned about the pelvis at the file's betas, not the item's
+        motion = turned_for_shape(motion, _W["body"], source.betas, source.up)
     t0 = time.perf_counter()
     r = simulate_item(garment, _W["body"], motion, _W["deformer"], item.preroll)
     write_sequence(sequence_path(out_dir, item.id),

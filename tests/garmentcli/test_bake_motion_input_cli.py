@@ -165,8 +165,22 @@ def test_a_y_up_motion_bakes_with_motion_up_y_as_its_z_up_original(scene, caplog
         looks_y_up = "it looks Y-up" in caplog.text and "pass --motion-up y" in caplog.text
         assert looks_y_up == (motion == "yup" and not options), caplog.text
     summary = json.loads((d / "out_yup2" / "shell_yup" / "summary.json").read_text())
-    assert summary["options"]["motion_up"] == "y"
+    assert summary["options"]["motion_up"] == "y" and summary["options"]["motion_up_as_read"] == "y"
     np.testing.assert_allclose(out["yup", True], out["zup", False], atol=1e-5)
+    # --motion-up auto: each motion of a folder as its body stands, without a word of warning
+    (d / "both").mkdir()
+    for name in ("yup", "zup"):
+        (d / "both" / f"{name}.npz").write_bytes((d / f"{name}.npz").read_bytes())
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        r = invoke(["bake", scene["garment"], d / "both", "--body", scene["body"], "--method", "lbs", "--out",
+                    d / "out_auto", "--motion-up", "auto"])
+    assert r.exit_code == 0 and "motion-up" not in caplog.text, (r.output, caplog.text)
+    for name, up in (("yup", "y"), ("zup", "z")):
+        np.testing.assert_allclose(read_sequence(d / "out_auto" / f"shell_{name}" / "obj").points, out["zup", False],
+                                   atol=1e-5)
+        options = json.loads((d / "out_auto" / f"shell_{name}" / "summary.json").read_text())["options"]
+        assert options["motion_up"] == "auto" and options["motion_up_as_read"] == up
     assert np.abs(out["yup", False] - out["zup", False]).max() > 0.1  # lying on its back
     with caplog.at_level(logging.WARNING):
         r = invoke(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs",

@@ -225,9 +225,13 @@ def test_dataset_motion_up_y_reads_y_up_motions_turned_and_keys_the_plan(scene):
     poses = np.zeros((3, 72), np.float32)
     trans = np.float32([[0.0, 1.0, 0.5]] * 3)
     np.savez(d / "yup.npz", poses=poses, trans=trans, mocap_framerate=30.0)
-    turned = _load_motions([d / "yup.npz"], False, 30.0, motion_up="y", body=load_body(scene["body"]))["yup"]
-    np.testing.assert_allclose(turned.poses[:, 0], [[np.pi / 2, 0, 0]] * 3, atol=1e-6)
-    np.testing.assert_allclose(turned.trans, [[0.0, -0.5, 1.0]] * 3, atol=1e-6)
+    for up in ("y", "auto"):  # auto: the body stands along +Y
+        turned = _load_motions([d / "yup.npz"], False, 30.0, motion_up=up, body=load_body(scene["body"]))["yup"]
+        np.testing.assert_allclose(turned.poses[:, 0], [[np.pi / 2, 0, 0]] * 3, atol=1e-6)
+        np.testing.assert_allclose(turned.trans, [[0.0, -0.5, 1.0]] * 3, atol=1e-6)
+        assert turned.up == "y"  # each item is turned for its own shape (_run_item)
+    library = _load_motions([], True, 30.0, motion_up="auto")
+    assert library and all(m.up == "z" for m in library.values())  # the built-in clips stand along +Z
     args = ["dataset", "--garments", scene["garment"], "--motions", d / "yup.npz", "--body", scene["body"],
             "--settle", 0, "--dry-run", "--no-held-out"]
     for options, recorded in (((), None), (("--motion-up", "y"), "y")):
