@@ -37,7 +37,7 @@ from core.motion import (Motion, check_frame_rate, fill_untracked, validate_moti
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
 from formats.bvh import read_bvh
-from formats.pickles import load_npy_pickle, load_pickle
+from formats.pickles import load_npy_pickle, load_pickle, load_torch
 
 log = logging.getLogger(__name__)
 
@@ -291,9 +291,7 @@ def _unpickled(path: Path, src: str, npy: bool = False):
         if npy:
             return load_npy_pickle(path, src, "a motion file")
         if torch_file:
-            import torch
-
-            return torch.load(path, map_location="cpu", weights_only=True)
+            return load_torch(path, src, "a motion file")
         return load_pickle(path, src, "a motion file")
     except InputError:
         raise

@@ -200,6 +200,25 @@ def _storage_from_bytes(data: bytes):
     return torch.load(io.BytesIO(data), weights_only=True)
 
 
+def load_torch(path: Path, label: str, what: str):
+    """torch.load(weights_only=True) of `path` (tensors and containers only), with the numpy arrays and scalars it
+    holds (GVHMR's results may) and every other global the restricted unpickler allows: any it refuses raises
+    InputError naming `label`."""
+    import torch
+
+    resolver = _Restricted()
+    resolver.label, resolver.what = label, what
+    try:
+        unsafe = torch.serialization.get_unsafe_globals_in_checkpoint(path)
+    except Exception:  # noqa: BLE001 - not a zip-format file (a legacy one): torch.load says what it is
+        unsafe = []
+    allowed = [resolver.find_class(*name.rsplit(".", 1)) for name in unsafe]
+    if np.dtype in allowed:  # a dtype unpickled is an instance of its own class (numpy.dtypes.Float32DType, ...)
+        allowed += [getattr(np.dtypes, n) for n in dir(np.dtypes) if n.endswith("DType")]
+    with torch.serialization.safe_globals(allowed):
+        return torch.load(path, map_location="cpu", weights_only=True)
+
+
 def load_npy_pickle(path: Path, label: str, what: str):
     """The object a .npy file of a pickled object array holds (`np.save` of a dict: its 0-d array's item),
     through the restricted unpickler; ValueError where the file holds no object array."""

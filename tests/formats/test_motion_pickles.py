@@ -112,11 +112,21 @@ def test_a_gvhmr_torch_file_gives_its_world_parameters(tmp_path):
              "transl": torch.tensor(_trans(T)), "betas": torch.zeros(T, 10)}
     incam = {**world, "body_pose": torch.full((T, 63), -0.2)}
     path = tmp_path / "hmr4d_results.pt"
-    torch.save({"smpl_params_global": world, "smpl_params_incam": incam, "K_fullimg": torch.eye(3)[None]}, path)
+    torch.save({"smpl_params_global": world, "smpl_params_incam": incam, "K_fullimg": torch.eye(3)[None],
+                "kp2d": np.zeros((T, 17, 3), np.float32), "length": np.int64(T)}, path)  # numpy too: read
     m = load_motion(path, fps=30)
     assert m.poses.shape == (T, 55, 3)  # 21 body joints: SMPL-X's layout, its jaw, eyes and hands at rest
     np.testing.assert_allclose(m.poses[:, 1:22].reshape(T, 63), 0.1)
     np.testing.assert_allclose(m.trans, _trans(T))
+    marker = tmp_path / "ran"
+    payload = _RunsCode()
+    payload.marker = str(marker)
+    torch.save({"smpl_params_global": world, "hook": payload}, path)
+    with pytest.raises(InputError) as info:
+        load_motion(path, fps=30)
+    _assert_one_line(info, "hmr4d_results.pt", "the pickle refers to 'builtins.getattr', which a motion file does "
+                                               "not use (refused)")  # the way to Path.touch
+    assert not marker.exists()
 
 
 class _RunsCode:
