@@ -124,8 +124,8 @@ def test_a_gvhmr_torch_file_gives_its_world_parameters(tmp_path):
     torch.save({"smpl_params_global": world, "hook": payload}, path)
     with pytest.raises(InputError) as info:
         load_motion(path, fps=30)
-    _assert_one_line(info, "hmr4d_results.pt", "the pickle refers to 'builtins.getattr', which a motion file does "
-                                               "not use (refused)")  # the way to Path.touch
+    _assert_one_line(info, "hmr4d_results.pt", "the pickle refers to '", "which a motion file does not use "
+                                               "(refused)")  # builtins.getattr or pathlib.Path: the way to its touch
     assert not marker.exists()
 
 
