@@ -212,7 +212,7 @@ def load_torch(path: Path, label: str, what: str):
         unsafe = torch.serialization.get_unsafe_globals_in_checkpoint(path)
     except Exception:  # noqa: BLE001 - not a zip-format file (a legacy one): torch.load says what it is
         unsafe = []
-    allowed = [resolver.find_class(*name.rsplit(".", 1)) for name in unsafe]
+    allowed = [resolver.find_class(*name.rsplit(".", 1)) for name in sorted(unsafe)]
     if np.dtype in allowed:  # a dtype unpickled is an instance of its own class (numpy.dtypes.Float32DType, ...)
         allowed += [getattr(np.dtypes, n) for n in dir(np.dtypes) if n.endswith("DType")]
     with torch.serialization.safe_globals(allowed):
