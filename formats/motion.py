@@ -71,7 +71,7 @@ _SPLIT_KEYS = ("root_orient", "pose_body", "pose_jaw", "pose_eye", "pose_hand")
 _SMPLX_ARG_EXTRAS = (("jaw_pose", 1), ("leye_pose", 1), ("reye_pose", 1), ("left_hand_pose", 15),
                      ("right_hand_pose", 15))
 _SMPLX_ARG_KEYS = ("global_orient", "body_pose", *(key for key, _ in _SMPLX_ARG_EXTRAS))
-#: AIST++'s keys (its motions, pickles, saved as .npz with the same names): SMPL poses, and a translation in the
+#: AIST++'s keys (its motions: pickles, or .npz with the same names): SMPL poses, and a translation in the
 #: units of the body scaled by `smpl_scaling` (about 95-100: centimetres of a body scaled to metres).
 _AIST_KEYS = ("smpl_poses", "smpl_trans", "smpl_scaling")
 #: Meshcapade's SMPLCodec `.smpl` files (an npz of camelCase keys): the pose by part, the translation, the shape,
@@ -92,14 +92,17 @@ _ESTIMATOR_KEYS = ("pose_world", "trans_world", "pose", "pred_rotmat", "pred_tra
 _READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender",
               *_AIST_KEYS, *_ESTIMATOR_KEYS, *_CODEC_KEYS)
 #: Pickled motions, read through a restricted unpickler (`formats.pickles`: no code in them runs): AIST++'s motion
-#: pickles; pose estimators' results saved with pickle or joblib (WHAM, VIBE: a dict per tracked person).
+#: pickles; pose estimators' results saved with pickle or joblib (WHAM, VIBE: a dict per tracked person; PHALP,
+#: 4D-Humans: a dict per video frame).
 PICKLE_SUFFIXES = (".pkl", ".pickle", ".joblib")
-#: PyTorch files, read with torch.load(weights_only=True) (tensors and containers only): GVHMR's hmr4d_results.pt.
+#: PyTorch files, read with torch.load(weights_only=True) (tensors, containers, numpy arrays: `formats.pickles`):
+#: GVHMR's hmr4d_results.pt.
 TORCH_SUFFIXES = (".pt", ".pth")
 #: A dict in a pickled motion that holds it: GVHMR's world parameters (preferred) or its camera-frame ones.
 _NESTED_KEYS = ("smpl_params_global", "smpl_params_incam")
 #: Keys whose length is a tracked person's number of frames.
-_POSE_KEYS = ("poses", "pose", "pose_world", "smpl_poses", "global_orient", "root_orient", "body_pose")
+_POSE_KEYS = ("poses", "pose", "pose_world", "smpl_poses", "global_orient", "root_orient", "body_pose",
+              "pred_rotmat")
 #: Motion-X's SMPL-X parameters, one row of 322 values per frame (a .npy array): the columns of those read.
 MOTION_X_VALUES = 322
 MOTION_X_COLUMNS = {"root_orient": (0, 3), "pose_body": (3, 66), "pose_hand": (66, 156), "pose_jaw": (156, 159),
