@@ -502,8 +502,8 @@ def _from_estimator(arrays: dict, src: str) -> None:
             for key, new in (("pred_trans", "trans"), ("pred_shape", "betas"), ("frame", "frame_ids")):
                 if key in arrays and new not in arrays:
                     value = np.asarray(arrays.pop(key))
-                    arrays[new] = value.reshape(len(value), 3) if new == "trans" and value.size == 3 * len(value) \
-                        else value
+                    flat = new == "trans" and value.ndim and value.size == 3 * len(value)  # (T, 1, 3) -> (T, 3)
+                    arrays[new] = value.reshape(len(value), 3) if flat else value
 
 
 def _fill_untracked(poses: np.ndarray, trans: np.ndarray, raw, src: str) -> tuple[np.ndarray, np.ndarray]:
