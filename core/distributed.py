@@ -152,13 +152,15 @@ def _stop_workers(pool) -> None:
 
 def pool_context():
     """The local processes' start method: spawn where this process has started CUDA (a forked child cannot use it:
-    "Cannot re-initialize CUDA in forked subprocess", so `bake --workers N` on a GPU would fail), else the
-    platform's default (None; fork on Linux, which imports nothing again)."""
+    "Cannot re-initialize CUDA in forked subprocess", so `bake --workers N` on a GPU would fail) or has loaded USD
+    (`pxr`: its TBB thread pool, once used, is not fork-safe: a forked child writing its stage waited forever in
+    tbb's market lock, inherited held, in UsdStage.CreateInMemory), else the platform's default (None; fork on
+    Linux, which imports nothing again)."""
     import multiprocessing
     import sys
 
     torch = sys.modules.get("torch")
-    if torch is not None and torch.cuda.is_initialized():
+    if (torch is not None and torch.cuda.is_initialized()) or "pxr" in sys.modules:
         return multiprocessing.get_context("spawn")
     return None
 

@@ -21,3 +21,4 @@ def private_cache_dir(tmp_path_factory):
         os.environ.pop(CACHE_ENV, None)
     else:
         os.environ[CACHE_ENV] = old
+

@@ -39,10 +39,9 @@ def make_task(work_dir):
 
 @pytest.fixture(scope="module")
 def client():
-    from distributed import Client, LocalCluster
+    from tests.cluster import local_cluster
 
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as c:
+    with local_cluster() as (_, c):
         yield c
 
 
@@ -88,12 +87,26 @@ def test_local_processes_are_spawned_once_this_process_has_started_cuda(monkeypa
 
     from core.distributed import pool_context
 
+    monkeypatch.delitem(sys.modules, "pxr", raising=False)  # USD not loaded (another test may have)
     assert pool_context() is None or torch.cuda.is_initialized()
     monkeypatch.setattr(torch.cuda, "is_initialized", lambda: True)
     assert pool_context().get_start_method() == "spawn"
     monkeypatch.setattr(sys.modules[__name__], "_MARK", "set in the parent")
     got = dict(run_items(_mark_and_square, [(x,) for x in range(4)], [f"i{x}" for x in range(4)], workers=2))
     assert {k: v[1] for k, v in got.items()} == {"i0": 0, "i1": 1, "i2": 4, "i3": 9}
+    assert {mark for mark, _ in got.values()} == {"imported"}
+
+
+def test_local_processes_are_spawned_once_this_process_has_loaded_usd(monkeypatch):
+    """USD's TBB thread pool is not fork-safe once used (a forked child deadlocked creating a stage under
+    `bake --workers 2` in the suite): with `pxr` loaded the processes are spawned and run every item."""
+    from core.distributed import pool_context
+    import formats.usd  # noqa: F401  (loads pxr)
+
+    assert pool_context().get_start_method() == "spawn"
+    monkeypatch.setattr(sys.modules[__name__], "_MARK", "set in the parent")
+    got = dict(run_items(_mark_and_square, [(x,) for x in range(3)], [f"i{x}" for x in range(3)], workers=2))
+    assert {k: v[1] for k, v in got.items()} == {"i0": 0, "i1": 1, "i2": 4}
     assert {mark for mark, _ in got.values()} == {"imported"}
 
 

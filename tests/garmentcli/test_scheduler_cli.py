@@ -27,11 +27,10 @@ def run(*args):
 
 @pytest.fixture(scope="module")
 def cluster():
-    from distributed import Client, LocalCluster
+    from tests.cluster import local_cluster
 
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c, \
-            Client(c) as client:
-        yield c.scheduler_address, client
+    with local_cluster() as (address, client):
+        yield address, client
 
 
 def fail_first_attempt(module: str, name: str, match: str, marker_dir: str, kill: bool):
