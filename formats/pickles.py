@@ -2,10 +2,10 @@
 
 A restricted unpickler resolves only the globals such files need (numpy arrays and dtypes, scipy.sparse matrices,
 a few builtins and collections, torch tensors rebuilt through torch.load(weights_only=True)) and refuses every
-other with an InputError naming the file; chumpy `Ch` objects
-(the official SMPL pickles) become `ChumpyStandIn`, holding their array. `load_pickle` also reads joblib's
-files (WHAM, VIBE and other estimators save their results with `joblib.dump`: the arrays follow their pickled
-header in the stream, optionally compressed) without importing joblib.
+other with an InputError naming the file; chumpy `Ch` objects (the official SMPL pickles) become `ChumpyStandIn`,
+holding their array. `load_pickle` also reads joblib's files (WHAM, VIBE and other estimators save their results
+with `joblib.dump`: the arrays follow their pickled header in the stream, optionally compressed) without
+importing joblib; `load_npy_pickle` a .npy of a pickled object (np.save of a dict); `load_torch` a PyTorch file.
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def load_npy_pickle(path: Path, label: str, what: str):
         version = np.lib.format.read_magic(fh)
         read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
             np.lib.format.read_array_header_2_0
-        shape, _, dtype = read_header(fh)
+        _, _, dtype = read_header(fh)
         if not dtype.hasobject:
             raise ValueError(f"a .npy array of {dtype}, not of pickled objects")
         array = _RestrictedUnpickler(fh, label, what).load()
