@@ -75,9 +75,10 @@ def read_bvh(path: Path, src: str) -> dict:
         text = path.read_text(encoding="latin-1")
     except OSError as exc:
         raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
-    head, sep, motion = text.partition("MOTION")
+    head, *rest = re.split(r"^\s*MOTION\s*$", text, maxsplit=1, flags=re.MULTILINE)  # its own line
+    motion = rest[0] if rest else ""
     tokens = head.split()
-    if not tokens or tokens[0] != "HIERARCHY" or not sep:
+    if not tokens or tokens[0] != "HIERARCHY" or not rest:
         raise InputError(f"{src}: expected a BVH file (HIERARCHY, then MOTION), got "
                          f"{'no MOTION section' if tokens[:1] == ['HIERARCHY'] else 'a file that is not one'}")
     names, parents, offsets, channels = _hierarchy(tokens[1:], src)
