@@ -68,7 +68,8 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
                      shapeParameters=np.zeros(10, np.float32))
 
     def phalp(p):
-        frames = {f"img/{t:06d}.jpg": {"time": t, "tid": [1], "camera": [trans[t]], "appe": [np.zeros(4096, np.float32)],
+        appearance = [np.zeros(4096, np.float32)]
+        frames = {f"img/{t:06d}.jpg": {"time": t, "tid": [1], "camera": [trans[t]], "appe": appearance,
                                        "smpl": [{"global_orient": matrices[t, :1], "body_pose": matrices[t, 1:],
                                                  "betas": betas[t]}]} for t in range(T)}
         p.write_bytes(pickle.dumps(frames))

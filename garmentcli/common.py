@@ -82,10 +82,10 @@ def require_file(path) -> None:
 
 
 def motion_files(args, hint: str = "MOTION") -> list[str]:
-    """MOTION arguments as motion files: a file as given; a directory, every `.npz` (`.smpl`), pickle (`.pkl`, as AIST++'s
-    motions and WHAM's results are) or Motion-X `.npy` under it (recursively, in sorted order) that holds poses
-    (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold a body shape only, are left out; PyTorch files
-    only named). A file given twice is taken once. Raises click errors for a path that is not there and for a
+    """MOTION arguments as motion files: a file as given; a directory, every `.npz` (`.smpl`), pickle (`.pkl`, as
+    AIST++'s motions and WHAM's results are) or `.npy` (Motion-X's array, TRAM's pickled track) under it
+    (recursively, in sorted order) that holds poses (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold
+    a body shape only, are left out; PyTorch and BVH files only named). A file given twice is taken once. Raises click errors for a path that is not there and for a
     directory without motions."""
     from formats.motion import PICKLE_SUFFIXES
 
@@ -257,8 +257,8 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
                    check_frames=None, motion_up: str = "z"):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
     --motion-up y, -y or auto (`resolved_up`; the motion turned from its Y-up (-Y-up) world to Z-up about the pelvis
-    of `body`, the embedded one when None, at the motion's betas), --frames (source frames) with --preroll (source frames before them, deformed and
-    not written: `Motion.n_lead`), --fps and --settle, in that order.
+    of `body`, the embedded one when None, at the motion's betas), --frames (source frames) with --preroll (source
+    frames before them, deformed and not written: `Motion.n_lead`), --fps and --settle, in that order.
 
     body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
     once, naming the motion. check_frames(n_frames, source_fps): called with the frame count of the prepared
