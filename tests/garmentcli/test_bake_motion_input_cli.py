@@ -315,3 +315,25 @@ def test_a_bvh_of_the_smpl_skeleton_bakes_as_its_npz_and_another_rigs_is_refused
     assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "lacks 1 of its 22 body joints "
                           "(left_knee; it has Pelvis", "retargeting to SMPL first")
     assert not scene["out"].joinpath("shell_rig").exists()
+
+
+def test_motion_up_auto_reads_each_axis_the_body_stands_along_and_z_where_none(caplog):
+    """`resolved_up`: +Z, +Y, -Y as the body stands in most frames; a body lying along X throughout is left Z-up,
+    told at INFO, with the metres check `load_motion` leaves to it (a translation in centimetres warned about)."""
+    from core.motion import Motion
+    from core.rotations import matrix_to_axis_angle
+    from garmentcli.common import resolved_up
+
+    turns = {"z": [[1, 0, 0], [0, 0, -1], [0, 1, 0]], "y": np.eye(3), "-y": [[1, 0, 0], [0, -1, 0], [0, 0, -1]],
+             None: [[0, -1, 0], [1, 0, 0], [0, 0, 1]]}  # the rest body's +Y turned onto +Z, +Y, -Y, -X
+    for axis, turn in turns.items():
+        poses = np.zeros((4, 24, 3), np.float32)
+        poses[:, 0] = matrix_to_axis_angle(np.asarray(turn, np.float64))
+        trans = np.zeros((4, 3), np.float32) + (90.0 if axis is None else 0.0)  # centimetres, where lying
+        caplog.clear()
+        with caplog.at_level(logging.INFO):
+            got = resolved_up(Motion(poses=poses, trans=trans, fps=30.0), "m.npz", "auto")
+        assert got == (axis or "z"), (axis, got)
+        assert ("stands along no one world axis" in caplog.text) == (axis is None)
+        assert ("expected metres" in caplog.text) == (axis is None)
+    assert resolved_up(Motion(poses=poses, trans=trans, fps=30.0), "m.npz", "-y") == "-y"  # as given
