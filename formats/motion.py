@@ -303,6 +303,19 @@ def _unpickled(path: Path, src: str, npy: bool = False):
 
 
 def _motion_dict(data, src: str, quiet: bool = False) -> dict:
+    """`_person` of `data`; InputError naming `src` where its structure is not the one expected (a PHALP frame's
+    detection of no dict, a track that is no list: what a pickle holds is anybody's)."""
+    try:
+        return _person(data, src, quiet)
+    except (AttributeError, TypeError, KeyError, IndexError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{src}: expected a pickled dict of SMPL parameters ('poses', 'trans', ...; or one such "
+                         f"dict per tracked person or video frame), got another structure ({type(exc).__name__}: "
+                         f"{_short(exc)})") from None
+
+
+def _person(data, src: str, quiet: bool) -> dict:
     """One person's SMPL parameters in the pickled `data`: the dict itself; GVHMR's `smpl_params_global` in it
     (`_NESTED_KEYS`); of a dict of tracked people (WHAM, VIBE: {track id: dict}), the person tracked longest, warned
     about where there are others (quiet: not)."""

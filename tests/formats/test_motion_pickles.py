@@ -153,6 +153,8 @@ def test_a_pickle_that_would_run_code_is_refused_without_running_it(tmp_path):
     (pickle.dumps({"poses": _poses(3, 72)})[:40], "cannot read it as a Python pickle ("),
     (b"not a pickle at all", "cannot read it as a Python pickle (UnpicklingError: invalid load key, b'n')"),
     (pickle.dumps({"verts": np.zeros((2, 3))}), "expected a 'poses' array"),
+    (pickle.dumps({"f0": {"time": 0, "tid": [1], "smpl": [None]}}), "got another structure (AttributeError: "),
+    (pickle.dumps({"f0": {"time": 0, "tid": 5, "smpl": []}}), "got another structure (TypeError: "),
 ])
 def test_a_broken_or_foreign_pickle_is_one_line(tmp_path, content, expected):
     path = tmp_path / "m.pkl"
