@@ -1,5 +1,6 @@
-"""Tests of pickled motions (formats/motion.py, formats/pickles.py): AIST++'s pickles, WHAM's and VIBE's joblib
-results, GVHMR's PyTorch file, read without running code in them."""
+"""Tests of other tools' motion files (formats/motion.py, formats/pickles.py): AIST++'s pickles, WHAM's and VIBE's
+joblib results, PHALP's per-frame results, TRAM's pickled .npy, GVHMR's PyTorch file, read without running code in
+them; Motion-X's .npy and SMPLCodec's .smpl."""
 
 import importlib.util
 import logging
