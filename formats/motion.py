@@ -9,7 +9,8 @@ as a (T, J, 3) array or as rotation matrices (T, J, 3, 3), or, when `poses` is a
 `global_orient` + `body_pose` (23 joints: SMPL; 21: SMPL-X/SMPL+H, with optional `jaw_pose`, `leye_pose`,
 `reye_pose`, `left_hand_pose`, `right_hand_pose`), each as axis-angle or rotation matrices (T, K, 3, 3), and
 `transl`; or AIST++'s `smpl_poses`, with `smpl_trans` / `smpl_scaling` as the translation. Also read:
-`trans (T,3)` metres Z-up (zeros, with a warning, when missing), `betas` (any length; per frame (T, S) as video fits write them: their mean),
+`trans (T,3)` metres Z-up (zeros, with a warning, when missing), `betas` (any length; per frame (T, S) as video
+fits write them: their mean),
 `mocap_framerate` or `mocap_frame_rate` (Hz; or `mocap_fps`, `fps`, `framerate`,
 `frame_rate`), `gender`. WHAM's world motion `pose_world`, `trans_world` (or, without them, VIBE's and WHAM's
 camera-frame `pose`) where no other poses are there. Pickles (`PICKLE_SUFFIXES`: AIST++'s motions, the results
@@ -528,18 +529,18 @@ def _fill_untracked(poses: np.ndarray, trans: np.ndarray, raw, src: str) -> tupl
     ids = np.asarray(raw)
     T = len(poses)
     if not (ids.shape == (T,) and ids.dtype.kind in "iu" and np.all(np.diff(ids.astype(np.int64)) > 0)):
-        log.warning("%s: 'frame_ids' left unused: expected %d increasing frame numbers, one per frame, got %s of "
-                    "dtype %s", src, T, tuple(ids.shape), ids.dtype)
+        log.warning("%s: its frame numbers ('frame_ids') left unused: expected %d increasing frame numbers, one per "
+                    "frame, got %s of dtype %s", src, T, tuple(ids.shape), ids.dtype)
         return poses, trans
     span = int(ids[-1]) - int(ids[0]) + 1
     if span == T:
         return poses, trans
     if span > MAX_FILLED_FRAMES:
-        raise InputError(f"{src}: expected 'frame_ids' of a track in one video, got frames {int(ids[0])} to "
+        raise InputError(f"{src}: expected the frame numbers of a track in one video, got frames {int(ids[0])} to "
                          f"{int(ids[-1])} for {T} tracked (over {MAX_FILLED_FRAMES} frames to fill in)")
     gap = int(np.diff(ids.astype(np.int64)).max()) - 1
     log.warning("%s: the person is not tracked in %d of the video's %d frames from its first to its last "
-                "('frame_ids'; %d in a row at the most): filled in, joint rotations slerped and the translation "
+                "(its frame numbers; %d in a row at the most): filled in, joint rotations slerped and the translation "
                 "interpolated between the frames around them", src, span - T, span, gap)
     return fill_untracked(poses, trans, ids)
 

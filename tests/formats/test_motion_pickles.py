@@ -46,7 +46,7 @@ def test_a_joblib_file_of_tracked_people_gives_the_longest_tracks_world_motion(n
     np.testing.assert_allclose(m.betas, person["betas"].mean(axis=0), rtol=1e-6)
     text = caplog.text
     assert "holds 2 tracked people ('0' 6 frames, '7' 4 frames): reading '0'" in text
-    assert "not tracked in 1 of the video's 7 frames from its first to its last ('frame_ids'; 1 in a row" in text
+    assert "not tracked in 1 of the video's 7 frames from its first to its last (its frame numbers; 1 in a row" in text
 
 
 def test_frame_ids_not_one_increasing_number_per_frame_are_left_unused_and_an_absurd_span_refused(tmp_path, caplog):
@@ -58,12 +58,14 @@ def test_frame_ids_not_one_increasing_number_per_frame_are_left_unused_and_an_ab
         caplog.clear()
         with caplog.at_level(logging.WARNING):
             m = load_motion(path, fps=30)
-        assert m.n_frames == 3 and "'frame_ids' left unused: expected 3 increasing" in caplog.text, caplog.text
+        assert m.n_frames == 3, m.n_frames
+        assert "its frame numbers ('frame_ids') left unused: expected 3 increasing" in caplog.text, caplog.text
         assert told in caplog.text, caplog.text
     path.write_bytes(pickle.dumps({"pose": poses, "trans": _trans(3), "frame_ids": np.array([0, 1, 10 ** 9])}))
     with pytest.raises(InputError) as info:
         load_motion(path, fps=30)
-    _assert_one_line(info, "m.pkl", "expected 'frame_ids' of a track in one video, got frames 0 to 1000000000 for 3")
+    _assert_one_line(info, "m.pkl", "expected the frame numbers of a track in one video, got frames 0 to 1000000000 "
+                                    "for 3")
 
 
 def test_a_joblib_files_large_arrays_stay_in_the_file_until_asked_for(monkeypatch, tmp_path):
