@@ -283,7 +283,7 @@ UP_TURNS = {"y": Y_UP_TO_Z_UP_MATRIX, "-y": Y_UP_TO_Z_UP_MATRIX.T}
 UP_COSINE = 0.8
 UP_SHARE = 0.5
 _UP_VECTORS = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0)}
-_UP_NAMES = {"z": "+Z", "y": "+Y", "-y": "-Y"}
+UP_NAMES = {"z": "+Z", "y": "+Y", "-y": "-Y"}
 
 
 def body_up_share(motion: Motion) -> dict:
@@ -336,10 +336,10 @@ def warn_if_other_up(motion: Motion, source: str, up: str) -> bool:
     if axis is None or axis == up:
         return False
     fix = f"leave out --motion-up {up}" if axis == "z" else f"pass --motion-up {axis}"
-    looks = "it looks Z-up already" if axis == "z" else f"it looks {_UP_NAMES[axis]} up"
+    looks = "it looks Z-up already" if axis == "z" else f"it looks {UP_NAMES[axis]} up"
     log.warning("motion '%s': given as %s up (--motion-up %s), but the body stands along world %s in %.0f %% of its "
-                "frames and along %s in none: %s, and turned it %s; %s", source, _UP_NAMES[up], up,
-                _UP_NAMES[axis], share[axis] * 100, _UP_NAMES[up], looks, _lies(axis, up), fix)
+                "frames and along %s in none: %s, and turned it %s; %s", source, UP_NAMES[up], up,
+                UP_NAMES[axis], share[axis] * 100, UP_NAMES[up], looks, _lies(axis, up), fix)
     return True
 
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from core.body import N_BODY_JOINTS, SMPL_JOINT_NAMES, SMPL_PARENTS
 from core.errors import InputError
-from core.rotations import matrix_to_axis_angle
+from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 log = logging.getLogger(__name__)
 
@@ -54,18 +54,6 @@ def _canonical(name: str) -> str:
 
 
 _SMPL_INDEX = {_canonical(n): k for k, n in enumerate(SMPL_JOINT_NAMES)}
-
-
-def _axis_matrix(axis: str, degrees: np.ndarray) -> np.ndarray:
-    """(T, 3, 3) rotations by `degrees` (T,) about the axis 'x', 'y' or 'z'."""
-    a = np.radians(degrees)
-    c, s = np.cos(a), np.sin(a)
-    R = np.zeros((len(a), 3, 3))
-    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
-    k = 3 - i - j
-    R[:, k, k] = 1
-    R[:, i, i], R[:, i, j], R[:, j, i], R[:, j, j] = c, -s, s, c
-    return R
 
 
 def read_bvh(path: Path, src: str) -> dict:
@@ -110,8 +98,8 @@ def read_bvh(path: Path, src: str) -> dict:
             continue
         R = np.broadcast_to(np.eye(3), (n_frames, 3, 3))
         for c, name in enumerate(chans):
-            if name.endswith("rotation"):
-                R = R @ _axis_matrix(name[0], block[:, c])
+            if name.endswith("rotation"):  # about the channel's axis, by its degrees
+                R = R @ axis_angle_to_matrix(np.radians(block[:, c])[:, None] * np.eye(3)["xyz".index(name[0])])
             elif j == 0 and name.endswith("position"):
                 trans[:, "xyz".index(name[0])] = (block[:, c] - offsets[0]["xyz".index(name[0])]) * unit
         poses[:, smpl[j]] = matrix_to_axis_angle(R)

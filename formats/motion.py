@@ -353,19 +353,18 @@ def _phalp_person(data: dict, src: str, quiet: bool) -> dict:
     person tracked in most frames (`_longest`)."""
     frames = sorted(data.items(), key=lambda kv: (_plain(kv[1].get("time", -1)).reshape(-1)[:1].tolist(),
                                                   str(kv[0])))
-    counts: dict = {}
-    for _, frame in frames:
-        for tid in list(frame["tid"]):
-            counts[_plain(tid).item()] = counts.get(_plain(tid).item(), 0) + 1
+    tids = [[_plain(t).item() for t in frame["tid"]] for _, frame in frames]  # per frame, per detection
+    counts: dict = {}  # in the order first seen
+    for tid in (t for frame_tids in tids for t in frame_tids):
+        counts[tid] = counts.get(tid, 0) + 1
     if not counts:
         raise InputError(f"{src}: expected PHALP's tracked people ('tid', 'smpl' per detection), found none tracked")
     person = _longest(counts, src, quiet)
     parts: dict = {"global_orient": [], "body_pose": [], "betas": [], "transl": [], "frame_ids": []}
-    for k, (_, frame) in enumerate(frames):
-        tids = [_plain(t).item() for t in frame["tid"]]
-        if person not in tids:
+    for k, ((_, frame), frame_tids) in enumerate(zip(frames, tids)):
+        if person not in frame_tids:
             continue
-        i = tids.index(person)
+        i = frame_tids.index(person)
         smpl, cameras = frame["smpl"][i], list(frame.get("camera", ()))
         for key in ("global_orient", "body_pose", "betas"):
             parts[key].append(_plain(smpl.get(key)))

@@ -311,16 +311,15 @@ def resolved_up(motion, path: str, motion_up: str) -> str:
     metres check `load_motion` leaves to it)."""
     if motion_up != "auto":
         return motion_up
-    from core.motion import standing_axis, warn_if_not_metres
+    from core.motion import UP_NAMES, standing_axis, warn_if_not_metres
 
     axis, share = standing_axis(motion)
     if axis is None:
-        log.info("motion '%s': --motion-up auto: the body stands along no one world axis (+Z %.0f %%, +Y %.0f %%, "
-                 "-Y %.0f %% of its frames): read as Z-up", path, share["z"] * 100, share["y"] * 100,
-                 share["-y"] * 100)
+        log.info("motion '%s': --motion-up auto: the body stands along no one world axis (%s of its frames): read "
+                 "as Z-up", path, ", ".join(f"{UP_NAMES[a]} {share[a] * 100:.0f} %" for a in share))
     else:
         log.info("motion '%s': --motion-up auto: the body stands along world %s in %.0f %% of its frames: read as "
-                 "%s up", path, {"z": "+Z", "y": "+Y", "-y": "-Y"}[axis], share[axis] * 100, axis)
+                 "%s up", path, UP_NAMES[axis], share[axis] * 100, axis)
     if (axis or "z") == "z":
         warn_if_not_metres(motion, path)
     return axis or "z"
