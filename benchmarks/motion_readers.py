@@ -68,8 +68,10 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
                      shapeParameters=np.zeros(10, np.float32))
 
     def phalp(p):
-        appearance = [np.zeros(4096, np.float32)]
-        frames = {f"img/{t:06d}.jpg": {"time": t, "tid": [1], "camera": [trans[t]], "appe": appearance,
+        def appearance():  # one feature per detection, as PHALP writes: not one object shared by the pickle
+            return [np.zeros(4096, np.float32)]
+
+        frames = {f"img/{t:06d}.jpg": {"time": t, "tid": [1], "camera": [trans[t]], "appe": appearance(),
                                        "smpl": [{"global_orient": matrices[t, :1], "body_pose": matrices[t, 1:],
                                                  "betas": betas[t]}]} for t in range(T)}
         p.write_bytes(pickle.dumps(frames))
