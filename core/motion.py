@@ -55,6 +55,8 @@ class Motion:
     n_lead: leading frames deformed but not written (`preroll`: the motion before the frames asked for, so a
       simulated or learned garment arrives at the first written frame moving with the body, not at rest).
     up: the world axis the file's body stood along as read, "z", or "y" / "-y" turned to Z-up (`y_up_to_z_up`).
+    rest_up: the world axis the file's own rest skeleton stands along (a BVH's: "z", "y", "-y"), or None where the
+      file tells none; `--motion-up auto` takes it before the body's frames.
     """
 
     poses: np.ndarray
@@ -66,6 +68,7 @@ class Motion:
     n_settle: int = 0
     n_lead: int = 0
     up: str = "z"
+    rest_up: str | None = None
 
     def __post_init__(self):
         if self.poses.ndim != 3 or self.poses.shape[2] != 3 or layout_for_joint_count(self.poses.shape[1]) is None:

@@ -1,13 +1,14 @@
-"""BVH motion capture of an SMPL skeleton (as SMPL motions exported to BVH are: smpl2bvh, SMPL's Blender add-on):
-read as the arrays `formats.motion.load_motion` reads.
+"""BVH motion capture, read as the arrays `formats.motion.load_motion` reads: of an SMPL skeleton as it is (as SMPL
+motions exported to BVH are: smpl2bvh, SMPL's Blender add-on), of any other humanoid rig retargeted onto SMPL's
+(`core.retarget`: Mixamo's, CMU's, Biped's, ... skeletons).
 
-Joints are matched to SMPL's by name, in its naming variants ('Left_hip', 'L_Hip', 'left_hip', 'm_avg_L_Hip';
-'L_Palm' or 'L_Hand' for the hands), and must keep SMPL's hierarchy; their rest pose (the OFFSETs) must be SMPL's
-T-pose, since a BVH rotation turns a joint from its rest: a skeleton of another rig (Mixamo's, CMU's) needs
-retargeting and is refused naming what differs. Rotation channels compose in the order listed (Zrotation
-Yrotation Xrotation: R = Rz Ry Rx); the unit is told by the skeleton's legs (metres, centimetres, inches or
-millimetres); the root's position less its OFFSET (the rest pelvis SMPL exporters write there) is the
-translation. The world is the BVH's own (SMPL's Y-up as exported: --motion-up y).
+An SMPL skeleton's joints are matched by name, in its naming variants ('Left_hip', 'L_Hip', 'left_hip',
+'m_avg_L_Hip'; 'L_Palm' or 'L_Hand' for the hands), in SMPL's hierarchy and resting in SMPL's T-pose (within
+REST_MAX_DEGREES): their rotations are SMPL's, the unit is told by the legs (metres, centimetres, inches or
+millimetres) and the root's position less its OFFSET (the rest pelvis SMPL exporters write there) is the
+translation. A skeleton that is not (other names, joints, bone lengths or rest pose) is retargeted. Rotation
+channels compose in the order listed (Zrotation Yrotation Xrotation: R = Rz Ry Rx); the root's position channels
+are its position. The world is the BVH's own (Y-up as most tools write it: --motion-up y).
 """
 
 from __future__ import annotations
@@ -20,10 +21,14 @@ import numpy as np
 
 from core.body import N_BODY_JOINTS, SMPL_JOINT_NAMES, SMPL_PARENTS
 from core.errors import InputError
+from core.retarget import retarget
 from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 log = logging.getLogger(__name__)
 
+#: The key of `read_bvh`'s arrays holding the world axis its rest skeleton stands along ("z", "y", "-y"; none
+#: where it stands along none), which `--motion-up auto` takes.
+REST_UP_KEY = "rest_up"
 #: Prefixes of SMPL joint names in exported rigs (SMPL's Blender/Unity models: m_avg_, f_avg_).
 _NAME_PREFIXES = ("m_avg_", "f_avg_", "smpl_", "smplx_")
 #: Other names of SMPL's joints after `_canonical` (the hands as palms).
@@ -57,8 +62,9 @@ _SMPL_INDEX = {_canonical(n): k for k, n in enumerate(SMPL_JOINT_NAMES)}
 
 
 def read_bvh(path: Path, src: str) -> dict:
-    """{'poses' (T, 24, 3) axis-angle, 'trans' (T, 3) metres, 'mocap_framerate'} of the BVH `path` (module
-    docstring); InputError naming `src` for a file that is no BVH, a damaged one, or a skeleton that is not SMPL's."""
+    """{'poses' (T, 24, 3) axis-angle, 'trans' (T, 3) metres, 'mocap_framerate', REST_UP_KEY where its rest
+    skeleton stands along a world axis} of the BVH `path` (module docstring); InputError naming `src` for a file
+    that is no BVH, a damaged one, or a skeleton that is no humanoid's (`core.retarget`)."""
     try:
         text = path.read_text(encoding="latin-1")
     except OSError as exc:
@@ -85,28 +91,44 @@ def read_bvh(path: Path, src: str) -> dict:
     if not (np.isfinite(frame_time) and frame_time > 0):
         raise InputError(f"{src}: expected a Frame Time over 0 seconds, got {frame_time}")
     values = values.reshape(n_frames, width)
-    smpl = _match_smpl(names, parents, src)
-    unit, unit_name = _unit(names, offsets, smpl, src)
-    _check_rest(names, offsets, smpl, src)
-    poses = np.zeros((n_frames, len(SMPL_JOINT_NAMES), 3))
-    trans = np.zeros((n_frames, 3))
+    rotations, root = _channels(channels, offsets, values)
+    smpl = _smpl_skeleton(names, parents, offsets, src)
+    if smpl is None:
+        poses, trans, up, said = retarget(names, parents, offsets, rotations, root, src)
+        log.info("%s: a rig of %d joints retargeted onto SMPL's skeleton (%s), %d frames at %.6g fps", src,
+                 len(names), said, n_frames, 1.0 / frame_time)
+    else:
+        up = "y"  # SMPL's T-pose, Y up (`_smpl_skeleton`)
+        unit, unit_name = _unit(offsets, smpl, src)
+        poses = np.zeros((n_frames, len(SMPL_JOINT_NAMES), 3))
+        for j, k in smpl.items():
+            poses[:, k] = matrix_to_axis_angle(rotations[:, j])
+        trans = (root - offsets[0]) * unit
+        log.info("%s: an SMPL skeleton of %d joints in %s, %d frames at %.6g fps", src, len(names), unit_name,
+                 n_frames, 1.0 / frame_time)
+    arrays = {"poses": poses.astype(np.float32), "trans": trans.astype(np.float32),
+              "mocap_framerate": np.float64(1.0 / frame_time)}
+    return arrays if up is None else {**arrays, REST_UP_KEY: np.str_(up)}
+
+
+def _channels(channels: list[list[str]], offsets: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, J, 3, 3) each joint's rotation from its rest (its rotation channels composed in their order) and
+    (T, 3) the root's position (its position channels; its OFFSET where it has none)."""
+    n_frames = len(values)
+    rotations = np.empty((n_frames, len(channels), 3, 3))
+    root = np.broadcast_to(offsets[0], (n_frames, 3)).copy()
     start = 0
     for j, chans in enumerate(channels):
         block = values[:, start:start + len(chans)]
         start += len(chans)
-        if j not in smpl:
-            continue
         R = np.broadcast_to(np.eye(3), (n_frames, 3, 3))
         for c, name in enumerate(chans):
             if name.endswith("rotation"):  # about the channel's axis, by its degrees
                 R = R @ axis_angle_to_matrix(np.radians(block[:, c])[:, None] * np.eye(3)["xyz".index(name[0])])
-            elif j == 0 and name.endswith("position"):
-                trans[:, "xyz".index(name[0])] = (block[:, c] - offsets[0]["xyz".index(name[0])]) * unit
-        poses[:, smpl[j]] = matrix_to_axis_angle(R)
-    log.info("%s: an SMPL skeleton of %d joints in %s, %d frames at %.6g fps", src, len(names), unit_name, n_frames,
-             1.0 / frame_time)
-    return {"poses": poses.astype(np.float32), "trans": trans.astype(np.float32),
-            "mocap_framerate": np.float64(1.0 / frame_time)}
+            elif j == 0:
+                root[:, "xyz".index(name[0])] = block[:, c]
+        rotations[:, j] = R
+    return rotations, root
 
 
 def _number(text: str, what: str, src: str) -> float:
@@ -128,12 +150,13 @@ def _hierarchy(tokens: list[str], src: str):
                 if (tok == "ROOT") == bool(names):  # a second ROOT, or a JOINT before one
                     raise InputError(f"{src}: expected one ROOT, then JOINTs, got {tok} '{tokens[i + 1]}' "
                                      f"{'after' if names else 'before'} the ROOT")
-                names.append(tokens[i + 1])
+                brace = tokens.index("{", i + 1)  # a name may hold spaces ('Bip01 L Thigh')
+                names.append(" ".join(tokens[i + 1:brace]))
                 parents.append(stack[-1] if stack else -1)
                 offsets.append(np.zeros(3))
                 channels.append([])
                 stack.append(len(names) - 1)
-                i += 3  # name, "{"
+                i = brace + 1
             elif tok == "End":
                 stack.append(-1)
                 i += 3  # "Site", "{"
@@ -166,28 +189,25 @@ def _hierarchy(tokens: list[str], src: str):
     return names, parents, np.array(offsets), channels
 
 
-def _match_smpl(names: list[str], parents: list[int], src: str) -> dict[int, int]:
-    """{BVH joint: SMPL joint} by name; InputError where SMPL's 22 body joints are not all there, or are not
-    in SMPL's hierarchy. Joints SMPL lacks (fingers, a jaw) are left out, with a warning."""
+def _smpl_skeleton(names: list[str], parents: list[int], offsets: np.ndarray, src: str) -> dict[int, int] | None:
+    """{BVH joint: SMPL joint} where the skeleton is SMPL's: its 22 body joints by SMPL's names, in SMPL's hierarchy,
+    resting in SMPL's T-pose (limbs and spine within REST_MAX_DEGREES); None for any other (retargeted). Joints SMPL
+    lacks (fingers, a jaw) are left out, with a warning."""
     smpl = {}
     for j, name in enumerate(names):
         k = _SMPL_INDEX.get(_canonical(name))
         if k is not None and k not in smpl.values():
             smpl[j] = k
-    missing = [SMPL_JOINT_NAMES[k] for k in range(N_BODY_JOINTS) if k not in smpl.values()]
-    if missing:
-        raise InputError(f"{src}: expected the joints of an SMPL skeleton (pelvis, left_hip, ... by name), lacks "
-                         f"{len(missing)} of its 22 body joints ({', '.join(missing[:4])}"
-                         f"{', ...' if len(missing) > 4 else ''}; it has {', '.join(names[:4])}, ...): a capture of "
-                         f"another rig needs retargeting to SMPL first")
     back = {k: j for j, k in smpl.items()}
-    if back[0] != 0:
-        raise InputError(f"{src}: expected the pelvis as the ROOT, got '{names[0]}'")
-    for j, k in smpl.items():
-        if k and parents[j] != back.get(SMPL_PARENTS[k]):
-            found = names[parents[j]] if parents[j] >= 0 else "none"
-            raise InputError(f"{src}: expected SMPL's hierarchy, got joint '{names[j]}' under '{found}' (SMPL: under "
-                             f"'{SMPL_JOINT_NAMES[SMPL_PARENTS[k]]}')")
+    if any(k not in back for k in range(N_BODY_JOINTS)) or back[0] != 0:
+        return None
+    if any(k and parents[j] != back.get(SMPL_PARENTS[k]) for j, k in smpl.items()):
+        return None
+    for joint, direction in _SMPL_BONES.items():
+        bone = offsets[back[SMPL_JOINT_NAMES.index(joint)]]
+        norm = np.linalg.norm(bone)
+        if norm and np.degrees(np.arccos(np.clip(bone @ np.array(direction) / norm, -1, 1))) > REST_MAX_DEGREES:
+            return None
     others = [n for j, n in enumerate(names) if j not in smpl]
     if others:
         log.warning("%s: %d joint(s) SMPL's body lacks left at rest (%s%s)", src, len(others),
@@ -195,7 +215,7 @@ def _match_smpl(names: list[str], parents: list[int], src: str) -> dict[int, int
     return smpl
 
 
-def _unit(names, offsets, smpl, src) -> tuple[float, str]:
+def _unit(offsets, smpl, src) -> tuple[float, str]:
     """(metres per unit, its name) told by the legs' length (`_UNITS`)."""
     back = {k: j for j, k in smpl.items()}
     legs = np.mean([sum(np.linalg.norm(offsets[back[SMPL_JOINT_NAMES.index(f"{side}_{part}")]])
@@ -204,20 +224,3 @@ def _unit(names, offsets, smpl, src) -> tuple[float, str]:
         raise InputError(f"{src}: expected legs of some length in its OFFSETs, got {legs}")
     unit, name = next((unit, name) for limit, unit, name in _UNITS if legs < limit)
     return unit, name
-
-
-def _check_rest(names, offsets, smpl, src) -> None:
-    """InputError where a limb's or the spine's rest bone is over REST_MAX_DEGREES from SMPL's T-pose."""
-    back = {k: j for j, k in smpl.items()}
-    worst = (0.0, "")
-    for joint, direction in _SMPL_BONES.items():
-        bone = offsets[back[SMPL_JOINT_NAMES.index(joint)]]
-        norm = np.linalg.norm(bone)
-        if norm == 0:
-            continue
-        angle = float(np.degrees(np.arccos(np.clip(bone @ np.array(direction) / norm, -1, 1))))
-        worst = max(worst, (angle, joint))
-    if worst[0] > REST_MAX_DEGREES:
-        raise InputError(f"{src}: expected the rest pose of SMPL (a T-pose, Y up), got its {worst[1]} bone "
-                         f"{worst[0]:.0f} degrees from it (an A-pose, or another up axis?): its rotations would "
-                         f"turn SMPL's joints from another rest; retarget it to SMPL first")

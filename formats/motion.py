@@ -19,7 +19,7 @@ per video frame of its detections: the person tracked in most frames) and PyTorc
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
-a BVH of the SMPL skeleton (`formats.bvh`).
+BVH motion capture of SMPL's or another humanoid's skeleton (`formats.bvh`, `core.retarget`).
 """
 
 from __future__ import annotations
@@ -37,16 +37,17 @@ from core.errors import InputError
 from core.motion import (Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
-from formats.bvh import read_bvh
+from formats.bvh import REST_UP_KEY, read_bvh
 from formats.pickles import load_npy_pickle, load_pickle, load_torch
 
 log = logging.getLogger(__name__)
 
 #: What a motion file of another format is, for the message refusing it (only SMPL parameters drive the body).
 _OTHER_MOTION_FORMATS = {
-    **dict.fromkeys((".fbx", ".c3d", ".trc"), "motion capture of a skeleton or markers (FBX/C3D/TRC), not SMPL "
-                    "parameters: fit SMPL to it first (AMASS's MoSh, or a retargeting tool), then save the npz (or a "
-                    "BVH of the SMPL skeleton)"),
+    ".fbx": "an FBX animation, which is not read: export it as a BVH (Blender, Maya, MotionBuilder), which is "
+            "read and retargeted onto SMPL's skeleton",
+    **dict.fromkeys((".c3d", ".trc"), "motion capture markers (C3D/TRC), not a skeleton: fit SMPL to them first "
+                    "(AMASS's MoSh), then save the npz"),
     ".json": "a JSON file",
 }
 #: Where a frame rate is found (AMASS's two spellings first, then those of other SMPL pipelines).
@@ -202,7 +203,9 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     check_frame_rate(fps, f"{src}, {what}", "; pass the motion's frame rate with --source-fps")
 
     gender = _read_gender(arrays.get("gender"))
-    motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem)
+    rest_up = str(arrays[REST_UP_KEY]) if REST_UP_KEY in arrays else None
+    motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem,
+                    rest_up=rest_up)
     validate_motion_values(motion, str(path))
     if world_checks:
         warn_if_not_z_up(motion, str(path))

@@ -306,20 +306,26 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
 
 
 def resolved_up(motion, path: str, motion_up: str) -> str:
-    """--motion-up for the motion read from `path`: as given, or for "auto" the world axis its body stands along
-    (`core.motion.standing_axis`: +Z, +Y or -Y in most frames and along no other in any), else "z" (told, with the
-    metres check `load_motion` leaves to it)."""
+    """--motion-up for the motion read from `path`: as given, or for "auto" the world axis its file's rest skeleton
+    stands along (a BVH's: `Motion.rest_up`), else the one its body stands along (`core.motion.standing_axis`: +Z,
+    +Y or -Y in most frames and along no other in any), else "z" (told, with the metres check `load_motion` leaves
+    to it)."""
     if motion_up != "auto":
         return motion_up
     from core.motion import UP_NAMES, standing_axis, warn_if_not_metres
 
-    axis, share = standing_axis(motion)
-    if axis is None:
-        log.info("motion '%s': --motion-up auto: the body stands along no one world axis (%s of its frames): read "
-                 "as Z-up", path, ", ".join(f"{UP_NAMES[a]} {share[a] * 100:.0f} %" for a in share))
+    if motion.rest_up is not None:
+        axis = motion.rest_up
+        log.info("motion '%s': --motion-up auto: its rest skeleton stands along world %s: read as %s up", path,
+                 UP_NAMES[axis], axis)
     else:
-        log.info("motion '%s': --motion-up auto: the body stands along world %s in %.0f %% of its frames: read as "
-                 "%s up", path, UP_NAMES[axis], share[axis] * 100, axis)
+        axis, share = standing_axis(motion)
+        if axis is None:
+            log.info("motion '%s': --motion-up auto: the body stands along no one world axis (%s of its frames): "
+                     "read as Z-up", path, ", ".join(f"{UP_NAMES[a]} {share[a] * 100:.0f} %" for a in share))
+        else:
+            log.info("motion '%s': --motion-up auto: the body stands along world %s in %.0f %% of its frames: read "
+                     "as %s up", path, UP_NAMES[axis], share[axis] * 100, axis)
     if (axis or "z") == "z":
         warn_if_not_metres(motion, path)
     return axis or "z"

@@ -20,48 +20,55 @@ SMPL2BVH_NAMES = ("Pelvis", "Left_hip", "Right_hip", "Spine1", "Left_knee", "Rig
                   "Left_palm", "Right_palm")
 
 
-def write_bvh(path, poses, trans, fps, names=SMPL2BVH_NAMES, order="ZYX", unit=0.01, rest=None, extra=False):
-    """An exporter's BVH of (T, 24, 3) `poses` and (T, 3) `trans` (metres) on the embedded body's rest joints
-    (`rest`: other rest joints, metres), in `unit`s; `order`: the Euler channels' order; `extra`: a finger joint
-    SMPL lacks under the left hand."""
-    joints = default_body().shaped(None)[1][:24] if rest is None else rest
-    offsets = np.array([joints[0]] + [joints[k] - joints[SMPL_PARENTS[k]] for k in range(1, 24)]) / unit
-    eulers = Rotation.from_rotvec(poses.reshape(-1, 3).astype(np.float64)).as_euler(order, degrees=True)
-    eulers = eulers.reshape(len(poses), 24, 3)
+def write_skeleton(path, names, parents, offsets, rotations, root, fps, order="ZYX"):
+    """A BVH of a skeleton: `names`, `parents` (parents first), `offsets` (J, 3) in its unit, each joint's
+    (T, J, 3, 3) rotation from its rest as Euler channels in `order` (scipy's intrinsic angles), the root's (T, 3)
+    position; an End Site under every leaf."""
+    T, J = rotations.shape[:2]
+    eulers = Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_euler(order, degrees=True).reshape(T, J, 3)
     channels = " ".join(f"{a}rotation" for a in order)
     lines, sequence = ["HIERARCHY"], []
 
-    def joint(k, depth):
+    def joint(j, depth):
         tab = "\t" * depth
-        sequence.append(k)
-        kind = "ROOT" if k == 0 else "JOINT"
-        lines.append(f"{tab}{kind} {names[k]}")
-        lines.append(f"{tab}{{")
-        lines.append(f"{tab}\tOFFSET {' '.join(f'{x:.6f}' for x in offsets[k])}")
-        pos = "Xposition Yposition Zposition " if k == 0 else ""
-        lines.append(f"{tab}\tCHANNELS {6 if k == 0 else 3} {pos}{channels}")
-        children = [c for c in range(24) if SMPL_PARENTS[c] == k]
+        sequence.append(j)
+        lines.extend([f"{tab}{'ROOT' if parents[j] < 0 else 'JOINT'} {names[j]}", f"{tab}{{",
+                      f"{tab}\tOFFSET {' '.join(f'{x:.6f}' for x in offsets[j])}",
+                      f"{tab}\tCHANNELS {6 if parents[j] < 0 else 3} "
+                      f"{'Xposition Yposition Zposition ' if parents[j] < 0 else ''}{channels}"])
+        children = [c for c in range(J) if parents[c] == j]
         for c in children:
             joint(c, depth + 1)
-        if extra and k == 22:
-            lines.extend([f"{tab}\tJOINT left_index1", f"{tab}\t{{", f"{tab}\t\tOFFSET 3 0 0",
-                          f"{tab}\t\tCHANNELS 3 {channels}", f"{tab}\t\tEnd Site", f"{tab}\t\t{{",
-                          f"{tab}\t\t\tOFFSET 2 0 0", f"{tab}\t\t}}", f"{tab}\t}}"])
-        if not children and not (extra and k == 22):
+        if not children:
             lines.extend([f"{tab}\tEnd Site", f"{tab}\t{{", f"{tab}\t\tOFFSET 0 5 0", f"{tab}\t}}"])
         lines.append(f"{tab}}}")
 
     joint(0, 0)
-    lines += ["MOTION", f"Frames: {len(poses)}", f"Frame Time: {1 / fps:.8f}"]
-    for t in range(len(poses)):
-        row = list(offsets[0] + trans[t] / unit)
-        for k in sequence:
-            row += list(eulers[t, k])
-            if extra and k == 22:
-                row += [10.0, 0.0, 0.0]
+    lines += ["MOTION", f"Frames: {T}", f"Frame Time: {1 / fps:.8f}"]
+    for t in range(T):
+        row = list(root[t])
+        for j in sequence:
+            row += list(eulers[t, j])
         lines.append(" ".join(f"{x:.6f}" for x in row))
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def write_bvh(path, poses, trans, fps, names=SMPL2BVH_NAMES, order="ZYX", unit=0.01, rest=None, extra=False):
+    """An exporter's BVH of (T, 24, 3) `poses` and (T, 3) `trans` (metres) on the embedded body's rest joints
+    (`rest`: other rest joints, metres), in `unit`s; `order`: the Euler channels' order; `extra`: a finger joint
+    SMPL lacks under the left hand, turned 10 degrees."""
+    joints = default_body().shaped(None)[1][:24] if rest is None else rest
+    offsets = np.array([joints[0]] + [joints[k] - joints[SMPL_PARENTS[k]] for k in range(1, 24)]) / unit
+    rotations = axis_angle_to_matrix(poses.astype(np.float64))
+    names, parents = list(names), list(SMPL_PARENTS)
+    if extra:
+        names.append("left_index1")
+        parents.append(22)
+        offsets = np.concatenate([offsets, [[3.0, 0.0, 0.0]]])
+        turn = axis_angle_to_matrix(np.radians(10.0) * np.eye(3)["XYZ".index(order[0])])
+        rotations = np.concatenate([rotations, np.broadcast_to(turn, (len(poses), 1, 3, 3))], axis=1)
+    return write_skeleton(path, names, parents, offsets, rotations, offsets[0] + trans / unit, fps, order)
 
 
 def _motion(T=5, seed=0):
@@ -93,31 +100,178 @@ def test_joints_smpl_lacks_are_left_at_rest_with_a_warning(tmp_path, caplog):
     assert "1 joint(s) SMPL's body lacks left at rest (left_index1)" in caplog.text
 
 
-def test_another_rig_another_rest_pose_or_a_broken_file_is_one_line(tmp_path):
-    poses, trans = _motion(3)
-    mixamo = ("Hips", "LeftUpLeg", "RightUpLeg", "Spine", "LeftLeg", "RightLeg", "Spine1", "LeftFoot", "RightFoot",
-              "Spine2", "LeftToeBase", "RightToeBase", "Neck", "LeftShoulder", "RightShoulder", "Head", "LeftArm",
-              "RightArm", "LeftForeArm", "RightForeArm", "LeftHand", "RightHand", "LeftHandIndex1",
-              "RightHandIndex1")
-    cases = [(dict(names=mixamo), "expected the joints of an SMPL skeleton (pelvis, left_hip, ... by name), lacks 14 "
-                                  "of its 22 body joints (pelvis, left_hip, right_hip, left_knee, ...; it has Hips, "
-                                  "LeftUpLeg, LeftLeg, LeftFoot, ...): a capture of another rig needs retargeting")]
-    joints = default_body().shaped(None)[1][:24].copy()
-    a_pose = joints.copy()  # the arms lowered 45 degrees about the shoulders
+def _smpl_world(poses):
+    """(T, 24, 3, 3) each SMPL joint's world rotation of `poses`."""
+    local = axis_angle_to_matrix(poses.astype(np.float64))
+    world = local.copy()
+    for k in range(1, 24):
+        world[:, k] = world[:, SMPL_PARENTS[k]] @ local[:, k]
+    return world
+
+
+def _a_posed(joints, degrees):
+    """SMPL's rest `joints` with the arms lowered `degrees` about the shoulders (about the body's forward: left, from
+    the right hip to the left, across up, from the pelvis to the head), and each arm joint's turn {SMPL joint:
+    (3, 3)}."""
+    up = joints[15] - joints[0]
+    forward = np.cross(joints[1] - joints[2], up)
+    forward /= np.linalg.norm(forward)
+    out, turns = joints.copy(), {}
     for side, sign in (("left", 1), ("right", -1)):
         s = SMPL_JOINT_NAMES.index(f"{side}_shoulder")
-        turn = Rotation.from_rotvec([0, 0, -sign * np.pi / 4])
-        for k in (s + 2, s + 4, s + 6):  # elbow, wrist, hand
-            a_pose[k] = joints[s] + turn.apply(joints[k] - joints[s])
-    cases.append((dict(rest=a_pose), "bone 45 degrees from it (an A-pose, or another up axis?)"))
-    swapped = list(SMPL2BVH_NAMES)
-    swapped[4], swapped[7] = swapped[7], swapped[4]  # the knee under the ankle
-    cases.append((dict(names=tuple(swapped)), "expected SMPL's hierarchy, got joint 'Left_ankle' under 'Left_hip'"))
-    for kwargs, expected in cases:
-        path = write_bvh(tmp_path / "rig.bvh", poses, trans, 30, **kwargs)
+        turn = axis_angle_to_matrix(-sign * np.radians(degrees) * forward)
+        for k in (s, s + 2, s + 4, s + 6):  # shoulder, elbow, wrist, hand
+            out[k] = joints[s] + turn @ (joints[k] - joints[s])
+            turns[k] = turn
+    return out, turns
+
+
+def rig_bvh(path, poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0):
+    """A BVH of another rig moving as the SMPL motion (`poses`, `trans`) does: `rig` lists (name, parent's index,
+    SMPL joint or None, where) per joint, parents first; a matched joint's bone turns as SMPL's, an extra one
+    (where: (a, b, f), at f of the way from SMPL's rest joint a to b) turns with its parent, or at random where
+    it has no children (fingers). Its rest: SMPL's, `scale`d, the arms lowered `a_pose` degrees, in `unit`s."""
+    joints, turns = _a_posed(default_body().shaped(None)[1][:24].astype(np.float64) * scale, a_pose)
+    rng = np.random.default_rng(seed)
+    names = [r[0] for r in rig]
+    parents = [r[1] for r in rig]
+    rest = np.array([joints[k] if k is not None else joints[w[0]] + w[2] * (joints[w[1]] - joints[w[0]])
+                     for _, _, k, w in rig])
+    offsets = np.array([rest[j] - (rest[p] if p >= 0 else 0.0) for j, p in enumerate(parents)]) / unit
+    smpl = _smpl_world(poses)
+    world = np.empty((len(poses), len(rig), 3, 3))
+    for j, (_, p, k, _) in enumerate(rig):
+        if k is not None:
+            world[:, j] = smpl[:, k] @ turns.get(k, np.eye(3)).T
+        elif any(r[1] == j for r in rig):
+            world[:, j] = world[:, p]
+        else:
+            world[:, j] = world[:, p] @ Rotation.random(random_state=rng).as_matrix()
+    rotations = world.copy()
+    for j, p in enumerate(parents):
+        if p >= 0:
+            rotations[:, j] = np.swapaxes(world[:, p], 1, 2) @ world[:, j]
+    root = (joints[0] / scale + trans) * scale / unit  # SMPL's pelvis path, the rig's size
+    return write_skeleton(path, names, parents, offsets, rotations, root, 30, "ZXY")
+
+
+def _rig(entries):
+    """rig_bvh's `rig` of (name, parent's name, SMPL joint or where) entries."""
+    index = {e[0]: i for i, e in enumerate(entries)}
+    return [(n, index[p] if p else -1, k if isinstance(k, int) else None, k if isinstance(k, tuple) else None)
+            for n, p, k in entries]
+
+
+#: Mixamo's rig (a namespace, 'LeftShoulder' its collar, 'LeftFoot' its ankle) with a CMU hip joint between the
+#: hips and each thigh, a head-top joint and a finger.
+MIXAMO = _rig([("mixamorig7:Hips", None, 0), ("mixamorig7:Spine", "mixamorig7:Hips", 3),
+               ("mixamorig7:Spine1", "mixamorig7:Spine", 6), ("mixamorig7:Spine2", "mixamorig7:Spine1", 9),
+               ("mixamorig7:Neck", "mixamorig7:Spine2", 12), ("mixamorig7:Head", "mixamorig7:Neck", 15),
+               ("mixamorig7:HeadTop_End", "mixamorig7:Head", (12, 15, 2.0))]
+              + [e for side, s in (("Left", 0), ("Right", 1)) for e in (
+                  (f"mixamorig7:{side}Shoulder", "mixamorig7:Spine2", 13 + s),
+                  (f"mixamorig7:{side}Arm", f"mixamorig7:{side}Shoulder", 16 + s),
+                  (f"mixamorig7:{side}ForeArm", f"mixamorig7:{side}Arm", 18 + s),
+                  (f"mixamorig7:{side}Hand", f"mixamorig7:{side}ForeArm", 20 + s),
+                  (f"mixamorig7:{side}HandIndex1", f"mixamorig7:{side}Hand", (20 + s, 22 + s, 1.0)),
+                  (f"{side[0]}HipJoint", "mixamorig7:Hips", (0, 1 + s, 0.5)),
+                  (f"mixamorig7:{side}UpLeg", f"{side[0]}HipJoint", 1 + s),
+                  (f"mixamorig7:{side}Leg", f"mixamorig7:{side}UpLeg", 4 + s),
+                  (f"mixamorig7:{side}Foot", f"mixamorig7:{side}Leg", 7 + s),
+                  (f"mixamorig7:{side}ToeBase", f"mixamorig7:{side}Foot", 10 + s))])
+
+
+def _small_rig(names, sides):
+    """A rig of one spine joint, no neck, collars or toes: `names` of pelvis, spine, head, then the left side's
+    upper arm, forearm, hand, thigh, calf and foot, '{}' where `sides` (left's, right's) go."""
+    pelvis, spine, head, *limbs = names
+    entries = [(pelvis, None, 0), (spine, pelvis, 3), (head, spine, 15)]
+    for side, s in zip(sides, (0, 1)):
+        arm, forearm, hand, thigh, calf, foot = (n.format(side) for n in limbs)
+        entries += [(arm, spine, 16 + s), (forearm, arm, 18 + s), (hand, forearm, 20 + s), (thigh, pelvis, 1 + s),
+                    (calf, thigh, 4 + s), (foot, calf, 7 + s)]
+    return _rig(entries)
+
+
+def test_a_mixamo_rig_in_an_a_pose_of_other_bone_lengths_reads_as_the_smpl_motion_it_moves_as(tmp_path):
+    """A rig's BVH (Mixamo's names and collars, CMU's hip joints, a head top and fingers SMPL lacks, 15 % longer
+    bones, the arms resting 40 degrees lowered, centimetres) moving as an SMPL motion is retargeted to that motion:
+    every body joint's rotation, the translation, its rest's up axis (+Y)."""
+    poses, trans = _motion(6, seed=3)
+    poses[:, 22:] = 0  # SMPL's knuckles: the rig has none
+    m = load_motion(rig_bvh(tmp_path / "mixamo.bvh", poses, trans, MIXAMO, unit=0.01, scale=1.15, a_pose=40.0),
+                    world_checks=False)
+    assert m.fps == pytest.approx(30) and m.poses.shape == (6, 24, 3) and m.rest_up == "y"
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
+@pytest.mark.parametrize("names, sides", [
+    (("pelvis", "spine_01", "head", "upperarm_{}", "lowerarm_{}", "hand_{}", "thigh_{}", "calf_{}", "foot_{}"), "lr"),
+    (("Bip01 Pelvis", "Bip01 Spine", "Bip01 Head", "Bip01 {} UpperArm", "Bip01 {} Forearm", "Bip01 {} Hand",
+      "Bip01 {} Thigh", "Bip01 {} Calf", "Bip01 {} Foot"), "LR"),
+])
+def test_a_rig_of_fewer_joints_moves_smpls_joints_it_has_and_leaves_the_others_to_follow(tmp_path, names, sides):
+    """A game engine's or 3ds Max Biped's rig (names with side suffixes, or spaces) of one spine joint and no
+    neck, collars or toes, in inches: SMPL's joints it has take its rotations, the others their parent's (zero)."""
+    poses, trans = _motion(4, seed=5)
+    poses[:, [6, 9, 12, 13, 14, 10, 11, 22, 23]] = 0  # the joints the rig lacks
+    m = load_motion(rig_bvh(tmp_path / "rig.bvh", poses, trans, _small_rig(names, sides), unit=0.0254),
+                    world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
+def test_a_rig_standing_along_z_tells_its_up_axis(tmp_path):
+    """A rig whose rest stands along +Z (its offsets turned +90 degrees about X) is read with rest_up 'z', which
+    `--motion-up auto` takes (`resolved_up`)."""
+    from garmentcli.common import resolved_up
+
+    poses, trans = _motion(3)
+    text = rig_bvh(tmp_path / "rig.bvh", poses, trans, MIXAMO).read_text()
+    lines = []
+    for line in text.splitlines():
+        if line.strip().startswith("OFFSET"):
+            x, y, z = map(float, line.split()[1:])
+            line = f"OFFSET {x} {-z} {y}"
+        lines.append(line)
+    (tmp_path / "z.bvh").write_text("\n".join(lines) + "\n")
+    m = load_motion(tmp_path / "z.bvh", world_checks=False)
+    assert m.rest_up == "z" and resolved_up(m, "z.bvh", "auto") == "z"
+    assert resolved_up(m, "z.bvh", "y") == "y"
+
+
+def test_a_skeleton_no_humanoid_a_rest_not_standing_or_limbs_out_of_order_is_one_line(tmp_path):
+    poses, trans = _motion(3)
+    mixamo = rig_bvh(tmp_path / "good.bvh", poses, trans, MIXAMO).read_text()
+    cases = [(mixamo.replace("mixamorig7:LeftLeg", "mixamorig7:LeftTentacle"),
+              "expected a humanoid skeleton (hips, legs, spine, head and arms by the names of SMPL's, Mixamo's, "
+              "CMU's, Biped's or a like rig), found no left knee (a joint named such as LeftLeg; it has "
+              "mixamorig7:Hips, mixamorig7:Spine, mixamorig7:Spine1, mixamorig7:Spine2, ...): retarget it to one"),
+             (mixamo.replace("mixamorig7:Head\n", "mixamorig7:Skull\n"),
+              "expected a humanoid skeleton with a joint named 'Head', found none among its 27 joints"),
+             (mixamo.replace("mixamorig7:LeftLeg", "mixamorig7:X").replace("mixamorig7:LeftUpLeg",
+                                                                           "mixamorig7:LeftLeg")
+              .replace("mixamorig7:X", "mixamorig7:LeftUpLeg"),
+              "expected 'mixamorig7:LeftLeg' (SMPL's left_knee) under 'mixamorig7:LeftUpLeg' (its left_hip), got "
+              "it elsewhere")]
+    lying = []  # the legs' rest bones along +Z: a zero pose that does not stand
+    for line in mixamo.splitlines():
+        if line.strip().startswith("OFFSET") and lying and ("Leg" in lying[-2] or "Foot" in lying[-2]):
+            x, y, z = map(float, line.split()[1:])
+            line = f"OFFSET {x} {z} {-y}"
+        lying.append(line)
+    cases.append(("\n".join(lying) + "\n", "expected a rest pose (all rotations zero) that stands, got its "
+                                            "'mixamorig7:LeftUpLeg' leg 93 degrees from down"))
+    for text, expected in cases:
+        (tmp_path / "rig.bvh").write_text(text)
         with pytest.raises(InputError) as info:
-            load_motion(path)
+            load_motion(tmp_path / "rig.bvh")
         _assert_one_line(info, "rig.bvh", expected)
+
+
+def test_a_broken_bvh_is_one_line(tmp_path):
+    poses, trans = _motion(3)
     good = write_bvh(tmp_path / "good.bvh", poses, trans, 30).read_text()
     for text, expected in ((good.replace("Frames: 3", "Frames: 4"), "expected 4 frames of 75 channel values (300), "
                                                                        "got 225 values"),

@@ -352,7 +352,12 @@ def test_not_an_npz(tmp_path):
     (tmp_path / "walk.fbx").write_text("Kaydara FBX Binary  \x00")
     with pytest.raises(InputError) as info:
         load_motion(tmp_path / "walk.fbx")
-    _assert_one_line(info, "walk.fbx", "AMASS-style .npz", "skeleton or markers (FBX/C3D/TRC)", "or a BVH of the SMPL")
+    _assert_one_line(info, "walk.fbx", "AMASS-style .npz", "an FBX animation, which is not read: export it as a BVH",
+                     "retargeted onto SMPL's skeleton")
+    (tmp_path / "walk.c3d").write_bytes(b"\x02\x50" + bytes(510))
+    with pytest.raises(InputError) as info:
+        load_motion(tmp_path / "walk.c3d")
+    _assert_one_line(info, "walk.c3d", "motion capture markers (C3D/TRC), not a skeleton: fit SMPL to them first")
 
 
 def test_npy_instead_of_npz(tmp_path):

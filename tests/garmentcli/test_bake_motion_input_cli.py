@@ -295,25 +295,41 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
         np.testing.assert_allclose(read_sequence(scene["out"] / name / "obj").points, a, atol=1e-5)
 
 
-def test_a_bvh_of_the_smpl_skeleton_bakes_as_its_npz_and_another_rigs_is_refused(scene):
+def test_a_bvh_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(scene):
     """The scene's walk exported as a BVH of SMPL's skeleton (as smpl2bvh writes one: centimetres, ZYX Euler
-    angles) bakes the garment of the AMASS file; a BVH of another rig is one line naming retargeting."""
+    angles) bakes the garment of the AMASS file; so does the walk turned Y-up on a skeleton of Mixamo's names
+    (retargeted; --motion-up auto reads its rest's +Y); a skeleton with no knees is one line, nothing written."""
+    from core.motion import Y_UP_TO_Z_UP_MATRIX
+    from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
     from formats.sequence import read_sequence
     from tests.formats.test_bvh import write_bvh
 
     with np.load(scene["motion"]) as walk:
-        poses, trans, fps = walk["poses"].reshape(-1, 24, 3), walk["trans"], float(walk["mocap_framerate"])
+        arrays = dict(walk)
+    poses, trans, fps = arrays["poses"].reshape(-1, 24, 3), arrays["trans"], float(arrays["mocap_framerate"])
+    poses[:, 22:] = 0  # Mixamo's hand joint is SMPL's wrist: it has no knuckles
+    np.savez(scene["dir"] / "walk.npz", **{**arrays, "poses": poses.reshape(len(poses), -1)})
     bvh = write_bvh(scene["dir"] / "walk_bvh.bvh", poses, trans, fps)
-    for motion in (scene["motion"], bvh):
+    back = Y_UP_TO_Z_UP_MATRIX.T  # the tiny body's pelvis is at the origin: trans turns alone
+    y_up = poses.astype(np.float64)
+    y_up[:, 0] = matrix_to_axis_angle(back @ axis_angle_to_matrix(y_up[:, 0]))
+    mixamo = ("Hips", "LeftUpLeg", "RightUpLeg", "Spine", "LeftLeg", "RightLeg", "Spine1", "LeftFoot", "RightFoot",
+              "Spine2", "LeftToeBase", "RightToeBase", "Neck", "LeftShoulder", "RightShoulder", "Head", "LeftArm",
+              "RightArm", "LeftForeArm", "RightForeArm", "LeftHand", "RightHand", "LeftHandIndex1",
+              "RightHandIndex1")
+    rig = write_bvh(scene["dir"] / "walk_rig.bvh", y_up, trans @ back.T, fps, names=mixamo)
+    for motion, options in ((scene["dir"] / "walk.npz", ()), (bvh, ()), (rig, ("--motion-up", "auto"))):
         r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
-                    "--method", "lbs"])
+                    "--method", "lbs", *options])
         assert r.exit_code == 0, r.output
-    np.testing.assert_allclose(read_sequence(scene["out"] / "shell_walk_bvh" / "obj").points,
-                               read_sequence(scene["out"] / "shell_walk" / "obj").points, atol=1e-4)
-    other = bvh.read_text().replace("Left_knee", "LeftLeg")
-    (scene["dir"] / "rig.bvh").write_text(other)
-    assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "lacks 1 of its 22 body joints "
-                          "(left_knee; it has Pelvis", "retargeting to SMPL first")
+    for name in ("walk_bvh", "walk_rig"):
+        np.testing.assert_allclose(read_sequence(scene["out"] / f"shell_{name}" / "obj").points,
+                                   read_sequence(scene["out"] / "shell_walk" / "obj").points, atol=1e-4)
+    summary = json.loads((scene["out"] / "shell_walk_rig" / "summary.json").read_text())
+    assert summary["options"]["motion_up_as_read"] == "y"
+    (scene["dir"] / "rig.bvh").write_text(rig.read_text().replace("LeftLeg", "LeftTentacle"))
+    assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "expected a humanoid skeleton",
+                          "found no left knee (a joint named such as LeftLeg; it has Hips, LeftUpLeg")
     assert not scene["out"].joinpath("shell_rig").exists()
 
 

@@ -1,0 +1,296 @@
+"""Motion capture of another humanoid rig (Mixamo's, CMU's, 3ds Max Biped's, MotionBuilder's, Xsens', Daz's, a
+game engine's) turned into SMPL joint rotations and translation: what `formats.bvh` reads a BVH of such a rig as.
+
+Joints are matched by name to roles (`_ROLE_NAMES`: 'LeftUpLeg', 'L_Thigh', 'thigh_l', 'Bip01 L Thigh' are all the
+left hip), the spine by the skeleton's shape (the joints from the pelvis to the neck; the chest the one the arms
+hang from). Each matched SMPL joint takes its rig joint's world rotation, composed with a fixed rotation that
+turns SMPL's rest bone onto the rig's rest bone (`_rest_turns`: the bone's direction, and the body's forward, or
+up for a bone along forward): a rig resting in an A-pose, or with bones of other lengths, moves SMPL's bones
+along its own. SMPL joints the rig lacks (a second spine joint, the collars, the toes) follow their parent;
+rig joints SMPL lacks (fingers, twist joints, a hip joint between the pelvis and the thigh) pass their rotation
+on to the next matched joint. The pelvis's path is scaled by SMPL's legs over the rig's (its unit too), so the
+feet keep their stride. Joint positions along the bones agree exactly where the rig's joints between two matched
+ones do not turn; the twist about a limb is the rig's.
+
+A rig's rest pose (all its rotations zero) must be a standing one (legs down from the hips, the head above the
+pelvis): a rest that is not (LAFAN1's, whose zero pose folds the body) gives no forward to turn the bones by,
+and is refused.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import NamedTuple
+
+import numpy as np
+
+from core.body import SMPL_JOINT_NAMES, SMPL_PARENTS, default_body
+from core.errors import InputError
+from core.rotations import matrix_to_axis_angle
+
+#: Prefixes of joint names in exported rigs, left out before matching (after any 'namespace:').
+_PREFIXES = re.compile(r"^(m_avg_|f_avg_|smplx?_|bip0*1[ _]?|cc_base_|def[_-]|org[_-]|b_)")
+#: Names (after `canonical`: lower case, letters and digits, the side a leading 'l' or 'r') of each role; the
+#: side's letter is put before them. 'shoulder', 'foot' and 'hand' are told by the names beside them (`_sides`).
+_ROLE_NAMES = {
+    "hip": ("upleg", "thigh", "upperleg", "hip", "femur", "thighbend", "uplegroll"),
+    "knee": ("leg", "knee", "shin", "calf", "lowerleg", "lowleg", "tibia", "shinbend"),
+    "ankle": ("ankle",),
+    "foot": ("toebase", "toe", "toes", "toe0", "ball"),
+    "collar": ("collar", "clavicle", "clav", "scapula"),
+    "shoulder": ("arm", "upperarm", "uparm", "humerus", "shldr", "shldrbend"),
+    "elbow": ("forearm", "lowerarm", "elbow", "lowarm", "radius", "forearmbend"),
+    "wrist": ("wrist",),
+}
+_PELVIS_NAMES = ("hips", "hip", "pelvis")
+#: The roles a rig must have (each side's), and an example name of each for the refusal.
+_REQUIRED = {"hip": "LeftUpLeg", "knee": "LeftLeg", "ankle": "LeftFoot", "shoulder": "LeftArm",
+             "elbow": "LeftForeArm", "wrist": "LeftHand"}
+#: SMPL's joint down each chain from a joint (spine to neck to head, down the limbs): the bone that turns it.
+_CHAIN_CHILD = {3: 6, 6: 9, 9: 12, 12: 15, 1: 4, 4: 7, 7: 10, 2: 5, 5: 8, 8: 11, 13: 16, 16: 18, 18: 20, 20: 22,
+                14: 17, 17: 19, 19: 21, 21: 23}
+#: SMPL's pelvis, spine, neck and head.
+_TRUNK = (0, 3, 6, 9, 12, 15)
+#: The world axes a rest skeleton may stand along (`Retargeted.up`), and how close (cosine, 30 degrees).
+_UP_AXES = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0)}
+_UP_COSINE = np.cos(np.radians(30.0))
+#: A rest leg further than this from the rest body's down (degrees, hips to ankles) is no standing rest: refused.
+LEG_MAX_DEGREES = 45.0
+
+
+def canonical(name: str) -> str:
+    """A joint's name as matched: no 'namespace:', no rig prefix, lower case letters and digits, the side
+    ('Left', 'L', a '_l' or '.L' suffix) a leading 'l' or 'r' ('_M', the middle, dropped)."""
+    n = name.rsplit(":", 1)[-1].lower().strip()
+    n = _PREFIXES.sub("", n)
+    side = re.search(r"[ _.\-](l|r|left|right|m|c)$", n)  # a side, or the middle (AdvancedSkeleton's 'Head_M')
+    if side:
+        n = side.group(1)[0].replace("m", "").replace("c", "") + n[:side.start()]
+    n = re.sub(r"[^a-z0-9]", "", n)
+    return re.sub(r"^(left|right)", lambda m: m.group(1)[0], n)
+
+
+class Retargeted(NamedTuple):
+    """poses: (T, 24, 3) SMPL axis-angle. trans: (T, 3) metres. up: the world axis ("z", "y", "-y") the rig's rest
+    skeleton stands along (within 30 degrees), else None. said: what was matched, in words."""
+
+    poses: np.ndarray
+    trans: np.ndarray
+    up: str | None
+    said: str
+
+
+def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotations: np.ndarray,
+             root_positions: np.ndarray, src: str) -> Retargeted:
+    """SMPL's motion of a rig's (module docstring).
+
+    names, parents (-1 for the root; parents before children): the rig's joints. offsets (J, 3): each joint's
+    rest position from its parent (the root's: its rest position), in the rig's unit. rotations (T, J, 3, 3):
+    each joint's rotation from its rest, in its parent's frame. root_positions (T, 3): the root's position.
+    InputError naming `src` where the rig lacks a role, its matched joints are not in a body's order, or its rest
+    does not stand.
+    """
+    J = len(names)
+    rest = np.zeros((J, 3))
+    for j in range(J):
+        rest[j] = offsets[j] + (rest[parents[j]] if parents[j] >= 0 else 0.0)
+    match = match_joints(names, parents, src)
+    smpl_rest = default_body().shaped(None)[1][:24].astype(np.float64)
+    body_m, body_s = _body_frame(smpl_rest, range(24)), _body_frame(rest, [match.get(k, -1) for k in range(24)])
+    _check_standing(rest, match, body_s, names, src)
+    turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
+
+    world = np.empty_like(rotations)  # each rig joint's rotation in the world
+    position = np.empty(rotations.shape[:2] + (3,))
+    for j in range(J):
+        p = parents[j]
+        if p < 0:
+            world[:, j], position[:, j] = rotations[:, j], root_positions
+        else:
+            world[:, j] = world[:, p] @ rotations[:, j]
+            position[:, j] = position[:, p] + world[:, p] @ offsets[j]
+    smpl_world = np.empty((len(rotations), 24, 3, 3))
+    local = np.empty_like(smpl_world)
+    for k in range(24):
+        if k in match:
+            smpl_world[:, k] = world[:, match[k]] @ turns[k]
+        else:
+            smpl_world[:, k] = smpl_world[:, SMPL_PARENTS[k]]
+        parent = SMPL_PARENTS[k]
+        local[:, k] = smpl_world[:, k] if parent < 0 else np.swapaxes(smpl_world[:, parent], 1, 2) @ smpl_world[:, k]
+
+    legs_m, legs_s = _legs(smpl_rest, {k: k for k in range(24)}), _legs(rest, match)
+    trans = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
+    up = next((axis for axis, v in _UP_AXES.items() if body_s[:, 1] @ v > _UP_COSINE), None)
+    said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
+            f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}")
+    return Retargeted(matrix_to_axis_angle(local), trans, up, said)
+
+
+def _descends(parents: list[int], child: int, ancestor: int) -> bool:
+    while child >= 0:
+        if child == ancestor:
+            return True
+        child = parents[child]
+    return False
+
+
+def _path(parents: list[int], j: int) -> list[int]:
+    """The joints from the root down to `j`."""
+    out = []
+    while j >= 0:
+        out.append(j)
+        j = parents[j]
+    return out[::-1]
+
+
+def _sides(by_name: dict[str, int], side: str) -> dict[str, int]:
+    """{role: rig joint} of one side ('l' or 'r'). 'Shoulder' is the upper arm beside a collar (SMPL's, BVH
+    exporters' 'LeftCollar', 'LeftShoulder') or where no other joint is the arm, else the collar (Mixamo's
+    'LeftShoulder', 'LeftArm'); 'foot' is the ankle unless an 'ankle' is there (SMPL's 'left_foot' is its toes),
+    'hand' the wrist unless a 'wrist' is (SMPL's 'left_hand' its knuckles)."""
+    def find(*roles_or_names: str) -> int | None:
+        for n in roles_or_names:
+            for alias in _ROLE_NAMES.get(n, (n,)):
+                if side + alias in by_name:
+                    return by_name[side + alias]
+        return None
+
+    out = {role: find(role) for role in _ROLE_NAMES}
+    shoulder = by_name.get(side + "shoulder")
+    if shoulder is not None:
+        if out["shoulder"] is None:
+            out["shoulder"] = shoulder
+        elif out["collar"] is None:
+            out["collar"] = shoulder
+    if out["ankle"] is None:
+        out["ankle"] = by_name.get(side + "foot")
+    elif out["foot"] is None:
+        out["foot"] = by_name.get(side + "foot")
+    hand = by_name.get(side + "hand", by_name.get(side + "palm"))
+    if out["wrist"] is None:
+        out["wrist"], out["hand"] = hand, None
+    else:
+        out["hand"] = hand
+    return out
+
+
+def match_joints(names: list[str], parents: list[int], src: str) -> dict[int, int]:
+    """{SMPL joint: rig joint} (module docstring); InputError naming the first role the rig lacks, or a limb's
+    joints that are not each under the one before."""
+    by_name: dict[str, int] = {}
+    for j, name in enumerate(names):
+        by_name.setdefault(canonical(name), j)
+    sides = {side: _sides(by_name, side) for side in ("l", "r")}
+    for role, example in _REQUIRED.items():
+        for side, word in (("l", "left"), ("r", "right")):
+            if sides[side][role] is None:
+                raise InputError(f"{src}: expected a humanoid skeleton (hips, legs, spine, head and arms by the names "
+                                 f"of SMPL's, Mixamo's, CMU's, Biped's or a like rig), found no {word} {role} (a "
+                                 f"joint named such as {example.replace('Left', word.title())}; it has "
+                                 f"{', '.join(names[:4])}{', ...' if len(names) > 4 else ''}): retarget it to one first")
+    head = by_name.get("head")
+    if head is None:
+        raise InputError(f"{src}: expected a humanoid skeleton with a joint named 'Head', found none among its "
+                         f"{len(names)} joints ({', '.join(names[:4])}{', ...' if len(names) > 4 else ''})")
+    hips = (sides["l"]["hip"], sides["r"]["hip"])
+    common = [a for a, b in zip(_path(parents, hips[0]), _path(parents, hips[1])) if a == b]
+    if not common:
+        raise InputError(f"{src}: expected its legs under one pelvis, got '{names[hips[0]]}' and '{names[hips[1]]}' "
+                         f"in two trees")
+    pelvis = next((j for j in reversed(common) if canonical(names[j]) in _PELVIS_NAMES), common[-1])
+    match = {0: pelvis}
+    for side, first in (("l", 1), ("r", 2)):
+        roles = sides[side]
+        for role, k in (("hip", first), ("knee", first + 3), ("ankle", first + 6), ("foot", first + 9),
+                        ("collar", first + 12), ("shoulder", first + 15), ("elbow", first + 17),
+                        ("wrist", first + 19), ("hand", first + 21)):
+            if roles[role] is not None:
+                match[k] = roles[role]
+    # the spine: the joints on the way to the head below the pelvis, up to a neck; the chest, the one the arms
+    # hang from (their lowest common joint with the head).
+    way = [j for j in _path(parents, head) if not _descends(parents, pelvis, j)]
+    neck = next((i for i, j in enumerate(way) if "neck" in canonical(names[j])), len(way) - 1)
+    spine = way[:neck]
+    if neck < len(way) - 1:
+        match[12] = way[neck]
+    match[15] = head
+    arm = _path(parents, match.get(16))
+    chest = max((i for i, j in enumerate(spine) if j in arm), default=len(spine) - 1)
+    if spine:
+        match[3] = spine[0]
+        if chest > 0:
+            match[9] = spine[chest]
+            if chest > 1:
+                match[6] = spine[chest // 2]
+    for k, j in match.items():  # each limb's joints under the one before
+        parent = next(p for p in _ancestors(k) if p in match) if k else 0
+        if parent not in _TRUNK and not _descends(parents, j, match[parent]):
+            raise InputError(f"{src}: expected '{names[j]}' (SMPL's {SMPL_JOINT_NAMES[k]}) under "
+                             f"'{names[match[parent]]}' (its {SMPL_JOINT_NAMES[parent]}), got it elsewhere")
+    return match
+
+
+def _ancestors(k: int) -> list[int]:
+    out = []
+    while SMPL_PARENTS[k] >= 0:
+        k = SMPL_PARENTS[k]
+        out.append(k)
+    return out
+
+
+def _body_frame(rest: np.ndarray, joint: list[int]) -> np.ndarray:
+    """(3, 3) columns left, up, forward of a rest skeleton (`joint`: its joint of each SMPL joint): up from the
+    pelvis to the head, left from the right hip to the left."""
+    up = _unit(rest[joint[15]] - rest[joint[0]])
+    left = rest[joint[1]] - rest[joint[2]]
+    left = _unit(left - (left @ up) * up)
+    return np.stack([left, up, np.cross(left, up)], axis=1)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / max(float(np.linalg.norm(v)), 1e-12)
+
+
+def _check_standing(rest: np.ndarray, match: dict[int, int], body: np.ndarray, names: list[str], src: str) -> None:
+    for k in (1, 2):
+        leg = _unit(rest[match[k + 6]] - rest[match[k]])
+        angle = float(np.degrees(np.arccos(np.clip(-leg @ body[:, 1], -1, 1))))
+        if angle > LEG_MAX_DEGREES:
+            raise InputError(f"{src}: expected a rest pose (all rotations zero) that stands, got its "
+                             f"'{names[match[k]]}' leg {angle:.0f} degrees from down (the head above the pelvis is "
+                             f"up): a rig whose zero pose is not standing needs retargeting to one first")
+
+
+def _rest_turns(match, rest, smpl_rest, body_m, body_s) -> dict[int, np.ndarray]:
+    """{SMPL joint: the rotation taking SMPL's rest frame of its bone to the rig's} (module docstring); a joint
+    with no matched joint down its chain (the head, a hand) takes its matched parent's."""
+    turns = {0: body_s @ body_m.T}
+    for k in range(1, 24):
+        if k not in match:
+            continue
+        c = _CHAIN_CHILD.get(k)
+        while c is not None and c not in match:
+            c = _CHAIN_CHILD.get(c)
+        bone_s = rest[match[c]] - rest[match[k]] if c is not None else np.zeros(3)
+        if c is None or np.linalg.norm(bone_s) < 1e-9 * np.linalg.norm(rest[match[1]] - rest[match[2]]):
+            turns[k] = turns[next(p for p in _ancestors(k) if p in turns)]
+            continue
+        bone_m = smpl_rest[c] - smpl_rest[k]
+        along = abs(_unit(bone_m) @ body_m[:, 2]) > 0.7  # a bone along forward (a foot) is turned about up
+        axis = 1 if along else 2
+        turns[k] = _frame(bone_s, body_s[:, axis]) @ _frame(bone_m, body_m[:, axis]).T
+    return turns
+
+
+def _frame(primary: np.ndarray, secondary: np.ndarray) -> np.ndarray:
+    a = _unit(primary)
+    b = _unit(secondary - (secondary @ a) * a)
+    return np.stack([a, b, np.cross(a, b)], axis=1)
+
+
+def _legs(rest: np.ndarray, match: dict[int, int]) -> float:
+    """The mean length of both legs, hips to knees to ankles."""
+    return float(np.mean([np.linalg.norm(rest[match[k + 3]] - rest[match[k]])
+                          + np.linalg.norm(rest[match[k + 6]] - rest[match[k + 3]]) for k in (1, 2)]))
+

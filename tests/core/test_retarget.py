@@ -1,0 +1,111 @@
+"""Tests of core/retarget.py's joint matching on the skeletons of the rigs users bring (names and hierarchies as
+those tools write them; the motions retargeted: tests/formats/test_bvh.py)."""
+
+import pytest
+
+from core.body import SMPL_JOINT_NAMES
+from core.retarget import canonical, match_joints
+
+
+def _tree(spec: str):
+    """(names, parents) of an indented outline: one joint per line, two spaces a level."""
+    names, parents, stack = [], [], []
+    for line in spec.strip("\n").splitlines():
+        depth = (len(line) - len(line.lstrip())) // 2
+        del stack[depth:]
+        names.append(line.strip())
+        parents.append(stack[-1] if stack else -1)
+        stack.append(len(names) - 1)
+    return names, parents
+
+
+def _rig(trunk: list[str], arm: str, leg: str, chest: str, sides=("Left", "Right"), leg_under=0,
+         pelvis_above: list[str] = ()):
+    """An outline: `pelvis_above` joints, the `trunk` (pelvis, spine..., head) as a chain, each side's `arm`
+    (joint names, '{}' the side) under the trunk's joint `chest` and its `leg` under trunk[leg_under]."""
+    lines = [("  " * i) + n for i, n in enumerate(pelvis_above)]
+    base = len(pelvis_above)
+    for i, n in enumerate(trunk):
+        lines.append("  " * (base + i) + n)
+        for chain, here in ((leg, i == leg_under), (arm, n == chest)):
+            if here:
+                for side in sides:
+                    lines += ["  " * (base + i + 1 + k) + j.format(side) for k, j in enumerate(chain.split())]
+    return _tree("\n".join(lines))
+
+
+RIGS = {
+    # name: (outline, {SMPL joint: rig joint} expected, beyond the obvious)
+    "mixamo": (_rig(["mixamorig:Hips", "mixamorig:Spine", "mixamorig:Spine1", "mixamorig:Spine2",
+                     "mixamorig:Neck", "mixamorig:Head"],
+                    "mixamorig:{}Shoulder mixamorig:{}Arm mixamorig:{}ForeArm mixamorig:{}Hand",
+                    "mixamorig:{}UpLeg mixamorig:{}Leg mixamorig:{}Foot mixamorig:{}ToeBase", "mixamorig:Spine2"),
+               {"pelvis": "mixamorig:Hips", "spine1": "mixamorig:Spine", "spine2": "mixamorig:Spine1",
+                "spine3": "mixamorig:Spine2", "neck": "mixamorig:Neck", "left_collar": "mixamorig:LeftShoulder",
+                "left_shoulder": "mixamorig:LeftArm", "left_wrist": "mixamorig:LeftHand",
+                "left_ankle": "mixamorig:LeftFoot", "left_foot": "mixamorig:LeftToeBase"}),
+    "cmu_asf": (_rig(["root", "lowerback", "upperback", "thorax", "lowerneck", "upperneck", "head"],
+                     "{}clavicle {}humerus {}radius {}wrist {}hand", "{}hipjoint {}femur {}tibia {}foot {}toes", "thorax",
+                     sides=("l", "r")),
+                {"pelvis": "root", "spine1": "lowerback", "spine2": "upperback", "spine3": "thorax",
+                 "neck": "lowerneck", "left_collar": "lclavicle", "left_shoulder": "lhumerus", "left_elbow": "lradius",
+                 "left_wrist": "lwrist", "left_hand": "lhand", "left_hip": "lfemur", "left_ankle": "lfoot",
+                 "left_foot": "ltoes"}),
+    "xsens": (_rig(["Pelvis", "L5", "L3", "T12", "T8", "Neck", "Head"],
+                   "{}Shoulder {}UpperArm {}ForeArm {}Hand", "{}UpperLeg {}LowerLeg {}Foot {}Toe", "T8"),
+              {"pelvis": "Pelvis", "spine1": "L5", "spine2": "L3", "spine3": "T8", "left_collar": "LeftShoulder",
+               "left_shoulder": "LeftUpperArm", "left_hip": "LeftUpperLeg", "left_foot": "LeftToe"}),
+    "daz_genesis": (_rig(["hip", "abdomenLower", "abdomenUpper", "chestLower", "chestUpper", "neckLower",
+                          "neckUpper", "head"],
+                         "{}Collar {}ShldrBend {}ShldrTwist {}ForearmBend {}ForearmTwist {}Hand",
+                         "{}ThighBend {}ThighTwist {}Shin {}Foot {}Toe", "chestUpper", sides=("l", "r")),
+                    {"pelvis": "hip", "spine1": "abdomenLower", "spine2": "abdomenUpper", "spine3": "chestUpper",
+                     "neck": "neckLower", "left_shoulder": "lShldrBend", "left_elbow": "lForearmBend",
+                     "left_hip": "lThighBend", "left_knee": "lShin"}),
+    "biped": (_rig(["Bip01 Pelvis", "Bip01 Spine", "Bip01 Spine1", "Bip01 Spine2", "Bip01 Neck", "Bip01 Head"],
+                   "Bip01_{}_Clavicle Bip01_{}_UpperArm Bip01_{}_Forearm Bip01_{}_Hand",
+                   "Bip01_{}_Thigh Bip01_{}_Calf Bip01_{}_Foot Bip01_{}_Toe0", "Bip01 Neck", sides=("L", "R"), leg_under=1,
+                   pelvis_above=["Bip01"]),
+              {"pelvis": "Bip01 Pelvis", "spine1": "Bip01 Spine", "spine3": "Bip01 Spine2",
+               "left_hip": "Bip01_L_Thigh", "left_foot": "Bip01_L_Toe0", "left_collar": "Bip01_L_Clavicle"}),
+    "advanced_skeleton": (_rig(["Root_M", "Spine1_M", "Chest_M", "Neck_M", "Head_M"],
+                               "Scapula_{} Shoulder_{} Elbow_{} Wrist_{}", "Hip_{} Knee_{} Ankle_{} Toes_{}", "Chest_M",
+                               sides=("L", "R")),
+                          {"pelvis": "Root_M", "spine1": "Spine1_M", "spine3": "Chest_M", "neck": "Neck_M",
+                           "left_collar": "Scapula_L", "left_shoulder": "Shoulder_L", "left_ankle": "Ankle_L",
+                           "left_foot": "Toes_L"}),
+    "unreal": (_rig(["root", "pelvis", "spine_01", "spine_02", "spine_03", "neck_01", "head"],
+                    "clavicle_{} upperarm_{} lowerarm_{} hand_{}", "thigh_{} calf_{} foot_{} ball_{}", "spine_03",
+                    sides=("l", "r"), leg_under=1),
+               {"pelvis": "pelvis", "spine1": "spine_01", "spine2": "spine_02", "spine3": "spine_03",
+                "left_collar": "clavicle_l", "left_foot": "ball_l"}),
+    "mocapbank": (_rig(["Hips", "Chest", "Chest2", "Neck", "Head"], "{}Collar {}Shoulder {}Elbow {}Wrist",
+                       "{}Hip {}Knee {}Ankle", "Chest2"),
+                  {"pelvis": "Hips", "spine1": "Chest", "spine3": "Chest2", "left_collar": "LeftCollar",
+                   "left_shoulder": "LeftShoulder", "left_hip": "LeftHip", "left_ankle": "LeftAnkle"}),
+    "smpl_named": (_rig(["pelvis", "spine1", "spine2", "spine3", "neck", "head"],
+                        "{}_collar {}_shoulder {}_elbow {}_wrist {}_hand", "{}_hip {}_knee {}_ankle {}_foot", "spine3",
+                        sides=("left", "right")),
+                   {"pelvis": "pelvis", "spine2": "spine2", "left_shoulder": "left_shoulder",
+                    "left_ankle": "left_ankle", "left_foot": "left_foot", "left_wrist": "left_wrist",
+                    "left_hand": "left_hand"}),
+}
+
+
+@pytest.mark.parametrize("rig", sorted(RIGS))
+def test_each_rigs_joints_match_smpls_by_name_and_the_spine_by_shape(rig):
+    """Mixamo's (its 'LeftShoulder' the collar), CMU's ASF names, Xsens', Daz Genesis' (bend and twist joints),
+    3ds Max Biped's (a root above the pelvis, the thighs under the spine), AdvancedSkeleton's ('_M', the middle),
+    Unreal's (side suffixes, a root at the floor), MocapBank's ('LeftShoulder' the upper arm beside a collar, no
+    toes) and SMPL's own names (its 'left_foot' the toes, 'left_hand' the knuckles beside a wrist) each match
+    SMPL's joints as their rigs mean them; every match of the left side has its right."""
+    (names, parents), expected = RIGS[rig]
+    match = {SMPL_JOINT_NAMES[k]: names[j] for k, j in match_joints(names, parents, "rig").items()}
+    for smpl, name in expected.items():
+        assert match.get(smpl) == name, (smpl, match)
+    for smpl in match:
+        if smpl.startswith("left_"):
+            right = smpl.replace("left_", "right_")
+            assert canonical(match[right]) == "r" + canonical(match[smpl])[1:], (smpl, match)
+    assert {"pelvis", "head", "left_hip", "left_knee", "left_ankle", "left_shoulder", "left_elbow",
+            "left_wrist"} <= set(match)
