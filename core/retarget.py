@@ -100,15 +100,7 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     _check_standing(rest, match, body_s, names, src)
     turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
 
-    world = np.empty_like(rotations)  # each rig joint's rotation in the world
-    position = np.empty(rotations.shape[:2] + (3,))
-    for j in range(J):
-        p = parents[j]
-        if p < 0:
-            world[:, j], position[:, j] = rotations[:, j], root_positions
-        else:
-            world[:, j] = world[:, p] @ rotations[:, j]
-            position[:, j] = position[:, p] + world[:, p] @ offsets[j]
+    world, position = rig_pose(parents, offsets, rotations, root_positions)
     smpl_world = np.empty((len(rotations), 24, 3, 3))
     local = np.empty_like(smpl_world)
     for k in range(24):
@@ -125,6 +117,20 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
             f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}")
     return Retargeted(matrix_to_axis_angle(local), trans, up, said)
+
+
+def rig_pose(parents: list[int], offsets: np.ndarray, rotations: np.ndarray,
+             root_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, J, 3, 3) each rig joint's rotation in the world and (T, J, 3) its position (`retarget`'s arguments)."""
+    world = np.empty_like(rotations)
+    position = np.empty(rotations.shape[:2] + (3,))
+    for j, p in enumerate(parents):
+        if p < 0:
+            world[:, j], position[:, j] = rotations[:, j], root_positions
+        else:
+            world[:, j] = world[:, p] @ rotations[:, j]
+            position[:, j] = position[:, p] + world[:, p] @ offsets[j]
+    return world, position
 
 
 def _descends(parents: list[int], child: int, ancestor: int) -> bool:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import re
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,10 +62,22 @@ def _canonical(name: str) -> str:
 _SMPL_INDEX = {_canonical(n): k for k, n in enumerate(SMPL_JOINT_NAMES)}
 
 
-def read_bvh(path: Path, src: str) -> dict:
-    """{'poses' (T, 24, 3) axis-angle, 'trans' (T, 3) metres, 'mocap_framerate', REST_UP_KEY where its rest
-    skeleton stands along a world axis} of the BVH `path` (module docstring); InputError naming `src` for a file
-    that is no BVH, a damaged one, or a skeleton that is no humanoid's (`core.retarget`)."""
+class Skeleton(NamedTuple):
+    """A BVH's skeleton and motion: joint `names`, `parents` (-1 for the root; parents first), `offsets` (J, 3)
+    in its unit, `rotations` (T, J, 3, 3) each joint's from its rest (its channels composed), `root` (T, 3) the
+    root's position, `frame_time` in seconds."""
+
+    names: list[str]
+    parents: list[int]
+    offsets: np.ndarray
+    rotations: np.ndarray
+    root: np.ndarray
+    frame_time: float
+
+
+def read_skeleton(path: Path, src: str) -> Skeleton:
+    """The skeleton and motion of the BVH `path`; InputError naming `src` for a file that is no BVH or a damaged
+    one."""
     try:
         text = path.read_text(encoding="latin-1")
     except OSError as exc:
@@ -90,8 +103,16 @@ def read_bvh(path: Path, src: str) -> dict:
                          f"{values.size} values")
     if not (np.isfinite(frame_time) and frame_time > 0):
         raise InputError(f"{src}: expected a Frame Time over 0 seconds, got {frame_time}")
-    values = values.reshape(n_frames, width)
-    rotations, root = _channels(channels, offsets, values)
+    rotations, root = _channels(channels, offsets, values.reshape(n_frames, width))
+    return Skeleton(names, parents, offsets, rotations, root, frame_time)
+
+
+def read_bvh(path: Path, src: str) -> dict:
+    """{'poses' (T, 24, 3) axis-angle, 'trans' (T, 3) metres, 'mocap_framerate', REST_UP_KEY where its rest
+    skeleton stands along a world axis} of the BVH `path` (module docstring); InputError naming `src` for a file
+    that is no BVH, a damaged one, or a skeleton that is no humanoid's (`core.retarget`)."""
+    names, parents, offsets, rotations, root, frame_time = read_skeleton(path, src)
+    n_frames = len(rotations)
     smpl = _smpl_skeleton(names, parents, offsets, src)
     if smpl is None:
         poses, trans, up, said = retarget(names, parents, offsets, rotations, root, src)
