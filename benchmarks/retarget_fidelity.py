@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.body import SMPL_JOINT_NAMES, default_body  # noqa: E402
-from core.retarget import _CHAIN_CHILD, match_joints, rig_pose  # noqa: E402
+from core.retarget import _CHAIN_CHILD, match_joints, rest_positions, rig_pose  # noqa: E402
 from formats.bvh import read_skeleton  # noqa: E402
 from formats.motion import load_motion  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
@@ -58,9 +58,7 @@ def fidelity(path: Path) -> list:
     _, rig = rig_pose(skeleton.parents, skeleton.offsets, skeleton.rotations, skeleton.root)
     _, smpl = default_body().pose(motion.poses[:, :24], motion.trans)
     angles = {}
-    _, rest = rig_pose(skeleton.parents, skeleton.offsets, np.eye(3)[None, None].repeat(len(skeleton.names), 1),
-                       skeleton.offsets[:1])
-    for k, c in bones(match, rest[0]):
+    for k, c in bones(match, rest_positions(skeleton.parents, skeleton.offsets)):
         a = smpl[:, c] - smpl[:, k]
         b = rig[:, match[c]] - rig[:, match[k]]
         cos = (a * b).sum(-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))

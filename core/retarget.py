@@ -90,10 +90,7 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     InputError naming `src` where the rig lacks a role, its matched joints are not in a body's order, or its rest
     does not stand.
     """
-    J = len(names)
-    rest = np.zeros((J, 3))
-    for j in range(J):
-        rest[j] = offsets[j] + (rest[parents[j]] if parents[j] >= 0 else 0.0)
+    rest = rest_positions(parents, offsets)
     match = match_joints(names, parents, src)
     smpl_rest = default_body().shaped(None)[1][:24].astype(np.float64)
     body_m, body_s = _body_frame(smpl_rest, range(24)), _body_frame(rest, [match.get(k, -1) for k in range(24)])
@@ -112,6 +109,8 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
         local[:, k] = smpl_world[:, k] if parent < 0 else np.swapaxes(smpl_world[:, parent], 1, 2) @ smpl_world[:, k]
 
     legs_m, legs_s = _legs(smpl_rest, {k: k for k in range(24)}), _legs(rest, match)
+    if not (np.isfinite(legs_s) and legs_s > 0):
+        raise InputError(f"{src}: expected legs of some length in its OFFSETs, got {legs_s}")
     trans = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
     up = next((axis for axis, v in _UP_AXES.items() if body_s[:, 1] @ v > _UP_COSINE), None)
     said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
@@ -131,6 +130,12 @@ def rig_pose(parents: list[int], offsets: np.ndarray, rotations: np.ndarray,
             world[:, j] = world[:, p] @ rotations[:, j]
             position[:, j] = position[:, p] + world[:, p] @ offsets[j]
     return world, position
+
+
+def rest_positions(parents: list[int], offsets: np.ndarray) -> np.ndarray:
+    """(J, 3) each rig joint's position in its rest pose (all rotations zero)."""
+    identity = np.broadcast_to(np.eye(3), (1, len(parents), 3, 3))
+    return rig_pose(parents, offsets, identity, offsets[:1])[1][0]
 
 
 def _descends(parents: list[int], child: int, ancestor: int) -> bool:
