@@ -164,7 +164,7 @@ class BakeSpec:
     start_frame: int = 0  # --start-frame: the number of the first frame written (USD time code, OBJ file)
     preroll_frames: int = 0  # --preroll: source frames before --frames START deformed, not written
     fit_path: str | None = None  # psd: --fit
-    motion_up: str = "z"  # --motion-up (the motions arrive turned), recorded in summary.json
+    motion_up: str | None = "z"  # --motion-up (None: left out; the motions arrive turned), recorded in summary.json
     device: str | None = None  # model: --device as given (None: auto, resolved where the deformer is made)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()

@@ -254,9 +254,9 @@ RESAMPLE_BYTES_PER_JOINT = 512
 
 def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
-                   check_frames=None, motion_up: str = "z"):
+                   check_frames=None, motion_up: str | None = "z"):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
-    --motion-up y, -y or auto (`resolved_up`; the motion turned from its Y-up (-Y-up) world to Z-up about the pelvis
+    --motion-up y, -y, auto or left out (None) (`resolved_up`; the motion turned from its Y-up (-Y-up) world to Z-up about the pelvis
     of `body`, the embedded one when None, at the motion's betas), --frames (source frames) with --preroll (source
     frames before them, deformed and not written: `Motion.n_lead`), --fps and --settle, in that order.
 
@@ -305,19 +305,23 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     return settle(motion, settle_frames), source_fps
 
 
-def resolved_up(motion, path: str, motion_up: str) -> str:
-    """--motion-up for the motion read from `path`: as given, or for "auto" the world axis its file's rest skeleton
-    stands along (a BVH's: `Motion.rest_up`), else the one its body stands along (`core.motion.standing_axis`: +Z,
-    +Y or -Y in most frames and along no other in any), else "z" (told, with the metres check `load_motion` leaves
-    to it)."""
-    if motion_up != "auto":
-        return motion_up
-    from core.motion import UP_NAMES, standing_axis, warn_if_not_metres
+def resolved_up(motion, path: str, motion_up: str | None) -> str:
+    """--motion-up for the motion read from `path`: as given; left out (None), the world axis its file's rest
+    skeleton stands along (a BVH's: `Motion.rest_up`), else "z" (with the world checks `load_motion` leaves to it:
+    along another axis? metres?); "auto", that rest axis, else the one its body stands along
+    (`core.motion.standing_axis`: +Z, +Y or -Y in most frames and along no other in any), else "z" (told, with
+    the metres check)."""
+    from core.motion import UP_NAMES, standing_axis, warn_if_not_metres, warn_if_not_z_up
 
+    if motion_up not in (None, "auto"):
+        return motion_up
     if motion.rest_up is not None:
         axis = motion.rest_up
-        log.info("motion '%s': --motion-up auto: its rest skeleton stands along world %s: read as %s up", path,
-                 UP_NAMES[axis], axis)
+        log.info("motion '%s': its rest skeleton stands along world %s: read as %s up%s", path, UP_NAMES[axis], axis,
+                 "" if motion_up else " (--motion-up z reads it as Z-up)")
+    elif motion_up is None:
+        axis = "z"
+        warn_if_not_z_up(motion, path)
     else:
         axis, share = standing_axis(motion)
         if axis is None:
@@ -357,14 +361,22 @@ def turned_for_shape(motion, body: Body | None, turned_at, up: str = "y"):
     return replace(motion, trans=(motion.trans + offset).astype(np.float32))
 
 
+def _left_out_as_none(ctx: click.Context, param: click.Parameter, value):
+    """None for an option's default value (not given), the value otherwise."""
+    return None if ctx.get_parameter_source(param.name) == click.core.ParameterSource.DEFAULT else value
+
+
 def motion_up_option(command):
-    """--motion-up z|y|-y|auto: the motions' world up axis (`prepare_motion`, `resolved_up`)."""
+    """--motion-up z|y|-y|auto: the motions' world up axis (`prepare_motion`, `resolved_up`); None where it is
+    left out (z, or a BVH's own)."""
     return click.option("--motion-up", type=click.Choice(["z", "y", "-y", "auto"]), default="z", show_default=True,
+                        callback=_left_out_as_none,
                         help="The motions' world up axis: z (AMASS), y (the world of most video pose estimators: "
                              "GVHMR, WHAM, TRAM) or -y (camera coordinates, y down the image: per-image estimators "
                              "such as SMPLer-X, 4D-Humans), turned to Z-up exactly (about the body's "
-                             "pelvis); auto: per motion, the axis its body stands along in most frames (z where "
-                             "none).")(command)
+                             "pelvis); auto: per motion, the axis its file's rest skeleton stands along (a BVH's), "
+                             "else its body in most frames (z where none). Left out: z, but a BVH's world is the "
+                             "one its rest skeleton stands in.")(command)
 
 
 #: Betas beyond this (standard deviations of the body's shape space) are warned about: the methods are tested

@@ -286,7 +286,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 "garment_meshes": {k: g.content_hash() for k, g in sorted(garments.items())}}
     if any(it.preroll for it in items):  # a plan whose clips all start their motions is the same without it
         settings["preroll"] = preroll
-    if motion_up != "z":  # likewise: the datasets made before the option resume
+    if motion_up not in ("z", None):  # likewise: the datasets made before the option resume
         settings["motion_up"] = motion_up
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},

@@ -224,7 +224,7 @@ def test_a_rig_of_fewer_joints_moves_smpls_joints_it_has_and_leaves_the_others_t
 
 def test_a_rig_standing_along_z_tells_its_up_axis(tmp_path):
     """A rig whose rest stands along +Z (its offsets turned +90 degrees about X) is read with rest_up 'z', which
-    `--motion-up auto` takes (`resolved_up`)."""
+    `--motion-up auto` or left out takes (`resolved_up`); one along +Y, 'y'; a --motion-up given wins."""
     from garmentcli.common import resolved_up
 
     poses, trans = _motion(3)
@@ -237,8 +237,10 @@ def test_a_rig_standing_along_z_tells_its_up_axis(tmp_path):
         lines.append(line)
     (tmp_path / "z.bvh").write_text("\n".join(lines) + "\n")
     m = load_motion(tmp_path / "z.bvh", world_checks=False)
-    assert m.rest_up == "z" and resolved_up(m, "z.bvh", "auto") == "z"
+    assert m.rest_up == "z" and resolved_up(m, "z.bvh", "auto") == "z" and resolved_up(m, "z.bvh", None) == "z"
     assert resolved_up(m, "z.bvh", "y") == "y"
+    m = load_motion(tmp_path / "rig.bvh", world_checks=False)  # Y-up: read so where --motion-up is left out
+    assert m.rest_up == "y" and resolved_up(m, "rig.bvh", None) == "y" and resolved_up(m, "rig.bvh", "z") == "z"
 
 
 def test_a_skeleton_no_humanoid_a_rest_not_standing_or_limbs_out_of_order_is_one_line(tmp_path):

@@ -297,8 +297,9 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
 
 def test_a_bvh_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(scene):
     """The scene's walk exported as a BVH of SMPL's skeleton (as smpl2bvh writes one: centimetres, ZYX Euler
-    angles) bakes the garment of the AMASS file; so does the walk turned Y-up on a skeleton of Mixamo's names
-    (retargeted; --motion-up auto reads its rest's +Y); a skeleton with no knees is one line, nothing written."""
+    angles; the AMASS world kept: --motion-up z) bakes the garment of the AMASS file; so does the walk turned Y-up
+    on a skeleton of Mixamo's names (retargeted; read in the world its rest stands in, +Y, with --motion-up left
+    out); a skeleton with no knees is one line, nothing written."""
     from core.motion import Y_UP_TO_Z_UP_MATRIX
     from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
     from formats.sequence import read_sequence
@@ -318,7 +319,7 @@ def test_a_bvh_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_hu
               "RightArm", "LeftForeArm", "RightForeArm", "LeftHand", "RightHand", "LeftHandIndex1",
               "RightHandIndex1")
     rig = write_bvh(scene["dir"] / "walk_rig.bvh", y_up, trans @ back.T, fps, names=mixamo)
-    for motion, options in ((scene["dir"] / "walk.npz", ()), (bvh, ()), (rig, ("--motion-up", "auto"))):
+    for motion, options in ((scene["dir"] / "walk.npz", ()), (bvh, ("--motion-up", "z")), (rig, ())):
         r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
                     "--method", "lbs", *options])
         assert r.exit_code == 0, r.output
@@ -326,7 +327,7 @@ def test_a_bvh_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_hu
         np.testing.assert_allclose(read_sequence(scene["out"] / f"shell_{name}" / "obj").points,
                                    read_sequence(scene["out"] / "shell_walk" / "obj").points, atol=1e-4)
     summary = json.loads((scene["out"] / "shell_walk_rig" / "summary.json").read_text())
-    assert summary["options"]["motion_up_as_read"] == "y"
+    assert summary["options"]["motion_up"] is None and summary["options"]["motion_up_as_read"] == "y"
     (scene["dir"] / "rig.bvh").write_text(rig.read_text().replace("LeftLeg", "LeftTentacle"))
     assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "expected a humanoid skeleton",
                           "found no left knee (a joint named such as LeftLeg; it has Hips, LeftUpLeg")
