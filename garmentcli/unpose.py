@@ -174,8 +174,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         pose, betas = poses_for_body(motion, body.n_joints)[k], motion.betas
         what = f"frame {k} of '{pose_spec}'"
     else:
-        raise click.BadParameter(f"expected 'tpose', 'apose' or a motion file (.npz; .pkl, .pt), got '{pose_spec}'",
-                                 param_hint="--pose")
+        raise click.BadParameter(f"expected 'tpose', 'apose' or a motion file ({', '.join(MOTION_SUFFIXES)}), got "
+                                 f"'{pose_spec}'", param_hint="--pose")
     if betas_text is not None:
         betas = betas_text
         shown = ",".join(f"{b:g}" for b in betas[:10]) + (f",... ({len(betas)} betas)" if len(betas) > 10 else "")
