@@ -5,7 +5,8 @@
 One random SMPL motion of --frames frames (9,000: five minutes at 30 fps) is written in each format as its
 producer writes it (AMASS's npz; AIST++'s pickle; WHAM's joblib result with its per-frame vertices, where joblib
 is installed; Motion-X's .npy; SMPLCodec's .smpl; a BVH of the SMPL skeleton; a BVH of a Mixamo rig of 27 joints
-(fingers, CMU's hip joints) resting in an A-pose, 15 % larger, retargeted; PHALP's per-frame pickle with a
+(fingers, CMU's hip joints) resting in an A-pose, 15 % larger, retargeted, and its binary FBX (pre-rotated
+joints, curves per axis, half of them zlib-compressed); PHALP's per-frame pickle with a
 4,096-value appearance feature per detection; TRAM's np.save of torch tensors; GVHMR's torch.save), then read by
 `formats.motion.load_motion` --repeats times: the median seconds, the peak of Python's traced allocations
 (tracemalloc: numpy's arrays included) over one read, the file's size, and whether the joint rotations read are
@@ -34,6 +35,7 @@ from core.rotations import axis_angle_to_matrix  # noqa: E402
 from formats.motion import load_motion  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
 from tests.formats.test_bvh import MIXAMO, rig_bvh, write_bvh  # noqa: E402
+from tests.formats.test_fbx import rig_fbx  # noqa: E402
 
 
 def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
@@ -92,6 +94,7 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
             "BVH (SMPL skeleton)": ("smpl.bvh", lambda p: write_bvh(p, poses, trans, fps)),
             "BVH (Mixamo rig, retargeted)": ("mixamo.bvh", lambda p: rig_bvh(p, poses, trans, MIXAMO, scale=1.15,
                                                                             a_pose=40.0)),
+            "FBX (Mixamo rig, retargeted)": ("mixamo.fbx", lambda p: rig_fbx(p, poses, trans)),
             "PHALP pickle": ("phalp.pkl", phalp), "TRAM npy": ("hps_track_0.npy", tram),
             "GVHMR pt": ("hmr4d_results.pt", gvhmr)}
 

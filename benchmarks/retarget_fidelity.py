@@ -1,6 +1,6 @@
-"""How closely SMPL's bones follow a rig's once its BVH is retargeted (`core.retarget`), on real captures.
+"""How closely SMPL's bones follow a rig's once its BVH or FBX is retargeted (`core.retarget`), on real captures.
 
-    python benchmarks/retarget_fidelity.py CLIP.bvh [CLIP.bvh ...] [--sources TEXT] [--out FILE.md]
+    python benchmarks/retarget_fidelity.py CLIP.bvh|CLIP.fbx [...] [--sources TEXT] [--out FILE.md]
 
 For each clip: the rig's joints posed by its own channels (`core.retarget.rig_pose`), and the embedded body's
 joints posed by the SMPL motion `formats.motion.load_motion` reads from it; for every SMPL bone retargeting turns
@@ -29,6 +29,7 @@ sys.path.insert(0, str(ROOT))
 from core.body import SMPL_JOINT_NAMES, default_body  # noqa: E402
 from core.retarget import _CHAIN_CHILD, match_joints, rest_positions, rig_pose  # noqa: E402
 from formats.bvh import read_skeleton  # noqa: E402
+from formats.fbx import read_fbx  # noqa: E402
 from formats.motion import load_motion  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
 
@@ -50,7 +51,7 @@ def bones(match: dict[int, int], rest: np.ndarray) -> list[tuple[int, int]]:
 
 def fidelity(path: Path) -> list:
     """A results row for the BVH `path`."""
-    skeleton = read_skeleton(path, path.name)
+    skeleton = read_fbx(path, path.name) if path.suffix.lower() == ".fbx" else read_skeleton(path, path.name)
     t0 = time.perf_counter()
     motion = load_motion(path, world_checks=False)
     seconds = time.perf_counter() - t0
@@ -81,7 +82,7 @@ def main() -> None:
     header = ["clip", "rig joints", "SMPL joints matched", "frames", "read s", "bones", "median deg", "p95 deg",
               "max deg", "worst bone (its p95)"]
     write_markdown(args.out, [
-        "# SMPL's bones against the rig's, retargeted BVH clips", "",
+        "# SMPL's bones against the rig's, retargeted BVH and FBX clips", "",
         f"Made by `python benchmarks/retarget_fidelity.py {' '.join(p.name for p in args.clips)} --sources ...` on "
         f"{datetime.date.today().isoformat()}, {args.machine}, Python {platform.python_version()}. Angles between "
         f"each SMPL bone and the rig's over every frame (see the script's docstring).", "",

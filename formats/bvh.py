@@ -111,7 +111,13 @@ def read_bvh(path: Path, src: str) -> dict:
     """{'poses' (T, 24, 3) axis-angle, 'trans' (T, 3) metres, 'mocap_framerate', REST_UP_KEY where its rest
     skeleton stands along a world axis} of the BVH `path` (module docstring); InputError naming `src` for a file
     that is no BVH, a damaged one, or a skeleton that is no humanoid's (`core.retarget`)."""
-    names, parents, offsets, rotations, root, frame_time = read_skeleton(path, src)
+    return skeleton_arrays(read_skeleton(path, src), src)
+
+
+def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:
+    """`read_bvh`'s arrays of a skeleton's motion (a BVH's; an FBX's, `formats.fbx`): an SMPL skeleton's rotations
+    as they are, any other humanoid's retargeted (`core.retarget`)."""
+    names, parents, offsets, rotations, root, frame_time = skeleton
     n_frames = len(rotations)
     smpl = _smpl_skeleton(names, parents, offsets, src)
     if smpl is None:

@@ -19,7 +19,8 @@ per video frame of its detections: the person tracked in most frames) and PyTorc
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
-BVH motion capture of SMPL's or another humanoid's skeleton (`formats.bvh`, `core.retarget`).
+BVH or binary FBX motion capture of SMPL's or another humanoid's skeleton (`formats.bvh`, `formats.fbx`,
+`core.retarget`).
 """
 
 from __future__ import annotations
@@ -37,15 +38,14 @@ from core.errors import InputError
 from core.motion import (Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
-from formats.bvh import REST_UP_KEY, read_bvh
+from formats.bvh import REST_UP_KEY, read_bvh, skeleton_arrays
+from formats.fbx import read_fbx
 from formats.pickles import load_npy_pickle, load_pickle, load_torch
 
 log = logging.getLogger(__name__)
 
 #: What a motion file of another format is, for the message refusing it (only SMPL parameters drive the body).
 _OTHER_MOTION_FORMATS = {
-    ".fbx": "an FBX animation, which is not read: export it as a BVH (Blender, Maya, MotionBuilder), which is "
-            "read and retargeted onto SMPL's skeleton",
     **dict.fromkeys((".c3d", ".trc"), "motion capture markers (C3D/TRC), not a skeleton: fit SMPL to them first "
                     "(AMASS's MoSh), then save the npz"),
     ".json": "a JSON file",
@@ -112,7 +112,7 @@ MOTION_X_COLUMNS = {"root_orient": (0, 3), "pose_body": (3, 66), "pose_hand": (6
 #: A track's frames filled in where it was not tracked (`_fill_untracked`) at the most: an hour at 30 fps.
 MAX_FILLED_FRAMES = 108_000
 #: What a motion file's name ends with (the case aside).
-MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
+MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", ".fbx", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
 ROTATION_MATRIX_TOL = 1e-3
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
@@ -160,6 +160,9 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         arrays, files = _pickled_arrays(path, src)
     elif path.suffix.lower() == ".bvh":
         arrays = read_bvh(path, src)
+        files = list(arrays)
+    elif path.suffix.lower() == ".fbx":
+        arrays = skeleton_arrays(read_fbx(path, src), src)
         files = list(arrays)
     elif _starts_with(path, b"\x93NUMPY"):
         arrays, files = _npy_arrays(path, src)

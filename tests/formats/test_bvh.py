@@ -126,11 +126,13 @@ def _a_posed(joints, degrees):
     return out, turns
 
 
-def rig_bvh(path, poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0):
-    """A BVH of another rig moving as the SMPL motion (`poses`, `trans`) does: `rig` lists (name, parent's index,
-    SMPL joint or None, where) per joint, parents first; a matched joint's bone turns as SMPL's, an extra one
-    (where: (a, b, f), at f of the way from SMPL's rest joint a to b) turns with its parent, or at random where
-    it has no children (fingers). Its rest: SMPL's, `scale`d, the arms lowered `a_pose` degrees, in `unit`s."""
+def rig_motion(poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0):
+    """(names, parents, offsets, rotations (T, J, 3, 3) from the rest in the parent's frame, the root's (T, 3)
+    position) of another rig moving as the SMPL motion (`poses`, `trans`) does: `rig` lists (name, parent's
+    index, SMPL joint or None, where) per joint, parents first; a matched joint's bone turns as SMPL's, an extra
+    one (where: (a, b, f), at f of the way from SMPL's rest joint a to b) turns with its parent, or at random
+    where it has no children (fingers). Its rest: SMPL's, `scale`d, the arms lowered `a_pose` degrees, in
+    `unit`s, every joint's frame the world's."""
     joints, turns = _a_posed(default_body().shaped(None)[1][:24].astype(np.float64) * scale, a_pose)
     rng = np.random.default_rng(seed)
     names = [r[0] for r in rig]
@@ -152,7 +154,12 @@ def rig_bvh(path, poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0):
         if p >= 0:
             rotations[:, j] = np.swapaxes(world[:, p], 1, 2) @ world[:, j]
     root = (joints[0] / scale + trans) * scale / unit  # SMPL's pelvis path, the rig's size
-    return write_skeleton(path, names, parents, offsets, rotations, root, 30, "ZXY")
+    return names, parents, offsets, rotations, root
+
+
+def rig_bvh(path, poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0):
+    """A BVH at 30 fps of `rig_motion`'s rig."""
+    return write_skeleton(path, *rig_motion(poses, trans, rig, unit, scale, a_pose, seed), 30, "ZXY")
 
 
 def _rig(entries):

@@ -295,15 +295,17 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
         np.testing.assert_allclose(read_sequence(scene["out"] / name / "obj").points, a, atol=1e-5)
 
 
-def test_a_bvh_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(scene):
+def test_a_bvh_or_fbx_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(scene):
     """The scene's walk exported as a BVH of SMPL's skeleton (as smpl2bvh writes one: centimetres, ZYX Euler
     angles; the AMASS world kept: --motion-up z) bakes the garment of the AMASS file; so does the walk turned Y-up
     on a skeleton of Mixamo's names (retargeted; read in the world its rest stands in, +Y, with --motion-up left
-    out); a skeleton with no knees is one line, nothing written."""
+    out), as a BVH and as an FBX (an A-pose rig, pre-rotated joints), named or in a folder (an FBX of no skeleton
+    there left out); a skeleton with no knees is one line, nothing written."""
     from core.motion import Y_UP_TO_Z_UP_MATRIX
     from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
     from formats.sequence import read_sequence
     from tests.formats.test_bvh import write_bvh
+    from tests.formats.test_fbx import rig_fbx
 
     with np.load(scene["motion"]) as walk:
         arrays = dict(walk)
@@ -319,15 +321,25 @@ def test_a_bvh_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_hu
               "RightArm", "LeftForeArm", "RightForeArm", "LeftHand", "RightHand", "LeftHandIndex1",
               "RightHandIndex1")
     rig = write_bvh(scene["dir"] / "walk_rig.bvh", y_up, trans @ back.T, fps, names=mixamo)
-    for motion, options in ((scene["dir"] / "walk.npz", ()), (bvh, ("--motion-up", "z")), (rig, ())):
+    fbx = rig_fbx(scene["dir"] / "walk_fbx.fbx", y_up.astype(np.float32), trans @ back.T, fps=int(round(fps)))
+    for motion, options in ((scene["dir"] / "walk.npz", ()), (bvh, ("--motion-up", "z")), (rig, ()), (fbx, ())):
         r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
                     "--method", "lbs", *options])
         assert r.exit_code == 0, r.output
-    for name in ("walk_bvh", "walk_rig"):
+    for name in ("walk_bvh", "walk_rig", "walk_fbx"):
         np.testing.assert_allclose(read_sequence(scene["out"] / f"shell_{name}" / "obj").points,
                                    read_sequence(scene["out"] / "shell_walk" / "obj").points, atol=1e-4)
     summary = json.loads((scene["out"] / "shell_walk_rig" / "summary.json").read_text())
     assert summary["options"]["motion_up"] is None and summary["options"]["motion_up_as_read"] == "y"
+    # a folder of captures: its BVH and FBX motions baked, an FBX of no skeleton (a prop) left out
+    (scene["dir"] / "captures").mkdir()
+    for f in (rig, fbx):
+        (scene["dir"] / "captures" / f.name).write_bytes(f.read_bytes())
+    (scene["dir"] / "captures" / "prop.fbx").write_bytes(fbx.read_bytes().replace(b"LimbNode", b"MeshNode"))
+    r = invoke(["bake", scene["garment"], scene["dir"] / "captures", "--body", scene["body"], "--out",
+                scene["dir"] / "out_captures", "--method", "lbs"])
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == ["shell_walk_fbx", "shell_walk_rig"]
     (scene["dir"] / "rig.bvh").write_text(rig.read_text().replace("LeftLeg", "LeftTentacle"))
     assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "expected a humanoid skeleton",
                           "found no left knee (a joint named such as LeftLeg; it has Hips, LeftUpLeg")

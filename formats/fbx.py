@@ -1,0 +1,324 @@
+"""FBX animation of a humanoid skeleton (Mixamo's downloads; Maya, MotionBuilder, Blender exports in binary FBX
+7.x), read as the skeleton and motion `core.retarget` turns into SMPL's, as a BVH is (`formats.bvh`).
+
+The binary format (nodes of typed properties, arrays zlib-compressed or not) is read here, with no SDK: the
+skeleton's joints are its Models of type LimbNode (and Root), their hierarchy from the file's connections; each
+joint's transform per frame is FBX's (translation, pre-rotation, the Euler rotation in its RotationOrder,
+post-rotation, scaling; rotation and scaling pivots and offsets left out, as skeletons carry none), its
+animation curves sampled linearly at the file's frame rate over its first animation stack, a value without a
+curve its property's. The rest pose is the file's BindPose where it has one (the skin's bind matrices), else the
+joints' own property values. ASCII FBX and files without a skeleton are refused in one line.
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+import zlib
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from core.errors import InputError
+from core.rotations import axis_angle_to_matrix
+from formats.bvh import Skeleton
+
+log = logging.getLogger(__name__)
+
+_MAGIC = b"Kaydara FBX Binary  \x00"
+#: FBX time units per second (KeyTime, LocalStart, LocalStop).
+TICKS_PER_SECOND = 46186158000
+#: GlobalSettings' TimeMode -> frames per second (14: CustomFrameRate).
+_TIME_MODES = {1: 120.0, 2: 100.0, 3: 60.0, 4: 50.0, 5: 48.0, 6: 30.0, 7: 30.0, 8: 29.97, 9: 29.97, 10: 25.0,
+               11: 24.0, 12: 1000.0, 13: 23.976, 15: 96.0, 16: 72.0, 17: 59.94, 18: 119.88}
+#: RotationOrder -> the axes in the order they turn a point (eEulerXYZ: X first, R = Rz Ry Rx).
+_ORDERS = {0: "xyz", 1: "xzy", 2: "yzx", 3: "yxz", 4: "zxy", 5: "zyx"}
+_ARRAY_TYPES = {b"f": "<f4", b"d": "<f8", b"l": "<i8", b"i": "<i4", b"b": "?"}
+_SCALARS = {b"Y": "<h", b"C": "?", b"I": "<i", b"F": "<f", b"D": "<d", b"L": "<q"}
+
+
+class Node(NamedTuple):
+    name: str
+    props: list
+    children: list
+
+    def child(self, name: str) -> Node | None:
+        return next((c for c in self.children if c.name == name), None)
+
+    def all(self, name: str) -> list[Node]:
+        return [c for c in self.children if c.name == name]
+
+
+def read_nodes(data: bytes, src: str) -> tuple[int, list[Node]]:
+    """(version, top-level nodes) of a binary FBX's bytes; InputError naming `src` for an ASCII or damaged one."""
+    if not data.startswith(_MAGIC):
+        if data.lstrip()[:1] == b";" or b"FBXHeaderExtension:" in data[:4096]:
+            raise InputError(f"{src}: expected a binary FBX, got an ASCII one: save it as binary FBX (or export "
+                             f"its animation as a BVH)")
+        raise InputError(f"{src}: expected an FBX file (binary, 'Kaydara FBX Binary'), got a file that is not one")
+    version = struct.unpack_from("<I", data, 23)[0]
+    wide = version >= 7500
+    try:
+        nodes, _ = _records(data, 27, len(data), wide)
+    except (struct.error, IndexError, ValueError, zlib.error) as exc:
+        raise InputError(f"{src}: its FBX records are damaged or cut short ({type(exc).__name__})") from None
+    return version, nodes
+
+
+def _records(data: bytes, at: int, end: int, wide: bool) -> tuple[list[Node], int]:
+    head = struct.Struct("<QQQ" if wide else "<III")
+    nodes = []
+    while at + head.size + 1 <= end:
+        end_offset, n_props, _ = head.unpack_from(data, at)
+        if end_offset == 0:  # the null record closing a list
+            return nodes, at + head.size + 1
+        if end_offset > len(data) or end_offset <= at:
+            raise ValueError("record end out of the file")
+        name_len = data[at + head.size]
+        at += head.size + 1
+        name = data[at:at + name_len].decode("latin-1")
+        at += name_len
+        props = []
+        for _ in range(n_props):
+            value, at = _property(data, at)
+            props.append(value)
+        children = []
+        if at < end_offset:
+            children, at = _records(data, at, end_offset, wide)
+        nodes.append(Node(name, props, children))
+        at = end_offset
+    return nodes, at
+
+
+def _property(data: bytes, at: int):
+    kind = data[at:at + 1]
+    at += 1
+    if kind in _SCALARS:
+        fmt = struct.Struct(_SCALARS[kind])
+        return fmt.unpack_from(data, at)[0], at + fmt.size
+    if kind in _ARRAY_TYPES:
+        length, encoding, size = struct.unpack_from("<III", data, at)
+        at += 12
+        raw = data[at:at + size]
+        if encoding == 1:
+            raw = zlib.decompress(raw)
+        dtype = np.dtype(_ARRAY_TYPES[kind])
+        if len(raw) != length * dtype.itemsize:
+            raise ValueError("array of another length than it says")
+        return np.frombuffer(raw, dtype=dtype).copy(), at + size
+    if kind in (b"S", b"R"):
+        size = struct.unpack_from("<I", data, at)[0]
+        raw = data[at + 4:at + 4 + size]
+        return (raw.decode("utf-8", "replace") if kind == b"S" else raw), at + 4 + size
+    raise ValueError(f"unknown property type {kind!r}")
+
+
+def _props70(node: Node | None) -> dict:
+    """{name: values (a list)} of a node's Properties70."""
+    block = node.child("Properties70") if node is not None else None
+    return {p.props[0]: p.props[4:] for p in (block.all("P") if block is not None else [])}
+
+
+def _vector(props: dict, name: str, default: float) -> np.ndarray:
+    values = props.get(name)
+    return np.array(values[:3], dtype=np.float64) if values and len(values) >= 3 else np.full(3, default)
+
+
+def _euler(degrees: np.ndarray, order: str) -> np.ndarray:
+    """(..., 3, 3) the rotation of Euler angles (..., 3) in degrees about x, y, z, turning about `order`'s axes
+    in turn (the first axis first: 'xyz' is Rz Ry Rx)."""
+    R = np.broadcast_to(np.eye(3), degrees.shape[:-1] + (3, 3))
+    for axis in order:
+        k = "xyz".index(axis)
+        R = axis_angle_to_matrix(np.radians(degrees[..., k:k + 1]) * np.eye(3)[k]) @ R
+    return R
+
+
+def _name(node: Node) -> str:
+    return str(node.props[1]).split("\x00\x01")[0]
+
+
+class _Curves(NamedTuple):
+    """The animation of one stack: {(model id, 'T'/'R'/'S'): [per axis: (times, values) or a default]}."""
+
+    channels: dict
+    start: int
+    stop: int
+
+
+def _animation(objects: Node, links: list[tuple], stack: Node | None) -> _Curves | None:
+    """The curves of the first animation stack's first layer (all the file's curve nodes where it has no stack)."""
+    by_id = {n.props[0]: n for n in objects.children if n.props and isinstance(n.props[0], int)}
+    parents: dict[int, list] = {}
+    for kind, child, parent, *prop in links:
+        parents.setdefault(child, []).append((parent, prop[0] if prop else None))
+    layer = None
+    if stack is not None:
+        layer = next((c for c, ps in parents.items() if any(p == stack.props[0] for p, _ in ps)
+                      and by_id.get(c) is not None and by_id[c].name == "AnimationLayer"), None)
+    channels = {}
+    times = []
+    for node in objects.all("AnimationCurveNode"):
+        links_up = parents.get(node.props[0], [])
+        if layer is not None and not any(p == layer for p, _ in links_up):
+            continue
+        target = next(((p, prop) for p, prop in links_up if prop and prop.startswith("Lcl ")), None)
+        if target is None:
+            continue
+        key = {"Lcl Translation": "T", "Lcl Rotation": "R", "Lcl Scaling": "S"}.get(target[1])
+        if key is None:
+            continue
+        defaults = _props70(node)
+        axes: list = [defaults.get(f"d|{a}", [None])[0] for a in "XYZ"]
+        for curve_id, ps in parents.items():
+            for p, prop in ps:
+                if p == node.props[0] and prop in ("d|X", "d|Y", "d|Z") and curve_id in by_id:
+                    curve = by_id[curve_id]
+                    t, v = curve.child("KeyTime"), curve.child("KeyValueFloat")
+                    if t is not None and v is not None and len(t.props[0]) and len(t.props[0]) == len(v.props[0]):
+                        axes["XYZ".index(prop[2])] = (t.props[0].astype(np.int64), v.props[0].astype(np.float64))
+                        times += [int(t.props[0][0]), int(t.props[0][-1])]
+        channels[(target[0], key)] = axes
+    if not channels:
+        return None
+    span = _props70(stack)
+    start = int(span.get("LocalStart", [min(times, default=0)])[0])
+    stop = int(span.get("LocalStop", [max(times, default=0)])[0])
+    return _Curves(channels, start, max(stop, start))
+
+
+def _sampled(axes: list, static: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(T, 3) a channel's values at times `t`: its curves, else its curve node's defaults, else `static`."""
+    out = np.broadcast_to(static, (len(t), 3)).copy()
+    for k, axis in enumerate(axes):
+        if isinstance(axis, tuple):
+            out[:, k] = np.interp(t, axis[0], axis[1])
+        elif axis is not None:
+            out[:, k] = float(axis)
+    return out
+
+
+def read_fbx(path: Path, src: str) -> Skeleton:
+    """The skeleton and motion of the binary FBX `path` (module docstring), as `formats.bvh.read_skeleton` gives a
+    BVH's: its joints' frames turned to the world's at rest (the rest its zero pose), so `core.retarget` reads it
+    as a BVH; InputError naming `src` for a file that is no binary FBX, a damaged one, or one without a skeleton."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+    version, nodes = read_nodes(data, src)
+    if version < 7000:  # FBX 6's animation lives in Takes, not in AnimationCurve objects
+        raise InputError(f"{src}: expected FBX 7 (2011 and later), got FBX {version // 1000}.{version % 1000 // 100}: "
+                         f"export it again as a newer FBX, or as a BVH")
+    top = {n.name: n for n in nodes}
+    objects = top.get("Objects", Node("Objects", [], []))
+    links = [tuple(c.props) for c in top.get("Connections", Node("Connections", [], [])).all("C") if len(c.props) >= 3]
+    models = {m.props[0]: m for m in objects.all("Model") if len(m.props) >= 3}
+    joints = [i for i, m in models.items() if m.props[2] in ("LimbNode", "Root")]
+    if not joints:
+        raise InputError(f"{src}: expected an FBX of a skeleton (Models of type LimbNode), found "
+                         f"{len(models)} Model(s) and no joint: export the character's skeleton with its animation")
+    model_parent = {child: parent for kind, child, parent, *_ in links if kind == "OO" and child in models
+                    and parent in models}
+    order = _topological(list(models), model_parent)
+    settings = _props70(top.get("GlobalSettings"))
+    mode = int(settings.get("TimeMode", [0])[0])
+    fps = float(settings.get("CustomFrameRate", [30.0])[0]) if mode == 14 else _TIME_MODES.get(mode, 30.0)
+    stacks = objects.all("AnimationStack")
+    curves = _animation(objects, links, stacks[0] if stacks else None)
+    if curves is None:
+        log.warning("%s: no animation curves: its one frame is the skeleton as it stands", src)
+        t = np.zeros(1)
+    else:
+        n = int(round((curves.stop - curves.start) / TICKS_PER_SECOND * fps)) + 1
+        t = curves.start + np.arange(n) * (TICKS_PER_SECOND / fps)
+    world = {}
+    rest = {}
+    for i in order:
+        props = _props70(models[i])
+        static = [_vector(props, "Lcl Translation", 0.0), _vector(props, "Lcl Rotation", 0.0),
+                  _vector(props, "Lcl Scaling", 1.0)]
+        frames = [_sampled(curves.channels.get((i, key), [None] * 3), s, t) if curves else s[None]
+                  for key, s in zip("TRS", static)]
+        local = _local(props, *frames)
+        resting = _local(props, *(s[None] for s in static))[0]
+        p = model_parent.get(i)
+        world[i] = local if p is None else world[p] @ local
+        rest[i] = resting if p is None else rest[p] @ resting
+    rest.update(_bind_pose(objects, rest))
+    return _skeleton(joints, models, model_parent, order, world, rest, 1.0 / fps)
+
+
+def _topological(ids: list[int], parent: dict[int, int]) -> list[int]:
+    """`ids` with every parent before its children (a cycle's members last, as roots)."""
+    depth = {}
+    for i in ids:
+        d, j, seen = 0, i, {i}
+        while j in parent and parent[j] not in seen:
+            j = parent[j]
+            seen.add(j)
+            d += 1
+        depth[i] = d
+    return sorted(ids, key=lambda i: depth[i])
+
+
+def _local(props: dict, T: np.ndarray, R: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """(F, 4, 4) a model's transform in its parent's frame: translation, pre-rotation, its Euler rotation in its
+    RotationOrder, post-rotation inverted, scaling."""
+    order = _ORDERS.get(int(props.get("RotationOrder", [0])[0]), "xyz")
+    pre = _euler(_vector(props, "PreRotation", 0.0), "xyz")
+    post = _euler(_vector(props, "PostRotation", 0.0), "xyz")
+    M = np.zeros((len(T), 4, 4))
+    M[:, :3, :3] = pre @ _euler(R, order) @ post.T * S[:, None, :]
+    M[:, :3, 3] = T
+    M[:, 3, 3] = 1.0
+    return M
+
+
+def _bind_pose(objects: Node, rest: dict) -> dict:
+    """{model id: (4, 4) its world matrix} of the file's BindPose, where it has one."""
+    for pose in objects.all("Pose"):
+        if len(pose.props) >= 3 and pose.props[2] == "BindPose":
+            out = {}
+            for node in pose.all("PoseNode"):
+                i, m = node.child("Node"), node.child("Matrix")
+                if i is not None and m is not None and i.props[0] in rest and len(m.props[0]) == 16:
+                    out[i.props[0]] = np.asarray(m.props[0], dtype=np.float64).reshape(4, 4).T
+            return out
+    return {}
+
+
+def _skeleton(joints, models, model_parent, order, world, rest, frame_time) -> Skeleton:
+    """The largest tree of joints as a Skeleton whose zero pose is the rest (its frames the world's there)."""
+    def joint_parent(i):
+        p = model_parent.get(i)
+        while p is not None and p not in joint_set:
+            p = model_parent.get(p)
+        return p
+
+    joint_set = set(joints)
+    roots = {}
+    for i in joints:
+        r = i
+        while joint_parent(r) is not None:
+            r = joint_parent(r)
+        roots.setdefault(r, []).append(i)
+    tree = set(max(roots.values(), key=len))
+    ids = [i for i in order if i in tree]
+    index = {i: k for k, i in enumerate(ids)}
+    parents = [index[joint_parent(i)] if joint_parent(i) is not None else -1 for i in ids]
+
+    def rotation(M):  # the rotation of a transform, its scaling taken out
+        R = M[..., :3, :3]
+        return R / np.linalg.norm(R, axis=-2, keepdims=True)
+
+    rest_R = {i: rotation(rest[i]) for i in ids}
+    turned = {i: rotation(world[i]) @ rest_R[i].T for i in ids}  # each joint's rotation from its rest, in the world
+    rotations = np.stack([turned[i] if joint_parent(i) is None
+                          else np.swapaxes(turned[joint_parent(i)], -1, -2) @ turned[i] for i in ids], axis=1)
+    offsets = np.array([rest[i][:3, 3] - (rest[joint_parent(i)][:3, 3] if joint_parent(i) is not None else 0.0)
+                        for i in ids])
+    root = world[ids[0]][:, :3, 3]
+    names = [_name(models[i]) for i in ids]
+    return Skeleton(names, parents, offsets, rotations, root, frame_time)

@@ -1,0 +1,188 @@
+"""Tests of formats/fbx.py: binary FBX files of a skeleton's animation, written here as Mixamo, Maya and Blender
+write them (joints of LimbNode Models with pre-rotations and Euler orders, an Armature Null above them scaling
+centimetres to metres, curves per axis, compressed arrays, a BindPose), read back as the SMPL motion they move as."""
+
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from core.errors import InputError
+from core.rotations import axis_angle_to_matrix
+from formats.fbx import TICKS_PER_SECOND, read_nodes
+from formats.motion import load_motion
+from tests.formats.test_bvh import MIXAMO, _motion, rig_motion
+from tests.formats.test_motion import _assert_one_line
+
+#: FBX's RotationOrder enum, by axes in the order they turn a point.
+_ORDER = {"xyz": 0, "xzy": 1, "yzx": 2, "yxz": 3, "zxy": 4, "zyx": 5}
+
+
+def _prop(value) -> bytes:
+    """A property record of a (type code, value) pair: 'L', 'I', 'D', 'S', or arrays 'd', 'l', 'f' (their
+    upper-case code 'Dz', 'Lz', 'Fz': zlib-compressed)."""
+    code, v = value
+    if code in ("L", "I", "D"):
+        return code.encode() + struct.pack({"L": "<q", "I": "<i", "D": "<d"}[code], v)
+    if code == "S":
+        raw = v.encode("latin-1")
+        return b"S" + struct.pack("<I", len(raw)) + raw
+    kind = code[0].lower()
+    raw = np.asarray(v, dtype={"d": "<f8", "l": "<i8", "f": "<f4"}[kind]).tobytes()
+    packed = zlib.compress(raw) if code.endswith("z") else raw
+    return kind.encode() + struct.pack("<III", len(v), int(code.endswith("z")), len(packed)) + packed
+
+
+def _node(name: str, props=(), children=()) -> tuple:
+    return (name, [_prop(p) for p in props], list(children))
+
+
+def _encode(node, at: int) -> bytes:
+    """A node record (FBX 7.4: 32-bit offsets) starting at file offset `at`."""
+    name, props, children = node
+    head = 13 + len(name)
+    body = b"".join(props)
+    inner = b""
+    for child in children:
+        inner += _encode(child, at + head + len(body) + len(inner))
+    if children:
+        inner += bytes(13)
+    end = at + head + len(body) + len(inner)
+    return struct.pack("<III", end, len(props), len(body)) + bytes([len(name)]) + name.encode() + body + inner
+
+
+def write_fbx(path, nodes, version=7400):
+    data = b"Kaydara FBX Binary  \x00\x1a\x00" + struct.pack("<I", version)
+    for node in nodes:
+        data += _encode(node, len(data))
+    path.write_bytes(data + bytes(13) + bytes(160))  # the null record, then a footer the reader leaves
+    return path
+
+
+def _p70(*entries):
+    """Properties70 of (name, type code, values...) entries."""
+    return _node("Properties70", (), [_node("P", [("S", name), ("S", ""), ("S", ""), ("S", "")]
+                                            + [(code, v) for v in values]) for name, code, *values in entries])
+
+
+def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False):
+    """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
+    metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
+    and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
+    rotations are the first frame's (not the rest) and a BindPose holds the rest."""
+    names, parents, offsets, rotations, root = rig_motion(poses, trans, rig, unit=0.01, scale=1.15, a_pose=40.0)
+    rng = np.random.default_rng(seed)
+    T, J = rotations.shape[:2]
+    pre = Rotation.random(J, random_state=rng)
+    orders = [list(_ORDER)[k] for k in rng.integers(0, 6, J)]
+    frame = [None] * J  # each joint's world frame at rest: its parent's, then its pre-rotation
+    euler, translation, place = [], [], []
+    for j, p in enumerate(parents):
+        parent_frame = frame[p] if p >= 0 else np.eye(3)
+        frame[j] = parent_frame @ pre[j].as_matrix()
+        # its frame turns as the rig's joint does from its rest: F_p(t) Pre R(t) = W(t) F, so R = F^T L F
+        R = frame[j].T @ rotations[:, j] @ frame[j]
+        angles = Rotation.from_matrix(R).as_euler(orders[j])  # extrinsic, about the axes in that order
+        euler.append(np.degrees(angles[:, [orders[j].index(a) for a in "xyz"]]))
+        translation.append(parent_frame.T @ offsets[j])
+        place.append(root[0] if p < 0 else place[p] + offsets[j])
+    t = np.arange(T) * (TICKS_PER_SECOND // fps)
+    ids = {j: 1000 + j for j in range(J)}
+    armature, stack, layer = 900, 800, 801
+    objects = [_node("Model", [("L", armature), ("S", "Armature\x00\x01Model"), ("S", "Null")],
+                     [_p70(("Lcl Scaling", "D", 0.01, 0.01, 0.01))]),
+               _node("AnimationStack", [("L", stack), ("S", "Take 001\x00\x01AnimStack"), ("S", "")],
+                     [_p70(("LocalStart", "L", 0), ("LocalStop", "L", int(t[-1])))]),
+               _node("AnimationLayer", [("L", layer), ("S", "BaseLayer\x00\x01AnimLayer"), ("S", "")])]
+    links = [("OO", armature, 0), ("OO", layer, stack)]
+    poses_nodes = []
+    for j in range(J):
+        static = euler[j][0] if bind_pose else np.zeros(3)
+        objects.append(_node("Model", [("L", ids[j]), ("S", f"{names[j]}\x00\x01Model"), ("S", "LimbNode")],
+                             [_p70(("PreRotation", "D", *pre[j].as_euler("xyz", degrees=True)),
+                                   ("RotationOrder", "I", _ORDER[orders[j]]),
+                                   ("Lcl Translation", "D", *(root[0] if parents[j] < 0 else translation[j])),
+                                   ("Lcl Rotation", "D", *static))]))
+        links.append(("OO", ids[j], ids[parents[j]] if parents[j] >= 0 else armature))
+        channels = [("R", "Lcl Rotation", euler[j])] + ([("T", "Lcl Translation", root)] if parents[j] < 0 else [])
+        for c, (key, prop, values) in enumerate(channels):
+            node_id = 2000 + 10 * j + c
+            objects.append(_node("AnimationCurveNode", [("L", node_id), ("S", f"{key}\x00\x01AnimCurveNode"),
+                                                        ("S", "")]))
+            links += [("OO", node_id, layer), ("OP", node_id, ids[j], prop)]
+            for a in range(3):
+                curve_id = 100000 + 100 * j + 10 * c + a
+                code = "Fz" if (j + a) % 2 else "f"
+                objects.append(_node("AnimationCurve", [("L", curve_id), ("S", "\x00\x01AnimCurve"), ("S", "")],
+                                     [_node("KeyTime", [("Lz" if a else "l", t)]),
+                                      _node("KeyValueFloat", [(code, values[:, a])])]))
+                links.append(("OP", curve_id, node_id, "d|" + "XYZ"[a]))
+        if bind_pose:  # the world matrix at rest: the Armature's scaling, the joint's frame and place
+            M = np.eye(4)
+            M[:3, :3] = 0.01 * frame[j]
+            M[:3, 3] = 0.01 * place[j]
+            poses_nodes.append(_node("PoseNode", [], [_node("Node", [("L", ids[j])]),
+                                                     _node("Matrix", [("d", M.T.reshape(-1))])]))
+    if bind_pose:
+        objects.append(_node("Pose", [("L", 700), ("S", "BindPose\x00\x01Pose"), ("S", "BindPose")], poses_nodes))
+    settings = _node("GlobalSettings", [], [_p70(("UpAxis", "I", 1), ("TimeMode", "I", {30: 6, 60: 3}[fps]))])
+    connections = _node("Connections", [], [_node("C", [("S", kind), ("L", a), ("L", b)]
+                                                   + ([("S", rest[0])] if rest else []))
+                                            for kind, a, b, *rest in links])
+    return write_fbx(path, [settings, _node("Objects", [], objects), connections])
+
+
+@pytest.mark.parametrize("bind_pose", [False, True])
+def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose):
+    """A Mixamo rig's FBX (pre-rotated joint frames, six Euler orders, an Armature scaling centimetres, an A-pose
+    15 % larger, 30 fps) is retarget to the SMPL motion it moves as: every body joint's rotation, the
+    translation; with its static rotations another pose than the rest, its BindPose gives the rest."""
+    poses, trans = _motion(5, seed=7)
+    poses[:, 22:] = 0
+    m = load_motion(rig_fbx(tmp_path / "walk.fbx", poses, trans, bind_pose=bind_pose), world_checks=False)
+    assert m.fps == pytest.approx(30) and m.poses.shape == (5, 24, 3) and m.rest_up == "y"
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
+def test_an_ascii_broken_or_skeleton_less_fbx_is_one_line(tmp_path):
+    poses, trans = _motion(2)
+    good = rig_fbx(tmp_path / "good.fbx", poses, trans).read_bytes()
+    cases = [(b"; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n", "expected a binary FBX, got an ASCII one: "
+                                                                      "save it as binary FBX"),
+             (b"not an fbx at all", "expected an FBX file (binary, 'Kaydara FBX Binary'), got a file that is not"),
+             (good[:len(good) // 2], "its FBX records are damaged or cut short"),
+             (good.replace(b"LimbNode", b"MeshNode"), "expected an FBX of a skeleton (Models of type LimbNode), "
+                                                      "found 28 Model(s) and no joint"),
+             (good[:23] + struct.pack("<I", 6100) + good[27:], "expected FBX 7 (2011 and later), got FBX 6.1: "
+                                                               "export it again")]
+    for data, expected in cases:
+        (tmp_path / "bad.fbx").write_bytes(data)
+        with pytest.raises(InputError) as info:
+            load_motion(tmp_path / "bad.fbx")
+        _assert_one_line(info, "bad.fbx", expected)
+    assert read_nodes(good, "good.fbx")[0] == 7400
+
+
+def test_an_fbx_without_curves_is_its_skeleton_standing_one_frame(tmp_path, caplog):
+    """A character's FBX of no animation (a skinned download without motion) is one frame of its rest pose, told:
+    SMPL at rest but for its shoulders, lowered as the rig's A-pose (40 degrees)."""
+    import logging
+
+    from formats.fbx import read_nodes as parse
+
+    poses, trans = _motion(3)
+    path = rig_fbx(tmp_path / "character.fbx", poses * 0, trans)
+    data = path.read_bytes()
+    for name in (b"AnimationCurveNode", b"AnimationCurve"):  # renamed out of sight, sizes kept
+        data = data.replace(name, name.upper().replace(b"CURVE", b"CURVX"))
+    path.write_bytes(data)
+    assert parse(data, "x")[0] == 7400
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(path, world_checks=False)
+    assert m.n_frames == 1 and "no animation curves" in caplog.text
+    others = [k for k in range(24) if k not in (16, 17)]
+    np.testing.assert_allclose(m.poses[0, others], 0, atol=1e-6)
+    np.testing.assert_allclose(np.degrees(np.linalg.norm(m.poses[0, [16, 17]], axis=-1)), 40, atol=1e-3)
