@@ -5,8 +5,8 @@
 For each clip: the rig's joints posed by its own channels (`core.retarget.rig_pose`), and the embedded body's
 joints posed by the SMPL motion `formats.motion.load_motion` reads from it; for every SMPL bone retargeting turns
 onto one of the rig's (up the spine to the head, collar to shoulder, down the limbs), the angle between
-SMPL's bone and the rig's in every frame (`bones`): the median, the 95th percentile and the largest over bones and frames,
-and the bone worst at its 95th percentile. The angle is 0 where the rig's joints between two matched ones do
+SMPL's bone and the rig's in every frame (`bones`): the median, the 95th percentile and the largest over bones
+and frames, and the bone worst at its 95th percentile. The angle is 0 where the rig's joints between two matched ones do
 not turn (`core.retarget`'s docstring); a rig with more spine or neck joints than SMPL bends its spine
 between them. Also the seconds `load_motion` takes. The clips are not in the repository (their sources: the
 results file). Nothing here is asserted by tests.

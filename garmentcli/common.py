@@ -264,9 +264,10 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
                    check_frames=None, motion_up: str | None = "z"):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
-    --motion-up y, -y, auto or left out (None) (`resolved_up`; the motion turned from its Y-up (-Y-up) world to Z-up about the pelvis
-    of `body`, the embedded one when None, at the motion's betas), --frames (source frames) with --preroll (source
-    frames before them, deformed and not written: `Motion.n_lead`), --fps and --settle, in that order.
+    --motion-up y, -y, auto or left out (None) (`resolved_up`; the motion turned from its Y-up (-Y-up) world to
+    Z-up about the pelvis of `body`, the embedded one when None, at the motion's betas), --frames (source frames)
+    with --preroll (source frames before them, deformed and not written: `Motion.n_lead`), --fps and --settle, in
+    that order.
 
     body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
     once, naming the motion. check_frames(n_frames, source_fps): called with the frame count of the prepared
