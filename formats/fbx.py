@@ -34,6 +34,8 @@ _TIME_MODES = {1: 120.0, 2: 100.0, 3: 60.0, 4: 50.0, 5: 48.0, 6: 30.0, 7: 30.0, 
                11: 24.0, 12: 1000.0, 13: 23.976, 15: 96.0, 16: 72.0, 17: 59.94, 18: 119.88}
 #: RotationOrder -> the axes in the order they turn a point (eEulerXYZ: X first, R = Rz Ry Rx).
 _ORDERS = {0: "xyz", 1: "xzy", 2: "yzx", 3: "yxz", 4: "zxy", 5: "zyx"}
+#: The Model properties curve nodes drive, by the channel's letter.
+_LCL = {"Lcl Translation": "T", "Lcl Rotation": "R", "Lcl Scaling": "S"}
 _ARRAY_TYPES = {b"f": "<f4", b"d": "<f8", b"l": "<i8", b"i": "<i4", b"b": "?"}
 _SCALARS = {b"Y": "<h", b"C": "?", b"I": "<i", b"F": "<f", b"D": "<d", b"L": "<q"}
 
@@ -150,36 +152,34 @@ class _Curves(NamedTuple):
 def _animation(objects: Node, links: list[tuple], stack: Node | None) -> _Curves | None:
     """The curves of the first animation stack's first layer (all the file's curve nodes where it has no stack)."""
     by_id = {n.props[0]: n for n in objects.children if n.props and isinstance(n.props[0], int)}
-    parents: dict[int, list] = {}
+    up: dict[int, list] = {}  # child -> [(parent, the parent's property it drives, or None)]
+    down: dict[int, list] = {}  # parent -> [(child, property)]
     for kind, child, parent, *prop in links:
-        parents.setdefault(child, []).append((parent, prop[0] if prop else None))
+        up.setdefault(child, []).append((parent, prop[0] if prop else None))
+        down.setdefault(parent, []).append((child, prop[0] if prop else None))
     layer = None
     if stack is not None:
-        layer = next((c for c, ps in parents.items() if any(p == stack.props[0] for p, _ in ps)
-                      and by_id.get(c) is not None and by_id[c].name == "AnimationLayer"), None)
-    channels = {}
-    times = []
+        layer = next((c for c, _ in down.get(stack.props[0], [])
+                      if c in by_id and by_id[c].name == "AnimationLayer"), None)
+    channels, times = {}, []
     for node in objects.all("AnimationCurveNode"):
-        links_up = parents.get(node.props[0], [])
+        links_up = up.get(node.props[0], [])
         if layer is not None and not any(p == layer for p, _ in links_up):
             continue
-        target = next(((p, prop) for p, prop in links_up if prop and prop.startswith("Lcl ")), None)
+        target = next(((p, _LCL[prop]) for p, prop in links_up if prop in _LCL), None)
         if target is None:
-            continue
-        key = {"Lcl Translation": "T", "Lcl Rotation": "R", "Lcl Scaling": "S"}.get(target[1])
-        if key is None:
             continue
         defaults = _props70(node)
         axes: list = [defaults.get(f"d|{a}", [None])[0] for a in "XYZ"]
-        for curve_id, ps in parents.items():
-            for p, prop in ps:
-                if p == node.props[0] and prop in ("d|X", "d|Y", "d|Z") and curve_id in by_id:
-                    curve = by_id[curve_id]
-                    t, v = curve.child("KeyTime"), curve.child("KeyValueFloat")
-                    if t is not None and v is not None and len(t.props[0]) and len(t.props[0]) == len(v.props[0]):
-                        axes["XYZ".index(prop[2])] = (t.props[0].astype(np.int64), v.props[0].astype(np.float64))
-                        times += [int(t.props[0][0]), int(t.props[0][-1])]
-        channels[(target[0], key)] = axes
+        for curve_id, prop in down.get(node.props[0], []):
+            curve = by_id.get(curve_id)
+            if prop not in ("d|X", "d|Y", "d|Z") or curve is None:
+                continue
+            t, v = curve.child("KeyTime"), curve.child("KeyValueFloat")
+            if t is not None and v is not None and t.props and v.props and 0 < len(t.props[0]) == len(v.props[0]):
+                axes["XYZ".index(prop[2])] = (t.props[0].astype(np.int64), v.props[0].astype(np.float64))
+                times += [int(t.props[0][0]), int(t.props[0][-1])]
+        channels[target] = axes
     if not channels:
         return None
     span = _props70(stack)
@@ -207,6 +207,16 @@ def read_fbx(path: Path, src: str) -> Skeleton:
         data = path.read_bytes()
     except OSError as exc:
         raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+    try:
+        return _read(data, src)
+    except InputError:
+        raise
+    except (IndexError, KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"{src}: its FBX objects are not as FBX 7 writes them ({type(exc).__name__}: "
+                         f"{str(exc)[:80]})") from None
+
+
+def _read(data: bytes, src: str) -> Skeleton:
     version, nodes = read_nodes(data, src)
     if version < 7000:  # FBX 6's animation lives in Takes, not in AnimationCurve objects
         raise InputError(f"{src}: expected FBX 7 (2011 and later), got FBX {version // 1000}.{version % 1000 // 100}: "
