@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.body import SMPL_JOINT_NAMES, default_body  # noqa: E402
-from core.retarget import _CHAIN_CHILD, match_joints, rest_positions, rig_pose  # noqa: E402
+from core.retarget import CHAIN_CHILD, match_joints, rest_positions, rig_pose  # noqa: E402
 from formats.bvh import read_skeleton  # noqa: E402
 from formats.fbx import read_fbx  # noqa: E402
 from formats.motion import load_motion  # noqa: E402
@@ -40,10 +40,10 @@ def bones(match: dict[int, int], rest: np.ndarray) -> list[tuple[int, int]]:
     spine and spine3's to the collars turn with the body's frame, not onto the rig's own bones: the rigs place
     their hips and collars elsewhere, so they are left out.)"""
     out = []
-    for k in _CHAIN_CHILD:
-        c = _CHAIN_CHILD.get(k)
+    for k in CHAIN_CHILD:
+        c = CHAIN_CHILD.get(k)
         while c is not None and c not in match:
-            c = _CHAIN_CHILD.get(c)
+            c = CHAIN_CHILD.get(c)
         if k in match and c is not None and np.linalg.norm(rest[match[c]] - rest[match[k]]) > 0:
             out.append((k, c))
     return out

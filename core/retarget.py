@@ -1,5 +1,6 @@
 """Motion capture of another humanoid rig (Mixamo's, CMU's, 3ds Max Biped's, MotionBuilder's, Xsens', Daz's, a
-game engine's) turned into SMPL joint rotations and translation: what `formats.bvh` reads a BVH of such a rig as.
+game engine's) turned into SMPL joint rotations and translation: what `formats.bvh` and `formats.fbx` read a BVH
+or an FBX of such a rig as.
 
 Joints are matched by name to roles (`_ROLE_NAMES`: 'LeftUpLeg', 'L_Thigh', 'thigh_l', 'Bip01 L Thigh' are all the
 left hip), the spine by the skeleton's shape (the joints from the pelvis to the neck; the chest the one the arms
@@ -47,7 +48,7 @@ _PELVIS_NAMES = ("hips", "hip", "pelvis")
 _REQUIRED = {"hip": "LeftUpLeg", "knee": "LeftLeg", "ankle": "LeftFoot", "shoulder": "LeftArm",
              "elbow": "LeftForeArm", "wrist": "LeftHand"}
 #: SMPL's joint down each chain from a joint (spine to neck to head, down the limbs): the bone that turns it.
-_CHAIN_CHILD = {3: 6, 6: 9, 9: 12, 12: 15, 1: 4, 4: 7, 7: 10, 2: 5, 5: 8, 8: 11, 13: 16, 16: 18, 18: 20, 20: 22,
+CHAIN_CHILD = {3: 6, 6: 9, 9: 12, 12: 15, 1: 4, 4: 7, 7: 10, 2: 5, 5: 8, 8: 11, 13: 16, 16: 18, 18: 20, 20: 22,
                 14: 17, 17: 19, 19: 21, 21: 23}
 #: SMPL's pelvis, spine, neck and head.
 _TRUNK = (0, 3, 6, 9, 12, 15)
@@ -280,9 +281,9 @@ def _rest_turns(match, rest, smpl_rest, body_m, body_s) -> dict[int, np.ndarray]
     for k in range(1, 24):
         if k not in match:
             continue
-        c = _CHAIN_CHILD.get(k)
+        c = CHAIN_CHILD.get(k)
         while c is not None and c not in match:
-            c = _CHAIN_CHILD.get(c)
+            c = CHAIN_CHILD.get(c)
         bone_s = rest[match[c]] - rest[match[k]] if c is not None else np.zeros(3)
         if c is None or np.linalg.norm(bone_s) < 1e-9 * np.linalg.norm(rest[match[1]] - rest[match[2]]):
             turns[k] = turns[next(p for p in _ancestors(k) if p in turns)]

@@ -8,7 +8,8 @@ REST_MAX_DEGREES): their rotations are SMPL's, the unit is told by the legs (met
 millimetres) and the root's position less its OFFSET (the rest pelvis SMPL exporters write there) is the
 translation. A skeleton that is not (other names, joints, bone lengths or rest pose) is retargeted. Rotation
 channels compose in the order listed (Zrotation Yrotation Xrotation: R = Rz Ry Rx); the root's position channels
-are its position. The world is the BVH's own (Y-up as most tools write it: --motion-up y).
+are its position. Its world is the one its rest skeleton stands in (REST_UP_KEY: Y-up as most tools write it),
+which `garmentcli.common.resolved_up` takes where --motion-up is left out.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 
 from core.body import N_BODY_JOINTS, SMPL_JOINT_NAMES, SMPL_PARENTS
 from core.errors import InputError
-from core.retarget import retarget
+from core.retarget import canonical, retarget
 from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 log = logging.getLogger(__name__)
@@ -30,9 +31,7 @@ log = logging.getLogger(__name__)
 #: The key of `read_bvh`'s arrays holding the world axis its rest skeleton stands along ("z", "y", "-y"; none
 #: where it stands along none), which `--motion-up auto` takes.
 REST_UP_KEY = "rest_up"
-#: Prefixes of SMPL joint names in exported rigs (SMPL's Blender/Unity models: m_avg_, f_avg_).
-_NAME_PREFIXES = ("m_avg_", "f_avg_", "smpl_", "smplx_")
-#: Other names of SMPL's joints after `_canonical` (the hands as palms).
+#: Other names of SMPL's joints after `core.retarget.canonical` (the hands as palms).
 _ALIASES = {"lpalm": "lhand", "rpalm": "rhand"}
 #: A rest bone further than this from SMPL's T-pose bone (degrees) is another rest pose: refused.
 REST_MAX_DEGREES = 30.0
@@ -49,13 +48,8 @@ _UNITS = ((3.0, 1.0, "metres"), (38.0, 0.0254, "inches"), (300.0, 0.01, "centime
 
 
 def _canonical(name: str) -> str:
-    n = name.lower()
-    for prefix in _NAME_PREFIXES:
-        if n.startswith(prefix):
-            n = n[len(prefix):]
-    n = re.sub(r"[^a-z0-9]", "", n)
-    n = re.sub(r"^left", "l", n)
-    n = re.sub(r"^right", "r", n)
+    """A joint's name as `core.retarget.canonical` matches it ('m_avg_L_Hip', 'Left_hip': 'lhip'), palms as hands."""
+    n = canonical(name)
     return _ALIASES.get(n, n)
 
 
@@ -63,9 +57,9 @@ _SMPL_INDEX = {_canonical(n): k for k, n in enumerate(SMPL_JOINT_NAMES)}
 
 
 class Skeleton(NamedTuple):
-    """A BVH's skeleton and motion: joint `names`, `parents` (-1 for the root; parents first), `offsets` (J, 3)
-    in its unit, `rotations` (T, J, 3, 3) each joint's from its rest (its channels composed), `root` (T, 3) the
-    root's position, `frame_time` in seconds."""
+    """A skeleton and its motion (a BVH's; an FBX's, `formats.fbx`): joint `names`, `parents` (-1 for the root;
+    parents first), `offsets` (J, 3) in its unit, `rotations` (T, J, 3, 3) each joint's from its rest (its
+    channels composed), `root` (T, 3) the root's position, `frame_time` in seconds."""
 
     names: list[str]
     parents: list[int]
