@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from core.body import SMPL_JOINT_NAMES, default_body  # noqa: E402
-from core.retarget import CHAIN_CHILD, match_joints, rest_positions, rig_pose  # noqa: E402
+from core.retarget import CHAIN_CHILD, chain_end, match_joints, rest_positions, rig_pose  # noqa: E402
 from formats.bvh import read_skeleton  # noqa: E402
 from formats.fbx import read_fbx  # noqa: E402
 from formats.motion import load_motion  # noqa: E402
@@ -36,17 +36,11 @@ from formats.report import markdown_table, write_markdown  # noqa: E402
 
 def bones(match: dict[int, int], rest: np.ndarray) -> list[tuple[int, int]]:
     """SMPL's bones retargeting turns onto the rig's: each matched joint to the first matched one down its chain
-    (`core.retarget._rest_turns`), where the rig's rest bone has a length. (The pelvis's bones to the hips and
+    (`core.retarget.chain_end`), where the rig's rest bone has a length. (The pelvis's bones to the hips and
     spine and spine3's to the collars turn with the body's frame, not onto the rig's own bones: the rigs place
     their hips and collars elsewhere, so they are left out.)"""
-    out = []
-    for k in CHAIN_CHILD:
-        c = CHAIN_CHILD.get(k)
-        while c is not None and c not in match:
-            c = CHAIN_CHILD.get(c)
-        if k in match and c is not None and np.linalg.norm(rest[match[c]] - rest[match[k]]) > 0:
-            out.append((k, c))
-    return out
+    ends = {k: chain_end(k, match) for k in CHAIN_CHILD if k in match}
+    return [(k, c) for k, c in ends.items() if c is not None and np.linalg.norm(rest[match[c]] - rest[match[k]]) > 0]
 
 
 def fidelity(path: Path) -> list:

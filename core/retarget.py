@@ -281,9 +281,7 @@ def _rest_turns(match, rest, smpl_rest, body_m, body_s) -> dict[int, np.ndarray]
     for k in range(1, 24):
         if k not in match:
             continue
-        c = CHAIN_CHILD.get(k)
-        while c is not None and c not in match:
-            c = CHAIN_CHILD.get(c)
+        c = chain_end(k, match)
         bone_s = rest[match[c]] - rest[match[k]] if c is not None else np.zeros(3)
         if c is None or np.linalg.norm(bone_s) < 1e-9 * np.linalg.norm(rest[match[1]] - rest[match[2]]):
             turns[k] = turns[next(p for p in _ancestors(k) if p in turns)]
@@ -293,6 +291,15 @@ def _rest_turns(match, rest, smpl_rest, body_m, body_s) -> dict[int, np.ndarray]
         axis = 1 if along else 2
         turns[k] = _frame(bone_s, body_s[:, axis]) @ _frame(bone_m, body_m[:, axis]).T
     return turns
+
+
+def chain_end(k: int, match: dict[int, int]) -> int | None:
+    """The SMPL joint at the other end of joint `k`'s bone on a rig (`match`): the first matched one down its chain
+    (CHAIN_CHILD), or None."""
+    c = CHAIN_CHILD.get(k)
+    while c is not None and c not in match:
+        c = CHAIN_CHILD.get(c)
+    return c
 
 
 def _frame(primary: np.ndarray, secondary: np.ndarray) -> np.ndarray:
