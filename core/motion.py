@@ -55,8 +55,8 @@ class Motion:
     n_lead: leading frames deformed but not written (`preroll`: the motion before the frames asked for, so a
       simulated or learned garment arrives at the first written frame moving with the body, not at rest).
     up: the world axis the file's body stood along as read, "z", or "y" / "-y" turned to Z-up (`y_up_to_z_up`).
-    rest_up: the world axis the file's own rest skeleton stands along (a BVH's: "z", "y", "-y"), or None where the
-      file tells none; `--motion-up auto` takes it before the body's frames.
+    rest_up: the world axis the file's own rest skeleton stands along (a BVH's or FBX's: "z", "y", "-y"), or None
+      where the file tells none; --motion-up left out or auto takes it (`garmentcli.common.resolved_up`).
     """
 
     poses: np.ndarray

@@ -316,7 +316,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
 
 def resolved_up(motion, path: str, motion_up: str | None) -> str:
     """--motion-up for the motion read from `path`: as given; left out (None), the world axis its file's rest
-    skeleton stands along (a BVH's: `Motion.rest_up`), else "z" (with the world checks `load_motion` leaves to it:
+    skeleton stands along (a BVH's or FBX's: `Motion.rest_up`), else "z" (with the world checks `load_motion` leaves to it:
     along another axis? metres?); "auto", that rest axis, else the one its body stands along
     (`core.motion.standing_axis`: +Z, +Y or -Y in most frames and along no other in any), else "z" (told, with
     the metres check)."""
@@ -383,9 +383,9 @@ def motion_up_option(command):
                         help="The motions' world up axis: z (AMASS), y (the world of most video pose estimators: "
                              "GVHMR, WHAM, TRAM) or -y (camera coordinates, y down the image: per-image estimators "
                              "such as SMPLer-X, 4D-Humans), turned to Z-up exactly (about the body's "
-                             "pelvis); auto: per motion, the axis its file's rest skeleton stands along (a BVH's), "
-                             "else its body in most frames (z where none). Left out: z, but a BVH's world is the "
-                             "one its rest skeleton stands in.")(command)
+                             "pelvis); auto: per motion, the axis its file's rest skeleton stands along (a BVH's or "
+                             "FBX's), else its body in most frames (z where none). Left out: z, but a BVH's or FBX's "
+                             "world is the one its rest skeleton stands in.")(command)
 
 
 #: Betas beyond this (standard deviations of the body's shape space) are warned about: the methods are tested
