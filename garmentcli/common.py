@@ -316,8 +316,8 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
 
 def resolved_up(motion, path: str, motion_up: str | None) -> str:
     """--motion-up for the motion read from `path`: as given; left out (None), the world axis its file's rest
-    skeleton stands along (a BVH's or FBX's: `Motion.rest_up`), else "z" (with the world checks `load_motion` leaves to it:
-    along another axis? metres?); "auto", that rest axis, else the one its body stands along
+    skeleton stands along (a BVH's or FBX's: `Motion.rest_up`), else "z" (with the world checks `load_motion`
+    leaves to it: along another axis? metres?); "auto", that rest axis, else the one its body stands along
     (`core.motion.standing_axis`: +Z, +Y or -Y in most frames and along no other in any), else "z" (told, with
     the metres check)."""
     from core.motion import UP_NAMES, standing_axis, warn_if_not_metres, warn_if_not_z_up
