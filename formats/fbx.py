@@ -59,10 +59,9 @@ def read_nodes(data: bytes, src: str) -> tuple[int, list[Node]]:
             raise InputError(f"{src}: expected a binary FBX, got an ASCII one: save it as binary FBX (or export "
                              f"its animation as a BVH)")
         raise InputError(f"{src}: expected an FBX file (binary, 'Kaydara FBX Binary'), got a file that is not one")
-    version = struct.unpack_from("<I", data, 23)[0]
-    wide = version >= 7500
     try:
-        nodes, _ = _records(data, 27, len(data), wide)
+        version = struct.unpack_from("<I", data, 23)[0]
+        nodes, _ = _records(data, 27, len(data), version >= 7500)
     except (struct.error, IndexError, ValueError, zlib.error) as exc:
         raise InputError(f"{src}: its FBX records are damaged or cut short ({type(exc).__name__})") from None
     return version, nodes

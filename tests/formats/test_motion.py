@@ -347,13 +347,12 @@ def test_not_an_npz(tmp_path):
     with pytest.raises(InputError) as info:
         load_motion(path)
     _assert_one_line(info, "text.npz", "npz", "not one")
-    # a capture in a skeleton format is named for what it is, with what to do (pickles: test_motion_pickles.py;
-    # BVH: test_bvh.py)
+    # an FBX cut after its magic is a damaged FBX; markers are named for what they are, with what to do (pickles:
+    # test_motion_pickles.py; BVH: test_bvh.py; FBX: test_fbx.py)
     (tmp_path / "walk.fbx").write_text("Kaydara FBX Binary  \x00")
     with pytest.raises(InputError) as info:
         load_motion(tmp_path / "walk.fbx")
-    _assert_one_line(info, "walk.fbx", "AMASS-style .npz", "an FBX animation, which is not read: export it as a BVH",
-                     "retargeted onto SMPL's skeleton")
+    _assert_one_line(info, "walk.fbx", "its FBX records are damaged or cut short")
     (tmp_path / "walk.c3d").write_bytes(b"\x02\x50" + bytes(510))
     with pytest.raises(InputError) as info:
         load_motion(tmp_path / "walk.c3d")
