@@ -32,6 +32,8 @@ TICKS_PER_SECOND = 46186158000
 #: GlobalSettings' TimeMode -> frames per second (14: CustomFrameRate).
 _TIME_MODES = {1: 120.0, 2: 100.0, 3: 60.0, 4: 50.0, 5: 48.0, 6: 30.0, 7: 30.0, 8: 29.97, 9: 29.97, 10: 25.0,
                11: 24.0, 12: 1000.0, 13: 23.976, 15: 96.0, 16: 72.0, 17: 59.94, 18: 119.88}
+#: More frames than this (an hour at 1,000 fps) is a damaged time span, refused.
+MAX_FRAMES = 3_600_000
 #: RotationOrder -> the axes in the order they turn a point (eEulerXYZ: X first, R = Rz Ry Rx).
 _ORDERS = {0: "xyz", 1: "xzy", 2: "yzx", 3: "yxz", 4: "zxy", 5: "zyx"}
 #: The Model properties curve nodes drive, by the channel's letter.
@@ -181,9 +183,10 @@ def _animation(objects: Node, links: list[tuple], stack: Node | None) -> _Curves
         channels[target] = axes
     if not channels:
         return None
-    span = _props70(stack)
-    start = int(span.get("LocalStart", [min(times, default=0)])[0])
-    stop = int(span.get("LocalStop", [max(times, default=0)])[0])
+    span = _props70(stack)  # the stack's span, within its keys' (a frame past the last key would hold it)
+    first, last = min(times, default=0), max(times, default=0)
+    start = min(max(int(span.get("LocalStart", [first])[0]), first), last)
+    stop = min(int(span.get("LocalStop", [last])[0]), last)
     return _Curves(channels, start, max(stop, start))
 
 
@@ -230,10 +233,14 @@ def _read(data: bytes, src: str) -> Skeleton:
                          f"{len(models)} Model(s) and no joint: export the character's skeleton with its animation")
     model_parent = {child: parent for kind, child, parent, *_ in links if kind == "OO" and child in models
                     and parent in models}
-    order = _topological(list(models), model_parent)
+    depth = _depths(list(models), model_parent)
+    model_parent = {c: p for c, p in model_parent.items() if depth[p] < depth[c]}  # a damaged file's cycle cut
+    order = sorted(models, key=lambda i: depth[i])
     settings = _props70(top.get("GlobalSettings"))
     mode = int(settings.get("TimeMode", [0])[0])
     fps = float(settings.get("CustomFrameRate", [30.0])[0]) if mode == 14 else _TIME_MODES.get(mode, 30.0)
+    if not (np.isfinite(fps) and fps > 0):
+        raise InputError(f"{src}: expected a frame rate over 0 in its CustomFrameRate, got {fps:g}")
     stacks = objects.all("AnimationStack")
     curves = _animation(objects, links, stacks[0] if stacks else None)
     if curves is None:
@@ -241,6 +248,9 @@ def _read(data: bytes, src: str) -> Skeleton:
         t = np.zeros(1)
     else:
         n = int(round((curves.stop - curves.start) / TICKS_PER_SECOND * fps)) + 1
+        if n > MAX_FRAMES:
+            raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} "
+                             f"fps (its keys span {(curves.stop - curves.start) / TICKS_PER_SECOND:,.0f} s)")
         t = curves.start + np.arange(n) * (TICKS_PER_SECOND / fps)
     world = {}
     rest = {}
@@ -259,8 +269,8 @@ def _read(data: bytes, src: str) -> Skeleton:
     return _skeleton(joints, models, model_parent, order, world, rest, 1.0 / fps)
 
 
-def _topological(ids: list[int], parent: dict[int, int]) -> list[int]:
-    """`ids` with every parent before its children (a cycle's members last, as roots)."""
+def _depths(ids: list[int], parent: dict[int, int]) -> dict[int, int]:
+    """{id: its number of ancestors} (going up a cycle stops where it comes round)."""
     depth = {}
     for i in ids:
         d, j, seen = 0, i, {i}
@@ -269,7 +279,7 @@ def _topological(ids: list[int], parent: dict[int, int]) -> list[int]:
             seen.add(j)
             d += 1
         depth[i] = d
-    return sorted(ids, key=lambda i: depth[i])
+    return depth
 
 
 def _local(props: dict, T: np.ndarray, R: np.ndarray, S: np.ndarray) -> np.ndarray:

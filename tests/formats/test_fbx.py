@@ -67,11 +67,12 @@ def _p70(*entries):
                                             + [(code, v) for v in values]) for name, code, *values in entries])
 
 
-def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False):
+def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None):
     """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
     metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
     and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
-    rotations are the first frame's (not the rest) and a BindPose holds the rest."""
+    rotations are the first frame's (not the rest) and a BindPose holds the rest. extra_links: connections
+    added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s."""
     names, parents, offsets, rotations, root = rig_motion(poses, trans, rig, unit=0.01, scale=1.15, a_pose=40.0)
     rng = np.random.default_rng(seed)
     T, J = rotations.shape[:2]
@@ -127,7 +128,10 @@ def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False):
                                                      _node("Matrix", [("d", M.T.reshape(-1))])]))
     if bind_pose:
         objects.append(_node("Pose", [("L", 700), ("S", "BindPose\x00\x01Pose"), ("S", "BindPose")], poses_nodes))
-    settings = _node("GlobalSettings", [], [_p70(("UpAxis", "I", 1), ("TimeMode", "I", {30: 6, 60: 3}[fps]))])
+    mode = [("TimeMode", "I", {30: 6, 60: 3}[fps])] if time_mode is None else [
+        ("TimeMode", "I", time_mode[0]), ("CustomFrameRate", "D", time_mode[1])]
+    settings = _node("GlobalSettings", [], [_p70(("UpAxis", "I", 1), *mode)])
+    links += list(extra_links)
     connections = _node("Connections", [], [_node("C", [("S", kind), ("L", a), ("L", b)]
                                                    + ([("S", rest[0])] if rest else []))
                                             for kind, a, b, *rest in links])
@@ -164,6 +168,22 @@ def test_an_ascii_broken_or_skeleton_less_fbx_is_one_line(tmp_path):
             load_motion(tmp_path / "bad.fbx")
         _assert_one_line(info, "bad.fbx", expected)
     assert read_nodes(good, "good.fbx")[0] == 7400
+
+
+def test_a_damaged_fbxs_cycle_reads_and_its_time_span_is_one_line(tmp_path):
+    """Connections that make a cycle (the Armature under the hips it holds) are cut, not followed for ever: the
+    motion reads as its own; a custom frame rate of a billion frames per second is refused before any frame is
+    sampled, as is one of 0."""
+    poses, trans = _motion(4, seed=2)
+    poses[:, 22:] = 0
+    m = load_motion(rig_fbx(tmp_path / "cycle.fbx", poses, trans, extra_links=[("OO", 900, 1000)]),
+                    world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    for rate, expected in ((1e9, "expected an animation of at most 3,600,000 frames, got 100,000,001 at 1e+09 fps"),
+                           (0.0, "expected a frame rate over 0 in its CustomFrameRate, got 0")):
+        with pytest.raises(InputError) as info:
+            load_motion(rig_fbx(tmp_path / "span.fbx", poses, trans, time_mode=(14, rate)))
+        _assert_one_line(info, "span.fbx", expected)
 
 
 def test_an_fbx_without_curves_is_its_skeleton_standing_one_frame(tmp_path, caplog):
