@@ -161,14 +161,8 @@ def _sides(by_name: dict[str, int], side: str) -> dict[str, int]:
     exporters' 'LeftCollar', 'LeftShoulder') or where no other joint is the arm, else the collar (Mixamo's
     'LeftShoulder', 'LeftArm'); 'foot' is the ankle unless an 'ankle' is there (SMPL's 'left_foot' is its toes),
     'hand' the wrist unless a 'wrist' is (SMPL's 'left_hand' its knuckles)."""
-    def find(*roles_or_names: str) -> int | None:
-        for n in roles_or_names:
-            for alias in _ROLE_NAMES.get(n, (n,)):
-                if side + alias in by_name:
-                    return by_name[side + alias]
-        return None
-
-    out = {role: find(role) for role in _ROLE_NAMES}
+    out = {role: next((by_name[side + n] for n in names if side + n in by_name), None)
+           for role, names in _ROLE_NAMES.items()}
     shoulder = by_name.get(side + "shoulder")
     if shoulder is not None:
         if out["shoulder"] is None:
