@@ -142,12 +142,14 @@ def open_npz(path: Path, refuse):
             yield data
 
 
-def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Motion:
+def load_motion(path, fps: float | None = None, world_checks: bool = True, person: str | None = None) -> Motion:
     """Read a motion: an AMASS-style .npz, or a pickle or PyTorch file of the same parameters (module docstring).
 
     path: file path. fps: frame rate in Hz that overrides (or replaces a missing)
     `mocap_framerate` / `mocap_frame_rate`. world_checks: warn when the motion looks Y-up (or -Y) or its
-    translation not in metres (off for a file read for its joint rotations only).
+    translation not in metres (off for a file read for its joint rotations only). person: of a file of several
+    tracked people (WHAM, VIBE, PHALP), the track id to read (else the one tracked longest); a file of one
+    person is read as it is.
     Returns a Motion: poses (T, 24|52|55, 3) float32 axis-angle radians, trans
     (T, 3) float32 metres (Z-up world), fps, betas (S,) float32 or None, gender.
     Raises InputError (one line naming the file) for any unreadable or invalid content.
@@ -157,7 +159,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
     if not path.is_file():
         raise InputError(f"{src}: file not found")
     if path.suffix.lower() in PICKLE_SUFFIXES + TORCH_SUFFIXES:
-        arrays, files = _pickled_arrays(path, src)
+        arrays, files = _pickled_arrays(path, src, person=person)
     elif path.suffix.lower() == ".bvh":
         arrays = read_bvh(path, src)
         files = list(arrays)
@@ -165,7 +167,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True) -> Mo
         arrays = skeleton_arrays(read_fbx(path, src), src)
         files = list(arrays)
     elif _starts_with(path, b"\x93NUMPY"):
-        arrays, files = _npy_arrays(path, src)
+        arrays, files = _npy_arrays(path, src, person)
     else:
         arrays, files = _npz_arrays(path, src)
     _from_smpl_codec(arrays, src)
@@ -256,7 +258,7 @@ def _starts_with(path: Path, magic: bytes) -> bool:
         return False
 
 
-def _npy_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
+def _npy_arrays(path: Path, src: str, person: str | None = None) -> tuple[dict, list[str]]:
     """(the arrays load_motion reads, their keys) of a single .npy array: Motion-X's SMPL-X parameters, (T, 322)
     (`MOTION_X_COLUMNS`; its face's expression and shape left unread), or a pickled dict (TRAM's
     hps_track_K.npy: `formats.pickles.load_npy_pickle`); InputError naming `src` otherwise."""
@@ -267,7 +269,7 @@ def _npy_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
     except ValueError as exc:  # a pickled object (a dict saved with np.save): through the restricted unpickler
         if "allow_pickle" not in str(exc):
             raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
-        return _pickled_arrays(path, src, npy=True)
+        return _pickled_arrays(path, src, npy=True, person=person)
     except (OSError, EOFError) as exc:
         raise InputError(f"{src}: cannot read it as a .npy array ({_short(exc)})") from None
     if values.ndim != 2 or values.shape[1] != MOTION_X_VALUES:
@@ -276,11 +278,11 @@ def _npy_arrays(path: Path, src: str) -> tuple[dict, list[str]]:
     return arrays, list(arrays)
 
 
-def _pickled_arrays(path: Path, src: str, npy: bool = False) -> tuple[dict, list[str]]:
+def _pickled_arrays(path: Path, src: str, npy: bool = False, person: str | None = None) -> tuple[dict, list[str]]:
     """(the arrays load_motion reads, every key of the dict read) of a pickled motion (`PICKLE_SUFFIXES`,
-    `TORCH_SUFFIXES`; npy: a .npy of a pickled object): its one person's SMPL parameters (`_motion_dict`);
-    InputError naming `src` otherwise."""
-    data = _motion_dict(_unpickled(path, src, npy), src)
+    `TORCH_SUFFIXES`; npy: a .npy of a pickled object): its one person's SMPL parameters (`_motion_dict`; `person`
+    as load_motion takes it); InputError naming `src` otherwise."""
+    data = _motion_dict(_unpickled(path, src, npy), src, person=person)
     return {str(k): _plain(v) for k, v in data.items() if str(k) in _READ_KEYS}, [str(k) for k in data]
 
 
@@ -309,11 +311,11 @@ def _unpickled(path: Path, src: str, npy: bool = False):
         raise InputError(f"{src}: cannot read it as {kind} ({type(exc).__name__}: {_short(exc)})") from None
 
 
-def _motion_dict(data, src: str, quiet: bool = False) -> dict:
+def _motion_dict(data, src: str, quiet: bool = False, person: str | None = None) -> dict:
     """`_person` of `data`; InputError naming `src` where its structure is not the one expected (a PHALP frame's
     detection of no dict, a track that is no list: what a pickle holds is anybody's)."""
     try:
-        return _person(data, src, quiet)
+        return _person(data, src, quiet, person)
     except (AttributeError, TypeError, KeyError, IndexError, ValueError) as exc:
         if isinstance(exc, InputError):
             raise
@@ -322,41 +324,52 @@ def _motion_dict(data, src: str, quiet: bool = False) -> dict:
                          f"{_short(exc)})") from None
 
 
-def _person(data, src: str, quiet: bool) -> dict:
+def _person(data, src: str, quiet: bool, person: str | None = None) -> dict:
     """One person's SMPL parameters in the pickled `data`: the dict itself; GVHMR's `smpl_params_global` in it
-    (`_NESTED_KEYS`); of a dict of tracked people (WHAM, VIBE: {track id: dict}), the person tracked longest, warned
-    about where there are others (quiet: not)."""
+    (`_NESTED_KEYS`); of a dict of tracked people (WHAM, VIBE: {track id: dict}), the track `person` where given,
+    else the person tracked longest, warned about where there are others (quiet: not)."""
     if not isinstance(data, dict):
         raise InputError(f"{src}: expected a pickled dict of SMPL parameters ('poses', 'trans', ...; or one such "
                          f"dict per tracked person), got {type(data).__name__}")
     nested = next((k for k in _NESTED_KEYS if isinstance(data.get(k), dict)), None)
     data = data[nested] if nested else data
     if data and all(isinstance(v, dict) and "smpl" in v and "tid" in v for v in data.values()):
-        return _phalp_person(data, src, quiet)
+        return _phalp_person(data, src, quiet, person)
     if data and all(isinstance(v, dict) for v in data.values()):
         frames = {k: max((len(v[p]) for p in _POSE_KEYS if hasattr(v.get(p), "__len__")), default=0)
                   for k, v in data.items()}
-        data = data[_longest(frames, src, quiet)]
+        data = data[_chosen(frames, src, quiet, person)]
+    elif person is not None and not quiet:
+        log.info("%s: the parameters of one person: --person %s left aside", src, person)
     return data
 
 
-def _longest(frames: dict, src: str, quiet: bool):
-    """The person of `frames` ({id: frames tracked}) tracked longest (the first of them), the others warned about
+def _chosen(frames: dict, src: str, quiet: bool, person: str | None = None):
+    """The person of `frames` ({id: frames tracked}) whose id reads as `person` where given (InputError naming
+    `src` and the ids where none does), else the one tracked longest (the first of them), the others warned about
     (quiet: not)."""
-    person = max(frames, key=frames.get)
+    def listed():
+        return ", ".join(f"'{k}' {n} frames" for k, n in list(frames.items())[:6]) + (", ..." if len(frames) > 6
+                                                                                       else "")
+
+    if person is not None:
+        chosen = next((k for k in frames if str(k) == str(person)), None)
+        if chosen is None:
+            raise InputError(f"{src}: expected --person one of its {len(frames)} tracked people ({listed()}), got "
+                             f"'{person}'")
+        return chosen
+    chosen = max(frames, key=frames.get)
     if len(frames) > 1 and not quiet:
-        log.warning("%s: holds %d tracked people (%s): reading '%s', tracked longest (save another's arrays as an "
-                    ".npz to bake them)", src, len(frames),
-                    ", ".join(f"'{k}' {n} frames" for k, n in list(frames.items())[:6])
-                    + (", ..." if len(frames) > 6 else ""), person)
-    return person
+        log.warning("%s: holds %d tracked people (%s): reading '%s', tracked longest (--person ID reads another)",
+                    src, len(frames), listed(), chosen)
+    return chosen
 
 
-def _phalp_person(data: dict, src: str, quiet: bool) -> dict:
+def _phalp_person(data: dict, src: str, quiet: bool, person: str | None = None) -> dict:
     """One person's smplx arguments (global_orient, body_pose, betas, transl: its 'camera' translation; frame_ids:
     the frames' 'time') from PHALP's and 4D-Humans' results: {frame: {'time', 'tid': [track id per detection],
     'smpl': [{'global_orient', 'body_pose', 'betas'} per detection], 'camera': [(3,) per detection], ...}}; the
-    person tracked in most frames (`_longest`)."""
+    track `person`, else the person tracked in most frames (`_chosen`)."""
     frames = sorted(data.items(), key=lambda kv: (_plain(kv[1].get("time", -1)).reshape(-1)[:1].tolist(),
                                                   str(kv[0])))
     tids = [[_plain(t).item() for t in frame["tid"]] for _, frame in frames]  # per frame, per detection
@@ -365,7 +378,7 @@ def _phalp_person(data: dict, src: str, quiet: bool) -> dict:
         counts[tid] = counts.get(tid, 0) + 1
     if not counts:
         raise InputError(f"{src}: expected PHALP's tracked people ('tid', 'smpl' per detection), found none tracked")
-    person = _longest(counts, src, quiet)
+    person = _chosen(counts, src, quiet, person)
     parts: dict = {"global_orient": [], "body_pose": [], "betas": [], "transl": [], "frame_ids": []}
     for k, ((_, frame), frame_tids) in enumerate(zip(frames, tids)):
         if person not in frame_tids:

@@ -39,6 +39,7 @@ from garmentcli.common import (
     motion_files,
     motion_names,
     motion_up_option,
+    person_option,
     parse_device,
     prepare_motion,
     require_file,
@@ -165,6 +166,7 @@ class BakeSpec:
     preroll_frames: int = 0  # --preroll: source frames before --frames START deformed, not written
     fit_path: str | None = None  # psd: --fit
     motion_up: str | None = "z"  # --motion-up (None: left out; the motions arrive turned), recorded in summary.json
+    person: str | None = None  # --person (the track read of a file of tracked people), recorded in summary.json
     device: str | None = None  # model: --device as given (None: auto, resolved where the deformer is made)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
@@ -213,7 +215,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
                     "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,
-                    "motion_up_as_read": motion.up},
+                    "motion_up_as_read": motion.up, "person": spec.person},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
     })
@@ -293,6 +295,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @betas_option
 @source_fps_option
 @motion_up_option
+@person_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Output frame rate (any ratio to the source).")
 @frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
@@ -331,7 +334,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="auto", source_fps=None, floor=None, start_frame=0, fit_path=None,
-         preroll_frames=0, device=None, motion_up="z", warned=()):
+         preroll_frames=0, device=None, motion_up="z", person=None, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz; another tool's .pkl,
     .pt, .npy, .smpl, .bvh or .fbx, README "Inputs"; or a directory: every motion .npz, .smpl, .pkl, .npy, .bvh and
     .fbx under it).
@@ -399,7 +402,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                                                         min(BAKE_COPIES.values()), 1, settle_frames)
 
     motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames, body=body,
-                               check_frames=check_frames(m), motion_up=motion_up), m, target)
+                               check_frames=check_frames(m), motion_up=motion_up, person=person), m, target)
                for m, target in targets]
     choice, fallback = "", ""
     if quality == "auto":
@@ -452,7 +455,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
                     contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame,
-                    fit_path=fit_path, preroll_frames=preroll_frames, device=device, motion_up=motion_up)
+                    fit_path=fit_path, preroll_frames=preroll_frames, device=device, motion_up=motion_up,
+                    person=person)
     if method == "sim":
         _note_rest_start(frames, preroll_frames, [(mo, path) for (mo, _), path, _ in motions])
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair

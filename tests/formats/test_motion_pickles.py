@@ -28,6 +28,8 @@ def _fixture_people() -> dict:
 
 @pytest.mark.parametrize("name", ["wham_like.pkl", "wham_like_zlib.pkl"])
 def test_a_joblib_file_of_tracked_people_gives_the_longest_tracks_world_motion(name, caplog):
+    """WHAM's joblib result of two tracked people reads the longest-tracked one's world motion (the other named),
+    or the one given as person; an id it does not hold is one line naming those it does."""
     people = _fixture_people()
     read = load_pickle(DATA / name, "x", "a motion file")  # the arrays joblib wrote after its pickled header
     assert sorted(read) == sorted(people)
@@ -45,8 +47,19 @@ def test_a_joblib_file_of_tracked_people_gives_the_longest_tracks_world_motion(n
     np.testing.assert_allclose(m.trans[3], person["trans_world"][2:4].mean(axis=0), rtol=1e-6)
     np.testing.assert_allclose(m.betas, person["betas"].mean(axis=0), rtol=1e-6)
     text = caplog.text
-    assert "holds 2 tracked people ('0' 6 frames, '7' 4 frames): reading '0'" in text
+    assert "holds 2 tracked people ('0' 6 frames, '7' 4 frames): reading '0', tracked longest (--person ID" in text
     assert "not tracked in 1 of the video's 7 frames from its first to its last (its frame numbers; 1 in a row" in text
+    other = people[7]  # person='7' reads the other track, without a word of the first
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(DATA / name, fps=30, person="7")
+    assert "tracked people" not in caplog.text
+    np.testing.assert_array_equal(m.poses.reshape(m.n_frames, 72)[other["frame_ids"] - other["frame_ids"][0]],
+                                  other["pose_world"])
+    with pytest.raises(InputError) as info:
+        load_motion(DATA / name, fps=30, person="2")
+    _assert_one_line(info, name, "expected --person one of its 2 tracked people ('0' 6 frames, '7' 4 frames), got "
+                                 "'2'")
 
 
 def test_frame_ids_not_one_increasing_number_per_frame_are_left_unused_and_an_absurd_span_refused(tmp_path, caplog):
@@ -267,7 +280,8 @@ def test_an_smpl_codec_file_of_another_model_or_a_misshapen_part_is_one_line(tmp
 
 def test_a_phalp_result_gives_the_person_tracked_in_most_frames_as_smplx_arguments(tmp_path, caplog):
     """PHALP's and 4D-Humans' results: {frame: {'time', 'tid', 'smpl', 'camera', ... per detection}}; person 3 is
-    seen in frames 0, 1, 3, 4 (frame 2 filled in), person 5 in frames 1 and 2; masks and features left unread."""
+    seen in frames 0, 1, 3, 4 (frame 2 filled in), person 5 in frames 1 and 2 (read with person='5'; an id not
+    tracked is one line naming those that are); masks and features left unread."""
     from core.rotations import axis_angle_to_matrix
 
     rng = np.random.default_rng(4)
@@ -279,7 +293,7 @@ def test_a_phalp_result_gives_the_person_tracked_in_most_frames_as_smplx_argumen
         frames[f"outputs/img/{t:06d}.jpg"] = {
             "time": t, "shot": 0, "tid": people, "mask": [{"size": [4, 4], "counts": b"abc"} for _ in people],
             "appe": [np.zeros(8, np.float32) for _ in people], "camera": [camera[t] + p for p in people],
-            "smpl": [{"global_orient": axis_angle_to_matrix(poses[t, :1]) + p - 3,
+            "smpl": [{"global_orient": axis_angle_to_matrix(poses[t, :1]),
                       "body_pose": axis_angle_to_matrix(poses[t, 1:]), "betas": np.zeros(10, np.float32)}
                      for p in people]}
     path = tmp_path / "demo_video.pkl"
@@ -293,3 +307,9 @@ def test_a_phalp_result_gives_the_person_tracked_in_most_frames_as_smplx_argumen
     np.testing.assert_allclose(m.trans[2], (camera[1] + camera[3]) / 2 + 3, atol=1e-6)
     assert "holds 2 tracked people ('3' 4 frames, '5' 2 frames): reading '3'" in caplog.text
     assert "not tracked in 1 of the video's 5 frames" in caplog.text
+    m = load_motion(path, fps=30, world_checks=False, person="5")  # the other track: frames 1 and 2
+    np.testing.assert_allclose(m.trans, camera[1:3] + 5, atol=1e-6)
+    with pytest.raises(InputError) as info:
+        load_motion(path, fps=30, person="4")
+    _assert_one_line(info, "demo_video.pkl", "expected --person one of its 2 tracked people ('3' 4 frames, '5' 2 "
+                                             "frames), got '4'")

@@ -366,3 +366,42 @@ def test_motion_up_auto_reads_each_axis_the_body_stands_along_and_z_where_none(c
         assert ("stands along no one world axis" in caplog.text) == (axis is None)
         assert ("expected metres" in caplog.text) == (axis is None)
     assert resolved_up(Motion(poses=poses, trans=trans, fps=30.0), "m.npz", "-y") == "-y"  # as given
+
+
+def test_person_picks_a_track_of_a_file_of_tracked_people(scene):
+    """A WHAM result of two tracked people: the longest-tracked bakes by default, --person 3 the other (the walk
+    1 m along x: the garment 1 m along x), recorded in summary.json; an id not tracked is one line naming those
+    that are, nothing written; metrics poses the body with --motion and --person as the bake did, and refuses
+    --person without --motion."""
+    import pickle
+
+    from formats.sequence import read_sequence
+
+    with np.load(scene["motion"]) as walk:
+        poses, trans, fps = walk["poses"], walk["trans"], float(walk["mocap_framerate"])
+    path = scene["dir"] / "wham_output.pkl"
+    with open(path, "wb") as fh:
+        pickle.dump({0: {"pose_world": poses, "trans_world": trans, "frame_ids": np.arange(len(poses))},
+                     3: {"pose_world": poses[:-2], "trans_world": trans[:-2] + [1.0, 0, 0],
+                         "frame_ids": np.arange(len(poses) - 2)}}, fh)
+    out = {}
+    for name, options in (("longest", ()), ("three", ("--person", "3"))):
+        r = invoke(["bake", scene["garment"], path, "--body", scene["body"], "--out", scene["dir"] / name,
+                    "--method", "lbs", "--source-fps", fps, *options])
+        assert r.exit_code == 0, r.output
+        out[name] = read_sequence(scene["dir"] / name / "shell_wham_output" / "obj").points
+    summary = json.loads((scene["dir"] / "three" / "shell_wham_output" / "summary.json").read_text())
+    assert summary["options"]["person"] == "3"
+    n = len(out["three"])  # its two frames fewer, resampled at --fps
+    assert n < len(out["longest"])
+    np.testing.assert_allclose(out["three"], out["longest"][:n] + [1.0, 0, 0], atol=1e-5)
+    r = _bake(scene, path, "--person", "9", "--source-fps", fps)
+    assert_one_line_error(r, "wham_output.pkl", "expected --person one of its 2 tracked people ('0' ", "'3' ",
+                          "got '9'")
+    assert not scene["out"].exists()
+    baked = scene["dir"] / "three" / "shell_wham_output"
+    r = invoke(["metrics", baked, baked, "--person", "3"])
+    assert_one_line_error(r, "--person", "applies only with --motion")
+    r = invoke(["metrics", baked, baked, "--motion", path, "--body", scene["body"], "--source-fps", fps,
+                "--person", "3"])  # the body posed as the bake posed it: person 3's frames
+    assert r.exit_code == 0, r.output
