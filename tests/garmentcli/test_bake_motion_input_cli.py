@@ -399,6 +399,11 @@ def test_person_picks_a_track_of_a_file_of_tracked_people(scene):
     assert_one_line_error(r, "wham_output.pkl", "expected --person one of its 2 tracked people ('0' ", "'3' ",
                           "got '9'")
     assert not scene["out"].exists()
+    from core.model_deform import DEFAULT_MODEL
+
+    for command in (["tradeoff"], ["attribute", DEFAULT_MODEL, "--frame", "1"]):  # the same option and reading
+        r = invoke([*command, scene["garment"], path, "--body", scene["body"], "--out", scene["out"], "--person", "9"])
+        assert_one_line_error(r, "wham_output.pkl", "expected --person one of its 2 tracked people", "got '9'")
     baked = scene["dir"] / "three" / "shell_wham_output"
     r = invoke(["metrics", baked, baked, "--person", "3"])
     assert_one_line_error(r, "--person", "applies only with --motion")
