@@ -241,6 +241,29 @@ def test_dataset_motion_up_y_reads_y_up_motions_turned_and_keys_the_plan(scene):
         assert settings.get("motion_up") == recorded
 
 
+def test_dataset_person_plans_a_tracked_persons_frames_and_keys_the_plan(scene):
+    """--person reads that track of a file of tracked people (WHAM's: person 3 tracked in 4 of 6 frames): the plan
+    has its frames and records the option only when given."""
+    import pickle
+
+    d = scene["dir"]
+    poses = np.zeros((6, 72), np.float32)
+    with open(d / "wham_output.pkl", "wb") as fh:
+        pickle.dump({0: {"pose_world": poses, "trans_world": np.zeros((6, 3), np.float32)},
+                     3: {"pose_world": poses[:4], "trans_world": np.zeros((4, 3), np.float32)}}, fh)
+    args = ["dataset", "--garments", scene["garment"], "--motions", d / "wham_output.pkl", "--body", scene["body"],
+            "--settle", 0, "--dry-run", "--no-held-out", "--source-fps", 30]
+    for options, frames in (((), 6), (("--person", "3"), 4)):
+        r = run(*args, *options, "--out", d / f"plan{len(options)}")
+        assert r.exit_code == 0, r.output
+        manifest = json.loads((d / f"plan{len(options)}" / "manifest.json").read_text())
+        assert manifest["settings"].get("person") == (options[1] if options else None)
+        assert {it["n_frames"] for it in manifest["items"]} == {frames}, manifest["items"]
+    from garmentcli.dataset import _load_motions  # what each worker simulates (`_worker_init`)
+
+    assert _load_motions([d / "wham_output.pkl"], False, 30.0, 30.0, person="3")["wham_output"].n_frames == 4
+
+
 def test_dataset_motion_up_y_turns_each_item_about_its_own_shapes_pelvis():
     """--motion-up y turns a file's motion about the pelvis at the file's betas; each dataset item then takes a
     body shape of its own, whose pelvis stands elsewhere, so its body stood millimetres off where the Y-up world,
