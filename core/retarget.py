@@ -94,7 +94,8 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     rest = rest_positions(parents, offsets)
     match = match_joints(names, parents, src)
     smpl_rest = default_body().shaped(None)[1][:24].astype(np.float64)
-    body_m, body_s = _body_frame(smpl_rest, range(24)), _body_frame(rest, [match.get(k, -1) for k in range(24)])
+    itself = {k: k for k in range(24)}  # SMPL's rest joints as a rig matched to itself
+    body_m, body_s = _body_frame(smpl_rest, itself), _body_frame(rest, match)
     _check_standing(rest, match, body_s, names, src)
     turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
 
@@ -109,7 +110,7 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
         parent = SMPL_PARENTS[k]
         local[:, k] = smpl_world[:, k] if parent < 0 else np.swapaxes(smpl_world[:, parent], 1, 2) @ smpl_world[:, k]
 
-    legs_m, legs_s = _legs(smpl_rest, {k: k for k in range(24)}), _legs(rest, match)
+    legs_m, legs_s = _legs(smpl_rest, itself), _legs(rest, match)
     if not (np.isfinite(legs_s) and legs_s > 0):
         raise InputError(f"{src}: expected legs of some length in its OFFSETs, got {legs_s}")
     trans = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
@@ -245,7 +246,7 @@ def _ancestors(k: int) -> list[int]:
     return out
 
 
-def _body_frame(rest: np.ndarray, joint: list[int]) -> np.ndarray:
+def _body_frame(rest: np.ndarray, joint: dict[int, int]) -> np.ndarray:
     """(3, 3) columns left, up, forward of a rest skeleton (`joint`: its joint of each SMPL joint): up from the
     pelvis to the head, left from the right hip to the left."""
     up = _unit(rest[joint[15]] - rest[joint[0]])

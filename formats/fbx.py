@@ -310,23 +310,23 @@ def _bind_pose(objects: Node, rest: dict) -> dict:
 
 def _skeleton(joints, models, model_parent, order, world, rest, frame_time) -> Skeleton:
     """The largest tree of joints as a Skeleton whose zero pose is the rest (its frames the world's there)."""
-    def joint_parent(i):
+    joint_set = set(joints)
+    up = {}  # each joint's nearest joint above it (through models that are no joints: an Armature), or None
+    for i in joints:
         p = model_parent.get(i)
         while p is not None and p not in joint_set:
             p = model_parent.get(p)
-        return p
-
-    joint_set = set(joints)
+        up[i] = p
     roots = {}
     for i in joints:
         r = i
-        while joint_parent(r) is not None:
-            r = joint_parent(r)
+        while up[r] is not None:
+            r = up[r]
         roots.setdefault(r, []).append(i)
     tree = set(max(roots.values(), key=len))
     ids = [i for i in order if i in tree]
     index = {i: k for k, i in enumerate(ids)}
-    parents = [index[joint_parent(i)] if joint_parent(i) is not None else -1 for i in ids]
+    parents = [index[up[i]] if up[i] is not None else -1 for i in ids]
 
     def rotation(M):  # the rotation of a transform, its scaling taken out
         R = M[..., :3, :3]
@@ -334,10 +334,9 @@ def _skeleton(joints, models, model_parent, order, world, rest, frame_time) -> S
 
     rest_R = {i: rotation(rest[i]) for i in ids}
     turned = {i: rotation(world[i]) @ rest_R[i].T for i in ids}  # each joint's rotation from its rest, in the world
-    rotations = np.stack([turned[i] if joint_parent(i) is None
-                          else np.swapaxes(turned[joint_parent(i)], -1, -2) @ turned[i] for i in ids], axis=1)
-    offsets = np.array([rest[i][:3, 3] - (rest[joint_parent(i)][:3, 3] if joint_parent(i) is not None else 0.0)
-                        for i in ids])
+    rotations = np.stack([turned[i] if up[i] is None else np.swapaxes(turned[up[i]], -1, -2) @ turned[i]
+                          for i in ids], axis=1)
+    offsets = np.array([rest[i][:3, 3] - (rest[up[i]][:3, 3] if up[i] is not None else 0.0) for i in ids])
     root = world[ids[0]][:, :3, 3]
     names = [_name(models[i]) for i in ids]
     return Skeleton(names, parents, offsets, rotations, root, frame_time)

@@ -21,4 +21,3 @@ def private_cache_dir(tmp_path_factory):
         os.environ.pop(CACHE_ENV, None)
     else:
         os.environ[CACHE_ENV] = old
-
