@@ -13,13 +13,16 @@ on to the next matched joint. The pelvis's path is scaled by SMPL's legs over th
 feet keep their stride. Joint positions along the bones agree exactly where the rig's joints between two matched
 ones do not turn; the twist about a limb is the rig's.
 
-A rig's rest pose (all its rotations zero) must be a standing one (legs down from the hips, the head above the
-pelvis): a rest that is not (LAFAN1's, whose zero pose folds the body) gives no forward to turn the bones by,
-and is refused.
+The bones are turned from the rig's rest pose (all its rotations zero) where it stands (legs down from the hips,
+the head above the pelvis). A rig whose zero pose folds the body (LAFAN1's: every bone along its joint's own X)
+gives no forward to turn the bones by: the clip's frame that stands straightest (`_standing_frame`) is taken as
+its rest instead, warned, SMPL's T-pose turned onto it bone by bone (the twist about a limb then the actor's at
+that frame, whose hanging arms give SMPL's palms facing the thighs). A clip with no standing frame is refused.
 """
 
 from __future__ import annotations
 
+import logging
 import re
 from typing import NamedTuple
 
@@ -28,6 +31,8 @@ import numpy as np
 from core.body import SMPL_JOINT_NAMES, SMPL_PARENTS, default_body
 from core.errors import InputError
 from core.rotations import matrix_to_axis_angle
+
+log = logging.getLogger(__name__)
 
 #: Prefixes of joint names in exported rigs, left out before matching (after any 'namespace:').
 _PREFIXES = re.compile(r"^(m_avg_|f_avg_|smplx?_|bip0*1[ _]?|cc_base_|def[_-]|org[_-]|b_)")
@@ -55,7 +60,7 @@ _TRUNK = (0, 3, 6, 9, 12, 15)
 #: The world axes a rest skeleton may stand along (`Retargeted.up`), and how close (cosine, 30 degrees).
 _UP_AXES = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0)}
 _UP_COSINE = np.cos(np.radians(30.0))
-#: A rest leg further than this from the rest body's down (degrees, hips to ankles) is no standing rest: refused.
+#: A thigh or shin further than this from the body's down (degrees; up: from the pelvis to the head) does not stand.
 LEG_MAX_DEGREES = 45.0
 
 
@@ -95,11 +100,25 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     match = match_joints(names, parents, src)
     smpl_rest = default_body().shaped(None)[1][:24].astype(np.float64)
     itself = {k: k for k in range(24)}  # SMPL's rest joints as a rig matched to itself
-    body_m, body_s = _body_frame(smpl_rest, itself), _body_frame(rest, match)
-    _check_standing(rest, match, body_s, names, src)
-    turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
-
     world, position = rig_pose(parents, offsets, rotations, root_positions)
+    rest_world, stands = None, ""
+    bent, leg = _bent(rest, match)
+    if bent > LEG_MAX_DEGREES:
+        t, frame_bent = _standing_frame(position, match)
+        if frame_bent > LEG_MAX_DEGREES:
+            raise InputError(f"{src}: expected a rest pose (all rotations zero) or a frame that stands, got its "
+                             f"'{names[match[leg]]}' leg {bent:.0f} degrees from down at rest and, in its straightest "
+                             f"frame ({t}), a leg {frame_bent:.0f} degrees from down (the head above the pelvis is "
+                             f"up): a rig that never stands needs retargeting to one first")
+        rest, rest_world = position[t], world[t]
+        stands = f"; its frame {t} taken as its rest (its zero pose does not stand)"
+        log.warning("%s: the rig's zero pose does not stand (its '%s' leg %.0f degrees from down): its frame %d, "
+                    "the straightest (legs within %.0f degrees of down), is taken as its rest; the twist about each "
+                    "limb is the actor's there", src, names[match[leg]], bent, t, frame_bent)
+    body_m, body_s = _body_frame(smpl_rest, itself), _body_frame(rest, match)
+    turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
+    if rest_world is not None:  # the turns are from that frame's joint rotations, not from zero ones
+        turns = {k: rest_world[match[k]].T @ turn for k, turn in turns.items()}
     smpl_world = np.empty((len(rotations), 24, 3, 3))
     local = np.empty_like(smpl_world)
     for k in range(24):
@@ -116,7 +135,7 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     trans = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
     up = next((axis for axis, v in _UP_AXES.items() if body_s[:, 1] @ v > _UP_COSINE), None)
     said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
-            f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}")
+            f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}{stands}")
     return Retargeted(matrix_to_axis_angle(local), trans, up, said)
 
 
@@ -259,14 +278,28 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / max(float(np.linalg.norm(v)), 1e-12)
 
 
-def _check_standing(rest: np.ndarray, match: dict[int, int], body: np.ndarray, names: list[str], src: str) -> None:
-    for k in (1, 2):
-        leg = _unit(rest[match[k + 6]] - rest[match[k]])
-        angle = float(np.degrees(np.arccos(np.clip(-leg @ body[:, 1], -1, 1))))
-        if angle > LEG_MAX_DEGREES:
-            raise InputError(f"{src}: expected a rest pose (all rotations zero) that stands, got its "
-                             f"'{names[match[k]]}' leg {angle:.0f} degrees from down (the head above the pelvis is "
-                             f"up): a rig whose zero pose is not standing needs retargeting to one first")
+def _leg_angles(position: np.ndarray, match: dict[int, int]) -> np.ndarray:
+    """(..., 4) the angles in degrees of the left thigh, right thigh, left shin and right shin from the body's down
+    (up: from the pelvis to the head) of rig joint positions (..., J, 3)."""
+    up = position[..., match[15], :] - position[..., match[0], :]
+    up = up / np.maximum(np.linalg.norm(up, axis=-1, keepdims=True), 1e-12)
+    bones = np.stack([position[..., match[k + 3], :] - position[..., match[k], :] for k in (1, 2, 4, 5)], axis=-2)
+    bones = bones / np.maximum(np.linalg.norm(bones, axis=-1, keepdims=True), 1e-12)
+    return np.degrees(np.arccos(np.clip(-np.einsum("...bi,...i->...b", bones, up), -1.0, 1.0)))
+
+
+def _bent(rest: np.ndarray, match: dict[int, int]) -> tuple[float, int]:
+    """How far (degrees) a rest skeleton's most bent thigh or shin is from down, and the SMPL hip of its leg."""
+    angles = _leg_angles(rest, match)
+    return float(angles.max()), (1, 2, 1, 2)[int(angles.argmax())]
+
+
+def _standing_frame(position: np.ndarray, match: dict[int, int]) -> tuple[int, float]:
+    """The frame of rig joint positions (T, J, 3) whose thighs and shins are all nearest down, and how far
+    (degrees) its most bent one is."""
+    worst = _leg_angles(position, match).max(axis=-1)
+    t = int(np.argmin(worst))
+    return t, float(worst[t])
 
 
 def _rest_turns(match, rest, smpl_rest, body_m, body_s) -> dict[int, np.ndarray]:

@@ -126,25 +126,47 @@ def _a_posed(joints, degrees):
     return out, turns
 
 
-def rig_motion(poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0):
+def _along_x(rest, parents, rig, rng):
+    """(J, 3, 3) each joint's frame in a rig whose bones lie along their joints' X (LAFAN1's, Maya's): X onto the
+    bone to its first child (a leaf's: from its parent), turned at random about it; a joint SMPL lacks takes its
+    parent's frame."""
+    frames = np.empty((len(parents), 3, 3))
+    for j, p in enumerate(parents):
+        if rig[j][2] is None and p >= 0:
+            frames[j] = frames[p]
+            continue
+        child = next((c for c, q in enumerate(parents) if q == j), None)
+        bone = rest[child] - rest[j] if child is not None else rest[j] - rest[p]
+        a = bone / np.linalg.norm(bone)
+        b = rng.normal(size=3)
+        b = b - (b @ a) * a
+        b /= np.linalg.norm(b)
+        frames[j] = np.stack([a, b, np.cross(a, b)], axis=1)
+    return frames
+
+
+def rig_motion(poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0, along_x=False):
     """(names, parents, offsets, rotations (T, J, 3, 3) from the rest in the parent's frame, the root's (T, 3)
     position) of another rig moving as the SMPL motion (`poses`, `trans`) does: `rig` lists (name, parent's
     index, SMPL joint or None, where) per joint, parents first; a matched joint's bone turns as SMPL's, an extra
     one (where: (a, b, f), at f of the way from SMPL's rest joint a to b) turns with its parent, or at random
     where it has no children (fingers). Its rest: SMPL's, `scale`d, the arms lowered `a_pose` degrees, in
-    `unit`s, every joint's frame the world's."""
+    `unit`s, every joint's frame the world's; `along_x`: every joint's frame `_along_x`'s instead, so that its
+    zero pose folds the body as LAFAN1's does."""
     joints, turns = _a_posed(default_body().shaped(None)[1][:24].astype(np.float64) * scale, a_pose)
     rng = np.random.default_rng(seed)
     names = [r[0] for r in rig]
     parents = [r[1] for r in rig]
     rest = np.array([joints[k] if k is not None else joints[w[0]] + w[2] * (joints[w[1]] - joints[w[0]])
                      for _, _, k, w in rig])
-    offsets = np.array([rest[j] - (rest[p] if p >= 0 else 0.0) for j, p in enumerate(parents)]) / unit
+    frames = _along_x(rest, parents, rig, rng) if along_x else np.broadcast_to(np.eye(3), (len(rig), 3, 3))
+    offsets = np.array([frames[p].T @ (rest[j] - rest[p]) if p >= 0 else rest[j]
+                        for j, p in enumerate(parents)]) / unit
     smpl = _smpl_world(poses)
     world = np.empty((len(poses), len(rig), 3, 3))
     for j, (_, p, k, _) in enumerate(rig):
         if k is not None:
-            world[:, j] = smpl[:, k] @ turns.get(k, np.eye(3)).T
+            world[:, j] = smpl[:, k] @ turns.get(k, np.eye(3)).T @ frames[j]
         elif any(r[1] == j for r in rig):
             world[:, j] = world[:, p]
         else:
@@ -157,9 +179,9 @@ def rig_motion(poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0):
     return names, parents, offsets, rotations, root
 
 
-def rig_bvh(path, poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0):
-    """A BVH at 30 fps of `rig_motion`'s rig."""
-    return write_skeleton(path, *rig_motion(poses, trans, rig, unit, scale, a_pose, seed), 30, "ZXY")
+def rig_bvh(path, poses, trans, rig, unit=0.01, scale=1.0, a_pose=0.0, seed=0, along_x=False, order="ZXY"):
+    """A BVH at 30 fps of `rig_motion`'s rig, its Euler channels in `order`."""
+    return write_skeleton(path, *rig_motion(poses, trans, rig, unit, scale, a_pose, seed, along_x), 30, order)
 
 
 def _rig(entries):
@@ -229,6 +251,54 @@ def test_a_rig_of_fewer_joints_moves_smpls_joints_it_has_and_leaves_the_others_t
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
 
+#: LAFAN1's rig (Ubisoft's): 22 joints, its toes 'LeftToe'.
+LAFAN1 = _rig([("Hips", None, 0), ("Spine", "Hips", 3), ("Spine1", "Spine", 6), ("Spine2", "Spine1", 9),
+               ("Neck", "Spine2", 12), ("Head", "Neck", 15)]
+              + [e for side, s in (("Left", 0), ("Right", 1)) for e in (
+                  (f"{side}UpLeg", "Hips", 1 + s), (f"{side}Leg", f"{side}UpLeg", 4 + s),
+                  (f"{side}Foot", f"{side}Leg", 7 + s), (f"{side}Toe", f"{side}Foot", 10 + s),
+                  (f"{side}Shoulder", "Spine2", 13 + s), (f"{side}Arm", f"{side}Shoulder", 16 + s),
+                  (f"{side}ForeArm", f"{side}Arm", 18 + s), (f"{side}Hand", f"{side}ForeArm", 20 + s))])
+
+
+def _bone_directions(poses):
+    """(T, 16, 3) the world direction of each of SMPL's bones down its chains (retarget.CHAIN_CHILD) in `poses`,
+    the hands (to the knuckles, which LAFAN1 lacks) left out."""
+    from core.retarget import CHAIN_CHILD
+
+    joints = default_body().shaped(None)[1][:24].astype(np.float64)
+    world = _smpl_world(poses)
+    bones = np.stack([world[:, k] @ (joints[c] - joints[k]) for k, c in CHAIN_CHILD.items() if c < 22], axis=1)
+    return bones / np.linalg.norm(bones, axis=-1, keepdims=True)
+
+
+def test_a_rig_whose_zero_pose_folds_the_body_is_turned_from_its_straightest_frame(tmp_path, caplog):
+    """LAFAN1's rig (every bone along its joint's X, turned at random about it: its zero pose folds the body, so no
+    rest to turn SMPL's bones from) takes its straightest frame as its rest, warned: where that frame is SMPL's
+    T-pose (the others' knees bent), the motion reads back exactly; where no frame is, every bone of SMPL points as
+    the rig's does in every frame (the twist about it is the actor's at that frame)."""
+    poses, trans = _motion(6, seed=7)
+    poses[:, 22:] = 0
+    poses[0] = 0
+    poses[1:, 4:6] = [0.9, 0.0, 0.0]  # the knees bent after the first frame
+    path = rig_bvh(tmp_path / "lafan.bvh", poses, trans, LAFAN1, unit=0.01, scale=0.95, along_x=True, order="ZYX")
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(path, world_checks=False)
+    assert "the rig's zero pose does not stand (its 'LeftUpLeg' leg" in caplog.text
+    assert "its frame 0, the straightest" in caplog.text
+    assert m.rest_up == "y"
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+    poses, trans = _motion(6, seed=8)
+    poses[:, 0] = 0  # upright, so that some frame stands
+    poses[:, [1, 2, 4, 5]] *= 0.3
+    m = load_motion(rig_bvh(tmp_path / "lafan.bvh", poses, trans, LAFAN1, along_x=True, seed=2),
+                    world_checks=False)
+    np.testing.assert_allclose(_bone_directions(m.poses), _bone_directions(poses), atol=1e-4)
+    assert not np.allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-2)  # the twists
+
+
 def test_a_rig_standing_along_z_tells_its_up_axis(tmp_path):
     """A rig whose rest stands along +Z (its offsets turned +90 degrees about X) is read with rest_up 'z', which
     `--motion-up auto` or left out takes (`resolved_up`); one along +Y, 'y'; a --motion-up given wins."""
@@ -270,8 +340,9 @@ def test_a_skeleton_no_humanoid_a_rest_not_standing_or_limbs_out_of_order_is_one
             x, y, z = map(float, line.split()[1:])
             line = f"OFFSET {x} {z} {-y}"
         lying.append(line)
-    cases.append(("\n".join(lying) + "\n", "expected a rest pose (all rotations zero) that stands, got its "
-                                            "'mixamorig7:LeftUpLeg' leg 93 degrees from down"))
+    cases.append(("\n".join(lying) + "\n", "expected a rest pose (all rotations zero) or a frame that stands, got "
+                                            "its 'mixamorig7:LeftUpLeg' leg 98 degrees from down at rest and, in its "
+                                            "straightest frame (0), a leg 106 degrees from down"))
     for text, expected in cases:
         (tmp_path / "rig.bvh").write_text(text)
         with pytest.raises(InputError) as info:
