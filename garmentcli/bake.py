@@ -46,6 +46,7 @@ from garmentcli.common import (
     preroll_option,
     scheduler_options,
     source_fps_option,
+    thread_count,
     with_collected_warnings,
 )
 
@@ -157,7 +158,8 @@ class BakeSpec:
     push_out: bool = False
     quality: str = ""  # JSON of the --quality auto choice, recorded in summary.json
     no_skip: tuple = ()
-    threads: int = 0  # torch threads of a --workers process (0: torch's default)
+    threads: int = 0  # torch threads of a process (0: torch's default; a --workers process: the cores shared out)
+    threads_fixed: bool = False  # --threads N: that count throughout (no ThreadTuner), recorded in summary.json
     fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
     contact_guard: bool = True  # model, psd: keep vertices outside the body faces they rest on
     betas: str = "auto"  # --betas as given (the motions arrive with it applied), recorded in summary.json
@@ -181,13 +183,11 @@ def _context(spec: BakeSpec):
         from formats.obj import read_garment
 
         _CONTEXT.clear()
-        if spec.threads:
-            import torch
-
-            torch.set_num_threads(spec.threads)
+        _set_threads(spec.threads)
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
                                  spec.no_skip, spec.contact_guard, spec.floor, spec.fit_path, spec.device)
+        _fix_threads(deformer, spec.threads_fixed)
         garment = read_garment(spec.garment_path)
         body = load_body_option(spec.body_path)
         deformer.prepare(garment, body, source=spec.garment_path)
@@ -215,7 +215,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
                     "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,
-                    "motion_up_as_read": motion.up, "person": spec.person},
+                    "motion_up_as_read": motion.up, "person": spec.person,
+                    "threads": spec.threads if spec.threads_fixed else "auto"},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
     })
@@ -326,6 +327,12 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
               help="Local processes baking motions side by side (each prepares the garment and loads the method "
                    "once; the cores are shared out among them).")
+@click.option("--threads", default=None, metavar="N|auto",
+              help="CPU threads of torch's work in each process (the model's network) [default: auto: chosen while "
+                   "the model bakes, from a thread per core, or the cores shared out among --workers]. N: that many "
+                   "throughout, so that a bake repeats bit for bit on one machine (auto's counts change a batch's "
+                   "float rounding: its bakes agree to float32 rounding), at auto's speed where no other work "
+                   "holds the cores.")
 @scheduler_options("motion", note=" --workers is then ignored.")
 @input_errors_as_click
 @with_collected_warnings
@@ -334,7 +341,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="auto", source_fps=None, floor=None, start_frame=0, fit_path=None,
-         preroll_frames=0, device=None, motion_up="z", person=None, warned=()):
+         preroll_frames=0, device=None, motion_up="z", person=None, threads=None, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz; another tool's .pkl,
     .pt, .npy, .smpl, .bvh or .fbx, README "Inputs"; or a directory: every motion .npz, .smpl, .pkl, .npy, .bvh and
     .fbx under it).
@@ -350,6 +357,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     if frames:
         parse_frame_range(frames)  # reject a bad --frames before any work
     check_preroll(preroll_frames, frames, settle_frames)
+    threads = thread_count(threads)
     if device is not None:  # a cluster's workers have their own devices
         parse_device(device, auto=True, check=not scheduler)
     if quality is None:
@@ -456,7 +464,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
                     contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame,
                     fit_path=fit_path, preroll_frames=preroll_frames, device=device, motion_up=motion_up,
-                    person=person)
+                    person=person, threads=threads or 0, threads_fixed=threads is not None)
+    _fix_threads(deformer, spec.threads_fixed)
     if method == "sim":
         _note_rest_start(frames, preroll_frames, [(mo, path) for (mo, _), path, _ in motions])
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
@@ -464,7 +473,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     t_start = time.perf_counter()
     total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
     if scheduler or (workers > 1 and len(motions) > 1):  # the workers prepare their own copy (once per process)
-        if not scheduler:
+        if not scheduler and not spec.threads_fixed:
             spec = replace(spec, threads=max(1, (os.cpu_count() or 1) // min(workers, len(motions))))
         _bake_in_workers(spec, motions, scheduler, retries, workers)
         _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
@@ -479,12 +488,31 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             bar.update(n)
 
         deformer.on_frames = on_frames
+        torch_threads = _set_threads(spec.threads)
         try:
             _bake_locally(spec, motions, bar, ticked, method, fps)
         finally:
             _CONTEXT.clear()
             deformer.on_frames = None
+            _set_threads(torch_threads)
     _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
+
+
+def _fix_threads(deformer, fixed: bool) -> None:
+    """--threads N: the model's batches on that count throughout, not chosen by timing them."""
+    if fixed and hasattr(deformer, "tune_threads"):
+        deformer.tune_threads = False
+
+
+def _set_threads(n: int) -> int:
+    """Set torch's CPU threads to `n` where it is not 0; the count it had (to set back)."""
+    if not n:
+        return 0
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    return before
 
 
 def _warnings_of(messages, motion_paths) -> tuple:

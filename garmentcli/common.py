@@ -541,6 +541,25 @@ def check_preroll(preroll_frames: int, frames: str | None, settle_frames: int = 
                                "would blend into the pre-roll's first frame, not into START)")
 
 
+#: Most --threads: far beyond any machine's cores (100000 killed the process as torch made them; 2**31
+#: overflowed torch's int).
+MAX_THREADS = 1024
+
+
+def thread_count(text: str | None) -> int | None:
+    """--threads N as N; None where it is left out or auto. BadParameter for another value."""
+    if text is None or text == "auto":
+        return None
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= MAX_THREADS:
+        raise click.BadParameter(f"expected a number of threads from 1 to {MAX_THREADS} or auto, got {text!r}",
+                                 param_hint="--threads")
+    return n
+
+
 def parse_device(text: str | None, auto: bool = False, check: bool = True):
     """--device as a torch.device: cpu, cuda or cuda:N; where `auto`, also "auto" or None (the first CUDA device
     torch sees, else the CPU). check: the device must be on this machine (not for work sent to a cluster's

@@ -27,6 +27,7 @@ from garmentcli.common import (
     input_errors_as_click,
     load_body_option,
     parse_device,
+    thread_count,
 )
 
 CSV_COLUMNS = ("step", "phase", "item", "loss", *LOSS_COLUMNS, "val_verts_mm", "val_collision")
@@ -230,31 +231,15 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         raise click.exceptions.Exit(130 if interrupted["hit"] == "Ctrl-C" else 143)
 
 
-#: Most --threads: far beyond any machine's cores (100000 killed the process as torch made them; 2**31
-#: overflowed torch's int).
-MAX_THREADS = 1024
-
-
 def _parse_threads(text: str | None, device, launched: bool) -> tuple[bool, int | None]:
     """--threads as (auto: the trainer's ThreadTuner chooses, the count N or None). BadParameter for another
     value, or auto off the CPU or under torchrun (each process's steps wait for the others' there: give each its
     threads with N)."""
-    if text is None:
-        return False, None
-    if text == "auto":
-        if device.type != "cpu" or launched:
-            raise click.BadParameter("auto chooses the threads of one process on the CPU: "
-                                     + ("under torchrun give each process its threads with N" if launched
-                                        else f"got --device {device}"), param_hint="--threads")
-        return True, None
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if not 1 <= n <= MAX_THREADS:
-        raise click.BadParameter(f"expected a number of threads from 1 to {MAX_THREADS} or auto, got {text!r}",
-                                 param_hint="--threads")
-    return False, n
+    if text == "auto" and (device.type != "cpu" or launched):
+        raise click.BadParameter("auto chooses the threads of one process on the CPU: "
+                                 + ("under torchrun give each process its threads with N" if launched
+                                    else f"got --device {device}"), param_hint="--threads")
+    return text == "auto", thread_count(text)
 
 
 def _side_files(out: Path) -> tuple[Path, Path, Path]:

@@ -252,3 +252,40 @@ def test_model_on_a_gpu_matches_the_cpu(tmp_path):
         assert summary["deformer"]["device"] == "cuda:0"
     workers_run = read_usd(tmp_path / "workers" / "dress_run" / "dress_run.usd").tracks["garment"].points
     assert np.abs(workers_run - gpu).max() < 1e-5
+
+
+def test_threads_n_bakes_on_that_count_throughout_and_repeats_bit_for_bit(tmp_path, monkeypatch):
+    """--threads N: torch's count set to N for the bake and given back after, no ThreadTuner (the summary has no
+    cpu_threads choice; it records N), two bakes the same bits; left out: auto (the tuner's report); --workers
+    hands each process N, not the cores shared out; a bad value is one line."""
+    import os
+
+    import torch
+
+    import garmentcli.bake as bake_module
+
+    dress = ROOT / "examples" / "dress.obj"
+    before = torch.get_num_threads()
+    seen = []
+    monkeypatch.setattr(torch, "set_num_threads", lambda n, real=torch.set_num_threads: (seen.append(n), real(n)))
+    a, summary, _ = _bake(dress, tmp_path / "a", "--threads", "1")
+    assert seen[0] == 1 and seen[-1] == before == torch.get_num_threads()
+    assert summary["options"]["threads"] == 1 and "cpu_threads" not in summary["deformer"]
+    b, _, _ = _bake(dress, tmp_path / "b", "--threads", "1")
+    assert np.array_equal(a, b)
+    _, summary, _ = _bake(dress, tmp_path / "auto")
+    assert summary["options"]["threads"] == "auto" and "chosen" in summary["deformer"]["cpu_threads"]
+
+    specs = []
+    monkeypatch.setattr(bake_module, "_bake_in_workers", lambda spec, *rest: specs.append(spec))
+    motions = [ROOT / "examples" / "run.npz", ROOT / "examples" / "walk.npz"]
+    for extra in (["--threads", "3"], []):
+        r = invoke_default(["bake", dress, *motions, "--out", tmp_path / "w", "--workers", "2", *extra])
+        assert r.exit_code == 0, r.output
+    assert (specs[0].threads, specs[0].threads_fixed) == (3, True)
+    assert (specs[1].threads, specs[1].threads_fixed) == (max(1, (os.cpu_count() or 1) // 2), False)
+
+    for value, said in (("0", "expected a number of threads from 1 to 1024 or auto, got '0'"), ("many", "got 'many'")):
+        r = invoke_default(["bake", dress, motions[0], "--threads", value, "--out", tmp_path / "bad"])
+        assert r.exit_code == 2 and "--threads" in r.output and said in r.output, r.output
+        assert "Traceback" not in r.output and not (tmp_path / "bad").exists()
