@@ -57,6 +57,7 @@ class Motion:
     up: the world axis the file's body stood along as read, "z", or "y" / "-y" turned to Z-up (`y_up_to_z_up`).
     rest_up: the world axis the file's own rest skeleton stands along (a BVH's or FBX's: "z", "y", "-y"), or None
       where the file tells none; --motion-up left out or auto takes it (`garmentcli.common.resolved_up`).
+    person: the id of the track read of a file of several tracked people (WHAM's, PHALP's), else None.
     """
 
     poses: np.ndarray
@@ -69,6 +70,7 @@ class Motion:
     n_lead: int = 0
     up: str = "z"
     rest_up: str | None = None
+    person: str | None = None
 
     def __post_init__(self):
         if self.poses.ndim != 3 or self.poses.shape[2] != 3 or layout_for_joint_count(self.poses.shape[1]) is None:

@@ -102,6 +102,8 @@ PICKLE_SUFFIXES = (".pkl", ".pickle", ".joblib")
 TORCH_SUFFIXES = (".pt", ".pth")
 #: A dict in a pickled motion that holds it: GVHMR's world parameters (preferred) or its camera-frame ones.
 _NESTED_KEYS = ("smpl_params_global", "smpl_params_incam")
+#: The key under which `_pickled_arrays` passes the id of the track read (of a file of tracked people) on.
+PERSON_KEY = "garment_person"
 #: Keys whose length is a tracked person's number of frames.
 _POSE_KEYS = ("poses", "pose", "pose_world", "smpl_poses", "global_orient", "root_orient", "body_pose",
               "pred_rotmat")
@@ -210,7 +212,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
     gender = _read_gender(arrays.get("gender"))
     rest_up = str(arrays[REST_UP_KEY]) if REST_UP_KEY in arrays else None
     motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem,
-                    rest_up=rest_up)
+                    rest_up=rest_up, person=str(arrays[PERSON_KEY]) if PERSON_KEY in arrays else None)
     validate_motion_values(motion, str(path))
     if world_checks:
         warn_if_not_z_up(motion, str(path))
@@ -282,15 +284,37 @@ def _pickled_arrays(path: Path, src: str, npy: bool = False, person: str | None 
     """(the arrays load_motion reads, every key of the dict read) of a pickled motion (`PICKLE_SUFFIXES`,
     `TORCH_SUFFIXES`; npy: a .npy of a pickled object): its one person's SMPL parameters (`_motion_dict`; `person`
     as load_motion takes it); InputError naming `src` otherwise."""
-    data = _motion_dict(_unpickled(path, src, npy), src, person=person)
-    return {str(k): _plain(v) for k, v in data.items() if str(k) in _READ_KEYS}, [str(k) for k in data]
+    data, track = _motion_dict(_unpickled(path, src, npy), src, person=person)
+    arrays = {str(k): _plain(v) for k, v in data.items() if str(k) in _READ_KEYS}
+    if track is not None:
+        arrays[PERSON_KEY] = np.str_(track)
+    return arrays, [str(k) for k in data]
+
+
+def tracked_people(path) -> list[str]:
+    """The track ids (as `--person` reads them) of a motion file of several tracked people (WHAM's, VIBE's,
+    PHALP's, 4D-Humans' results), the longest tracked first; [] for any other file (one person's, an .npz, a BVH).
+    InputError naming the file where a pickle cannot be read."""
+    path = Path(path)
+    if path.suffix.lower() not in PICKLE_SUFFIXES + TORCH_SUFFIXES:
+        return []
+    src = f"motion '{path}'"
+    try:
+        frames = _tracks(_unpickled(path, src))[1]
+    except (AttributeError, TypeError, KeyError, IndexError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        return []  # not tracked people's structure: load_motion says what it is
+    if not frames or len(frames) < 2:
+        return []
+    return [str(k) for k in sorted(frames, key=lambda k: -frames[k])]
 
 
 def pickled_motion_keys(path: Path) -> list[str]:
     """The keys of the one person's SMPL parameters in the pickled motion `path` (`_motion_dict`); InputError
     where it cannot be read or holds no dict."""
     src = f"motion '{path}'"
-    return [str(k) for k in _motion_dict(_unpickled(path, src, _starts_with(path, b"\x93NUMPY")), src, quiet=True)]
+    return [str(k) for k in _motion_dict(_unpickled(path, src, _starts_with(path, b"\x93NUMPY")), src, quiet=True)[0]]
 
 
 def _unpickled(path: Path, src: str, npy: bool = False):
@@ -311,7 +335,7 @@ def _unpickled(path: Path, src: str, npy: bool = False):
         raise InputError(f"{src}: cannot read it as {kind} ({type(exc).__name__}: {_short(exc)})") from None
 
 
-def _motion_dict(data, src: str, quiet: bool = False, person: str | None = None) -> dict:
+def _motion_dict(data, src: str, quiet: bool = False, person: str | None = None) -> tuple[dict, object]:
     """`_person` of `data`; InputError naming `src` where its structure is not the one expected (a PHALP frame's
     detection of no dict, a track that is no list: what a pickle holds is anybody's)."""
     try:
@@ -324,24 +348,39 @@ def _motion_dict(data, src: str, quiet: bool = False, person: str | None = None)
                          f"{_short(exc)})") from None
 
 
-def _person(data, src: str, quiet: bool, person: str | None = None) -> dict:
-    """One person's SMPL parameters in the pickled `data`: the dict itself; GVHMR's `smpl_params_global` in it
-    (`_NESTED_KEYS`); of a dict of tracked people (WHAM, VIBE: {track id: dict}), the track `person` where given,
-    else the person tracked longest, warned about where there are others (quiet: not)."""
+def _person(data, src: str, quiet: bool, person: str | None = None) -> tuple[dict, object]:
+    """One person's SMPL parameters in the pickled `data`, and the id of its track (None where `data` holds no
+    tracked people): the dict itself; GVHMR's `smpl_params_global` in it (`_NESTED_KEYS`); of a dict of tracked
+    people (WHAM, VIBE: {track id: dict}; PHALP), the track `person` where given, else the person tracked
+    longest, warned about where there are others (quiet: not)."""
     if not isinstance(data, dict):
         raise InputError(f"{src}: expected a pickled dict of SMPL parameters ('poses', 'trans', ...; or one such "
                          f"dict per tracked person), got {type(data).__name__}")
+    data, frames, phalp = _tracks(data)
+    if frames is None:
+        if person is not None and not quiet:
+            log.info("%s: the parameters of one person: --person %s left aside", src, person)
+        return data, None
+    if phalp and not frames:
+        raise InputError(f"{src}: expected PHALP's tracked people ('tid', 'smpl' per detection), found none tracked")
+    track = _chosen(frames, src, quiet, person)
+    return (_phalp_person(data, track, src) if phalp else data[track]), track
+
+
+def _tracks(data: dict) -> tuple[dict, dict | None, bool]:
+    """(`data` with GVHMR's nesting taken off; {track id: frames tracked, in the order first seen} where it holds
+    tracked people, else None; whether they are PHALP's per-frame detections)."""
     nested = next((k for k in _NESTED_KEYS if isinstance(data.get(k), dict)), None)
     data = data[nested] if nested else data
     if data and all(isinstance(v, dict) and "smpl" in v and "tid" in v for v in data.values()):
-        return _phalp_person(data, src, quiet, person)
+        counts: dict = {}
+        for tid in (t for frame_tids in _phalp_frames(data)[1] for t in frame_tids):
+            counts[tid] = counts.get(tid, 0) + 1
+        return data, counts, True
     if data and all(isinstance(v, dict) for v in data.values()):
-        frames = {k: max((len(v[p]) for p in _POSE_KEYS if hasattr(v.get(p), "__len__")), default=0)
-                  for k, v in data.items()}
-        data = data[_chosen(frames, src, quiet, person)]
-    elif person is not None and not quiet:
-        log.info("%s: the parameters of one person: --person %s left aside", src, person)
-    return data
+        return data, {k: max((len(v[p]) for p in _POSE_KEYS if hasattr(v.get(p), "__len__")), default=0)
+                      for k, v in data.items()}, False
+    return data, None, False
 
 
 def _chosen(frames: dict, src: str, quiet: bool, person: str | None = None):
@@ -365,20 +404,19 @@ def _chosen(frames: dict, src: str, quiet: bool, person: str | None = None):
     return chosen
 
 
-def _phalp_person(data: dict, src: str, quiet: bool, person: str | None = None) -> dict:
-    """One person's smplx arguments (global_orient, body_pose, betas, transl: its 'camera' translation; frame_ids:
-    the frames' 'time') from PHALP's and 4D-Humans' results: {frame: {'time', 'tid': [track id per detection],
-    'smpl': [{'global_orient', 'body_pose', 'betas'} per detection], 'camera': [(3,) per detection], ...}}; the
-    track `person`, else the person tracked in most frames (`_chosen`)."""
+def _phalp_frames(data: dict) -> tuple[list, list]:
+    """PHALP's frames ((key, frame) in time order) and each one's track ids (per detection)."""
     frames = sorted(data.items(), key=lambda kv: (_plain(kv[1].get("time", -1)).reshape(-1)[:1].tolist(),
                                                   str(kv[0])))
-    tids = [[_plain(t).item() for t in frame["tid"]] for _, frame in frames]  # per frame, per detection
-    counts: dict = {}  # in the order first seen
-    for tid in (t for frame_tids in tids for t in frame_tids):
-        counts[tid] = counts.get(tid, 0) + 1
-    if not counts:
-        raise InputError(f"{src}: expected PHALP's tracked people ('tid', 'smpl' per detection), found none tracked")
-    person = _chosen(counts, src, quiet, person)
+    return frames, [[_plain(t).item() for t in frame["tid"]] for _, frame in frames]
+
+
+def _phalp_person(data: dict, person, src: str) -> dict:
+    """The track `person`'s smplx arguments (global_orient, body_pose, betas, transl: its 'camera' translation;
+    frame_ids: the frames' 'time') from PHALP's and 4D-Humans' results: {frame: {'time', 'tid': [track id per
+    detection], 'smpl': [{'global_orient', 'body_pose', 'betas'} per detection], 'camera': [(3,) per detection],
+    ...}}."""
+    frames, tids = _phalp_frames(data)
     parts: dict = {"global_orient": [], "body_pose": [], "betas": [], "transl": [], "frame_ids": []}
     for k, ((_, frame), frame_tids) in enumerate(zip(frames, tids)):
         if person not in frame_tids:

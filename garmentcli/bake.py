@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -215,7 +216,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
                     "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,
-                    "motion_up_as_read": motion.up, "person": spec.person,
+                    "motion_up_as_read": motion.up, "person": spec.person, "person_read": motion.person,
                     "threads": spec.threads if spec.threads_fixed else "auto"},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
@@ -296,7 +297,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @betas_option
 @source_fps_option
 @motion_up_option
-@person_option
+@person_option(every=True)
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Output frame rate (any ratio to the source).")
 @frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
@@ -385,18 +386,19 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
     out_dir = Path(out_dir)
-    targets = [(m, out_dir / f"{Path(garment_path).stem}_{name}")
-               for m, name in zip(motion_paths, motion_names(motion_paths))]
+    targets = [(m, out_dir / f"{Path(garment_path).stem}_{name}{_person_suffix(track)}", track)
+               for m, name in zip(motion_paths, motion_names(motion_paths))
+               for track in (_tracks_to_bake(m) if person == "all" else [None])]
     if overwrite and skip_existing:
         raise click.UsageError("--overwrite and --skip-existing exclude each other")
     if skip_existing:
-        done = [t for _, t in targets if t.exists()]
-        targets = [(m, t) for m, t in targets if not t.exists()]
+        done = [t for _, t, _ in targets if t.exists()]
+        targets = [item for item in targets if not item[1].exists()]
         click.echo(f"{out_dir}: {len(done)} of {len(done) + len(targets)} motions already baked, skipped")
         if not targets:
             return
     if not overwrite:
-        existing = [str(t) for _, t in targets if t.exists()]
+        existing = [str(t) for _, t, _ in targets if t.exists()]
         if existing:
             raise click.ClickException(f"output '{existing[0]}' exists: pass --overwrite to replace it")
     if render_video:  # a window that cannot open stops the bake before any work, not after its other outputs
@@ -410,8 +412,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                                                         min(BAKE_COPIES.values()), 1, settle_frames)
 
     motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames, body=body,
-                               check_frames=check_frames(m), motion_up=motion_up, person=person), m, target)
-               for m, target in targets]
+                               check_frames=check_frames(m), motion_up=motion_up,
+                               person=track if person == "all" else person), m, target)
+               for m, target, track in targets]
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [(mo, m) for (mo, _), m, _ in motions], model_path, calibration_path,
@@ -496,6 +499,23 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             deformer.on_frames = None
             _set_threads(torch_threads)
     _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
+
+
+def _tracks_to_bake(path: str) -> list[str | None]:
+    """--person all: the track ids of the motion file `path` of several tracked people (said), else [None] (the
+    file read as it is)."""
+    from formats.motion import tracked_people
+
+    tracks = tracked_people(path)
+    if tracks:
+        click.echo(f"motion '{path}': {len(tracks)} tracked people, each baked ({', '.join(tracks)})")
+    return tracks or [None]
+
+
+def _person_suffix(track: str | None) -> str:
+    """An output directory's suffix for the track `track` of --person all (its id, '_' for a character a file
+    name should not hold)."""
+    return "" if track is None else "_person" + re.sub(r"[^A-Za-z0-9.-]", "_", track)
 
 
 def _fix_threads(deformer, fixed: bool) -> None:

@@ -375,12 +375,23 @@ def _left_out_as_none(ctx: click.Context, param: click.Parameter, value):
     return None if ctx.get_parameter_source(param.name) == click.core.ParameterSource.DEFAULT else value
 
 
-def person_option(command):
-    """--person ID: the track read of a motion file of several tracked people (`formats.motion.load_motion`)."""
-    return click.option("--person", default=None, metavar="ID",
+def person_option(command=None, *, every: bool = False):
+    """--person ID: the track read of a motion file of several tracked people (`formats.motion.load_motion`);
+    every: `--person all` too (one output per tracked person), else refused in one line."""
+    if command is None:
+        return functools.partial(person_option, every=every)
+
+    def check(ctx: click.Context, param: click.Parameter, value):
+        if value == "all" and not every:
+            raise click.BadParameter("all (one output per tracked person) applies to bake only: give one track id",
+                                     param_hint="--person")
+        return value
+
+    help_all = " all: each tracked person in turn, one output each (<garment>_<motion>_person<ID>)." if every else ""
+    return click.option("--person", default=None, metavar="ID|all" if every else "ID", callback=check,
                         help="Of a motion file of several tracked people (WHAM's, VIBE's, PHALP's, 4D-Humans' "
                              "results): the track id to read [default: the person tracked longest, the others "
-                             "named]; a file of one person is read as it is.")(command)
+                             f"named]; a file of one person is read as it is.{help_all}")(command)
 
 
 def motion_up_option(command):

@@ -368,14 +368,10 @@ def test_motion_up_auto_reads_each_axis_the_body_stands_along_and_z_where_none(c
     assert resolved_up(Motion(poses=poses, trans=trans, fps=30.0), "m.npz", "-y") == "-y"  # as given
 
 
-def test_person_picks_a_track_of_a_file_of_tracked_people(scene):
-    """A WHAM result of two tracked people: the longest-tracked bakes by default, --person 3 the other (the walk
-    1 m along x: the garment 1 m along x), recorded in summary.json; an id not tracked is one line naming those
-    that are, nothing written; metrics poses the body with --motion and --person as the bake did, and refuses
-    --person without --motion."""
+def _wham_file(scene):
+    """(path, fps) of a WHAM result of two tracked people: 0, the scene's walk; 3, that walk two frames shorter,
+    1 m along x."""
     import pickle
-
-    from formats.sequence import read_sequence
 
     with np.load(scene["motion"]) as walk:
         poses, trans, fps = walk["poses"], walk["trans"], float(walk["mocap_framerate"])
@@ -384,6 +380,17 @@ def test_person_picks_a_track_of_a_file_of_tracked_people(scene):
         pickle.dump({0: {"pose_world": poses, "trans_world": trans, "frame_ids": np.arange(len(poses))},
                      3: {"pose_world": poses[:-2], "trans_world": trans[:-2] + [1.0, 0, 0],
                          "frame_ids": np.arange(len(poses) - 2)}}, fh)
+    return path, fps
+
+
+def test_person_picks_a_track_of_a_file_of_tracked_people(scene):
+    """A WHAM result of two tracked people: the longest-tracked bakes by default, --person 3 the other (the walk
+    1 m along x: the garment 1 m along x), recorded in summary.json; an id not tracked is one line naming those
+    that are, nothing written; metrics poses the body with --motion and --person as the bake did, and refuses
+    --person without --motion."""
+    from formats.sequence import read_sequence
+
+    path, fps = _wham_file(scene)
     out = {}
     for name, options in (("longest", ()), ("three", ("--person", "3"))):
         r = invoke(["bake", scene["garment"], path, "--body", scene["body"], "--out", scene["dir"] / name,
@@ -391,7 +398,9 @@ def test_person_picks_a_track_of_a_file_of_tracked_people(scene):
         assert r.exit_code == 0, r.output
         out[name] = read_sequence(scene["dir"] / name / "shell_wham_output" / "obj").points
     summary = json.loads((scene["dir"] / "three" / "shell_wham_output" / "summary.json").read_text())
-    assert summary["options"]["person"] == "3"
+    assert summary["options"]["person"] == "3" and summary["options"]["person_read"] == "3"
+    summary = json.loads((scene["dir"] / "longest" / "shell_wham_output" / "summary.json").read_text())
+    assert summary["options"]["person"] is None and summary["options"]["person_read"] == "0"
     n = len(out["three"])  # its two frames fewer, resampled at --fps
     assert n < len(out["longest"])
     np.testing.assert_allclose(out["three"], out["longest"][:n] + [1.0, 0, 0], atol=1e-5)
@@ -410,3 +419,37 @@ def test_person_picks_a_track_of_a_file_of_tracked_people(scene):
     r = invoke(["metrics", baked, baked, "--motion", path, "--body", scene["body"], "--source-fps", fps,
                 "--person", "3"])  # the body posed as the bake posed it: person 3's frames
     assert r.exit_code == 0, r.output
+
+
+def test_person_all_bakes_each_tracked_person_into_its_own_output(scene):
+    """--person all: each track of a file of tracked people baked into <garment>_<motion>_person<ID> (the longest
+    first, said), as --person ID bakes it, recorded in summary.json; a file of one person beside it bakes as it
+    is; the commands of one scene (tradeoff, attribute, metrics, dataset) refuse all in one line."""
+    from formats.sequence import read_sequence
+
+    path, fps = _wham_file(scene)
+    r = invoke(["bake", scene["garment"], path, scene["motion"], "--body", scene["body"], "--out", scene["out"],
+                "--method", "lbs", "--source-fps", fps, "--person", "all"])
+    assert r.exit_code == 0, r.output
+    assert "wham_output.pkl': 2 tracked people, each baked (0, 3)" in r.output
+    assert sorted(p.name for p in scene["out"].iterdir()) == ["shell_walk", "shell_wham_output_person0",
+                                                              "shell_wham_output_person3"]
+    for track in ("0", "3"):
+        summary = json.loads((scene["out"] / f"shell_wham_output_person{track}" / "summary.json").read_text())
+        assert summary["options"]["person"] == "all" and summary["options"]["person_read"] == track
+    r = invoke(["bake", scene["garment"], path, "--body", scene["body"], "--out", scene["dir"] / "three",
+                "--method", "lbs", "--source-fps", fps, "--person", "3"])
+    assert r.exit_code == 0, r.output
+    np.testing.assert_array_equal(read_sequence(scene["out"] / "shell_wham_output_person3" / "obj").points,
+                                  read_sequence(scene["dir"] / "three" / "shell_wham_output" / "obj").points)
+    summary = json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())
+    assert summary["options"]["person_read"] is None
+
+    from core.model_deform import DEFAULT_MODEL
+
+    for command in (["tradeoff", scene["garment"], path], ["attribute", DEFAULT_MODEL, scene["garment"], path],
+                    ["metrics", scene["out"] / "shell_walk", scene["out"] / "shell_walk", "--motion", path],
+                    ["dataset", scene["garment"], path]):
+        r = invoke([*command, "--person", "all", "--out", scene["dir"] / "refused"])
+        assert_one_line_error(r, "--person", "all (one output per tracked person) applies to bake only")
+        assert not (scene["dir"] / "refused").exists()
