@@ -58,6 +58,7 @@ class Motion:
     rest_up: the world axis the file's own rest skeleton stands along (a BVH's or FBX's: "z", "y", "-y"), or None
       where the file tells none; --motion-up left out or auto takes it (`garmentcli.common.resolved_up`).
     person: the id of the track read of a file of several tracked people (WHAM's, PHALP's), else None.
+    take: the name of the animation stack read of an FBX of several, else None.
     """
 
     poses: np.ndarray
@@ -71,6 +72,7 @@ class Motion:
     up: str = "z"
     rest_up: str | None = None
     person: str | None = None
+    take: str | None = None
 
     def __post_init__(self):
         if self.poses.ndim != 3 or self.poses.shape[2] != 3 or layout_for_joint_count(self.poses.shape[1]) is None:

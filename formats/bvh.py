@@ -31,6 +31,8 @@ log = logging.getLogger(__name__)
 #: The key of `read_bvh`'s arrays holding the world axis its rest skeleton stands along ("z", "y", "-y"; none
 #: where it stands along none), which `--motion-up auto` takes.
 REST_UP_KEY = "rest_up"
+#: The key of `skeleton_arrays`' arrays naming the animation stack read (of an FBX of several).
+TAKE_KEY = "garment_take"
 #: Other names of SMPL's joints after `core.retarget.canonical` (the hands as palms).
 _ALIASES = {"lpalm": "lhand", "rpalm": "rhand"}
 #: A rest bone further than this from SMPL's T-pose bone (degrees) is another rest pose: refused.
@@ -59,7 +61,8 @@ _SMPL_INDEX = {_canonical(n): k for k, n in enumerate(SMPL_JOINT_NAMES)}
 class Skeleton(NamedTuple):
     """A skeleton and its motion (a BVH's; an FBX's, `formats.fbx`): joint `names`, `parents` (-1 for the root;
     parents first), `offsets` (J, 3) in its unit, `rotations` (T, J, 3, 3) each joint's from its rest (its
-    channels composed), `root` (T, 3) the root's position, `frame_time` in seconds."""
+    channels composed), `root` (T, 3) the root's position, `frame_time` in seconds; `take`: the name of the
+    animation stack read of an FBX of several, else None."""
 
     names: list[str]
     parents: list[int]
@@ -67,6 +70,7 @@ class Skeleton(NamedTuple):
     rotations: np.ndarray
     root: np.ndarray
     frame_time: float
+    take: str | None = None
 
 
 def read_skeleton(path: Path, src: str) -> Skeleton:
@@ -111,7 +115,7 @@ def read_bvh(path: Path, src: str) -> dict:
 def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:
     """`read_bvh`'s arrays of a skeleton's motion (a BVH's; an FBX's, `formats.fbx`): an SMPL skeleton's rotations
     as they are, any other humanoid's retargeted (`core.retarget`)."""
-    names, parents, offsets, rotations, root, frame_time = skeleton
+    names, parents, offsets, rotations, root, frame_time = skeleton[:6]
     n_frames = len(rotations)
     smpl = _smpl_skeleton(names, parents, offsets, src)
     if smpl is None:
@@ -129,7 +133,11 @@ def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:
                  n_frames, 1.0 / frame_time)
     arrays = {"poses": poses.astype(np.float32), "trans": trans.astype(np.float32),
               "mocap_framerate": np.float64(1.0 / frame_time)}
-    return arrays if up is None else {**arrays, REST_UP_KEY: np.str_(up)}
+    if up is not None:
+        arrays[REST_UP_KEY] = np.str_(up)
+    if skeleton.take is not None:
+        arrays[TAKE_KEY] = np.str_(skeleton.take)
+    return arrays
 
 
 def _channels(channels: list[list[str]], offsets: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -5,9 +5,10 @@ The binary format (nodes of typed properties, arrays zlib-compressed or not) is 
 skeleton's joints are its Models of type LimbNode (and Root), their hierarchy from the file's connections; each
 joint's transform per frame is FBX's (translation, pre-rotation, the Euler rotation in its RotationOrder,
 post-rotation, scaling; rotation and scaling pivots and offsets left out, as skeletons carry none), its
-animation curves sampled linearly at the file's frame rate over its first animation stack, a value without a
-curve its property's. The rest pose is the file's BindPose where it has one (the skin's bind matrices), else the
-joints' own property values. ASCII FBX and files without a skeleton are refused in one line.
+animation curves sampled linearly at the file's frame rate over one animation stack (a take: the first, or the
+one `--take` names), a value without a curve its property's. The rest pose is the file's BindPose where it has
+one (the skin's bind matrices), else the joints' own property values. ASCII FBX and files without a skeleton
+are refused in one line.
 """
 
 from __future__ import annotations
@@ -151,7 +152,7 @@ class _Curves(NamedTuple):
 
 
 def _animation(objects: Node, links: list[tuple], stack: Node | None) -> _Curves | None:
-    """The curves of the first animation stack's first layer (all the file's curve nodes where it has no stack)."""
+    """The curves of the animation stack `stack`'s first layer (all the file's curve nodes where it has none)."""
     by_id = {n.props[0]: n for n in objects.children if n.props and isinstance(n.props[0], int)}
     up: dict[int, list] = {}  # child -> [(parent, the parent's property it drives, or None)]
     down: dict[int, list] = {}  # parent -> [(child, property)]
@@ -201,16 +202,17 @@ def _sampled(axes: list, static: np.ndarray, t: np.ndarray) -> np.ndarray:
     return out
 
 
-def read_fbx(path: Path, src: str) -> Skeleton:
+def read_fbx(path: Path, src: str, take: str | None = None) -> Skeleton:
     """The skeleton and motion of the binary FBX `path` (module docstring), as `formats.bvh.read_skeleton` gives a
     BVH's: its joints' frames turned to the world's at rest (the rest its zero pose), so `core.retarget` reads it
-    as a BVH; InputError naming `src` for a file that is no binary FBX, a damaged one, or one without a skeleton."""
+    as a BVH; of a file of several animation stacks, the one named `take` (`_stack`; default: the first).
+    InputError naming `src` for a file that is no binary FBX, a damaged one, or one without a skeleton."""
     try:
         data = path.read_bytes()
     except OSError as exc:
         raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
     try:
-        return _read(data, src)
+        return _read(data, src, take)
     except InputError:
         raise
     except (IndexError, KeyError, TypeError, ValueError, AttributeError) as exc:
@@ -218,7 +220,7 @@ def read_fbx(path: Path, src: str) -> Skeleton:
                          f"{str(exc)[:80]})") from None
 
 
-def _read(data: bytes, src: str) -> Skeleton:
+def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
     version, nodes = read_nodes(data, src)
     if version < 7000:  # FBX 6's animation lives in Takes, not in AnimationCurve objects
         raise InputError(f"{src}: expected FBX 7 (2011 and later), got FBX {version // 1000}.{version % 1000 // 100}: "
@@ -242,7 +244,8 @@ def _read(data: bytes, src: str) -> Skeleton:
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"{src}: expected a frame rate over 0 in its CustomFrameRate, got {fps:g}")
     stacks = objects.all("AnimationStack")
-    curves = _animation(objects, links, stacks[0] if stacks else None)
+    stack = _stack(stacks, take, src)
+    curves = _animation(objects, links, stack)
     if curves is None:
         log.warning("%s: no animation curves: its one frame is the skeleton as it stands", src)
         t = np.zeros(1)
@@ -266,7 +269,43 @@ def _read(data: bytes, src: str) -> Skeleton:
         world[i] = local if p is None else world[p] @ local
         rest[i] = resting if p is None else rest[p] @ resting
     rest.update(_bind_pose(objects, rest))
-    return _skeleton(joints, models, model_parent, order, world, rest, 1.0 / fps)
+    skeleton = _skeleton(joints, models, model_parent, order, world, rest, 1.0 / fps)
+    return skeleton._replace(take=_name(stack)) if len(stacks) > 1 else skeleton
+
+
+def _stack(stacks: list[Node], take: str | None, src: str) -> Node | None:
+    """The animation stack named `take` (its case aside where none matches exactly; InputError naming `src` and
+    the stacks where none does), else the first, the others named in a warning. A file of one stack is read as
+    it is, a `take` of another name warned about."""
+    names = [_name(s) for s in stacks]
+    listed = ", ".join(f"'{n}'" for n in names[:6]) + (", ..." if len(names) > 6 else "")
+    if take is not None and len(stacks) > 1:
+        found = [s for s, n in zip(stacks, names) if n == take] or [s for s, n in zip(stacks, names)
+                                                                    if n.lower() == take.lower()]
+        if not found:
+            raise InputError(f"{src}: expected --take one of its {len(names)} animation stacks ({listed}), got "
+                             f"'{take}'")
+        return found[0]
+    if take is not None and names != [take]:
+        log.warning("%s: holds %s: --take %s left aside", src,
+                    f"one animation stack ({listed})" if names else "no animation stack", take)
+    elif len(stacks) > 1:
+        log.warning("%s: holds %d animation stacks (%s): reading '%s', the first (--take NAME reads another)", src,
+                    len(names), listed, names[0])
+    return stacks[0] if stacks else None
+
+
+def animation_takes(path: Path) -> list[str]:
+    """The names of the animation stacks of the FBX `path` where it holds several (`--take`), else []; InputError
+    naming the file where it is no FBX `read_fbx` reads."""
+    src = f"motion '{path}'"
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+    objects = next((n for n in read_nodes(data, src)[1] if n.name == "Objects"), None)
+    names = [_name(s) for s in objects.all("AnimationStack")] if objects is not None else []
+    return names if len(names) > 1 else []
 
 
 def _depths(ids: list[int], parent: dict[int, int]) -> dict[int, int]:

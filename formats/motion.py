@@ -38,7 +38,7 @@ from core.errors import InputError
 from core.motion import (Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
-from formats.bvh import REST_UP_KEY, read_bvh, skeleton_arrays
+from formats.bvh import REST_UP_KEY, TAKE_KEY, read_bvh, skeleton_arrays
 from formats.fbx import read_fbx
 from formats.pickles import load_npy_pickle, load_pickle, load_torch
 
@@ -144,14 +144,15 @@ def open_npz(path: Path, refuse):
             yield data
 
 
-def load_motion(path, fps: float | None = None, world_checks: bool = True, person: str | None = None) -> Motion:
+def load_motion(path, fps: float | None = None, world_checks: bool = True, person: str | None = None,
+                take: str | None = None) -> Motion:
     """Read a motion: an AMASS-style .npz, or a pickle or PyTorch file of the same parameters (module docstring).
 
     path: file path. fps: frame rate in Hz that overrides (or replaces a missing)
     `mocap_framerate` / `mocap_frame_rate`. world_checks: warn when the motion looks Y-up (or -Y) or its
     translation not in metres (off for a file read for its joint rotations only). person: of a file of several
     tracked people (WHAM, VIBE, PHALP), the track id to read (else the one tracked longest); a file of one
-    person is read as it is.
+    person is read as it is. take: of an FBX of several animation stacks, the one to read (else the first).
     Returns a Motion: poses (T, 24|52|55, 3) float32 axis-angle radians, trans
     (T, 3) float32 metres (Z-up world), fps, betas (S,) float32 or None, gender.
     Raises InputError (one line naming the file) for any unreadable or invalid content.
@@ -166,12 +167,14 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
         arrays = read_bvh(path, src)
         files = list(arrays)
     elif path.suffix.lower() == ".fbx":
-        arrays = skeleton_arrays(read_fbx(path, src), src)
+        arrays = skeleton_arrays(read_fbx(path, src, take), src)
         files = list(arrays)
     elif _starts_with(path, b"\x93NUMPY"):
         arrays, files = _npy_arrays(path, src, person)
     else:
         arrays, files = _npz_arrays(path, src)
+    if take is not None and path.suffix.lower() != ".fbx":
+        log.info("%s: no FBX, no animation stacks: --take %s left aside", src, take)
     _from_smpl_codec(arrays, src)
     _from_aist(arrays, src)
     _from_estimator(arrays, src)
@@ -212,7 +215,8 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
     gender = _read_gender(arrays.get("gender"))
     rest_up = str(arrays[REST_UP_KEY]) if REST_UP_KEY in arrays else None
     motion = Motion(poses=poses, trans=trans, fps=float(fps), betas=betas, gender=gender, name=path.stem,
-                    rest_up=rest_up, person=str(arrays[PERSON_KEY]) if PERSON_KEY in arrays else None)
+                    rest_up=rest_up, person=str(arrays[PERSON_KEY]) if PERSON_KEY in arrays else None,
+                    take=str(arrays[TAKE_KEY]) if TAKE_KEY in arrays else None)
     validate_motion_values(motion, str(path))
     if world_checks:
         warn_if_not_z_up(motion, str(path))

@@ -15,6 +15,7 @@ from garmentcli.common import (
     load_body_option,
     motion_up_option,
     person_option,
+    take_option,
     prepare_motion,
 )
 
@@ -54,13 +55,14 @@ MAX_STEPS = 1000
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the motion is resampled to.")
 @motion_up_option
 @person_option
+@take_option
 @click.option("--out", "out_dir", type=OutputPath(file_okay=False), default=None,
               help="Output directory [default: <garment>_<motion>_f<K>_attribution].")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output directory.")
 @click.option("--no-render", is_flag=True, help="Skip the heatmap renders.")
 @input_errors_as_click
 def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path, top, body_path, fps, out_dir,
-              overwrite, no_render, motion_up="z", person=None):
+              overwrite, no_render, motion_up="z", person=None, take=None):
     """Attribute the model's deformation of GARMENT at frame K of MOTION to its inputs.
 
     Path-integrated gradients (Aumann-Shapley values) from a baseline (the body still in
@@ -87,7 +89,8 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     mismatch = skeleton_mismatch(str(model_path), model.config.n_joints, body)
     if mismatch:
         raise click.ClickException(f"{mismatch}: pass the --body it was made for")
-    motion, _ = prepare_motion(motion_path, fps, None, 0, body=body, motion_up=motion_up, person=person)
+    motion, _ = prepare_motion(motion_path, fps, None, 0, body=body, motion_up=motion_up, person=person,
+                               take=take)
     out = Path(out_dir or f"{Path(garment_path).stem}_{Path(motion_path).stem}_f{frame}_attribution")
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")

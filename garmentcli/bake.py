@@ -41,6 +41,7 @@ from garmentcli.common import (
     motion_names,
     motion_up_option,
     person_option,
+    take_option,
     parse_device,
     prepare_motion,
     require_file,
@@ -170,6 +171,7 @@ class BakeSpec:
     fit_path: str | None = None  # psd: --fit
     motion_up: str | None = "z"  # --motion-up (None: left out; the motions arrive turned), recorded in summary.json
     person: str | None = None  # --person (the track read of a file of tracked people), recorded in summary.json
+    take: str | None = None  # --take (the animation stack read of an FBX of several), recorded in summary.json
     device: str | None = None  # model: --device as given (None: auto, resolved where the deformer is made)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
@@ -217,6 +219,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
                     "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,
                     "motion_up_as_read": motion.up, "person": spec.person, "person_read": motion.person,
+                    "take": spec.take, "take_read": motion.take,
                     "threads": spec.threads if spec.threads_fixed else "auto"},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
@@ -298,6 +301,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @source_fps_option
 @motion_up_option
 @person_option(every=True)
+@take_option(every=True)
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Output frame rate (any ratio to the source).")
 @frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
@@ -342,7 +346,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="auto", source_fps=None, floor=None, start_frame=0, fit_path=None,
-         preroll_frames=0, device=None, motion_up="z", person=None, threads=None, warned=()):
+         preroll_frames=0, device=None, motion_up="z", person=None, take=None, threads=None, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz; another tool's .pkl,
     .pt, .npy, .smpl, .bvh or .fbx, README "Inputs"; or a directory: every motion .npz, .smpl, .pkl, .npy, .bvh and
     .fbx under it).
@@ -386,9 +390,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
     out_dir = Path(out_dir)
-    targets = [(m, out_dir / f"{Path(garment_path).stem}_{name}{_person_suffix(track)}", track)
+    targets = [(m, out_dir / f"{Path(garment_path).stem}_{name}{suffix}", part)
                for m, name in zip(motion_paths, motion_names(motion_paths))
-               for track in (_tracks_to_bake(m) if person == "all" else [None])]
+               for part, suffix in _parts_to_bake(m, person, take)]
     if overwrite and skip_existing:
         raise click.UsageError("--overwrite and --skip-existing exclude each other")
     if skip_existing:
@@ -412,9 +416,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                                                         min(BAKE_COPIES.values()), 1, settle_frames)
 
     motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames, body=body,
-                               check_frames=check_frames(m), motion_up=motion_up,
-                               person=track if person == "all" else person), m, target)
-               for m, target, track in targets]
+                               check_frames=check_frames(m), motion_up=motion_up, **part), m, target)
+               for m, target, part in targets]
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [(mo, m) for (mo, _), m, _ in motions], model_path, calibration_path,
@@ -467,7 +470,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
                     contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame,
                     fit_path=fit_path, preroll_frames=preroll_frames, device=device, motion_up=motion_up,
-                    person=person, threads=threads or 0, threads_fixed=threads is not None)
+                    person=person, take=take, threads=threads or 0, threads_fixed=threads is not None)
     _fix_threads(deformer, spec.threads_fixed)
     if method == "sim":
         _note_rest_start(frames, preroll_frames, [(mo, path) for (mo, _), path, _ in motions])
@@ -501,21 +504,29 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
 
 
-def _tracks_to_bake(path: str) -> list[str | None]:
-    """--person all: the track ids of the motion file `path` of several tracked people (said), else [None] (the
-    file read as it is)."""
+def _parts_to_bake(path: str, person: str | None, take: str | None) -> list[tuple[dict, str]]:
+    """[({'person': ..., 'take': ...} to read, its output directory's suffix)] of the motion file `path`: with
+    --person all, each of its tracked people ('_person<ID>'), with --take all, each of an FBX's animation stacks
+    ('_<take>'), said; the file read as it is (no suffix) where it holds one, or neither is all."""
+    from formats.fbx import animation_takes
     from formats.motion import tracked_people
 
-    tracks = tracked_people(path)
-    if tracks:
-        click.echo(f"motion '{path}': {len(tracks)} tracked people, each baked ({', '.join(tracks)})")
-    return tracks or [None]
-
-
-def _person_suffix(track: str | None) -> str:
-    """An output directory's suffix for the track `track` of --person all (its id, '_' for a character a file
-    name should not hold)."""
-    return "" if track is None else "_person" + re.sub(r"[^A-Za-z0-9.-]", "_", track)
+    people = tracked_people(path) if person == "all" else []
+    takes = animation_takes(path) if take == "all" and Path(path).suffix.lower() == ".fbx" else []
+    for found, what in ((people, "tracked people"), (takes, "animation stacks")):
+        if found:
+            click.echo(f"motion '{path}': {len(found)} {what}, each baked ({', '.join(found)})")
+    parts, seen = [], set()
+    for who in people or [None]:
+        for what in takes or [None]:
+            suffix = "".join(f"{prefix}{re.sub(r'[^A-Za-z0-9.-]', '_', v)}"
+                             for prefix, v in (("_person", who), ("_", what)) if v is not None)
+            while suffix in seen:  # two names alike once their odd characters are '_'
+                suffix += "_"
+            seen.add(suffix)
+            parts.append(({"person": who if person == "all" else person, "take": what if take == "all" else take},
+                          suffix))
+    return parts
 
 
 def _fix_threads(deformer, fixed: bool) -> None:

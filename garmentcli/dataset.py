@@ -25,6 +25,7 @@ from garmentcli.common import (
     motion_names,
     motion_up_option,
     person_option,
+    take_option,
     turned_for_shape,
     scheduler_options,
     source_fps_option,
@@ -43,16 +44,16 @@ _W: dict = {}
 
 
 def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, motion_up: str = "z",
-                     body=None, person: str | None = None) -> dict:
+                     body=None, person: str | None = None, take: str | None = None) -> dict:
     """name -> fn(Motion as read) of the files (read at `source_fps` when given, the track `person` of a file of
-    tracked people; turned from a Y-up (-Y-up) world about `body`'s pelvis at their betas with --motion-up y
+    tracked people, the animation stack `take` of an FBX of several; turned from a Y-up (-Y-up) world about `body`'s pelvis at their betas with --motion-up y
     (-y)), plus the built-in library (core.motiongen.MOTION_LIBRARY)
     when asked; a library clip named like a file is refused."""
     from formats.motion import load_motion
     from garmentcli.common import resolved_up, turned_z_up
 
     def read(path):
-        motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", person=person)
+        motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", person=person, take=take)
         up = resolved_up(motion, path, motion_up)
         return turned_z_up(motion, body, path, up) if up != "z" else motion
 
@@ -68,11 +69,12 @@ def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, 
 
 
 def _load_motions(motion_paths, library: bool, fps: float, source_fps: float | None = None, motion_up: str = "z",
-                  body=None, person: str | None = None) -> dict:
+                  body=None, person: str | None = None, take: str | None = None) -> dict:
     """name -> Motion at `fps` (`_motions_by_name`)."""
     from core.motion import resample
 
-    return _motions_by_name(motion_paths, library, source_fps, lambda m: resample(m, fps), motion_up, body, person)
+    return _motions_by_name(motion_paths, library, source_fps, lambda m: resample(m, fps), motion_up, body, person,
+                            take)
 
 
 def _changed_inputs(old: dict, new: dict) -> str:
@@ -99,12 +101,13 @@ MAX_BETAS_RANGE = 5.0
 
 
 def _motion_frame_counts(motion_paths, library: bool, fps: float, source_fps: float | None = None,
-                         motion_up: str = "z", body=None, person: str | None = None) -> dict:
+                         motion_up: str = "z", body=None, person: str | None = None,
+                         take: str | None = None) -> dict:
     """name -> frames at `fps` of the motions `_load_motions` gives, counted without resampling any."""
     from core.motion import resampled_frame_count
 
     return _motions_by_name(motion_paths, library, source_fps, lambda m: resampled_frame_count(m, fps), motion_up,
-                            body, person)
+                            body, person, take)
 
 
 def time_left(seconds: float) -> str:
@@ -116,14 +119,15 @@ def time_left(seconds: float) -> str:
 
 
 def _worker_init(garment_paths, motion_paths, library, body_path, fps, material, options, source_fps=None,
-                 motion_up="z", person=None):
+                 motion_up="z", person=None, take=None):
     from core.sim import SimDeformer
     from formats.obj import read_garment
     from garmentcli.common import load_body_option
 
     _W["garments"] = {Path(p).stem: read_garment(p) for p in garment_paths}
     _W["body"] = load_body_option(body_path)
-    _W["motions"] = _load_motions(motion_paths, library, fps, source_fps, motion_up, _W["body"], person)
+    _W["motions"] = _load_motions(motion_paths, library, fps, source_fps, motion_up, _W["body"], person,
+                                  take)
     _W["deformer"] = SimDeformer(material, options)
 
 
@@ -188,6 +192,7 @@ MAX_BODIES = 10000
 @source_fps_option
 @motion_up_option
 @person_option
+@take_option
 @click.option("--frames-per-clip", type=click.IntRange(min=2), default=None,
               help="Cut motions into clips of at most this many frames (default: whole motions).")
 @click.option("--max-clips-per-motion", type=click.IntRange(min=1), default=None,
@@ -224,7 +229,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
             max_clips_per_motion, settle_frames, seed, material_path, self_contact, substeps, iterations,
             pin="auto", scheduler=None, retries=2, bodies_per_clip=None, held_out=None, no_held_out=False,
             dry_run=False, source_fps=None, floor="auto", first=(), preroll=DEFAULT_PREROLL, motion_up="z",
-            person=None):
+            person=None, take=None):
     """Simulate every garment on every motion clip and body shape into OUT (resumable: finished items are skipped).
 
     Writes OUT/manifest.json (settings, inputs' sha256, software versions, splits,
@@ -268,7 +273,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     motion_paths = motion_files(motion_paths, "--motions")
     body = load_body_option(body_path)
     # The plan needs no resampled motion.
-    motion_frames = _motion_frame_counts(motion_paths, library, fps, source_fps, motion_up, body, person)
+    motion_frames = _motion_frame_counts(motion_paths, library, fps, source_fps, motion_up, body, person,
+                                         take)
     file_motions = motion_names(motion_paths)  # the names `_load_motions` gave the files' motions
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
@@ -294,6 +300,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         settings["motion_up"] = motion_up
     if person is not None:
         settings["person"] = person
+    if take is not None:
+        settings["take"] = take
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
               "motions": {name: {"path": str(p), "sha256": _sha256(p)} for name, p in zip(file_motions, motion_paths)},
@@ -350,12 +358,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     stats = {}
     task_out = out
     init = (list(garment_paths), list(motion_paths), library, body_path, fps, material, options, source_fps, motion_up,
-            person)
+            person, take)
     if scheduler:  # workers run elsewhere: absolute paths (on the shared file system)
         task_out = out.resolve()
         init = ([str(Path(p).resolve()) for p in garment_paths], [str(Path(p).resolve()) for p in motion_paths],
                 library, str(Path(body_path).resolve()) if body_path else None, fps, material, options, source_fps,
-                motion_up, person)
+                motion_up, person, take)
     calls = [(init, it, betas[it.body], settle_frames, task_out, body_id) for it in todo]
     frames_of = {it.id: item_frames(it, settings) for it in todo}
     failed, finished = None, 0

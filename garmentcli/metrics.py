@@ -16,6 +16,7 @@ from garmentcli.common import (
     input_errors_as_click,
     motion_up_option,
     person_option,
+    take_option,
     source_fps_option,
 )
 
@@ -108,7 +109,7 @@ def size_hint(pred: np.ndarray, gt: np.ndarray) -> str:
 
 
 def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="auto",
-                         source_fps=None, motion_up="z", person=None):
+                         source_fps=None, motion_up="z", person=None, take=None):
     """The body posed by the motion exactly as `garment bake` prepares it, as a Sequence-like record."""
     from types import SimpleNamespace
 
@@ -117,7 +118,7 @@ def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_f
 
     body = load_body_option(None if body_file is None else str(body_file))
     motion, _ = prepare_motion(str(motion_file), fps, frames, settle_frames, betas, source_fps, body=body,
-                               motion_up=motion_up, person=person)
+                               motion_up=motion_up, person=person, take=take)
     if motion.n_frames != n_frames:
         from core.errors import frames_text
 
@@ -163,7 +164,8 @@ def _default_depth_mm() -> float:
 
 #: (parameter name, option) of the options that say how `--motion` was prepared: refused without it.
 _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--settle"), ("betas", "--betas"),
-                ("source_fps", "--source-fps"), ("motion_up", "--motion-up"), ("person", "--person"))
+                ("source_fps", "--source-fps"), ("motion_up", "--motion-up"), ("person", "--person"),
+                ("take", "--take"))
 
 
 @click.command(name="metrics")
@@ -186,6 +188,7 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
 @source_fps_option
 @motion_up_option
 @person_option
+@take_option
 @click.option("--depth-mm", type=FiniteFloatRange(min=0.0), default=None,
               help="A garment vertex counts as penetrating when more than this inside the body "
                    "[default: as garment bake, 2 mm].")
@@ -197,7 +200,7 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
 def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Path | None,
             motion_file: Path | None, fps: float, frames: str | None, settle_frames: int, depth_mm: float | None,
             overwrite: bool, plots: bool = False, betas: str = "auto", source_fps: float | None = None,
-            motion_up: str = "z", person: str | None = None) -> None:
+            motion_up: str = "z", person: str | None = None, take: str | None = None) -> None:
     """Compare a predicted garment sequence PRED with a ground truth GT.
 
     PRED and GT are bake output directories, OBJ-sequence directories, USD files or .npz sequences of the
@@ -238,7 +241,7 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
             raise InputError(f"--out: '{existing[0]}' exists; pass --overwrite to replace it")
     if pairs is None:
         _compare(pred, gt, out_dir, formats, depth_mm, plots, body_file, motion_file, fps, frames, settle_frames,
-                 betas, source_fps, motion_up=motion_up, person=person)
+                 betas, source_fps, motion_up=motion_up, person=person, take=take)
         return
     results, failed = {}, {}
     for name, (p, g) in pairs.items():
@@ -291,7 +294,7 @@ def _bake_pairs(pred: Path, gt: Path) -> dict | None:
 
 def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: float, plots: bool, body_file=None,
              motion_file=None, fps=30.0, frames=None, settle_frames=0, betas="auto", source_fps=None,
-             quiet: bool = False, motion_up="z", person=None):
+             quiet: bool = False, motion_up="z", person=None, take=None):
     """Compare one PRED with one GT: print the overall table (unless `quiet`), write the reports (and plots) into
     `out_dir` when given; returns the MetricsResult."""
     from core.metrics import check_comparable, compute_metrics
@@ -309,7 +312,7 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
     gt_body = carry[-1] if carry and carry[-1] is g_seq else None  # GT's penetration against its own body
     if motion_file is not None:
         body = _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, p_seq.points.shape[0], betas,
-                                    source_fps, motion_up, person)
+                                    source_fps, motion_up, person, take)
     if gt_body is not None and body is not None and gt_body is not body:
         difference = _body_difference(body, gt_body)
         if difference:

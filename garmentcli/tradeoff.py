@@ -41,6 +41,7 @@ from garmentcli.common import (
     load_body_option,
     motion_up_option,
     person_option,
+    take_option,
     parse_device,
     prepare_motion,
     preroll_option,
@@ -119,6 +120,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @source_fps_option
 @motion_up_option
 @person_option
+@take_option
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the scene is baked at.")
 @frames_option
 @preroll_option
@@ -146,7 +148,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @input_errors_as_click
 def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_specs, repeats, overwrite,
              reuse_sim=False, calibration_path=None, spread=False, betas="auto", source_fps=None, fit_specs=(),
-             preroll_frames=0, device=None, motion_up="z", person=None):
+             preroll_frames=0, device=None, motion_up="z", person=None, take=None):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
     Rows: lbs; each --fit (psd); each model in float32 and bfloat16, with and without penetration push-out; the
@@ -191,7 +193,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body,
                                check_frames=lambda n, src_fps: _refuse_beyond_memory(len(rows), garment, body, n,
                                                                                      src_fps, fps, motion_path),
-                               motion_up=motion_up, person=person)
+                               motion_up=motion_up, person=person, take=take)
     from formats.cache import default_cache_dir
 
     scene = simulation_scene(garment, body, motion)

@@ -67,59 +67,77 @@ def _p70(*entries):
                                             + [(code, v) for v in values]) for name, code, *values in entries])
 
 
-def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None):
+def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None,
+            takes=None):
     """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
     metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
     and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
     rotations are the first frame's (not the rest) and a BindPose holds the rest. extra_links: connections
-    added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s."""
-    names, parents, offsets, rotations, root = rig_motion(poses, trans, rig, unit=0.01, scale=1.15, a_pose=40.0)
+    added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s. takes:
+    {stack name: (poses, trans)}, one animation stack (and layer) each, instead of 'Take 001' of `poses`."""
+    takes = takes or {"Take 001": (poses, trans)}
+    moving = {name: rig_motion(*motion, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, motion in takes.items()}
+    names, parents, offsets, _, root = next(iter(moving.values()))
     rng = np.random.default_rng(seed)
-    T, J = rotations.shape[:2]
+    J = len(names)
     pre = Rotation.random(J, random_state=rng)
     orders = [list(_ORDER)[k] for k in rng.integers(0, 6, J)]
     frame = [None] * J  # each joint's world frame at rest: its parent's, then its pre-rotation
-    euler, translation, place = [], [], []
+    translation, place = [], []
     for j, p in enumerate(parents):
         parent_frame = frame[p] if p >= 0 else np.eye(3)
         frame[j] = parent_frame @ pre[j].as_matrix()
-        # its frame turns as the rig's joint does from its rest: F_p(t) Pre R(t) = W(t) F, so R = F^T L F
-        R = frame[j].T @ rotations[:, j] @ frame[j]
-        angles = Rotation.from_matrix(R).as_euler(orders[j])  # extrinsic, about the axes in that order
-        euler.append(np.degrees(angles[:, [orders[j].index(a) for a in "xyz"]]))
         translation.append(parent_frame.T @ offsets[j])
         place.append(root[0] if p < 0 else place[p] + offsets[j])
-    t = np.arange(T) * (TICKS_PER_SECOND // fps)
+
+    def curves(rotations):
+        """Each joint's Euler angles (T, 3), degrees, about x, y, z: its frame turns as the rig's joint does from
+        its rest: F_p(t) Pre R(t) = W(t) F, so R = F^T L F."""
+        out = []
+        for j in range(J):
+            R = frame[j].T @ rotations[:, j] @ frame[j]
+            angles = Rotation.from_matrix(R).as_euler(orders[j])  # extrinsic, about the axes in that order
+            out.append(np.degrees(angles[:, [orders[j].index(a) for a in "xyz"]]))
+        return out
+
     ids = {j: 1000 + j for j in range(J)}
-    armature, stack, layer = 900, 800, 801
+    armature = 900
     objects = [_node("Model", [("L", armature), ("S", "Armature\x00\x01Model"), ("S", "Null")],
-                     [_p70(("Lcl Scaling", "D", 0.01, 0.01, 0.01))]),
-               _node("AnimationStack", [("L", stack), ("S", "Take 001\x00\x01AnimStack"), ("S", "")],
-                     [_p70(("LocalStart", "L", 0), ("LocalStop", "L", int(t[-1])))]),
-               _node("AnimationLayer", [("L", layer), ("S", "BaseLayer\x00\x01AnimLayer"), ("S", "")])]
-    links = [("OO", armature, 0), ("OO", layer, stack)]
+                     [_p70(("Lcl Scaling", "D", 0.01, 0.01, 0.01))])]
+    links = [("OO", armature, 0)]
+    first = curves(next(iter(moving.values()))[3])
+    for k, (take, (*_, rotations, take_root)) in enumerate(moving.items()):
+        stack, layer = 800 + 2 * k, 801 + 2 * k
+        euler = curves(rotations)
+        t = np.arange(len(rotations)) * (TICKS_PER_SECOND // fps)
+        objects += [_node("AnimationStack", [("L", stack), ("S", f"{take}\x00\x01AnimStack"), ("S", "")],
+                          [_p70(("LocalStart", "L", 0), ("LocalStop", "L", int(t[-1])))]),
+                    _node("AnimationLayer", [("L", layer), ("S", "BaseLayer\x00\x01AnimLayer"), ("S", "")])]
+        links.append(("OO", layer, stack))
+        for j in range(J):
+            channels = [("R", "Lcl Rotation", euler[j])] + ([("T", "Lcl Translation", take_root)]
+                                                            if parents[j] < 0 else [])
+            for c, (key, prop, values) in enumerate(channels):
+                node_id = 200000 * (k + 1) + 10 * j + c
+                objects.append(_node("AnimationCurveNode", [("L", node_id), ("S", f"{key}\x00\x01AnimCurveNode"),
+                                                            ("S", "")]))
+                links += [("OO", node_id, layer), ("OP", node_id, ids[j], prop)]
+                for a in range(3):
+                    curve_id = 10_000_000 * (k + 1) + 100 * j + 10 * c + a
+                    code = "Fz" if (j + a) % 2 else "f"
+                    objects.append(_node("AnimationCurve", [("L", curve_id), ("S", "\x00\x01AnimCurve"), ("S", "")],
+                                         [_node("KeyTime", [("Lz" if a else "l", t)]),
+                                          _node("KeyValueFloat", [(code, values[:, a])])]))
+                    links.append(("OP", curve_id, node_id, "d|" + "XYZ"[a]))
     poses_nodes = []
     for j in range(J):
-        static = euler[j][0] if bind_pose else np.zeros(3)
+        static = first[j][0] if bind_pose else np.zeros(3)
         objects.append(_node("Model", [("L", ids[j]), ("S", f"{names[j]}\x00\x01Model"), ("S", "LimbNode")],
                              [_p70(("PreRotation", "D", *pre[j].as_euler("xyz", degrees=True)),
                                    ("RotationOrder", "I", _ORDER[orders[j]]),
                                    ("Lcl Translation", "D", *(root[0] if parents[j] < 0 else translation[j])),
                                    ("Lcl Rotation", "D", *static))]))
         links.append(("OO", ids[j], ids[parents[j]] if parents[j] >= 0 else armature))
-        channels = [("R", "Lcl Rotation", euler[j])] + ([("T", "Lcl Translation", root)] if parents[j] < 0 else [])
-        for c, (key, prop, values) in enumerate(channels):
-            node_id = 2000 + 10 * j + c
-            objects.append(_node("AnimationCurveNode", [("L", node_id), ("S", f"{key}\x00\x01AnimCurveNode"),
-                                                        ("S", "")]))
-            links += [("OO", node_id, layer), ("OP", node_id, ids[j], prop)]
-            for a in range(3):
-                curve_id = 100000 + 100 * j + 10 * c + a
-                code = "Fz" if (j + a) % 2 else "f"
-                objects.append(_node("AnimationCurve", [("L", curve_id), ("S", "\x00\x01AnimCurve"), ("S", "")],
-                                     [_node("KeyTime", [("Lz" if a else "l", t)]),
-                                      _node("KeyValueFloat", [(code, values[:, a])])]))
-                links.append(("OP", curve_id, node_id, "d|" + "XYZ"[a]))
         if bind_pose:  # the world matrix at rest: the Armature's scaling, the joint's frame and place
             M = np.eye(4)
             M[:3, :3] = 0.01 * frame[j]
@@ -206,3 +224,40 @@ def test_an_fbx_without_curves_is_its_skeleton_standing_one_frame(tmp_path, capl
     others = [k for k in range(24) if k not in (16, 17)]
     np.testing.assert_allclose(m.poses[0, others], 0, atol=1e-6)
     np.testing.assert_allclose(np.degrees(np.linalg.norm(m.poses[0, [16, 17]], axis=-1)), 40, atol=1e-3)
+
+
+def test_an_fbx_of_several_takes_reads_the_first_warned_or_the_one_named(tmp_path, caplog):
+    """An FBX of two animation stacks ('Walk', 5 frames; 'Run', 3 frames, another motion): the first read, the
+    other named in a warning; take='run' reads the other (its case aside); a name it lacks is one line naming
+    those it has; `animation_takes` lists them; a file of one stack reads as it is, a take of another name
+    warned about."""
+    import logging
+
+    from formats.fbx import animation_takes
+
+    (walk, walk_trans), (run, run_trans) = _motion(5, seed=3), _motion(3, seed=4)
+    walk[:, 22:] = run[:, 22:] = 0
+    path = rig_fbx(tmp_path / "moves.fbx", None, None, takes={"Walk": (walk, walk_trans), "Run": (run, run_trans)})
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(path, world_checks=False)
+    assert "holds 2 animation stacks ('Walk', 'Run'): reading 'Walk', the first (--take NAME reads another)" \
+        in caplog.text
+    assert m.take == "Walk" and m.n_frames == 5
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(walk), atol=1e-4)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(path, world_checks=False, take="run")
+    assert m.take == "Run" and m.n_frames == 3 and "animation stacks" not in caplog.text
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(run), atol=1e-4)
+    np.testing.assert_allclose(m.trans, run_trans, atol=1e-4)
+    with pytest.raises(InputError) as info:
+        load_motion(path, take="Jump")
+    _assert_one_line(info, "moves.fbx", "expected --take one of its 2 animation stacks ('Walk', 'Run'), got 'Jump'")
+    assert animation_takes(path) == ["Walk", "Run"]
+
+    one = rig_fbx(tmp_path / "one.fbx", walk, walk_trans)
+    assert animation_takes(one) == []
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(one, world_checks=False, take="Run")
+    assert "holds one animation stack ('Take 001'): --take Run left aside" in caplog.text and m.take is None
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(walk), atol=1e-4)

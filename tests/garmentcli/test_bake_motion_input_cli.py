@@ -331,6 +331,21 @@ def test_a_bvh_or_fbx_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a
                                    read_sequence(scene["out"] / "shell_walk" / "obj").points, atol=1e-4)
     summary = json.loads((scene["out"] / "shell_walk_rig" / "summary.json").read_text())
     assert summary["options"]["motion_up"] is None and summary["options"]["motion_up_as_read"] == "y"
+    # an FBX of two takes (the walk, the walk 1 m along x): --take all bakes each into its own output
+    takes = rig_fbx(scene["dir"] / "moves.fbx", None, None, fps=int(round(fps)),
+                    takes={"Walk": (y_up, trans @ back.T), "Walk moved": (y_up, (trans + [1.0, 0, 0]) @ back.T)})
+    r = invoke(["bake", scene["garment"], takes, "--body", scene["body"], "--out", scene["dir"] / "out_takes",
+                "--method", "lbs", "--take", "all"])
+    assert r.exit_code == 0, r.output
+    assert "moves.fbx': 2 animation stacks, each baked (Walk, Walk moved)" in r.output
+    walked = read_sequence(scene["out"] / "shell_walk" / "obj").points
+    for take, suffix, shift in (("Walk", "Walk", 0.0), ("Walk moved", "Walk_moved", 1.0)):
+        baked = scene["dir"] / "out_takes" / f"shell_moves_{suffix}"
+        np.testing.assert_allclose(read_sequence(baked / "obj").points, walked + [shift, 0, 0], atol=1e-4)
+        options = json.loads((baked / "summary.json").read_text())["options"]
+        assert options["take"] == "all" and options["take_read"] == take
+    r = invoke(["tradeoff", scene["garment"], takes, "--take", "all", "--out", scene["dir"] / "refused"])
+    assert_one_line_error(r, "--take", "all (one output per animation stack) applies to bake only")
     # a folder of captures: its BVH and FBX motions baked, an FBX of no skeleton (a prop) left out
     (scene["dir"] / "captures").mkdir()
     for f in (rig, fbx):
