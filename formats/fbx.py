@@ -1,19 +1,21 @@
-"""FBX animation of a humanoid skeleton (Mixamo's downloads; Maya, MotionBuilder, Blender exports in binary FBX
-7.x), read as the skeleton and motion `core.retarget` turns into SMPL's, as a BVH is (`formats.bvh`).
+"""FBX animation of a humanoid skeleton (Mixamo's downloads; Maya, MotionBuilder, Blender exports in FBX 7.x,
+binary or ASCII), read as the skeleton and motion `core.retarget` turns into SMPL's, as a BVH is (`formats.bvh`).
 
-The binary format (nodes of typed properties, arrays zlib-compressed or not) is read here, with no SDK: the
+The binary format (nodes of typed properties, arrays zlib-compressed or not) and its ASCII form (the same nodes
+as text) are read here, with no SDK: the
 skeleton's joints are its Models of type LimbNode (and Root), their hierarchy from the file's connections; each
 joint's transform per frame is FBX's (translation, pre-rotation, the Euler rotation in its RotationOrder,
 post-rotation, scaling; rotation and scaling pivots and offsets left out, as skeletons carry none), its
 animation curves sampled linearly at the file's frame rate over one animation stack (a take: the first, or the
 one `--take` names), a value without a curve its property's. The rest pose is the file's BindPose where it has
-one (the skin's bind matrices), else the joints' own property values. ASCII FBX and files without a skeleton
-are refused in one line.
+one (the skin's bind matrices), else the joints' own property values. FBX 6 and files without a skeleton are
+refused in one line.
 """
 
 from __future__ import annotations
 
 import logging
+import re
 import struct
 import zlib
 from pathlib import Path
@@ -56,12 +58,13 @@ class Node(NamedTuple):
 
 
 def read_nodes(data: bytes, src: str) -> tuple[int, list[Node]]:
-    """(version, top-level nodes) of a binary FBX's bytes; InputError naming `src` for an ASCII or damaged one."""
+    """(version, top-level nodes) of an FBX's bytes, binary or ASCII (`_ascii_nodes`); InputError naming `src` for
+    a damaged one or another file."""
     if not data.startswith(_MAGIC):
         if data.lstrip()[:1] == b";" or b"FBXHeaderExtension:" in data[:4096]:
-            raise InputError(f"{src}: expected a binary FBX, got an ASCII one: save it as binary FBX (or export "
-                             f"its animation as a BVH)")
-        raise InputError(f"{src}: expected an FBX file (binary, 'Kaydara FBX Binary'), got a file that is not one")
+            return _ascii_nodes(data.decode("utf-8", "replace"), src)
+        raise InputError(f"{src}: expected an FBX file (binary 'Kaydara FBX Binary', or ASCII), got a file that is "
+                         f"not one")
     try:
         version = struct.unpack_from("<I", data, 23)[0]
         nodes, _ = _records(data, 27, len(data), version >= 7500)
@@ -93,6 +96,95 @@ def _records(data: bytes, at: int, end: int, wide: bool) -> tuple[list[Node], in
         nodes.append(Node(name, props, children))
         at = end_offset
     return nodes, at
+
+
+#: An ASCII FBX's tokens: a node's name (with its colon), a string, a number, an array's '*N', a brace or a comma,
+#: a bare word (a value such as Shading's T); comments (';' to the end of the line) and white space skipped.
+_ASCII_TOKEN = re.compile(r'(?:\s|;[^\n]*)*(?:(?P<name>[A-Za-z_][\w|]*)\s*:(?!:)|"(?P<string>[^"]*)"'
+                          r'|(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)|\*(?P<array>\d+)'
+                          r'|(?P<punct>[{},])|(?P<word>[A-Za-z_]\w*))')
+#: An ASCII array's values: '*N {' then 'a:' and N numbers, then '}'.
+_ASCII_ARRAY = re.compile(r"\s*\{\s*a\s*:([^}]*)\}")
+
+
+def _ascii_nodes(text: str, src: str) -> tuple[int, list[Node]]:
+    """(version, top-level nodes) of an ASCII FBX (Maya's, MotionBuilder's, the FBX converter's): the binary
+    format's nodes written as text (`Name: value, value {` children `}`, arrays `*N { a: ... }`, object names
+    'Class::Name'), read into the same Nodes (names as binary FBX writes them: 'Name\\x00\\x01Class'); its
+    version FBXHeaderExtension's FBXVersion. InputError naming `src` where its text is not that grammar."""
+    at, stack, top = 0, [], []
+    current: list = top  # the children list being filled
+    node: Node | None = None  # the node whose values are being read
+    expect_value = False
+    while True:
+        m = _ASCII_TOKEN.match(text, at)
+        if m is None or m.end() == at:
+            if text[at:].strip() == "" or text[at:].lstrip().startswith(";"):
+                break
+            raise _damaged(text, at, src, f"got {text[at:at + 20].strip()!r}")
+        at = m.end()
+        kind = m.lastgroup
+        if kind == "name":
+            node = Node(m.group("name"), [], [])
+            current.append(node)
+            expect_value = True
+        elif kind == "punct" and m.group("punct") == "{":
+            if node is None:
+                raise _damaged(text, at, src, "a block of no node")
+            stack.append(current)
+            current, node, expect_value = node.children, None, False
+        elif kind == "punct" and m.group("punct") == "}":
+            if not stack:
+                raise _damaged(text, at, src, "a '}' closing nothing")
+            current, node, expect_value = stack.pop(), None, False
+        elif kind == "punct":  # ','
+            expect_value = True
+        elif node is not None and expect_value:
+            if kind == "array":
+                values = _ASCII_ARRAY.match(text, at)
+                if values is None:
+                    raise _damaged(text, at, src, f"an array '*{m.group('array')}' without its values")
+                node.props.append(_ascii_array(values.group(1), int(m.group("array")), src))
+                at = values.end()
+            else:
+                node.props.append(_ascii_value(m))
+            expect_value = False
+        else:
+            raise _damaged(text, at, src, f"a value {m.group(0).strip()!r} out of place")
+    if stack:
+        raise InputError(f"{src}: its ASCII FBX is cut short ({len(stack)} block(s) left open)")
+    header = next((n for n in top if n.name == "FBXHeaderExtension"), None)
+    version = header.child("FBXVersion") if header is not None else None
+    return (int(version.props[0]) if version is not None and version.props else 7000), top
+
+
+def _damaged(text: str, at: int, src: str, what: str) -> InputError:
+    return InputError(f"{src}: its ASCII FBX is damaged at line {text.count(chr(10), 0, at) + 1} ({what})")
+
+
+def _ascii_value(m: re.Match):
+    """A value token of an ASCII FBX: a string (an object's 'Class::Name' as binary FBX writes it), an int, a
+    float, or a bare word (as a string)."""
+    if m.lastgroup == "string":
+        value = m.group("string")
+        cls, sep, name = value.partition("::")
+        return f"{name}\x00\x01{cls}" if sep and cls.isidentifier() else value
+    if m.lastgroup == "number":
+        number = m.group("number")
+        return float(number) if any(c in number for c in ".eE") else int(number)
+    return m.group("word")
+
+
+def _ascii_array(values: str, n: int, src: str) -> np.ndarray:
+    """An ASCII FBX array's `n` comma-separated numbers: int64 where all are integers, else float64."""
+    items = [v for v in values.replace("\n", " ").split(",") if v.strip()]
+    if len(items) != n:
+        raise InputError(f"{src}: its ASCII FBX has an array of {len(items)} values where it says {n}")
+    integer = not any(c in values for c in ".eE")
+    try:
+        return np.array(items, dtype=np.int64 if integer else np.float64)
+    except ValueError:
+        raise InputError(f"{src}: its ASCII FBX has an array of other than numbers") from None
 
 
 def _property(data: bytes, at: int):
@@ -203,10 +295,10 @@ def _sampled(axes: list, static: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def read_fbx(path: Path, src: str, take: str | None = None) -> Skeleton:
-    """The skeleton and motion of the binary FBX `path` (module docstring), as `formats.bvh.read_skeleton` gives a
+    """The skeleton and motion of the FBX `path` (module docstring), as `formats.bvh.read_skeleton` gives a
     BVH's: its joints' frames turned to the world's at rest (the rest its zero pose), so `core.retarget` reads it
     as a BVH; of a file of several animation stacks, the one named `take` (`_stack`; default: the first).
-    InputError naming `src` for a file that is no binary FBX, a damaged one, or one without a skeleton."""
+    InputError naming `src` for a file that is no FBX, a damaged one, or one without a skeleton."""
     try:
         data = path.read_bytes()
     except OSError as exc:

@@ -19,7 +19,7 @@ per video frame of its detections: the person tracked in most frames) and PyTorc
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
-BVH or binary FBX motion capture of SMPL's or another humanoid's skeleton (`formats.bvh`, `formats.fbx`,
+BVH or FBX (binary or ASCII) motion capture of SMPL's or another humanoid's skeleton (`formats.bvh`, `formats.fbx`,
 `core.retarget`).
 """
 

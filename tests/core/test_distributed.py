@@ -80,6 +80,18 @@ def _mark_and_square(x):
     return _MARK, x * x
 
 
+def _assert_spawned_run(monkeypatch, n: int) -> None:
+    """The processes are spawned (`pool_context`), and run_items in 2 of them runs all `n` items, each in a fresh
+    interpreter (this module imported afresh: its mark not the parent's)."""
+    from core.distributed import pool_context
+
+    assert pool_context().get_start_method() == "spawn"
+    monkeypatch.setattr(sys.modules[__name__], "_MARK", "set in the parent")
+    got = dict(run_items(_mark_and_square, [(x,) for x in range(n)], [f"i{x}" for x in range(n)], workers=2))
+    assert {k: v[1] for k, v in got.items()} == {f"i{x}": x * x for x in range(n)}
+    assert {mark for mark, _ in got.values()} == {"imported"}
+
+
 def test_local_processes_are_spawned_once_this_process_has_started_cuda(monkeypatch):
     """A forked child cannot use CUDA once its parent has started it: the processes are then spawned (fresh
     interpreters) and still run every item; otherwise the platform's default start method (no re-import)."""
@@ -90,24 +102,15 @@ def test_local_processes_are_spawned_once_this_process_has_started_cuda(monkeypa
     monkeypatch.delitem(sys.modules, "pxr", raising=False)  # USD not loaded (another test may have)
     assert pool_context() is None or torch.cuda.is_initialized()
     monkeypatch.setattr(torch.cuda, "is_initialized", lambda: True)
-    assert pool_context().get_start_method() == "spawn"
-    monkeypatch.setattr(sys.modules[__name__], "_MARK", "set in the parent")
-    got = dict(run_items(_mark_and_square, [(x,) for x in range(4)], [f"i{x}" for x in range(4)], workers=2))
-    assert {k: v[1] for k, v in got.items()} == {"i0": 0, "i1": 1, "i2": 4, "i3": 9}
-    assert {mark for mark, _ in got.values()} == {"imported"}
+    _assert_spawned_run(monkeypatch, 4)
 
 
 def test_local_processes_are_spawned_once_this_process_has_loaded_usd(monkeypatch):
     """USD's TBB thread pool is not fork-safe once used (a forked child deadlocked creating a stage under
     `bake --workers 2` in the suite): with `pxr` loaded the processes are spawned and run every item."""
-    from core.distributed import pool_context
     import formats.usd  # noqa: F401  (loads pxr)
 
-    assert pool_context().get_start_method() == "spawn"
-    monkeypatch.setattr(sys.modules[__name__], "_MARK", "set in the parent")
-    got = dict(run_items(_mark_and_square, [(x,) for x in range(3)], [f"i{x}" for x in range(3)], workers=2))
-    assert {k: v[1] for k, v in got.items()} == {"i0": 0, "i1": 1, "i2": 4}
-    assert {mark for mark, _ in got.values()} == {"imported"}
+    _assert_spawned_run(monkeypatch, 3)
 
 
 def test_cluster_retries_failed_and_killed_tasks(client, tmp_path):

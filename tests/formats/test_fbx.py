@@ -36,14 +36,15 @@ def _prop(value) -> bytes:
 
 
 def _node(name: str, props=(), children=()) -> tuple:
-    return (name, [_prop(p) for p in props], list(children))
+    """A node: its name, its properties as (type code, value) pairs (`_prop`), its children."""
+    return (name, list(props), list(children))
 
 
 def _encode(node, at: int) -> bytes:
     """A node record (FBX 7.4: 32-bit offsets) starting at file offset `at`."""
     name, props, children = node
     head = 13 + len(name)
-    body = b"".join(props)
+    body = b"".join(_prop(p) for p in props)
     inner = b""
     for child in children:
         inner += _encode(child, at + head + len(body) + len(inner))
@@ -53,7 +54,40 @@ def _encode(node, at: int) -> bytes:
     return struct.pack("<III", end, len(props), len(body)) + bytes([len(name)]) + name.encode() + body + inner
 
 
-def write_fbx(path, nodes, version=7400):
+def _ascii(node, depth: int = 0) -> str:
+    """A node as an ASCII FBX writes it: `Name: value, ...` (strings quoted, an object's 'Name\\x00\\x01Class'
+    as "Class::Name", arrays `*N {` then `a: ...` wrapped every 8 values `}`), its children in braces, a
+    comment line above each object as Maya writes them."""
+    name, props, children = node
+    tab = "\t" * depth
+
+    def value(code, v):
+        if code == "S":
+            text, _, cls = v.partition("\x00\x01")
+            return f'"{cls}::{text}"' if cls else f'"{text}"'
+        if code in ("L", "I"):
+            return str(int(v))
+        if code == "D":
+            return repr(float(v))
+        items = [str(int(x)) if code[0] in "lL" else repr(float(x)) for x in np.asarray(v).reshape(-1)]
+        rows = ",\n".join(",".join(items[k:k + 8]) for k in range(0, len(items), 8))
+        return f"*{len(items)} {{\n{tab}\ta: {rows}\n{tab}}}"
+
+    head = f"{tab}; {name} of {len(children)} children\n" if children and depth == 1 else ""
+    line = f"{head}{tab}{name}: {', '.join(value(*p) for p in props)}"
+    if not children:
+        return line + "\n"
+    return line + " {\n" + "".join(_ascii(c, depth + 1) for c in children) + f"{tab}}}\n"
+
+
+def write_fbx(path, nodes, version=7400, ascii=False):
+    """A binary FBX of `nodes` (FBX `version`); ascii: an ASCII one, its header naming the version."""
+    if ascii:
+        header = _node("FBXHeaderExtension", [], [_node("FBXHeaderVersion", [("I", 1003)]),
+                                                  _node("FBXVersion", [("I", version)])])
+        text = f"; FBX {version // 1000}.{version % 1000 // 100}.0 project file\n; ----\n\n"
+        path.write_text(text + "".join(_ascii(n) + "\n" for n in [header, *nodes]))
+        return path
     data = b"Kaydara FBX Binary  \x00\x1a\x00" + struct.pack("<I", version)
     for node in nodes:
         data += _encode(node, len(data))
@@ -68,13 +102,14 @@ def _p70(*entries):
 
 
 def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None,
-            takes=None):
+            takes=None, ascii=False):
     """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
     metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
     and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
     rotations are the first frame's (not the rest) and a BindPose holds the rest. extra_links: connections
     added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s. takes:
-    {stack name: (poses, trans)}, one animation stack (and layer) each, instead of 'Take 001' of `poses`."""
+    {stack name: (poses, trans)}, one animation stack (and layer) each, instead of 'Take 001' of `poses`;
+    ascii: an ASCII FBX of the same nodes."""
     takes = takes or {"Take 001": (poses, trans)}
     moving = {name: rig_motion(*motion, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, motion in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()))
@@ -153,17 +188,20 @@ def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, ext
     connections = _node("Connections", [], [_node("C", [("S", kind), ("L", a), ("L", b)]
                                                    + ([("S", rest[0])] if rest else []))
                                             for kind, a, b, *rest in links])
-    return write_fbx(path, [settings, _node("Objects", [], objects), connections])
+    return write_fbx(path, [settings, _node("Objects", [], objects), connections], ascii=ascii)
 
 
-@pytest.mark.parametrize("bind_pose", [False, True])
-def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose):
+@pytest.mark.parametrize("bind_pose, ascii", [(False, False), (True, False), (True, True)])
+def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose, ascii):
     """A Mixamo rig's FBX (pre-rotated joint frames, six Euler orders, an Armature scaling centimetres, an A-pose
     15 % larger, 30 fps) is retarget to the SMPL motion it moves as: every body joint's rotation, the
-    translation; with its static rotations another pose than the rest, its BindPose gives the rest."""
+    translation; with its static rotations another pose than the rest, its BindPose gives the rest; the same
+    FBX written as ASCII (Maya's comments, 'Model::Name' names, arrays wrapped over lines) reads as well."""
     poses, trans = _motion(5, seed=7)
     poses[:, 22:] = 0
-    m = load_motion(rig_fbx(tmp_path / "walk.fbx", poses, trans, bind_pose=bind_pose), world_checks=False)
+    path = rig_fbx(tmp_path / "walk.fbx", poses, trans, bind_pose=bind_pose, ascii=ascii)
+    assert path.read_bytes().startswith(b"; FBX 7.4.0 project file") == ascii
+    m = load_motion(path, world_checks=False)
     assert m.fps == pytest.approx(30) and m.poses.shape == (5, 24, 3) and m.rest_up == "y"
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
@@ -172,9 +210,14 @@ def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose):
 def test_an_ascii_broken_or_skeleton_less_fbx_is_one_line(tmp_path):
     poses, trans = _motion(2)
     good = rig_fbx(tmp_path / "good.fbx", poses, trans).read_bytes()
-    cases = [(b"; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n", "expected a binary FBX, got an ASCII one: "
-                                                                      "save it as binary FBX"),
-             (b"not an fbx at all", "expected an FBX file (binary, 'Kaydara FBX Binary'), got a file that is not"),
+    cases = [(b"; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n", "its ASCII FBX is cut short (1 block(s) "
+                                                                      "left open)"),
+             (b"; FBX 7.4.0 project file\nObjects:  {\n} }\n", "its ASCII FBX is damaged at line 3 (a '}' "
+                                                                "closing nothing)"),
+             (b"; FBX 7.4.0 project file\nKeyTime: *3 {\n a: 1,2\n}\n", "has an array of 2 values where it says 3"),
+             (b"; FBX 7.4.0 project file\nObjects: 1 2\n", "damaged at line 2 (a value '2' out of place)"),
+             (b"not an fbx at all", "expected an FBX file (binary 'Kaydara FBX Binary', or ASCII), got a file that "
+                                    "is not one"),
              (good[:len(good) // 2], "its FBX records are damaged or cut short"),
              (good.replace(b"LimbNode", b"MeshNode"), "expected an FBX of a skeleton (Models of type LimbNode), "
                                                       "found 28 Model(s) and no joint"),
