@@ -5,8 +5,9 @@
 One random SMPL motion of --frames frames (9,000: five minutes at 30 fps) is written in each format as its
 producer writes it (AMASS's npz; AIST++'s pickle; WHAM's joblib result with its per-frame vertices, where joblib
 is installed; Motion-X's .npy; SMPLCodec's .smpl; a BVH of the SMPL skeleton; a BVH of a Mixamo rig of 27 joints
-(fingers, CMU's hip joints) resting in an A-pose, 15 % larger, retargeted, and its binary FBX (pre-rotated
-joints, curves per axis, half of them zlib-compressed); PHALP's per-frame pickle with a
+(fingers, CMU's hip joints) resting in an A-pose, 15 % larger, retargeted, its binary FBX (pre-rotated
+joints, curves per axis, half of them zlib-compressed) and that FBX as ASCII; a BVH of a LAFAN1-like rig (every
+bone along its joint's X: its zero pose folds the body, so its straightest frame, the first, is its rest); PHALP's per-frame pickle with a
 4,096-value appearance feature per detection; TRAM's np.save of torch tensors; GVHMR's torch.save), then read by
 `formats.motion.load_motion` --repeats times: the median seconds, the peak of Python's traced allocations
 (tracemalloc: numpy's arrays included) over one read, the file's size, and whether the joint rotations read are
@@ -34,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 from core.rotations import axis_angle_to_matrix  # noqa: E402
 from formats.motion import load_motion  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
-from tests.formats.test_bvh import MIXAMO, rig_bvh, write_bvh  # noqa: E402
+from tests.formats.test_bvh import LAFAN1, MIXAMO, rig_bvh, write_bvh  # noqa: E402
 from tests.formats.test_fbx import rig_fbx  # noqa: E402
 
 
@@ -95,6 +96,9 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
             "BVH (Mixamo rig, retargeted)": ("mixamo.bvh", lambda p: rig_bvh(p, poses, trans, MIXAMO, scale=1.15,
                                                                             a_pose=40.0)),
             "FBX (Mixamo rig, retargeted)": ("mixamo.fbx", lambda p: rig_fbx(p, poses, trans)),
+            "FBX ASCII (Mixamo rig, retargeted)": ("mixamo_ascii.fbx", lambda p: rig_fbx(p, poses, trans, ascii=True)),
+            "BVH (LAFAN1-like rig, rest its straightest frame)": (
+                "lafan.bvh", lambda p: rig_bvh(p, poses, trans, LAFAN1, along_x=True, order="ZYX")),
             "PHALP pickle": ("phalp.pkl", phalp), "TRAM npy": ("hps_track_0.npy", tram),
             "GVHMR pt": ("hmr4d_results.pt", gvhmr)}
 
@@ -109,6 +113,8 @@ def main() -> None:
     rng = np.random.default_rng(0)
     poses = rng.normal(scale=0.3, size=(args.frames, 24, 3)).astype(np.float32)
     poses[:, 0] = [np.pi / 2, 0, 0]  # standing in a Z-up world
+    poses[0, 1:] = 0  # the first frame SMPL's rest, the others' knees bent at least 29 degrees: the first is the
+    poses[1:, 4:6, 0] = np.abs(poses[1:, 4:6, 0]) + 0.5  # straightest, the rest a LAFAN1-like rig is turned from
     trans = np.stack([np.linspace(0, 5, args.frames), np.zeros(args.frames), np.full(args.frames, 0.9)],
                      1).astype(np.float32)
     want = axis_angle_to_matrix(poses[:, :22])
