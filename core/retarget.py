@@ -101,7 +101,7 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     smpl_rest = default_body().shaped(None)[1][:24].astype(np.float64)
     itself = {k: k for k in range(24)}  # SMPL's rest joints as a rig matched to itself
     world, position = rig_pose(parents, offsets, rotations, root_positions)
-    rest_world, stands = None, ""
+    rest_world = None
     bent, leg = _bent(rest, match)
     if bent > LEG_MAX_DEGREES:
         t, frame_bent = _standing_frame(position, match)
@@ -111,7 +111,6 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
                              f"frame ({t}), a leg {frame_bent:.0f} degrees from down (the head above the pelvis is "
                              f"up): a rig that never stands needs retargeting to one first")
         rest, rest_world = position[t], world[t]
-        stands = f"; its frame {t} taken as its rest (its zero pose does not stand)"
         log.warning("%s: the rig's zero pose does not stand (its '%s' leg %.0f degrees from down): its frame %d, "
                     "the straightest (legs within %.0f degrees of down), is taken as its rest; the twist about each "
                     "limb is the actor's there", src, names[match[leg]], bent, t, frame_bent)
@@ -135,7 +134,7 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     trans = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
     up = next((axis for axis, v in _UP_AXES.items() if body_s[:, 1] @ v > _UP_COSINE), None)
     said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
-            f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}{stands}")
+            f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}")
     return Retargeted(matrix_to_axis_angle(local), trans, up, said)
 
 

@@ -295,23 +295,23 @@ def _pickled_arrays(path: Path, src: str, npy: bool = False, person: str | None 
     return arrays, [str(k) for k in data]
 
 
-def tracked_people(path) -> list[str]:
-    """The track ids (as `--person` reads them) of a motion file of several tracked people (WHAM's, VIBE's,
-    PHALP's, 4D-Humans' results), the longest tracked first; [] for any other file (one person's, an .npz, a BVH).
-    InputError naming the file where a pickle cannot be read."""
+def tracked_people(path) -> dict[str, int]:
+    """{track id (as `--person` reads it): frames tracked} of a motion file of several tracked people (WHAM's,
+    VIBE's, PHALP's, 4D-Humans' results), the longest tracked first; {} for any other file (one person's, an .npz,
+    a BVH). InputError naming the file where a pickle cannot be read."""
     path = Path(path)
     if path.suffix.lower() not in PICKLE_SUFFIXES + TORCH_SUFFIXES:
-        return []
+        return {}
     src = f"motion '{path}'"
     try:
         frames = _tracks(_unpickled(path, src))[1]
     except (AttributeError, TypeError, KeyError, IndexError, ValueError) as exc:
         if isinstance(exc, InputError):
             raise
-        return []  # not tracked people's structure: load_motion says what it is
+        return {}  # not tracked people's structure: load_motion says what it is
     if not frames or len(frames) < 2:
-        return []
-    return [str(k) for k in sorted(frames, key=lambda k: -frames[k])]
+        return {}
+    return {str(k): int(frames[k]) for k in sorted(frames, key=lambda k: -frames[k])}
 
 
 def pickled_motion_keys(path: Path) -> list[str]:

@@ -511,7 +511,7 @@ def _parts_to_bake(path: str, person: str | None, take: str | None) -> list[tupl
     from formats.fbx import animation_takes
     from formats.motion import tracked_people
 
-    people = tracked_people(path) if person == "all" else []
+    people = list(tracked_people(path)) if person == "all" else []
     takes = animation_takes(path) if take == "all" and Path(path).suffix.lower() == ".fbx" else []
     for found, what in ((people, "tracked people"), (takes, "animation stacks")):
         if found:

@@ -202,8 +202,8 @@ def input_errors_as_click(func):
 
 
 class _WarningList(logging.Handler):
-    def __init__(self):
-        super().__init__(logging.WARNING)
+    def __init__(self, level: int = logging.WARNING):
+        super().__init__(level)
         self.messages: list[str] = []
 
     def emit(self, record: logging.LogRecord) -> None:
@@ -220,6 +220,26 @@ def collected_warnings():
         yield handler.messages
     finally:
         root.removeHandler(handler)
+
+
+@contextmanager
+def collected_notes():
+    """Within the block, the messages of every INFO (and worse) log record, in a list, and none printed (the
+    logging handlers already there silenced): what reading a file says, for `garment info`."""
+    root = logging.getLogger()
+    handler = _WarningList(logging.INFO)
+    saved = root.level, [(h, h.level) for h in root.handlers]
+    for h in root.handlers:
+        h.setLevel(logging.CRITICAL + 1)
+    root.setLevel(logging.INFO)
+    root.addHandler(handler)
+    try:
+        yield handler.messages
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(saved[0])
+        for h, level in saved[1]:
+            h.setLevel(level)
 
 
 def with_collected_warnings(func):

@@ -12,6 +12,7 @@ from garmentcli import (
     dataset,
     examples,
     fit,
+    info,
     make_body,
     metrics,
     preprocess,
@@ -80,6 +81,7 @@ cli.add_command(attribute.attribute)
 cli.add_command(tradeoff.tradeoff)
 cli.add_command(unpose.unpose)
 cli.add_command(fit.fit)
+cli.add_command(info.info)
 
 
 def main() -> None:

@@ -48,7 +48,7 @@ def test_a_joblib_file_of_tracked_people_gives_the_longest_tracks_world_motion(n
     np.testing.assert_allclose(m.betas, person["betas"].mean(axis=0), rtol=1e-6)
     text = caplog.text
     assert "holds 2 tracked people ('0' 6 frames, '7' 4 frames): reading '0', tracked longest (--person ID" in text
-    assert m.person == "0" and tracked_people(DATA / name) == ["0", "7"]
+    assert m.person == "0" and tracked_people(DATA / name) == {"0": 6, "7": 4}
     assert "not tracked in 1 of the video's 7 frames from its first to its last (its frame numbers; 1 in a row" in text
     other = people[7]  # person='7' reads the other track, without a word of the first
     caplog.clear()
@@ -308,13 +308,13 @@ def test_a_phalp_result_gives_the_person_tracked_in_most_frames_as_smplx_argumen
     np.testing.assert_allclose(m.trans[2], (camera[1] + camera[3]) / 2 + 3, atol=1e-6)
     assert "holds 2 tracked people ('3' 4 frames, '5' 2 frames): reading '3'" in caplog.text
     assert "not tracked in 1 of the video's 5 frames" in caplog.text
-    assert m.person == "3" and tracked_people(path) == ["3", "5"]
+    assert m.person == "3" and tracked_people(path) == {"3": 4, "5": 2}
     m = load_motion(path, fps=30, world_checks=False, person="5")  # the other track: frames 1 and 2
     np.testing.assert_allclose(m.trans, camera[1:3] + 5, atol=1e-6)
     assert m.person == "5"
     one = tmp_path / "one.pkl"  # a file of one person's parameters: no tracks
     one.write_bytes(pickle.dumps({"poses": poses.reshape(5, 72), "trans": camera, "mocap_framerate": 30.0}))
-    assert tracked_people(one) == [] and load_motion(one, world_checks=False).person is None
+    assert tracked_people(one) == {} and load_motion(one, world_checks=False).person is None
     with pytest.raises(InputError) as info:
         load_motion(path, fps=30, person="4")
     _assert_one_line(info, "demo_video.pkl", "expected --person one of its 2 tracked people ('3' 4 frames, '5' 2 "

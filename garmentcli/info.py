@@ -1,0 +1,145 @@
+"""`garment info PATH...`: what `garment` reads in each file, before any bake: a garment's mesh and how it rests on
+the body (or why it would be refused); a motion's frames, rate, joints, world, the parts a file holds (tracked
+people, animation stacks) and what reading it said (a rig retargeted, a world turned)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+import numpy as np
+
+from core.errors import InputError
+from garmentcli.common import (
+    body_option,
+    collected_notes,
+    input_errors_as_click,
+    load_body_option,
+    motion_files,
+    person_option,
+    resolved_up,
+    source_fps_option,
+    take_option,
+)
+
+
+def garment_info(path: str, body) -> dict:
+    """A garment file's mesh (vertices, triangles, extent in metres) and its rest on `body`: the median distance
+    of its vertices to the body's surface, the share more than `REST_INSIDE_DEPTH_M` inside, and the refusal a
+    bake would give ('refused': its line, or None)."""
+    from core.geometry import TriangleMesh
+    from core.skinning import REST_INSIDE_DEPTH_M, check_rest_fit
+    from formats.obj import read_garment
+
+    with collected_notes() as notes:
+        garment = read_garment(path)
+        mesh = TriangleMesh(body.v_template, body.faces)
+        _, signed = mesh.signed_closest(garment.vertices)
+        try:
+            check_rest_fit(garment, body, mesh, signed, str(path))
+            refused = None
+        except InputError as exc:
+            refused = str(exc)
+    span = np.ptp(garment.vertices, axis=0)
+    return {"path": str(path), "kind": "garment", "vertices": garment.n_vertices, "triangles": garment.n_faces,
+            "extent_m": [round(float(x), 4) for x in span],
+            "median_distance_mm": round(float(np.median(np.abs(signed))) * 1e3, 2),
+            "inside_percent": round(float(np.mean(signed < -REST_INSIDE_DEPTH_M)) * 100, 2),
+            "refused": refused, "notes": notes}
+
+
+def motion_info(path: str, person: str | None = None, take: str | None = None,
+                source_fps: float | None = None) -> dict:
+    """A motion file as `garment bake` reads it (with --person, --take, --source-fps; --motion-up left out): its
+    frames, rate,
+    joints, betas, the world axis read as up, the root's path, the tracked people or animation stacks it holds
+    (frames of each) and the part read, and what reading it said."""
+    from formats.fbx import animation_takes
+    from formats.motion import load_motion, tracked_people
+
+    with collected_notes() as notes:
+        motion = load_motion(path, fps=source_fps, world_checks=False, person=person, take=take)
+        up = resolved_up(motion, path, None)
+    takes = {}
+    if Path(path).suffix.lower() == ".fbx":
+        for name in animation_takes(path):
+            with collected_notes():
+                takes[name] = load_motion(path, fps=source_fps, world_checks=False, take=name).n_frames
+    speed = np.linalg.norm(np.diff(motion.trans.astype(np.float64), axis=0), axis=1) * motion.fps
+    return {"path": str(path), "kind": "motion", "frames": motion.n_frames, "fps": motion.fps,
+            "seconds": round(motion.duration_s, 3), "joints": int(motion.poses.shape[1]),
+            "betas": None if motion.betas is None else int(motion.betas.size), "gender": motion.gender, "up": up,
+            "person": motion.person, "people": tracked_people(path), "take": motion.take, "takes": takes,
+            "root_travel_m": round(float(speed.sum() / motion.fps), 3),
+            "root_speed_m_s_p99": round(float(np.percentile(speed, 99)), 3) if speed.size else 0.0,
+            "notes": notes}
+
+
+def _parts(word: str, chosen, parts: dict, option: str) -> str:
+    listed = ", ".join(f"'{k}' {n:,} frames" for k, n in list(parts.items())[:6]) + (", ..." if len(parts) > 6
+                                                                                     else "")
+    return f"; {word} '{chosen}' of {len(parts)} ({listed}: {option})"
+
+
+def _text(record: dict, body_name: str) -> str:
+    """One report line (and its notes) of a record of `garment_info` or `motion_info`."""
+    if "error" in record:
+        return f"{record['path']}: error: {record['error']}"
+    if record["kind"] == "garment":
+        x, y, z = record["extent_m"]
+        verdict = f"refused: {record['refused']}" if record["refused"] else "bakes as it is"
+        line = (f"{record['path']}: garment, {record['vertices']:,} vertices, {record['triangles']:,} triangles, "
+                f"{x:.2f} x {y:.2f} x {z:.2f} m; on {body_name}: {record['median_distance_mm']:.0f} mm from it "
+                f"(median), {record['inside_percent']:.1f} % inside: {verdict}")
+    else:
+        line = (f"{record['path']}: motion, {record['frames']:,} frames at {record['fps']:g} fps "
+                f"({record['seconds']:.1f} s), {record['joints']} joints, read {record['up']}-up")
+        if record["betas"]:
+            line += f", {record['betas']} betas"
+        if record["people"]:
+            line += _parts("person", record["person"], record["people"], "--person")
+        if record["takes"]:
+            line += _parts("take", record["take"], record["takes"], "--take")
+        line += (f"; the root travels {record['root_travel_m']:.1f} m, up to {record['root_speed_m_s_p99']:.1f} "
+                 f"m/s")
+    own = (f"motion '{record['path']}': ", f"garment mesh '{record['path']}': ")
+    notes = [next((note[len(o):] for o in own if note.startswith(o)), note) for note in record["notes"]]
+    return "\n".join([line, *(f"  - {note}" for note in notes)])
+
+
+@click.command(name="info")
+@click.argument("paths", nargs=-1, required=True, metavar="PATH...")
+@body_option
+@person_option
+@take_option
+@source_fps_option
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
+              help="text: a line per file (and what reading it said); json: a list of records.")
+@input_errors_as_click
+def info(paths, body_path, person, take, source_fps, fmt):
+    """Tell what `garment bake` reads in each PATH, before any bake: a garment (OBJ or USD) and how it rests on
+    the body, or a motion (any format bake reads; a directory: its motion files) and the tracked people or
+    animation stacks it holds.
+
+    Exits with 1 where a file cannot be read or its garment would be refused (each told), else 0.
+    """
+    from formats.obj import USD_SUFFIXES
+
+    body = load_body_option(body_path)
+    body_name = f"the body '{body_path}'" if body_path else "the embedded default body"
+    records = []
+    for arg in paths:
+        garment = Path(arg).suffix.lower() in (".obj", *USD_SUFFIXES)
+        for path in [arg] if garment else motion_files([arg], hint="PATH"):
+            try:
+                records.append(garment_info(path, body) if garment else motion_info(path, person, take, source_fps))
+            except InputError as exc:
+                records.append({"path": str(path), "error": str(exc)})
+    if fmt == "json":
+        click.echo(json.dumps(records, indent=2))
+    else:
+        for record in records:
+            click.echo(_text(record, body_name))
+    if any("error" in r or r.get("refused") for r in records):
+        raise click.exceptions.Exit(1)

@@ -1,0 +1,86 @@
+"""`garment info`: what bake reads in each file (a garment and its rest on the body, a motion and the parts it
+holds), as text or JSON; files that cannot be read or garments that would be refused told, the exit code 1."""
+
+import json
+import pickle
+from pathlib import Path
+
+import numpy as np
+
+from tests.formats.test_bvh import _motion
+from tests.formats.test_fbx import rig_fbx
+from tests.garmentcli.cli import invoke
+from tests.garmentcli.test_bake_motion_input_cli import _wham_file
+
+ROOT = Path(__file__).resolve().parents[2]
+DRESS, WALK = ROOT / "examples" / "dress.obj", ROOT / "examples" / "walk.npz"
+
+
+def _json(*args):
+    r = invoke(["info", *args, "--format", "json"])
+    return r, json.loads(r.output)
+
+
+def test_info_tells_a_garments_rest_on_the_body_and_a_motions_frames(scene):
+    """The example dress (its mesh, its median distance to the embedded body, none inside: it bakes) and walk (its
+    frames, rate, joints, betas, Z-up, the root's path), as text and as JSON; exit 0; the dress 1.5 m up is far
+    from the body: refused, told, exit 1."""
+    r = invoke(["info", DRESS, WALK])
+    assert r.exit_code == 0, r.output
+    assert "dress.obj: garment, 3,240 vertices, 6,336 triangles, 0.54 x 0.80 x 0.45 m; on the embedded default " \
+           "body: 32 mm from it (median), 0.0 % inside: bakes as it is" in r.output
+    assert "walk.npz: motion, 181 frames at 60 fps (3.0 s), 24 joints, read z-up, 16 betas; the root travels " \
+           "3.9 m, up to 1.4 m/s" in r.output
+    r, (dress, walk) = _json(DRESS, WALK)
+    assert dress["vertices"] == 3240 and dress["refused"] is None and dress["inside_percent"] == 0.0
+    with np.load(WALK) as m:
+        assert walk["frames"] == len(m["poses"]) and walk["fps"] == float(m["mocap_framerate"])
+    assert walk["up"] == "z" and walk["people"] == {} and walk["takes"] == {} and walk["person"] is None
+    lifted = scene["dir"] / "lifted.obj"
+    from formats.obj import read_obj, write_obj
+
+    dress = read_obj(DRESS)
+    write_obj(lifted, dress.vertices + [0.0, 1.5, 0.0], dress.faces)
+    r, (far,) = _json(lifted)
+    assert r.exit_code == 1 and far["refused"].startswith(f"garment mesh '{lifted}': expected a garment authored on")
+
+
+def test_info_lists_the_tracked_people_and_takes_a_file_holds_and_the_part_read(scene):
+    """A WHAM result of two people: both with their frames, the longest read ('--person 3' the other); an FBX of
+    two takes: both with their frames, the first read ('--take Run' the other), with what retargeting its rig
+    said; a motion that cannot be read is told beside them, exit 1; --person all is bake's only."""
+    path, fps = _wham_file(scene)
+    r, (wham,) = _json(path, "--source-fps", fps)
+    assert r.exit_code == 0, r.output
+    n = wham["frames"]
+    assert wham["people"] == {"0": n, "3": n - 2} and wham["person"] == "0"
+    assert any("holds 2 tracked people" in note for note in wham["notes"])
+    r = invoke(["info", path, "--person", "3", "--source-fps", fps])
+    assert f"; person '3' of 2 ('0' {n} frames, '3' {n - 2} frames: --person)" in r.output, r.output
+
+    (walk, walk_trans), (run, run_trans) = _motion(5, seed=3), _motion(3, seed=4)
+    moves = rig_fbx(scene["dir"] / "moves.fbx", None, None, takes={"Walk": (walk, walk_trans), "Run": (run, run_trans)})
+    broken = scene["dir"] / "broken.npz"
+    broken.write_bytes(b"PK\x03\x04 not a zip")
+    r, (fbx, bad) = _json(moves, broken, "--take", "Run")
+    assert r.exit_code == 1
+    assert fbx["takes"] == {"Walk": 5, "Run": 3} and fbx["take"] == "Run" and fbx["frames"] == 3 and fbx["up"] == "y"
+    assert any("retargeted onto SMPL's skeleton" in note for note in fbx["notes"])
+    assert bad["error"].startswith(f"motion '{broken}': expected an AMASS-style .npz archive")
+    r = invoke(["info", moves, "--person", "all"])
+    assert r.exit_code == 2 and "all (one output per tracked person) applies to bake only" in r.output
+
+
+def test_info_of_a_folder_tells_each_motion_in_it(scene, tmp_path):
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    for name in ("a", "b"):
+        (folder / f"{name}.npz").write_bytes(Path(scene["motion"]).read_bytes())
+    with open(folder / "c.pkl", "wb") as fh:  # AIST++'s pickle of the same motion
+        with np.load(scene["motion"]) as m:
+            pickle.dump({"smpl_poses": m["poses"][:, :72], "smpl_trans": m["trans"] * 100, "smpl_scaling": [100.0]},
+                        fh)
+    r, records = _json(folder, "--source-fps", 30)
+    assert r.exit_code == 0, r.output
+    assert [Path(rec["path"]).name for rec in records] == ["a.npz", "b.npz", "c.pkl"]
+    assert {(rec["frames"], rec["fps"]) for rec in records} == {(records[0]["frames"], 30.0)}
