@@ -336,7 +336,8 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"{src}: expected a frame rate over 0 in its CustomFrameRate, got {fps:g}")
     stacks = objects.all("AnimationStack")
-    stack = _stack(stacks, take, src)
+    chosen = chosen_take([_name(s) for s in stacks], take, src)
+    stack = stacks[chosen] if chosen is not None else None
     curves = _animation(objects, links, stack)
     if curves is None:
         log.warning("%s: no animation curves: its one frame is the skeleton as it stands", src)
@@ -361,30 +362,30 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
         world[i] = local if p is None else world[p] @ local
         rest[i] = resting if p is None else rest[p] @ resting
     rest.update(_bind_pose(objects, rest))
-    skeleton = _skeleton(joints, models, model_parent, order, world, rest, 1.0 / fps)
+    skeleton = skeleton_of(joints, {i: _name(models[i]) for i in joints}, model_parent, order, world, rest,
+                           1.0 / fps)
     return skeleton._replace(take=_name(stack)) if len(stacks) > 1 else skeleton
 
 
-def _stack(stacks: list[Node], take: str | None, src: str) -> Node | None:
-    """The animation stack named `take` (its case aside where none matches exactly; InputError naming `src` and
-    the stacks where none does), else the first, the others named in a warning. A file of one stack is read as
-    it is, a `take` of another name warned about."""
-    names = [_name(s) for s in stacks]
+def chosen_take(names: list[str], take: str | None, src: str, what: str = "animation stacks") -> int | None:
+    """The index among a file's animations (`names`; FBX's stacks, glTF's animations) of the one named `take`
+    (its case aside where none matches exactly; InputError naming `src` and the animations where none does),
+    else the first, the others named in a warning; None where there is none. A file of one is read as it is, a
+    `take` of another name warned about."""
     listed = ", ".join(f"'{n}'" for n in names[:6]) + (", ..." if len(names) > 6 else "")
-    if take is not None and len(stacks) > 1:
-        found = [s for s, n in zip(stacks, names) if n == take] or [s for s, n in zip(stacks, names)
-                                                                    if n.lower() == take.lower()]
+    if take is not None and len(names) > 1:
+        found = [i for i, n in enumerate(names) if n == take] or [i for i, n in enumerate(names)
+                                                                  if n.lower() == take.lower()]
         if not found:
-            raise InputError(f"{src}: expected --take one of its {len(names)} animation stacks ({listed}), got "
-                             f"'{take}'")
+            raise InputError(f"{src}: expected --take one of its {len(names)} {what} ({listed}), got '{take}'")
         return found[0]
     if take is not None and names != [take]:
         log.warning("%s: holds %s: --take %s left aside", src,
-                    f"one animation stack ({listed})" if names else "no animation stack", take)
-    elif len(stacks) > 1:
-        log.warning("%s: holds %d animation stacks (%s): reading '%s', the first (--take NAME reads another)", src,
-                    len(names), listed, names[0])
-    return stacks[0] if stacks else None
+                    f"only {listed}" if names else f"no {what}", take)
+    elif len(names) > 1:
+        log.warning("%s: holds %d %s (%s): reading '%s', the first (--take NAME reads another)", src,
+                    len(names), what, listed, names[0])
+    return 0 if names else None
 
 
 def animation_takes(path: Path) -> list[str]:
@@ -439,14 +440,18 @@ def _bind_pose(objects: Node, rest: dict) -> dict:
     return {}
 
 
-def _skeleton(joints, models, model_parent, order, world, rest, frame_time) -> Skeleton:
-    """The largest tree of joints as a Skeleton whose zero pose is the rest (its frames the world's there)."""
+def skeleton_of(joints: list, names: dict, parent: dict, order: list, world: dict, rest: dict,
+                frame_time: float) -> Skeleton:
+    """The largest tree of `joints` (ids of a file's nodes) as a Skeleton whose zero pose is the rest (its frames
+    the world's there): names {id: joint name}; parent {id: its parent node's id} over all nodes (an Armature
+    above the joints too); order: every id, parents first; world {id: (T, 4, 4)} each joint's transform in the
+    world per frame; rest {id: (4, 4)} at rest; frame_time in seconds. Scalings are taken out of the rotations."""
     joint_set = set(joints)
-    up = {}  # each joint's nearest joint above it (through models that are no joints: an Armature), or None
+    up = {}  # each joint's nearest joint above it (through nodes that are no joints: an Armature), or None
     for i in joints:
-        p = model_parent.get(i)
+        p = parent.get(i)
         while p is not None and p not in joint_set:
-            p = model_parent.get(p)
+            p = parent.get(p)
         up[i] = p
     roots = {}
     for i in joints:
@@ -469,5 +474,4 @@ def _skeleton(joints, models, model_parent, order, world, rest, frame_time) -> S
                           for i in ids], axis=1)
     offsets = np.array([rest[i][:3, 3] - (rest[up[i]][:3, 3] if up[i] is not None else 0.0) for i in ids])
     root = world[ids[0]][:, :3, 3]
-    names = [_name(models[i]) for i in ids]
-    return Skeleton(names, parents, offsets, rotations, root, frame_time)
+    return Skeleton([names[i] for i in ids], parents, offsets, rotations, root, frame_time)

@@ -39,7 +39,8 @@ from core.motion import (Motion, check_frame_rate, fill_untracked, validate_moti
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
 from formats.bvh import REST_UP_KEY, TAKE_KEY, read_bvh, skeleton_arrays
-from formats.fbx import read_fbx
+from formats.fbx import animation_takes, read_fbx
+from formats.gltf import GLTF_SUFFIXES, animation_names, read_gltf
 from formats.pickles import load_npy_pickle, load_pickle, load_torch
 
 log = logging.getLogger(__name__)
@@ -102,6 +103,8 @@ PICKLE_SUFFIXES = (".pkl", ".pickle", ".joblib")
 TORCH_SUFFIXES = (".pt", ".pth")
 #: A dict in a pickled motion that holds it: GVHMR's world parameters (preferred) or its camera-frame ones.
 _NESTED_KEYS = ("smpl_params_global", "smpl_params_incam")
+#: Motion files that may hold several animations (takes), one read (`--take`).
+TAKE_SUFFIXES = (".fbx", *GLTF_SUFFIXES)
 #: The key under which `_pickled_arrays` passes the id of the track read (of a file of tracked people) on.
 PERSON_KEY = "garment_person"
 #: Keys whose length is a tracked person's number of frames.
@@ -114,7 +117,7 @@ MOTION_X_COLUMNS = {"root_orient": (0, 3), "pose_body": (3, 66), "pose_hand": (6
 #: A track's frames filled in where it was not tracked (`_fill_untracked`) at the most: an hour at 30 fps.
 MAX_FILLED_FRAMES = 108_000
 #: What a motion file's name ends with (the case aside).
-MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", ".fbx", *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
+MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", ".fbx", *GLTF_SUFFIXES, *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
 ROTATION_MATRIX_TOL = 1e-3
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
@@ -169,12 +172,15 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
     elif path.suffix.lower() == ".fbx":
         arrays = skeleton_arrays(read_fbx(path, src, take), src)
         files = list(arrays)
+    elif path.suffix.lower() in GLTF_SUFFIXES:
+        arrays = skeleton_arrays(read_gltf(path, src, take), src)
+        files = list(arrays)
     elif _starts_with(path, b"\x93NUMPY"):
         arrays, files = _npy_arrays(path, src, person)
     else:
         arrays, files = _npz_arrays(path, src)
-    if take is not None and path.suffix.lower() != ".fbx":
-        log.info("%s: no FBX, no animation stacks: --take %s left aside", src, take)
+    if take is not None and path.suffix.lower() not in TAKE_SUFFIXES:
+        log.info("%s: no FBX or glTF, no animations: --take %s left aside", src, take)
     _from_smpl_codec(arrays, src)
     _from_aist(arrays, src)
     _from_estimator(arrays, src)
@@ -293,6 +299,15 @@ def _pickled_arrays(path: Path, src: str, npy: bool = False, person: str | None 
     if track is not None:
         arrays[PERSON_KEY] = np.str_(track)
     return arrays, [str(k) for k in data]
+
+
+def motion_takes(path) -> list[str]:
+    """The names of the animations (takes: FBX's stacks, glTF's animations) of a motion file where it holds
+    several (`--take`), else []; InputError naming the file where it cannot be read."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".fbx":
+        return animation_takes(Path(path))
+    return animation_names(Path(path)) if suffix in GLTF_SUFFIXES else []
 
 
 def tracked_people(path) -> dict[str, int]:

@@ -348,8 +348,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          no_contact_guard=False, betas="auto", source_fps=None, floor=None, start_frame=0, fit_path=None,
          preroll_frames=0, device=None, motion_up="z", person=None, take=None, threads=None, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz; another tool's .pkl,
-    .pt, .npy, .smpl, .bvh or .fbx, README "Inputs"; or a directory: every motion .npz, .smpl, .pkl, .npy, .bvh and
-    .fbx under it).
+    .pt, .npy, .smpl, .bvh, .fbx, .glb or .gltf, README "Inputs"; or a directory: every motion .npz, .smpl, .pkl,
+    .npy, .bvh, .fbx, .glb and .gltf under it).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
     time-sampled, Z-up, metres), obj/frame_NNNN.obj and summary.json. Motions of one file name in different
@@ -506,13 +506,12 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
 
 def _parts_to_bake(path: str, person: str | None, take: str | None) -> list[tuple[dict, str]]:
     """[({'person': ..., 'take': ...} to read, its output directory's suffix)] of the motion file `path`: with
-    --person all, each of its tracked people ('_person<ID>'), with --take all, each of an FBX's animation stacks
-    ('_<take>'), said; the file read as it is (no suffix) where it holds one, or neither is all."""
-    from formats.fbx import animation_takes
-    from formats.motion import tracked_people
+    --person all, each of its tracked people ('_person<ID>'), with --take all, each of an FBX's or glTF's
+    animations ('_<take>'), said; the file read as it is (no suffix) where it holds one, or neither is all."""
+    from formats.motion import motion_takes, tracked_people
 
     people = list(tracked_people(path)) if person == "all" else []
-    takes = animation_takes(path) if take == "all" and Path(path).suffix.lower() == ".fbx" else []
+    takes = motion_takes(path) if take == "all" else []
     for found, what in ((people, "tracked people"), (takes, "animation stacks")):
         if found:
             click.echo(f"motion '{path}': {len(found)} {what}, each baked ({', '.join(found)})")

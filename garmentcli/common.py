@@ -83,24 +83,24 @@ def require_file(path) -> None:
 
 def motion_files(args, hint: str = "MOTION") -> list[str]:
     """MOTION arguments as motion files: a file as given; a directory, every `.npz` (`.smpl`), pickle (`.pkl`, as
-    AIST++'s motions and WHAM's results are), `.npy` (Motion-X's array, TRAM's pickled track), `.bvh` or `.fbx`
-    under it (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's shape.npz and
-    *_stagei.npz, which hold a body shape only, and FBX files of no skeleton are left out; PyTorch files only
-    named). A file given twice is taken once. Raises click errors for a path that is not there and for a
-    directory without motions."""
-    from formats.motion import PICKLE_SUFFIXES
+    AIST++'s motions and WHAM's results are), `.npy` (Motion-X's array, TRAM's pickled track), `.bvh`, `.fbx`,
+    `.glb` or `.gltf` under it (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's
+    shape.npz and *_stagei.npz, which hold a body shape only, and FBX and glTF files of no skeleton are left out;
+    PyTorch files only named). A file given twice is taken once. Raises click errors for a path that is not there
+    and for a directory without motions."""
+    from formats.motion import MOTION_SUFFIXES, TORCH_SUFFIXES
 
+    scanned = [s for s in MOTION_SUFFIXES if s not in TORCH_SUFFIXES]
     files: list[str] = []
     for arg in args:
         path = Path(arg)
         if path.is_dir():
-            found = [str(f) for f in sorted(path.rglob("*")) if f.suffix.lower() in (".npz", ".smpl", ".npy",
-                                                                                     ".bvh", ".fbx", *PICKLE_SUFFIXES)
+            found = [str(f) for f in sorted(path.rglob("*")) if f.suffix.lower() in scanned
                      and f.is_file() and _holds_poses(f)]
             if not found:
                 raise click.BadParameter(f"directory '{arg}': expected motion files under it (.npz, .pkl or .npy, "
-                                         f"with {' or '.join(repr(k) for k in MOTION_KEYS[:2])}; .bvh, .fbx), found "
-                                         f"none", param_hint=hint)
+                                         f"with {' or '.join(repr(k) for k in MOTION_KEYS[:2])}; .bvh, .fbx, "
+                                         f".glb), found none", param_hint=hint)
             files += found
         elif path.is_file():
             files.append(str(arg))
@@ -113,7 +113,8 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
 
 
 def _holds_poses(path: Path) -> bool:
-    """Whether the archive or pickle `path` holds poses (a BVH: always; an FBX: a skeleton, its LimbNode Models);
+    """Whether the archive or pickle `path` holds poses (a BVH: always; an FBX: a skeleton, its LimbNode Models;
+    a glTF: a skin);
     True for one that cannot be read (named as a motion, it is refused with the reason)."""
     if path.suffix.lower() == ".bvh":
         return True
@@ -122,6 +123,10 @@ def _holds_poses(path: Path) -> bool:
             return b"LimbNode" in path.read_bytes()
         except OSError:
             return True
+    if path.suffix.lower() in (".glb", ".gltf"):
+        from formats.gltf import holds_skin
+
+        return holds_skin(path)
     if path.suffix.lower() == ".npy":  # Motion-X's (T, 322) array, or a pickled dict (TRAM's track)
         from formats.motion import MOTION_X_VALUES
 

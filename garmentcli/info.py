@@ -55,17 +55,15 @@ def motion_info(path: str, person: str | None = None, take: str | None = None,
     frames, rate,
     joints, betas, the world axis read as up, the root's path, the tracked people or animation stacks it holds
     (frames of each) and the part read, and what reading it said."""
-    from formats.fbx import animation_takes
-    from formats.motion import load_motion, tracked_people
+    from formats.motion import load_motion, motion_takes, tracked_people
 
     with collected_notes() as notes:
         motion = load_motion(path, fps=source_fps, world_checks=False, person=person, take=take)
         up = resolved_up(motion, path, None)
     takes = {}
-    if Path(path).suffix.lower() == ".fbx":
-        for name in animation_takes(path):
-            with collected_notes():
-                takes[name] = load_motion(path, fps=source_fps, world_checks=False, take=name).n_frames
+    for name in motion_takes(path):
+        with collected_notes():
+            takes[name] = load_motion(path, fps=source_fps, world_checks=False, take=name).n_frames
     speed = np.linalg.norm(np.diff(motion.trans.astype(np.float64), axis=0), axis=1) * motion.fps
     return {"path": str(path), "kind": "motion", "frames": motion.n_frames, "fps": motion.fps,
             "seconds": round(motion.duration_s, 3), "joints": int(motion.poses.shape[1]),

@@ -302,5 +302,5 @@ def test_an_fbx_of_several_takes_reads_the_first_warned_or_the_one_named(tmp_pat
     assert animation_takes(one) == []
     with caplog.at_level(logging.WARNING):
         m = load_motion(one, world_checks=False, take="Run")
-    assert "holds one animation stack ('Take 001'): --take Run left aside" in caplog.text and m.take is None
+    assert "holds only 'Take 001': --take Run left aside" in caplog.text and m.take is None
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(walk), atol=1e-4)

@@ -295,17 +295,18 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
         np.testing.assert_allclose(read_sequence(scene["out"] / name / "obj").points, a, atol=1e-5)
 
 
-def test_a_bvh_or_fbx_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(scene):
+def test_a_bvh_fbx_or_gltf_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(scene):
     """The scene's walk exported as a BVH of SMPL's skeleton (as smpl2bvh writes one: centimetres, ZYX Euler
     angles; the AMASS world kept: --motion-up z) bakes the garment of the AMASS file; so does the walk turned Y-up
     on a skeleton of Mixamo's names (retargeted; read in the world its rest stands in, +Y, with --motion-up left
-    out), as a BVH and as an FBX (an A-pose rig, pre-rotated joints), named or in a folder (an FBX of no skeleton
-    there left out); a skeleton with no knees is one line, nothing written."""
+    out), as a BVH, an FBX and a glTF (an A-pose rig, pre-rotated joints), named or in a folder (an FBX or glTF of
+    no skeleton there left out); a skeleton with no knees is one line, nothing written."""
     from core.motion import Y_UP_TO_Z_UP_MATRIX
     from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
     from formats.sequence import read_sequence
     from tests.formats.test_bvh import write_bvh
     from tests.formats.test_fbx import rig_fbx
+    from tests.formats.test_gltf import rig_gltf
 
     with np.load(scene["motion"]) as walk:
         arrays = dict(walk)
@@ -322,11 +323,13 @@ def test_a_bvh_or_fbx_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a
               "RightHandIndex1")
     rig = write_bvh(scene["dir"] / "walk_rig.bvh", y_up, trans @ back.T, fps, names=mixamo)
     fbx = rig_fbx(scene["dir"] / "walk_fbx.fbx", y_up.astype(np.float32), trans @ back.T, fps=int(round(fps)))
-    for motion, options in ((scene["dir"] / "walk.npz", ()), (bvh, ("--motion-up", "z")), (rig, ()), (fbx, ())):
+    gltf = rig_gltf(scene["dir"] / "walk_gltf.glb", {"walk": (y_up, trans @ back.T)}, fps=int(round(fps)))
+    for motion, options in ((scene["dir"] / "walk.npz", ()), (bvh, ("--motion-up", "z")), (rig, ()), (fbx, ()),
+                            (gltf, ())):
         r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
                     "--method", "lbs", *options])
         assert r.exit_code == 0, r.output
-    for name in ("walk_bvh", "walk_rig", "walk_fbx"):
+    for name in ("walk_bvh", "walk_rig", "walk_fbx", "walk_gltf"):
         np.testing.assert_allclose(read_sequence(scene["out"] / f"shell_{name}" / "obj").points,
                                    read_sequence(scene["out"] / "shell_walk" / "obj").points, atol=1e-4)
     summary = json.loads((scene["out"] / "shell_walk_rig" / "summary.json").read_text())
@@ -346,15 +349,18 @@ def test_a_bvh_or_fbx_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a
         assert options["take"] == "all" and options["take_read"] == take
     r = invoke(["tradeoff", scene["garment"], takes, "--take", "all", "--out", scene["dir"] / "refused"])
     assert_one_line_error(r, "--take", "all (one output per animation stack) applies to bake only")
-    # a folder of captures: its BVH and FBX motions baked, an FBX of no skeleton (a prop) left out
+    # a folder of captures: its BVH, FBX and glTF motions baked, an FBX and a glTF of no skeleton (props) left out
     (scene["dir"] / "captures").mkdir()
+    rig_gltf(scene["dir"] / "captures" / "walk_gltf.glb", {"walk": (y_up, trans @ back.T)}, fps=int(round(fps)))
+    rig_gltf(scene["dir"] / "captures" / "prop.glb", {"walk": (y_up, trans @ back.T)}, skin=False)
     for f in (rig, fbx):
         (scene["dir"] / "captures" / f.name).write_bytes(f.read_bytes())
     (scene["dir"] / "captures" / "prop.fbx").write_bytes(fbx.read_bytes().replace(b"LimbNode", b"MeshNode"))
     r = invoke(["bake", scene["garment"], scene["dir"] / "captures", "--body", scene["body"], "--out",
                 scene["dir"] / "out_captures", "--method", "lbs"])
     assert r.exit_code == 0, r.output
-    assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == ["shell_walk_fbx", "shell_walk_rig"]
+    assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == ["shell_walk_fbx", "shell_walk_gltf",
+                                                                                 "shell_walk_rig"]
     (scene["dir"] / "rig.bvh").write_text(rig.read_text().replace("LeftLeg", "LeftTentacle"))
     assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "expected a humanoid skeleton",
                           "found no left knee (a joint named such as LeftLeg; it has Hips, LeftUpLeg")

@@ -1,0 +1,312 @@
+"""glTF 2.0 animation of a humanoid skeleton (`.glb`, `.gltf`: Blender's, three.js', Ready Player Me's, VRoid's
+exports), read as the skeleton and motion `core.retarget` turns into SMPL's, as an FBX is (`formats.fbx`).
+
+The file's JSON (a .glb's first chunk, its second the binary buffer; a .gltf's buffers embedded as base64 data
+URIs or in files beside it) is read here, with no library: the skeleton's joints are its largest skin's, their
+hierarchy the nodes' children; each node's transform its matrix or its translation, rotation (a unit quaternion,
+x y z w) and scale, animated by one animation's channels (a take: the first, or the one `--take` names),
+sampled at the rate its keys are spaced by (30 fps where that is unclear) with their interpolation (LINEAR: a
+quaternion's slerp, STEP, CUBICSPLINE's Hermite curves); the rest pose is the nodes' own transforms. glTF is
+Y-up in metres; `core.retarget` reads the rest's world and the legs' unit as for any rig. A file of no skin is
+refused in one line; one of no animation is one frame of its rest, warned.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import logging
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from formats.bvh import Skeleton
+from formats.fbx import MAX_FRAMES, chosen_take, skeleton_of
+
+log = logging.getLogger(__name__)
+
+GLTF_SUFFIXES = (".glb", ".gltf")
+_GLB_MAGIC = b"glTF"
+_JSON_CHUNK, _BIN_CHUNK = 0x4E4F534A, 0x004E4942
+_COMPONENTS = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
+_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+#: The frame rate of a file whose keys tell none (one key, or keys at uneven times).
+DEFAULT_FPS = 30.0
+#: Frame rates key spacings are snapped to (within 0.5 %): a glTF stores seconds, not a rate.
+_RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 23.976, 29.97, 59.94)
+
+
+def gltf_document(path: Path, src: str) -> tuple[dict, list[bytes]]:
+    """(the JSON document, its buffers' bytes) of the .glb or .gltf `path`; InputError naming `src` for a file
+    that is no glTF 2.0, a damaged one, or a buffer that cannot be read."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+    binary = None
+    try:
+        if data[:4] == _GLB_MAGIC:
+            version, _ = struct.unpack_from("<II", data, 4)
+            if version != 2:
+                raise InputError(f"{src}: expected glTF 2.0, got a glTF {version} binary: export it again as glTF 2")
+            at, chunks = 12, {}
+            while at + 8 <= len(data):
+                size, kind = struct.unpack_from("<II", data, at)
+                chunks.setdefault(kind, data[at + 8:at + 8 + size])
+                at += 8 + size
+            doc = json.loads(chunks[_JSON_CHUNK].decode("utf-8"))
+            binary = chunks.get(_BIN_CHUNK)
+        elif data.lstrip()[:1] == b"{":
+            doc = json.loads(data.decode("utf-8"))
+        else:
+            raise InputError(f"{src}: expected a glTF file (.glb binary or .gltf JSON), got a file that is not one")
+    except InputError:
+        raise
+    except (KeyError, ValueError, UnicodeDecodeError, struct.error) as exc:
+        raise InputError(f"{src}: its glTF is damaged or cut short ({type(exc).__name__})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{src}: expected a glTF document (a JSON object), got a JSON {type(doc).__name__}")
+    version = str(doc.get("asset", {}).get("version", "2"))
+    if not version.startswith("2"):
+        raise InputError(f"{src}: expected glTF 2.0, got asset version {version!r}")
+    buffers = []
+    for k, buffer in enumerate(doc.get("buffers", [])):
+        uri = buffer.get("uri")
+        if uri is None:
+            if binary is None:
+                raise InputError(f"{src}: its buffer {k} has no data (no .glb binary chunk)")
+            buffers.append(binary)
+        elif uri.startswith("data:"):
+            try:
+                buffers.append(base64.b64decode(uri.split(",", 1)[1]))
+            except (ValueError, IndexError):
+                raise InputError(f"{src}: its buffer {k}'s data URI is damaged (no base64 after 'data:...,')") \
+                    from None
+        else:
+            beside = Path(path).parent / uri
+            try:
+                buffers.append(beside.read_bytes())
+            except OSError as exc:
+                raise InputError(f"{src}: cannot read its buffer '{uri}' beside it ({exc.strerror or exc})") \
+                    from None
+    return doc, buffers
+
+
+def _accessor(doc: dict, buffers: list[bytes], index: int) -> np.ndarray:
+    """(count, width) float64 values of accessor `index` (normalized integers as glTF maps them to [-1, 1] or
+    [0, 1]; a sparse accessor's substitutions applied)."""
+    acc = doc["accessors"][index]
+    dtype = np.dtype(_COMPONENTS[acc["componentType"]])
+    width, count = _WIDTHS[acc["type"]], int(acc["count"])
+
+    def view(view_index: int, offset: int, n: int, dt: np.dtype, w: int) -> np.ndarray:
+        bv = doc["bufferViews"][view_index]
+        raw = buffers[bv.get("buffer", 0)]
+        start = bv.get("byteOffset", 0) + offset
+        stride = bv.get("byteStride") or dt.itemsize * w
+        if n and start + stride * (n - 1) + dt.itemsize * w > len(raw):
+            raise ValueError("accessor beyond its buffer")
+        return np.ndarray((n, w), dtype=dt, buffer=raw, offset=start, strides=(stride, dt.itemsize)).copy()
+
+    values = (view(acc["bufferView"], acc.get("byteOffset", 0), count, dtype, width) if "bufferView" in acc
+              else np.zeros((count, width), dtype))
+    sparse = acc.get("sparse")
+    if sparse:
+        idx = sparse["indices"]
+        at = view(idx["bufferView"], idx.get("byteOffset", 0), int(sparse["count"]),
+                  np.dtype(_COMPONENTS[idx["componentType"]]), 1)[:, 0]
+        val = sparse["values"]
+        values[at.astype(np.int64)] = view(val["bufferView"], val.get("byteOffset", 0), int(sparse["count"]),
+                                           dtype, width)
+    out = values.astype(np.float64)
+    if acc.get("normalized") and dtype.kind in "iu":
+        top = float(np.iinfo(dtype).max)
+        out = np.maximum(out / top, -1.0)
+    return out
+
+
+def _quaternion_matrices(q: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotations of (..., 4) quaternions x y z w (normalised here)."""
+    q = q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+                     2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                     2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1
+                    ).reshape(q.shape[:-1] + (3, 3))
+
+
+def _sampled(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndarray, rotation: bool
+             ) -> np.ndarray:
+    """(T, width) a channel's values at times `t` (held beyond its first and last keys)."""
+    if interpolation == "CUBICSPLINE":  # per key: in-tangent, value, out-tangent
+        tangents_in, keys, tangents_out = values[0::3], values[1::3], values[2::3]
+    else:
+        keys = values
+    if len(times) == 1:
+        return np.broadcast_to(keys[0], (len(t), keys.shape[1])).copy()
+    k = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
+    span = times[k + 1] - times[k]
+    s = np.clip((t - times[k]) / np.where(span > 0, span, 1.0), 0.0, 1.0)[:, None]
+    a, b = keys[k], keys[k + 1]
+    if interpolation == "STEP":
+        out = np.where(s >= 1.0, b, a)
+    elif interpolation == "CUBICSPLINE":
+        s2, s3, dt = s * s, s * s * s, span[:, None]
+        out = ((2 * s3 - 3 * s2 + 1) * a + (s3 - 2 * s2 + s) * dt * tangents_out[k]
+               + (-2 * s3 + 3 * s2) * b + (s3 - s2) * dt * tangents_in[k + 1])
+    elif rotation:  # slerp along the shorter arc
+        a = a / np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)
+        b = b / np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-12)
+        dot = np.sum(a * b, axis=1, keepdims=True)
+        b = np.where(dot < 0, -b, b)
+        dot = np.abs(dot)
+        theta = np.arccos(np.clip(dot, -1.0, 1.0))
+        sin = np.sin(theta)
+        near = sin < 1e-6
+        wa = np.where(near, 1 - s, np.sin((1 - s) * theta) / np.where(near, 1.0, sin))
+        wb = np.where(near, s, np.sin(s * theta) / np.where(near, 1.0, sin))
+        out = wa * a + wb * b
+    else:
+        out = (1 - s) * a + s * b
+    return out
+
+
+def _frame_rate(inputs: list[np.ndarray]) -> float:
+    """The rate the animation's keys are spaced by: the median spacing of its most keyed channel, snapped to a
+    common rate within 0.5 % (else its own, to the millisecond); DEFAULT_FPS where no channel has two keys."""
+    dense = max(inputs, key=len, default=np.zeros(1))
+    steps = np.diff(dense)
+    steps = steps[steps > 1e-9]
+    if not len(steps):
+        return DEFAULT_FPS
+    fps = 1.0 / float(np.median(steps))
+    near = min(_RATES, key=lambda r: abs(r - fps))
+    return near if abs(near - fps) <= 0.005 * near else round(fps, 3)
+
+
+def _local(node: dict, T=None, R=None, S=None, n: int = 1) -> np.ndarray:
+    """(n, 4, 4) a node's local transforms: its matrix, or its translation, rotation and scale (each the
+    animated values (n, width) where given, else the node's own)."""
+    out = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    if "matrix" in node and T is None and R is None and S is None:
+        out[:] = np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T  # column-major
+        return out
+    T = np.broadcast_to(np.asarray(node.get("translation", (0, 0, 0)), float), (n, 3)) if T is None else T
+    R = np.broadcast_to(np.asarray(node.get("rotation", (0, 0, 0, 1)), float), (n, 4)) if R is None else R
+    S = np.broadcast_to(np.asarray(node.get("scale", (1, 1, 1)), float), (n, 3)) if S is None else S
+    out[:, :3, :3] = _quaternion_matrices(R) * S[:, None, :]
+    out[:, :3, 3] = T
+    return out
+
+
+def holds_skin(path: Path) -> bool:
+    """Whether the glTF `path` has a skin (a skeleton), from its JSON alone (a .glb's buffer left unread); True
+    where it cannot be read as one (named as a motion, it is refused with the reason)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(20)
+            if head[:4] == _GLB_MAGIC:
+                size, kind = struct.unpack_from("<II", head, 12)
+                doc = json.loads(fh.read(size).decode("utf-8")) if kind == _JSON_CHUNK else {"skins": [1]}
+            else:
+                doc = json.loads((head + fh.read()).decode("utf-8"))
+        return bool(doc.get("skins")) if isinstance(doc, dict) else True
+    except (OSError, ValueError, UnicodeDecodeError, struct.error):
+        return True
+
+
+def animation_names(path: Path) -> list[str]:
+    """The names of the animations of the glTF `path` where it holds several (`--take`), else []; InputError
+    naming the file where it is no glTF `read_gltf` reads."""
+    src = f"motion '{path}'"
+    names = _guarded(lambda: [str(a.get("name") or f"animation {k}")
+                              for k, a in enumerate(gltf_document(path, src)[0].get("animations", []))], src)
+    return names if len(names) > 1 else []
+
+
+def read_gltf(path: Path, src: str, take: str | None = None) -> Skeleton:
+    """The skeleton and motion of the glTF `path` (module docstring), as `formats.fbx.read_fbx` gives an FBX's;
+    of a file of several animations, the one named `take` (default: the first). InputError naming `src` for a
+    file that is no glTF 2.0, a damaged one, or one without a skin."""
+    return _guarded(lambda: _read(*gltf_document(path, src), src, take), src)
+
+
+def _guarded(read, src: str):
+    """read(), any error of a document not as glTF 2.0 writes it (a list where an object belongs, an index
+    beyond its arrays) an InputError naming `src`."""
+    try:
+        return read()
+    except InputError:
+        raise
+    except (IndexError, KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"{src}: its glTF objects are not as glTF 2.0 writes them ({type(exc).__name__}: "
+                         f"{str(exc)[:80]})") from None
+
+
+def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skeleton:
+    nodes = doc.get("nodes", [])
+    skins = [s for s in doc.get("skins", []) if s.get("joints")]
+    if not skins:
+        raise InputError(f"{src}: expected a glTF of a skinned skeleton (a skin's joints), found {len(nodes)} "
+                         f"node(s) and no skin: export the character's armature with its animation")
+    joints = [int(j) for j in max(skins, key=lambda s: len(s["joints"]))["joints"]]
+    parent = {int(c): i for i, node in enumerate(nodes) for c in node.get("children", [])}
+    depth = {}
+    for i in range(len(nodes)):
+        d, j, seen = 0, i, {i}
+        while j in parent and parent[j] not in seen:  # a damaged file's cycle stops where it comes round
+            j = parent[j]
+            seen.add(j)
+            d += 1
+        depth[i] = d
+    parent = {c: p for c, p in parent.items() if depth[p] < depth[c]}
+    order = sorted(range(len(nodes)), key=lambda i: depth[i])
+    animations = doc.get("animations", [])
+    titles = [str(a.get("name") or f"animation {k}") for k, a in enumerate(animations)]
+    chosen = chosen_take(titles, take, src, "animations")
+    channels = {}
+    if chosen is not None:
+        animation = animations[chosen]
+        for channel in animation.get("channels", []):
+            target = channel.get("target", {})
+            if target.get("path") not in ("translation", "rotation", "scale") or "node" not in target:
+                continue  # morph target weights: no skeleton's
+            sampler = animation["samplers"][channel["sampler"]]
+            times = _accessor(doc, buffers, sampler["input"])[:, 0]
+            values = _accessor(doc, buffers, sampler["output"])
+            interpolation = sampler.get("interpolation", "LINEAR")
+            if len(times) and len(values) == len(times) * (3 if interpolation == "CUBICSPLINE" else 1):
+                channels[(int(target["node"]), target["path"])] = (times, values, interpolation)
+    if not channels:
+        log.warning("%s: no animation of its nodes: its one frame is the skeleton as it stands", src)
+        t, fps = np.zeros(1), DEFAULT_FPS
+    else:
+        inputs = [c[0] for c in channels.values()]
+        fps = _frame_rate(inputs)
+        start, stop = min(float(i[0]) for i in inputs), max(float(i[-1]) for i in inputs)
+        n = int(round((stop - start) * fps)) + 1
+        if n > MAX_FRAMES:
+            raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} "
+                             f"fps (its keys span {stop - start:,.0f} s)")
+        t = start + np.arange(n) / fps
+    needed = set()  # the joints and the nodes above them: the others' transforms are not computed
+    for j in joints:
+        while j is not None and j not in needed:
+            needed.add(j)
+            j = parent.get(j)
+    world, rest = {}, {}
+    for i in (i for i in order if i in needed):
+        node = nodes[i]
+        animated = {path: _sampled(*channels[(i, path)], t, path == "rotation")
+                    for path in ("translation", "rotation", "scale") if (i, path) in channels}
+        local = _local(node, animated.get("translation"), animated.get("rotation"), animated.get("scale"), len(t)) \
+            if animated else _local(node, n=len(t))
+        resting = _local(node)[0]
+        p = parent.get(i)
+        world[i] = local if p is None else world[p] @ local
+        rest[i] = resting if p is None else rest[p] @ resting
+    names = {i: str(nodes[i].get("name") or f"node{i}") for i in joints}
+    skeleton = skeleton_of(joints, names, parent, order, world, rest, 1.0 / fps)
+    return skeleton._replace(take=titles[chosen]) if len(animations) > 1 else skeleton
