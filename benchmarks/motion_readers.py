@@ -6,7 +6,7 @@ One random SMPL motion of --frames frames (9,000: five minutes at 30 fps) is wri
 producer writes it (AMASS's npz; AIST++'s pickle; WHAM's joblib result with its per-frame vertices, where joblib
 is installed; Motion-X's .npy; SMPLCodec's .smpl; a BVH of the SMPL skeleton; a BVH of a Mixamo rig of 27 joints
 (fingers, CMU's hip joints) resting in an A-pose, 15 % larger, retargeted, its binary FBX (pre-rotated
-joints, curves per axis, half of them zlib-compressed) and that FBX as ASCII; a BVH of a LAFAN1-like rig (every
+joints, curves per axis, half of them zlib-compressed), that FBX as ASCII and the rig as a .glb; a BVH of a LAFAN1-like rig (every
 bone along its joint's X: its zero pose folds the body, so its straightest frame, the first, is its rest); PHALP's per-frame pickle with a
 4,096-value appearance feature per detection; TRAM's np.save of torch tensors; GVHMR's torch.save), then read by
 `formats.motion.load_motion` --repeats times: the median seconds, the peak of Python's traced allocations
@@ -37,6 +37,7 @@ from formats.motion import load_motion  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
 from tests.formats.test_bvh import LAFAN1, MIXAMO, rig_bvh, write_bvh  # noqa: E402
 from tests.formats.test_fbx import rig_fbx  # noqa: E402
+from tests.formats.test_gltf import rig_gltf  # noqa: E402
 
 
 def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
@@ -97,6 +98,7 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
                                                                             a_pose=40.0)),
             "FBX (Mixamo rig, retargeted)": ("mixamo.fbx", lambda p: rig_fbx(p, poses, trans)),
             "FBX ASCII (Mixamo rig, retargeted)": ("mixamo_ascii.fbx", lambda p: rig_fbx(p, poses, trans, ascii=True)),
+            "glTF .glb (Mixamo rig, retargeted)": ("mixamo.glb", lambda p: rig_gltf(p, {"take": (poses, trans)})),
             "BVH (LAFAN1-like rig, rest its straightest frame)": (
                 "lafan.bvh", lambda p: rig_bvh(p, poses, trans, LAFAN1, along_x=True, order="ZYX")),
             "PHALP pickle": ("phalp.pkl", phalp), "TRAM npy": ("hps_track_0.npy", tram),

@@ -34,6 +34,9 @@ _COMPONENTS = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 #: The frame rate of a file whose keys tell none (one key, or keys at uneven times).
 DEFAULT_FPS = 30.0
+#: A sample time within this share of a key spacing of a key is the key's (float32 key times 300 s into a clip
+#: are 3e-5 s apart from their frames' times: 1e-3 of a 30 fps spacing).
+_SNAP = 2e-3
 #: Frame rates key spacings are snapped to (within 0.5 %): a glTF stores seconds, not a rate.
 _RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 23.976, 29.97, 59.94)
 
@@ -149,6 +152,7 @@ def _sampled(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.nd
     k = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
     span = times[k + 1] - times[k]
     s = np.clip((t - times[k]) / np.where(span > 0, span, 1.0), 0.0, 1.0)[:, None]
+    s = np.where(s < _SNAP, 0.0, np.where(s > 1.0 - _SNAP, 1.0, s))  # a frame on a key its float32 time missed
     a, b = keys[k], keys[k + 1]
     if interpolation == "STEP":
         out = np.where(s >= 1.0, b, a)
