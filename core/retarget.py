@@ -1,6 +1,6 @@
-"""Motion capture of another humanoid rig (Mixamo's, CMU's, 3ds Max Biped's, MotionBuilder's, Xsens', Daz's, a
-game engine's) turned into SMPL joint rotations and translation: what `formats.bvh` and `formats.fbx` read a BVH
-or an FBX of such a rig as.
+"""Motion capture of another humanoid rig (Mixamo's, CMU's, 3ds Max Biped's, MotionBuilder's, Xsens', Daz's,
+VRoid's, a game engine's) turned into SMPL joint rotations and translation: what `formats.bvh`, `formats.fbx` and
+`formats.gltf` read a BVH, an FBX or a glTF of such a rig as.
 
 Joints are matched by name to roles (`_ROLE_NAMES`: 'LeftUpLeg', 'L_Thigh', 'thigh_l', 'Bip01 L Thigh' are all the
 left hip), the spine by the skeleton's shape (the joints from the pelvis to the neck; the chest the one the arms
@@ -35,7 +35,7 @@ from core.rotations import matrix_to_axis_angle
 log = logging.getLogger(__name__)
 
 #: Prefixes of joint names in exported rigs, left out before matching (after any 'namespace:').
-_PREFIXES = re.compile(r"^(m_avg_|f_avg_|smplx?_|bip0*1[ _]?|cc_base_|def[_-]|org[_-]|b_)")
+_PREFIXES = re.compile(r"^(m_avg_|f_avg_|smplx?_|bip0*1[ _]?|cc_base_|def[_-]|org[_-]|b_|j_bip_(c_)?)")
 #: Names (after `canonical`: lower case, letters and digits, the side a leading 'l' or 'r') of each role; the
 #: side's letter is put before them. 'shoulder', 'foot' and 'hand' are told by the names beside them (`_sides`).
 _ROLE_NAMES = {

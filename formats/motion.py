@@ -19,8 +19,8 @@ per video frame of its detections: the person tracked in most frames) and PyTorc
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
-BVH or FBX (binary or ASCII) motion capture of SMPL's or another humanoid's skeleton (`formats.bvh`, `formats.fbx`,
-`core.retarget`).
+BVH, FBX (binary or ASCII) or glTF motion capture of SMPL's or another humanoid's skeleton (`formats.bvh`,
+`formats.fbx`, `formats.gltf`, `core.retarget`).
 """
 
 from __future__ import annotations
@@ -155,7 +155,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
     `mocap_framerate` / `mocap_frame_rate`. world_checks: warn when the motion looks Y-up (or -Y) or its
     translation not in metres (off for a file read for its joint rotations only). person: of a file of several
     tracked people (WHAM, VIBE, PHALP), the track id to read (else the one tracked longest); a file of one
-    person is read as it is. take: of an FBX of several animation stacks, the one to read (else the first).
+    person is read as it is. take: of an FBX or glTF of several animations, the one to read (else the first).
     Returns a Motion: poses (T, 24|52|55, 3) float32 axis-angle radians, trans
     (T, 3) float32 metres (Z-up world), fps, betas (S,) float32 or None, gender.
     Raises InputError (one line naming the file) for any unreadable or invalid content.

@@ -171,7 +171,7 @@ class BakeSpec:
     fit_path: str | None = None  # psd: --fit
     motion_up: str | None = "z"  # --motion-up (None: left out; the motions arrive turned), recorded in summary.json
     person: str | None = None  # --person (the track read of a file of tracked people), recorded in summary.json
-    take: str | None = None  # --take (the animation stack read of an FBX of several), recorded in summary.json
+    take: str | None = None  # --take (the animation read of an FBX or glTF of several), recorded in summary.json
     device: str | None = None  # model: --device as given (None: auto, resolved where the deformer is made)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
@@ -512,7 +512,7 @@ def _parts_to_bake(path: str, person: str | None, take: str | None) -> list[tupl
 
     people = list(tracked_people(path)) if person == "all" else []
     takes = motion_takes(path) if take == "all" else []
-    for found, what in ((people, "tracked people"), (takes, "animation stacks")):
+    for found, what in ((people, "tracked people"), (takes, "animations")):
         if found:
             click.echo(f"motion '{path}': {len(found)} {what}, each baked ({', '.join(found)})")
     parts, seen = [], set()

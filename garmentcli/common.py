@@ -402,37 +402,37 @@ def _left_out_as_none(ctx: click.Context, param: click.Parameter, value):
     return None if ctx.get_parameter_source(param.name) == click.core.ParameterSource.DEFAULT else value
 
 
-def _part_option(flag: str, what: str, help_text: str, every: bool):
-    """An option choosing the part of a motion file read (--person, --take): `flag`'s value as given; every:
-    `all` too (one output per `what`), else refused in one line."""
-    def check(ctx: click.Context, param: click.Parameter, value):
-        if value == "all" and not every:
-            raise click.BadParameter(f"all (one output per {what}) applies to bake only: give one", param_hint=flag)
-        return value
+def _part_option(flag: str, metavar: str, what: str, help_text: str, help_all: str):
+    """A decorator adding an option that chooses the part of a motion file read (--person, --take), as given;
+    `decorator(every=True)`: `all` too (one output per `what`, `help_all` told), else all is refused in one
+    line."""
+    def option(command=None, *, every: bool = False):
+        if command is None:
+            return functools.partial(option, every=every)
 
-    return click.option(flag, default=None, metavar="ID|all" if every else "ID", callback=check, help=help_text)
+        def check(ctx: click.Context, param: click.Parameter, value):
+            if value == "all" and not every:
+                raise click.BadParameter(f"all (one output per {what}) applies to bake only: give one",
+                                         param_hint=flag)
+            return value
 
+        return click.option(flag, default=None, metavar=f"{metavar}|all" if every else metavar, callback=check,
+                            help=help_text + (help_all if every else ""))(command)
 
-def person_option(command=None, *, every: bool = False):
-    """--person ID: the track read of a motion file of several tracked people (`formats.motion.load_motion`);
-    every: `--person all` too (bake: one output per tracked person)."""
-    if command is None:
-        return functools.partial(person_option, every=every)
-    help_all = " all: each tracked person in turn, one output each (<garment>_<motion>_person<ID>)." if every else ""
-    return _part_option("--person", "tracked person", "Of a motion file of several tracked people (WHAM's, VIBE's, "
-                        "PHALP's, 4D-Humans' results): the track id to read [default: the person tracked longest, the "
-                        f"others named]; a file of one person is read as it is.{help_all}", every)(command)
+    return option
 
 
-def take_option(command=None, *, every: bool = False):
-    """--take NAME: the animation stack read of an FBX of several (`formats.fbx.read_fbx`); every: `--take all`
-    too (bake: one output per stack)."""
-    if command is None:
-        return functools.partial(take_option, every=every)
-    help_all = " all: each stack in turn, one output each (<garment>_<motion>_<take>)." if every else ""
-    return _part_option("--take", "animation stack", "Of an FBX of several animation stacks (takes): the name of the "
-                        "one to read [default: the first, the others named]; a file of one is read as it is."
-                        f"{help_all}", every)(command)
+#: --person ID: the track read of a motion file of several tracked people (`formats.motion.load_motion`).
+person_option = _part_option(
+    "--person", "ID", "tracked person", "Of a motion file of several tracked people (WHAM's, VIBE's, PHALP's, "
+    "4D-Humans' results): the track id to read [default: the person tracked longest, the others named]; a file of "
+    "one person is read as it is.", " all: each tracked person in turn, one output each "
+    "(<garment>_<motion>_person<ID>).")
+#: --take NAME: the animation read of an FBX (its stacks) or glTF of several (`formats.motion.load_motion`).
+take_option = _part_option(
+    "--take", "NAME", "animation", "Of an FBX or glTF of several animations (takes, stacks): the name of the one "
+    "to read [default: the first, the others named]; a file of one is read as it is.", " all: each animation in "
+    "turn, one output each (<garment>_<motion>_<take>).")
 
 
 def motion_up_option(command):

@@ -46,8 +46,8 @@ _W: dict = {}
 def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, motion_up: str = "z",
                      body=None, person: str | None = None, take: str | None = None) -> dict:
     """name -> fn(Motion as read) of the files (read at `source_fps` when given, the track `person` of a file of
-    tracked people, the animation stack `take` of an FBX of several; turned from a Y-up (-Y-up) world about `body`'s pelvis at their betas with --motion-up y
-    (-y)), plus the built-in library (core.motiongen.MOTION_LIBRARY)
+    tracked people, the animation `take` of an FBX or glTF of several; turned from a Y-up (-Y-up) world about
+    `body`'s pelvis at their betas with --motion-up y (-y)), plus the built-in library (core.motiongen.MOTION_LIBRARY)
     when asked; a library clip named like a file is refused."""
     from formats.motion import load_motion
     from garmentcli.common import resolved_up, turned_z_up

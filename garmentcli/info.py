@@ -1,6 +1,6 @@
 """`garment info PATH...`: what `garment` reads in each file, before any bake: a garment's mesh and how it rests on
 the body (or why it would be refused); a motion's frames, rate, joints, world, the parts a file holds (tracked
-people, animation stacks) and what reading it said (a rig retargeted, a world turned)."""
+people, animations) and what reading it said (a rig retargeted, a world turned)."""
 
 from __future__ import annotations
 
@@ -53,7 +53,7 @@ def motion_info(path: str, person: str | None = None, take: str | None = None,
                 source_fps: float | None = None) -> dict:
     """A motion file as `garment bake` reads it (with --person, --take, --source-fps; --motion-up left out): its
     frames, rate,
-    joints, betas, the world axis read as up, the root's path, the tracked people or animation stacks it holds
+    joints, betas, the world axis read as up, the root's path, the tracked people or animations it holds
     (frames of each) and the part read, and what reading it said."""
     from formats.motion import load_motion, motion_takes, tracked_people
 
@@ -118,7 +118,7 @@ def _text(record: dict, body_name: str) -> str:
 def info(paths, body_path, person, take, source_fps, fmt):
     """Tell what `garment bake` reads in each PATH, before any bake: a garment (OBJ or USD) and how it rests on
     the body, or a motion (any format bake reads; a directory: its motion files) and the tracked people or
-    animation stacks it holds.
+    animations (takes) it holds.
 
     Exits with 1 where a file cannot be read or its garment would be refused (each told), else 0.
     """

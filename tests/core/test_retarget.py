@@ -89,6 +89,13 @@ RIGS = {
                    {"pelvis": "pelvis", "spine2": "spine2", "left_shoulder": "left_shoulder",
                     "left_ankle": "left_ankle", "left_foot": "left_foot", "left_wrist": "left_wrist",
                     "left_hand": "left_hand"}),
+    "vrm": (_rig(["J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_UpperChest", "J_Bip_C_Neck",
+                  "J_Bip_C_Head"], "J_Bip_{}_Shoulder J_Bip_{}_UpperArm J_Bip_{}_LowerArm J_Bip_{}_Hand",
+                 "J_Bip_{}_UpperLeg J_Bip_{}_LowerLeg J_Bip_{}_Foot J_Bip_{}_ToeBase", "J_Bip_C_UpperChest",
+                 sides=("L", "R")),
+            {"pelvis": "J_Bip_C_Hips", "spine1": "J_Bip_C_Spine", "spine3": "J_Bip_C_UpperChest",
+             "left_collar": "J_Bip_L_Shoulder", "left_shoulder": "J_Bip_L_UpperArm", "left_elbow": "J_Bip_L_LowerArm",
+             "left_hip": "J_Bip_L_UpperLeg", "left_knee": "J_Bip_L_LowerLeg", "left_foot": "J_Bip_L_ToeBase"}),
 }
 
 
@@ -97,7 +104,7 @@ def test_each_rigs_joints_match_smpls_by_name_and_the_spine_by_shape(rig):
     """Mixamo's (its 'LeftShoulder' the collar), CMU's ASF names, Xsens', Daz Genesis' (bend and twist joints),
     3ds Max Biped's (a root above the pelvis, the thighs under the spine), AdvancedSkeleton's ('_M', the middle),
     Unreal's (side suffixes, a root at the floor), MocapBank's ('LeftShoulder' the upper arm beside a collar, no
-    toes) and SMPL's own names (its 'left_foot' the toes, 'left_hand' the knuckles beside a wrist) each match
+    toes), VRoid's VRM ('J_Bip_L_UpperLeg') and SMPL's own names (its 'left_foot' the toes, 'left_hand' the knuckles beside a wrist) each match
     SMPL's joints as their rigs mean them; every match of the left side has its right."""
     (names, parents), expected = RIGS[rig]
     match = {SMPL_JOINT_NAMES[k]: names[j] for k, j in match_joints(names, parents, "rig").items()}

@@ -340,7 +340,7 @@ def test_a_bvh_fbx_or_gltf_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_
     r = invoke(["bake", scene["garment"], takes, "--body", scene["body"], "--out", scene["dir"] / "out_takes",
                 "--method", "lbs", "--take", "all"])
     assert r.exit_code == 0, r.output
-    assert "moves.fbx': 2 animation stacks, each baked (Walk, Walk moved)" in r.output
+    assert "moves.fbx': 2 animations, each baked (Walk, Walk moved)" in r.output
     walked = read_sequence(scene["out"] / "shell_walk" / "obj").points
     for take, suffix, shift in (("Walk", "Walk", 0.0), ("Walk moved", "Walk_moved", 1.0)):
         baked = scene["dir"] / "out_takes" / f"shell_moves_{suffix}"
@@ -348,7 +348,7 @@ def test_a_bvh_fbx_or_gltf_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_
         options = json.loads((baked / "summary.json").read_text())["options"]
         assert options["take"] == "all" and options["take_read"] == take
     r = invoke(["tradeoff", scene["garment"], takes, "--take", "all", "--out", scene["dir"] / "refused"])
-    assert_one_line_error(r, "--take", "all (one output per animation stack) applies to bake only")
+    assert_one_line_error(r, "--take", "all (one output per animation) applies to bake only")
     # a folder of captures: its BVH, FBX and glTF motions baked, an FBX and a glTF of no skeleton (props) left out
     (scene["dir"] / "captures").mkdir()
     rig_gltf(scene["dir"] / "captures" / "walk_gltf.glb", {"walk": (y_up, trans @ back.T)}, fps=int(round(fps)))
