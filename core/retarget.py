@@ -87,20 +87,22 @@ class Retargeted(NamedTuple):
 
 
 def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotations: np.ndarray,
-             root_positions: np.ndarray, src: str) -> Retargeted:
+             root_positions: np.ndarray, src: str, moving: np.ndarray | None = None, trees: tuple = ()
+             ) -> Retargeted:
     """SMPL's motion of a rig's (module docstring).
 
     names, parents (-1 for the root; parents before children): the rig's joints. offsets (J, 3): each joint's
     rest position from its parent (the root's: its rest position), in the rig's unit. rotations (T, J, 3, 3):
     each joint's rotation from its rest, in its parent's frame. root_positions (T, 3): the root's position.
-    InputError naming `src` where the rig lacks a role, its matched joints are not in a body's order, or its rest
-    does not stand.
+    moving (T, J, 3): each joint's position from its parent's per frame, where they move (`rig_pose`); trees:
+    the tree the file keeps each joint in, where it keeps several (`match_joints`). InputError naming `src` where the rig lacks
+    a role, its matched joints are not in a body's order, or neither its rest nor a frame stands.
     """
     rest = rest_positions(parents, offsets)
-    match = match_joints(names, parents, src)
+    match = match_joints(names, parents, src, trees)
     smpl_rest = default_body().shaped(None)[1][:24].astype(np.float64)
     itself = {k: k for k in range(24)}  # SMPL's rest joints as a rig matched to itself
-    world, position = rig_pose(parents, offsets, rotations, root_positions)
+    world, position = rig_pose(parents, offsets, rotations, root_positions, moving)
     rest_world = None
     bent, leg = _bent(rest, match)
     if bent > LEG_MAX_DEGREES:
@@ -138,9 +140,10 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     return Retargeted(matrix_to_axis_angle(local), trans, up, said)
 
 
-def rig_pose(parents: list[int], offsets: np.ndarray, rotations: np.ndarray,
-             root_positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(T, J, 3, 3) each rig joint's rotation in the world and (T, J, 3) its position (`retarget`'s arguments)."""
+def rig_pose(parents: list[int], offsets: np.ndarray, rotations: np.ndarray, root_positions: np.ndarray,
+             moving: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(T, J, 3, 3) each rig joint's rotation in the world and (T, J, 3) its position (`retarget`'s arguments;
+    moving: the offsets per frame, where the joints' places move)."""
     world = np.empty_like(rotations)
     position = np.empty(rotations.shape[:2] + (3,))
     for j, p in enumerate(parents):
@@ -148,7 +151,8 @@ def rig_pose(parents: list[int], offsets: np.ndarray, rotations: np.ndarray,
             world[:, j], position[:, j] = rotations[:, j], root_positions
         else:
             world[:, j] = world[:, p] @ rotations[:, j]
-            position[:, j] = position[:, p] + world[:, p] @ offsets[j]
+            offset = offsets[j] if moving is None else moving[:, j, :, None]
+            position[:, j] = position[:, p] + (world[:, p] @ offset).reshape(-1, 3)
     return world, position
 
 
@@ -200,9 +204,10 @@ def _sides(by_name: dict[str, int], side: str) -> dict[str, int]:
     return out
 
 
-def match_joints(names: list[str], parents: list[int], src: str) -> dict[int, int]:
+def match_joints(names: list[str], parents: list[int], src: str, trees: tuple = ()) -> dict[int, int]:
     """{SMPL joint: rig joint} (module docstring); InputError naming the first role the rig lacks, or a limb's
-    joints that are not each under the one before."""
+    joints that are not each under the one before (but for two joints the file keeps in different trees, `trees`
+    giving each joint's: a foot an IK control holds)."""
     by_name: dict[str, int] = {}
     for j, name in enumerate(names):
         by_name.setdefault(canonical(name), j)
@@ -250,7 +255,8 @@ def match_joints(names: list[str], parents: list[int], src: str) -> dict[int, in
                 match[6] = spine[chest // 2]
     for k, j in match.items():  # each limb's joints under the one before
         parent = next(p for p in _ancestors(k) if p in match) if k else 0
-        if parent not in _TRUNK and not _descends(parents, j, match[parent]):
+        apart = bool(trees) and trees[j] != trees[match[parent]]
+        if parent not in _TRUNK and not apart and not _descends(parents, j, match[parent]):
             raise InputError(f"{src}: expected '{names[j]}' (SMPL's {SMPL_JOINT_NAMES[k]}) under "
                              f"'{names[match[parent]]}' (its {SMPL_JOINT_NAMES[parent]}), got it elsewhere")
     return match

@@ -62,7 +62,10 @@ class Skeleton(NamedTuple):
     """A skeleton and its motion (a BVH's; an FBX's, `formats.fbx`): joint `names`, `parents` (-1 for the root;
     parents first), `offsets` (J, 3) in its unit, `rotations` (T, J, 3, 3) each joint's from its rest (its
     channels composed), `root` (T, 3) the root's position, `frame_time` in seconds; `take`: the name of the
-    animation stack read of an FBX of several, else None."""
+    animation read of an FBX or glTF of several, else None; `moving` (T, J, 3): each joint's offset per frame
+    where joints' places move (a tree of joints a file keeps apart from the body's, attached to the root), else
+    None; `trees`: where a file keeps its joints in several trees, each joint's (the index of its tree's root),
+    else () (`core.retarget.match_joints`)."""
 
     names: list[str]
     parents: list[int]
@@ -71,6 +74,8 @@ class Skeleton(NamedTuple):
     root: np.ndarray
     frame_time: float
     take: str | None = None
+    moving: np.ndarray | None = None
+    trees: tuple = ()
 
 
 def read_skeleton(path: Path, src: str) -> Skeleton:
@@ -119,7 +124,8 @@ def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:
     n_frames = len(rotations)
     smpl = _smpl_skeleton(names, parents, offsets, src)
     if smpl is None:
-        poses, trans, up, said = retarget(names, parents, offsets, rotations, root, src)
+        poses, trans, up, said = retarget(names, parents, offsets, rotations, root, src, skeleton.moving,
+                                          skeleton.trees)
         log.info("%s: a rig of %d joints retargeted onto SMPL's skeleton (%s), %d frames at %.6g fps", src,
                  len(names), said, n_frames, 1.0 / frame_time)
     else:

@@ -441,10 +441,12 @@ def _bind_pose(objects: Node, rest: dict) -> dict:
 
 def skeleton_of(joints: list, names: dict, parent: dict, order: list, world: dict, rest: dict,
                 frame_time: float) -> Skeleton:
-    """The largest tree of `joints` (ids of a file's nodes) as a Skeleton whose zero pose is the rest (its frames
-    the world's there): names {id: joint name}; parent {id: its parent node's id} over all nodes (an Armature
-    above the joints too); order: every id, parents first; world {id: (T, 4, 4)} each joint's transform in the
-    world per frame; rest {id: (4, 4)} at rest; frame_time in seconds. Scalings are taken out of the rotations."""
+    """`joints` (ids of a file's nodes) as a Skeleton whose zero pose is the rest (its frames the world's there):
+    names {id: joint name}; parent {id: its parent node's id} over all nodes (an Armature above the joints too);
+    order: every id, parents first; world {id: (T, 4, 4)} each joint's transform in the world per frame; rest
+    {id: (4, 4)} at rest; frame_time in seconds. Scalings are taken out of the rotations. The largest tree of
+    joints is the skeleton's; the others (a foot under an IK control, a deforming skeleton beside a larger rig of
+    controls) hang from its root, each joint's tree in `trees`, their places per frame in `moving`."""
     joint_set = set(joints)
     up = {}  # each joint's nearest joint above it (through nodes that are no joints: an Armature), or None
     for i in joints:
@@ -458,10 +460,15 @@ def skeleton_of(joints: list, names: dict, parent: dict, order: list, world: dic
         while up[r] is not None:
             r = up[r]
         roots.setdefault(r, []).append(i)
-    tree = set(max(roots.values(), key=len))
-    ids = [i for i in order if i in tree]
+    main = max(roots, key=lambda r: len(roots[r]))
+    for r in roots:  # the other trees hang from the main one's root
+        if r != main:
+            up[r] = main
+    ids = [main] + [i for i in order if i in joint_set and i != main]  # the root first, then parents first
     index = {i: k for k, i in enumerate(ids)}
     parents = [index[up[i]] if up[i] is not None else -1 for i in ids]
+    tree_of = {i: index[r] for r, tree in roots.items() for i in tree}
+    trees = tuple(tree_of[i] for i in ids) if len(roots) > 1 else ()
 
     def rotation(M):  # the rotation of a transform, its scaling taken out
         R = M[..., :3, :3]
@@ -473,4 +480,10 @@ def skeleton_of(joints: list, names: dict, parent: dict, order: list, world: dic
                           for i in ids], axis=1)
     offsets = np.array([rest[i][:3, 3] - (rest[up[i]][:3, 3] if up[i] is not None else 0.0) for i in ids])
     root = world[ids[0]][:, :3, 3]
-    return Skeleton([names[i] for i in ids], parents, offsets, rotations, root, frame_time)
+    moving = None
+    if trees:  # each joint's place from its parent's per frame, in the parent's frame turned back to its rest
+        moving = np.stack([np.zeros_like(root) if up[i] is None else
+                           (np.swapaxes(turned[up[i]], -1, -2)
+                            @ (world[i][:, :3, 3] - world[up[i]][:, :3, 3])[..., None])[..., 0] for i in ids], axis=1)
+    return Skeleton([names[i] for i in ids], parents, offsets, rotations, root, frame_time, moving=moving,
+                    trees=trees)

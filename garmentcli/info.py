@@ -74,9 +74,13 @@ def motion_info(path: str, person: str | None = None, take: str | None = None,
             "notes": notes}
 
 
+def _frames(n: int) -> str:
+    return f"{n:,} frame{'' if n == 1 else 's'}"
+
+
 def _parts(word: str, chosen, parts: dict, option: str) -> str:
-    listed = ", ".join(f"'{k}' {n:,} frames" for k, n in list(parts.items())[:6]) + (", ..." if len(parts) > 6
-                                                                                     else "")
+    listed = ", ".join(f"'{k}' {_frames(n)}" for k, n in list(parts.items())[:6]) + (", ..." if len(parts) > 6
+                                                                                      else "")
     return f"; {word} '{chosen}' of {len(parts)} ({listed}: {option})"
 
 
@@ -91,7 +95,7 @@ def _text(record: dict, body_name: str) -> str:
                 f"{x:.2f} x {y:.2f} x {z:.2f} m; on {body_name}: {record['median_distance_mm']:.0f} mm from it "
                 f"(median), {record['inside_percent']:.1f} % inside: {verdict}")
     else:
-        line = (f"{record['path']}: motion, {record['frames']:,} frames at {record['fps']:g} fps "
+        line = (f"{record['path']}: motion, {_frames(record['frames'])} at {record['fps']:g} fps "
                 f"({record['seconds']:.1f} s), {record['joints']} joints, read {record['up']}-up")
         if record["betas"]:
             line += f", {record['betas']} betas"

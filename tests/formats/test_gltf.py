@@ -44,12 +44,15 @@ class _Buffer:
 
 
 def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffer="glb", int16=False,
-             skin=True):
+             skin=True, ik_feet=False, controls=0):
     """A glTF of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature node scaling it by
     `armature_scale`: every joint node with a random rest rotation (its frame not the world's at rest), its
     rotation channel per animation, the root's translation channel; takes {name: (poses, trans)}, an animation
     each; buffer: 'glb' (a binary chunk), 'base64' (a .gltf data URI) or 'file' (a .bin beside the .gltf);
-    int16: rotations as normalized int16 (as KHR_mesh_quantization allows); skin: False leaves the skin out."""
+    int16: rotations as normalized int16 (as KHR_mesh_quantization allows); skin: False leaves the skin out;
+    ik_feet: each ankle under a 'FootControl' joint of the Armature (as game rigs with IK controls have them), not
+    under its knee, its place and turn animated there; controls: a chain of that many static 'Ctrl' joints under
+    the Armature beside the skeleton (a control rig larger than it), in the skin."""
     moving = {name: rig_motion(*m, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, m in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()))
     rng = np.random.default_rng(seed)
@@ -57,22 +60,44 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
     pre = Rotation.random(J, random_state=rng).as_matrix()
     frame = [None] * J
     nodes = [{"name": "Armature", "children": [1], "scale": [armature_scale] * 3}]
+    steps, rest = [], [None] * J  # each joint's translation from its parent; its place in the Armature at rest
     for j, p in enumerate(parents):
         parent_frame = frame[p] if p >= 0 else np.eye(3)
         frame[j] = parent_frame @ pre[j]
+        steps.append(root[0] if p < 0 else parent_frame.T @ offsets[j])
+        rest[j] = root[0] if p < 0 else rest[p] + offsets[j]
         nodes.append({"name": names[j], "rotation": list(Rotation.from_matrix(pre[j]).as_quat()),
-                      "translation": list(root[0] if p < 0 else parent_frame.T @ offsets[j])})
+                      "translation": list(steps[j])})
+    feet = [j for j, n in enumerate(names) if n.endswith("Foot")] if ik_feet else []
+    for j in feet:  # its own transform: its rest in the Armature
+        nodes[j + 1].update(rotation=list(Rotation.from_matrix(frame[j]).as_quat()), translation=list(rest[j]))
     for j, p in enumerate(parents):
-        if p >= 0:
+        if p >= 0 and j not in feet:
             nodes[p + 1].setdefault("children", []).append(j + 1)
+    for j in feet:  # a control at the Armature's origin holds the foot
+        nodes[0]["children"].append(len(nodes))
+        nodes.append({"name": f"FootControl.{'L' if 'Left' in names[j] else 'R'}", "children": [j + 1]})
+    if controls:
+        nodes[0]["children"].append(len(nodes))
+        for k in range(controls):
+            nodes.append({"name": "Ctrl_Master" if k == 0 else f"Ctrl_{k}", "translation": [0.0, 1.0, 0.0]})
+            if k + 1 < controls:
+                nodes[-1]["children"] = [len(nodes)]
     buf = _Buffer()
     animations = []
     for take, (*_, rotations, take_root) in moving.items():
         times = buf.add(np.arange(len(rotations)) / fps, "SCALAR")
         channels, samplers = [], []
+        place, turn = [None] * J, [None] * J  # each joint node's transform in the Armature, per frame
         for j, p in enumerate(parents):  # its node turns so that its frame turns as the rig's joint does
             parent_frame = frame[p] if p >= 0 else np.eye(3)
             local = parent_frame.T @ rotations[:, j] @ parent_frame @ pre[j]
+            at = take_root if p < 0 else place[p] + turn[p] @ steps[j]
+            turn[j], place[j] = (local if p < 0 else turn[p] @ local), at
+            if j in feet:  # under its control: its turn and place in the Armature, animated
+                local = turn[j]
+                samplers.append({"input": times, "output": buf.add(place[j], "VEC3")})
+                channels.append({"sampler": len(samplers) - 1, "target": {"node": j + 1, "path": "translation"}})
             samplers.append({"input": times, "output": buf.add(Rotation.from_matrix(local).as_quat(), "VEC4", int16)})
             channels.append({"sampler": len(samplers) - 1, "target": {"node": j + 1, "path": "rotation"}})
         samplers.append({"input": times, "output": buf.add(take_root, "VEC3")})
@@ -82,7 +107,7 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
            "nodes": nodes, "animations": animations, "accessors": buf.accessors, "bufferViews": buf.views,
            "buffers": [{"byteLength": len(buf.data)}]}
     if skin:
-        doc["skins"] = [{"joints": list(range(1, J + 1)), "skeleton": 1}]
+        doc["skins"] = [{"joints": list(range(1, len(nodes))), "skeleton": 1}]
     data = bytes(buf.data)
     if buffer == "glb":
         text = json.dumps(doc).encode()
@@ -114,6 +139,20 @@ def test_a_gltf_of_a_rig_reads_as_the_smpl_motion_it_moves_as(tmp_path, buffer, 
     tolerance = 1e-3 if int16 else 1e-4  # int16 quaternions: 3e-5 a component
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=tolerance)
     np.testing.assert_allclose(m.trans, trans, atol=tolerance)
+
+
+@pytest.mark.parametrize("ik_feet, controls", [(True, 0), (False, 40), (True, 40)])
+def test_a_rig_of_feet_under_ik_controls_or_beside_a_larger_control_rig_reads_as_its_motion(tmp_path, ik_feet,
+                                                                                          controls):
+    """Game rigs keep joints apart from the body's tree: the ankles under IK controls at the Armature (their place
+    and turn animated there), the skeleton beside a larger chain of control joints: the other trees hang from the
+    largest one's root, their places followed per frame, and the motion reads back as without them."""
+    poses, trans = _motion(5, seed=9)
+    poses[:, 22:] = 0
+    path = rig_gltf(tmp_path / "game.glb", {"idle": (poses, trans)}, ik_feet=ik_feet, controls=controls)
+    m = load_motion(path, world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
 
 def test_a_gltf_of_several_animations_reads_the_first_warned_or_the_one_named(tmp_path, caplog):
