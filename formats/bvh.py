@@ -106,8 +106,8 @@ def read_skeleton(path: Path, src: str) -> Skeleton:
                          f"{values.size} values")
     if not (np.isfinite(frame_time) and frame_time > 0):
         raise InputError(f"{src}: expected a Frame Time over 0 seconds, got {frame_time}")
-    rotations, root = _channels(channels, offsets, values.reshape(n_frames, width))
-    return Skeleton(names, parents, offsets, rotations, root, frame_time)
+    rotations, root, moving = _channels(channels, offsets, values.reshape(n_frames, width))
+    return Skeleton(names, parents, offsets, rotations, root, frame_time, moving=moving)
 
 
 def read_bvh(path: Path, src: str) -> dict:
@@ -146,12 +146,16 @@ def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:
     return arrays
 
 
-def _channels(channels: list[list[str]], offsets: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(T, J, 3, 3) each joint's rotation from its rest (its rotation channels composed in their order) and
-    (T, 3) the root's position (its position channels; its OFFSET where it has none)."""
+def _channels(channels: list[list[str]], offsets: np.ndarray, values: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(T, J, 3, 3) each joint's rotation from its rest (its rotation channels composed in their order), (T, 3)
+    the root's position (its position channels; its OFFSET where it has none), and (T, J, 3) each joint's
+    position from its parent where another joint's position channels move it from its OFFSET (exporters that
+    write positions on every joint; a stretching limb), else None."""
     n_frames = len(values)
     rotations = np.empty((n_frames, len(channels), 3, 3))
     root = np.broadcast_to(offsets[0], (n_frames, 3)).copy()
+    moving = None
     start = 0
     for j, chans in enumerate(channels):
         block = values[:, start:start + len(chans)]
@@ -162,8 +166,12 @@ def _channels(channels: list[list[str]], offsets: np.ndarray, values: np.ndarray
                 R = R @ axis_angle_to_matrix(np.radians(block[:, c])[:, None] * np.eye(3)["xyz".index(name[0])])
             elif j == 0:
                 root[:, "xyz".index(name[0])] = block[:, c]
+            elif not np.allclose(block[:, c], offsets[j, "xyz".index(name[0])], rtol=1e-6, atol=1e-6):
+                if moving is None:
+                    moving = np.broadcast_to(offsets, (n_frames,) + offsets.shape).copy()
+                moving[:, j, "xyz".index(name[0])] = block[:, c]
         rotations[:, j] = R
-    return rotations, root
+    return rotations, root, moving
 
 
 def _number(text: str, what: str, src: str) -> float:

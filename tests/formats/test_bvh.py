@@ -20,10 +20,11 @@ SMPL2BVH_NAMES = ("Pelvis", "Left_hip", "Right_hip", "Spine1", "Left_knee", "Rig
                   "Left_palm", "Right_palm")
 
 
-def write_skeleton(path, names, parents, offsets, rotations, root, fps, order="ZYX"):
+def write_skeleton(path, names, parents, offsets, rotations, root, fps, order="ZYX", positions=None):
     """A BVH of a skeleton: `names`, `parents` (parents first), `offsets` (J, 3) in its unit, each joint's
     (T, J, 3, 3) rotation from its rest as Euler channels in `order` (scipy's intrinsic angles), the root's (T, 3)
-    position; an End Site under every leaf."""
+    position; an End Site under every leaf; positions {joint: (T, 3)}: position channels of other joints too."""
+    positions = {0: root, **(positions or {})}
     T, J = rotations.shape[:2]
     eulers = Rotation.from_matrix(rotations.reshape(-1, 3, 3)).as_euler(order, degrees=True).reshape(T, J, 3)
     channels = " ".join(f"{a}rotation" for a in order)
@@ -34,8 +35,8 @@ def write_skeleton(path, names, parents, offsets, rotations, root, fps, order="Z
         sequence.append(j)
         lines.extend([f"{tab}{'ROOT' if parents[j] < 0 else 'JOINT'} {names[j]}", f"{tab}{{",
                       f"{tab}\tOFFSET {' '.join(f'{x:.6f}' for x in offsets[j])}",
-                      f"{tab}\tCHANNELS {6 if parents[j] < 0 else 3} "
-                      f"{'Xposition Yposition Zposition ' if parents[j] < 0 else ''}{channels}"])
+                      f"{tab}\tCHANNELS {6 if j in positions else 3} "
+                      f"{'Xposition Yposition Zposition ' if j in positions else ''}{channels}"])
         children = [c for c in range(J) if parents[c] == j]
         for c in children:
             joint(c, depth + 1)
@@ -46,8 +47,9 @@ def write_skeleton(path, names, parents, offsets, rotations, root, fps, order="Z
     joint(0, 0)
     lines += ["MOTION", f"Frames: {T}", f"Frame Time: {1 / fps:.8f}"]
     for t in range(T):
-        row = list(root[t])
+        row = []
         for j in sequence:
+            row += list(positions[j][t]) if j in positions else []
             row += list(eulers[t, j])
         lines.append(" ".join(f"{x:.6f}" for x in row))
     path.write_text("\n".join(lines) + "\n")
@@ -297,6 +299,26 @@ def test_a_rig_whose_zero_pose_folds_the_body_is_turned_from_its_straightest_fra
                     world_checks=False)
     np.testing.assert_allclose(_bone_directions(m.poses), _bone_directions(poses), atol=1e-4)
     assert not np.allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-2)  # the twists
+
+
+def test_position_channels_of_joints_below_the_root_move_them(tmp_path):
+    """A rig whose root is a joint at the floor and whose hips carry the motion's translation in their own
+    position channels (as game engines' and some exporters' BVHs are), every other joint's position channels its
+    OFFSET: the translation is the hips' path, as without the floor joint."""
+    poses, trans = _motion(5, seed=11)
+    poses[:, 22:] = 0
+    names, parents, offsets, rotations, root = rig_motion(poses, trans, MIXAMO)
+    J = len(names)
+    floor = [("Root", -1)] + [(n, p + 1) for n, p in zip(names, parents)]
+    rotations = np.concatenate([np.broadcast_to(np.eye(3), (len(poses), 1, 3, 3)), rotations], axis=1)
+    offsets = np.concatenate([[[0.0, 0.0, 0.0]], offsets])
+    positions = {j + 1: np.broadcast_to(offsets[j + 1], (len(poses), 3)) for j in range(1, J)}
+    positions[1] = root  # the hips' path, under the floor joint at the origin
+    path = write_skeleton(tmp_path / "floor.bvh", [n for n, _ in floor], [p for _, p in floor], offsets, rotations,
+                          np.zeros((len(poses), 3)), 30, "ZXY", positions)
+    m = load_motion(path, world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
 
 def test_a_rig_standing_along_z_tells_its_up_axis(tmp_path):
