@@ -446,7 +446,8 @@ def skeleton_of(joints: list, names: dict, parent: dict, order: list, world: dic
     order: every id, parents first; world {id: (T, 4, 4)} each joint's transform in the world per frame; rest
     {id: (4, 4)} at rest; frame_time in seconds. Scalings are taken out of the rotations. The largest tree of
     joints is the skeleton's; the others (a foot under an IK control, a deforming skeleton beside a larger rig of
-    controls) hang from its root, each joint's tree in `trees`, their places per frame in `moving`."""
+    controls) hang from its root, each joint's tree in `trees`. Where joints' places move from their rest offsets
+    (those trees; hips animated under a root joint), their places per frame are in `moving`."""
     joint_set = set(joints)
     up = {}  # each joint's nearest joint above it (through nodes that are no joints: an Armature), or None
     for i in joints:
@@ -480,10 +481,13 @@ def skeleton_of(joints: list, names: dict, parent: dict, order: list, world: dic
                           for i in ids], axis=1)
     offsets = np.array([rest[i][:3, 3] - (rest[up[i]][:3, 3] if up[i] is not None else 0.0) for i in ids])
     root = world[ids[0]][:, :3, 3]
-    moving = None
-    if trees:  # each joint's place from its parent's per frame, in the parent's frame turned back to its rest
-        moving = np.stack([np.zeros_like(root) if up[i] is None else
-                           (np.swapaxes(turned[up[i]], -1, -2)
-                            @ (world[i][:, :3, 3] - world[up[i]][:, :3, 3])[..., None])[..., 0] for i in ids], axis=1)
+    # each joint's place from its parent's per frame, in the parent's frame turned back to its rest: kept where
+    # it moves (hips animated under a root joint at the floor, as game engines' rigs are; the trees hung above)
+    moving = np.stack([offsets[0] + np.zeros_like(root) if up[i] is None else
+                       (np.swapaxes(turned[up[i]], -1, -2)
+                        @ (world[i][:, :3, 3] - world[up[i]][:, :3, 3])[..., None])[..., 0] for i in ids], axis=1)
+    size = max(float(np.ptp(offsets[1:], axis=0).max()) if len(ids) > 1 else 0.0, 1e-12)
+    if not trees and np.abs(moving - offsets).max() <= 1e-6 * size:
+        moving = None
     return Skeleton([names[i] for i in ids], parents, offsets, rotations, root, frame_time, moving=moving,
                     trees=trees)

@@ -102,14 +102,15 @@ def _p70(*entries):
 
 
 def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None,
-            takes=None, ascii=False):
+            takes=None, ascii=False, floor_joint=False):
     """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
     metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
     and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
     rotations are the first frame's (not the rest) and a BindPose holds the rest. extra_links: connections
     added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s. takes:
     {stack name: (poses, trans)}, one animation stack (and layer) each, instead of 'Take 001' of `poses`;
-    ascii: an ASCII FBX of the same nodes."""
+    ascii: an ASCII FBX of the same nodes; floor_joint: the hips (their translation curves the path) under a
+    static 'root' joint at the Armature's origin, as game engines' rigs are."""
     takes = takes or {"Take 001": (poses, trans)}
     moving = {name: rig_motion(*motion, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, motion in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()))
@@ -172,13 +173,16 @@ def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, ext
                                    ("RotationOrder", "I", _ORDER[orders[j]]),
                                    ("Lcl Translation", "D", *(root[0] if parents[j] < 0 else translation[j])),
                                    ("Lcl Rotation", "D", *static))]))
-        links.append(("OO", ids[j], ids[parents[j]] if parents[j] >= 0 else armature))
+        links.append(("OO", ids[j], ids[parents[j]] if parents[j] >= 0 else 950 if floor_joint else armature))
         if bind_pose:  # the world matrix at rest: the Armature's scaling, the joint's frame and place
             M = np.eye(4)
             M[:3, :3] = 0.01 * frame[j]
             M[:3, 3] = 0.01 * place[j]
             poses_nodes.append(_node("PoseNode", [], [_node("Node", [("L", ids[j])]),
                                                      _node("Matrix", [("d", M.T.reshape(-1))])]))
+    if floor_joint:
+        objects.append(_node("Model", [("L", 950), ("S", "root\x00\x01Model"), ("S", "LimbNode")]))
+        links.append(("OO", 950, armature))
     if bind_pose:
         objects.append(_node("Pose", [("L", 700), ("S", "BindPose\x00\x01Pose"), ("S", "BindPose")], poses_nodes))
     mode = [("TimeMode", "I", {30: 6, 60: 3}[fps])] if time_mode is None else [
@@ -203,6 +207,16 @@ def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose, 
     assert path.read_bytes().startswith(b"; FBX 7.4.0 project file") == ascii
     m = load_motion(path, world_checks=False)
     assert m.fps == pytest.approx(30) and m.poses.shape == (5, 24, 3) and m.rest_up == "y"
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
+def test_hips_animated_under_a_root_joint_at_the_floor_carry_the_path(tmp_path):
+    """An FBX whose hips move (their translation curves) under a static 'root' joint at the floor, as game
+    engines' rigs export them: the path is the hips', the motion the same."""
+    poses, trans = _motion(5, seed=12)
+    poses[:, 22:] = 0
+    m = load_motion(rig_fbx(tmp_path / "game.fbx", poses, trans, floor_joint=True), world_checks=False)
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
