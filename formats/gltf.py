@@ -130,7 +130,7 @@ def _accessor(doc: dict, buffers: list[bytes], index: int) -> np.ndarray:
     return out
 
 
-def _quaternion_matrices(q: np.ndarray) -> np.ndarray:
+def quaternion_matrices(q: np.ndarray) -> np.ndarray:
     """(..., 3, 3) rotations of (..., 4) quaternions x y z w (normalised here)."""
     q = q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
     x, y, z, w = np.moveaxis(q, -1, 0)
@@ -200,7 +200,7 @@ def _local(node: dict, T=None, R=None, S=None, n: int = 1) -> np.ndarray:
     T = np.broadcast_to(np.asarray(node.get("translation", (0, 0, 0)), float), (n, 3)) if T is None else T
     R = np.broadcast_to(np.asarray(node.get("rotation", (0, 0, 0, 1)), float), (n, 4)) if R is None else R
     S = np.broadcast_to(np.asarray(node.get("scale", (1, 1, 1)), float), (n, 3)) if S is None else S
-    out[:, :3, :3] = _quaternion_matrices(R) * S[:, None, :]
+    out[:, :3, :3] = quaternion_matrices(R) * S[:, None, :]
     out[:, :3, 3] = T
     return out
 

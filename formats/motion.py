@@ -19,8 +19,8 @@ per video frame of its detections: the person tracked in most frames) and PyTorc
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
-BVH, FBX (binary or ASCII) or glTF motion capture of SMPL's or another humanoid's skeleton (`formats.bvh`,
-`formats.fbx`, `formats.gltf`, `core.retarget`).
+BVH, FBX (binary or ASCII), glTF or Xsens MVNX motion capture of SMPL's or another humanoid's skeleton
+(`formats.bvh`, `formats.fbx`, `formats.gltf`, `formats.mvnx`, `core.retarget`).
 """
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ from formats.atomic import atomic_file
 from formats.bvh import REST_UP_KEY, TAKE_KEY, read_bvh, skeleton_arrays
 from formats.fbx import animation_takes, read_fbx
 from formats.gltf import GLTF_SUFFIXES, animation_names, read_gltf
+from formats.mvnx import read_mvnx
 from formats.pickles import load_npy_pickle, load_pickle, load_torch
 
 log = logging.getLogger(__name__)
@@ -117,7 +118,8 @@ MOTION_X_COLUMNS = {"root_orient": (0, 3), "pose_body": (3, 66), "pose_hand": (6
 #: A track's frames filled in where it was not tracked (`_fill_untracked`) at the most: an hour at 30 fps.
 MAX_FILLED_FRAMES = 108_000
 #: What a motion file's name ends with (the case aside).
-MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", ".fbx", *GLTF_SUFFIXES, *PICKLE_SUFFIXES, *TORCH_SUFFIXES)
+MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", ".fbx", *GLTF_SUFFIXES, ".mvnx", *PICKLE_SUFFIXES,
+                   *TORCH_SUFFIXES)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
 ROTATION_MATRIX_TOL = 1e-3
 _EXPECTED = "72 (SMPL), 156 (SMPL+H), 165 (SMPL-X) or 66 (the 22 body joints alone)"
@@ -174,6 +176,9 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
         files = list(arrays)
     elif path.suffix.lower() in GLTF_SUFFIXES:
         arrays = skeleton_arrays(read_gltf(path, src, take), src)
+        files = list(arrays)
+    elif path.suffix.lower() == ".mvnx":
+        arrays = skeleton_arrays(read_mvnx(path, src), src)
         files = list(arrays)
     elif _starts_with(path, b"\x93NUMPY"):
         arrays, files = _npy_arrays(path, src, person)

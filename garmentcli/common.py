@@ -84,7 +84,7 @@ def require_file(path) -> None:
 def motion_files(args, hint: str = "MOTION") -> list[str]:
     """MOTION arguments as motion files: a file as given; a directory, every `.npz` (`.smpl`), pickle (`.pkl`, as
     AIST++'s motions and WHAM's results are), `.npy` (Motion-X's array, TRAM's pickled track), `.bvh`, `.fbx`,
-    `.glb` or `.gltf` under it (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's
+    `.glb`, `.gltf` or `.mvnx` under it (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's
     shape.npz and *_stagei.npz, which hold a body shape only, and FBX and glTF files of no skeleton are left out;
     PyTorch files only named). A file given twice is taken once. Raises click errors for a path that is not there
     and for a directory without motions."""
@@ -116,7 +116,7 @@ def _holds_poses(path: Path) -> bool:
     """Whether the archive or pickle `path` holds poses (a BVH: always; an FBX: a skeleton, its LimbNode Models;
     a glTF: a skin);
     True for one that cannot be read (named as a motion, it is refused with the reason)."""
-    if path.suffix.lower() == ".bvh":
+    if path.suffix.lower() in (".bvh", ".mvnx"):
         return True
     if path.suffix.lower() == ".fbx":
         try:
