@@ -11,7 +11,7 @@ from core.body import SMPL_JOINT_NAMES, SMPL_PARENTS, default_body
 from core.errors import InputError
 from core.rotations import axis_angle_to_matrix
 from formats.motion import load_motion
-from tests.formats.test_motion import _assert_one_line
+from tests.formats.test_motion import _assert_one_line, assert_each_refused
 
 #: smpl2bvh's names of SMPL's joints.
 SMPL2BVH_NAMES = ("Pelvis", "Left_hip", "Right_hip", "Spine1", "Left_knee", "Right_knee", "Spine2", "Left_ankle",
@@ -365,11 +365,7 @@ def test_a_skeleton_no_humanoid_a_rest_not_standing_or_limbs_out_of_order_is_one
     cases.append(("\n".join(lying) + "\n", "expected a rest pose (all rotations zero) or a frame that stands, got "
                                             "its 'mixamorig7:LeftUpLeg' leg 98 degrees from down at rest and, in its "
                                             "straightest frame (0), a leg 106 degrees from down"))
-    for text, expected in cases:
-        (tmp_path / "rig.bvh").write_text(text)
-        with pytest.raises(InputError) as info:
-            load_motion(tmp_path / "rig.bvh")
-        _assert_one_line(info, "rig.bvh", expected)
+    assert_each_refused(tmp_path / "rig.bvh", cases)
 
 
 def test_a_broken_bvh_is_one_line(tmp_path):

@@ -14,7 +14,7 @@ from core.rotations import axis_angle_to_matrix
 from formats.fbx import TICKS_PER_SECOND, read_nodes
 from formats.motion import load_motion
 from tests.formats.test_bvh import MIXAMO, _motion, rig_motion
-from tests.formats.test_motion import _assert_one_line
+from tests.formats.test_motion import _assert_one_line, assert_each_refused
 
 #: FBX's RotationOrder enum, by axes in the order they turn a point.
 _ORDER = {"xyz": 0, "xzy": 1, "yzx": 2, "yxz": 3, "zxy": 4, "zyx": 5}
@@ -237,11 +237,7 @@ def test_an_ascii_broken_or_skeleton_less_fbx_is_one_line(tmp_path):
                                                       "found 28 Model(s) and no joint"),
              (good[:23] + struct.pack("<I", 6100) + good[27:], "expected FBX 7 (2011 and later), got FBX 6.1: "
                                                                "export it again")]
-    for data, expected in cases:
-        (tmp_path / "bad.fbx").write_bytes(data)
-        with pytest.raises(InputError) as info:
-            load_motion(tmp_path / "bad.fbx")
-        _assert_one_line(info, "bad.fbx", expected)
+    assert_each_refused(tmp_path / "bad.fbx", cases)
     assert read_nodes(good, "good.fbx")[0] == 7400
 
 

@@ -17,7 +17,7 @@ from core.rotations import axis_angle_to_matrix
 from formats.gltf import _frame_rate, _sampled
 from formats.motion import load_motion, motion_takes
 from tests.formats.test_bvh import MIXAMO, _motion, rig_motion
-from tests.formats.test_motion import _assert_one_line
+from tests.formats.test_motion import _assert_one_line, assert_each_refused
 
 
 class _Buffer:
@@ -185,10 +185,7 @@ def test_a_gltf_without_skin_damaged_or_of_another_version_is_one_line(tmp_path)
              (b"not a gltf", "bad.glb", "expected a glTF file (.glb binary or .gltf JSON), got a file that is not"),
              (external.read_bytes(), "lost.gltf", "cannot read its buffer 'lost.bin' beside it")]
     for data, name, expected in cases:
-        (tmp_path / name).write_bytes(data)
-        with pytest.raises(InputError) as info:
-            load_motion(tmp_path / name)
-        _assert_one_line(info, name, expected)
+        assert_each_refused(tmp_path / name, [(data, expected)])
 
 
 def test_channels_are_sampled_as_gltf_interpolates_them():

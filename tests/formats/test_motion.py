@@ -335,6 +335,19 @@ def _assert_one_line(info, *fragments):
         assert f in msg, (f, msg)
 
 
+def assert_each_refused(path, cases):
+    """Each (content: bytes or text, expected fragment) of `cases` written to `path` and read as a motion: one
+    line naming the file and saying the fragment."""
+    for content, expected in cases:
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content)
+        with pytest.raises(InputError) as info:
+            load_motion(path)
+        _assert_one_line(info, path.name, expected)
+
+
 def test_missing_file(tmp_path):
     with pytest.raises(InputError) as info:
         load_motion(tmp_path / "nope.npz")
