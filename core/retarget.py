@@ -15,8 +15,8 @@ ones do not turn; the twist about a limb is the rig's.
 
 The bones are turned from the rig's rest pose (all its rotations zero) where it stands (legs down from the hips,
 the head above the pelvis). A rig whose zero pose folds the body (LAFAN1's: every bone along its joint's own X)
-gives no forward to turn the bones by: the clip's frame that stands straightest (`_standing_frame`) is taken as
-its rest instead, warned, SMPL's T-pose turned onto it bone by bone (the twist about a limb then the actor's at
+gives no forward to turn the bones by: the clip's frame that stands straightest (`_standing_frame`; upright in
+the world most frames stand in) is taken as its rest instead, warned, SMPL's T-pose turned onto it bone by bone (the twist about a limb then the actor's at
 that frame, whose hanging arms give SMPL's palms facing the thighs). A clip with no standing frame is refused.
 """
 
@@ -301,8 +301,16 @@ def _bent(rest: np.ndarray, match: dict[int, int]) -> tuple[float, int]:
 
 def _standing_frame(position: np.ndarray, match: dict[int, int]) -> tuple[int, float]:
     """The frame of rig joint positions (T, J, 3) whose thighs and shins are all nearest down, and how far
-    (degrees) its most bent one is."""
+    (degrees) its most bent one is; where the body stands along one world axis (`_UP_AXES`) in at least half the
+    frames, among those frames only (an actor lying straight on the floor is no rest: its world would be read
+    turned)."""
     worst = _leg_angles(position, match).max(axis=-1)
+    up = position[:, match[15]] - position[:, match[0]]
+    up = up / np.maximum(np.linalg.norm(up, axis=-1, keepdims=True), 1e-12)
+    along = up @ np.array(list(_UP_AXES.values())).T > _UP_COSINE  # (T, axes)
+    upright = along[:, int(np.argmax(along.sum(axis=0)))]
+    if upright.sum() * 2 >= len(worst):
+        worst = np.where(upright, worst, np.inf)
     t = int(np.argmin(worst))
     return t, float(worst[t])
 

@@ -277,8 +277,9 @@ def _bone_directions(poses):
 def test_a_rig_whose_zero_pose_folds_the_body_is_turned_from_its_straightest_frame(tmp_path, caplog):
     """LAFAN1's rig (every bone along its joint's X, turned at random about it: its zero pose folds the body, so no
     rest to turn SMPL's bones from) takes its straightest frame as its rest, warned: where that frame is SMPL's
-    T-pose (the others' knees bent), the motion reads back exactly; where no frame is, every bone of SMPL points as
-    the rig's does in every frame (the twist about it is the actor's at that frame)."""
+    T-pose (the others' knees bent), the motion reads back exactly, also beside a straighter frame lying on the
+    floor (the rest is a frame upright in the world most frames stand in); where no frame is, every bone of SMPL
+    points as the rig's does in every frame (the twist about it is the actor's at that frame)."""
     poses, trans = _motion(6, seed=7)
     poses[:, 22:] = 0
     poses[0] = 0
@@ -291,6 +292,18 @@ def test_a_rig_whose_zero_pose_folds_the_body_is_turned_from_its_straightest_fra
     assert m.rest_up == "y"
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+    poses, trans = _motion(6, seed=7)  # upright: the T-pose, knees bent, and a frame lying straighter on its back
+    poses[:, 22:] = 0
+    poses[:, 0] = 0
+    poses[0, 1:] = 0
+    poses[1:, 4:6] = [0.9, 0.0, 0.0]
+    poses[2] = 0
+    poses[2, 0], poses[2, 1], poses[2, 2] = [np.pi / 2, 0, 0], [0, 0, -0.1], [0, 0, 0.1]  # legs 7.8 degrees, not 9.1
+    m = load_motion(rig_bvh(tmp_path / "lafan.bvh", poses, trans, LAFAN1, along_x=True, order="ZYX"),
+                    world_checks=False)
+    assert m.rest_up == "y"  # turned from the upright T-pose, not from the frame lying down
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
 
     poses, trans = _motion(6, seed=8)
     poses[:, 0] = 0  # upright, so that some frame stands
