@@ -326,7 +326,7 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
                          f"{len(models)} Model(s) and no joint: export the character's skeleton with its animation")
     model_parent = {child: parent for kind, child, parent, *_ in links if kind == "OO" and child in models
                     and parent in models}
-    depth = _depths(list(models), model_parent)
+    depth = node_depths(list(models), model_parent)
     model_parent = {c: p for c, p in model_parent.items() if depth[p] < depth[c]}  # a damaged file's cycle cut
     order = sorted(models, key=lambda i: depth[i])
     settings = _props70(top.get("GlobalSettings"))
@@ -400,7 +400,7 @@ def animation_takes(path: Path) -> list[str]:
     return names if len(names) > 1 else []
 
 
-def _depths(ids: list[int], parent: dict[int, int]) -> dict[int, int]:
+def node_depths(ids: list, parent: dict) -> dict:
     """{id: its number of ancestors} (going up a cycle stops where it comes round)."""
     depth = {}
     for i in ids:

@@ -23,7 +23,7 @@ import numpy as np
 
 from core.errors import InputError
 from formats.bvh import Skeleton
-from formats.fbx import MAX_FRAMES, chosen_take, skeleton_of
+from formats.fbx import MAX_FRAMES, chosen_take, node_depths, skeleton_of
 
 log = logging.getLogger(__name__)
 
@@ -257,15 +257,8 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
                          f"node(s) and no skin: export the character's armature with its animation")
     joints = [int(j) for j in max(skins, key=lambda s: len(s["joints"]))["joints"]]
     parent = {int(c): i for i, node in enumerate(nodes) for c in node.get("children", [])}
-    depth = {}
-    for i in range(len(nodes)):
-        d, j, seen = 0, i, {i}
-        while j in parent and parent[j] not in seen:  # a damaged file's cycle stops where it comes round
-            j = parent[j]
-            seen.add(j)
-            d += 1
-        depth[i] = d
-    parent = {c: p for c, p in parent.items() if depth[p] < depth[c]}
+    depth = node_depths(list(range(len(nodes))), parent)
+    parent = {c: p for c, p in parent.items() if depth[p] < depth[c]}  # a damaged file's cycle cut
     order = sorted(range(len(nodes)), key=lambda i: depth[i])
     animations = doc.get("animations", [])
     titles = [str(a.get("name") or f"animation {k}") for k, a in enumerate(animations)]
