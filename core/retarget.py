@@ -60,6 +60,9 @@ _TRUNK = (0, 3, 6, 9, 12, 15)
 #: The world axes a rest skeleton may stand along (`Retargeted.up`), and how close (cosine, 30 degrees).
 _UP_AXES = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0)}
 _UP_COSINE = np.cos(np.radians(30.0))
+#: Frames retargeted at a time: the rig's and SMPL's poses in the world are held for these only (about 6 KB a
+#: frame for a 27-joint rig).
+CHUNK_FRAMES = 4096
 #: A thigh or shin further than this from the body's down (degrees; up: from the pelvis to the head) does not stand.
 LEG_MAX_DEGREES = 45.0
 
@@ -102,17 +105,24 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     match = match_joints(names, parents, src, trees)
     smpl_rest = default_body().shaped(None)[1][:24].astype(np.float64)
     itself = {k: k for k in range(24)}  # SMPL's rest joints as a rig matched to itself
-    world, position = rig_pose(parents, offsets, rotations, root_positions, moving)
+    chunks = [slice(s, s + CHUNK_FRAMES) for s in range(0, len(rotations), CHUNK_FRAMES)]
+
+    def posed(c: slice) -> tuple[np.ndarray, np.ndarray]:
+        return rig_pose(parents, offsets, rotations[c], root_positions[c], None if moving is None else moving[c])
+
     rest_world = None
     bent, leg = _bent(rest, match)
     if bent > LEG_MAX_DEGREES:
-        t, frame_bent = _standing_frame(position, match)
+        keys = (0, 15, 1, 2, 4, 5, 7, 8)  # the pelvis, head and legs: what a frame's standing is told by
+        trunk = np.concatenate([posed(c)[1][:, [match[k] for k in keys]] for c in chunks])
+        t, frame_bent = _standing_frame(trunk, {k: i for i, k in enumerate(keys)})
         if frame_bent > LEG_MAX_DEGREES:
             raise InputError(f"{src}: expected a rest pose (all rotations zero) or a frame that stands, got its "
                              f"'{names[match[leg]]}' leg {bent:.0f} degrees from down at rest and, in its straightest "
                              f"frame ({t}), a leg {frame_bent:.0f} degrees from down (the head above the pelvis is "
                              f"up): a rig that never stands needs retargeting to one first")
-        rest, rest_world = position[t], world[t]
+        world_t, position_t = posed(slice(t, t + 1))
+        rest, rest_world = position_t[0], world_t[0]
         log.warning("%s: the rig's zero pose does not stand (its '%s' leg %.0f degrees from down): its frame %d, "
                     "the straightest (legs within %.0f degrees of down), is taken as its rest; the twist about each "
                     "limb is the actor's there", src, names[match[leg]], bent, t, frame_bent)
@@ -120,24 +130,29 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
     if rest_world is not None:  # the turns are from that frame's joint rotations, not from zero ones
         turns = {k: rest_world[match[k]].T @ turn for k, turn in turns.items()}
-    smpl_world = np.empty((len(rotations), 24, 3, 3))
-    local = np.empty_like(smpl_world)
-    for k in range(24):
-        if k in match:
-            smpl_world[:, k] = world[:, match[k]] @ turns[k]
-        else:
-            smpl_world[:, k] = smpl_world[:, SMPL_PARENTS[k]]
-        parent = SMPL_PARENTS[k]
-        local[:, k] = smpl_world[:, k] if parent < 0 else np.swapaxes(smpl_world[:, parent], 1, 2) @ smpl_world[:, k]
-
     legs_m, legs_s = _legs(smpl_rest, itself), _legs(rest, match)
     if not (np.isfinite(legs_s) and legs_s > 0):
         raise InputError(f"{src}: expected legs of some length in its OFFSETs, got {legs_s}")
-    trans = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
+
+    poses = np.empty((len(rotations), 24, 3))
+    trans = np.empty((len(rotations), 3))
+    for c in chunks:  # a chunk of frames at a time: the rig's pose in the world is its size in joints
+        world, position = posed(c)
+        smpl_world = np.empty((len(world), 24, 3, 3))
+        local = np.empty_like(smpl_world)
+        for k in range(24):
+            if k in match:
+                smpl_world[:, k] = world[:, match[k]] @ turns[k]
+            else:
+                smpl_world[:, k] = smpl_world[:, SMPL_PARENTS[k]]
+            parent = SMPL_PARENTS[k]
+            local[:, k] = smpl_world[:, k] if parent < 0 else np.swapaxes(smpl_world[:, parent], 1, 2) @ smpl_world[:, k]
+        poses[c] = matrix_to_axis_angle(local)
+        trans[c] = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
     up = next((axis for axis, v in _UP_AXES.items() if body_s[:, 1] @ v > _UP_COSINE), None)
     said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
             f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}")
-    return Retargeted(matrix_to_axis_angle(local), trans, up, said)
+    return Retargeted(poses, trans, up, said)
 
 
 def rig_pose(parents: list[int], offsets: np.ndarray, rotations: np.ndarray, root_positions: np.ndarray,

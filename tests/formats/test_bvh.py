@@ -401,3 +401,21 @@ def test_a_broken_bvh_is_one_line(tmp_path):
         with pytest.raises(InputError) as info:
             load_motion(tmp_path / "bad.bvh")
         _assert_one_line(info, "bad.bvh", expected)
+
+
+def test_a_rig_is_retargeted_chunk_by_chunk_as_at_once(tmp_path, monkeypatch):
+    """Frames retargeted a few at a time (`core.retarget.CHUNK_FRAMES`: memory) give the same motion to the bit,
+    for a standing rig and for one turned from its straightest frame."""
+    import core.retarget
+
+    poses, trans = _motion(7, seed=14)
+    poses[:, 0] = 0
+    poses[:, [1, 2, 4, 5]] *= 0.3
+    paths = [rig_bvh(tmp_path / "mixamo.bvh", poses, trans, MIXAMO, a_pose=30.0),
+             rig_bvh(tmp_path / "lafan.bvh", poses, trans, LAFAN1, along_x=True, order="ZYX")]
+    whole = [load_motion(p, world_checks=False) for p in paths]
+    monkeypatch.setattr(core.retarget, "CHUNK_FRAMES", 3)
+    for p, m in zip(paths, whole):
+        chunked = load_motion(p, world_checks=False)
+        np.testing.assert_array_equal(chunked.poses, m.poses)
+        np.testing.assert_array_equal(chunked.trans, m.trans)
