@@ -27,7 +27,15 @@ from formats.fbx import MAX_FRAMES, chosen_take, node_depths, skeleton_of
 
 log = logging.getLogger(__name__)
 
-GLTF_SUFFIXES = (".glb", ".gltf")
+#: glTF files: VRM avatars (.vrm) and VRM Animation (.vrma) are glTF binaries too.
+GLTF_SUFFIXES = (".glb", ".gltf", ".vrm", ".vrma")
+#: VRM's humanoid bones (VRMC_vrm_animation, VRMC_vrm, VRM 0.x) by the names `core.retarget` matches (Mixamo's):
+#: a file that maps its nodes to them is matched by that map, whatever its nodes are called.
+VRM_BONES = {"hips": "Hips", "neck": "Neck", "head": "Head",
+             **{f"{side}{bone}": f"{side.title()}{name}" for side in ("left", "right")
+                for bone, name in (("UpperLeg", "UpLeg"), ("LowerLeg", "Leg"), ("Foot", "Foot"), ("Toes", "ToeBase"),
+                                   ("Shoulder", "Shoulder"), ("UpperArm", "Arm"), ("LowerArm", "ForeArm"),
+                                   ("Hand", "Hand"))}}
 _GLB_MAGIC = b"glTF"
 _JSON_CHUNK, _BIN_CHUNK = 0x4E4F534A, 0x004E4942
 _COMPONENTS = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
@@ -177,6 +185,22 @@ def _sampled(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.nd
     return out
 
 
+def _vrm_roles(doc: dict) -> dict[int, str]:
+    """{node: the name `core.retarget` knows its role by} of a VRM file's humanoid map (VRM Animation's, VRM 1's
+    {bone: {"node": i}}, VRM 0's [{"bone", "node"}]), else {}."""
+    extensions = doc.get("extensions") or {}
+    for key in ("VRMC_vrm_animation", "VRMC_vrm", "VRM"):
+        bones = ((extensions.get(key) or {}).get("humanoid") or {}).get("humanBones")
+        if isinstance(bones, dict):
+            pairs = [(bone, entry.get("node")) for bone, entry in bones.items() if isinstance(entry, dict)]
+        elif isinstance(bones, list):
+            pairs = [(entry.get("bone"), entry.get("node")) for entry in bones if isinstance(entry, dict)]
+        else:
+            continue
+        return {int(node): VRM_BONES[bone] for bone, node in pairs if bone in VRM_BONES and isinstance(node, int)}
+    return {}
+
+
 def _frame_rate(inputs: list[np.ndarray]) -> float:
     """The rate the animation's keys are spaced by: the median spacing of its most keyed channel, snapped to a
     common rate within 0.5 % (else its own, to the millisecond); DEFAULT_FPS where no channel has two keys."""
@@ -305,5 +329,6 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
         world[i] = local if p is None else world[p] @ local
         rest[i] = resting if p is None else rest[p] @ resting
     names = {i: str(nodes[i].get("name") or f"node{i}") for i in joints}
+    names.update({i: name for i, name in _vrm_roles(doc).items() if i in names})
     skeleton = skeleton_of(joints, names, parent, order, world, rest, 1.0 / fps)
     return skeleton._replace(take=titles[chosen]) if len(animations) > 1 else skeleton

@@ -123,9 +123,9 @@ def _holds_poses(path: Path) -> bool:
             return b"LimbNode" in path.read_bytes()
         except OSError:
             return True
-    if path.suffix.lower() in (".glb", ".gltf"):
-        from formats.gltf import holds_skin
+    from formats.gltf import GLTF_SUFFIXES, holds_skin
 
+    if path.suffix.lower() in GLTF_SUFFIXES:
         return holds_skin(path)
     if path.suffix.lower() == ".npy":  # Motion-X's (T, 322) array, or a pickled dict (TRAM's track)
         from formats.motion import MOTION_X_VALUES

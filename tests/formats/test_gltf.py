@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from core.errors import InputError
 from core.rotations import axis_angle_to_matrix
-from formats.gltf import _frame_rate, _sampled
+from formats.gltf import VRM_BONES, _frame_rate, _sampled
 from formats.motion import load_motion, motion_takes
 from tests.formats.test_bvh import MIXAMO, _motion, rig_motion
 from tests.formats.test_motion import _assert_one_line, assert_each_refused
@@ -44,7 +44,7 @@ class _Buffer:
 
 
 def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffer="glb", int16=False,
-             skin=True, ik_feet=False, controls=0):
+             skin=True, ik_feet=False, controls=0, vrm=False):
     """A glTF of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature node scaling it by
     `armature_scale`: every joint node with a random rest rotation (its frame not the world's at rest), its
     rotation channel per animation, the root's translation channel; takes {name: (poses, trans)}, an animation
@@ -52,7 +52,8 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
     int16: rotations as normalized int16 (as KHR_mesh_quantization allows); skin: False leaves the skin out;
     ik_feet: each ankle under a 'FootControl' joint of the Armature (as game rigs with IK controls have them), not
     under its knee, its place and turn animated there; controls: a chain of that many static 'Ctrl' joints under
-    the Armature beside the skeleton (a control rig larger than it), in the skin."""
+    the Armature beside the skeleton (a control rig larger than it), in the skin; vrm: the joint nodes named
+    'bone<k>', a VRM Animation humanoid map naming their roles."""
     moving = {name: rig_motion(*m, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, m in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()))
     rng = np.random.default_rng(seed)
@@ -108,6 +109,12 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
            "buffers": [{"byteLength": len(buf.data)}]}
     if skin:
         doc["skins"] = [{"joints": list(range(1, len(nodes))), "skeleton": 1}]
+    if vrm:
+        roles = {name: bone for bone, name in VRM_BONES.items()}
+        bones = {roles[n.split(":")[-1]]: {"node": j + 1} for j, n in enumerate(names) if n.split(":")[-1] in roles}
+        doc["extensions"] = {"VRMC_vrm_animation": {"specVersion": "1.0", "humanoid": {"humanBones": bones}}}
+        for k, node in enumerate(nodes[1:J + 1]):
+            node["name"] = f"bone{k}"
     data = bytes(buf.data)
     if buffer == "glb":
         text = json.dumps(doc).encode()
@@ -153,6 +160,19 @@ def test_a_rig_of_feet_under_ik_controls_or_beside_a_larger_control_rig_reads_as
     m = load_motion(path, world_checks=False)
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
+def test_a_vrm_animation_is_matched_by_its_humanoid_map_whatever_its_nodes_are_called(tmp_path):
+    """A VRM Animation (.vrma: glTF, its nodes 'bone0', 'bone1', ..., the VRMC_vrm_animation extension mapping
+    VRM's humanoid bones to them) reads as its motion; without the map its nodes name no humanoid: refused."""
+    poses, trans = _motion(4, seed=15)
+    poses[:, 22:] = 0
+    path = rig_gltf(tmp_path / "dance.vrma", {"dance": (poses, trans)}, vrm=True)
+    m = load_motion(path, world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+    data = path.read_bytes().replace(b"VRMC_vrm_animation", b"VRMC_vrm_animatioX")
+    assert_each_refused(tmp_path / "plain.vrma", [(data, "expected a humanoid skeleton")])
 
 
 def test_a_gltf_of_several_animations_reads_the_first_warned_or_the_one_named(tmp_path, caplog):
