@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import logging
 import os
-import re
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -39,6 +38,7 @@ from garmentcli.common import (
     load_body_option,
     motion_files,
     motion_names,
+    motion_parts,
     motion_up_option,
     person_option,
     take_option,
@@ -392,7 +392,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     out_dir = Path(out_dir)
     targets = [(m, out_dir / f"{Path(garment_path).stem}_{name}{suffix}", part)
                for m, name in zip(motion_paths, motion_names(motion_paths))
-               for part, suffix in _parts_to_bake(m, person, take)]
+               for part, suffix in motion_parts(m, person, take)]
     if overwrite and skip_existing:
         raise click.UsageError("--overwrite and --skip-existing exclude each other")
     if skip_existing:
@@ -502,30 +502,6 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             deformer.on_frames = None
             _set_threads(torch_threads)
     _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
-
-
-def _parts_to_bake(path: str, person: str | None, take: str | None) -> list[tuple[dict, str]]:
-    """[({'person': ..., 'take': ...} to read, its output directory's suffix)] of the motion file `path`: with
-    --person all, each of its tracked people ('_person<ID>'), with --take all, each of an FBX's or glTF's
-    animations ('_<take>'), said; the file read as it is (no suffix) where it holds one, or neither is all."""
-    from formats.motion import motion_takes, tracked_people
-
-    people = list(tracked_people(path)) if person == "all" else []
-    takes = motion_takes(path) if take == "all" else []
-    for found, what in ((people, "tracked people"), (takes, "animations")):
-        if found:
-            click.echo(f"motion '{path}': {len(found)} {what}, each baked ({', '.join(found)})")
-    parts, seen = [], set()
-    for who in people or [None]:
-        for what in takes or [None]:
-            suffix = "".join(f"{prefix}{re.sub(r'[^A-Za-z0-9.-]', '_', v)}"
-                             for prefix, v in (("_person", who), ("_", what)) if v is not None)
-            while suffix in seen:  # two names alike once their odd characters are '_'
-                suffix += "_"
-            seen.add(suffix)
-            parts.append(({"person": who if person == "all" else person, "take": what if take == "all" else take},
-                          suffix))
-    return parts
 
 
 def _fix_threads(deformer, fixed: bool) -> None:

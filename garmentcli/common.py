@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import re
 import tempfile
 import zipfile
 from contextlib import contextmanager
@@ -84,10 +85,10 @@ def require_file(path) -> None:
 def motion_files(args, hint: str = "MOTION") -> list[str]:
     """MOTION arguments as motion files: a file as given; a directory, every `.npz` (`.smpl`), pickle (`.pkl`, as
     AIST++'s motions and WHAM's results are), `.npy` (Motion-X's array, TRAM's pickled track), `.bvh`, `.fbx`,
-    `.glb`, `.gltf` or `.mvnx` under it (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's
-    shape.npz and *_stagei.npz, which hold a body shape only, and FBX and glTF files of no skeleton are left out;
-    PyTorch files only named). A file given twice is taken once. Raises click errors for a path that is not there
-    and for a directory without motions."""
+    glTF (`.glb`, `.gltf`, `.vrm`, `.vrma`) or `.mvnx` under it (recursively, in sorted order) that holds poses or
+    a skeleton (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold a body shape only, and FBX and glTF
+    files of no skeleton are left out; PyTorch files only named). A file given twice is taken once. Raises click
+    errors for a path that is not there and for a directory without motions."""
     from formats.motion import MOTION_SUFFIXES, TORCH_SUFFIXES
 
     scanned = [s for s in MOTION_SUFFIXES if s not in TORCH_SUFFIXES]
@@ -110,6 +111,31 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
     for f in files:
         kept.setdefault(Path(f).resolve(), f)
     return list(kept.values())
+
+
+def motion_parts(path: str, person: str | None, take: str | None, say: bool = True) -> list[tuple[dict, str]]:
+    """[({'person': ..., 'take': ...} to read, the suffix of its name)] of the motion file `path`: with --person
+    all, each of its tracked people ('_person<ID>'), with --take all, each of an FBX's or glTF's animations
+    ('_<take>'), said (say); the file read as it is (no suffix) where it holds one, or neither is all."""
+    from formats.motion import motion_takes, tracked_people
+
+    people = list(tracked_people(path)) if person == "all" else []
+    takes = motion_takes(path) if take == "all" else []
+    for found, what in ((people, "tracked people"), (takes, "animations")):
+        if found:
+            if say:
+                click.echo(f"motion '{path}': {len(found)} {what}, each read ({', '.join(found)})")
+    parts, seen = [], set()
+    for who in people or [None]:
+        for what in takes or [None]:
+            suffix = "".join(f"{prefix}{re.sub(r'[^A-Za-z0-9.-]', '_', v)}"
+                             for prefix, v in (("_person", who), ("_", what)) if v is not None)
+            while suffix in seen:  # two names alike once their odd characters are '_'
+                suffix += "_"
+            seen.add(suffix)
+            parts.append(({"person": who if person == "all" else person, "take": what if take == "all" else take},
+                          suffix))
+    return parts
 
 
 def _holds_poses(path: Path) -> bool:
@@ -412,7 +438,7 @@ def _part_option(flag: str, metavar: str, what: str, help_text: str, help_all: s
 
         def check(ctx: click.Context, param: click.Parameter, value):
             if value == "all" and not every:
-                raise click.BadParameter(f"all (one output per {what}) applies to bake only: give one",
+                raise click.BadParameter(f"all (one output per {what}) applies to bake and dataset only: give one",
                                          param_hint=flag)
             return value
 

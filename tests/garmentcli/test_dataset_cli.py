@@ -243,7 +243,8 @@ def test_dataset_motion_up_y_reads_y_up_motions_turned_and_keys_the_plan(scene):
 
 def test_dataset_person_plans_a_tracked_persons_frames_and_keys_the_plan(scene):
     """--person reads that track of a file of tracked people (WHAM's: person 3 tracked in 4 of 6 frames): the plan
-    has its frames and records the option only when given."""
+    has its frames and records the option only when given; --person all plans each person as a motion of its
+    own, named after the file and the track, as the workers read them."""
     import pickle
 
     d = scene["dir"]
@@ -262,6 +263,14 @@ def test_dataset_person_plans_a_tracked_persons_frames_and_keys_the_plan(scene):
     from garmentcli.dataset import _load_motions  # what each worker simulates (`_worker_init`)
 
     assert _load_motions([d / "wham_output.pkl"], False, 30.0, 30.0, person="3")["wham_output"].n_frames == 4
+    r = run(*args, "--person", "all", "--out", d / "plan_all")  # each person a motion of the plan
+    assert r.exit_code == 0, r.output
+    manifest = json.loads((d / "plan_all" / "manifest.json").read_text())
+    frames = {it["motion"]: it["n_frames"] for it in manifest["items"]}
+    assert frames == {"wham_output_person0": 6, "wham_output_person3": 4}, frames
+    assert set(manifest["inputs"]["motions"]) == set(frames) and manifest["inputs"]["motion_library"] == []
+    assert {n: m.n_frames for n, m in _load_motions([d / "wham_output.pkl"], False, 30.0, 30.0,
+                                                     person="all").items()} == frames
 
 
 def test_dataset_motion_up_y_turns_each_item_about_its_own_shapes_pelvis():

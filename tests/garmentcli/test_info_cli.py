@@ -68,7 +68,7 @@ def test_info_lists_the_tracked_people_and_takes_a_file_holds_and_the_part_read(
     assert any("retargeted onto SMPL's skeleton" in note for note in fbx["notes"])
     assert bad["error"].startswith(f"motion '{broken}': expected an AMASS-style .npz archive")
     r = invoke(["info", moves, "--person", "all"])
-    assert r.exit_code == 2 and "all (one output per tracked person) applies to bake only" in r.output
+    assert r.exit_code == 2 and "all (one output per tracked person) applies to bake and dataset only" in r.output
 
 
 def test_info_of_a_folder_tells_each_motion_in_it(scene, tmp_path):
