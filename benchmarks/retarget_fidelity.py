@@ -1,6 +1,7 @@
-"""How closely SMPL's bones follow a rig's once its BVH or FBX is retargeted (`core.retarget`), on real captures.
+"""How closely SMPL's bones follow a rig's once its BVH, FBX, glTF or MVNX is retargeted (`core.retarget`), on
+real captures.
 
-    python benchmarks/retarget_fidelity.py CLIP.bvh|CLIP.fbx [...] [--sources TEXT] [--out FILE.md]
+    python benchmarks/retarget_fidelity.py CLIP.bvh|CLIP.fbx|CLIP.glb|CLIP.mvnx [...] [--sources TEXT] [--out FILE.md]
 
 For each clip: the rig's joints posed by its own channels (`core.retarget.rig_pose`), and the embedded body's
 joints posed by the SMPL motion `formats.motion.load_motion` reads from it; for every SMPL bone retargeting turns
@@ -28,9 +29,7 @@ sys.path.insert(0, str(ROOT))
 
 from core.body import SMPL_JOINT_NAMES, default_body  # noqa: E402
 from core.retarget import CHAIN_CHILD, chain_end, match_joints, rest_positions, rig_pose  # noqa: E402
-from formats.bvh import read_skeleton  # noqa: E402
-from formats.fbx import read_fbx  # noqa: E402
-from formats.motion import load_motion  # noqa: E402
+from formats.motion import load_motion, read_rig  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
 
 
@@ -44,13 +43,13 @@ def bones(match: dict[int, int], rest: np.ndarray) -> list[tuple[int, int]]:
 
 
 def fidelity(path: Path) -> list:
-    """A results row for the BVH `path`."""
-    skeleton = read_fbx(path, path.name) if path.suffix.lower() == ".fbx" else read_skeleton(path, path.name)
+    """A results row for the motion capture `path` (BVH, FBX, glTF, MVNX: `formats.motion.read_rig`)."""
+    skeleton = read_rig(path, path.name)
     t0 = time.perf_counter()
     motion = load_motion(path, world_checks=False)
     seconds = time.perf_counter() - t0
-    match = match_joints(skeleton.names, skeleton.parents, path.name)
-    _, rig = rig_pose(skeleton.parents, skeleton.offsets, skeleton.rotations, skeleton.root)
+    match = match_joints(skeleton.names, skeleton.parents, path.name, skeleton.trees)
+    _, rig = rig_pose(skeleton.parents, skeleton.offsets, skeleton.rotations, skeleton.root, skeleton.moving)
     _, smpl = default_body().pose(motion.poses[:, :24], motion.trans)
     angles = {}
     for k, c in bones(match, rest_positions(skeleton.parents, skeleton.offsets)):
@@ -76,7 +75,7 @@ def main() -> None:
     header = ["clip", "rig joints", "SMPL joints matched", "frames", "read s", "bones", "median deg", "p95 deg",
               "max deg", "worst bone (its p95)"]
     write_markdown(args.out, [
-        "# SMPL's bones against the rig's, retargeted BVH and FBX clips", "",
+        "# SMPL's bones against the rig's, retargeted BVH, FBX and glTF clips", "",
         f"Made by `python benchmarks/retarget_fidelity.py {' '.join(p.name for p in args.clips)} --sources ...` on "
         f"{datetime.date.today().isoformat()}, {args.machine}, Python {platform.python_version()}. Angles between "
         f"each SMPL bone and the rig's over every frame (see the script's docstring).", "",

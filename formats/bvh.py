@@ -28,7 +28,7 @@ from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 log = logging.getLogger(__name__)
 
-#: The key of `read_bvh`'s arrays holding the world axis its rest skeleton stands along ("z", "y", "-y"; none
+#: The key of `skeleton_arrays`' arrays holding the world axis its rest skeleton stands along ("z", "y", "-y"; none
 #: where it stands along none), which `--motion-up auto` takes.
 REST_UP_KEY = "rest_up"
 #: The key of `skeleton_arrays`' arrays naming the animation stack read (of an FBX of several).
@@ -110,16 +110,11 @@ def read_skeleton(path: Path, src: str) -> Skeleton:
     return Skeleton(names, parents, offsets, rotations, root, frame_time, moving=moving)
 
 
-def read_bvh(path: Path, src: str) -> dict:
-    """{'poses' (T, 24, 3) axis-angle, 'trans' (T, 3) metres, 'mocap_framerate', REST_UP_KEY where its rest
-    skeleton stands along a world axis} of the BVH `path` (module docstring); InputError naming `src` for a file
-    that is no BVH, a damaged one, or a skeleton that is no humanoid's (`core.retarget`)."""
-    return skeleton_arrays(read_skeleton(path, src), src)
-
-
 def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:
-    """`read_bvh`'s arrays of a skeleton's motion (a BVH's; an FBX's, `formats.fbx`): an SMPL skeleton's rotations
-    as they are, any other humanoid's retargeted (`core.retarget`)."""
+    """{'poses' (T, 24, 3) axis-angle, 'trans' (T, 3) metres, 'mocap_framerate', REST_UP_KEY where its rest
+    skeleton stands along a world axis, TAKE_KEY} of a skeleton's motion (a BVH's, `read_skeleton`; an FBX's, a
+    glTF's, an MVNX's): an SMPL skeleton's rotations as they are, any other humanoid's retargeted
+    (`core.retarget`; InputError naming `src` for a skeleton that is no humanoid's)."""
     names, parents, offsets, rotations, root, frame_time = skeleton[:6]
     n_frames = len(rotations)
     smpl = _smpl_skeleton(names, parents, offsets, src)

@@ -38,7 +38,7 @@ from core.errors import InputError
 from core.motion import (Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
-from formats.bvh import REST_UP_KEY, TAKE_KEY, read_bvh, skeleton_arrays
+from formats.bvh import REST_UP_KEY, TAKE_KEY, Skeleton, read_skeleton, skeleton_arrays
 from formats.fbx import animation_takes, read_fbx
 from formats.gltf import GLTF_SUFFIXES, animation_names, read_gltf
 from formats.mvnx import read_mvnx
@@ -106,6 +106,8 @@ TORCH_SUFFIXES = (".pt", ".pth")
 _NESTED_KEYS = ("smpl_params_global", "smpl_params_incam")
 #: Motion files that may hold several animations (takes), one read (`--take`).
 TAKE_SUFFIXES = (".fbx", *GLTF_SUFFIXES)
+#: Motion capture files of a rig's skeleton, retargeted onto SMPL's (`read_rig`).
+SKELETON_SUFFIXES = (".bvh", ".mvnx", *TAKE_SUFFIXES)
 #: The key under which `_pickled_arrays` passes the id of the track read (of a file of tracked people) on.
 PERSON_KEY = "garment_person"
 #: Keys whose length is a tracked person's number of frames.
@@ -168,17 +170,8 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
         raise InputError(f"{src}: file not found")
     if path.suffix.lower() in PICKLE_SUFFIXES + TORCH_SUFFIXES:
         arrays, files = _pickled_arrays(path, src, person=person)
-    elif path.suffix.lower() == ".bvh":
-        arrays = read_bvh(path, src)
-        files = list(arrays)
-    elif path.suffix.lower() == ".fbx":
-        arrays = skeleton_arrays(read_fbx(path, src, take), src)
-        files = list(arrays)
-    elif path.suffix.lower() in GLTF_SUFFIXES:
-        arrays = skeleton_arrays(read_gltf(path, src, take), src)
-        files = list(arrays)
-    elif path.suffix.lower() == ".mvnx":
-        arrays = skeleton_arrays(read_mvnx(path, src), src)
+    elif path.suffix.lower() in SKELETON_SUFFIXES:
+        arrays = skeleton_arrays(read_rig(path, src, take), src)
         files = list(arrays)
     elif _starts_with(path, b"\x93NUMPY"):
         arrays, files = _npy_arrays(path, src, person)
@@ -304,6 +297,20 @@ def _pickled_arrays(path: Path, src: str, npy: bool = False, person: str | None 
     if track is not None:
         arrays[PERSON_KEY] = np.str_(track)
     return arrays, [str(k) for k in data]
+
+
+def read_rig(path, src: str | None = None, take: str | None = None) -> Skeleton:
+    """The skeleton and motion of a motion capture file of a rig (`SKELETON_SUFFIXES`: BVH, FBX, glTF, MVNX) as
+    its reader gives it, before any retargeting; of an FBX or glTF of several animations, the one named `take`.
+    InputError naming `src` (default: the file) where it cannot be read."""
+    path = Path(path)
+    src = src or f"motion '{path}'"
+    suffix = path.suffix.lower()
+    if suffix == ".bvh":
+        return read_skeleton(path, src)
+    if suffix == ".mvnx":
+        return read_mvnx(path, src)
+    return (read_fbx if suffix == ".fbx" else read_gltf)(path, src, take)
 
 
 def motion_takes(path) -> list[str]:
