@@ -61,7 +61,9 @@ def read_mvnx(path: Path, src: str) -> Skeleton:
                 elif "orientation" in parts and "position" in parts:
                     rest.setdefault(kind, (parts["orientation"], parts["position"]))
                 element.clear()
-    except ET.ParseError as exc:
+    except InputError:
+        raise
+    except (ET.ParseError, LookupError, ValueError) as exc:  # LookupError: an encoding the XML names is unknown
         raise InputError(f"{src}: its MVNX (XML) is damaged ({exc})") from None
     except OSError as exc:
         raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None

@@ -122,9 +122,8 @@ def motion_parts(path: str, person: str | None, take: str | None, say: bool = Tr
     people = list(tracked_people(path)) if person == "all" else []
     takes = motion_takes(path) if take == "all" else []
     for found, what in ((people, "tracked people"), (takes, "animations")):
-        if found:
-            if say:
-                click.echo(f"motion '{path}': {len(found)} {what}, each read ({', '.join(found)})")
+        if found and say:
+            click.echo(f"motion '{path}': {len(found)} {what}, each read ({', '.join(found)})")
     parts, seen = [], set()
     for who in people or [None]:
         for what in takes or [None]:
