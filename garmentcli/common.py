@@ -319,7 +319,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     Z-up about the pelvis of `body`, the embedded one when None, at the motion's betas), --frames (source frames)
     with --preroll (source frames before them, deformed and not written: `Motion.n_lead`), --fps and --settle, in
     that order. person: --person, the track read of a file of several tracked people; take: --take, the animation
-    stack read of an FBX of several (`load_motion`).
+    read of an FBX or glTF of several (`load_motion`).
 
     body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
     once, naming the motion. check_frames(n_frames, source_fps): called with the frame count of the prepared
@@ -451,13 +451,13 @@ def _part_option(flag: str, metavar: str, what: str, help_text: str, help_all: s
 person_option = _part_option(
     "--person", "ID", "tracked person", "Of a motion file of several tracked people (WHAM's, VIBE's, PHALP's, "
     "4D-Humans' results): the track id to read [default: the person tracked longest, the others named]; a file of "
-    "one person is read as it is.", " all: each tracked person in turn, one output each "
-    "(<garment>_<motion>_person<ID>).")
+    "one person is read as it is.", " all: each tracked person in turn, as a motion of its own "
+    "(<motion>_person<ID>).")
 #: --take NAME: the animation read of an FBX (its stacks) or glTF of several (`formats.motion.load_motion`).
 take_option = _part_option(
     "--take", "NAME", "animation", "Of an FBX or glTF of several animations (takes, stacks): the name of the one "
     "to read [default: the first, the others named]; a file of one is read as it is.", " all: each animation in "
-    "turn, one output each (<garment>_<motion>_<take>).")
+    "turn, as a motion of its own (<motion>_<take>).")
 
 
 def motion_up_option(command):
