@@ -18,6 +18,7 @@ import json
 import logging
 import struct
 from pathlib import Path
+from urllib.parse import unquote
 
 import numpy as np
 
@@ -96,7 +97,7 @@ def gltf_document(path: Path, src: str) -> tuple[dict, list[bytes]]:
                 raise InputError(f"{src}: its buffer {k}'s data URI is damaged (no base64 after 'data:...,')") \
                     from None
         else:
-            beside = Path(path).parent / uri
+            beside = Path(path).parent / unquote(uri)  # a URI: 'my%20take.bin' names 'my take.bin'
             try:
                 buffers.append(beside.read_bytes())
             except OSError as exc:

@@ -6,6 +6,7 @@ import base64
 import json
 import logging
 import struct
+from urllib.parse import quote
 
 import numpy as np
 import pytest
@@ -126,7 +127,7 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
     if buffer == "base64":
         doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode()
     else:
-        doc["buffers"][0]["uri"] = path.stem + ".bin"
+        doc["buffers"][0]["uri"] = quote(path.stem + ".bin")  # a URI: a space is '%20'
         path.with_suffix(".bin").write_bytes(data)
     path.write_text(json.dumps(doc))
     return path
@@ -136,11 +137,12 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
 def test_a_gltf_of_a_rig_reads_as_the_smpl_motion_it_moves_as(tmp_path, buffer, int16):
     """A Mixamo rig's glTF (joint nodes with rest rotations, an Armature node scaling it, 15 % larger, an A-pose)
     is retargeted to the SMPL motion it moves as, its buffer in a .glb, a base64 URI or a file beside it, its
-    rotations float or normalized int16; Y-up read from its rest."""
+    rotations float or normalized int16 (the file's name, and so its buffer's URI, with a space); Y-up read from its
+    rest."""
     poses, trans = _motion(5, seed=7)
     poses[:, 22:] = 0
     suffix = ".glb" if buffer == "glb" else ".gltf"
-    m = load_motion(rig_gltf(tmp_path / f"walk{suffix}", {"Walk": (poses, trans)}, buffer=buffer, int16=int16),
+    m = load_motion(rig_gltf(tmp_path / f"brisk walk{suffix}", {"Walk": (poses, trans)}, buffer=buffer, int16=int16),
                     world_checks=False)
     assert m.fps == pytest.approx(30) and m.poses.shape == (5, 24, 3) and m.rest_up == "y" and m.take is None
     tolerance = 1e-3 if int16 else 1e-4  # int16 quaternions: 3e-5 a component
