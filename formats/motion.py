@@ -15,7 +15,8 @@ fits write them: their mean),
 `frame_rate`), `gender`. WHAM's world motion `pose_world`, `trans_world` (or, without them, VIBE's and WHAM's
 camera-frame `pose`) where no other poses are there. Pickles (`PICKLE_SUFFIXES`: AIST++'s motions, the results
 WHAM and VIBE write with joblib, one dict per tracked person: the longest is read; PHALP's and 4D-Humans', a dict
-per video frame of its detections: the person tracked in most frames) and PyTorch files
+per video frame of its detections: the person tracked in most frames; 3DPW's sequences, each parameter a list of
+the actors': the first) and PyTorch files
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
@@ -387,31 +388,61 @@ def _person(data, src: str, quiet: bool, person: str | None = None) -> tuple[dic
     if not isinstance(data, dict):
         raise InputError(f"{src}: expected a pickled dict of SMPL parameters ('poses', 'trans', ...; or one such "
                          f"dict per tracked person), got {type(data).__name__}")
-    data, frames, phalp = _tracks(data)
+    data, frames, kind = _tracks(data)
     if frames is None:
         if person is not None and not quiet:
             log.info("%s: the parameters of one person: --person %s left aside", src, person)
         return data, None
-    if phalp and not frames:
+    if kind == "phalp" and not frames:
         raise InputError(f"{src}: expected PHALP's tracked people ('tid', 'smpl' per detection), found none tracked")
     track = _chosen(frames, src, quiet, person)
-    return (_phalp_person(data, track, src) if phalp else data[track]), track
+    if kind == "phalp":
+        return _phalp_person(data, track, src), track
+    return (_actor(data, track, len(frames)) if kind == "actors" else data[track]), track
 
 
-def _tracks(data: dict) -> tuple[dict, dict | None, bool]:
+def _tracks(data: dict) -> tuple[dict, dict | None, str]:
     """(`data` with GVHMR's nesting taken off; {track id: frames tracked, in the order first seen} where it holds
-    tracked people, else None; whether they are PHALP's per-frame detections)."""
+    tracked people, else None; how it holds them: 'phalp' (PHALP's per-frame detections), 'tracks' (a dict per
+    track: WHAM, VIBE), 'actors' (each parameter a list of the actors', or along a first axis: 3DPW), or '')."""
     nested = next((k for k in _NESTED_KEYS if isinstance(data.get(k), dict)), None)
     data = data[nested] if nested else data
     if data and all(isinstance(v, dict) and "smpl" in v and "tid" in v for v in data.values()):
         counts: dict = {}
         for tid in (t for frame_tids in _phalp_frames(data)[1] for t in frame_tids):
             counts[tid] = counts.get(tid, 0) + 1
-        return data, counts, True
+        return data, counts, "phalp"
     if data and all(isinstance(v, dict) for v in data.values()):
         return data, {k: max((len(v[p]) for p in _POSE_KEYS if hasattr(v.get(p), "__len__")), default=0)
-                      for k, v in data.items()}, False
-    return data, None, False
+                      for k, v in data.items()}, "tracks"
+    poses = next((data[k] for k in ("poses", "pose") if k in data), None)
+    if isinstance(poses, (list, tuple)) and poses and all(len(getattr(p, "shape", ())) == 2 for p in poses):
+        return data, {i: len(p) for i, p in enumerate(poses)}, "actors"
+    if len(getattr(poses, "shape", ())) == 3 and poses.shape[-1] in (66, 72, 156, 165):
+        return data, {i: poses.shape[1] for i in range(poses.shape[0])}, "actors"
+    return data, None, ""
+
+
+#: 3DPW's frame rate: its 'poses' follow the video's frames (its 'poses_60Hz' twice as many).
+THREEDPW_FPS = 30.0
+
+
+def _actor(data: dict, i: int, n: int) -> dict:
+    """Actor `i`'s parameters of a file of `n` actors' (3DPW's: a list of the actors' per parameter; or arrays
+    along a first axis of `n`): each such value's `i`th, its 'genders' its 'gender'; 3DPW's frame rate where the
+    file names none."""
+    out = {}
+    for key, value in data.items():
+        if isinstance(value, (list, tuple)) and len(value) == n:
+            value = value[i]
+        elif len(getattr(value, "shape", ())) >= 2 and value.shape[0] == n and str(key) in _READ_KEYS:
+            value = value[i]
+        out[key] = value
+    if "genders" in out and "gender" not in out:
+        out["gender"] = out["genders"]
+    if "poses_60Hz" in data and not any(k in data for k in FRAMERATE_KEYS):
+        out["mocap_framerate"] = THREEDPW_FPS
+    return out
 
 
 def _chosen(frames: dict, src: str, quiet: bool, person: str | None = None):

@@ -319,3 +319,32 @@ def test_a_phalp_result_gives_the_person_tracked_in_most_frames_as_smplx_argumen
         load_motion(path, fps=30, person="4")
     _assert_one_line(info, "demo_video.pkl", "expected --person one of its 2 tracked people ('3' 4 frames, '5' 2 "
                                              "frames), got '4'")
+
+
+def test_a_3dpw_sequence_of_two_actors_reads_each_as_a_tracked_person(tmp_path, caplog):
+    """3DPW's sequence pickles (Python 2's protocol 2) hold each parameter as a list of the actors' ('poses',
+    'trans', 'betas', 'genders'; 'poses_60Hz' beside): the first actor read by default, the other named; --person 1
+    the other; 30 fps (the video's) where the file names no rate; the same of arrays along a first axis."""
+    rng = np.random.default_rng(16)
+    T = 6
+    poses = [rng.normal(scale=0.2, size=(T, 72)), rng.normal(scale=0.2, size=(T, 72))]
+    trans = [np.zeros((T, 3)), np.ones((T, 3))]
+    sequence = {"sequence": "courtyard_dancing_00", "genders": ["m", "f"], "poses": poses, "trans": trans,
+                "betas": [np.zeros(10), np.full(10, 0.5)], "poses_60Hz": [np.repeat(p, 2, axis=0) for p in poses],
+                "trans_60Hz": [np.repeat(t, 2, axis=0) for t in trans], "cam_poses": np.zeros((T, 4, 4)),
+                "campose_valid": [np.ones(T, bool)] * 2, "img_frame_ids": np.arange(T)}
+    path = tmp_path / "courtyard_dancing_00.pkl"
+    path.write_bytes(pickle.dumps(sequence, protocol=2))
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(path, world_checks=False)
+    assert "holds 2 tracked people ('0' 6 frames, '1' 6 frames): reading '0'" in caplog.text
+    assert m.fps == 30.0 and m.person == "0" and m.gender == "m" and tracked_people(path) == {"0": 6, "1": 6}
+    np.testing.assert_allclose(m.poses.reshape(T, 72), poses[0], atol=1e-6)
+    m = load_motion(path, world_checks=False, person="1")
+    np.testing.assert_allclose(m.poses.reshape(T, 72), poses[1], atol=1e-6)
+    assert m.gender == "f" and np.allclose(m.trans, 1.0) and np.allclose(m.betas, 0.5)
+    stacked = {"poses": np.stack(poses), "trans": np.stack(trans), "mocap_framerate": 60.0}
+    path.write_bytes(pickle.dumps(stacked))
+    m = load_motion(path, world_checks=False, person="1")
+    assert m.fps == 60.0 and m.person == "1"
+    np.testing.assert_allclose(m.trans, 1.0)
