@@ -16,7 +16,7 @@ fits write them: their mean),
 camera-frame `pose`) where no other poses are there. Pickles (`PICKLE_SUFFIXES`: AIST++'s motions, the results
 WHAM and VIBE write with joblib, one dict per tracked person: the longest is read; PHALP's and 4D-Humans', a dict
 per video frame of its detections: the person tracked in most frames; 3DPW's sequences, each parameter a list of
-the actors': the first) and PyTorch files
+the actors': the first; EMDB's, its 'smpl' dict) and PyTorch files
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
@@ -91,7 +91,7 @@ _CODEC_GENDERS = ("neutral", "male", "female")
 #: A pose estimator's keys (`_from_estimator`): WHAM's world motion, VIBE's and WHAM's camera-frame 'pose', TRAM's
 #: camera-frame ones, a track's video frames.
 _ESTIMATOR_KEYS = ("pose_world", "trans_world", "pose", "pred_rotmat", "pred_trans", "pred_shape", "frame",
-                   "frame_ids")
+                   "frame_ids", "poses_root", "poses_body")
 #: The keys read; the others (dmpls, marker data, AMASS SMPL-X's markers_latent_vids, a pickled dict that
 #: needs allow_pickle, a face's expression) are left unread. `transl` is the smplx arguments' `trans`.
 _READ_KEYS = ("poses", *_SPLIT_KEYS, *_SMPLX_ARG_KEYS, "trans", "transl", "betas", *FRAMERATE_KEYS, "gender",
@@ -103,8 +103,9 @@ PICKLE_SUFFIXES = (".pkl", ".pickle", ".joblib")
 #: PyTorch files, read with torch.load(weights_only=True) (tensors, containers, numpy arrays: `formats.pickles`):
 #: GVHMR's hmr4d_results.pt.
 TORCH_SUFFIXES = (".pt", ".pth")
-#: A dict in a pickled motion that holds it: GVHMR's world parameters (preferred) or its camera-frame ones.
-_NESTED_KEYS = ("smpl_params_global", "smpl_params_incam")
+#: A dict in a pickled motion that holds it: GVHMR's world parameters (preferred) or its camera-frame ones; EMDB's
+#: 'smpl' (its file's other values, such as its 'gender', kept beside).
+_NESTED_KEYS = ("smpl_params_global", "smpl_params_incam", "smpl")
 #: Motion files that may hold several animations (takes), one read (`--take`).
 TAKE_SUFFIXES = (".fbx", *GLTF_SUFFIXES)
 #: Motion capture files of a rig's skeleton, retargeted onto SMPL's (`read_rig`).
@@ -406,7 +407,8 @@ def _tracks(data: dict) -> tuple[dict, dict | None, str]:
     tracked people, else None; how it holds them: 'phalp' (PHALP's per-frame detections), 'tracks' (a dict per
     track: WHAM, VIBE), 'actors' (each parameter a list of the actors', or along a first axis: 3DPW), or '')."""
     nested = next((k for k in _NESTED_KEYS if isinstance(data.get(k), dict)), None)
-    data = data[nested] if nested else data
+    if nested:
+        data = {**{k: v for k, v in data.items() if not isinstance(v, dict)}, **data[nested]}
     if data and all(isinstance(v, dict) and "smpl" in v and "tid" in v for v in data.values()):
         counts: dict = {}
         for tid in (t for frame_tids in _phalp_frames(data)[1] for t in frame_tids):
@@ -620,7 +622,8 @@ def _from_estimator(arrays: dict, src: str) -> None:
     """A pose estimator's keys as load_motion's, in place, where the file has no poses of another name: WHAM's
     world motion ('pose_world', 'trans_world'; without the latter, no translation: its 'trans' is the camera's view)
     in place of its camera-frame one, else a 'pose' (VIBE's, WHAM's in the camera's frame: SMPL's 72 values per
-    frame) as 'poses', else TRAM's 'pred_rotmat', 'pred_trans', 'pred_shape' and 'frame'."""
+    frame) as 'poses', else EMDB's 'poses_root' and 'poses_body', else TRAM's 'pred_rotmat', 'pred_trans',
+    'pred_shape' and 'frame'."""
     if not {"poses", "root_orient", "global_orient"} & arrays.keys():
         if "pose_world" in arrays:
             arrays["poses"] = arrays.pop("pose_world")
@@ -629,6 +632,8 @@ def _from_estimator(arrays: dict, src: str) -> None:
                 arrays["trans"] = arrays.pop("trans_world")
         elif "pose" in arrays:
             arrays["poses"] = arrays.pop("pose")
+        elif "poses_root" in arrays and "poses_body" in arrays:  # EMDB's: (T, 3) and SMPL's other 23 joints
+            arrays["global_orient"], arrays["body_pose"] = arrays.pop("poses_root"), arrays.pop("poses_body")
         elif "pred_rotmat" in arrays:  # TRAM's: rotation matrices (T, 24, 3, 3), trans (T, 1, 3)
             arrays["poses"] = arrays.pop("pred_rotmat")
             for key, new in (("pred_trans", "trans"), ("pred_shape", "betas"), ("frame", "frame_ids")):

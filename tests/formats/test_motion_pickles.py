@@ -348,3 +348,24 @@ def test_a_3dpw_sequence_of_two_actors_reads_each_as_a_tracked_person(tmp_path, 
     m = load_motion(path, world_checks=False, person="1")
     assert m.fps == 60.0 and m.person == "1"
     np.testing.assert_allclose(m.trans, 1.0)
+
+
+def test_an_emdb_sequence_reads_its_smpl_dict_and_keeps_the_files_gender(tmp_path):
+    """EMDB's pickles: {'smpl': {'poses_root' (T, 3), 'poses_body' (T, 69), 'trans', 'betas'}, 'gender', 'camera',
+    ...}: SMPL's 24 joints, the translation, the gender of the file beside the dict (no rate: --source-fps)."""
+    rng = np.random.default_rng(17)
+    T = 5
+    root, body = rng.normal(scale=0.2, size=(T, 3)), rng.normal(scale=0.2, size=(T, 69))
+    sequence = {"n_frames": T, "gender": "female", "name": "P1_14_outdoor_climb",
+                "smpl": {"poses_root": root, "poses_body": body, "trans": np.ones((T, 3)), "betas": np.zeros(10)},
+                "camera": {"intrinsics": np.eye(3), "extrinsics": np.zeros((T, 4, 4))},
+                "good_frames_mask": np.ones(T, bool)}
+    path = tmp_path / "P1_14_outdoor_climb_data.pkl"
+    path.write_bytes(pickle.dumps(sequence))
+    m = load_motion(path, fps=30, world_checks=False)
+    assert m.poses.shape == (T, 24, 3) and m.gender == "female"
+    np.testing.assert_allclose(m.poses.reshape(T, 72), np.concatenate([root, body], axis=1), atol=1e-6)
+    np.testing.assert_allclose(m.trans, 1.0)
+    with pytest.raises(InputError) as info:
+        load_motion(path, world_checks=False)
+    _assert_one_line(info, "P1_14_outdoor_climb_data.pkl", "--source-fps")
