@@ -465,7 +465,9 @@ def skeleton_of(joints: list, names: dict, parent: dict, order: list, world: dic
     for r in roots:  # the other trees hang from the main one's root
         if r != main:
             up[r] = main
-    ids = [main] + [i for i in order if i in joint_set and i != main]  # the root first, then parents first
+    # the main tree first (a joint named as one of another tree, a second character's, is matched in it), each
+    # tree's parents before their children
+    ids = [i for i in order if i in roots[main]] + [i for i in order if i in joint_set and i not in roots[main]]
     index = {i: k for k, i in enumerate(ids)}
     parents = [index[up[i]] if up[i] is not None else -1 for i in ids]
     tree_of = {i: index[r] for r, tree in roots.items() for i in tree}

@@ -314,3 +314,39 @@ def test_an_fbx_of_several_takes_reads_the_first_warned_or_the_one_named(tmp_pat
         m = load_motion(one, world_checks=False, take="Run")
     assert "holds only 'Take 001': --take Run left aside" in caplog.text and m.take is None
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(walk), atol=1e-4)
+
+
+def test_a_file_of_two_characters_reads_the_first_skeletons_motion_not_a_mix():
+    """Two characters of one rig (a duet's file; the second's joints in another namespace, so that their names
+    match the first's): the skeleton is the first's, every SMPL joint matched in it, the motion its own."""
+    from core.retarget import rig_pose
+    from formats.bvh import skeleton_arrays
+    from formats.fbx import skeleton_of
+
+    def transforms(poses, trans):
+        names, parents, offsets, rotations, root = rig_motion(poses, trans, MIXAMO)
+        world, position = rig_pose(parents, offsets, rotations, root)
+        M = np.broadcast_to(np.eye(4), world.shape[:2] + (4, 4)).copy()
+        M[..., :3, :3], M[..., :3, 3] = world, position
+        rest = np.broadcast_to(np.eye(4), (len(names), 4, 4)).copy()
+        rest[:, :3, 3] = rig_pose(parents, offsets, np.broadcast_to(np.eye(3), (1,) + rotations.shape[1:]),
+                                  offsets[:1])[1][0]
+        return names, parents, M, rest
+
+    (a, a_trans), (b, b_trans) = _motion(4, seed=18), _motion(4, seed=19)
+    a[:, 22:] = b[:, 22:] = 0
+    names, parents, world_a, rest = transforms(a, a_trans)
+    _, _, world_b, _ = transforms(b, b_trans + [2.0, 0.0, 0.0])
+    J = len(names)
+    ids = list(range(J)) + [100 + j for j in range(J)]  # B's joints after A's: B's names would win a mix
+    name_of = {j: n for j, n in enumerate(names)} | {100 + j: "mixamorig8:" + n.split(":")[-1]
+                                                      for j, n in enumerate(names)}
+    parent = {j: p for j, p in enumerate(parents) if p >= 0} | {100 + j: 100 + p for j, p in enumerate(parents)
+                                                                if p >= 0}
+    world = {j: world_a[:, j] for j in range(J)} | {100 + j: world_b[:, j] for j in range(J)}
+    rests = {j: rest[j] for j in range(J)} | {100 + j: rest[j] for j in range(J)}
+    order = sorted(ids, key=lambda i: (i % 100, -i))  # parents first, each of B's joints before A's of its name
+    skeleton = skeleton_of(ids, name_of, parent, order, world, rests, 1 / 30)
+    arrays = skeleton_arrays(skeleton, "duet")
+    np.testing.assert_allclose(axis_angle_to_matrix(arrays["poses"]), axis_angle_to_matrix(a), atol=1e-4)
+    np.testing.assert_allclose(arrays["trans"], a_trans, atol=1e-4)
