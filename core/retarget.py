@@ -67,6 +67,14 @@ CHUNK_FRAMES = 4096
 LEG_MAX_DEGREES = 45.0
 
 
+def role_names(names: list[str]) -> int:
+    """How many of `names` name a humanoid's joint (a role of `_ROLE_NAMES` with its side, a pelvis, spine, neck
+    or head): of a file's trees of joints, the body's names the most (a control rig's and a prop's the fewest)."""
+    roles = {side + n for side in "lr" for group in (*_ROLE_NAMES.values(), ("foot", "hand", "shoulder")) for n in group}
+    roles |= {*_PELVIS_NAMES, "head", "neck", "spine"}
+    return sum(canonical(n) in roles for n in names)
+
+
 def canonical(name: str) -> str:
     """A joint's name as matched: no 'namespace:', no rig prefix, lower case letters and digits, the side
     ('Left', 'L', a '_l' or '.L' suffix) a leading 'l' or 'r' ('_M', the middle, dropped)."""

@@ -24,6 +24,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.rotations import axis_angle_to_matrix
+from core.retarget import role_names
 from formats.bvh import Skeleton
 
 log = logging.getLogger(__name__)
@@ -461,7 +462,9 @@ def skeleton_of(joints: list, names: dict, parent: dict, order: list, world: dic
         while up[r] is not None:
             r = up[r]
         roots.setdefault(r, []).append(i)
-    main = max(roots, key=lambda r: len(roots[r]))
+    # the body's tree: the one of the most humanoid joint names (a deforming skeleton beside a larger control rig),
+    # then of the most joints
+    main = max(roots, key=lambda r: (role_names([names[i] for i in roots[r]]), len(roots[r])))
     for r in roots:  # the other trees hang from the main one's root
         if r != main:
             up[r] = main
