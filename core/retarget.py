@@ -16,8 +16,9 @@ ones do not turn; the twist about a limb is the rig's.
 The bones are turned from the rig's rest pose (all its rotations zero) where it stands (legs down from the hips,
 the head above the pelvis). A rig whose zero pose folds the body (LAFAN1's: every bone along its joint's own X)
 gives no forward to turn the bones by: the clip's frame that stands straightest (`_standing_frame`; upright in
-the world most frames stand in) is taken as its rest instead, warned, SMPL's T-pose turned onto it bone by bone (the twist about a limb then the actor's at
-that frame, whose hanging arms give SMPL's palms facing the thighs). A clip with no standing frame is refused.
+the world most frames stand in) is taken as its rest instead, warned, SMPL's T-pose turned onto it bone by bone
+(the twist about a limb then the actor's at that frame, whose hanging arms give SMPL's palms facing the thighs).
+A clip with no standing frame is refused.
 """
 
 from __future__ import annotations
@@ -70,7 +71,8 @@ LEG_MAX_DEGREES = 45.0
 def role_names(names: list[str]) -> int:
     """How many of `names` name a humanoid's joint (a role of `_ROLE_NAMES` with its side, a pelvis, spine, neck
     or head): of a file's trees of joints, the body's names the most (a control rig's and a prop's the fewest)."""
-    roles = {side + n for side in "lr" for group in (*_ROLE_NAMES.values(), ("foot", "hand", "shoulder")) for n in group}
+    groups = (*_ROLE_NAMES.values(), ("foot", "hand", "shoulder"))
+    roles = {side + n for side in "lr" for group in groups for n in group}
     roles |= {*_PELVIS_NAMES, "head", "neck", "spine"}
     return sum(canonical(n) in roles for n in names)
 
@@ -106,8 +108,8 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     rest position from its parent (the root's: its rest position), in the rig's unit. rotations (T, J, 3, 3):
     each joint's rotation from its rest, in its parent's frame. root_positions (T, 3): the root's position.
     moving (T, J, 3): each joint's position from its parent's per frame, where they move (`rig_pose`); trees:
-    the tree the file keeps each joint in, where it keeps several (`match_joints`). InputError naming `src` where the rig lacks
-    a role, its matched joints are not in a body's order, or neither its rest nor a frame stands.
+    the tree the file keeps each joint in, where it keeps several (`match_joints`). InputError naming `src` where
+    the rig lacks a role, its matched joints are not in a body's order, or neither its rest nor a frame stands.
     """
     rest = rest_positions(parents, offsets)
     match = match_joints(names, parents, src, trees)
@@ -154,7 +156,8 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
             else:
                 smpl_world[:, k] = smpl_world[:, SMPL_PARENTS[k]]
             parent = SMPL_PARENTS[k]
-            local[:, k] = smpl_world[:, k] if parent < 0 else np.swapaxes(smpl_world[:, parent], 1, 2) @ smpl_world[:, k]
+            local[:, k] = (smpl_world[:, k] if parent < 0
+                           else np.swapaxes(smpl_world[:, parent], 1, 2) @ smpl_world[:, k])
         poses[c] = matrix_to_axis_angle(local)
         trans[c] = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
     up = next((axis for axis, v in _UP_AXES.items() if body_s[:, 1] @ v > _UP_COSINE), None)

@@ -31,7 +31,7 @@ log = logging.getLogger(__name__)
 #: The key of `skeleton_arrays`' arrays holding the world axis its rest skeleton stands along ("z", "y", "-y"; none
 #: where it stands along none), which `--motion-up auto` takes.
 REST_UP_KEY = "rest_up"
-#: The key of `skeleton_arrays`' arrays naming the animation stack read (of an FBX of several).
+#: The key of `skeleton_arrays`' arrays naming the animation read (of an FBX or glTF of several).
 TAKE_KEY = "garment_take"
 #: Other names of SMPL's joints after `core.retarget.canonical` (the hands as palms).
 _ALIASES = {"lpalm": "lhand", "rpalm": "rhand"}
@@ -59,11 +59,12 @@ _SMPL_INDEX = {_canonical(n): k for k, n in enumerate(SMPL_JOINT_NAMES)}
 
 
 class Skeleton(NamedTuple):
-    """A skeleton and its motion (a BVH's; an FBX's, `formats.fbx`): joint `names`, `parents` (-1 for the root;
-    parents first), `offsets` (J, 3) in its unit, `rotations` (T, J, 3, 3) each joint's from its rest (its
-    channels composed), `root` (T, 3) the root's position, `frame_time` in seconds; `take`: the name of the
-    animation read of an FBX or glTF of several, else None; `moving` (T, J, 3): each joint's offset per frame
-    where joints' places move (a tree of joints a file keeps apart from the body's, attached to the root), else
+    """A skeleton and its motion (a BVH's; an FBX's, a glTF's, an MVNX's: `formats.motion.read_rig`): joint
+    `names`, `parents` (-1 for the root; parents first), `offsets` (J, 3) in its unit, `rotations` (T, J, 3, 3)
+    each joint's from its rest (its channels composed), `root` (T, 3) the root's position, `frame_time` in
+    seconds; `take`: the name of the animation read of an FBX or glTF of several, else None; `moving` (T, J, 3):
+    each joint's offset per frame where joints' places move (a tree of joints a file keeps apart from the body's,
+    attached to the root; hips animated under a floor joint; a BVH's position channels below its root), else
     None; `trees`: where a file keeps its joints in several trees, each joint's (the index of its tree's root),
     else () (`core.retarget.match_joints`)."""
 

@@ -6,9 +6,9 @@ as text) are read here, with no SDK: the skeleton's joints are its Models of typ
 hierarchy from the file's connections; each joint's transform per frame is FBX's (translation, pre-rotation, the
 Euler rotation in its RotationOrder, post-rotation, scaling; rotation and scaling pivots and offsets left out, as
 skeletons carry none), its animation curves sampled linearly at the file's frame rate over one animation stack
-(a take: the first, or the one `--take` names), a value without a curve its property's. The rest pose is the file's BindPose where it has
-one (the skin's bind matrices), else the joints' own property values. FBX 6 and files without a skeleton are
-refused in one line.
+(a take: the first, or the one `--take` names), a value without a curve its property's. The rest pose is the
+file's BindPose where it has one (the skin's bind matrices), else the joints' own property values. FBX 6 and
+files without a skeleton are refused in one line.
 """
 
 from __future__ import annotations
