@@ -74,6 +74,17 @@ def axis_angle_to_matrix(aa: np.ndarray) -> np.ndarray:
     return eye + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
 
 
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """q: (..., 4) quaternions (w, x, y, z), any norm -> (..., 3, 3) rotation matrices."""
+    q = np.asarray(q, dtype=np.float64)
+    q = q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), _EPS)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+                     2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                     2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1
+                    ).reshape(q.shape[:-1] + (3, 3))
+
+
 def matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:
     """R: (..., 3, 3) rotation matrices -> (..., 3) axis-angle, via quaternions (stable near pi)."""
     return quat_to_axis_angle(matrix_to_quat(R))

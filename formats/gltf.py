@@ -23,6 +23,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from core.errors import InputError
+from core.rotations import quat_slerp, quat_to_matrix
 from formats.bvh import Skeleton
 from formats.fbx import MAX_FRAMES, chosen_take, node_depths, skeleton_of
 
@@ -139,16 +140,6 @@ def _accessor(doc: dict, buffers: list[bytes], index: int) -> np.ndarray:
     return out
 
 
-def quaternion_matrices(q: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotations of (..., 4) quaternions x y z w (normalised here)."""
-    q = q / np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
-    x, y, z, w = np.moveaxis(q, -1, 0)
-    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-                     2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-                     2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1
-                    ).reshape(q.shape[:-1] + (3, 3))
-
-
 def _sampled(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndarray, rotation: bool
              ) -> np.ndarray:
     """(T, width) a channel's values at times `t` (held beyond its first and last keys)."""
@@ -169,18 +160,10 @@ def _sampled(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.nd
         s2, s3, dt = s * s, s * s * s, span[:, None]
         out = ((2 * s3 - 3 * s2 + 1) * a + (s3 - 2 * s2 + s) * dt * tangents_out[k]
                + (-2 * s3 + 3 * s2) * b + (s3 - s2) * dt * tangents_in[k + 1])
-    elif rotation:  # slerp along the shorter arc
+    elif rotation:  # slerp along the shorter arc (of the keys made unit: quantized ones are near it)
         a = a / np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)
         b = b / np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-12)
-        dot = np.sum(a * b, axis=1, keepdims=True)
-        b = np.where(dot < 0, -b, b)
-        dot = np.abs(dot)
-        theta = np.arccos(np.clip(dot, -1.0, 1.0))
-        sin = np.sin(theta)
-        near = sin < 1e-6
-        wa = np.where(near, 1 - s, np.sin((1 - s) * theta) / np.where(near, 1.0, sin))
-        wb = np.where(near, s, np.sin(s * theta) / np.where(near, 1.0, sin))
-        out = wa * a + wb * b
+        out = quat_slerp(a, b, s[:, 0])
     else:
         out = (1 - s) * a + s * b
     return out
@@ -225,7 +208,7 @@ def _local(node: dict, T=None, R=None, S=None, n: int = 1) -> np.ndarray:
     T = np.broadcast_to(np.asarray(node.get("translation", (0, 0, 0)), float), (n, 3)) if T is None else T
     R = np.broadcast_to(np.asarray(node.get("rotation", (0, 0, 0, 1)), float), (n, 4)) if R is None else R
     S = np.broadcast_to(np.asarray(node.get("scale", (1, 1, 1)), float), (n, 3)) if S is None else S
-    out[:, :3, :3] = quaternion_matrices(R) * S[:, None, :]
+    out[:, :3, :3] = quat_to_matrix(R[:, [3, 0, 1, 2]]) * S[:, None, :]  # glTF's x y z w
     out[:, :3, 3] = T
     return out
 
@@ -323,8 +306,7 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
         node = nodes[i]
         animated = {path: _sampled(*channels[(i, path)], t, path == "rotation")
                     for path in ("translation", "rotation", "scale") if (i, path) in channels}
-        local = _local(node, animated.get("translation"), animated.get("rotation"), animated.get("scale"), len(t)) \
-            if animated else _local(node, n=len(t))
+        local = _local(node, animated.get("translation"), animated.get("rotation"), animated.get("scale"), len(t))
         resting = _local(node)[0]
         p = parent.get(i)
         world[i] = local if p is None else world[p] @ local

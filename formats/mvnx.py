@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
+from core.rotations import quat_to_matrix
 from formats.bvh import Skeleton
 from formats.fbx import MAX_FRAMES, skeleton_of
-from formats.gltf import quaternion_matrices
 
 #: Each segment of Xsens' body model by label, and the segment it hangs from (None: the root).
 XSENS_PARENTS = {"Pelvis": None, "L5": "Pelvis", "L3": "L5", "T12": "L3", "T8": "T12", "Neck": "T8", "Head": "Neck",
@@ -116,6 +116,6 @@ def _values(texts: list[str], segments: int, width: int, what: str, src: str) ->
 def _transforms(q: np.ndarray, p: np.ndarray) -> np.ndarray:
     """(T, 4, 4) transforms of (T, 4) quaternions w x y z and (T, 3) positions."""
     out = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
-    out[:, :3, :3] = quaternion_matrices(np.concatenate([q[:, 1:], q[:, :1]], axis=1))  # to x y z w
+    out[:, :3, :3] = quat_to_matrix(q)
     out[:, :3, 3] = p
     return out

@@ -12,6 +12,7 @@ from core.rotations import (
     matrix_to_quat,
     quat_slerp,
     quat_to_axis_angle,
+    quat_to_matrix,
 )
 
 
@@ -171,3 +172,15 @@ def test_torch_gradients_finite_at_and_near_zero():
     expected[0, 2, 1], expected[2, 0, 1] = 1, -1  # d/dy
     expected[1, 0, 2], expected[0, 1, 2] = 1, -1  # d/dz
     np.testing.assert_allclose(g.numpy(), expected, atol=1e-8)
+
+
+def test_quat_to_matrix_is_rodrigues_and_inverts_matrix_to_quat():
+    """A quaternion of any norm (w, x, y, z) gives the rotation its axis-angle gives; back through
+    matrix_to_quat, the same unit quaternion (w >= 0)."""
+    rng = np.random.default_rng(3)
+    aa = np.concatenate([_random_aa(200, rng), _special_aa()])
+    q = axis_angle_to_quat(aa)
+    scale = rng.uniform(0.5, 2.0, size=(len(q), 1))
+    np.testing.assert_allclose(quat_to_matrix(q * scale), axis_angle_to_matrix(aa), atol=1e-12)
+    canonical = np.where(q[:, :1] < 0, -q, q)
+    np.testing.assert_allclose(matrix_to_quat(quat_to_matrix(q)), canonical, atol=1e-9)
