@@ -20,6 +20,7 @@ from __future__ import annotations
 import statistics
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 
 import torch
 
@@ -40,6 +41,19 @@ GIVE_UP_RATIO = 1.3
 #: MAX_HOLD_BATCHES), back to this when it changes.
 HOLD_BATCHES = 32
 MAX_HOLD_BATCHES = 1024
+
+
+@contextmanager
+def torch_threads(n: int | None):
+    """Within the block, torch's CPU threads `n` where given (not None or 0: `--threads N`); after it, the count
+    torch had before."""
+    before = torch.get_num_threads()
+    if n:
+        torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def thread_counts(most: int) -> list[int]:

@@ -19,6 +19,7 @@ from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
 from core.provenance import software_versions
 from core.quality import DEFAULT_BUDGET_MM
+from core.threads import torch_threads
 from core.scene import SKIP_METHODS, SKIPS, parse_no_skip
 from formats.atomic import atomic_dir
 from garmentcli.common import (
@@ -186,7 +187,10 @@ def _context(spec: BakeSpec):
         from formats.obj import read_garment
 
         _CONTEXT.clear()
-        _set_threads(spec.threads)
+        if spec.threads:  # a worker process's count, for good
+            import torch
+
+            torch.set_num_threads(spec.threads)
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
                                  spec.no_skip, spec.contact_guard, spec.floor, spec.fit_path, spec.device)
@@ -494,13 +498,12 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             bar.update(n)
 
         deformer.on_frames = on_frames
-        torch_threads = _set_threads(spec.threads)
         try:
-            _bake_locally(spec, motions, bar, ticked, method, fps)
+            with torch_threads(spec.threads):
+                _bake_locally(spec, motions, bar, ticked, method, fps)
         finally:
             _CONTEXT.clear()
             deformer.on_frames = None
-            _set_threads(torch_threads)
     _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
 
 
@@ -508,17 +511,6 @@ def _fix_threads(deformer, fixed: bool) -> None:
     """--threads N: the model's batches on that count throughout, not chosen by timing them."""
     if fixed and hasattr(deformer, "tune_threads"):
         deformer.tune_threads = False
-
-
-def _set_threads(n: int) -> int:
-    """Set torch's CPU threads to `n` where it is not 0; the count it had (to set back)."""
-    if not n:
-        return 0
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    return before
 
 
 def _warnings_of(messages, motion_paths) -> tuple:

@@ -19,6 +19,7 @@ from tqdm import tqdm
 
 from core.errors import InputError
 from core.model import ADDABLE_INPUTS, ModelConfig, check_config_values, config_from_dict, keep_levels
+from core.threads import torch_threads
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
 from garmentcli.common import (
     SEED_RANGE,
@@ -116,19 +117,17 @@ def train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, con
         dev = torch.device("cuda", env[2])  # one GPU per process: the local rank's
     tune, fixed = _parse_threads(threads, dev, env is not None)
     rank, world = init_from_env(dev)
-    threads_before = torch.get_num_threads()
-    if fixed:
-        torch.set_num_threads(fixed)
     try:
-        _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path, cache_dir,
-               sequences_per_step, rank, world, DistributedTrainer if (world > 1 or sequences_per_step > 1) else None,
-               dev, time_limit, init_path, partial, garments, tune)
+        with torch_threads(fixed):
+            _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, config_path, body_path,
+                   cache_dir, sequences_per_step, rank, world,
+                   DistributedTrainer if (world > 1 or sequences_per_step > 1) else None, dev, time_limit, init_path,
+                   partial, garments, tune)
         if world > 1:
             import torch.distributed as dist
 
             dist.barrier()  # no rank tears the process group down while another still uses it
     finally:
-        torch.set_num_threads(threads_before)
         if torchrun_env() is not None:
             import torch.distributed as dist
 
