@@ -45,12 +45,13 @@ _W: dict = {}
 
 
 def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, motion_up: str = "z",
-                     body=None, person: str | None = None, take: str | None = None) -> dict:
+                     body=None, person: str | None = None, take: str | None = None, parts: dict | None = None) -> dict:
     """name -> fn(Motion as read) of the files (read at `source_fps` when given, the track `person` of a file of
     tracked people, the animation `take` of an FBX or glTF of several, each of them as its own motion where they
     are 'all' (`motion_parts`: <name>_person<ID>, <name>_<take>); turned from a Y-up (-Y-up) world about
     `body`'s pelvis at their betas with --motion-up y (-y)), plus the built-in library (core.motiongen.MOTION_LIBRARY)
-    when asked; a library clip named like a file is refused."""
+    when asked; a library clip named like a file is refused. parts: {path: `motion_parts` of it} where known.
+    """
     from formats.motion import load_motion
     from garmentcli.common import resolved_up, turned_z_up
 
@@ -59,8 +60,10 @@ def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, 
         up = resolved_up(motion, path, motion_up)
         return turned_z_up(motion, body, path, up) if up != "z" else motion
 
+    if parts is None:
+        parts = {p: motion_parts(p, person, take, say=False) for p in motion_paths}
     out = {name + suffix: fn(read(p, part)) for name, p in zip(motion_names(motion_paths), motion_paths)
-           for part, suffix in motion_parts(p, person, take, say=False)}
+           for part, suffix in parts[p]}
     if library:
         from core.motiongen import generate_motion_library
 
@@ -105,12 +108,12 @@ MAX_BETAS_RANGE = 5.0
 
 def _motion_frame_counts(motion_paths, library: bool, fps: float, source_fps: float | None = None,
                          motion_up: str = "z", body=None, person: str | None = None,
-                         take: str | None = None) -> dict:
+                         take: str | None = None, parts: dict | None = None) -> dict:
     """name -> frames at `fps` of the motions `_load_motions` gives, counted without resampling any."""
     from core.motion import resampled_frame_count
 
     return _motions_by_name(motion_paths, library, source_fps, lambda m: resampled_frame_count(m, fps), motion_up,
-                            body, person, take)
+                            body, person, take, parts)
 
 
 def time_left(seconds: float) -> str:
@@ -275,11 +278,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
     motion_paths = motion_files(motion_paths, "--motions")
     body = load_body_option(body_path)
+    parts = {p: motion_parts(p, person, take) for p in motion_paths}  # each file's people or takes, read once
     # The plan needs no resampled motion.
     motion_frames = _motion_frame_counts(motion_paths, library, fps, source_fps, motion_up, body, person,
-                                         take)
+                                         take, parts)
     file_motions = {name + suffix: p for name, p in zip(motion_names(motion_paths), motion_paths)
-                    for _, suffix in motion_parts(p, person, take)}  # the names `_load_motions` gave the files' motions
+                    for _, suffix in parts[p]}  # the names `_load_motions` gives the files' motions
     body_id = Path(body_path).name if body_path else "default"
     betas = sample_betas(n_bodies, body.n_betas, betas_range, seed)
     old = read_manifest(out)
