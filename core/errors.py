@@ -7,6 +7,7 @@ message must name the file or option, what was expected and what was found.
 import errno
 import os
 import stat
+from pathlib import Path
 
 
 class InputError(ValueError):
@@ -29,6 +30,14 @@ def check_finite_points(points, where: str, vertex: str = "vertex") -> None:
         t, v = (int(i) for i in np.argwhere(bad)[0])
         kind = "NaN" if np.isnan(points[t, v]).any() else "Inf"
         raise InputError(f"{where}: expected finite coordinates, got {kind} at frame {t}, {vertex} {v}")
+
+
+def read_input(path, src: str) -> bytes:
+    """The bytes of the input file `path`; InputError naming `src` where it cannot be read."""
+    try:
+        return Path(path).read_bytes()
+    except OSError as exc:
+        raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
 
 
 def not_a_file(path) -> str | None:

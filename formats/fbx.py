@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, read_input
 from core.rotations import axis_angle_to_matrix
 from core.retarget import role_names
 from formats.bvh import Skeleton
@@ -297,12 +297,9 @@ def _sampled(axes: list, static: np.ndarray, t: np.ndarray) -> np.ndarray:
 def read_fbx(path: Path, src: str, take: str | None = None) -> Skeleton:
     """The skeleton and motion of the FBX `path` (module docstring), as `formats.bvh.read_skeleton` gives a
     BVH's: its joints' frames turned to the world's at rest (the rest its zero pose), so `core.retarget` reads it
-    as a BVH; of a file of several animation stacks, the one named `take` (`_stack`; default: the first).
+    as a BVH; of a file of several animation stacks, the one named `take` (`chosen_take`; default: the first).
     InputError naming `src` for a file that is no FBX, a damaged one, or one without a skeleton."""
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+    data = read_input(path, src)
     try:
         return _read(data, src, take)
     except InputError:
@@ -392,11 +389,7 @@ def animation_takes(path: Path) -> list[str]:
     """The names of the animation stacks of the FBX `path` where it holds several (`--take`), else []; InputError
     naming the file where it is no FBX `read_fbx` reads."""
     src = f"motion '{path}'"
-    try:
-        data = Path(path).read_bytes()
-    except OSError as exc:
-        raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
-    objects = next((n for n in read_nodes(data, src)[1] if n.name == "Objects"), None)
+    objects = next((n for n in read_nodes(read_input(path, src), src)[1] if n.name == "Objects"), None)
     names = [_name(s) for s in objects.all("AnimationStack")] if objects is not None else []
     return names if len(names) > 1 else []
 

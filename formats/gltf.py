@@ -22,7 +22,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, read_input
 from core.rotations import quat_slerp, quat_to_matrix
 from formats.bvh import Skeleton
 from formats.fbx import MAX_FRAMES, chosen_take, node_depths, skeleton_of
@@ -54,10 +54,7 @@ _RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 23.976, 29.97, 59.94
 def gltf_document(path: Path, src: str) -> tuple[dict, list[bytes]]:
     """(the JSON document, its buffers' bytes) of the .glb or .gltf `path`; InputError naming `src` for a file
     that is no glTF 2.0, a damaged one, or a buffer that cannot be read."""
-    try:
-        data = Path(path).read_bytes()
-    except OSError as exc:
-        raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+    data = read_input(path, src)
     binary = None
     try:
         if data[:4] == _GLB_MAGIC:
