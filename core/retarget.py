@@ -49,7 +49,7 @@ _ROLE_NAMES = {
     "elbow": ("forearm", "lowerarm", "elbow", "lowarm", "radius", "forearmbend"),
     "wrist": ("wrist",),
 }
-_PELVIS_NAMES = ("hips", "hip", "pelvis")
+PELVIS_NAMES = ("hips", "hip", "pelvis")
 #: The roles a rig must have (each side's), and an example name of each for the refusal.
 _REQUIRED = {"hip": "LeftUpLeg", "knee": "LeftLeg", "ankle": "LeftFoot", "shoulder": "LeftArm",
              "elbow": "LeftForeArm", "wrist": "LeftHand"}
@@ -73,7 +73,7 @@ def role_names(names: list[str]) -> int:
     or head): of a file's trees of joints, the body's names the most (a control rig's and a prop's the fewest)."""
     groups = (*_ROLE_NAMES.values(), ("foot", "hand", "shoulder"))
     roles = {side + n for side in "lr" for group in groups for n in group}
-    roles |= {*_PELVIS_NAMES, "head", "neck", "spine"}
+    roles |= {*PELVIS_NAMES, "head", "neck", "spine"}
     return sum(canonical(n) in roles for n in names)
 
 
@@ -254,7 +254,7 @@ def match_joints(names: list[str], parents: list[int], src: str, trees: tuple = 
     if not common:
         raise InputError(f"{src}: expected its legs under one pelvis, got '{names[hips[0]]}' and '{names[hips[1]]}' "
                          f"in two trees")
-    pelvis = next((j for j in reversed(common) if canonical(names[j]) in _PELVIS_NAMES), common[-1])
+    pelvis = next((j for j in reversed(common) if canonical(names[j]) in PELVIS_NAMES), common[-1])
     match = {0: pelvis}
     for side, first in (("l", 1), ("r", 2)):
         roles = sides[side]

@@ -2,12 +2,15 @@
 exports), read as the skeleton and motion `core.retarget` turns into SMPL's, as an FBX is (`formats.fbx`).
 
 The file's JSON (a .glb's first chunk, its second the binary buffer; a .gltf's buffers embedded as base64 data
-URIs or in files beside it) is read here, with no library: the skeleton's joints are its largest skin's, their
+URIs or in files beside it) is read here, with no library: the skeleton's joints are its largest skin's (a file
+of no skin, a VRM Animation's or an armature exported without its mesh: the nodes from its hips down), their
 hierarchy the nodes' children; each node's transform its matrix or its translation, rotation (a unit quaternion,
 x y z w) and scale, animated by one animation's channels (a take: the first, or the one `--take` names),
 sampled at the rate its keys are spaced by (30 fps where that is unclear) with their interpolation (LINEAR: a
-quaternion's slerp, STEP, CUBICSPLINE's Hermite curves); the rest pose is the nodes' own transforms. glTF is
-Y-up in metres; `core.retarget` reads the rest's world and the legs' unit as for any rig. A file of no skin is
+quaternion's slerp, STEP, CUBICSPLINE's Hermite curves); the rest pose is the skin's bind pose (its inverse
+bind matrices: a file saved with its character posed, as game characters are, holding a weapon, stands in that
+pose in its nodes), else the nodes' own transforms (a VRM Animation's T-pose). glTF is Y-up in metres;
+`core.retarget` reads the rest's world and the legs' unit as for any rig. A file of neither a skin nor hips is
 refused in one line; one of no animation is one frame of its rest, warned.
 """
 
@@ -25,6 +28,7 @@ import numpy as np
 from core.errors import InputError, read_input
 from core.rotations import quat_slerp, quat_to_matrix
 from formats.bvh import Skeleton
+from core.retarget import PELVIS_NAMES, canonical, role_names
 from formats.fbx import MAX_FRAMES, chosen_take, node_depths, skeleton_of
 
 log = logging.getLogger(__name__)
@@ -210,9 +214,10 @@ def _local(node: dict, T=None, R=None, S=None, n: int = 1) -> np.ndarray:
     return out
 
 
-def holds_skin(path: Path) -> bool:
-    """Whether the glTF `path` has a skin (a skeleton), from its JSON alone (a .glb's buffer left unread); True
-    where it cannot be read as one (named as a motion, it is refused with the reason)."""
+def holds_skeleton(path: Path) -> bool:
+    """Whether the glTF `path` has a skeleton (a skin, a VRM humanoid map's hips or a node named as hips), from its
+    JSON alone (a .glb's buffer left unread); True where it cannot be read as one (named as a motion, it is refused
+    with the reason)."""
     try:
         with open(path, "rb") as fh:
             head = fh.read(20)
@@ -221,8 +226,10 @@ def holds_skin(path: Path) -> bool:
                 doc = json.loads(fh.read(size).decode("utf-8")) if kind == _JSON_CHUNK else {"skins": [1]}
             else:
                 doc = json.loads((head + fh.read()).decode("utf-8"))
-        return bool(doc.get("skins")) if isinstance(doc, dict) else True
-    except (OSError, ValueError, UnicodeDecodeError, struct.error):
+        if not isinstance(doc, dict) or doc.get("skins") or "Hips" in _vrm_roles(doc).values():
+            return True
+        return any(canonical(str(node.get("name") or "")) in PELVIS_NAMES for node in doc.get("nodes", []))
+    except (OSError, ValueError, UnicodeDecodeError, struct.error, AttributeError, TypeError):
         return True
 
 
@@ -242,6 +249,68 @@ def read_gltf(path: Path, src: str, take: str | None = None) -> Skeleton:
     return _guarded(lambda: _read(*gltf_document(path, src), src, take), src)
 
 
+def _humanoid_nodes(nodes: list, parent: dict, roles: dict[int, str], src: str) -> list[int]:
+    """The joints of a glTF without a skin (a VRM Animation's, an armature exported without its mesh): the node
+    its humanoid map calls hips, else the node named as a pelvis with the most humanoid joint names below it, and
+    the nodes below it (but those of a mesh or a camera); InputError naming `src` where no node is either."""
+    children = {}
+    for c, p in parent.items():
+        children.setdefault(p, []).append(c)
+
+    def tree(i: int) -> list[int]:
+        out, stack = [], [i]
+        while stack:
+            j = stack.pop()
+            if j == i or not ({"mesh", "camera"} & set(nodes[j])):
+                out.append(j)
+                stack.extend(sorted(children.get(j, []), reverse=True))
+        return out
+
+    def name(i: int) -> str:
+        return roles.get(i) or str(nodes[i].get("name") or "")
+
+    hips = [i for i, role in roles.items() if role == "Hips" and i < len(nodes)]
+    hips = hips or [i for i in range(len(nodes)) if canonical(name(i)) in PELVIS_NAMES]
+    if not hips:
+        raise InputError(f"{src}: expected a glTF of a skinned skeleton (a skin's joints) or of a humanoid's joint "
+                         f"nodes (a node named as its hips), found {len(nodes)} node(s), no skin and no hips: export "
+                         f"the character's armature with its animation")
+    return tree(max(hips, key=lambda i: role_names([name(j) for j in tree(i)])))
+
+
+def _bind_pose(doc: dict, buffers: list[bytes], skin: dict, joints: list[int], rest: dict, src: str) -> dict:
+    """{joint: (4, 4) its transform in the world in the skin's bind pose}, where it differs from the nodes' own
+    (a file saved with its character posed: the rest is the pose its mesh was bound in). The inverse bind
+    matrices give each joint's transform in the bind pose in the space the mesh was bound in: the world, as glTF
+    says, unless more of the joints' nodes stand in the bind pose of another space (a mesh's, as some exporters
+    write them) than in the world's. {} where the bind pose is the nodes' own (within 1e-5 of the skeleton's
+    size), the skin has no matrices, or some are not invertible (warned)."""
+    if "inverseBindMatrices" not in skin:
+        return {}
+    ibm = _accessor(doc, buffers, skin["inverseBindMatrices"])
+    ibm = ibm.reshape(-1, 4, 4).transpose(0, 2, 1) if ibm.shape == (len(joints), 16) else np.zeros((0, 4, 4))
+    singular = np.linalg.svd(ibm[:, :3, :3], compute_uv=False) if len(ibm) and np.isfinite(ibm).all() else None
+    if singular is None or len(ibm) != len(joints) or (singular[:, -1] <= 1e-9 * singular[:, 0]).any():
+        log.warning("%s: its skin's inverse bind matrices are not %d invertible 4x4 matrices: its nodes' own "
+                    "transforms are taken as its rest", src, len(joints))
+        return {}
+    size = max(float(np.ptp([rest[j][:3, 3] for j in joints], axis=0).max()), 1e-12)
+
+    def relative(M: np.ndarray) -> np.ndarray:  # translations in the skeleton's size, rotations as they are
+        return np.concatenate([M[..., :3, :3], M[..., :3, 3:] / size], axis=-1)
+
+    # each joint's node at rest, in the space its bind pose is given in: the same for every node that stands there
+    space = relative(np.array([rest[j] @ m for j, m in zip(joints, ibm)]))
+    agree = (np.abs(space[:, None] - space[None]).max(axis=(2, 3)) <= 1e-5).sum(axis=1)
+    at_world = int((np.abs(space - np.eye(4)[:3]).max(axis=(1, 2)) <= 1e-5).sum())
+    k = int(np.argmax(agree))
+    place = rest[joints[k]] @ ibm[k] if agree[k] > max(at_world, 1) else np.eye(4)
+    bind = place @ np.linalg.inv(ibm)
+    if max(float(np.abs(relative(b - rest[j])).max()) for b, j in zip(bind, joints)) <= 1e-5:
+        return {}
+    return dict(zip(joints, bind))
+
+
 def _guarded(read, src: str):
     """read(), any error of a document not as glTF 2.0 writes it (a list where an object belongs, an index
     beyond its arrays) an InputError naming `src`."""
@@ -256,15 +325,14 @@ def _guarded(read, src: str):
 
 def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skeleton:
     nodes = doc.get("nodes", [])
-    skins = [s for s in doc.get("skins", []) if s.get("joints")]
-    if not skins:
-        raise InputError(f"{src}: expected a glTF of a skinned skeleton (a skin's joints), found {len(nodes)} "
-                         f"node(s) and no skin: export the character's armature with its animation")
-    joints = [int(j) for j in max(skins, key=lambda s: len(s["joints"]))["joints"]]
     parent = {int(c): i for i, node in enumerate(nodes) for c in node.get("children", [])}
     depth = node_depths(list(range(len(nodes))), parent)
     parent = {c: p for c, p in parent.items() if depth[p] < depth[c]}  # a damaged file's cycle cut
     order = sorted(range(len(nodes)), key=lambda i: depth[i])
+    roles = _vrm_roles(doc)
+    skins = [s for s in doc.get("skins", []) if s.get("joints")]
+    skin = max(skins, key=lambda s: len(s["joints"])) if skins else None
+    joints = [int(j) for j in skin["joints"]] if skin else _humanoid_nodes(nodes, parent, roles, src)
     animations = doc.get("animations", [])
     titles = [str(a.get("name") or f"animation {k}") for k, a in enumerate(animations)]
     chosen = chosen_take(titles, take, src, "animations")
@@ -308,7 +376,9 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
         p = parent.get(i)
         world[i] = local if p is None else world[p] @ local
         rest[i] = resting if p is None else rest[p] @ resting
+    if skin is not None:
+        rest.update(_bind_pose(doc, buffers, skin, joints, rest, src))
     names = {i: str(nodes[i].get("name") or f"node{i}") for i in joints}
-    names.update({i: name for i, name in _vrm_roles(doc).items() if i in names})
+    names.update({i: name for i, name in roles.items() if i in names})
     skeleton = skeleton_of(joints, names, parent, order, world, rest, 1.0 / fps)
     return skeleton._replace(take=titles[chosen]) if len(animations) > 1 else skeleton

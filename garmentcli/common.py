@@ -139,7 +139,7 @@ def motion_parts(path: str, person: str | None, take: str | None, say: bool = Tr
 
 def _holds_poses(path: Path) -> bool:
     """Whether the archive or pickle `path` holds poses (a BVH: always; an FBX: a skeleton, its LimbNode Models;
-    a glTF: a skin);
+    a glTF: a skin or a node of hips);
     True for one that cannot be read (named as a motion, it is refused with the reason)."""
     if path.suffix.lower() in (".bvh", ".mvnx"):
         return True
@@ -148,10 +148,10 @@ def _holds_poses(path: Path) -> bool:
             return b"LimbNode" in path.read_bytes()
         except OSError:
             return True
-    from formats.gltf import GLTF_SUFFIXES, holds_skin
+    from formats.gltf import GLTF_SUFFIXES, holds_skeleton
 
     if path.suffix.lower() in GLTF_SUFFIXES:
-        return holds_skin(path)
+        return holds_skeleton(path)
     if path.suffix.lower() == ".npy":  # Motion-X's (T, 322) array, or a pickled dict (TRAM's track)
         from formats.motion import MOTION_X_VALUES
 

@@ -45,7 +45,7 @@ class _Buffer:
 
 
 def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffer="glb", int16=False,
-             skin=True, ik_feet=False, controls=0, vrm=False):
+             skin=True, ik_feet=False, controls=0, vrm=False, posed=0.0, bind_space=None):
     """A glTF of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature node scaling it by
     `armature_scale`: every joint node with a random rest rotation (its frame not the world's at rest), its
     rotation channel per animation, the root's translation channel; takes {name: (poses, trans)}, an animation
@@ -54,7 +54,10 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
     ik_feet: each ankle under a 'FootControl' joint of the Armature (as game rigs with IK controls have them), not
     under its knee, its place and turn animated there; controls: a chain of that many static 'Ctrl' joints under
     the Armature beside the skeleton (a control rig larger than it), in the skin; vrm: the joint nodes named
-    'bone<k>', a VRM Animation humanoid map naming their roles."""
+    'bone<k>', a VRM Animation humanoid map naming their roles. The skin's inverse bind matrices are the rest's;
+    posed: each joint node's own rotation but the hips' and the first spine joint's then turned this many degrees about
+    a random axis (a file saved with its character posed: the animation is the same); bind_space: (4, 4) the space the mesh was bound in, from the
+    world (the matrices as `inv(bind_space @ world)`; default: the world, as glTF says)."""
     moving = {name: rig_motion(*m, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, m in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()))
     rng = np.random.default_rng(seed)
@@ -86,6 +89,12 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
             if k + 1 < controls:
                 nodes[-1]["children"] = [len(nodes)]
     buf = _Buffer()
+    worlds = _node_worlds(nodes)  # before any posing: the bind pose
+    for node in [n for n in nodes[1:J + 1] if posed and not n["name"].endswith(("Hips", "Spine"))]:
+        turn = Rotation.from_rotvec(_unit_vector(rng) * np.radians(posed))
+        node["rotation"] = list((Rotation.from_quat(node["rotation"]) * turn).as_quat())
+    space = np.eye(4) if bind_space is None else bind_space
+    bind = buf.add([np.linalg.inv(space @ worlds[k]).T.ravel() for k in range(1, len(nodes))], "MAT4")
     animations = []
     for take, (*_, rotations, take_root) in moving.items():
         times = buf.add(np.arange(len(rotations)) / fps, "SCALAR")
@@ -109,7 +118,7 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
            "nodes": nodes, "animations": animations, "accessors": buf.accessors, "bufferViews": buf.views,
            "buffers": [{"byteLength": len(buf.data)}]}
     if skin:
-        doc["skins"] = [{"joints": list(range(1, len(nodes))), "skeleton": 1}]
+        doc["skins"] = [{"joints": list(range(1, len(nodes))), "skeleton": 1, "inverseBindMatrices": bind}]
     if vrm:
         roles = {name: bone for bone, name in VRM_BONES.items()}
         bones = {roles[n.split(":")[-1]]: {"node": j + 1} for j, n in enumerate(names) if n.split(":")[-1] in roles}
@@ -131,6 +140,28 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
         path.with_suffix(".bin").write_bytes(data)
     path.write_text(json.dumps(doc))
     return path
+
+
+def _node_worlds(nodes) -> np.ndarray:
+    """(N, 4, 4) each node's transform in the world, from the nodes' translation, rotation and scale."""
+    worlds = np.zeros((len(nodes), 4, 4))
+    parent = {c: i for i, node in enumerate(nodes) for c in node.get("children", [])}
+    for i in sorted(range(len(nodes)), key=lambda i: len(_chain(parent, i))):
+        node = nodes[i]
+        local = np.eye(4)
+        local[:3, :3] = Rotation.from_quat(node.get("rotation", [0, 0, 0, 1])).as_matrix() * node.get("scale", [1] * 3)
+        local[:3, 3] = node.get("translation", [0, 0, 0])
+        worlds[i] = local if i not in parent else worlds[parent[i]] @ local
+    return worlds
+
+
+def _chain(parent, i) -> list:
+    return [i] + (_chain(parent, parent[i]) if i in parent else [])
+
+
+def _unit_vector(rng) -> np.ndarray:
+    v = rng.normal(size=3)
+    return v / np.linalg.norm(v)
 
 
 @pytest.mark.parametrize("buffer, int16", [("glb", False), ("base64", False), ("file", True)])
@@ -177,6 +208,50 @@ def test_a_vrm_animation_is_matched_by_its_humanoid_map_whatever_its_nodes_are_c
     assert_each_refused(tmp_path / "plain.vrma", [(data, "expected a humanoid skeleton")])
 
 
+@pytest.mark.parametrize("bind_space", [False, True])
+def test_a_gltf_saved_posed_reads_from_its_skins_bind_pose(tmp_path, caplog, bind_space):
+    """A glTF saved with its character posed (its limbs' nodes turned 70 degrees from the pose its mesh was bound
+    in, as real game characters' stand holding a weapon) reads as the motion it moves as: the rest is the skin's
+    bind pose (its inverse bind matrices), also where they were written in a mesh's space (turned and shifted from
+    the world). Without them the posed nodes are the rest: the motion reads otherwise. Matrices that cannot be
+    inverted are warned about and the nodes taken."""
+    poses, trans = _motion(5, seed=21)
+    poses[:, 22:] = 0
+    space = None
+    if bind_space:
+        space = np.eye(4)
+        space[:3, :3] = Rotation.from_euler("xyz", [20, -35, 50], degrees=True).as_matrix()
+        space[:3, 3] = [0.3, -1.2, 0.5]
+    path = rig_gltf(tmp_path / "posed.gltf", {"Idle": (poses, trans)}, buffer="base64", posed=70.0, bind_space=space)
+    m = load_motion(path, world_checks=False)
+    assert m.rest_up == "y"
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+    doc = json.loads(path.read_text())
+    del doc["skins"][0]["inverseBindMatrices"]
+    (tmp_path / "nodes.gltf").write_text(json.dumps(doc))
+    unbound = load_motion(tmp_path / "nodes.gltf", world_checks=False)
+    assert np.abs(axis_angle_to_matrix(unbound.poses) - axis_angle_to_matrix(poses)).max() > 0.5
+    doc["skins"][0]["inverseBindMatrices"] = 1  # the key times, not 4x4 matrices
+    (tmp_path / "broken.gltf").write_text(json.dumps(doc))
+    with caplog.at_level(logging.WARNING):
+        broken = load_motion(tmp_path / "broken.gltf", world_checks=False)
+    assert "its skin's inverse bind matrices are not 27 invertible 4x4 matrices" in caplog.text
+    np.testing.assert_array_equal(broken.poses, unbound.poses)
+
+
+def test_a_gltf_of_joint_nodes_without_a_skin_reads_from_its_hips(tmp_path):
+    """An animation without its mesh (Blender's armature exported alone; a VRM Animation, which holds no mesh)
+    has no skin: its joints are the nodes from the one named as hips (or mapped to VRM's hips) down, and its rest
+    the nodes' own (VRM's T-pose)."""
+    poses, trans = _motion(4, seed=23)
+    poses[:, 22:] = 0
+    for name, vrm in (("armature.glb", False), ("dance.vrma", True)):
+        m = load_motion(rig_gltf(tmp_path / name, {"a": (poses, trans)}, skin=False, vrm=vrm), world_checks=False)
+        np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+        np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
 def test_a_gltf_of_several_animations_reads_the_first_warned_or_the_one_named(tmp_path, caplog):
     (walk, walk_trans), (run, run_trans) = _motion(5, seed=3), _motion(3, seed=4)
     walk[:, 22:] = run[:, 22:] = 0
@@ -198,11 +273,12 @@ def test_a_gltf_without_skin_damaged_or_of_another_version_is_one_line(tmp_path)
     poses, trans = _motion(2)
     good = rig_gltf(tmp_path / "good.glb", {"a": (poses, trans)}).read_bytes()
     no_skin = rig_gltf(tmp_path / "prop.glb", {"a": (poses, trans)}, skin=False).read_bytes()
+    no_skin = no_skin.replace(b':Hips"', b':Base"')  # a prop's nodes: no hips
     external = rig_gltf(tmp_path / "lost.gltf", {"a": (poses, trans)}, buffer="file")
     external.with_suffix(".bin").unlink()
     cases = [(good[:len(good) // 2], "bad.glb", "its glTF is damaged or cut short"),
-             (no_skin, "bad.glb", "expected a glTF of a skinned skeleton (a skin's joints), found 28 node(s) and no "
-                                  "skin"),
+             (no_skin, "bad.glb", "expected a glTF of a skinned skeleton (a skin's joints) or of a humanoid's joint "
+                                  "nodes (a node named as its hips), found 28 node(s), no skin and no hips"),
              (good[:4] + struct.pack("<I", 1) + good[8:], "bad.glb", "expected glTF 2.0, got a glTF 1 binary"),
              (b"not a gltf", "bad.glb", "expected a glTF file (.glb binary or .gltf JSON), got a file that is not"),
              (external.read_bytes(), "lost.gltf", "cannot read its buffer 'lost.bin' beside it")]

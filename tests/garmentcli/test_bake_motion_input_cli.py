@@ -349,18 +349,25 @@ def test_a_bvh_fbx_or_gltf_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_
         assert options["take"] == "all" and options["take_read"] == take
     r = invoke(["tradeoff", scene["garment"], takes, "--take", "all", "--out", scene["dir"] / "refused"])
     assert_one_line_error(r, "--take", "all (one output per animation) applies to bake and dataset only")
-    # a folder of captures: its BVH, FBX and glTF motions baked, an FBX and a glTF of no skeleton (props) left out
+    # a folder of captures: its BVH, FBX, glTF and VRM Animation motions baked, an FBX and a glTF of no skeleton (props)
+    # left out
     (scene["dir"] / "captures").mkdir()
     rig_gltf(scene["dir"] / "captures" / "walk_gltf.glb", {"walk": (y_up, trans @ back.T)}, fps=int(round(fps)))
-    rig_gltf(scene["dir"] / "captures" / "prop.glb", {"walk": (y_up, trans @ back.T)}, skin=False)
+    prop = rig_gltf(scene["dir"] / "captures" / "prop.glb", {"walk": (y_up, trans @ back.T)}, skin=False)
+    prop.write_bytes(prop.read_bytes().replace(b':Hips"', b':Base"'))  # no skin, no hips: a prop's nodes
+    rig_gltf(scene["dir"] / "captures" / "dance.vrma", {"walk": (y_up, trans @ back.T)}, skin=False, vrm=True,
+             fps=int(round(fps)))  # a VRM Animation: no skin, its humanoid map
     for f in (rig, fbx):
         (scene["dir"] / "captures" / f.name).write_bytes(f.read_bytes())
     (scene["dir"] / "captures" / "prop.fbx").write_bytes(fbx.read_bytes().replace(b"LimbNode", b"MeshNode"))
     r = invoke(["bake", scene["garment"], scene["dir"] / "captures", "--body", scene["body"], "--out",
                 scene["dir"] / "out_captures", "--method", "lbs"])
     assert r.exit_code == 0, r.output
-    assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == ["shell_walk_fbx", "shell_walk_gltf",
-                                                                                 "shell_walk_rig"]
+    assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == ["shell_dance", "shell_walk_fbx",
+                                                                                 "shell_walk_gltf", "shell_walk_rig"]
+    np.testing.assert_allclose(read_sequence(scene["dir"] / "out_captures" / "shell_dance" / "obj").points,
+                               read_sequence(scene["dir"] / "out_captures" / "shell_walk_gltf" / "obj").points,
+                               atol=1e-4)
     (scene["dir"] / "rig.bvh").write_text(rig.read_text().replace("LeftLeg", "LeftTentacle"))
     assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "expected a humanoid skeleton",
                           "found no left knee (a joint named such as LeftLeg; it has Hips, LeftUpLeg")
