@@ -35,8 +35,9 @@ from core.rotations import matrix_to_axis_angle
 
 log = logging.getLogger(__name__)
 
-#: Prefixes of joint names in exported rigs, left out before matching (after any 'namespace:').
-_PREFIXES = re.compile(r"^(m_avg_|f_avg_|smplx?_|bip0*1[ _]?|cc_base_|def[_-]|org[_-]|b_|j_bip_(c_)?)")
+#: Prefixes of joint names in exported rigs, left out before matching (after any 'namespace:'; Mixamo's namespace
+#: written 'mixamorig_' where ':' may not be, as in USD).
+_PREFIXES = re.compile(r"^(m_avg_|f_avg_|smplx?_|bip0*1[ _]?|cc_base_|def[_-]|org[_-]|b_|j_bip_(c_)?|mixamorig\d*_)")
 #: Names (after `canonical`: lower case, letters and digits, the side a leading 'l' or 'r') of each role; the
 #: side's letter is put before them. 'shoulder', 'foot' and 'hand' are told by the names beside them (`_sides`).
 _ROLE_NAMES = {

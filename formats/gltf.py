@@ -186,7 +186,7 @@ def _vrm_roles(doc: dict) -> dict[int, str]:
     return {}
 
 
-def _frame_rate(inputs: list[np.ndarray]) -> float:
+def key_rate(inputs: list[np.ndarray]) -> float:
     """The rate the animation's keys are spaced by: the median spacing of its most keyed channel, snapped to a
     common rate within 0.5 % (else its own, to the millisecond); DEFAULT_FPS where no channel has two keys."""
     dense = max(inputs, key=len, default=np.zeros(1))
@@ -354,7 +354,7 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
         t, fps = np.zeros(1), DEFAULT_FPS
     else:
         inputs = [c[0] for c in channels.values()]
-        fps = _frame_rate(inputs)
+        fps = key_rate(inputs)
         start, stop = min(float(i[0]) for i in inputs), max(float(i[-1]) for i in inputs)
         n = int(round((stop - start) * fps)) + 1
         if n > MAX_FRAMES:

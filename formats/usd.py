@@ -373,7 +373,7 @@ _Y_TO_Z = np.eye(4)
 _Y_TO_Z[:3, :3] = Y_UP_TO_Z_UP_MATRIX.T
 
 
-def _open_stage(path: Path, where: str) -> Usd.Stage:
+def open_stage(path: Path, where: str) -> Usd.Stage:
     if not path.exists():
         raise InputError(f"{where}: file not found")
     if path.is_dir():
@@ -420,7 +420,7 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
     path = Path(path)
     label = "garment mesh"
     where = f"{label} '{path}'"
-    stage = _open_stage(path, where)
+    stage = open_stage(path, where)
     meshes = [UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
     named = [m for m in meshes if m.GetPrim().GetName() == "garment"]
     if len(meshes) != 1 and len(named) != 1:
@@ -511,7 +511,7 @@ def read_usd(path: str | os.PathLike) -> UsdSequence:
     """
     path = Path(path)
     where = f"USD stage '{path}'"
-    stage = _open_stage(path, where)
+    stage = open_stage(path, where)
     to_world = _stage_to(stage, "Z")
     tracks: dict[str, MeshTrack] = {}
     first_time = None

@@ -85,9 +85,10 @@ def require_file(path) -> None:
 def motion_files(args, hint: str = "MOTION") -> list[str]:
     """MOTION arguments as motion files: a file as given; a directory, every `.npz` (`.smpl`), pickle (`.pkl`, as
     AIST++'s motions and WHAM's results are), `.npy` (Motion-X's array, TRAM's pickled track), `.bvh`, `.fbx`,
-    glTF (`.glb`, `.gltf`, `.vrm`, `.vrma`) or `.mvnx` under it (recursively, in sorted order) that holds poses or
-    a skeleton (`MOTION_KEYS`; AMASS's shape.npz and *_stagei.npz, which hold a body shape only, and FBX and glTF
-    files of no skeleton are left out; PyTorch files only named). A file given twice is taken once. Raises click
+    glTF (`.glb`, `.gltf`, `.vrm`, `.vrma`), USD (`.usd`, `.usda`, `.usdc`, `.usdz`) or `.mvnx` under it
+    (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's shape.npz and
+    *_stagei.npz, which hold a body shape only, and FBX, glTF and USD files of no skeleton are left out; PyTorch
+    files only named). A file given twice is taken once. Raises click
     errors for a path that is not there and for a directory without motions."""
     from formats.motion import MOTION_SUFFIXES, TORCH_SUFFIXES
 
@@ -139,7 +140,7 @@ def motion_parts(path: str, person: str | None, take: str | None, say: bool = Tr
 
 def _holds_poses(path: Path) -> bool:
     """Whether the archive or pickle `path` holds poses (a BVH: always; an FBX: a skeleton, its LimbNode Models;
-    a glTF: a skin or a node of hips);
+    a glTF: a skin or a node of hips; a USD: a Skeleton);
     True for one that cannot be read (named as a motion, it is refused with the reason)."""
     if path.suffix.lower() in (".bvh", ".mvnx"):
         return True
@@ -149,9 +150,14 @@ def _holds_poses(path: Path) -> bool:
         except OSError:
             return True
     from formats.gltf import GLTF_SUFFIXES, holds_skeleton
+    from formats.obj import USD_SUFFIXES
 
     if path.suffix.lower() in GLTF_SUFFIXES:
         return holds_skeleton(path)
+    if path.suffix.lower() in USD_SUFFIXES:  # a skeleton's animation, not a garment or a bake's stage
+        from formats.usdskel import holds_skeleton as holds_usd_skeleton
+
+        return holds_usd_skeleton(path)
     if path.suffix.lower() == ".npy":  # Motion-X's (T, 322) array, or a pickled dict (TRAM's track)
         from formats.motion import MOTION_X_VALUES
 
@@ -379,7 +385,7 @@ def resolved_up(motion, path: str, motion_up: str | None) -> str:
     if motion.rest_up is not None:
         axis = motion.rest_up
         log.info("motion '%s': its rest skeleton stands along world %s: read as %s up%s", path, UP_NAMES[axis], axis,
-                 "" if motion_up else " (--motion-up z reads it as Z-up)")
+                 "" if motion_up or axis == "z" else " (--motion-up z reads it as Z-up)")
     elif motion_up is None:
         axis = "z"
         warn_if_not_z_up(motion, path)
@@ -453,9 +459,9 @@ person_option = _part_option(
     "4D-Humans' results): the track id to read [default: the person tracked longest, the others named]; a file of "
     "one person is read as it is.", " all: each tracked person in turn, as a motion of its own "
     "(<motion>_person<ID>).")
-#: --take NAME: the animation read of an FBX (its stacks) or glTF of several (`formats.motion.load_motion`).
+#: --take NAME: the animation read of an FBX (its stacks), glTF or USD of several (`formats.motion.load_motion`).
 take_option = _part_option(
-    "--take", "NAME", "animation", "Of an FBX or glTF of several animations (takes, stacks): the name of the one "
+    "--take", "NAME", "animation", "Of an FBX, glTF or USD of several animations (takes, stacks): the name of the one "
     "to read [default: the first, the others named]; a file of one is read as it is.", " all: each animation in "
     "turn, as a motion of its own (<motion>_<take>).")
 

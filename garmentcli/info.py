@@ -121,18 +121,20 @@ def _text(record: dict, body_name: str) -> str:
 @input_errors_as_click
 def info(paths, body_path, person, take, source_fps, fmt):
     """Tell what `garment bake` reads in each PATH, before any bake: a garment (OBJ or USD) and how it rests on
-    the body, or a motion (any format bake reads; a directory: its motion files) and the tracked people or
-    animations (takes) it holds.
+    the body, or a motion (any format bake reads, a USD of a skeleton too; a directory: its motion files) and the
+    tracked people or animations (takes) it holds.
 
     Exits with 1 where a file cannot be read or its garment would be refused (each told), else 0.
     """
     from formats.obj import USD_SUFFIXES
+    from formats.usdskel import holds_skeleton
 
     body = load_body_option(body_path)
     body_name = f"the body '{body_path}'" if body_path else "the embedded default body"
     records = []
     for arg in paths:
-        garment = Path(arg).suffix.lower() in (".obj", *USD_SUFFIXES)
+        suffix = Path(arg).suffix.lower()
+        garment = suffix == ".obj" or (suffix in USD_SUFFIXES and not holds_skeleton(Path(arg)))
         for path in [arg] if garment else motion_files([arg], hint="PATH"):
             try:
                 records.append(garment_info(path, body) if garment else motion_info(path, person, take, source_fps))

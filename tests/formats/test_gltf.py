@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from core.errors import InputError
 from core.rotations import axis_angle_to_matrix
-from formats.gltf import VRM_BONES, _frame_rate, _sampled
+from formats.gltf import VRM_BONES, key_rate, _sampled
 from formats.motion import load_motion, motion_takes
 from tests.formats.test_bvh import MIXAMO, _motion, rig_motion
 from tests.formats.test_motion import _assert_one_line, assert_each_refused
@@ -305,5 +305,5 @@ def test_channels_are_sampled_as_gltf_interpolates_them():
     cubic = _sampled(times, np.stack([tangents, values, tangents], 1).reshape(12, 3), "CUBICSPLINE", t, False)
     inside = (t >= 0) & (t <= 1.2)
     np.testing.assert_allclose(cubic[inside], CubicHermiteSpline(times, values, tangents)(t[inside]), atol=1e-12)
-    assert _frame_rate([np.arange(10) / 60.0]) == 60.0 and _frame_rate([np.arange(5) / 24.0]) == 24.0
-    assert _frame_rate([np.array([0.0])]) == 30.0 and _frame_rate([np.arange(4) / 7.0]) == 7.0
+    assert key_rate([np.arange(10) / 60.0]) == 60.0 and key_rate([np.arange(5) / 24.0]) == 24.0
+    assert key_rate([np.array([0.0])]) == 30.0 and key_rate([np.arange(4) / 7.0]) == 7.0

@@ -295,18 +295,20 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
         np.testing.assert_allclose(read_sequence(scene["out"] / name / "obj").points, a, atol=1e-5)
 
 
-def test_a_bvh_fbx_or_gltf_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(scene):
+def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(
+        scene):
     """The scene's walk exported as a BVH of SMPL's skeleton (as smpl2bvh writes one: centimetres, ZYX Euler
     angles; the AMASS world kept: --motion-up z) bakes the garment of the AMASS file; so does the walk turned Y-up
     on a skeleton of Mixamo's names (retargeted; read in the world its rest stands in, +Y, with --motion-up left
-    out), as a BVH, an FBX and a glTF (an A-pose rig, pre-rotated joints), named or in a folder (an FBX or glTF of
-    no skeleton there left out); a skeleton with no knees is one line, nothing written."""
+    out), as a BVH, an FBX, a glTF and a USD (an A-pose rig, pre-rotated joints), named or in a folder (an FBX,
+    glTF or USD of no skeleton there left out); a skeleton with no knees is one line, nothing written."""
     from core.motion import Y_UP_TO_Z_UP_MATRIX
     from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
     from formats.sequence import read_sequence
     from tests.formats.test_bvh import write_bvh
     from tests.formats.test_fbx import rig_fbx
     from tests.formats.test_gltf import rig_gltf
+    from tests.formats.test_usdskel import rig_usd, write_usd_mesh
 
     with np.load(scene["motion"]) as walk:
         arrays = dict(walk)
@@ -349,25 +351,29 @@ def test_a_bvh_fbx_or_gltf_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_
         assert options["take"] == "all" and options["take_read"] == take
     r = invoke(["tradeoff", scene["garment"], takes, "--take", "all", "--out", scene["dir"] / "refused"])
     assert_one_line_error(r, "--take", "all (one output per animation) applies to bake and dataset only")
-    # a folder of captures: its BVH, FBX, glTF and VRM Animation motions baked, an FBX and a glTF of no skeleton (props)
-    # left out
+    # a folder of captures: its BVH, FBX, glTF, VRM Animation and UsdSkel motions baked, an FBX, a glTF and a USD
+    # of no skeleton (props, a garment) left out
     (scene["dir"] / "captures").mkdir()
     rig_gltf(scene["dir"] / "captures" / "walk_gltf.glb", {"walk": (y_up, trans @ back.T)}, fps=int(round(fps)))
     prop = rig_gltf(scene["dir"] / "captures" / "prop.glb", {"walk": (y_up, trans @ back.T)}, skin=False)
     prop.write_bytes(prop.read_bytes().replace(b':Hips"', b':Base"'))  # no skin, no hips: a prop's nodes
     rig_gltf(scene["dir"] / "captures" / "dance.vrma", {"walk": (y_up, trans @ back.T)}, skin=False, vrm=True,
              fps=int(round(fps)))  # a VRM Animation: no skin, its humanoid map
+    rig_usd(scene["dir"] / "captures" / "walk_usd.usda", {"walk": (y_up, trans @ back.T)}, armature=False,
+            fps=int(round(fps)))  # a UsdSkel animation (a Y-up stage in centimetres)
+    write_usd_mesh(scene["dir"] / "captures" / "cloth.usda")  # a USD of no skeleton (a garment): left out
     for f in (rig, fbx):
         (scene["dir"] / "captures" / f.name).write_bytes(f.read_bytes())
     (scene["dir"] / "captures" / "prop.fbx").write_bytes(fbx.read_bytes().replace(b"LimbNode", b"MeshNode"))
     r = invoke(["bake", scene["garment"], scene["dir"] / "captures", "--body", scene["body"], "--out",
                 scene["dir"] / "out_captures", "--method", "lbs"])
     assert r.exit_code == 0, r.output
-    assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == ["shell_dance", "shell_walk_fbx",
-                                                                                 "shell_walk_gltf", "shell_walk_rig"]
-    np.testing.assert_allclose(read_sequence(scene["dir"] / "out_captures" / "shell_dance" / "obj").points,
-                               read_sequence(scene["dir"] / "out_captures" / "shell_walk_gltf" / "obj").points,
-                               atol=1e-4)
+    assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == [
+        "shell_dance", "shell_walk_fbx", "shell_walk_gltf", "shell_walk_rig", "shell_walk_usd"]
+    for same in ("shell_dance", "shell_walk_usd"):
+        np.testing.assert_allclose(read_sequence(scene["dir"] / "out_captures" / same / "obj").points,
+                                   read_sequence(scene["dir"] / "out_captures" / "shell_walk_gltf" / "obj").points,
+                                   atol=1e-4)
     (scene["dir"] / "rig.bvh").write_text(rig.read_text().replace("LeftLeg", "LeftTentacle"))
     assert_one_line_error(_bake(scene, scene["dir"] / "rig.bvh"), "rig.bvh", "expected a humanoid skeleton",
                           "found no left knee (a joint named such as LeftLeg; it has Hips, LeftUpLeg")

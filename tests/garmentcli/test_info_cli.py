@@ -9,6 +9,7 @@ import numpy as np
 
 from tests.formats.test_bvh import _motion
 from tests.formats.test_fbx import rig_fbx
+from tests.formats.test_usdskel import rig_usd, write_usd_mesh
 from tests.garmentcli.cli import invoke
 from tests.garmentcli.test_bake_motion_input_cli import _wham_file
 
@@ -69,6 +70,11 @@ def test_info_lists_the_tracked_people_and_takes_a_file_holds_and_the_part_read(
     assert bad["error"].startswith(f"motion '{broken}': expected an AMASS-style .npz archive")
     r = invoke(["info", moves, "--person", "all"])
     assert r.exit_code == 2 and "all (one output per tracked person) applies to bake and dataset only" in r.output
+    # a USD of a skeleton's animations is a motion (its takes told); a USD of a mesh, a garment
+    usd = rig_usd(scene["dir"] / "moves.usda", {"Walk": (walk, walk_trans), "Run": (run, run_trans)}, armature=False)
+    r, (skel, cloth) = _json(usd, write_usd_mesh(scene["dir"] / "cloth.usda"))
+    assert skel["kind"] == "motion" and skel["takes"] == {"Walk": 5, "Run": 3} and skel["take"] == "Walk"
+    assert cloth["error"] == f"garment mesh '{scene['dir'] / 'cloth.usda'}': mesh '/garment' has no points"
 
 
 def test_info_of_a_folder_tells_each_motion_in_it(scene, tmp_path):

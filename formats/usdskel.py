@@ -1,0 +1,197 @@
+"""USD skeletal animation (UsdSkel: a Skeleton prim and a SkelAnimation, as Blender, Houdini's KineFX, Maya,
+Omniverse and Apple's tools write them; `.usd`, `.usda`, `.usdc`, `.usdz`), read as the skeleton and motion
+`core.retarget` turns into SMPL's, as an FBX or a glTF is (`formats.fbx`, `formats.gltf`).
+
+The skeleton is the stage's Skeleton of the most humanoid joint names (then of the most joints), its joints'
+names the last element of their paths, their hierarchy its topology. Each joint's transform is its
+SkelAnimation's translation, rotation and scale at the frame (a joint the animation leaves out, or a component
+it does not author, keeps its rest's), composed down the hierarchy and placed in the stage by the Skeleton's own
+transforms at that time (an Armature's turn from Y-up and centimetre scaling, as Blender writes it). The
+animation is the one the Skeleton (or a prim above it) binds as `skel:animationSource`, else the first; a stage of
+several holds them as takes (`--take` names one by its prim's name). Frames are the animation's time samples'
+spacing (timeCodesPerSecond; snapped to a common rate as glTF keys are), between its first and last samples, USD
+interpolating between them. The rest pose is the skin's bind pose (`bindTransforms`: Blender writes
+`restTransforms` as the pose of the frame it exported), else `restTransforms` composed. `core.retarget` reads the
+rest's world and the legs' unit as for any rig. A stage of no Skeleton named as a motion is refused in one line;
+a Skeleton with no animation is one frame of its rest, warned.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+from pxr import Tf, Usd, UsdGeom, UsdSkel
+
+from core.errors import InputError
+from core.retarget import role_names
+from core.rotations import quat_to_matrix
+from formats.bvh import Skeleton
+from formats.fbx import MAX_FRAMES, chosen_take, skeleton_of
+from formats.gltf import DEFAULT_FPS, key_rate
+from formats.usd import open_stage
+
+log = logging.getLogger(__name__)
+
+
+def _skeletons(stage: Usd.Stage) -> list:
+    return [UsdSkel.Skeleton(p) for p in stage.Traverse() if p.IsA(UsdSkel.Skeleton)]
+
+
+def holds_skeleton(path: Path) -> bool:
+    """Whether the USD file `path` has a UsdSkel Skeleton prim; True where it cannot be opened (named as a motion,
+    it is refused with the reason)."""
+    try:
+        stage = Usd.Stage.Open(str(path))
+    except Tf.ErrorException:
+        return True
+    return stage is None or bool(_skeletons(stage))
+
+
+def _joint_names(skel) -> list[str]:
+    return [str(j).rsplit("/", 1)[-1] for j in (skel.GetJointsAttr().Get() or [])]
+
+
+def _chosen_skeleton(stage: Usd.Stage, src: str):
+    skels = [s for s in _skeletons(stage) if s.GetJointsAttr().Get()]
+    if not skels:
+        prims = sum(1 for _ in stage.Traverse())
+        raise InputError(f"{src}: expected a USD of a skeleton (a UsdSkel Skeleton prim and its joints), found "
+                         f"{prims} prim(s) and no Skeleton: export the character's skeleton with its animation")
+    return max(skels, key=lambda s: (role_names(_joint_names(s)), len(s.GetJointsAttr().Get())))
+
+
+def _animations(stage: Usd.Stage, skel) -> list:
+    """The stage's SkelAnimations, the one `skel` binds (on itself or a prim above it) first."""
+    found = [UsdSkel.Animation(p) for p in stage.Traverse() if p.IsA(UsdSkel.Animation)]
+    bound = None
+    prim = skel.GetPrim()
+    while prim and prim.IsValid() and bound is None:
+        targets = UsdSkel.BindingAPI(prim).GetAnimationSourceRel().GetTargets()
+        bound = targets[0] if targets else None
+        prim = prim.GetParent()
+    return sorted(found, key=lambda a: a.GetPath() != bound)
+
+
+def animation_names(path: Path) -> list[str]:
+    """The names of the SkelAnimations of the USD file `path` where it holds several (`--take`; the one its
+    skeleton binds first), else []; InputError naming the file where it has no skeleton."""
+    src = f"motion '{path}'"
+    stage = open_stage(Path(path), src)
+    names = [a.GetPrim().GetName() for a in _animations(stage, _chosen_skeleton(stage, src))]
+    return names if len(names) > 1 else []
+
+
+def read_usdskel(path: Path, src: str, take: str | None = None) -> Skeleton:
+    """The skeleton and motion of the USD file `path` (module docstring), as `formats.fbx.read_fbx` gives an FBX's;
+    of a stage of several animations, the one named `take` (default: the one its skeleton binds). InputError
+    naming `src` for a file that is no USD, or one without a skeleton."""
+    stage = open_stage(Path(path), src)
+    skel = _chosen_skeleton(stage, src)
+    tokens = [str(j) for j in skel.GetJointsAttr().Get()]
+    J = len(tokens)
+    topology = UsdSkel.Topology(skel.GetJointsAttr().Get())
+    ok, why = topology.Validate()
+    if not ok:
+        raise InputError(f"{src}: its skeleton '{skel.GetPath()}' has joints not in a hierarchy USD reads ({why})")
+    parents = [int(p) for p in topology.GetParentIndices()]
+    rest_local = _matrices(skel.GetRestTransformsAttr().Get(), J)
+    bind = _matrices(skel.GetBindTransformsAttr().Get(), J)
+    if rest_local is None and bind is None:
+        raise InputError(f"{src}: its skeleton '{skel.GetPath()}' has neither bindTransforms nor restTransforms for "
+                         f"its {J} joints")
+    if rest_local is None:  # the bind pose, joint by joint from its parent
+        rest_local = np.array([bind[j] if p < 0 else np.linalg.inv(bind[p]) @ bind[j] for j, p in enumerate(parents)])
+    animations = _animations(stage, skel)
+    chosen = chosen_take([a.GetPrim().GetName() for a in animations], take, src, "animations")
+    animation = animations[chosen] if chosen is not None else None
+    times, fps = _frame_times(stage, animation, src)
+    if times is None:
+        log.warning("%s: no animation of its skeleton: its one frame is the skeleton as it stands", src)
+    local = np.broadcast_to(rest_local, (1 if times is None else len(times), J, 4, 4)).copy()
+    if times is not None:
+        _animate(local, animation, tokens, times, rest_local)
+    else:
+        times, fps = np.zeros(1), DEFAULT_FPS
+    skel_space = np.empty_like(local)
+    for j, p in enumerate(parents):
+        skel_space[:, j] = local[:, j] if p < 0 else skel_space[:, p] @ local[:, j]
+    imageable = UsdGeom.Imageable(skel.GetPrim())
+    place = np.array([np.asarray(imageable.ComputeLocalToWorldTransform(Usd.TimeCode(t))).T for t in times])
+    world = {j: place @ skel_space[:, j] for j in range(J)}
+    resting = bind if bind is not None and _invertible(bind) else skel_space[0]
+    if bind is not None and resting is skel_space[0]:
+        log.warning("%s: its skeleton's bindTransforms are not %d invertible 4x4 matrices: its restTransforms are "
+                    "taken as its rest", src, J)
+    rest = {j: place[0] @ resting[j] for j in range(J)}
+    names = {j: t.rsplit("/", 1)[-1] for j, t in enumerate(tokens)}
+    skeleton = skeleton_of(list(range(J)), names, {j: p for j, p in enumerate(parents) if p >= 0}, list(range(J)),
+                           world, rest, 1.0 / fps)
+    return skeleton._replace(take=animation.GetPrim().GetName()) if len(animations) > 1 else skeleton
+
+
+def _matrices(value, J: int) -> np.ndarray | None:
+    """(J, 4, 4) column-vector matrices of a USD matrix4d[] (row vectors) of J joints, else None."""
+    if value is None or len(value) != J:
+        return None
+    out = np.asarray(value, dtype=np.float64).transpose(0, 2, 1)
+    return out if np.isfinite(out).all() else None
+
+
+def _invertible(m: np.ndarray) -> bool:
+    s = np.linalg.svd(m[:, :3, :3], compute_uv=False)
+    return bool((s[:, -1] > 1e-9 * s[:, 0]).all())
+
+
+def _authored(animation) -> bool:
+    return any(a.HasAuthoredValue() for a in (animation.GetTranslationsAttr(), animation.GetRotationsAttr(),
+                                             animation.GetScalesAttr()))
+
+
+def _frame_times(stage: Usd.Stage, animation, src: str) -> tuple[np.ndarray | None, float]:
+    """(the time codes of the frames, frames per second) of `animation`'s samples: spaced as its most sampled
+    attribute's (`formats.gltf.key_rate`), from its first sample to its last; one frame where it holds static
+    values only; (None, 0) where it holds none (or there is none)."""
+    if animation is None:
+        return None, 0.0
+    per_second = stage.GetTimeCodesPerSecond() or DEFAULT_FPS
+    samples = [np.asarray(a.GetTimeSamples(), dtype=np.float64) for a in
+               (animation.GetTranslationsAttr(), animation.GetRotationsAttr(), animation.GetScalesAttr())]
+    samples = [s for s in samples if len(s)]
+    if not samples:
+        return (np.zeros(1), DEFAULT_FPS) if _authored(animation) else (None, 0.0)
+    fps = key_rate([s / per_second for s in samples])
+    start, stop = min(float(s[0]) for s in samples), max(float(s[-1]) for s in samples)
+    n = int(round((stop - start) / per_second * fps)) + 1
+    if n > MAX_FRAMES:
+        raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} fps "
+                         f"(its samples span {(stop - start) / per_second:,.0f} s)")
+    return start + np.arange(n) * (per_second / fps), fps
+
+
+def _animate(local: np.ndarray, animation, tokens: list[str], times: np.ndarray, rest_local: np.ndarray) -> None:
+    """Write `animation`'s joints' local transforms at `times` into local (T, J, 4, 4) (the skeleton's joint
+    order); a component it does not author keeps the rest's."""
+    order = {t: j for j, t in enumerate(tokens)}
+    anim_joints = [str(t) for t in (animation.GetJointsAttr().Get() or [])]
+    into = np.array([order.get(t, -1) for t in anim_joints], dtype=np.int64)
+    keep = into >= 0
+    into = into[keep]
+    rest_scale = np.linalg.norm(rest_local[into, :3, :3], axis=1)  # (K, 3) column norms
+    rest_turn = rest_local[into, :3, :3] / rest_scale[:, None, :]
+    rest_move = rest_local[into, :3, 3]
+    attrs = (animation.GetTranslationsAttr(), animation.GetRotationsAttr(), animation.GetScalesAttr())
+    for k, t in enumerate(times):
+        code = Usd.TimeCode(float(t))
+        move, turn, scale = (a.Get(code) if a.HasAuthoredValue() else None for a in attrs)
+        move = rest_move if move is None or len(move) != len(anim_joints) else np.asarray(move, float)[keep]
+        scale = rest_scale if scale is None or len(scale) != len(anim_joints) else np.asarray(scale, float)[keep]
+        if turn is None or len(turn) != len(anim_joints):
+            R = rest_turn
+        else:
+            q = np.asarray(turn, dtype=np.float64)[keep]  # x y z w
+            q /= np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-12)
+            R = quat_to_matrix(q[:, [3, 0, 1, 2]])
+        local[k, into, :3, :3] = R * scale[:, None, :]
+        local[k, into, :3, 3] = move
