@@ -2,8 +2,8 @@
 VRoid's, a game engine's) turned into SMPL joint rotations and translation: what `formats.bvh`, `formats.fbx` and
 `formats.gltf` read a BVH, an FBX or a glTF of such a rig as.
 
-Joints are matched by name to roles (`_ROLE_NAMES`: 'LeftUpLeg', 'L_Thigh', 'thigh_l', 'Bip01 L Thigh' are all the
-left hip), the spine by the skeleton's shape (the joints from the pelvis to the neck; the chest the one the arms
+Joints are matched by name to roles (`_ROLE_NAMES`: 'LeftUpLeg', 'L_Thigh', 'thigh_l', 'Bip01 L Thigh', 'HipLeft'
+are all the left hip; a prefix all the joints share dropped, `joint_keys`), the spine by the skeleton's shape (the joints from the pelvis to the neck; the chest the one the arms
 hang from). Each matched SMPL joint takes its rig joint's world rotation, composed with a fixed rotation that
 turns SMPL's rest bone onto the rig's rest bone (`_rest_turns`: the bone's direction, and the body's forward, or
 up for a bone along forward): a rig resting in an A-pose, or with bones of other lengths, moves SMPL's bones
@@ -24,6 +24,7 @@ A clip with no standing frame is refused.
 from __future__ import annotations
 
 import logging
+import os
 import re
 from typing import NamedTuple
 
@@ -41,15 +42,18 @@ _PREFIXES = re.compile(r"^(m_avg_|f_avg_|smplx?_|bip0*1[ _]?|cc_base_|def[_-]|or
 #: Names (after `canonical`: lower case, letters and digits, the side a leading 'l' or 'r') of each role; the
 #: side's letter is put before them. 'shoulder', 'foot' and 'hand' are told by the names beside them (`_sides`).
 _ROLE_NAMES = {
-    "hip": ("upleg", "thigh", "upperleg", "hip", "femur", "thighbend", "uplegroll"),
-    "knee": ("leg", "knee", "shin", "calf", "lowerleg", "lowleg", "tibia", "shinbend"),
-    "ankle": ("ankle",),
-    "foot": ("toebase", "toe", "toes", "toe0", "ball"),
+    "hip": ("upleg", "thigh", "upperleg", "hip", "femur", "thighbend", "uplegroll", "upperleg01"),
+    "knee": ("leg", "knee", "shin", "calf", "lowerleg", "lowleg", "tibia", "shinbend", "lowerleg01"),
+    "ankle": ("ankle", "footankle"),
+    "foot": ("toebase", "toe", "toes", "toe0", "ball", "football"),
     "collar": ("collar", "clavicle", "clav", "scapula"),
-    "shoulder": ("arm", "upperarm", "uparm", "humerus", "shldr", "shldrbend"),
-    "elbow": ("forearm", "lowerarm", "elbow", "lowarm", "radius", "forearmbend"),
-    "wrist": ("wrist",),
+    "shoulder": ("arm", "upperarm", "uparm", "humerus", "shldr", "shldrbend", "uarm", "armupper", "upperarm01"),
+    "elbow": ("forearm", "lowerarm", "elbow", "lowarm", "radius", "forearmbend", "farm", "armlower", "lowerarm01"),
+    "wrist": ("wrist", "handwrist"),
 }
+#: Names of the head and the neck in rigs that number their spine instead (Blender's Rigify: 'spine.004' the neck,
+#: 'spine.006' the head), taken where no joint is named as the head.
+_NUMBERED_SPINE = {"spine006": "head", "spine004": "neck"}
 PELVIS_NAMES = ("hips", "hip", "pelvis")
 #: The roles a rig must have (each side's), and an example name of each for the refusal.
 _REQUIRED = {"hip": "LeftUpLeg", "knee": "LeftLeg", "ankle": "LeftFoot", "shoulder": "LeftArm",
@@ -71,21 +75,45 @@ LEG_MAX_DEGREES = 45.0
 
 def role_names(names: list[str]) -> int:
     """How many of `names` name a humanoid's joint (a role of `_ROLE_NAMES` with its side, a pelvis, spine, neck
-    or head): of a file's trees of joints, the body's names the most (a control rig's and a prop's the fewest)."""
+    or head; `joint_keys`): of a file's trees of joints, the body's names the most (a control rig's and a prop's
+    the fewest)."""
+    return _roles(joint_keys(names))
+
+
+def _roles(keys: list[str]) -> int:
     groups = (*_ROLE_NAMES.values(), ("foot", "hand", "shoulder"))
     roles = {side + n for side in "lr" for group in groups for n in group}
     roles |= {*PELVIS_NAMES, "head", "neck", "spine"}
-    return sum(canonical(n) in roles for n in names)
+    return sum(k in roles for k in keys)
+
+
+def joint_keys(names: list[str]) -> list[str]:
+    """Each of `names` as matched (`canonical`), without a prefix they all share up to a separator where that names
+    more of a humanoid's joints ('Character1_' of MotionBuilder's HumanIK, 'Skeleton1_' of OptiTrack's Motive,
+    'FullBody_' of Meta's body tracking)."""
+    keys = [canonical(n) for n in names]
+    prefix = os.path.commonprefix(list(names)) if len(names) > 1 else ""
+    cut = max(prefix.rfind(c) for c in "_:- .")
+    if cut > 0:
+        bare = [canonical(n[cut + 1:]) for n in names]
+        if _roles(bare) > _roles(keys):
+            return bare
+    return keys
 
 
 def canonical(name: str) -> str:
     """A joint's name as matched: no 'namespace:', no rig prefix, lower case letters and digits, the side
-    ('Left', 'L', a '_l' or '.L' suffix) a leading 'l' or 'r' ('_M', the middle, dropped)."""
+    ('Left', 'L', a '_l' or '.L' suffix, a 'Left' ending the name) a leading 'l' or 'r' ('_M', the middle,
+    dropped)."""
     n = name.rsplit(":", 1)[-1].lower().strip()
     n = _PREFIXES.sub("", n)
     side = re.search(r"[ _.\-](l|r|left|right|m|c)$", n)  # a side, or the middle (AdvancedSkeleton's 'Head_M')
     if side:
         n = side.group(1)[0].replace("m", "").replace("c", "") + n[:side.start()]
+    elif not re.match(r"(left|right)", n):  # the side a word at its end (Kinect's 'KneeLeft')
+        side = re.search(r"(?<=[a-z0-9])(left|right)$", n)
+        if side:
+            n = side.group(1) + n[:side.start()]
     n = re.sub(r"[^a-z0-9]", "", n)
     return re.sub(r"^(left|right)", lambda m: m.group(1)[0], n)
 
@@ -235,9 +263,14 @@ def match_joints(names: list[str], parents: list[int], src: str, trees: tuple = 
     """{SMPL joint: rig joint} (module docstring); InputError naming the first role the rig lacks, or a limb's
     joints that are not each under the one before (but for two joints the file keeps in different trees, `trees`
     giving each joint's: a foot an IK control holds)."""
+    keys = joint_keys(names)
     by_name: dict[str, int] = {}
-    for j, name in enumerate(names):
-        by_name.setdefault(canonical(name), j)
+    for j, key in enumerate(keys):
+        by_name.setdefault(key, j)
+    if "head" not in by_name:
+        for key, role in _NUMBERED_SPINE.items():
+            if key in by_name:
+                by_name.setdefault(role, by_name[key])
     sides = {side: _sides(by_name, side) for side in ("l", "r")}
     for role, example in _REQUIRED.items():
         for side, word in (("l", "left"), ("r", "right")):
@@ -255,7 +288,7 @@ def match_joints(names: list[str], parents: list[int], src: str, trees: tuple = 
     if not common:
         raise InputError(f"{src}: expected its legs under one pelvis, got '{names[hips[0]]}' and '{names[hips[1]]}' "
                          f"in two trees")
-    pelvis = next((j for j in reversed(common) if canonical(names[j]) in PELVIS_NAMES), common[-1])
+    pelvis = next((j for j in reversed(common) if keys[j] in PELVIS_NAMES), common[-1])
     match = {0: pelvis}
     for side, first in (("l", 1), ("r", 2)):
         roles = sides[side]
@@ -267,7 +300,8 @@ def match_joints(names: list[str], parents: list[int], src: str, trees: tuple = 
     # the spine: the joints on the way to the head below the pelvis, up to a neck; the chest, the one the arms
     # hang from (their lowest common joint with the head).
     way = [j for j in _path(parents, head) if not _descends(parents, pelvis, j)]
-    neck = next((i for i, j in enumerate(way) if "neck" in canonical(names[j])), len(way) - 1)
+    neck_key = by_name.get("neck")
+    neck = next((i for i, j in enumerate(way) if "neck" in keys[j] or j == neck_key), len(way) - 1)
     spine = way[:neck]
     if neck < len(way) - 1:
         match[12] = way[neck]

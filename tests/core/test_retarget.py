@@ -4,7 +4,7 @@ those tools write them; the motions retargeted: tests/formats/test_bvh.py)."""
 import pytest
 
 from core.body import SMPL_JOINT_NAMES
-from core.retarget import canonical, match_joints
+from core.retarget import joint_keys, match_joints
 
 
 def _tree(spec: str):
@@ -96,6 +96,59 @@ RIGS = {
             {"pelvis": "J_Bip_C_Hips", "spine1": "J_Bip_C_Spine", "spine3": "J_Bip_C_UpperChest",
              "left_collar": "J_Bip_L_Shoulder", "left_shoulder": "J_Bip_L_UpperArm", "left_elbow": "J_Bip_L_LowerArm",
              "left_hip": "J_Bip_L_UpperLeg", "left_knee": "J_Bip_L_LowerLeg", "left_foot": "J_Bip_L_ToeBase"}),
+    "optitrack_motive": (_rig(["Hip", "Ab", "Chest", "Neck", "Head"], "{}Shoulder {}UArm {}FArm {}Hand",
+                              "{}Thigh {}Shin {}Foot {}Toe", "Chest", sides=("L", "R")),
+                         {"pelvis": "Hip", "spine1": "Ab", "spine3": "Chest", "left_collar": "LShoulder",
+                          "left_shoulder": "LUArm", "left_elbow": "LFArm", "left_wrist": "LHand", "left_hip": "LThigh",
+                          "left_knee": "LShin", "left_ankle": "LFoot", "left_foot": "LToe"}),
+    "optitrack_fbx": (_rig(["Skeleton1_Hip", "Skeleton1_Ab", "Skeleton1_Chest", "Skeleton1_Neck", "Skeleton1_Head"],
+                           "Skeleton1_{}Shoulder Skeleton1_{}UArm Skeleton1_{}FArm Skeleton1_{}Hand",
+                           "Skeleton1_{}Thigh Skeleton1_{}Shin Skeleton1_{}Foot Skeleton1_{}Toe", "Skeleton1_Chest",
+                           sides=("L", "R")),
+                      {"pelvis": "Skeleton1_Hip", "left_shoulder": "Skeleton1_LUArm", "left_elbow": "Skeleton1_LFArm",
+                       "left_knee": "Skeleton1_LShin"}),
+    "humanik": (_rig(["Character1_Hips", "Character1_Spine", "Character1_Spine1", "Character1_Spine2",
+                      "Character1_Neck", "Character1_Head"],
+                     "Character1_{}Shoulder Character1_{}Arm Character1_{}ForeArm Character1_{}Hand",
+                     "Character1_{}UpLeg Character1_{}Leg Character1_{}Foot Character1_{}ToeBase", "Character1_Spine2",
+                     pelvis_above=["Character1_Reference"]),
+                {"pelvis": "Character1_Hips", "spine3": "Character1_Spine2", "left_collar": "Character1_LeftShoulder",
+                 "left_shoulder": "Character1_LeftArm", "left_hip": "Character1_LeftUpLeg",
+                 "left_foot": "Character1_LeftToeBase"}),
+    "kinect": (_rig(["SpineBase", "SpineMid", "SpineShoulder", "Neck", "Head"], "Shoulder{} Elbow{} Wrist{} Hand{}",
+                    "Hip{} Knee{} Ankle{} Foot{}", "SpineShoulder"),
+               {"pelvis": "SpineBase", "spine1": "SpineMid", "spine3": "SpineShoulder", "left_shoulder": "ShoulderLeft",
+                "left_elbow": "ElbowLeft", "left_wrist": "WristLeft", "left_hand": "HandLeft", "left_hip": "HipLeft",
+                "left_ankle": "AnkleLeft", "left_foot": "FootLeft"}),
+    "meta_body_tracking": (_rig(["FullBody_Hips", "FullBody_SpineLower", "FullBody_SpineMiddle", "FullBody_SpineUpper",
+                                 "FullBody_Chest", "FullBody_Neck", "FullBody_Head"],
+                                "FullBody_{}Shoulder FullBody_{}Scapula FullBody_{}ArmUpper FullBody_{}ArmLower "
+                                "FullBody_{}HandWristTwist FullBody_{}HandWrist",
+                                "FullBody_{}UpperLeg FullBody_{}LowerLeg FullBody_{}FootAnkleTwist FullBody_{}FootAnkle "
+                                "FullBody_{}FootSubtalar FullBody_{}FootTransverse FullBody_{}FootBall",
+                                "FullBody_Chest"),
+                           {"pelvis": "FullBody_Hips", "spine3": "FullBody_Chest",
+                            "left_shoulder": "FullBody_LeftArmUpper", "left_elbow": "FullBody_LeftArmLower",
+                            "left_wrist": "FullBody_LeftHandWrist", "left_hip": "FullBody_LeftUpperLeg",
+                            "left_knee": "FullBody_LeftLowerLeg", "left_ankle": "FullBody_LeftFootAnkle",
+                            "left_foot": "FullBody_LeftFootBall"}),
+    "makehuman": (_rig(["root", "spine05", "spine04", "spine03", "spine02", "spine01", "neck01", "neck02", "head"],
+                       "clavicle.{} shoulder01.{} upperarm01.{} upperarm02.{} lowerarm01.{} lowerarm02.{} wrist.{}",
+                       "pelvis.{} upperleg01.{} upperleg02.{} lowerleg01.{} lowerleg02.{} foot.{} toe1-1.{}",
+                       "spine01", sides=("L", "R")),
+                  {"pelvis": "root", "spine1": "spine05", "spine3": "spine01", "neck": "neck01",
+                   "left_collar": "clavicle.L", "left_shoulder": "upperarm01.L", "left_elbow": "lowerarm01.L",
+                   "left_wrist": "wrist.L", "left_hip": "upperleg01.L", "left_knee": "lowerleg01.L",
+                   "left_ankle": "foot.L"}),
+    "rigify": (_rig(["DEF-spine", "DEF-spine.001", "DEF-spine.002", "DEF-spine.003", "DEF-spine.004", "DEF-spine.005",
+                     "DEF-spine.006"],
+                    "DEF-shoulder.{} DEF-upper_arm.{} DEF-upper_arm.{}.001 DEF-forearm.{} DEF-forearm.{}.001 "
+                    "DEF-hand.{}", "DEF-thigh.{} DEF-thigh.{}.001 DEF-shin.{} DEF-shin.{}.001 DEF-foot.{} DEF-toe.{}",
+                    "DEF-spine.003", sides=("L", "R")),
+               {"pelvis": "DEF-spine", "spine1": "DEF-spine.001", "spine3": "DEF-spine.003", "neck": "DEF-spine.004",
+                "head": "DEF-spine.006", "left_collar": "DEF-shoulder.L", "left_shoulder": "DEF-upper_arm.L",
+                "left_elbow": "DEF-forearm.L", "left_wrist": "DEF-hand.L", "left_hip": "DEF-thigh.L",
+                "left_knee": "DEF-shin.L", "left_ankle": "DEF-foot.L", "left_foot": "DEF-toe.L"}),
 }
 
 
@@ -104,15 +157,20 @@ def test_each_rigs_joints_match_smpls_by_name_and_the_spine_by_shape(rig):
     """Mixamo's (its 'LeftShoulder' the collar), CMU's ASF names, Xsens', Daz Genesis' (bend and twist joints),
     3ds Max Biped's (a root above the pelvis, the thighs under the spine), AdvancedSkeleton's ('_M', the middle),
     Unreal's (side suffixes, a root at the floor), MocapBank's ('LeftShoulder' the upper arm beside a collar, no
-    toes), VRoid's VRM ('J_Bip_L_UpperLeg') and SMPL's own names (its 'left_foot' the toes, 'left_hand' the knuckles beside a wrist) each match
-    SMPL's joints as their rigs mean them; every match of the left side has its right."""
+    toes), VRoid's VRM ('J_Bip_L_UpperLeg'), SMPL's own names (its 'left_foot' the toes, 'left_hand' the knuckles
+    beside a wrist), OptiTrack Motive's ('LUArm', 'LFArm'; as its FBX writes them, 'Skeleton1_' before each),
+    MotionBuilder's HumanIK ('Character1_' before each), Kinect's (the side a word at the end: 'KneeLeft'), Meta's
+    body tracking ('FullBody_LeftArmUpper'), MakeHuman's ('upperarm01.L', beside its twist joint) and Blender
+    Rigify's deform bones (the head and neck numbered along the spine: 'DEF-spine.006') each match SMPL's joints
+    as their rigs mean them; every match of the left side has its right."""
     (names, parents), expected = RIGS[rig]
     match = {SMPL_JOINT_NAMES[k]: names[j] for k, j in match_joints(names, parents, "rig").items()}
     for smpl, name in expected.items():
         assert match.get(smpl) == name, (smpl, match)
+    key = dict(zip(names, joint_keys(names)))
     for smpl in match:
         if smpl.startswith("left_"):
             right = smpl.replace("left_", "right_")
-            assert canonical(match[right]) == "r" + canonical(match[smpl])[1:], (smpl, match)
+            assert key[match[right]] == "r" + key[match[smpl]][1:], (smpl, match)
     assert {"pelvis", "head", "left_hip", "left_knee", "left_ankle", "left_shoulder", "left_elbow",
             "left_wrist"} <= set(match)
