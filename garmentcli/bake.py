@@ -22,6 +22,7 @@ from core.quality import DEFAULT_BUDGET_MM
 from core.threads import torch_threads
 from core.scene import SKIP_METHODS, SKIPS, parse_no_skip
 from formats.atomic import atomic_dir
+from formats.pointcache import POINT_CACHE_FORMATS
 from garmentcli.common import (
     FLOOR_CHOICES,
     FLOOR_HELP,
@@ -115,9 +116,10 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
 
 
 def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, write_obj: bool,
-                       start_frame: int = 0) -> None:
-    """USD stage (garment + body) and the OBJ sequence into `directory`. The garment is written as its file has
-    it (`garment.source`: its point numbering, quads and UV seams), where that differs from the mesh deformed."""
+                       start_frame: int = 0, point_caches: tuple = ()) -> None:
+    """USD stage (garment + body), the OBJ sequence and the point caches (`formats.pointcache`: 'pc2', 'mdd')
+    into `directory`. The garment is written as its file has it (`garment.source`: its point numbering, quads and
+    UV seams), where that differs from the mesh deformed."""
     from formats.mtl import copy_material_libraries
     from formats.sequence import write_obj_sequence
     from formats.usd import MeshTrack, garment_track, write_usd_stage
@@ -134,6 +136,11 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
         points, faces, uvs, face_uvs, materials = written
         write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps, materials=materials,
                            libraries=copy_material_libraries(libraries, directory / "obj"), start=start_frame)
+    for kind in point_caches:  # in the garment file's own frame (Y-up): Blender keeps an imported OBJ's points so
+        from core.geometry import Y_UP_TO_Z_UP_MATRIX
+        from formats.pointcache import write_point_cache
+
+        write_point_cache(directory / f"{stem}.{kind}", written[0] @ Y_UP_TO_Z_UP_MATRIX, fps, start_frame)
 
 
 @dataclass(frozen=True)
@@ -173,6 +180,7 @@ class BakeSpec:
     motion_up: str | None = "z"  # --motion-up (None: left out; the motions arrive turned), recorded in summary.json
     person: str | None = None  # --person (the track read of a file of tracked people), recorded in summary.json
     take: str | None = None  # --take (the animation read of an FBX or glTF of several), recorded in summary.json
+    point_caches: tuple = ()  # --point-cache: the point cache formats written beside the USD ('pc2', 'mdd')
     device: str | None = None  # model: --device as given (None: auto, resolved where the deformer is made)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
@@ -236,7 +244,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
         result.summary["push_out"] = True
     with atomic_dir(target, spec.overwrite) as tmp:
         write_bake_outputs(tmp, target.name, result, garment, body, write_obj=spec.write_obj,
-                           start_frame=spec.start_frame)
+                           start_frame=spec.start_frame, point_caches=spec.point_caches)
         result.summary["seconds_total"] = time.perf_counter() - t0
         (tmp / "summary.json").write_text(json.dumps(result.summary, indent=2))
         if spec.render_video:  # inside the temporary directory: a failed render leaves nothing behind
@@ -327,6 +335,12 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="Number of the first frame written (USD time codes, OBJ frame files): e.g. 1 for Blender, 1001 "
                    "for a VFX shot; with --settle S the motion's first frame is N + S.")
 @click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
+@click.option("--point-cache", "point_caches", type=click.Choice(POINT_CACHE_FORMATS), multiple=True,
+              help="Also write the garment's points per frame as a point cache, <garment>_<motion>.pc2 or .mdd "
+                   "(repeatable): pc2 (3ds Max's Point Cache; Blender's Mesh Cache modifier) or mdd (LightWave's; "
+                   "Blender, Cinema 4D, Houdini), its points in the garment file's order and frame (metres, Y-up): "
+                   "it plays on the garment file as Blender imports it (the Mesh Cache's Frame Start set to "
+                   "--start-frame).")
 @click.option("--no-body", is_flag=True, help="Leave the body out of the USD stage.")
 @click.option("--render", "render_video", is_flag=True,
               help="Also render render/front.mp4, render/side.mp4 and render/contact_sheet.png (off-screen).")
@@ -350,7 +364,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          iterations=None, model_path=None, skip_existing=False, scheduler=None, retries=2, pin=None, quality=None,
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="auto", source_fps=None, floor=None, start_frame=0, fit_path=None,
-         preroll_frames=0, device=None, motion_up="z", person=None, take=None, threads=None, warned=()):
+         preroll_frames=0, device=None, motion_up="z", person=None, take=None, threads=None, point_caches=(),
+         warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz; another tool's .pkl,
     .pt, .npy, .smpl, .bvh, .fbx, .glb, .gltf, .usd of a skeleton or .mvnx, README "Inputs"; or a directory:
     every motion .npz, .smpl, .pkl, .npy, .bvh, .fbx, .glb, .gltf, .usd and .mvnx under it).
@@ -474,7 +489,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
                     contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame,
                     fit_path=fit_path, preroll_frames=preroll_frames, device=device, motion_up=motion_up,
-                    person=person, take=take, threads=threads or 0, threads_fixed=threads is not None)
+                    person=person, take=take, threads=threads or 0, threads_fixed=threads is not None,
+                    point_caches=tuple(dict.fromkeys(point_caches)))
     _fix_threads(deformer, spec.threads_fixed)
     if method == "sim":
         _note_rest_start(frames, preroll_frames, [(mo, path) for (mo, _), path, _ in motions])

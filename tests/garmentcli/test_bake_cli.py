@@ -558,6 +558,31 @@ def test_start_frame_numbers_the_usd_time_codes_and_obj_frames(scene):
                           "--start-frame")
 
 
+def test_point_caches_hold_the_obj_frames_in_the_garment_files_frame(scene):
+    """--point-cache pc2 --point-cache mdd: <garment>_<motion>.pc2 and .mdd beside the stage hold every OBJ frame's
+    points in their order, turned back to the garment file's Y-up frame, numbered from --start-frame (MDD: its
+    times in seconds); an unknown format is refused before any work."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+    from formats.pointcache import read_point_cache
+    from formats.sequence import read_sequence
+
+    common = [scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs"]
+    r = run(["bake", *common, "--point-cache", "pc2", "--point-cache", "mdd", "--point-cache", "pc2",
+             "--start-frame", "1", "--out", scene["out"] / "caches"])
+    assert r.exit_code == 0, r.output
+    d = scene["out"] / "caches" / "shell_walk"
+    frames = read_sequence(d / "obj").points
+    fps = json.loads((d / "summary.json").read_text())["fps"]
+    for kind, stamps in (("pc2", 1 + np.arange(len(frames))), ("mdd", (1 + np.arange(len(frames))) / fps)):
+        points, read_stamps = read_point_cache(d / f"shell_walk.{kind}")
+        np.testing.assert_allclose(points @ Y_UP_TO_Z_UP_MATRIX.T, frames, atol=1e-6)
+        np.testing.assert_allclose(read_stamps, stamps, rtol=1e-6)
+    assert sorted(p.name for p in d.glob("shell_walk.*")) == ["shell_walk.mdd", "shell_walk.pc2", "shell_walk.usd"]
+    assert_one_line_error(run(["bake", *common, "--point-cache", "abc", "--out", scene["out"] / "bad"]),
+                          "--point-cache", "'abc' is not one of 'pc2', 'mdd'")
+    assert not (scene["out"] / "bad").exists()
+
+
 def test_preroll_frames_are_deformed_and_not_written(scene):
     """--frames 6:12 --preroll 4: the written frames are those of --frames 6:12 (LBS, which keeps no state, puts
     them at the same places), numbered as they are; the summary records the pre-roll."""
