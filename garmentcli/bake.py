@@ -232,7 +232,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
                     "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,
                     "motion_up_as_read": motion.up, "person": spec.person, "person_read": motion.person,
                     "take": spec.take, "take_read": motion.take,
-                    "threads": spec.threads if spec.threads_fixed else "auto"},
+                    "threads": spec.threads if spec.threads_fixed else "auto",
+                    "point_caches": list(spec.point_caches)},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],
     })

@@ -572,7 +572,9 @@ def test_point_caches_hold_the_obj_frames_in_the_garment_files_frame(scene):
     assert r.exit_code == 0, r.output
     d = scene["out"] / "caches" / "shell_walk"
     frames = read_sequence(d / "obj").points
-    fps = json.loads((d / "summary.json").read_text())["fps"]
+    summary = json.loads((d / "summary.json").read_text())
+    fps = summary["fps"]
+    assert summary["options"]["point_caches"] == ["pc2", "mdd"]
     for kind, stamps in (("pc2", 1 + np.arange(len(frames))), ("mdd", (1 + np.arange(len(frames))) / fps)):
         points, read_stamps = read_point_cache(d / f"shell_walk.{kind}")
         np.testing.assert_allclose(points @ Y_UP_TO_Z_UP_MATRIX.T, frames, atol=1e-6)
