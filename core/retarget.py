@@ -39,6 +39,9 @@ log = logging.getLogger(__name__)
 #: Prefixes of joint names in exported rigs, left out before matching (after any 'namespace:'; Mixamo's namespace
 #: written 'mixamorig_' where ':' may not be, as in USD).
 _PREFIXES = re.compile(r"^(m_avg_|f_avg_|smplx?_|bip0*1[ _]?|cc_base_|def[_-]|org[_-]|b_|j_bip_(c_)?|mixamorig\d*_)")
+#: Suffixes of joint names in exported rigs, left out before matching: what a joint is, not which ('hips_joint',
+#: 'left_upLeg_joint' of Apple's ARKit skeleton; 'L_thigh_jnt', 'elbow_bind_jnt' of Maya rigs; '_bone').
+_SUFFIXES = re.compile(r"([ _.\-](bind|skin|def))?[ _.\-](joint|jnt|bone)$")
 #: Names (after `canonical`: lower case, letters and digits, the side a leading 'l' or 'r') of each role; the
 #: side's letter is put before them. 'shoulder', 'foot' and 'hand' are told by the names beside them (`_sides`).
 _ROLE_NAMES = {
@@ -102,11 +105,11 @@ def joint_keys(names: list[str]) -> list[str]:
 
 
 def canonical(name: str) -> str:
-    """A joint's name as matched: no 'namespace:', no rig prefix, lower case letters and digits, the side
+    """A joint's name as matched: no 'namespace:', no rig prefix or suffix, lower case letters and digits, the side
     ('Left', 'L', a '_l' or '.L' suffix, a 'Left' ending the name) a leading 'l' or 'r' ('_M', the middle,
     dropped)."""
     n = name.rsplit(":", 1)[-1].lower().strip()
-    n = _PREFIXES.sub("", n)
+    n = _SUFFIXES.sub("", _PREFIXES.sub("", n))
     side = re.search(r"[ _.\-](l|r|left|right|m|c)$", n)  # a side, or the middle (AdvancedSkeleton's 'Head_M')
     if side:
         n = side.group(1)[0].replace("m", "").replace("c", "") + n[:side.start()]

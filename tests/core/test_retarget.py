@@ -140,6 +140,23 @@ RIGS = {
                    "left_collar": "clavicle.L", "left_shoulder": "upperarm01.L", "left_elbow": "lowerarm01.L",
                    "left_wrist": "wrist.L", "left_hip": "upperleg01.L", "left_knee": "lowerleg01.L",
                    "left_ankle": "foot.L"}),
+    "arkit": (_rig(["hips_joint", "spine_1_joint", "spine_2_joint", "spine_3_joint", "spine_4_joint", "spine_5_joint",
+                    "spine_6_joint", "spine_7_joint", "neck_1_joint", "neck_2_joint", "neck_3_joint", "neck_4_joint",
+                    "head_joint"],
+                   "{}_shoulder_1_joint {}_arm_joint {}_forearm_joint {}_hand_joint",
+                   "{}_upLeg_joint {}_leg_joint {}_foot_joint {}_toes_joint {}_toesEnd_joint", "spine_7_joint",
+                   sides=("left", "right"), pelvis_above=["root"]),
+              {"pelvis": "hips_joint", "spine1": "spine_1_joint", "spine3": "spine_7_joint", "neck": "neck_1_joint",
+               "head": "head_joint", "left_shoulder": "left_arm_joint", "left_elbow": "left_forearm_joint",
+               "left_wrist": "left_hand_joint", "left_hip": "left_upLeg_joint", "left_knee": "left_leg_joint",
+               "left_ankle": "left_foot_joint", "left_foot": "left_toes_joint"}),
+    "maya_jnt": (_rig(["root_jnt", "spine_01_jnt", "spine_02_jnt", "chest_jnt", "neck_jnt", "head_jnt"],
+                      "{}_clavicle_jnt {}_shoulder_bind_jnt {}_elbow_bind_jnt {}_wrist_bind_jnt",
+                      "{}_hip_jnt {}_knee_jnt {}_ankle_jnt {}_ball_jnt", "chest_jnt", sides=("L", "R")),
+                 {"pelvis": "root_jnt", "spine3": "chest_jnt", "left_collar": "L_clavicle_jnt",
+                  "left_shoulder": "L_shoulder_bind_jnt", "left_elbow": "L_elbow_bind_jnt",
+                  "left_wrist": "L_wrist_bind_jnt", "left_hip": "L_hip_jnt", "left_ankle": "L_ankle_jnt",
+                  "left_foot": "L_ball_jnt"}),
     "rigify": (_rig(["DEF-spine", "DEF-spine.001", "DEF-spine.002", "DEF-spine.003", "DEF-spine.004", "DEF-spine.005",
                      "DEF-spine.006"],
                     "DEF-shoulder.{} DEF-upper_arm.{} DEF-upper_arm.{}.001 DEF-forearm.{} DEF-forearm.{}.001 "
@@ -161,8 +178,9 @@ def test_each_rigs_joints_match_smpls_by_name_and_the_spine_by_shape(rig):
     beside a wrist), OptiTrack Motive's ('LUArm', 'LFArm'; as its FBX writes them, 'Skeleton1_' before each),
     MotionBuilder's HumanIK ('Character1_' before each), Kinect's (the side a word at the end: 'KneeLeft'), Meta's
     body tracking ('FullBody_LeftArmUpper'), MakeHuman's ('upperarm01.L', beside its twist joint) and Blender
-    Rigify's deform bones (the head and neck numbered along the spine: 'DEF-spine.006') each match SMPL's joints
-    as their rigs mean them; every match of the left side has its right."""
+    Rigify's deform bones (the head and neck numbered along the spine: 'DEF-spine.006'), Apple ARKit's
+    ('left_upLeg_joint') and a Maya rig's ('L_elbow_bind_jnt') each match SMPL's joints as their rigs mean them;
+    every match of the left side has its right."""
     (names, parents), expected = RIGS[rig]
     match = {SMPL_JOINT_NAMES[k]: names[j] for k, j in match_joints(names, parents, "rig").items()}
     for smpl, name in expected.items():
