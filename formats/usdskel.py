@@ -98,9 +98,14 @@ def read_usdskel(path: Path, src: str, take: str | None = None) -> Skeleton:
     parents = [int(p) for p in topology.GetParentIndices()]
     rest_local = _matrices(skel.GetRestTransformsAttr().Get(), J)
     bind = _matrices(skel.GetBindTransformsAttr().Get(), J)
+    if bind is not None and not _invertible(bind):
+        bind = None
+        if rest_local is not None:
+            log.warning("%s: its skeleton's bindTransforms are not %d invertible 4x4 matrices: its restTransforms "
+                        "are taken as its rest", src, J)
     if rest_local is None and bind is None:
-        raise InputError(f"{src}: its skeleton '{skel.GetPath()}' has neither bindTransforms nor restTransforms for "
-                         f"its {J} joints")
+        raise InputError(f"{src}: its skeleton '{skel.GetPath()}' has neither invertible bindTransforms nor "
+                         f"restTransforms for its {J} joints")
     if rest_local is None:  # the bind pose, joint by joint from its parent
         rest_local = np.array([bind[j] if p < 0 else np.linalg.inv(bind[p]) @ bind[j] for j, p in enumerate(parents)])
     animations = _animations(stage, skel)
@@ -114,21 +119,24 @@ def read_usdskel(path: Path, src: str, take: str | None = None) -> Skeleton:
         _animate(local, animation, tokens, times, rest_local)
     else:
         times, fps = np.zeros(1), DEFAULT_FPS
-    skel_space = np.empty_like(local)
-    for j, p in enumerate(parents):
-        skel_space[:, j] = local[:, j] if p < 0 else skel_space[:, p] @ local[:, j]
+    skel_space = _composed(local, parents)
     imageable = UsdGeom.Imageable(skel.GetPrim())
     place = np.array([np.asarray(imageable.ComputeLocalToWorldTransform(Usd.TimeCode(t))).T for t in times])
     world = {j: place @ skel_space[:, j] for j in range(J)}
-    resting = bind if bind is not None and _invertible(bind) else skel_space[0]
-    if bind is not None and resting is skel_space[0]:
-        log.warning("%s: its skeleton's bindTransforms are not %d invertible 4x4 matrices: its restTransforms are "
-                    "taken as its rest", src, J)
+    resting = bind if bind is not None else _composed(rest_local[None], parents)[0]
     rest = {j: place[0] @ resting[j] for j in range(J)}
     names = {j: t.rsplit("/", 1)[-1] for j, t in enumerate(tokens)}
     skeleton = skeleton_of(list(range(J)), names, {j: p for j, p in enumerate(parents) if p >= 0}, list(range(J)),
                            world, rest, 1.0 / fps)
     return skeleton._replace(take=animation.GetPrim().GetName()) if len(animations) > 1 else skeleton
+
+
+def _composed(local: np.ndarray, parents: list[int]) -> np.ndarray:
+    """(T, J, 4, 4) each joint's transform in the skeleton's space of local ones (T, J, 4, 4), parents first."""
+    out = np.empty_like(local)
+    for j, p in enumerate(parents):
+        out[:, j] = local[:, j] if p < 0 else out[:, p] @ local[:, j]
+    return out
 
 
 def _matrices(value, J: int) -> np.ndarray | None:

@@ -163,7 +163,8 @@ def write_usd_mesh(path):
 
 def test_a_usd_of_no_skeleton_damaged_or_without_animation(tmp_path, caplog):
     """A stage of a mesh alone, or text that is no USD, is one line naming the file; a skeleton without an
-    animation is one frame of its rest, warned."""
+    animation is one frame of its rest, warned; bindTransforms that cannot be inverted give way to restTransforms,
+    warned, and without either the skeleton is one line."""
     cloth = write_usd_mesh(tmp_path / "cloth.usda").read_bytes()
     cases = [(cloth, "expected a USD of a skeleton (a UsdSkel Skeleton prim and its joints), found 1 prim(s) and no "
                      "Skeleton"),
@@ -174,5 +175,19 @@ def test_a_usd_of_no_skeleton_damaged_or_without_animation(tmp_path, caplog):
         m = load_motion(still, world_checks=False)
     assert "no animation of its skeleton: its one frame is the skeleton as it stands" in caplog.text
     assert m.n_frames == 1
+    standing = (np.zeros((3, 24, 3), np.float32), _motion(3)[1])  # its first frame, restTransforms, stands
+    stage = Usd.Stage.Open(str(rig_usd(tmp_path / "flat.usda", {"Walk": standing}, armature=False)))
+    skel = UsdSkel.Skeleton(stage.GetPrimAtPath("/Skel"))
+    skel.GetBindTransformsAttr().Set(Vt.Matrix4dArray([Gf.Matrix4d(0.0)] * len(MIXAMO)))  # not invertible
+    stage.GetRootLayer().Save()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        assert load_motion(tmp_path / "flat.usda", world_checks=False).n_frames == 3
+    assert "its skeleton's bindTransforms are not 27 invertible 4x4 matrices: its restTransforms are taken" in \
+        caplog.text
+    skel.GetRestTransformsAttr().Block()
+    stage.GetRootLayer().Save()
+    assert_each_refused(tmp_path / "none.usda", [((tmp_path / "flat.usda").read_bytes(), "has neither invertible "
+                                                  "bindTransforms nor restTransforms for its 27 joints")])
     with pytest.raises(InputError, match="expected --take one of"):
         load_motion(rig_usd(tmp_path / "two.usda", {"a": _motion(2), "b": _motion(2)}), take="c")
