@@ -6,7 +6,8 @@ One random SMPL motion of --frames frames (9,000: five minutes at 30 fps) is wri
 producer writes it (AMASS's npz; AIST++'s pickle; WHAM's joblib result with its per-frame vertices, where joblib
 is installed; Motion-X's .npy; SMPLCodec's .smpl; a BVH of the SMPL skeleton; a BVH of a Mixamo rig of 27 joints
 (fingers, CMU's hip joints) resting in an A-pose, 15 % larger, retargeted, its binary FBX (pre-rotated
-joints, curves per axis, half of them zlib-compressed), that FBX as ASCII and the rig as a .glb; an Xsens MVNX (23 segments' quaternions and positions
+joints, curves per axis, half of them zlib-compressed), that FBX as ASCII, the rig as a .glb and as a UsdSkel
+crate (.usdc, Blender's layout: a Skeleton, its SkelAnimation sampled per frame); an Xsens MVNX (23 segments' quaternions and positions
 per frame, XML); a BVH of a LAFAN1-like rig (every
 bone along its joint's X: its zero pose folds the body, so its straightest frame, the first, is its rest); PHALP's per-frame pickle with a
 4,096-value appearance feature per detection; TRAM's np.save of torch tensors; GVHMR's torch.save), then read by
@@ -40,6 +41,7 @@ from tests.formats.test_bvh import LAFAN1, MIXAMO, rig_bvh, write_bvh  # noqa: E
 from tests.formats.test_fbx import rig_fbx  # noqa: E402
 from tests.formats.test_gltf import rig_gltf  # noqa: E402
 from tests.formats.test_mvnx import write_mvnx  # noqa: E402
+from tests.formats.test_usdskel import rig_usd  # noqa: E402
 
 
 def y_up(poses: np.ndarray, trans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,6 +113,8 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
             "FBX (Mixamo rig, retargeted)": ("mixamo.fbx", lambda p: rig_fbx(p, poses, trans)),
             "FBX ASCII (Mixamo rig, retargeted)": ("mixamo_ascii.fbx", lambda p: rig_fbx(p, poses, trans, ascii=True)),
             "glTF .glb (Mixamo rig, retargeted)": ("mixamo.glb", lambda p: rig_gltf(p, {"take": (poses, trans)})),
+            "USD .usdc UsdSkel (Mixamo rig, retargeted)": (
+                "mixamo.usdc", lambda p: rig_usd(p, {"take": (poses, trans)}, armature=False)),
             "Xsens MVNX (23 segments, retargeted)": ("xsens.mvnx", lambda p: write_mvnx(p, *y_up(poses, trans))),
             "BVH (LAFAN1-like rig, rest its straightest frame)": (
                 "lafan.bvh", lambda p: rig_bvh(p, poses, trans, LAFAN1, along_x=True, order="ZYX")),

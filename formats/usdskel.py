@@ -180,7 +180,7 @@ def _frame_times(stage: Usd.Stage, animation, src: str) -> tuple[np.ndarray | No
 
 def _animate(local: np.ndarray, animation, tokens: list[str], times: np.ndarray, rest_local: np.ndarray) -> None:
     """Write `animation`'s joints' local transforms at `times` into local (T, J, 4, 4) (the skeleton's joint
-    order); a component it does not author keeps the rest's."""
+    order); a component it does not author (at a frame) keeps the rest's."""
     order = {t: j for j, t in enumerate(tokens)}
     anim_joints = [str(t) for t in (animation.GetJointsAttr().Get() or [])]
     into = np.array([order.get(t, -1) for t in anim_joints], dtype=np.int64)
@@ -188,18 +188,23 @@ def _animate(local: np.ndarray, animation, tokens: list[str], times: np.ndarray,
     into = into[keep]
     rest_scale = np.linalg.norm(rest_local[into, :3, :3], axis=1)  # (K, 3) column norms
     rest_turn = rest_local[into, :3, :3] / rest_scale[:, None, :]
-    rest_move = rest_local[into, :3, 3]
+    rest_quat = np.full(4, np.nan)  # a frame without rotations: its rest's, below
     attrs = (animation.GetTranslationsAttr(), animation.GetRotationsAttr(), animation.GetScalesAttr())
-    for k, t in enumerate(times):
+    authored = [a.HasAuthoredValue() for a in attrs]
+    moves, quats, scales = [], [], []
+    for t in times:  # USD's values at each frame (interpolated between its samples), then all frames at once
         code = Usd.TimeCode(float(t))
-        move, turn, scale = (a.Get(code) if a.HasAuthoredValue() else None for a in attrs)
-        move = rest_move if move is None or len(move) != len(anim_joints) else np.asarray(move, float)[keep]
-        scale = rest_scale if scale is None or len(scale) != len(anim_joints) else np.asarray(scale, float)[keep]
-        if turn is None or len(turn) != len(anim_joints):
-            R = rest_turn
-        else:
-            q = np.asarray(turn, dtype=np.float64)[keep]  # x y z w
-            q /= np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-12)
-            R = quat_to_matrix(q[:, [3, 0, 1, 2]])
-        local[k, into, :3, :3] = R * scale[:, None, :]
-        local[k, into, :3, 3] = move
+        move, turn, scale = (a.Get(code) if on else None for a, on in zip(attrs, authored))
+        ok = [v is not None and len(v) == len(anim_joints) for v in (move, turn, scale)]
+        moves.append(np.asarray(move, float)[keep] if ok[0] else rest_local[into, :3, 3])
+        quats.append(np.asarray(turn, float)[keep] if ok[1] else np.broadcast_to(rest_quat, (len(into), 4)))
+        scales.append(np.asarray(scale, float)[keep] if ok[2] else rest_scale)
+    q = np.array(quats)  # (T, K, 4) x y z w
+    q /= np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
+    R = quat_to_matrix(q[..., [3, 0, 1, 2]])
+    missing = np.isnan(q[:, 0, 0])
+    R[missing] = rest_turn
+    block = local[:, into]  # (T, K, 4, 4): a copy (the joints' index apart from the matrices' slices)
+    block[..., :3, :3] = R * np.array(scales)[:, :, None, :]
+    block[..., :3, 3] = np.array(moves)
+    local[:, into] = block
