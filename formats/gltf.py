@@ -279,16 +279,23 @@ def _humanoid_nodes(nodes: list, parent: dict, roles: dict[int, str], src: str) 
 
 
 def _bind_pose(doc: dict, buffers: list[bytes], skin: dict, joints: list[int], rest: dict, src: str) -> dict:
-    """{joint: (4, 4) its transform in the world in the skin's bind pose}, where it differs from the nodes' own
-    (a file saved with its character posed: the rest is the pose its mesh was bound in). The inverse bind
-    matrices give each joint's transform in the bind pose in the space the mesh was bound in: the world, as glTF
-    says, unless more of the joints' nodes stand in the bind pose of another space (a mesh's, as some exporters
-    write them) than in the world's. {} where the bind pose is the nodes' own (within 1e-5 of the skeleton's
-    size), the skin has no matrices, or some are not invertible (warned)."""
+    """{joint: (4, 4) its transform in the world in the skin's bind pose} (`bind_from_inverse` of the skin's
+    inverse bind matrices), where it differs from the nodes' own; {} where the skin has no matrices."""
     if "inverseBindMatrices" not in skin:
         return {}
     ibm = _accessor(doc, buffers, skin["inverseBindMatrices"])
     ibm = ibm.reshape(-1, 4, 4).transpose(0, 2, 1) if ibm.shape == (len(joints), 16) else np.zeros((0, 4, 4))
+    return bind_from_inverse(joints, rest, ibm, src)
+
+
+def bind_from_inverse(joints: list, rest: dict, ibm: np.ndarray, src: str) -> dict:
+    """{joint: (4, 4) its transform in the world in a skin's bind pose}, where that differs from the joints' own
+    rest transforms `rest` {joint: (4, 4) in the world} (a file saved with its character posed: the rest is the
+    pose its mesh was bound in). The inverse bind matrices `ibm` (J, 4, 4) give each joint's transform in the bind
+    pose in the space the mesh was bound in: the world, as glTF says, unless more of the joints stand in the bind
+    pose of another space (a mesh's, as some exporters write them) than in the world's. {} where the bind pose is
+    the joints' own (within 1e-5 of the skeleton's size), or where the matrices are not J invertible ones
+    (warned)."""
     singular = np.linalg.svd(ibm[:, :3, :3], compute_uv=False) if len(ibm) and np.isfinite(ibm).all() else None
     if singular is None or len(ibm) != len(joints) or (singular[:, -1] <= 1e-9 * singular[:, 0]).any():
         log.warning("%s: its skin's inverse bind matrices are not %d invertible 4x4 matrices: its nodes' own "

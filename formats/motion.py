@@ -20,8 +20,9 @@ the actors': the first; EMDB's, its 'smpl' dict) and PyTorch files
 (`TORCH_SUFFIXES`: GVHMR's `hmr4d_results.pt`, its `smpl_params_global`) are read without running code in them;
 a single .npy array of Motion-X's SMPL-X parameters (T, 322) too, and Meshcapade's SMPLCodec `.smpl` (an npz of
 `bodyPose`, `headPose`, `leftHandPose`, `rightHandPose`, `bodyTranslation`, `shapeParameters`, `frameRate`), and
-BVH, FBX (binary or ASCII), glTF, USD (UsdSkel) or Xsens MVNX motion capture of SMPL's or another humanoid's
-skeleton (`formats.bvh`, `formats.fbx`, `formats.gltf`, `formats.usdskel`, `formats.mvnx`, `core.retarget`).
+BVH, FBX (binary or ASCII), glTF, USD (UsdSkel), COLLADA or Xsens MVNX motion capture of SMPL's or another
+humanoid's skeleton (`formats.bvh`, `formats.fbx`, `formats.gltf`, `formats.usdskel`, `formats.collada`,
+`formats.mvnx`, `core.retarget`).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from core.motion import (Motion, check_frame_rate, fill_untracked, validate_moti
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
 from formats.bvh import REST_UP_KEY, TAKE_KEY, Skeleton, read_skeleton, skeleton_arrays
+from formats.collada import read_collada
 from formats.fbx import animation_takes, read_fbx
 from formats.gltf import GLTF_SUFFIXES, animation_names, read_gltf
 from formats.mvnx import read_mvnx
@@ -110,7 +112,7 @@ _NESTED_KEYS = ("smpl_params_global", "smpl_params_incam", "smpl")
 #: Motion files that may hold several animations (takes), one read (`--take`).
 TAKE_SUFFIXES = (".fbx", *GLTF_SUFFIXES, *USD_SUFFIXES)
 #: Motion capture files of a rig's skeleton, retargeted onto SMPL's (`read_rig`).
-SKELETON_SUFFIXES = (".bvh", ".mvnx", *TAKE_SUFFIXES)
+SKELETON_SUFFIXES = (".bvh", ".mvnx", ".dae", *TAKE_SUFFIXES)
 #: The key under which `_pickled_arrays` passes the id of the track read (of a file of tracked people) on.
 PERSON_KEY = "garment_person"
 #: Keys whose length is a tracked person's number of frames.
@@ -123,7 +125,8 @@ MOTION_X_COLUMNS = {"root_orient": (0, 3), "pose_body": (3, 66), "pose_hand": (6
 #: A track's frames filled in where it was not tracked (`_fill_untracked`) at the most: an hour at 30 fps.
 MAX_FILLED_FRAMES = 108_000
 #: What a motion file's name ends with (the case aside).
-MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", ".fbx", *GLTF_SUFFIXES, *USD_SUFFIXES, ".mvnx", *PICKLE_SUFFIXES,
+MOTION_SUFFIXES = (".npz", ".smpl", ".npy", ".bvh", ".fbx", *GLTF_SUFFIXES, *USD_SUFFIXES, ".dae", ".mvnx",
+                   *PICKLE_SUFFIXES,
                    *TORCH_SUFFIXES)
 #: A rotation matrix further than this from orthonormal (max |R R^T - I|), or with a negative determinant, is refused.
 ROTATION_MATRIX_TOL = 1e-3
@@ -303,7 +306,8 @@ def _pickled_arrays(path: Path, src: str, npy: bool = False, person: str | None 
 
 
 def read_rig(path, src: str | None = None, take: str | None = None) -> Skeleton:
-    """The skeleton and motion of a motion capture file of a rig (`SKELETON_SUFFIXES`: BVH, FBX, glTF, USD, MVNX) as
+    """The skeleton and motion of a motion capture file of a rig (`SKELETON_SUFFIXES`: BVH, FBX, glTF, USD, COLLADA,
+    MVNX) as
     its reader gives it, before any retargeting; of an FBX or glTF of several animations, the one named `take`.
     InputError naming `src` (default: the file) where it cannot be read."""
     path = Path(path)
@@ -313,6 +317,8 @@ def read_rig(path, src: str | None = None, take: str | None = None) -> Skeleton:
         return read_skeleton(path, src)
     if suffix == ".mvnx":
         return read_mvnx(path, src)
+    if suffix == ".dae":
+        return read_collada(path, src)
     if suffix in USD_SUFFIXES:
         from formats.usdskel import read_usdskel  # pxr: loaded where a USD is read
 

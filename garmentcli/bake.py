@@ -368,8 +368,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          preroll_frames=0, device=None, motion_up="z", person=None, take=None, threads=None, point_caches=(),
          warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz; another tool's .pkl,
-    .pt, .npy, .smpl, .bvh, .fbx, .glb, .gltf, .usd of a skeleton or .mvnx, README "Inputs"; or a directory:
-    every motion .npz, .smpl, .pkl, .npy, .bvh, .fbx, .glb, .gltf, .usd and .mvnx under it).
+    .pt, .npy, .smpl, .bvh, .fbx, .glb, .gltf, .usd of a skeleton, .dae or .mvnx, README "Inputs"; or a
+    directory: every motion .npz, .smpl, .pkl, .npy, .bvh, .fbx, .glb, .gltf, .usd, .dae and .mvnx under it).
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
     time-sampled, Z-up, metres), obj/frame_NNNN.obj and summary.json. Motions of one file name in different

@@ -85,10 +85,10 @@ def require_file(path) -> None:
 def motion_files(args, hint: str = "MOTION") -> list[str]:
     """MOTION arguments as motion files: a file as given; a directory, every `.npz` (`.smpl`), pickle (`.pkl`, as
     AIST++'s motions and WHAM's results are), `.npy` (Motion-X's array, TRAM's pickled track), `.bvh`, `.fbx`,
-    glTF (`.glb`, `.gltf`, `.vrm`, `.vrma`), USD (`.usd`, `.usda`, `.usdc`, `.usdz`) or `.mvnx` under it
-    (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's shape.npz and
-    *_stagei.npz, which hold a body shape only, and FBX, glTF and USD files of no skeleton are left out; PyTorch
-    files only named). A file given twice is taken once. Raises click
+    glTF (`.glb`, `.gltf`, `.vrm`, `.vrma`), USD (`.usd`, `.usda`, `.usdc`, `.usdz`), COLLADA (`.dae`) or `.mvnx`
+    under it (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's shape.npz and
+    *_stagei.npz, which hold a body shape only, and FBX, glTF, USD and COLLADA files of no skeleton are left out;
+    PyTorch files only named). A file given twice is taken once. Raises click
     errors for a path that is not there and for a directory without motions."""
     from formats.motion import MOTION_SUFFIXES, TORCH_SUFFIXES
 
@@ -139,14 +139,14 @@ def motion_parts(path: str, person: str | None, take: str | None, say: bool = Tr
 
 
 def _holds_poses(path: Path) -> bool:
-    """Whether the archive or pickle `path` holds poses (a BVH: always; an FBX: a skeleton, its LimbNode Models;
+    """Whether the archive or pickle `path` holds poses (a BVH: always; an FBX or COLLADA: a skeleton's joints;
     a glTF: a skin or a node of hips; a USD: a Skeleton);
     True for one that cannot be read (named as a motion, it is refused with the reason)."""
     if path.suffix.lower() in (".bvh", ".mvnx"):
         return True
-    if path.suffix.lower() == ".fbx":
+    if path.suffix.lower() in (".fbx", ".dae"):  # an FBX's joints are LimbNode Models, a COLLADA's JOINT nodes
         try:
-            return b"LimbNode" in path.read_bytes()
+            return (b"LimbNode" if path.suffix.lower() == ".fbx" else b'type="JOINT"') in path.read_bytes()
         except OSError:
             return True
     from formats.gltf import GLTF_SUFFIXES, holds_skeleton

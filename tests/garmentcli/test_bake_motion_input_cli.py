@@ -308,6 +308,7 @@ def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_
     from tests.formats.test_bvh import write_bvh
     from tests.formats.test_fbx import rig_fbx
     from tests.formats.test_gltf import rig_gltf
+    from tests.formats.test_collada import rig_dae
     from tests.formats.test_usdskel import rig_usd, write_usd_mesh
 
     with np.load(scene["motion"]) as walk:
@@ -351,8 +352,8 @@ def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_
         assert options["take"] == "all" and options["take_read"] == take
     r = invoke(["tradeoff", scene["garment"], takes, "--take", "all", "--out", scene["dir"] / "refused"])
     assert_one_line_error(r, "--take", "all (one output per animation) applies to bake and dataset only")
-    # a folder of captures: its BVH, FBX, glTF, VRM Animation and UsdSkel motions baked, an FBX, a glTF and a USD
-    # of no skeleton (props, a garment) left out
+    # a folder of captures: its BVH, FBX, glTF, VRM Animation, UsdSkel and COLLADA motions baked, an FBX, a glTF, a
+    # USD and a COLLADA of no skeleton (props, a garment) left out
     (scene["dir"] / "captures").mkdir()
     rig_gltf(scene["dir"] / "captures" / "walk_gltf.glb", {"walk": (y_up, trans @ back.T)}, fps=int(round(fps)))
     prop = rig_gltf(scene["dir"] / "captures" / "prop.glb", {"walk": (y_up, trans @ back.T)}, skin=False)
@@ -362,6 +363,8 @@ def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_
     rig_usd(scene["dir"] / "captures" / "walk_usd.usda", {"walk": (y_up, trans @ back.T)}, armature=False,
             fps=int(round(fps)))  # a UsdSkel animation (a Y-up stage in centimetres)
     write_usd_mesh(scene["dir"] / "captures" / "cloth.usda")  # a USD of no skeleton (a garment): left out
+    dae = rig_dae(scene["dir"] / "captures" / "walk_dae.dae", y_up, trans @ back.T, fps=int(round(fps)))
+    (scene["dir"] / "captures" / "prop.dae").write_text(dae.read_text().replace('type="JOINT"', 'type="NODE"'))
     for f in (rig, fbx):
         (scene["dir"] / "captures" / f.name).write_bytes(f.read_bytes())
     (scene["dir"] / "captures" / "prop.fbx").write_bytes(fbx.read_bytes().replace(b"LimbNode", b"MeshNode"))
@@ -369,8 +372,8 @@ def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_
                 scene["dir"] / "out_captures", "--method", "lbs"])
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == [
-        "shell_dance", "shell_walk_fbx", "shell_walk_gltf", "shell_walk_rig", "shell_walk_usd"]
-    for same in ("shell_dance", "shell_walk_usd"):
+        "shell_dance", "shell_walk_dae", "shell_walk_fbx", "shell_walk_gltf", "shell_walk_rig", "shell_walk_usd"]
+    for same in ("shell_dance", "shell_walk_usd", "shell_walk_dae"):
         np.testing.assert_allclose(read_sequence(scene["dir"] / "out_captures" / same / "obj").points,
                                    read_sequence(scene["dir"] / "out_captures" / "shell_walk_gltf" / "obj").points,
                                    atol=1e-4)

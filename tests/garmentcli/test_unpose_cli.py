@@ -280,7 +280,7 @@ def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
 
 @pytest.mark.parametrize("args, needle", [
     (["--pose", "bpose"], "expected 'tpose', 'apose' or a motion file (.npz, .smpl, .npy, .bvh, .fbx, .glb, .gltf, "
-                          ".vrm, .vrma, .usd, .usda, .usdc, .usdz, .mvnx, .pkl, .pickle, .joblib, .pt, .pth), got "
+                          ".vrm, .vrma, .usd, .usda, .usdc, .usdz, .dae, .mvnx, .pkl, .pickle, .joblib, .pt, .pth), got "
                           "'bpose'"),
     (["--pose", "tpose"], "--pose tpose takes off the body shape, place, frame and units only: give them with "
                           "--betas B0,B1,..., --move DX,DY,DZ, --turn or --scale"),
