@@ -381,7 +381,10 @@ def open_stage(path: Path, where: str) -> Usd.Stage:
     try:
         stage = Usd.Stage.Open(str(path))
     except Tf.ErrorException as exc:
-        detail = " ".join(str(exc).split())
+        try:
+            detail = " ".join(str(exc).split())
+        except UnicodeDecodeError:  # pxr quotes the offending bytes
+            raise InputError(f"{where}: cannot be opened as USD (its text is not UTF-8)") from None
         # pxr prefixes the reason with the C++ function and source line: keep the reason.
         if " : '" in detail:
             detail = detail.rsplit(" : '", 1)[1].rstrip("'").strip()

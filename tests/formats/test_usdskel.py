@@ -168,7 +168,8 @@ def test_a_usd_of_no_skeleton_damaged_or_without_animation(tmp_path, caplog):
     cloth = write_usd_mesh(tmp_path / "cloth.usda").read_bytes()
     cases = [(cloth, "expected a USD of a skeleton (a UsdSkel Skeleton prim and its joints), found 1 prim(s) and no "
                      "Skeleton"),
-             (b"#usda 1.0\ndef Skeleton \"S\" {\n  broken", "cannot be opened as USD")]
+             (b"#usda 1.0\ndef Skeleton \"S\" {\n  broken", "cannot be opened as USD"),
+             (cloth.replace(b'"garment"', b'"garm\x81ent"'), "cannot be opened as USD (its text is not UTF-8)")]
     assert_each_refused(tmp_path / "bad.usda", cases)
     still = rig_usd(tmp_path / "still.usda", {}, armature=False)
     with caplog.at_level(logging.WARNING):
