@@ -7,7 +7,8 @@ producer writes it (AMASS's npz; AIST++'s pickle; WHAM's joblib result with its 
 is installed; Motion-X's .npy; SMPLCodec's .smpl; a BVH of the SMPL skeleton; a BVH of a Mixamo rig of 27 joints
 (fingers, CMU's hip joints) resting in an A-pose, 15 % larger, retargeted, its binary FBX (pre-rotated
 joints, curves per axis, half of them zlib-compressed), that FBX as ASCII, the rig as a .glb and as a UsdSkel
-crate (.usdc, Blender's layout: a Skeleton, its SkelAnimation sampled per frame); an Xsens MVNX (23 segments' quaternions and positions
+crate (.usdc, Blender's layout: a Skeleton, its SkelAnimation sampled per frame) and as COLLADA (a matrix per joint
+and frame, Blender's); an Xsens MVNX (23 segments' quaternions and positions
 per frame, XML); a BVH of a LAFAN1-like rig (every
 bone along its joint's X: its zero pose folds the body, so its straightest frame, the first, is its rest); PHALP's per-frame pickle with a
 4,096-value appearance feature per detection; TRAM's np.save of torch tensors; GVHMR's torch.save), then read by
@@ -38,6 +39,7 @@ from core.rotations import axis_angle_to_matrix  # noqa: E402
 from formats.motion import load_motion  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
 from tests.formats.test_bvh import LAFAN1, MIXAMO, rig_bvh, write_bvh  # noqa: E402
+from tests.formats.test_collada import rig_dae  # noqa: E402
 from tests.formats.test_fbx import rig_fbx  # noqa: E402
 from tests.formats.test_gltf import rig_gltf  # noqa: E402
 from tests.formats.test_mvnx import write_mvnx  # noqa: E402
@@ -115,6 +117,7 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
             "glTF .glb (Mixamo rig, retargeted)": ("mixamo.glb", lambda p: rig_gltf(p, {"take": (poses, trans)})),
             "USD .usdc UsdSkel (Mixamo rig, retargeted)": (
                 "mixamo.usdc", lambda p: rig_usd(p, {"take": (poses, trans)}, armature=False)),
+            "COLLADA .dae (Mixamo rig, retargeted)": ("mixamo.dae", lambda p: rig_dae(p, poses, trans, fps=fps)),
             "Xsens MVNX (23 segments, retargeted)": ("xsens.mvnx", lambda p: write_mvnx(p, *y_up(poses, trans))),
             "BVH (LAFAN1-like rig, rest its straightest frame)": (
                 "lafan.bvh", lambda p: rig_bvh(p, poses, trans, LAFAN1, along_x=True, order="ZYX")),

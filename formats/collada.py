@@ -104,7 +104,7 @@ def _read(root: ET.Element, src: str) -> Skeleton:
         world[i] = local if p is None else world[p] @ local
         rest[i] = resting if p is None else rest[p] @ resting
     names = {j: nodes[j].get("name") or nodes[j].get("sid") or nodes[j].get("id") or f"joint{j}" for j in joints}
-    rest.update(_bind_pose(root, ns, by_id, nodes, joints, rest, src))
+    rest.update(_bind_pose(root, ns, by_id, nodes, joints, rest, src, names))
     return skeleton_of(joints, names, parent, list(range(len(nodes))), world, rest, 1.0 / fps)
 
 
@@ -221,7 +221,8 @@ def _sampled_matrices(times: np.ndarray, values: np.ndarray, interpolation: str,
     return out
 
 
-def _bind_pose(root: ET.Element, ns: str, by_id: dict, nodes: list, joints: list, rest: dict, src: str) -> dict:
+def _bind_pose(root: ET.Element, ns: str, by_id: dict, nodes: list, joints: list, rest: dict, src: str,
+               names: dict) -> dict:
     """The joints' bind pose (`formats.gltf.bind_from_inverse`) of the file's skin of the most joints, its joints
     named by sid (else id or name); {} where it has none."""
     skins = [s for s in root.iter(f"{ns}skin") if s.find(f"{ns}joints") is not None]
@@ -245,4 +246,4 @@ def _bind_pose(root: ET.Element, ns: str, by_id: dict, nodes: list, joints: list
     if not bound:
         return {}
     ids = list(bound)
-    return bind_from_inverse(ids, rest, np.array([bound[j] for j in ids]), src)
+    return bind_from_inverse(ids, rest, np.array([bound[j] for j in ids]), src, names)

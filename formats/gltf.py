@@ -278,24 +278,25 @@ def _humanoid_nodes(nodes: list, parent: dict, roles: dict[int, str], src: str) 
     return tree(max(hips, key=lambda i: role_names([name(j) for j in tree(i)])))
 
 
-def _bind_pose(doc: dict, buffers: list[bytes], skin: dict, joints: list[int], rest: dict, src: str) -> dict:
+def _bind_pose(doc: dict, buffers: list[bytes], skin: dict, joints: list[int], rest: dict, src: str,
+               names: dict) -> dict:
     """{joint: (4, 4) its transform in the world in the skin's bind pose} (`bind_from_inverse` of the skin's
     inverse bind matrices), where it differs from the nodes' own; {} where the skin has no matrices."""
     if "inverseBindMatrices" not in skin:
         return {}
     ibm = _accessor(doc, buffers, skin["inverseBindMatrices"])
     ibm = ibm.reshape(-1, 4, 4).transpose(0, 2, 1) if ibm.shape == (len(joints), 16) else np.zeros((0, 4, 4))
-    return bind_from_inverse(joints, rest, ibm, src)
+    return bind_from_inverse(joints, rest, ibm, src, names)
 
 
-def bind_from_inverse(joints: list, rest: dict, ibm: np.ndarray, src: str) -> dict:
+def bind_from_inverse(joints: list, rest: dict, ibm: np.ndarray, src: str, names: dict | None = None) -> dict:
     """{joint: (4, 4) its transform in the world in a skin's bind pose}, where that differs from the joints' own
     rest transforms `rest` {joint: (4, 4) in the world} (a file saved with its character posed: the rest is the
     pose its mesh was bound in). The inverse bind matrices `ibm` (J, 4, 4) give each joint's transform in the bind
     pose in the space the mesh was bound in: the world, as glTF says, unless more of the joints stand in the bind
     pose of another space (a mesh's, as some exporters write them) than in the world's. {} where the bind pose is
     the joints' own (within 1e-5 of the skeleton's size), or where the matrices are not J invertible ones
-    (warned)."""
+    (warned). Where it differs, says so at INFO naming the joint turned furthest from it (`names`: {joint: name})."""
     singular = np.linalg.svd(ibm[:, :3, :3], compute_uv=False) if len(ibm) and np.isfinite(ibm).all() else None
     if singular is None or len(ibm) != len(joints) or (singular[:, -1] <= 1e-9 * singular[:, 0]).any():
         log.warning("%s: its skin's inverse bind matrices are not %d invertible 4x4 matrices: its nodes' own "
@@ -315,7 +316,20 @@ def bind_from_inverse(joints: list, rest: dict, ibm: np.ndarray, src: str) -> di
     bind = place @ np.linalg.inv(ibm)
     if max(float(np.abs(relative(b - rest[j])).max()) for b, j in zip(bind, joints)) <= 1e-5:
         return {}
+    names = names or {}
+    body = [role_names([str(names.get(j, ""))]) > 0 for j in joints]  # a body joint's turn told, not a finger's
+    turns = [_angle(rest[j][:3, :3], b[:3, :3]) * (1.0 if on or not any(body) else 0.0)
+             for j, b, on in zip(joints, bind, body)]
+    worst = int(np.argmax(turns))
+    log.info("%s: its joints stand posed, '%s' %.0f degrees from the pose its mesh was bound in: that bind pose is its "
+             "rest", src, names.get(joints[worst], joints[worst]), turns[worst])
     return dict(zip(joints, bind))
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> float:
+    """The angle (degrees) between the rotations of two 3 x 3 transforms (their scalings taken out)."""
+    a, b = a / np.linalg.norm(a, axis=0), b / np.linalg.norm(b, axis=0)
+    return float(np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1) / 2, -1.0, 1.0))))
 
 
 def _guarded(read, src: str):
@@ -383,9 +397,9 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
         p = parent.get(i)
         world[i] = local if p is None else world[p] @ local
         rest[i] = resting if p is None else rest[p] @ resting
-    if skin is not None:
-        rest.update(_bind_pose(doc, buffers, skin, joints, rest, src))
     names = {i: str(nodes[i].get("name") or f"node{i}") for i in joints}
+    if skin is not None:
+        rest.update(_bind_pose(doc, buffers, skin, joints, rest, src, names))
     names.update({i: name for i, name in roles.items() if i in names})
     skeleton = skeleton_of(joints, names, parent, order, world, rest, 1.0 / fps)
     return skeleton._replace(take=titles[chosen]) if len(animations) > 1 else skeleton

@@ -223,7 +223,9 @@ def test_a_gltf_saved_posed_reads_from_its_skins_bind_pose(tmp_path, caplog, bin
         space[:3, :3] = Rotation.from_euler("xyz", [20, -35, 50], degrees=True).as_matrix()
         space[:3, 3] = [0.3, -1.2, 0.5]
     path = rig_gltf(tmp_path / "posed.gltf", {"Idle": (poses, trans)}, buffer="base64", posed=70.0, bind_space=space)
-    m = load_motion(path, world_checks=False)
+    with caplog.at_level(logging.INFO):
+        m = load_motion(path, world_checks=False)
+    assert "its joints stand posed, 'mixamorig7:" in caplog.text and "that bind pose is its rest" in caplog.text
     assert m.rest_up == "y"
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
