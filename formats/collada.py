@@ -231,15 +231,15 @@ def _bind_pose(root: ET.Element, ns: str, by_id: dict, nodes: list, joints: list
         inputs = {i.get("semantic"): i.get("source") for i in skin.find(f"{ns}joints").findall(f"{ns}input")}
         if "JOINT" not in inputs or "INV_BIND_MATRIX" not in inputs:
             continue
-        names, _ = _source(by_id, ns, inputs["JOINT"])
+        listed, _ = _source(by_id, ns, inputs["JOINT"])
         matrices, _ = _source(by_id, ns, inputs["INV_BIND_MATRIX"])
         lookup = {}
         for j in joints:
             for key in (nodes[j].get("sid"), nodes[j].get("id"), nodes[j].get("name")):
                 if key:
                     lookup.setdefault(key, j)
-        found = [lookup.get(n) for n in names]
-        if len(matrices) == 16 * len(names) and len([f for f in found if f is not None]) > len(best[0]):
+        found = [lookup.get(n) for n in listed]
+        if len(matrices) == 16 * len(listed) and len([f for f in found if f is not None]) > len(best[0]):
             ibm = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
             best = ({f: m for f, m in zip(found, ibm) if f is not None}, skin)
     bound, _ = best
