@@ -358,7 +358,13 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
         p = model_parent.get(i)
         world[i] = local if p is None else world[p] @ local
         rest[i] = resting if p is None else rest[p] @ resting
-    rest.update(_bind_pose(objects, rest))
+    bound = _bind_pose(objects, rest)
+    rest.update(bound)
+    creator = top.get("Creator")
+    if not bound and curves is not None and creator is not None and str(creator.props[:1]).find("Blender") >= 0:
+        log.warning("%s: an armature Blender wrote without its mesh holds no rest pose (no BindPose): its joints' "
+                    "values, the pose of the frame it was exported at, are taken as its rest, the twist about each "
+                    "limb that frame's; export the rig with its mesh, or as USD or BVH", src)
     skeleton = skeleton_of(joints, {i: _name(models[i]) for i in joints}, model_parent, order, world, rest,
                            1.0 / fps)
     return skeleton._replace(take=_name(stack)) if len(stacks) > 1 else skeleton

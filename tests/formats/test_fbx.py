@@ -2,6 +2,7 @@
 write them (joints of LimbNode Models with pre-rotations and Euler orders, an Armature Null above them scaling
 centimetres to metres, curves per axis, compressed arrays, a BindPose), read back as the SMPL motion they move as."""
 
+import logging
 import struct
 import zlib
 
@@ -102,7 +103,7 @@ def _p70(*entries):
 
 
 def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None,
-            takes=None, ascii=False, floor_joint=False):
+            takes=None, ascii=False, floor_joint=False, creator=None):
     """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
     metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
     and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
@@ -110,7 +111,8 @@ def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, ext
     added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s. takes:
     {stack name: (poses, trans)}, one animation stack (and layer) each, instead of 'Take 001' of `poses`;
     ascii: an ASCII FBX of the same nodes; floor_joint: the hips (their translation curves the path) under a
-    static 'root' joint at the Armature's origin, as game engines' rigs are."""
+    static 'root' joint at the Armature's origin, as game engines' rigs are; creator: the file's Creator
+    ('Blender (stable FBX IO) ...')."""
     takes = takes or {"Take 001": (poses, trans)}
     moving = {name: rig_motion(*motion, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, motion in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()))
@@ -192,7 +194,10 @@ def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, ext
     connections = _node("Connections", [], [_node("C", [("S", kind), ("L", a), ("L", b)]
                                                    + ([("S", rest[0])] if rest else []))
                                             for kind, a, b, *rest in links])
-    return write_fbx(path, [settings, _node("Objects", [], objects), connections], ascii=ascii)
+    top = [settings, _node("Objects", [], objects), connections]
+    if creator:
+        top.insert(0, _node("Creator", [("S", creator)]))
+    return write_fbx(path, top, ascii=ascii)
 
 
 @pytest.mark.parametrize("bind_pose, ascii", [(False, False), (True, False), (True, True)])
@@ -209,6 +214,19 @@ def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose, 
     assert m.fps == pytest.approx(30) and m.poses.shape == (5, 24, 3) and m.rest_up == "y"
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
+def test_a_blender_fbx_of_an_armature_without_its_mesh_is_warned_about(tmp_path, caplog):
+    """Blender writes an armature without a mesh with no BindPose, its joints' values the pose of the frame it
+    exported at: that is taken as the rest, warned (not for another tool's file, nor for one with a BindPose)."""
+    poses, trans = _motion(3, seed=5)
+    blender = "Blender (stable FBX IO) - 4.2.0 - 5.12.4"
+    for creator, bind_pose, warned in ((blender, False, True), (blender, True, False), ("FBX SDK", False, False)):
+        caplog.clear()
+        path = rig_fbx(tmp_path / "arm.fbx", poses, trans, creator=creator, bind_pose=bind_pose)
+        with caplog.at_level(logging.WARNING):
+            load_motion(path, world_checks=False)
+        assert ("an armature Blender wrote without its mesh holds no rest pose" in caplog.text) == warned, caplog.text
 
 
 def test_hips_animated_under_a_root_joint_at_the_floor_carry_the_path(tmp_path):
