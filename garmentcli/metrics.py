@@ -24,10 +24,33 @@ _FORMATS = {"json": ("json",), "csv": ("csv",), "md": ("md",), "all": ("json", "
 
 
 def _read_sequence(path: Path):
-    """`formats.sequence.read_sequence`, imported on use so `garment --help` stays quick."""
-    from formats.sequence import read_sequence
+    """`formats.sequence.read_sequence`, imported on use so `garment --help` stays quick; a point cache (.pc2,
+    .mdd: `formats.pointcache`, in the garment file's Y-up frame, as `bake --point-cache` writes it) turned to the
+    bakes' Z-up world, without faces (the other side's are taken: `_borrow_faces`)."""
+    from formats.sequence import Sequence, read_sequence
 
-    return read_sequence(path)
+    if Path(path).suffix.lower() not in (".pc2", ".mdd"):
+        return read_sequence(path)
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+    from formats.pointcache import read_point_cache
+
+    points, stamps = read_point_cache(Path(path))
+    steps = np.diff(stamps)
+    fps = 1.0 / float(np.median(steps)) if Path(path).suffix.lower() == ".mdd" and len(steps) and \
+        np.median(steps) > 0 else None  # MDD's times are seconds; PC2's are frames
+    return Sequence((points @ Y_UP_TO_Z_UP_MATRIX.T).astype(np.float32), np.zeros((0, 3), np.int64), fps,
+                    source=str(path))
+
+
+def _borrow_faces(p_seq, g_seq, pred: Path, gt: Path):
+    """(p_seq, g_seq), a point cache (no faces) given the other side's mesh; InputError where both are caches."""
+    from dataclasses import replace
+
+    if not len(p_seq.faces) and not len(g_seq.faces):
+        raise InputError(f"'{pred}' and '{gt}' are point caches: expected one of them with its mesh (a bake's folder, "
+                         f"OBJ frames, a USD stage or an .npz) to give the other its faces")
+    return (p_seq if len(p_seq.faces) else replace(p_seq, faces=g_seq.faces),
+            g_seq if len(g_seq.faces) else replace(g_seq, faces=p_seq.faces))
 
 
 def _inside_fn(depth_m: float):
@@ -204,7 +227,8 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
     """Compare a predicted garment sequence PRED with a ground truth GT.
 
     PRED and GT are bake output directories, OBJ-sequence directories, USD files or .npz sequences of the
-    same garment mesh with the same number of frames; or two `garment bake --out` directories, compared bake
+    same garment mesh with the same number of frames (one of them may be a .pc2 or .mdd point cache of its points,
+    in the garment file's Y-up frame, as `bake --point-cache` writes it: the other's faces are taken); or two `garment bake --out` directories, compared bake
     by bake (those of the same name), with a table of every bake (metrics_batch.* with --out). Prints E_verts (mm),
     E_vnorm and E_fnorm (deg), E_edge (%), E_curv (1/m^2) (paper Eqs. 11-15),
     and the share of garment vertices inside the body when PRED (or GT)
@@ -302,6 +326,7 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
 
     p_seq = _read_sequence(pred)
     g_seq = _read_sequence(gt)
+    p_seq, g_seq = _borrow_faces(p_seq, g_seq, pred, gt)
     if p_seq.fps is not None and g_seq.fps is not None and not np.isclose(p_seq.fps, g_seq.fps, rtol=1e-6):
         raise InputError(f"'{pred}' is at {p_seq.fps:g} fps, '{gt}' at {g_seq.fps:g} fps: expected the same frame "
                          "rate (resample one of them to match)")

@@ -561,7 +561,8 @@ def test_start_frame_numbers_the_usd_time_codes_and_obj_frames(scene):
 def test_point_caches_hold_the_obj_frames_in_the_garment_files_frame(scene):
     """--point-cache pc2 --point-cache mdd: <garment>_<motion>.pc2 and .mdd beside the stage hold every OBJ frame's
     points in their order, turned back to the garment file's Y-up frame, numbered from --start-frame (MDD: its
-    times in seconds); an unknown format is refused before any work."""
+    times in seconds), which `metrics` reads against the bake (the same points: zero error); an unknown format is
+    refused before any work."""
     from core.geometry import Y_UP_TO_Z_UP_MATRIX
     from formats.pointcache import read_point_cache
     from formats.sequence import read_sequence
@@ -580,6 +581,12 @@ def test_point_caches_hold_the_obj_frames_in_the_garment_files_frame(scene):
         np.testing.assert_allclose(points @ Y_UP_TO_Z_UP_MATRIX.T, frames, atol=1e-6)
         np.testing.assert_allclose(read_stamps, stamps, rtol=1e-6)
     assert sorted(p.name for p in d.glob("shell_walk.*")) == ["shell_walk.mdd", "shell_walk.pc2", "shell_walk.usd"]
+    for cache in ("shell_walk.pc2", "shell_walk.mdd"):  # metrics reads a cache as GT, the bake's faces taken
+        r = run(["metrics", d, d / cache])
+        assert r.exit_code == 0, r.output
+        assert [float(v) for v in r.output.strip().splitlines()[-1].strip("|").split("|")[:5]] == [0.0] * 5
+    assert_one_line_error(run(["metrics", d / "shell_walk.pc2", d / "shell_walk.mdd"]), "are point caches: expected "
+                          "one of them with its mesh")
     assert_one_line_error(run(["bake", *common, "--point-cache", "abc", "--out", scene["out"] / "bad"]),
                           "--point-cache", "'abc' is not one of 'pc2', 'mdd'")
     assert not (scene["out"] / "bad").exists()
