@@ -3,10 +3,10 @@ VRoid's, a game engine's) turned into SMPL joint rotations and translation: what
 `formats.gltf` read a BVH, an FBX or a glTF of such a rig as.
 
 Joints are matched by name to roles (`_ROLE_NAMES`: 'LeftUpLeg', 'L_Thigh', 'thigh_l', 'Bip01 L Thigh', 'HipLeft'
-are all the left hip; a prefix all the joints share dropped, `joint_keys`), the spine by the skeleton's shape (the joints from the pelvis to the neck; the chest the one the arms
-hang from). Each matched SMPL joint takes its rig joint's world rotation, composed with a fixed rotation that
-turns SMPL's rest bone onto the rig's rest bone (`_rest_turns`: the bone's direction, and the body's forward, or
-up for a bone along forward): a rig resting in an A-pose, or with bones of other lengths, moves SMPL's bones
+are all the left hip; a prefix all the joints share dropped, `joint_keys`), the spine by the skeleton's shape (the
+joints from the pelvis to the neck; the chest the one the arms hang from). Each matched SMPL joint takes its rig
+joint's world rotation, composed with a fixed rotation that turns SMPL's rest bone onto the rig's rest bone
+(`_rest_turns`: the bone's direction, and the body's forward, or up for a bone along forward): a rig resting in an A-pose, or with bones of other lengths, moves SMPL's bones
 along its own. SMPL joints the rig lacks (a second spine joint, the collars, the toes) follow their parent;
 rig joints SMPL lacks (fingers, twist joints, a hip joint between the pelvis and the thigh) pass their rotation
 on to the next matched joint. The pelvis's path is scaled by SMPL's legs over the rig's (its unit too), so the

@@ -228,11 +228,10 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
 
     PRED and GT are bake output directories, OBJ-sequence directories, USD files or .npz sequences of the
     same garment mesh with the same number of frames (one of them may be a .pc2 or .mdd point cache of its points,
-    in the garment file's Y-up frame, as `bake --point-cache` writes it: the other's faces are taken); or two `garment bake --out` directories, compared bake
-    by bake (those of the same name), with a table of every bake (metrics_batch.* with --out). Prints E_verts (mm),
-    E_vnorm and E_fnorm (deg), E_edge (%), E_curv (1/m^2) (paper Eqs. 11-15),
-    and the share of garment vertices inside the body when PRED (or GT)
-    carries a body mesh.
+    in the garment file's Y-up frame, as `bake --point-cache` writes it: the other's faces are taken); or two
+    `garment bake --out` directories, compared bake by bake (those of the same name), with a table of every bake
+    (metrics_batch.* with --out). Prints E_verts (mm), E_vnorm and E_fnorm (deg), E_edge (%), E_curv (1/m^2)
+    (paper Eqs. 11-15), and the share of garment vertices inside the body when PRED (or GT) carries a body mesh.
     """
     from formats.report import BATCH_REPORT_NAMES, REPORT_NAMES, markdown_table, write_batch_report
 

@@ -124,7 +124,8 @@ RIGS = {
                                  "FullBody_Chest", "FullBody_Neck", "FullBody_Head"],
                                 "FullBody_{}Shoulder FullBody_{}Scapula FullBody_{}ArmUpper FullBody_{}ArmLower "
                                 "FullBody_{}HandWristTwist FullBody_{}HandWrist",
-                                "FullBody_{}UpperLeg FullBody_{}LowerLeg FullBody_{}FootAnkleTwist FullBody_{}FootAnkle "
+                                "FullBody_{}UpperLeg FullBody_{}LowerLeg FullBody_{}FootAnkleTwist "
+                                "FullBody_{}FootAnkle "
                                 "FullBody_{}FootSubtalar FullBody_{}FootTransverse FullBody_{}FootBall",
                                 "FullBody_Chest"),
                            {"pelvis": "FullBody_Hips", "spine3": "FullBody_Chest",

@@ -55,9 +55,10 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
     under its knee, its place and turn animated there; controls: a chain of that many static 'Ctrl' joints under
     the Armature beside the skeleton (a control rig larger than it), in the skin; vrm: the joint nodes named
     'bone<k>', a VRM Animation humanoid map naming their roles. The skin's inverse bind matrices are the rest's;
-    posed: each joint node's own rotation but the hips' and the first spine joint's then turned this many degrees about
-    a random axis (a file saved with its character posed: the animation is the same); bind_space: (4, 4) the space the mesh was bound in, from the
-    world (the matrices as `inv(bind_space @ world)`; default: the world, as glTF says)."""
+    posed: each joint node's own rotation but the hips' and the first spine joint's then turned this many degrees
+    about a random axis (a file saved with its character posed: the animation is the same); bind_space: (4, 4) the
+    space the mesh was bound in, from the world (the matrices as `inv(bind_space @ world)`; default: the world, as
+    glTF says)."""
     moving = {name: rig_motion(*m, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, m in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()))
     rng = np.random.default_rng(seed)
