@@ -6,12 +6,12 @@ Joints are matched by name to roles (`_ROLE_NAMES`: 'LeftUpLeg', 'L_Thigh', 'thi
 are all the left hip; a prefix all the joints share dropped, `joint_keys`), the spine by the skeleton's shape (the
 joints from the pelvis to the neck; the chest the one the arms hang from). Each matched SMPL joint takes its rig
 joint's world rotation, composed with a fixed rotation that turns SMPL's rest bone onto the rig's rest bone
-(`_rest_turns`: the bone's direction, and the body's forward, or up for a bone along forward): a rig resting in an A-pose, or with bones of other lengths, moves SMPL's bones
-along its own. SMPL joints the rig lacks (a second spine joint, the collars, the toes) follow their parent;
-rig joints SMPL lacks (fingers, twist joints, a hip joint between the pelvis and the thigh) pass their rotation
-on to the next matched joint. The pelvis's path is scaled by SMPL's legs over the rig's (its unit too), so the
-feet keep their stride. Joint positions along the bones agree exactly where the rig's joints between two matched
-ones do not turn; the twist about a limb is the rig's.
+(`_rest_turns`: the bone's direction, and the body's forward, or up for a bone along forward): a rig resting in an
+A-pose, or with bones of other lengths, moves SMPL's bones along its own. SMPL joints the rig lacks (a second spine
+joint, the collars, the toes) follow their parent; rig joints SMPL lacks (fingers, twist joints, a hip joint between
+the pelvis and the thigh) pass their rotation on to the next matched joint. The pelvis's path is scaled by SMPL's
+legs over the rig's (its unit too), so the feet keep their stride. Joint positions along the bones agree exactly
+where the rig's joints between two matched ones do not turn; the twist about a limb is the rig's.
 
 The bones are turned from the rig's rest pose (all its rotations zero) where it stands (legs down from the hips,
 the head above the pelvis). A rig whose zero pose folds the body (LAFAN1's: every bone along its joint's own X)
