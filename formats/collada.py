@@ -70,13 +70,16 @@ def _read(root: ET.Element, src: str) -> Skeleton:
 
     walk(scene, None)
     joints = [i for i, n in enumerate(nodes) if n.get("type") == "JOINT"]
+    if not joints:  # some exporters leave joints of type NODE: the ones a skin names
+        named = {name for skin in _skins(root, ns) for name in _source(by_id, ns, skin[0])[0]}
+        joints = [i for i, n in enumerate(nodes) if named & {n.get("sid"), n.get("id"), n.get("name")}]
     if not joints:
         raise InputError(f"{src}: expected a COLLADA skeleton (nodes of type JOINT), found {len(nodes)} node(s) and no "
                          f"joint: export the character's armature with its animation")
     elements = [[(e.tag[len(ns):], e.get("sid"), _floats(e.text)) for e in n if e.tag[len(ns):] in _ELEMENTS]
                 for n in nodes]
     index = {n.get("id"): i for i, n in enumerate(nodes) if n.get("id")}
-    channels = _channels(root, ns, by_id, index, elements, src)
+    channels = _channels(root, ns, by_id, index, elements)
     if not channels:
         log.warning("%s: no animation of its joints: its one frame is the skeleton as it stands", src)
         t, fps = np.zeros(1), DEFAULT_FPS
@@ -134,7 +137,7 @@ def _source(by_id: dict, ns: str, ref: str) -> tuple[np.ndarray | list[str], int
     return (names.text or "").split(), stride
 
 
-def _channels(root: ET.Element, ns: str, by_id: dict, index: dict, elements: list, src: str) -> dict:
+def _channels(root: ET.Element, ns: str, by_id: dict, index: dict, elements: list) -> dict:
     """{(node, (element, member)): (times (K,), values (K, width), interpolation)} of every channel that animates
     a node's transform element; member: None (the whole element), a component (0-3) or a matrix entry (r, c)."""
     out = {}
@@ -221,28 +224,33 @@ def _sampled_matrices(times: np.ndarray, values: np.ndarray, interpolation: str,
     return out
 
 
+def _skins(root: ET.Element, ns: str) -> list[tuple[str, str]]:
+    """(JOINT source, INV_BIND_MATRIX source) of each skin of the file's controllers."""
+    out = []
+    for joints in root.iter(f"{ns}joints"):
+        inputs = {i.get("semantic"): i.get("source") for i in joints.findall(f"{ns}input")}
+        if "JOINT" in inputs and "INV_BIND_MATRIX" in inputs:
+            out.append((inputs["JOINT"], inputs["INV_BIND_MATRIX"]))
+    return out
+
+
 def _bind_pose(root: ET.Element, ns: str, by_id: dict, nodes: list, joints: list, rest: dict, src: str,
                names: dict) -> dict:
     """The joints' bind pose (`formats.gltf.bind_from_inverse`) of the file's skin of the most joints, its joints
     named by sid (else id or name); {} where it has none."""
-    skins = [s for s in root.iter(f"{ns}skin") if s.find(f"{ns}joints") is not None]
-    best = ({}, None)
-    for skin in skins:
-        inputs = {i.get("semantic"): i.get("source") for i in skin.find(f"{ns}joints").findall(f"{ns}input")}
-        if "JOINT" not in inputs or "INV_BIND_MATRIX" not in inputs:
-            continue
-        listed, _ = _source(by_id, ns, inputs["JOINT"])
-        matrices, _ = _source(by_id, ns, inputs["INV_BIND_MATRIX"])
+    bound: dict = {}
+    for joint_source, matrix_source in _skins(root, ns):
+        listed, _ = _source(by_id, ns, joint_source)
+        matrices, _ = _source(by_id, ns, matrix_source)
         lookup = {}
         for j in joints:
             for key in (nodes[j].get("sid"), nodes[j].get("id"), nodes[j].get("name")):
                 if key:
                     lookup.setdefault(key, j)
         found = [lookup.get(n) for n in listed]
-        if len(matrices) == 16 * len(listed) and len([f for f in found if f is not None]) > len(best[0]):
+        if len(matrices) == 16 * len(listed) and len([f for f in found if f is not None]) > len(bound):
             ibm = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
-            best = ({f: m for f, m in zip(found, ibm) if f is not None}, skin)
-    bound, _ = best
+            bound = {f: m for f, m in zip(found, ibm) if f is not None}
     if not bound:
         return {}
     ids = list(bound)

@@ -124,15 +124,23 @@ def test_a_collada_rig_reads_as_the_smpl_motion_it_moves_as(tmp_path, elements, 
 
 
 def test_a_collada_without_joints_damaged_or_still_is_one_line_or_one_frame(tmp_path, caplog):
+    """No JOINT node and no skin naming any, XML cut short, another document: one line; no animation: one frame of
+    its rest, warned; joints written as type NODE are the ones its skin names."""
     poses, trans = _motion(2, seed=43)
     good = rig_dae(tmp_path / "good.dae", poses, trans).read_text()
-    cases = [(good.replace('type="JOINT"', 'type="NODE"').encode(),
+    start, stop = good.index("<library_controllers>"), good.index("</library_controllers>")
+    no_skin = good[:start] + good[stop + len("</library_controllers>"):]
+    cases = [(no_skin.replace('type="JOINT"', 'type="NODE"').encode(),
               "expected a COLLADA skeleton (nodes of type JOINT), found 28 node(s) and no joint"),
              (good[:len(good) // 2].encode(), "expected a COLLADA file (XML), got XML that does not parse"),
              (b'<?xml version="1.0"?><scene/>', "expected a COLLADA document (a <COLLADA> root), got <scene>")]
     assert_each_refused(tmp_path / "bad.dae", cases)
     start, stop = good.index("<library_animations>"), good.index("</library_animations>")
     (tmp_path / "still.dae").write_text(good[:start] + good[stop + len("</library_animations>"):])
+    # joints of type NODE, as some exporters write them: the ones the skin names
+    (tmp_path / "nodes.dae").write_text(good.replace('type="JOINT"', 'type="NODE"'))
+    np.testing.assert_allclose(load_motion(tmp_path / "nodes.dae", world_checks=False).poses,
+                               load_motion(tmp_path / "good.dae", world_checks=False).poses, atol=1e-12)
     with caplog.at_level(logging.WARNING):
         m = load_motion(tmp_path / "still.dae", world_checks=False)
     assert "no animation of its joints: its one frame is the skeleton as it stands" in caplog.text
