@@ -108,7 +108,7 @@ def canonical(name: str) -> str:
     """A joint's name as matched: no 'namespace:', no rig prefix or suffix, lower case letters and digits, the side
     ('Left', 'L', a '_l' or '.L' suffix, a 'Left' ending the name) a leading 'l' or 'r' ('_M', the middle,
     dropped)."""
-    n = name.rsplit(":", 1)[-1].lower().strip()
+    n = re.sub(r"^m(?=[A-Z])", "", name.rsplit(":", 1)[-1].strip()).lower()  # Second Life's 'mHipLeft
     n = _SUFFIXES.sub("", _PREFIXES.sub("", n))
     side = re.search(r"[ _.\-](l|r|left|right|m|c)$", n)  # a side, or the middle (AdvancedSkeleton's 'Head_M')
     if side:

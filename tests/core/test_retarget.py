@@ -158,6 +158,20 @@ RIGS = {
                   "left_shoulder": "L_shoulder_bind_jnt", "left_elbow": "L_elbow_bind_jnt",
                   "left_wrist": "L_wrist_bind_jnt", "left_hip": "L_hip_jnt", "left_ankle": "L_ankle_jnt",
                   "left_foot": "L_ball_jnt"}),
+    "roblox_r15": (_rig(["HumanoidRootPart", "LowerTorso", "UpperTorso", "Head"], "{}UpperArm {}LowerArm {}Hand",
+                        "{}UpperLeg {}LowerLeg {}Foot", "UpperTorso", leg_under=1),
+                   {"pelvis": "LowerTorso", "spine1": "UpperTorso", "left_shoulder": "LeftUpperArm",
+                    "left_elbow": "LeftLowerArm", "left_wrist": "LeftHand", "left_hip": "LeftUpperLeg",
+                    "left_knee": "LeftLowerLeg", "left_ankle": "LeftFoot"}),
+    "second_life": (_rig(["hip", "abdomen", "chest", "neck", "head"], "{}Collar {}Shldr {}ForeArm {}Hand",
+                         "{}Thigh {}Shin {}Foot", "chest", sides=("l", "r")),
+                    {"pelvis": "hip", "spine1": "abdomen", "spine3": "chest", "left_collar": "lCollar",
+                     "left_shoulder": "lShldr", "left_elbow": "lForeArm", "left_hip": "lThigh", "left_knee": "lShin"}),
+    "second_life_bento": (_rig(["mPelvis", "mTorso", "mChest", "mNeck", "mHead"],
+                               "mCollar{} mShoulder{} mElbow{} mWrist{}", "mHip{} mKnee{} mAnkle{} mFoot{}", "mChest"),
+                          {"pelvis": "mPelvis", "spine1": "mTorso", "spine3": "mChest", "left_collar": "mCollarLeft",
+                           "left_shoulder": "mShoulderLeft", "left_elbow": "mElbowLeft", "left_wrist": "mWristLeft",
+                           "left_hip": "mHipLeft", "left_ankle": "mAnkleLeft", "left_foot": "mFootLeft"}),
     "rigify": (_rig(["DEF-spine", "DEF-spine.001", "DEF-spine.002", "DEF-spine.003", "DEF-spine.004", "DEF-spine.005",
                      "DEF-spine.006"],
                     "DEF-shoulder.{} DEF-upper_arm.{} DEF-upper_arm.{}.001 DEF-forearm.{} DEF-forearm.{}.001 "
@@ -180,8 +194,9 @@ def test_each_rigs_joints_match_smpls_by_name_and_the_spine_by_shape(rig):
     MotionBuilder's HumanIK ('Character1_' before each), Kinect's (the side a word at the end: 'KneeLeft'), Meta's
     body tracking ('FullBody_LeftArmUpper'), MakeHuman's ('upperarm01.L', beside its twist joint) and Blender
     Rigify's deform bones (the head and neck numbered along the spine: 'DEF-spine.006'), Apple ARKit's
-    ('left_upLeg_joint') and a Maya rig's ('L_elbow_bind_jnt') each match SMPL's joints as their rigs mean them;
-    every match of the left side has its right."""
+    ('left_upLeg_joint'), a Maya rig's ('L_elbow_bind_jnt'), Roblox's R15 ('LeftUpperLeg' under 'LowerTorso') and
+    Second Life's (its BVH names, 'lShldr', and its Bento skeleton's, 'mHipLeft') each match SMPL's joints as
+    their rigs mean them; every match of the left side has its right."""
     (names, parents), expected = RIGS[rig]
     match = {SMPL_JOINT_NAMES[k]: names[j] for k, j in match_joints(names, parents, "rig").items()}
     for smpl, name in expected.items():
