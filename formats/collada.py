@@ -27,7 +27,7 @@ from core.errors import InputError, read_input
 from core.rotations import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix
 from formats.bvh import Skeleton
 from formats.fbx import MAX_FRAMES, skeleton_of
-from formats.gltf import DEFAULT_FPS, _sampled, bind_from_inverse, key_rate
+from formats.gltf import DEFAULT_FPS, bind_from_inverse, key_rate, sampled_keys
 
 log = logging.getLogger(__name__)
 
@@ -182,10 +182,10 @@ def _local(elements: list, animated: dict, t: np.ndarray) -> np.ndarray:
         else:
             values = np.broadcast_to(static, (len(t), len(static))).copy()
             if whole is not None:
-                values = _sampled(*whole, t, False)
+                values = sampled_keys(*whole, t, False)
             for (element, part), channel in animated.items():
                 if element == k and part is not None:
-                    sampled = _sampled(*channel, t, False)[:, 0]
+                    sampled = sampled_keys(*channel, t, False)[:, 0]
                     if isinstance(part, tuple):
                         values[:, part[0] * 4 + part[1]] = sampled
                     else:
@@ -218,9 +218,9 @@ def _sampled_matrices(times: np.ndarray, values: np.ndarray, interpolation: str,
     R = M[:, :3, :3] / np.maximum(scale[:, None, :], 1e-12)
     q = matrix_to_quat(R)  # w x y z; slerped along the shorter arc between keys
     out = np.broadcast_to(np.eye(4), (len(t), 4, 4)).copy()
-    out[:, :3, :3] = quat_to_matrix(_sampled(times, q, interpolation, t, True)) \
-        * _sampled(times, scale, interpolation, t, False)[:, None, :]
-    out[:, :3, 3] = _sampled(times, M[:, :3, 3], interpolation, t, False)
+    out[:, :3, :3] = quat_to_matrix(sampled_keys(times, q, interpolation, t, True)) \
+        * sampled_keys(times, scale, interpolation, t, False)[:, None, :]
+    out[:, :3, 3] = sampled_keys(times, M[:, :3, 3], interpolation, t, False)
     return out
 
 

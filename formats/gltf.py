@@ -26,9 +26,9 @@ from urllib.parse import unquote
 import numpy as np
 
 from core.errors import InputError, read_input
+from core.retarget import PELVIS_NAMES, canonical, role_names
 from core.rotations import quat_slerp, quat_to_matrix
 from formats.bvh import Skeleton
-from core.retarget import PELVIS_NAMES, canonical, role_names
 from formats.fbx import MAX_FRAMES, chosen_take, node_depths, skeleton_of
 
 log = logging.getLogger(__name__)
@@ -141,7 +141,7 @@ def _accessor(doc: dict, buffers: list[bytes], index: int) -> np.ndarray:
     return out
 
 
-def _sampled(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndarray, rotation: bool
+def sampled_keys(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndarray, rotation: bool
              ) -> np.ndarray:
     """(T, width) a channel's values at times `t` (held beyond its first and last keys)."""
     if interpolation == "CUBICSPLINE":  # per key: in-tangent, value, out-tangent
@@ -390,7 +390,7 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
     world, rest = {}, {}
     for i in (i for i in order if i in needed):
         node = nodes[i]
-        animated = {path: _sampled(*channels[(i, path)], t, path == "rotation")
+        animated = {path: sampled_keys(*channels[(i, path)], t, path == "rotation")
                     for path in ("translation", "rotation", "scale") if (i, path) in channels}
         local = _local(node, animated.get("translation"), animated.get("rotation"), animated.get("scale"), len(t))
         resting = _local(node)[0]

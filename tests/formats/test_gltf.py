@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from core.errors import InputError
 from core.rotations import axis_angle_to_matrix
-from formats.gltf import VRM_BONES, key_rate, _sampled
+from formats.gltf import VRM_BONES, key_rate, sampled_keys
 from formats.motion import load_motion, motion_takes
 from tests.formats.test_bvh import MIXAMO, _motion, rig_motion
 from tests.formats.test_motion import _assert_one_line, assert_each_refused
@@ -296,16 +296,16 @@ def test_channels_are_sampled_as_gltf_interpolates_them():
     times = np.array([0.0, 0.4, 0.5, 1.2])
     t = np.linspace(-0.1, 1.3, 57)
     quats = Rotation.random(4, random_state=rng)
-    got = Rotation.from_quat(_sampled(times, quats.as_quat(), "LINEAR", t, rotation=True))
+    got = Rotation.from_quat(sampled_keys(times, quats.as_quat(), "LINEAR", t, rotation=True))
     want = Slerp(times, quats)(np.clip(t, 0, 1.2))
     assert np.max((got.inv() * want).magnitude()) < 1e-6
     values = rng.normal(size=(4, 3))
-    np.testing.assert_allclose(_sampled(times, values, "LINEAR", t, False),
+    np.testing.assert_allclose(sampled_keys(times, values, "LINEAR", t, False),
                                np.stack([np.interp(t, times, v) for v in values.T], 1), atol=1e-12)
-    steps = _sampled(times, values, "STEP", t, False)
+    steps = sampled_keys(times, values, "STEP", t, False)
     np.testing.assert_allclose(steps, values[np.clip(np.searchsorted(times, t, side="right") - 1, 0, 3)])
     tangents = rng.normal(size=(4, 3))
-    cubic = _sampled(times, np.stack([tangents, values, tangents], 1).reshape(12, 3), "CUBICSPLINE", t, False)
+    cubic = sampled_keys(times, np.stack([tangents, values, tangents], 1).reshape(12, 3), "CUBICSPLINE", t, False)
     inside = (t >= 0) & (t <= 1.2)
     np.testing.assert_allclose(cubic[inside], CubicHermiteSpline(times, values, tangents)(t[inside]), atol=1e-12)
     assert key_rate([np.arange(10) / 60.0]) == 60.0 and key_rate([np.arange(5) / 24.0]) == 24.0
