@@ -7,7 +7,7 @@ The joints are the visual scene's nodes of type JOINT, their hierarchy the nodes
 the channels that target them: a whole matrix ('<node>/transform', as Blender and Mixamo write a key per frame),
 or an element or one of its components ('<node>/rotateX.ANGLE', '<node>/translate.X', as Maya and 3ds Max do).
 Keys are interpolated as their sampler says (LINEAR; STEP; BEZIER and HERMITE curves taken as straight lines
-between keys), a matrix's rotation slerped; frames are spaced as the keys are (`formats.gltf.key_rate`), from the
+between keys), a matrix's rotation slerped; frames are spaced as the keys are (`formats.gltf.key_times`), from the
 first key to the last. All the file's channels are one take. The rest pose is the skin's bind pose (its
 INV_BIND_MATRIX, placed as glTF's inverse bind matrices are: `formats.gltf.bind_from_inverse`), else the nodes'
 own transforms. `core.retarget` reads the rest's world and the legs' unit as for any rig. A file of no JOINT node
@@ -26,8 +26,8 @@ import numpy as np
 from core.errors import InputError, read_input
 from core.rotations import axis_angle_to_matrix, matrix_to_quat, quat_to_matrix
 from formats.bvh import Skeleton
-from formats.fbx import MAX_FRAMES, skeleton_of
-from formats.gltf import DEFAULT_FPS, bind_from_inverse, key_rate, sampled_keys
+from formats.fbx import skeleton_of
+from formats.gltf import DEFAULT_FPS, bind_from_inverse, key_times, sampled_keys
 
 log = logging.getLogger(__name__)
 
@@ -84,14 +84,7 @@ def _read(root: ET.Element, src: str) -> Skeleton:
         log.warning("%s: no animation of its joints: its one frame is the skeleton as it stands", src)
         t, fps = np.zeros(1), DEFAULT_FPS
     else:
-        inputs = [c[0] for c in channels.values()]
-        fps = key_rate(inputs)
-        start, stop = min(float(i[0]) for i in inputs), max(float(i[-1]) for i in inputs)
-        n = int(round((stop - start) * fps)) + 1
-        if n > MAX_FRAMES:
-            raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} fps "
-                             f"(its keys span {stop - start:,.0f} s)")
-        t = start + np.arange(n) / fps
+        t, fps = key_times([c[0] for c in channels.values()], src)
     needed = set()
     for j in joints:
         while j is not None and j not in needed:

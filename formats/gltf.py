@@ -199,6 +199,20 @@ def key_rate(inputs: list[np.ndarray]) -> float:
     return near if abs(near - fps) <= 0.005 * near else round(fps, 3)
 
 
+def key_times(inputs: list[np.ndarray], src: str, per_second: float = 1.0, what: str = "keys"
+              ) -> tuple[np.ndarray, float]:
+    """(the times of the frames, frames per second) of an animation's channels' key times `inputs` (in units
+    `per_second` a second: seconds, or USD's time codes): spaced at `key_rate`, from the first key to the last;
+    InputError naming `src` for more than MAX_FRAMES frames."""
+    fps = key_rate([i / per_second for i in inputs])
+    start, stop = min(float(i[0]) for i in inputs), max(float(i[-1]) for i in inputs)
+    n = int(round((stop - start) / per_second * fps)) + 1
+    if n > MAX_FRAMES:
+        raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} fps "
+                         f"(its {what} span {(stop - start) / per_second:,.0f} s)")
+    return start + np.arange(n) / (fps / per_second), fps
+
+
 def _local(node: dict, T=None, R=None, S=None, n: int = 1) -> np.ndarray:
     """(n, 4, 4) a node's local transforms: its matrix, or its translation, rotation and scale (each the
     animated values (n, width) where given, else the node's own)."""
@@ -374,14 +388,7 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
         log.warning("%s: no animation of its nodes: its one frame is the skeleton as it stands", src)
         t, fps = np.zeros(1), DEFAULT_FPS
     else:
-        inputs = [c[0] for c in channels.values()]
-        fps = key_rate(inputs)
-        start, stop = min(float(i[0]) for i in inputs), max(float(i[-1]) for i in inputs)
-        n = int(round((stop - start) * fps)) + 1
-        if n > MAX_FRAMES:
-            raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} "
-                             f"fps (its keys span {stop - start:,.0f} s)")
-        t = start + np.arange(n) / fps
+        t, fps = key_times([c[0] for c in channels.values()], src)
     needed = set()  # the joints and the nodes above them: the others' transforms are not computed
     for j in joints:
         while j is not None and j not in needed:

@@ -28,8 +28,8 @@ from core.errors import InputError
 from core.retarget import role_names
 from core.rotations import quat_to_matrix
 from formats.bvh import Skeleton
-from formats.fbx import MAX_FRAMES, chosen_take, skeleton_of
-from formats.gltf import DEFAULT_FPS, key_rate
+from formats.fbx import chosen_take, skeleton_of
+from formats.gltf import DEFAULT_FPS, key_times
 from formats.usd import open_stage
 
 log = logging.getLogger(__name__)
@@ -159,7 +159,7 @@ def _authored(animation) -> bool:
 
 def _frame_times(stage: Usd.Stage, animation, src: str) -> tuple[np.ndarray | None, float]:
     """(the time codes of the frames, frames per second) of `animation`'s samples: spaced as its most sampled
-    attribute's (`formats.gltf.key_rate`), from its first sample to its last; one frame where it holds static
+    attribute's (`formats.gltf.key_times`), from its first sample to its last; one frame where it holds static
     values only; (None, 0) where it holds none (or there is none)."""
     if animation is None:
         return None, 0.0
@@ -169,13 +169,7 @@ def _frame_times(stage: Usd.Stage, animation, src: str) -> tuple[np.ndarray | No
     samples = [s for s in samples if len(s)]
     if not samples:
         return (np.zeros(1), DEFAULT_FPS) if _authored(animation) else (None, 0.0)
-    fps = key_rate([s / per_second for s in samples])
-    start, stop = min(float(s[0]) for s in samples), max(float(s[-1]) for s in samples)
-    n = int(round((stop - start) / per_second * fps)) + 1
-    if n > MAX_FRAMES:
-        raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} fps "
-                         f"(its samples span {(stop - start) / per_second:,.0f} s)")
-    return start + np.arange(n) * (per_second / fps), fps
+    return key_times(samples, src, per_second, "samples")
 
 
 def _animate(local: np.ndarray, animation, tokens: list[str], times: np.ndarray, rest_local: np.ndarray) -> None:
