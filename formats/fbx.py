@@ -360,8 +360,8 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
         rest[i] = resting if p is None else rest[p] @ resting
     bound = _bind_pose(objects, rest)
     rest.update(bound)
-    creator = top.get("Creator")
-    if not bound and curves is not None and creator is not None and str(creator.props[:1]).find("Blender") >= 0:
+    creator = str(top["Creator"].props[:1]) if "Creator" in top else ""
+    if not bound and curves is not None and "Blender" in creator:
         log.warning("%s: an armature Blender wrote without its mesh holds no rest pose (no BindPose): its joints' "
                     "values, the pose of the frame it was exported at, are taken as its rest, the twist about each "
                     "limb that frame's; export the rig with its mesh, or as USD or BVH", src)
