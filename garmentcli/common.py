@@ -116,7 +116,7 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
 
 def motion_parts(path: str, person: str | None, take: str | None, say: bool = True) -> list[tuple[dict, str]]:
     """[({'person': ..., 'take': ...} to read, the suffix of its name)] of the motion file `path`: with --person
-    all, each of its tracked people ('_person<ID>'), with --take all, each of an FBX's or glTF's animations
+    all, each of its tracked people ('_person<ID>'), with --take all, each of an FBX's, glTF's or USD's animations
     ('_<take>'), said (say); the file read as it is (no suffix) where it holds one, or neither is all."""
     from formats.motion import motion_takes, tracked_people
 
@@ -144,11 +144,13 @@ def _holds_poses(path: Path) -> bool:
     True for one that cannot be read (named as a motion, it is refused with the reason)."""
     if path.suffix.lower() in (".bvh", ".mvnx"):
         return True
-    if path.suffix.lower() in (".fbx", ".dae"):  # an FBX's joints are LimbNode Models, a COLLADA's JOINT nodes
-        try:
-            return (b"LimbNode" if path.suffix.lower() == ".fbx" else b'type="JOINT"') in path.read_bytes()
+    if path.suffix.lower() in (".fbx", ".dae"):  # an FBX's joints are LimbNode Models; a COLLADA's JOINT nodes, or
+        try:  # the nodes a skin names (`formats.collada`)
+            data = path.read_bytes()
         except OSError:
             return True
+        return b"LimbNode" in data if path.suffix.lower() == ".fbx" else (b'type="JOINT"' in data
+                                                                          or b"INV_BIND_MATRIX" in data)
     from formats.gltf import GLTF_SUFFIXES, holds_skeleton
     from formats.obj import USD_SUFFIXES
 

@@ -364,7 +364,10 @@ def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_
             fps=int(round(fps)))  # a UsdSkel animation (a Y-up stage in centimetres)
     write_usd_mesh(scene["dir"] / "captures" / "cloth.usda")  # a USD of no skeleton (a garment): left out
     dae = rig_dae(scene["dir"] / "captures" / "walk_dae.dae", y_up, trans @ back.T, fps=int(round(fps)))
-    (scene["dir"] / "captures" / "prop.dae").write_text(dae.read_text().replace('type="JOINT"', 'type="NODE"'))
+    (scene["dir"] / "captures" / "walk_nodes.dae").write_text(  # joints of type NODE, named by its skin
+        dae.read_text().replace('type="JOINT"', 'type="NODE"'))
+    prop = rig_dae(scene["dir"] / "prop.dae", y_up, trans @ back.T, skin=False)  # no joint, no skin naming any
+    (scene["dir"] / "captures" / "prop.dae").write_text(prop.read_text().replace('type="JOINT"', 'type="NODE"'))
     for f in (rig, fbx):
         (scene["dir"] / "captures" / f.name).write_bytes(f.read_bytes())
     (scene["dir"] / "captures" / "prop.fbx").write_bytes(fbx.read_bytes().replace(b"LimbNode", b"MeshNode"))
@@ -372,8 +375,9 @@ def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_
                 scene["dir"] / "out_captures", "--method", "lbs"])
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in (scene["dir"] / "out_captures").iterdir()) == [
-        "shell_dance", "shell_walk_dae", "shell_walk_fbx", "shell_walk_gltf", "shell_walk_rig", "shell_walk_usd"]
-    for same in ("shell_dance", "shell_walk_usd", "shell_walk_dae"):
+        "shell_dance", "shell_walk_dae", "shell_walk_fbx", "shell_walk_gltf", "shell_walk_nodes", "shell_walk_rig",
+        "shell_walk_usd"]
+    for same in ("shell_dance", "shell_walk_usd", "shell_walk_dae", "shell_walk_nodes"):
         np.testing.assert_allclose(read_sequence(scene["dir"] / "out_captures" / same / "obj").points,
                                    read_sequence(scene["dir"] / "out_captures" / "shell_walk_gltf" / "obj").points,
                                    atol=1e-4)
