@@ -3,12 +3,15 @@ binary or ASCII), read as the skeleton and motion `core.retarget` turns into SMP
 
 The binary format (nodes of typed properties, arrays zlib-compressed or not) and its ASCII form (the same nodes
 as text) are read here, with no SDK: the skeleton's joints are its Models of type LimbNode (and Root), their
-hierarchy from the file's connections; each joint's transform per frame is FBX's (translation, pre-rotation, the
-Euler rotation in its RotationOrder, post-rotation, scaling; rotation and scaling pivots and offsets left out, as
-skeletons carry none), its animation curves sampled linearly at the file's frame rate over one animation stack
-(a take: the first, or the one `--take` names), a value without a curve its property's. The rest pose is the
-file's BindPose where it has one (the skin's bind matrices), else the joints' own property values. FBX 6 and
-files without a skeleton are refused in one line.
+hierarchy from the file's connections; each joint's transform per frame is FBX's whole chain (translation,
+rotation offset and pivot, pre-rotation, the Euler rotation in its RotationOrder, post-rotation, scaling offset
+and pivot, scaling; the parent's scaling inherited as its InheritType says), its properties over the file's
+Model template. Its animation curves are evaluated as the FBX SDK does (`curve_keys`: cubic keys' user, auto and
+TCB tangents and weights, linear, constant and constant-next keys; checked against Maya's own values in
+tests/formats/test_fbx_maya.py) at the file's frame rate over one animation stack (a take: the first, or the one
+`--take` names), a value without a curve its property's. The rest pose is the file's BindPose where it has one
+(the skin's bind matrices), else the joints' own property values. FBX 6 and files without a skeleton are refused
+in one line.
 """
 
 from __future__ import annotations
@@ -269,10 +272,10 @@ def _animation(objects: Node, links: list[tuple], stack: Node | None) -> _Curves
             curve = by_id.get(curve_id)
             if prop not in ("d|X", "d|Y", "d|Z") or curve is None:
                 continue
-            t, v = curve.child("KeyTime"), curve.child("KeyValueFloat")
-            if t is not None and v is not None and t.props and v.props and 0 < len(t.props[0]) == len(v.props[0]):
-                axes["XYZ".index(prop[2])] = (t.props[0].astype(np.int64), v.props[0].astype(np.float64))
-                times += [int(t.props[0][0]), int(t.props[0][-1])]
+            keys = curve_keys(curve)
+            if keys is not None:
+                axes["XYZ".index(prop[2])] = keys
+                times += [int(keys.ticks[0]), int(keys.ticks[-1])]
         channels[target] = axes
     if not channels:
         return None
@@ -284,14 +287,186 @@ def _animation(objects: Node, links: list[tuple], stack: Node | None) -> _Curves
 
 
 def _sampled(axes: list, static: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(T, 3) a channel's values at times `t`: its curves, else its curve node's defaults, else `static`."""
+    """(T, 3) a channel's values at times `t` (FBX ticks): its curves, else its curve node's defaults, else
+    `static`."""
     out = np.broadcast_to(static, (len(t), 3)).copy()
     for k, axis in enumerate(axes):
-        if isinstance(axis, tuple):
-            out[:, k] = np.interp(t, axis[0], axis[1])
+        if isinstance(axis, Keys):
+            out[:, k] = axis.at(t)
         elif axis is not None:
             out[:, k] = float(axis)
     return out
+
+
+#: KeyAttrFlags' bits (the FBX SDK's FbxAnimCurveDef): interpolation, tangent mode, weights.
+_CONSTANT, _LINEAR, _CUBIC = 0x2, 0x4, 0x8
+_CONSTANT_NEXT, _TCB, _USER = 0x100, 0x200, 0x400
+_CLAMP, _TIME_INDEPENDENT, _CLAMP_PROGRESSIVE = 0x1000, 0x2000, 0x4000
+_WEIGHTED_RIGHT, _WEIGHTED_NEXT_LEFT = 0x1000000, 0x2000000
+#: A key's interpolation to the next: its value held, the next's held, a straight line, a Bezier curve.
+_HOLD, _HOLD_NEXT, _STRAIGHT, _BEZIER = range(4)
+
+
+class Keys(NamedTuple):
+    """An animation curve's keys: `ticks` (K,) FBX time, `values` (K,), each key's interpolation to the next
+    (`mode`, `_HOLD`...) and its Bezier handles to the left and right as (time in seconds, value) from the key."""
+
+    ticks: np.ndarray
+    values: np.ndarray
+    mode: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """The curve's values at times `t` (ticks): the first key's before it, the last's after it."""
+        v, ticks = self.values, self.ticks
+        after = np.searchsorted(ticks, t, side="right")
+        k = np.clip(after - 1, 0, len(v) - 1)
+        n = np.minimum(k + 1, len(v) - 1)
+        span = (ticks[n] - ticks[k]).astype(np.float64)
+        u = np.divide(t - ticks[k], span, out=np.zeros(len(t)), where=span > 0)
+        out = np.where(self.mode[k] == _HOLD_NEXT, v[n], v[k])
+        line = self.mode[k] == _STRAIGHT
+        out[line] = (v[k] + u * (v[n] - v[k]))[line]
+        curve = (self.mode[k] == _BEZIER) & (span > 0)
+        if curve.any():
+            seconds = span[curve] / TICKS_PER_SECOND
+            kc, nc = k[curve], n[curve]
+            out[curve] = bezier(u[curve], self.right[kc, 0] / seconds, 1.0 - self.left[nc, 0] / seconds, v[kc],
+                                v[kc] + self.right[kc, 1], v[nc] - self.left[nc, 1], v[nc])
+        return np.where((after == 0) | (u <= 0), v[k], np.where(after >= len(v), v[-1], out))
+
+
+def bezier(u, x1, x2, y0, y1, y2, y3) -> np.ndarray:
+    """The values of cubic Bezier curves from (0, y0) to (1, y3), their handles at (x1, y1) and (x2, y2), at
+    `u` along their spans (the curve's x, the parameter found by Newton's method), as animation curves are."""
+    a, b, c = 3.0 * x1 - 3.0 * x2 + 1.0, 3.0 * x2 - 6.0 * x1, 3.0 * x1
+    s = np.asarray(u, dtype=np.float64).copy()
+    for _ in range(12):
+        slope = (3.0 * a * s + 2.0 * b) * s + c
+        step = np.divide(((a * s + b) * s + c) * s - u, slope, out=np.zeros_like(s), where=np.abs(slope) > 1e-12)
+        s = np.clip(s - step, 0.0, 1.0)
+    r = 1.0 - s
+    return r ** 3 * y0 + 3.0 * (r * r * s * y1 + r * s * s * y2) + s ** 3 * y3
+
+
+def curve_keys(curve: Node) -> Keys | None:
+    """The keys of an AnimationCurve (None where it has none, or times and values of other lengths): each key's
+    interpolation and tangents from its KeyAttrFlags and KeyAttrDataFloat (run-length coded by KeyAttrRefCount;
+    ASCII files write the floats' bits as integers), as the FBX SDK evaluates them: Maya's user tangents and
+    weights as written, auto tangents solved from the neighbouring keys (their clamping and bias), TCB ones
+    from tension, continuity and bias; a curve without them (or damaged ones) straight from key to key."""
+    t, v = curve.child("KeyTime"), curve.child("KeyValueFloat")
+    if t is None or v is None or not t.props or not v.props or not 0 < len(t.props[0]) == len(v.props[0]):
+        return None
+    ticks = np.asarray(t.props[0]).astype(np.int64)
+    values = np.asarray(v.props[0]).astype(np.float64)
+    K = len(values)
+    unsorted = K > 1 and bool(np.any(np.diff(ticks) < 0))
+    if unsorted:  # keys out of order (a damaged file's): sorted, and taken straight from key to key
+        order = np.argsort(ticks, kind="stable")
+        ticks, values = ticks[order], values[order]
+    found = [curve.child(name) for name in ("KeyAttrFlags", "KeyAttrDataFloat", "KeyAttrRefCount")]
+    arrays = [np.asarray(node.props[0]) if node is not None and node.props else None for node in found]
+    flags_in, data_in, refs_in = arrays
+    if (unsorted or flags_in is None or data_in is None or refs_in is None or len(flags_in) != len(refs_in)
+            or len(data_in) != 4 * len(refs_in) or np.asarray(refs_in).astype(np.int64).clip(0).sum() < K):
+        straight = np.full(K, _STRAIGHT)
+        return Keys(ticks, values, straight, np.zeros((K, 2)), np.zeros((K, 2)))
+    refs = refs_in.astype(np.int64).clip(0)
+    flags = np.repeat(flags_in.astype(np.int64) & 0xFFFFFFFF, refs)[:K]
+    if np.issubdtype(data_in.dtype, np.integer):  # ASCII: the floats' bits
+        bits = (data_in.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
+    else:
+        bits = data_in.astype(np.float32).view(np.uint32)
+    bits = np.repeat(bits.reshape(-1, 4), refs, axis=0)[:K]
+    data = bits.view(np.float32).astype(np.float64)
+    return _tangents(ticks, values, flags, data, bits)
+
+
+def _tangents(ticks, values, flags, data, bits) -> Keys:
+    """Keys of curves' values and key attributes, each key's flags (K,), its four attribute floats (K, 4) and
+    their bits (weights are packed in the third's)."""
+    K = len(values)
+    seconds = ticks / TICKS_PER_SECOND
+    dt_next = np.append(np.diff(seconds), 0.0)
+    dt_prev = np.insert(np.diff(seconds), 0, 0.0)
+    v_next, v_prev = np.append(values[1:], values[-1]), np.insert(values[:-1], 0, values[0])
+    third = 0.333333
+    constant = (flags & _CONSTANT) != 0
+    cubic = ~constant & ((flags & _CUBIC) != 0)
+    straight = ~constant & ~cubic
+    weight_right = np.where(cubic & ((flags & _WEIGHTED_RIGHT) != 0), (bits[:, 2] & 0xFFFF) * 1e-4, third)
+    next_weight_left = np.where(cubic & ((flags & _WEIGHTED_NEXT_LEFT) != 0), (bits[:, 2] >> 16) * 1e-4, third)
+    line = np.divide(v_next - values, dt_next, out=np.zeros(K), where=dt_next > 0)
+    slope_right = np.where(cubic, data[:, 0], np.where(straight, line, 0.0))
+    tcb = cubic & ((flags & _TCB) != 0)
+    next_slope_left = np.where(cubic & ~tcb, data[:, 1], np.where(straight, line, 0.0))
+    slope_left = np.insert(next_slope_left[:-1], 0, 0.0)  # a key's left: what the key before it gives
+    weight_left = np.insert(next_weight_left[:-1], 0, third)
+    has_prev, has_next = dt_prev > 0, dt_next > 0
+    left_line = np.divide(values - v_prev, dt_prev, out=np.zeros(K), where=has_prev)
+    if tcb.any():
+        tension, continuity, bias = data[:, 0], data[:, 1], data[:, 2]
+        factor = np.where(has_prev & has_next, 0.5, 1.0) * (1.0 - tension)
+        tcb_left = factor * ((1 + bias) * (1 - continuity) * left_line + (1 - bias) * (1 + continuity) * line)
+        tcb_right = factor * ((1 + bias) * (1 + continuity) * left_line + (1 - bias) * (1 - continuity) * line)
+        slope_left, slope_right = np.where(tcb, tcb_left, slope_left), np.where(tcb, tcb_right, slope_right)
+    auto = cubic & ~tcb & ((flags & _USER) == 0)
+    if auto.any():
+        both = has_prev & has_next
+        one = np.abs(slope_left + slope_right) <= 1e-4
+        common = _auto_slope(seconds, values, dt_prev, dt_next, weight_left, weight_right, slope_right, flags)
+        own_left = _auto_slope(seconds, values, dt_prev, dt_next, weight_left, weight_right, -slope_left, flags)
+        edge_left = _edge_slope(left_line, values - v_prev, -slope_left, flags)
+        edge_right = _edge_slope(line, v_next - values, slope_right, flags)
+        new_left = np.where(both, np.where(one, common, own_left),
+                            np.where(has_prev, edge_left, np.where(has_next, edge_right, 0.0)))
+        new_right = np.where(both, common, np.where(has_prev, edge_left, np.where(has_next, edge_right, 0.0)))
+        slope_left, slope_right = np.where(auto, new_left, slope_left), np.where(auto, new_right, slope_right)
+    left_dx = np.where(has_prev, weight_left * dt_prev, 0.0)
+    right_dx = np.where(has_next, np.where(cubic, weight_right, third) * dt_next, 0.0)
+    mode = np.where(constant, np.where((flags & _CONSTANT_NEXT) != 0, _HOLD_NEXT, _HOLD),
+                    np.where(cubic, _BEZIER, _STRAIGHT))
+    return Keys(ticks, values, mode, np.stack([left_dx, left_dx * slope_left], axis=1),
+                np.stack([right_dx, right_dx * slope_right], axis=1))
+
+
+def _auto_slope(seconds, values, dt_prev, dt_next, weight_left, weight_right, bias, flags) -> np.ndarray:
+    """Auto tangents' slopes at keys between two others (as the FBX SDK solves them: clamped flat at a key of
+    its neighbour's value; the mean slope, blended with the sides' unless time-independent, leaning to the side
+    `bias` (percent) says; progressive clamping against overshoot)."""
+    v_prev, v_next = np.insert(values[:-1], 0, values[0]), np.append(values[1:], values[-1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        span = dt_prev + dt_next
+        slope = np.where(span > 0, (v_next - v_prev) / span, 0.0)
+        left, right = (values - v_prev) / dt_prev, (v_next - values) / dt_next
+        delta = np.where(span > 0, dt_prev / span, 0.0)
+        blended = slope * 0.5 + (left * (1.0 - delta) + right * delta) * 0.5
+        weight = np.abs(bias) / 100.0
+        target = np.where(bias > 0, right, left)
+        biased = blended * (1.0 - weight) + target * weight
+        sign = np.where(np.abs(target - blended) > 1e-5, target - blended, bias) > 0
+        biased = biased + np.where(weight > 5.0, (weight - 5.0) ** 2 * np.where(sign, 40.0, -40.0), 0.0)
+        biased = np.where(weight > 1e-4, biased, blended)
+        slope = np.where((flags & _TIME_INDEPENDENT) != 0, slope, biased)
+        sign = np.where(slope >= 0, 1.0, -1.0)
+        max_left = sign * (values - v_prev) / (weight_left * dt_prev)
+        max_right = sign * (v_next - values) / (weight_right * dt_next)
+        limit = np.minimum(np.where(max_left > 0, max_left, 0.0), np.where(max_right > 0, max_right, 0.0))
+    slope = np.where((flags & _CLAMP_PROGRESSIVE) != 0, sign * np.minimum(np.abs(slope), limit), slope)
+    flat = np.minimum(np.abs(v_prev - values), np.abs(v_next - values)) <= 0
+    return np.where(((flags & _CLAMP) != 0) & flat, 0.0, np.nan_to_num(slope))
+
+
+def _edge_slope(line, step, bias, flags) -> np.ndarray:
+    """Auto tangents' slopes at a curve's first or last key: the line to its one neighbour (`line`, the values'
+    `step` to it), flat where clamped to an equal value or clamped progressively."""
+    weight = np.abs(bias) / 100.0 - 5.0
+    slope = line + np.where(((flags & _TIME_INDEPENDENT) == 0) & (weight > 0),
+                            weight ** 2 * np.where(bias > 0, 40.0, -40.0), 0.0)
+    flat = ((flags & _CLAMP_PROGRESSIVE) != 0) | (((flags & _CLAMP) != 0) & (np.abs(step) <= 0))
+    return np.where(flat, 0.0, slope)
 
 
 def read_fbx(path: Path, src: str, take: str | None = None) -> Skeleton:
@@ -309,7 +484,26 @@ def read_fbx(path: Path, src: str, take: str | None = None) -> Skeleton:
                          f"{str(exc)[:80]})") from None
 
 
-def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
+class Scene(NamedTuple):
+    """An FBX 7's objects as its readers take them: its top-level nodes by name, its Objects, its connections
+    (tuples), its Models by id, each Model's parent Model, the Models parents first, its frame rate, its
+    animation stacks, the one read (None: none) and that one's curves (None: no curve)."""
+
+    top: dict
+    objects: Node
+    links: list
+    models: dict
+    parent: dict
+    order: list
+    fps: float
+    stacks: list
+    stack: Node | None
+    curves: _Curves | None
+
+
+def read_scene(data: bytes, src: str, take: str | None = None) -> Scene:
+    """The `Scene` of an FBX's bytes, its animation the stack named `take` (`chosen_take`); InputError naming
+    `src` for FBX 6 or a frame rate that is none."""
     version, nodes = read_nodes(data, src)
     if version < 7000:  # FBX 6's animation lives in Takes, not in AnimationCurve objects
         raise InputError(f"{src}: expected FBX 7 (2011 and later), got FBX {version // 1000}.{version % 1000 // 100}: "
@@ -318,10 +512,6 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
     objects = top.get("Objects", Node("Objects", [], []))
     links = [tuple(c.props) for c in top.get("Connections", Node("Connections", [], [])).all("C") if len(c.props) >= 3]
     models = {m.props[0]: m for m in objects.all("Model") if len(m.props) >= 3}
-    joints = [i for i, m in models.items() if m.props[2] in ("LimbNode", "Root")]
-    if not joints:
-        raise InputError(f"{src}: expected an FBX of a skeleton (Models of type LimbNode), found "
-                         f"{len(models)} Model(s) and no joint: export the character's skeleton with its animation")
     model_parent = {child: parent for kind, child, parent, *_ in links if kind == "OO" and child in models
                     and parent in models}
     depth = node_depths(list(models), model_parent)
@@ -335,7 +525,37 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
     stacks = objects.all("AnimationStack")
     chosen = chosen_take([_name(s) for s in stacks], take, src)
     stack = stacks[chosen] if chosen is not None else None
-    curves = _animation(objects, links, stack)
+    return Scene(top, objects, links, models, model_parent, order, fps, stacks, stack,
+                 _animation(objects, links, stack))
+
+
+def model_transforms(scene: Scene, t: np.ndarray) -> tuple[dict, dict]:
+    """({Model id: (T, 4, 4) its transform in the world at times `t`, FBX ticks}, {Model id: (4, 4) at rest,
+    its properties' own values}) of every Model of `scene` (`placed`: its properties over the file's template,
+    its curves sampled)."""
+    template = model_template(scene.top)
+    curves = scene.curves
+    world: dict = {}
+    rest: dict = {}
+    for i in scene.order:
+        props = {**template, **_props70(scene.models[i])}
+        static = [_vector(props, "Lcl Translation", 0.0), _vector(props, "Lcl Rotation", 0.0),
+                  _vector(props, "Lcl Scaling", 1.0)]
+        frames = [_sampled(curves.channels.get((i, key), [None] * 3), s, t) if curves else s[None]
+                  for key, s in zip("TRS", static)]
+        p = scene.parent.get(i)
+        world[i] = placed(props, frames, world.get(p))
+        rest[i] = placed(props, [s[None] for s in static], rest.get(p))
+    return {i: w.matrix for i, w in world.items()}, {i: w.matrix[0] for i, w in rest.items()}
+
+
+def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
+    scene = read_scene(data, src, take)
+    models, curves, fps = scene.models, scene.curves, scene.fps
+    joints = [i for i, m in models.items() if m.props[2] in ("LimbNode", "Root")]
+    if not joints:
+        raise InputError(f"{src}: expected an FBX of a skeleton (Models of type LimbNode), found "
+                         f"{len(models)} Model(s) and no joint: export the character's skeleton with its animation")
     if curves is None:
         log.warning("%s: no animation curves: its one frame is the skeleton as it stands", src)
         t = np.zeros(1)
@@ -345,29 +565,17 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
             raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} "
                              f"fps (its keys span {(curves.stop - curves.start) / TICKS_PER_SECOND:,.0f} s)")
         t = curves.start + np.arange(n) * (TICKS_PER_SECOND / fps)
-    world = {}
-    rest = {}
-    for i in order:
-        props = _props70(models[i])
-        static = [_vector(props, "Lcl Translation", 0.0), _vector(props, "Lcl Rotation", 0.0),
-                  _vector(props, "Lcl Scaling", 1.0)]
-        frames = [_sampled(curves.channels.get((i, key), [None] * 3), s, t) if curves else s[None]
-                  for key, s in zip("TRS", static)]
-        local = _local(props, *frames)
-        resting = _local(props, *(s[None] for s in static))[0]
-        p = model_parent.get(i)
-        world[i] = local if p is None else world[p] @ local
-        rest[i] = resting if p is None else rest[p] @ resting
-    bound = _bind_pose(objects, rest)
+    world, rest = model_transforms(scene, t)
+    bound = _bind_pose(scene.objects, rest)
     rest.update(bound)
-    creator = str(top["Creator"].props[:1]) if "Creator" in top else ""
+    creator = str(scene.top["Creator"].props[:1]) if "Creator" in scene.top else ""
     if not bound and curves is not None and "Blender" in creator:
         log.warning("%s: an armature Blender wrote without its mesh holds no rest pose (no BindPose): its joints' "
                     "values, the pose of the frame it was exported at, are taken as its rest, the twist about each "
                     "limb that frame's; export the rig with its mesh, or as USD or BVH", src)
-    skeleton = skeleton_of(joints, {i: _name(models[i]) for i in joints}, model_parent, order, world, rest,
+    skeleton = skeleton_of(joints, {i: _name(models[i]) for i in joints}, scene.parent, scene.order, world, rest,
                            1.0 / fps)
-    return skeleton._replace(take=_name(stack)) if len(stacks) > 1 else skeleton
+    return skeleton._replace(take=_name(scene.stack)) if len(scene.stacks) > 1 else skeleton
 
 
 def chosen_take(names: list[str], take: str | None, src: str, what: str = "animation stacks") -> int | None:
@@ -413,16 +621,63 @@ def node_depths(ids: list, parent: dict) -> dict:
     return depth
 
 
-def _local(props: dict, T: np.ndarray, R: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """(F, 4, 4) a model's transform in its parent's frame: translation, pre-rotation, its Euler rotation in its
-    RotationOrder, post-rotation inverted, scaling."""
-    order = _ORDERS.get(int(props.get("RotationOrder", [0])[0]), "xyz")
-    pre = _euler(_vector(props, "PreRotation", 0.0), "xyz")
-    post = _euler(_vector(props, "PostRotation", 0.0), "xyz")
-    M = np.zeros((len(T), 4, 4))
-    M[:, :3, :3] = pre @ _euler(R, order) @ post.T * S[:, None, :]
-    M[:, :3, 3] = T
-    M[:, 3, 3] = 1.0
+def model_template(top: dict) -> dict:
+    """{name: values} of the Model template in a file's Definitions (the values a Model leaves out takes)."""
+    for kind in top.get("Definitions", Node("Definitions", [], [])).all("ObjectType"):
+        if kind.props[:1] == ["Model"]:
+            return {k: v for t in kind.all("PropertyTemplate") for k, v in _props70(t).items()}
+    return {}
+
+
+class Placed(NamedTuple):
+    """A model's transforms in the world per frame (F, 4, 4): `matrix`; `unscaled`, its scaling left out; `scale`
+    (F, 3), the scaling its children inherit where they take it component by component (FBX's InheritType)."""
+
+    matrix: np.ndarray
+    unscaled: np.ndarray
+    scale: np.ndarray
+    scale_from: Placed | None  # the model whose `scale` a child ignoring its parent's scaling takes instead
+
+
+def placed(props: dict, frames: list, parent: Placed | None) -> Placed:
+    """A model's transforms in the world (`Placed`) from its properties (Properties70 over the file's template)
+    and its translation, Euler rotation and scaling per frame (`frames`, each (F, 3)), below `parent`'s (None: at
+    the root): FBX's chain T Roff Rp Rpre R Rpost^-1 Rp^-1 Soff Sp S Sp^-1 (pre- and post-rotation and the
+    RotationOrder where RotationActive is on, as the FBX SDK reads them), and the parent's scaling inherited
+    as the InheritType says: 1 (Maya's transforms, the SDK's default) through the parent's whole matrix; 0 (RrSs)
+    component by component, without shear; 2 (Rrs, a Maya joint's segment scale compensation) not the parent's
+    own, its translation still scaled by it."""
+    T, R, S = (np.asarray(f, dtype=np.float64) for f in frames)
+    rotation_space = bool(int(props.get("RotationActive", [1])[0])) and not int(
+        props.get("RotationSpaceForLimitOnly", [0])[0])
+    if rotation_space:
+        turn = (_euler(_vector(props, "PreRotation", 0.0), "xyz")
+                @ _euler(R, _ORDERS.get(int(props.get("RotationOrder", [0])[0]), "xyz"))
+                @ _euler(_vector(props, "PostRotation", 0.0), "xyz").T)
+    else:
+        turn = _euler(R, "xyz")
+    pivot, scale_pivot = _vector(props, "RotationPivot", 0.0), _vector(props, "ScalingPivot", 0.0)
+    inner = _vector(props, "ScalingOffset", 0.0) + scale_pivot - pivot - S * scale_pivot
+    move = T + _vector(props, "RotationOffset", 0.0) + pivot + (turn @ inner[..., None])[..., 0]
+    inherit = int(props.get("InheritType", [1])[0])
+    scale_from = None
+    if parent is not None and inherit in (0, 2):
+        scale_from = parent if inherit == 0 else parent.scale_from
+        if scale_from is not None:
+            S = S * scale_from.scale
+        move = move * parent.scale
+    matrix, unscaled = _matrix(turn * S[..., None, :], move), _matrix(turn, move)
+    if parent is not None:
+        above = parent.matrix if inherit not in (0, 2) else parent.unscaled
+        matrix, unscaled = above @ matrix, above @ unscaled
+    return Placed(matrix, unscaled, np.broadcast_to(S, move.shape), scale_from)
+
+
+def _matrix(linear: np.ndarray, move: np.ndarray) -> np.ndarray:
+    M = np.zeros(move.shape[:-1] + (4, 4))
+    M[..., :3, :3] = linear
+    M[..., :3, 3] = move
+    M[..., 3, 3] = 1.0
     return M
 
 
