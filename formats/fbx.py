@@ -44,8 +44,9 @@ MAX_FRAMES = 3_600_000
 _ORDERS = {0: "xyz", 1: "xzy", 2: "yzx", 3: "yxz", 4: "zxy", 5: "zyx"}
 #: The Model properties curve nodes drive, by the channel's letter.
 _LCL = {"Lcl Translation": "T", "Lcl Rotation": "R", "Lcl Scaling": "S"}
-_ARRAY_TYPES = {b"f": "<f4", b"d": "<f8", b"l": "<i8", b"i": "<i4", b"b": "?"}
-_SCALARS = {b"Y": "<h", b"C": "?", b"I": "<i", b"F": "<f", b"D": "<d", b"L": "<q"}
+_ARRAY_TYPES = {b"f": "f4", b"d": "f8", b"l": "i8", b"i": "i4", b"b": "?", b"c": "u1"}
+#: Scalar properties' types (struct's codes, the byte order the file's): 'B' and 'Z' a byte, as 'C'.
+_SCALARS = {b"Y": "h", b"C": "?", b"B": "B", b"Z": "B", b"I": "i", b"F": "f", b"D": "d", b"L": "q"}
 
 
 class Node(NamedTuple):
@@ -68,16 +69,17 @@ def read_nodes(data: bytes, src: str) -> tuple[int, list[Node]]:
             return _ascii_nodes(data.decode("utf-8", "replace"), src)
         raise InputError(f"{src}: expected an FBX file (binary 'Kaydara FBX Binary', or ASCII), got a file that is "
                          f"not one")
+    endian = ">" if data[22:23] == b"\x01" else "<"  # a big-endian file's (Maya on PowerPC Macs)
     try:
-        version = struct.unpack_from("<I", data, 23)[0]
-        nodes, _ = _records(data, 27, len(data), version >= 7500)
+        version = struct.unpack_from(endian + "I", data, 23)[0]
+        nodes, _ = _records(data, 27, len(data), version >= 7500, endian)
     except (struct.error, IndexError, ValueError, zlib.error) as exc:
         raise InputError(f"{src}: its FBX records are damaged or cut short ({type(exc).__name__})") from None
     return version, nodes
 
 
-def _records(data: bytes, at: int, end: int, wide: bool) -> tuple[list[Node], int]:
-    head = struct.Struct("<QQQ" if wide else "<III")
+def _records(data: bytes, at: int, end: int, wide: bool, endian: str = "<") -> tuple[list[Node], int]:
+    head = struct.Struct(endian + ("QQQ" if wide else "III"))
     nodes = []
     while at + head.size + 1 <= end:
         end_offset, n_props, _ = head.unpack_from(data, at)
@@ -91,11 +93,11 @@ def _records(data: bytes, at: int, end: int, wide: bool) -> tuple[list[Node], in
         at += name_len
         props = []
         for _ in range(n_props):
-            value, at = _property(data, at)
+            value, at = _property(data, at, endian)
             props.append(value)
         children = []
         if at < end_offset:
-            children, at = _records(data, at, end_offset, wide)
+            children, at = _records(data, at, end_offset, wide, endian)
         nodes.append(Node(name, props, children))
         at = end_offset
     return nodes, at
@@ -103,9 +105,12 @@ def _records(data: bytes, at: int, end: int, wide: bool) -> tuple[list[Node], in
 
 #: An ASCII FBX's tokens: a node's name (with its colon), a string, a number, an array's '*N', a brace or a comma,
 #: a bare word (a value such as Shading's T); comments (';' to the end of the line) and white space skipped.
-_ASCII_TOKEN = re.compile(r'(?:\s|;[^\n]*)*(?:(?P<name>[A-Za-z_][\w|]*)\s*:(?!:)|"(?P<string>[^"]*)"'
-                          r'|(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)|\*(?P<array>\d+)'
+_ASCII_TOKEN = re.compile(r'(?:\s|;[^\n]*)*(?:(?P<name>[A-Za-z_][\w|-]*)\s*:(?!:)|"(?P<string>[^"]*)"'
+                          r'|(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+|#[A-Z]+\d*)?)|\*(?P<array>\d+)'
                           r'|(?P<punct>[{},])|(?P<word>[A-Za-z_]\w*))')
+#: Infinities and NaNs as Microsoft's C library prints them (1.#INF, -1.#IND, 1.#QNAN), which FBX SDKs on Windows
+#: wrote.
+_MSVC_SPECIAL = re.compile(r"([-+]?)\d*\.?\d*#(INF|IND|QNAN|SNAN|NAN)\d*")
 #: An ASCII array's values: '*N {' then 'a:' and N numbers, then '}'.
 _ASCII_ARRAY = re.compile(r"\s*\{\s*a\s*:([^}]*)\}")
 
@@ -174,40 +179,51 @@ def _ascii_value(m: re.Match):
         return f"{name}\x00\x01{cls}" if sep and cls.isidentifier() else value
     if m.lastgroup == "number":
         number = m.group("number")
-        return float(number) if any(c in number for c in ".eE") else int(number)
+        return _number(number) if any(c in number for c in ".eE#") else int(number)
     return m.group("word")
+
+
+def _number(text: str) -> float:
+    """A float of an ASCII FBX (Microsoft's '1.#INF' and '-1.#IND' as infinities and NaN)."""
+    if "#" in text:
+        return float(_MSVC_SPECIAL.sub(lambda m: m.group(1) + ("inf" if m.group(2) == "INF" else "nan"), text))
+    return float(text)
 
 
 def _ascii_array(values: str, n: int, src: str) -> np.ndarray:
     """An ASCII FBX array's `n` comma-separated numbers: int64 where all are integers, else float64."""
+    if ";" in values:  # comments between its values
+        values = re.sub(r";[^\n]*", "", values)
     items = [v for v in values.replace("\n", " ").split(",") if v.strip()]
     if len(items) != n:
         raise InputError(f"{src}: its ASCII FBX has an array of {len(items)} values where it says {n}")
-    integer = not any(c in values for c in ".eE")
+    integer = not any(c in values for c in ".eE#")
+    if "#" in values:
+        items = [_MSVC_SPECIAL.sub(lambda m: m.group(1) + ("inf" if m.group(2) == "INF" else "nan"), v) for v in items]
     try:
         return np.array(items, dtype=np.int64 if integer else np.float64)
     except ValueError:
         raise InputError(f"{src}: its ASCII FBX has an array of other than numbers") from None
 
 
-def _property(data: bytes, at: int):
+def _property(data: bytes, at: int, endian: str = "<"):
     kind = data[at:at + 1]
     at += 1
     if kind in _SCALARS:
-        fmt = struct.Struct(_SCALARS[kind])
+        fmt = struct.Struct(endian + _SCALARS[kind])
         return fmt.unpack_from(data, at)[0], at + fmt.size
     if kind in _ARRAY_TYPES:
-        length, encoding, size = struct.unpack_from("<III", data, at)
+        length, encoding, size = struct.unpack_from(endian + "III", data, at)
         at += 12
         raw = data[at:at + size]
         if encoding == 1:
             raw = zlib.decompress(raw)
-        dtype = np.dtype(_ARRAY_TYPES[kind])
+        dtype = np.dtype(_ARRAY_TYPES[kind]).newbyteorder(endian)
         if len(raw) != length * dtype.itemsize:
             raise ValueError("array of another length than it says")
-        return np.frombuffer(raw, dtype=dtype).copy(), at + size
+        return np.frombuffer(raw, dtype=dtype).astype(dtype.newbyteorder("=")), at + size
     if kind in (b"S", b"R"):
-        size = struct.unpack_from("<I", data, at)[0]
+        size = struct.unpack_from(endian + "I", data, at)[0]
         raw = data[at + 4:at + 4 + size]
         return (raw.decode("utf-8", "replace") if kind == b"S" else raw), at + 4 + size
     raise ValueError(f"unknown property type {kind!r}")

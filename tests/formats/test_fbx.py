@@ -21,19 +21,19 @@ from tests.formats.test_motion import _assert_one_line, assert_each_refused
 _ORDER = {"xyz": 0, "xzy": 1, "yzx": 2, "yxz": 3, "zxy": 4, "zyx": 5}
 
 
-def _prop(value) -> bytes:
-    """A property record of a (type code, value) pair: 'L', 'I', 'D', 'S', or arrays 'd', 'l', 'f' (their
-    upper-case code 'Dz', 'Lz', 'Fz': zlib-compressed)."""
+def _prop(value, endian: str = "<") -> bytes:
+    """A property record of a (type code, value) pair: 'L', 'I', 'D', 'S', a byte 'B' or 'Z', or arrays 'd',
+    'l', 'f', 'c' (bytes; their upper-case code 'Dz', 'Lz', 'Fz': zlib-compressed), in byte order `endian`."""
     code, v = value
-    if code in ("L", "I", "D"):
-        return code.encode() + struct.pack({"L": "<q", "I": "<i", "D": "<d"}[code], v)
+    if code in ("L", "I", "D", "B", "Z"):
+        return code.encode() + struct.pack(endian + {"L": "q", "I": "i", "D": "d", "B": "B", "Z": "B"}[code], v)
     if code == "S":
         raw = v.encode("latin-1")
-        return b"S" + struct.pack("<I", len(raw)) + raw
-    kind = code[0].lower()
-    raw = np.asarray(v, dtype={"d": "<f8", "l": "<i8", "f": "<f4"}[kind]).tobytes()
+        return b"S" + struct.pack(endian + "I", len(raw)) + raw
+    kind = code[0].lower() if code != "c" else "c"
+    raw = np.asarray(v, dtype=endian + {"d": "f8", "l": "i8", "f": "f4", "c": "u1"}[kind]).tobytes()
     packed = zlib.compress(raw) if code.endswith("z") else raw
-    return kind.encode() + struct.pack("<III", len(v), int(code.endswith("z")), len(packed)) + packed
+    return kind.encode() + struct.pack(endian + "III", len(v), int(code.endswith("z")), len(packed)) + packed
 
 
 def _node(name: str, props=(), children=()) -> tuple:
@@ -41,18 +41,19 @@ def _node(name: str, props=(), children=()) -> tuple:
     return (name, list(props), list(children))
 
 
-def _encode(node, at: int) -> bytes:
-    """A node record (FBX 7.4: 32-bit offsets) starting at file offset `at`."""
+def _encode(node, at: int, endian: str = "<") -> bytes:
+    """A node record (FBX 7.4: 32-bit offsets) starting at file offset `at`, in byte order `endian`."""
     name, props, children = node
     head = 13 + len(name)
-    body = b"".join(_prop(p) for p in props)
+    body = b"".join(_prop(p, endian) for p in props)
     inner = b""
     for child in children:
-        inner += _encode(child, at + head + len(body) + len(inner))
+        inner += _encode(child, at + head + len(body) + len(inner), endian)
     if children:
         inner += bytes(13)
     end = at + head + len(body) + len(inner)
-    return struct.pack("<III", end, len(props), len(body)) + bytes([len(name)]) + name.encode() + body + inner
+    return (struct.pack(endian + "III", end, len(props), len(body)) + bytes([len(name)]) + name.encode() + body
+            + inner)
 
 
 def _ascii(node, depth: int = 0) -> str:
@@ -81,17 +82,19 @@ def _ascii(node, depth: int = 0) -> str:
     return line + " {\n" + "".join(_ascii(c, depth + 1) for c in children) + f"{tab}}}\n"
 
 
-def write_fbx(path, nodes, version=7400, ascii=False):
-    """A binary FBX of `nodes` (FBX `version`); ascii: an ASCII one, its header naming the version."""
+def write_fbx(path, nodes, version=7400, ascii=False, big_endian=False):
+    """A binary FBX of `nodes` (FBX `version`); ascii: an ASCII one, its header naming the version; big_endian:
+    its numbers big-endian, as Maya on PowerPC Macs wrote them (the header's byte 22 set)."""
     if ascii:
         header = _node("FBXHeaderExtension", [], [_node("FBXHeaderVersion", [("I", 1003)]),
                                                   _node("FBXVersion", [("I", version)])])
         text = f"; FBX {version // 1000}.{version % 1000 // 100}.0 project file\n; ----\n\n"
         path.write_text(text + "".join(_ascii(n) + "\n" for n in [header, *nodes]))
         return path
-    data = b"Kaydara FBX Binary  \x00\x1a\x00" + struct.pack("<I", version)
+    endian = ">" if big_endian else "<"
+    data = b"Kaydara FBX Binary  \x00\x1a" + bytes([big_endian]) + struct.pack(endian + "I", version)
     for node in nodes:
-        data += _encode(node, len(data))
+        data += _encode(node, len(data), endian)
     path.write_bytes(data + bytes(13) + bytes(160))  # the null record, then a footer the reader leaves
     return path
 
@@ -103,14 +106,14 @@ def _p70(*entries):
 
 
 def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None,
-            takes=None, ascii=False, floor_joint=False, creator=None):
+            takes=None, ascii=False, floor_joint=False, creator=None, big_endian=False):
     """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
     metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
     and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
     rotations are the first frame's (not the rest) and a BindPose holds the rest. extra_links: connections
     added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s. takes:
     {stack name: (poses, trans)}, one animation stack (and layer) each, instead of 'Take 001' of `poses`;
-    ascii: an ASCII FBX of the same nodes; floor_joint: the hips (their translation curves the path) under a
+    ascii: an ASCII FBX of the same nodes (big_endian: a big-endian binary one); floor_joint: the hips (their translation curves the path) under a
     static 'root' joint at the Armature's origin, as game engines' rigs are; creator: the file's Creator
     ('Blender (stable FBX IO) ...')."""
     takes = takes or {"Take 001": (poses, trans)}
@@ -197,18 +200,20 @@ def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, ext
     top = [settings, _node("Objects", [], objects), connections]
     if creator:
         top.insert(0, _node("Creator", [("S", creator)]))
-    return write_fbx(path, top, ascii=ascii)
+    return write_fbx(path, top, ascii=ascii, big_endian=big_endian)
 
 
-@pytest.mark.parametrize("bind_pose, ascii", [(False, False), (True, False), (True, True)])
-def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose, ascii):
+@pytest.mark.parametrize("bind_pose, ascii, big_endian", [(False, False, False), (True, False, False),
+                                                          (True, True, False), (True, False, True)])
+def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose, ascii, big_endian):
     """A Mixamo rig's FBX (pre-rotated joint frames, six Euler orders, an Armature scaling centimetres, an A-pose
     15 % larger, 30 fps) is retarget to the SMPL motion it moves as: every body joint's rotation, the
     translation; with its static rotations another pose than the rest, its BindPose gives the rest; the same
-    FBX written as ASCII (Maya's comments, 'Model::Name' names, arrays wrapped over lines) reads as well."""
+    FBX written as ASCII (Maya's comments, 'Model::Name' names, arrays wrapped over lines), or big-endian (as
+    Maya on PowerPC Macs wrote binary FBX) reads as well."""
     poses, trans = _motion(5, seed=7)
     poses[:, 22:] = 0
-    path = rig_fbx(tmp_path / "walk.fbx", poses, trans, bind_pose=bind_pose, ascii=ascii)
+    path = rig_fbx(tmp_path / "walk.fbx", poses, trans, bind_pose=bind_pose, ascii=ascii, big_endian=big_endian)
     assert path.read_bytes().startswith(b"; FBX 7.4.0 project file") == ascii
     m = load_motion(path, world_checks=False)
     assert m.fps == pytest.approx(30) and m.poses.shape == (5, 24, 3) and m.rest_up == "y"
@@ -257,6 +262,27 @@ def test_an_ascii_broken_or_skeleton_less_fbx_is_one_line(tmp_path):
                                                                "export it again")]
     assert_each_refused(tmp_path / "bad.fbx", cases)
     assert read_nodes(good, "good.fbx")[0] == 7400
+
+
+def test_what_real_exporters_write_beside_the_usual_parses():
+    """What real files hold beside the usual nodes parses (found reading the ufbx project's test files, every
+    real one of which Maya and MotionBuilder once refused): ASCII node names with a dash (Maya's and
+    MotionBuilder's 'Pre-Extrapolation' of a curve that cycles), comments between an array's values, Microsoft's
+    '1.#INF' and '-1.#IND' of the SDK on Windows; binary byte properties 'B' and 'Z' and byte arrays 'c' (Maya's
+    audio, MotionBuilder's thumbnail)."""
+    text = (b"; FBX 7.7.0 project file\nAnimationCurve: 7, \"AnimCurve::\", \"\" {\n\tDefault: 1.#INF\n"
+            b"\tKeyValueFloat: *3 {\n\t\ta: 1.5, ; the first\n\t\t-1.#IND, 2\n\t}\n"
+            b"\tPre-Extrapolation:  {\n\t\tType: \"R\"\n\t\tRepetition: 2\n\t}\n}\n")
+    _, nodes = read_nodes(text, "x.fbx")
+    curve = nodes[0]
+    assert curve.child("Default").props == [np.inf]
+    values = curve.child("KeyValueFloat").props[0]
+    assert values[0] == 1.5 and np.isnan(values[1]) and values[2] == 2.0
+    assert curve.child("Pre-Extrapolation").child("Type").props == ["R"]
+    data = b"Kaydara FBX Binary  \x00\x1a\x00" + struct.pack("<I", 7400)
+    data += _encode(_node("Thumbnail", [("B", 7), ("Z", 200), ("c", [1, 2, 255])]), len(data)) + bytes(13)
+    _, nodes = read_nodes(data, "x.fbx")
+    assert nodes[0].props[:2] == [7, 200] and nodes[0].props[2].tolist() == [1, 2, 255]
 
 
 def test_a_damaged_fbxs_cycle_reads_and_its_time_span_is_one_line(tmp_path):
