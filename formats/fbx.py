@@ -7,9 +7,11 @@ hierarchy from the file's connections; each joint's transform per frame is FBX's
 rotation offset and pivot, pre-rotation, the Euler rotation in its RotationOrder, post-rotation, scaling offset
 and pivot, scaling; the parent's scaling inherited as its InheritType says), its properties over the file's
 Model template. Its animation curves are evaluated as the FBX SDK does (`curve_keys`: cubic keys' user, auto and
-TCB tangents and weights, linear, constant and constant-next keys; checked against Maya's own values in
+TCB tangents and weights, linear, constant and constant-next keys; repeated, mirrored or sloped on outside
+their keys as their Pre-/Post-Extrapolation says; checked against Maya's and MotionBuilder's own values in
 tests/formats/test_fbx_maya.py) at the file's frame rate over one animation stack (a take: the first, or the one
-`--take` names), a value without a curve its property's. The rest pose is the file's BindPose where it has one
+`--take` names; its span, cut to its keys' unless a curve goes on past them), a value without a curve its
+property's. The rest pose is the file's BindPose where it has one
 (the skin's bind matrices), else the joints' own property values. FBX 6 and files without a skeleton are refused
 in one line.
 """
@@ -45,8 +47,9 @@ _ORDERS = {0: "xyz", 1: "xzy", 2: "yzx", 3: "yxz", 4: "zxy", 5: "zyx"}
 #: The Model properties curve nodes drive, by the channel's letter.
 _LCL = {"Lcl Translation": "T", "Lcl Rotation": "R", "Lcl Scaling": "S"}
 _ARRAY_TYPES = {b"f": "f4", b"d": "f8", b"l": "i8", b"i": "i4", b"b": "?", b"c": "u1"}
-#: Scalar properties' types (struct's codes, the byte order the file's): 'B' and 'Z' a byte, as 'C'.
-_SCALARS = {b"Y": "h", b"C": "?", b"B": "B", b"Z": "B", b"I": "i", b"F": "f", b"D": "d", b"L": "q"}
+#: Scalar properties' types (struct's codes, the byte order the file's): 'C' (a flag, or a letter such as an
+#: extrapolation's Type), 'B' and 'Z' a byte.
+_SCALARS = {b"Y": "h", b"C": "B", b"B": "B", b"Z": "B", b"I": "i", b"F": "f", b"D": "d", b"L": "q"}
 
 
 class Node(NamedTuple):
@@ -295,10 +298,14 @@ def _animation(objects: Node, links: list[tuple], stack: Node | None) -> _Curves
         channels[target] = axes
     if not channels:
         return None
-    span = _props70(stack)  # the stack's span, within its keys' (a frame past the last key would hold it)
+    # the stack's span, within its keys' (a frame past the last key would hold it) unless a curve goes on there
+    span = _props70(stack)
     first, last = min(times, default=0), max(times, default=0)
-    start = min(max(int(span.get("LocalStart", [first])[0]), first), last)
-    stop = min(int(span.get("LocalStop", [last])[0]), last)
+    keys = [axis for axes in channels.values() for axis in axes if isinstance(axis, Keys)]
+    low = int(span.get("LocalStart", [first])[0])
+    start = min(max(low, first) if not any(k.extends(False) for k in keys) else low, last)
+    high = int(span.get("LocalStop", [last])[0])
+    stop = min(high, last) if not any(k.extends(True) for k in keys) else high
     return _Curves(channels, start, max(stop, start))
 
 
@@ -325,16 +332,35 @@ _HOLD, _HOLD_NEXT, _STRAIGHT, _BEZIER = range(4)
 
 class Keys(NamedTuple):
     """An animation curve's keys: `ticks` (K,) FBX time, `values` (K,), each key's interpolation to the next
-    (`mode`, `_HOLD`...) and its Bezier handles to the left and right as (time in seconds, value) from the key."""
+    (`mode`, `_HOLD`...) and its Bezier handles to the left and right as (time in seconds, value) from the key;
+    `before` and `after`, how it goes on outside its keys (its Pre- and Post-Extrapolation: 'C' constant, 'K'
+    along its end key's tangent, 'R' repeated, 'M' mirrored, 'A' repeated from where the last repeat ended) and
+    how many times (-1: for ever)."""
 
     ticks: np.ndarray
     values: np.ndarray
     mode: np.ndarray
     left: np.ndarray
     right: np.ndarray
+    before: tuple = ("C", -1)
+    after: tuple = ("C", -1)
+
+    def extends(self, after: bool) -> bool:
+        """Whether the curve moves on after (else before) its keys."""
+        mode, count = self.after if after else self.before
+        return mode != "C" and count != 0 and len(self.values) > 1
 
     def at(self, t: np.ndarray) -> np.ndarray:
-        """The curve's values at times `t` (ticks): the first key's before it, the last's after it."""
+        """The curve's values at times `t` (ticks), extrapolated outside its keys as the FBX SDK does."""
+        t = np.asarray(t, dtype=np.float64)
+        first, last = self.ticks[0], self.ticks[-1]
+        out = self._between(np.clip(t, first, last))
+        for pre, outside in ((True, t < first), (False, t > last)):
+            if outside.any():
+                out[outside] = self._outside(t[outside], pre)
+        return out
+
+    def _between(self, t: np.ndarray) -> np.ndarray:
         v, ticks = self.values, self.ticks
         after = np.searchsorted(ticks, t, side="right")
         k = np.clip(after - 1, 0, len(v) - 1)
@@ -351,6 +377,32 @@ class Keys(NamedTuple):
             out[curve] = bezier(u[curve], self.right[kc, 0] / seconds, 1.0 - self.left[nc, 0] / seconds, v[kc],
                                 v[kc] + self.right[kc, 1], v[nc] - self.left[nc, 1], v[nc])
         return np.where((after == 0) | (u <= 0), v[k], np.where(after >= len(v), v[-1], out))
+
+    def _outside(self, t: np.ndarray, pre: bool) -> np.ndarray:
+        """Values at times before (`pre`) or after the keys."""
+        mode, count = self.before if pre else self.after
+        end = 0 if pre else -1
+        value = np.full(len(t), self.values[end])
+        if mode == "K":  # along the end key's tangent
+            dx, dy = self.right[0] if pre else self.left[-1]
+            return value + (dy / dx * (t - self.ticks[end]) / TICKS_PER_SECOND if dx > 0 else 0.0)
+        first, last = float(self.ticks[0]), float(self.ticks[-1])
+        duration = last - first
+        if mode not in "RMA" or count == 0 or duration < 1:
+            return value
+        delta = first - t if pre else t - last
+        repeat = np.floor(delta / duration)
+        into = delta - repeat * duration
+        if count > 0:  # held where the repeats end
+            into = np.where(repeat >= count, duration, into)
+            repeat = np.minimum(repeat, count - 1)
+        if mode == "M":
+            into = np.where(repeat * 0.5 - np.floor(repeat * 0.5) <= 0.25, duration - into, into)
+        value = self._between(first + (duration - into if pre else into))
+        if mode == "A":
+            step = self.values[-1] - self.values[0]
+            value = value + (-step if pre else step) * (repeat + 1.0)
+        return value
 
 
 def bezier(u, x1, x2, y0, y1, y2, y3) -> np.ndarray:
@@ -387,17 +439,33 @@ def curve_keys(curve: Node) -> Keys | None:
     flags_in, data_in, refs_in = arrays
     if (unsorted or flags_in is None or data_in is None or refs_in is None or len(flags_in) != len(refs_in)
             or len(data_in) != 4 * len(refs_in) or np.asarray(refs_in).astype(np.int64).clip(0).sum() < K):
-        straight = np.full(K, _STRAIGHT)
-        return Keys(ticks, values, straight, np.zeros((K, 2)), np.zeros((K, 2)))
-    refs = refs_in.astype(np.int64).clip(0)
-    flags = np.repeat(flags_in.astype(np.int64) & 0xFFFFFFFF, refs)[:K]
-    if np.issubdtype(data_in.dtype, np.integer):  # ASCII: the floats' bits
-        bits = (data_in.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
+        third = np.stack([np.diff(ticks) / TICKS_PER_SECOND, np.diff(values)], axis=1) / 3.0  # lines' handles
+        keys = Keys(ticks, values, np.full(K, _STRAIGHT), np.insert(third, 0, 0.0, axis=0),
+                    np.append(third, np.zeros((1, 2)), axis=0))
     else:
-        bits = data_in.astype(np.float32).view(np.uint32)
-    bits = np.repeat(bits.reshape(-1, 4), refs, axis=0)[:K]
-    data = bits.view(np.float32).astype(np.float64)
-    return _tangents(ticks, values, flags, data, bits)
+        refs = refs_in.astype(np.int64).clip(0)
+        flags = np.repeat(flags_in.astype(np.int64) & 0xFFFFFFFF, refs)[:K]
+        if np.issubdtype(data_in.dtype, np.integer):  # ASCII: the floats' bits
+            bits = (data_in.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
+        else:
+            bits = data_in.astype(np.float32).view(np.uint32)
+        bits = np.repeat(bits.reshape(-1, 4), refs, axis=0)[:K]
+        keys = _tangents(ticks, values, flags, bits.view(np.float32).astype(np.float64), bits)
+    return keys._replace(before=_extrapolation(curve, "Pre-Extrapolation"),
+                         after=_extrapolation(curve, "Post-Extrapolation"))
+
+
+def _extrapolation(curve: Node, name: str) -> tuple[str, int]:
+    """A curve's (mode, repetitions) before or after its keys (`Keys`): its node `name`'s Type (a letter, an
+    ASCII file's bare word or a binary one's byte) and Repetition; ('C', -1) where it has none."""
+    node = curve.child(name)
+    kind = node.child("Type") if node is not None else None
+    times = node.child("Repetition") if node is not None else None
+    value = kind.props[0] if kind is not None and kind.props else "C"
+    mode = chr(int(value)) if isinstance(value, (int, np.integer)) else str(value)[:1]
+    count = times.props[0] if times is not None and times.props else -1
+    return (mode if mode in ("C", "K", "R", "M", "A") else "C", int(count) if isinstance(count, (int, np.integer))
+            else -1)
 
 
 def _tangents(ticks, values, flags, data, bits) -> Keys:

@@ -3,6 +3,7 @@ write them (joints of LimbNode Models with pre-rotations and Euler orders, an Ar
 centimetres to metres, curves per axis, compressed arrays, a BindPose), read back as the SMPL motion they move as."""
 
 import logging
+import re
 import struct
 import zlib
 
@@ -283,6 +284,31 @@ def test_what_real_exporters_write_beside_the_usual_parses():
     data += _encode(_node("Thumbnail", [("B", 7), ("Z", 200), ("c", [1, 2, 255])]), len(data)) + bytes(13)
     _, nodes = read_nodes(data, "x.fbx")
     assert nodes[0].props[:2] == [7, 200] and nodes[0].props[2].tolist() == [1, 2, 255]
+
+
+def test_curves_that_repeat_past_their_keys_read_over_the_takes_whole_span(tmp_path):
+    """A take whose curves repeat after their keys (Maya's cycle, Post-Extrapolation 'R') reads over its whole
+    span (LocalStop, here three times the keys'), each frame past the keys the pose and place of the frame a
+    whole number of cycles before; curves that hold their last value read to their last key only, as before."""
+    poses, trans = _motion(4, seed=9)
+    poses[:, 22:] = 0
+    path = rig_fbx(tmp_path / "cycle.fbx", poses, trans, ascii=True)
+    text = path.read_text()
+    stop = 3 * 3 * (TICKS_PER_SECOND // 30)
+    held = text.replace('"LocalStop", "", "", "", ' + str(3 * (TICKS_PER_SECOND // 30)),
+                        '"LocalStop", "", "", "", ' + str(stop))
+    assert held != text
+    cycling = re.sub(r"(\tKeyValueFloat: \*4 \{[^}]*\}\n)",
+                     r"\1\t\tPost-Extrapolation: {\n\t\t\tType: R\n\t\t\tRepetition: -1\n\t\t}\n", held)
+    assert cycling.count("Post-Extrapolation") > 10
+    path.write_text(held)
+    assert load_motion(path, world_checks=False).n_frames == 4
+    path.write_text(cycling)
+    m = load_motion(path, world_checks=False)
+    cycle = [0, 1, 2, 3, 1, 2, 0, 1, 2, 0]  # frame 3 + k is k's, the seam at the first key
+    assert m.n_frames == 10
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses[cycle]), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans[cycle], atol=1e-4)
 
 
 def test_a_damaged_fbxs_cycle_reads_and_its_time_span_is_one_line(tmp_path):

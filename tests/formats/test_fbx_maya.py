@@ -63,6 +63,31 @@ def test_curves_maya_wrote_give_mayas_values(name, seconds, maya, tolerance):
     assert np.abs(np.interp(t, keys.ticks, keys.values) - maya).max() > 0.4
 
 
+#: (frame at 24 fps, the tool's value) of curves going on outside their keys (ufbx's test/test_animation.h).
+EXTRAPOLATED = {
+    "maya_anim_extrapolation_7700_ascii.fbx": [  # repeated after, repeated relative before
+        (1, 0.0), (12, 4.674119), (24, 10.0), (25, 0.055067), (37, 5.972713), (47, 0.0), (5820, 0.0),
+        (4459471, 0.0), (4459472, 0.055067), (9514493, 5.972713), (100109698, 5.325881), (0, -0.055067),
+        (-12, -5.972713), (-70, -30.213693), (-4645, -2020.0), (-100509, -43700), (-100000181, -43478340)],
+    "motionbuilder_extrapolation_slope_7700_ascii.fbx": [
+        (5, -2.051765), (20, 11.633479), (30, 3.016101), (61, -33.067375), (14614, -16972.513672), (-5, 7.743417),
+        (-33, 43.879364), (-94, 122.604103), (-242, 313.608398), (-14301, 18457.726562)],
+    "motionbuilder_extrapolation_mirror_7700_ascii.fbx": [
+        (18, 10.635811), (30, 10.635811), (42, -1.749766), (52, -1.749766), (70, 10.0), (77, 9.815335),
+        (355, 7.719610), (1706, -2.065491), (17357, 7.719610), (44874, 10.0), (44897, 0.0), (-24, 11.522083),
+        (-52, -0.431755), (-414, -1.077311), (-2207, 0.0), (-27612, 6.519766), (-36132, 10.0), (-36155, 0.0)]}
+
+
+@pytest.mark.parametrize("name", list(EXTRAPOLATED))
+def test_curves_go_on_outside_their_keys_as_the_tool_that_wrote_them(name):
+    """Curves Maya and MotionBuilder extrapolate (Pre-/Post-Extrapolation: repeated, repeated from where the
+    last repeat ended, mirrored, along the end keys' tangents) give the tools' values before and after their
+    keys, near and millions of frames away (within 1e-4 of the value, at most 1e-3)."""
+    frames, values = np.array(EXTRAPOLATED[name], dtype=np.float64).T
+    got = _translation_x(name).at(frames / 24 * TICKS_PER_SECOND)
+    np.testing.assert_array_less(np.abs(got - values), np.minimum(1e-3, np.maximum(np.abs(values), 1) * 1e-4) + 1e-9)
+
+
 def _meshes_in_the_world(name: str, frame: int) -> np.ndarray:
     """(V, 3) the vertices of every mesh of a file of the data folder at `frame`, as the reader's transforms
     place them: each Model's world transform (`model_transforms`), its geometric transform, and for a skinned
