@@ -10,8 +10,9 @@ Model template. Its animation curves are evaluated as the FBX SDK does (`curve_k
 TCB tangents and weights, linear, constant and constant-next keys; repeated, mirrored or sloped on outside
 their keys as their Pre-/Post-Extrapolation says; checked against Maya's and MotionBuilder's own values in
 tests/formats/test_fbx_maya.py) at the file's frame rate over one animation stack (a take: the first, or the one
-`--take` names; its span, cut to its keys' unless a curve goes on past them), a value without a curve its
-property's. The rest pose is the file's BindPose where it has one
+`--take` names; its span, cut to its keys' unless a curve goes on past them), its animation layers combined as
+their blend modes and weights say, a value without a curve its property's; key times in FBX 8's ticks where
+the header says so (TCDefinition). The rest pose is the file's BindPose where it has one
 (the skin's bind matrices), else the joints' own property values. FBX 6 and files without a skeleton are refused
 in one line.
 """
@@ -21,11 +22,13 @@ from __future__ import annotations
 import logging
 import re
 import struct
+import warnings
 import zlib
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from core.errors import InputError, read_input
 from core.rotations import axis_angle_to_matrix
@@ -257,56 +260,134 @@ def _name(node: Node) -> str:
     return str(node.props[1]).split("\x00\x01")[0]
 
 
-class _Curves(NamedTuple):
-    """The animation of one stack: {(model id, 'T'/'R'/'S'): [per axis: (times, values) or a default]}."""
+class _Layer(NamedTuple):
+    """One animation layer of a stack: its curves {(model id, 'T'/'R'/'S'): [per axis: Keys, a default or
+    None]}, its BlendMode (0 additive, 1 override, 2 override passthrough), its Weight (0 to 1; `weight_keys`
+    where animated), and whether it composes rotations as rotations and multiplies scalings
+    (RotationAccumulationMode and ScaleAccumulationMode 0), else adds their Euler angles and scalings."""
 
     channels: dict
+    mode: int = 1
+    weight: float = 1.0
+    weight_keys: Keys | None = None
+    compose_rotation: bool = True
+    compose_scale: bool = True
+
+
+class _Curves(NamedTuple):
+    """The animation of one stack: its layers in order (`_Layer`), the first the base, and its span in ticks."""
+
+    layers: list
     start: int
     stop: int
 
 
-def _animation(objects: Node, links: list[tuple], stack: Node | None) -> _Curves | None:
-    """The curves of the animation stack `stack`'s first layer (all the file's curve nodes where it has none)."""
+def _animation(objects: Node, links: list[tuple], stack: Node | None, unit: float = 1.0) -> _Curves | None:
+    """The curves of the animation stack `stack`, layer by layer (all the file's curve nodes, one layer, where
+    it has none); `unit`: FBX 7 ticks per tick of the file's (`time_unit`)."""
     by_id = {n.props[0]: n for n in objects.children if n.props and isinstance(n.props[0], int)}
     up: dict[int, list] = {}  # child -> [(parent, the parent's property it drives, or None)]
     down: dict[int, list] = {}  # parent -> [(child, property)]
     for kind, child, parent, *prop in links:
         up.setdefault(child, []).append((parent, prop[0] if prop else None))
         down.setdefault(parent, []).append((child, prop[0] if prop else None))
-    layer = None
+    layer_ids: list = [None]
     if stack is not None:
-        layer = next((c for c, _ in down.get(stack.props[0], [])
-                      if c in by_id and by_id[c].name == "AnimationLayer"), None)
-    channels, times = {}, []
+        layer_ids = [c for c, _ in down.get(stack.props[0], []) if c in by_id and by_id[c].name == "AnimationLayer"]
+        layer_ids = list(dict.fromkeys(layer_ids)) or [None]
+    channels: dict = {layer: {} for layer in layer_ids}
+    weights: dict = {}
+    times = []
     for node in objects.all("AnimationCurveNode"):
         links_up = up.get(node.props[0], [])
-        if layer is not None and not any(p == layer for p, _ in links_up):
+        layer = next((p for p, _ in links_up if p in channels), None)
+        if layer is None and layer_ids != [None]:
             continue
         target = next(((p, _LCL[prop]) for p, prop in links_up if prop in _LCL), None)
-        if target is None:
+        weight_of = next((p for p, prop in links_up if prop == "Weight" and p in channels), None)
+        if target is None and weight_of is None:
             continue
         defaults = _props70(node)
-        axes: list = [defaults.get(f"d|{a}", [None])[0] for a in "XYZ"]
+        names = ["d|X", "d|Y", "d|Z"] if target is not None else ["d|Weight"]
+        axes: list = [defaults.get(name, [None])[0] for name in names]
         for curve_id, prop in down.get(node.props[0], []):
             curve = by_id.get(curve_id)
-            if prop not in ("d|X", "d|Y", "d|Z") or curve is None:
+            if prop not in names or curve is None:
                 continue
-            keys = curve_keys(curve)
+            keys = curve_keys(curve, unit)
             if keys is not None:
-                axes["XYZ".index(prop[2])] = keys
-                times += [int(keys.ticks[0]), int(keys.ticks[-1])]
-        channels[target] = axes
-    if not channels:
+                axes[names.index(prop)] = keys
+                if target is not None:
+                    times += [int(keys.ticks[0]), int(keys.ticks[-1])]
+        if target is not None:
+            channels[layer][target] = axes
+        elif isinstance(axes[0], Keys):
+            weights[weight_of] = axes[0]
+    if not any(channels.values()):
         return None
+    layers = []
+    for layer in layer_ids:
+        props = _props70(by_id[layer]) if layer is not None else {}
+        layers.append(_Layer(channels[layer], int(props.get("BlendMode", [0])[0]),
+                             float(np.clip(float(props.get("Weight", [100.0])[0]) / 100.0, 0.0, 1.0)),
+                             weights.get(layer), not int(props.get("RotationAccumulationMode", [0])[0]),
+                             not int(props.get("ScaleAccumulationMode", [0])[0])))
     # the stack's span, within its keys' (a frame past the last key would hold it) unless a curve goes on there
     span = _props70(stack)
     first, last = min(times, default=0), max(times, default=0)
-    keys = [axis for axes in channels.values() for axis in axes if isinstance(axis, Keys)]
-    low = int(span.get("LocalStart", [first])[0])
+    keys = [axis for layer in layers for axes in layer.channels.values() for axis in axes if isinstance(axis, Keys)]
+    low = int(round(span.get("LocalStart", [first / unit])[0] * unit))
     start = min(max(low, first) if not any(k.extends(False) for k in keys) else low, last)
-    high = int(span.get("LocalStop", [last])[0])
+    high = int(round(span.get("LocalStop", [last / unit])[0] * unit))
     stop = min(high, last) if not any(k.extends(True) for k in keys) else high
-    return _Curves(channels, start, max(stop, start))
+    return _Curves(layers, start, max(stop, start))
+
+
+def _layered(curves: _Curves, model: int, key: str, static: np.ndarray, t: np.ndarray, order: str) -> np.ndarray:
+    """(T, 3) a model's translation, Euler rotation (in its `order`) or scaling (`key` 'T', 'R', 'S') at times
+    `t`, its layers combined as the FBX SDK does: the base layer's curves (else the property's `static`
+    value), then each other layer's by its blend mode and weight (additive: added, its rotation turned after
+    and its scaling multiplied in; override passthrough: blended by the weight; override: replaced)."""
+    out = np.broadcast_to(static, (len(t), 3)).copy()
+    for k, layer in enumerate(curves.layers):
+        axes = layer.channels.get((model, key))
+        if axes is None:
+            continue
+        value = _sampled(axes, static if k == 0 else np.full(3, 1.0 if key == "S" else 0.0), t)
+        if k == 0 or layer.mode not in (0, 2):
+            out = value
+            continue
+        w = layer.weight_keys.at(t) / 100.0 if layer.weight_keys is not None else np.full(len(t), layer.weight)
+        w = np.where(w > 0.99999, 1.0, np.clip(w, 0.0, 1.0))[:, None]
+        if key == "R" and layer.compose_rotation:
+            now = Rotation.from_euler(order, _ordered(out, order), degrees=True)
+            more = Rotation.from_euler(order, _ordered(value, order), degrees=True)
+            turned = now * _slerp(Rotation.identity(len(t)), more, w[:, 0]) if layer.mode == 0 else \
+                _slerp(now, more, w[:, 0])
+            with warnings.catch_warnings():  # a gimbal lock's angles are one of its equal answers
+                warnings.simplefilter("ignore", UserWarning)
+                angles = turned.as_euler(order, degrees=True)
+            out = angles[:, [order.index(a) for a in "xyz"]]
+        elif key == "S" and layer.compose_scale:
+            out = out * _power(value, w) if layer.mode == 0 else _power(out, 1.0 - w) * _power(value, w)
+        else:
+            out = out + value * w if layer.mode == 0 else out * (1.0 - w) + value * w
+    return out
+
+
+def _ordered(angles: np.ndarray, order: str) -> np.ndarray:
+    """Euler angles about x, y, z reordered as `order` turns about them (scipy's extrinsic sequence)."""
+    return angles[:, ["xyz".index(a) for a in order]]
+
+
+def _slerp(a: Rotation, b: Rotation, w: np.ndarray) -> Rotation:
+    """Rotations `w` of the way from `a` to `b` (the shorter way), per frame."""
+    return a * Rotation.from_rotvec((a.inv() * b).as_rotvec() * w[:, None])
+
+
+def _power(v: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """Scalings raised to weights as the FBX SDK blends them: |v|^e with v's sign, 1 at weight 0."""
+    return np.where(e <= 0, 1.0, np.where(e >= 1, v, np.sign(v) * np.abs(v) ** np.clip(e, 1e-12, 1.0)))
 
 
 def _sampled(axes: list, static: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -418,7 +499,7 @@ def bezier(u, x1, x2, y0, y1, y2, y3) -> np.ndarray:
     return r ** 3 * y0 + 3.0 * (r * r * s * y1 + r * s * s * y2) + s ** 3 * y3
 
 
-def curve_keys(curve: Node) -> Keys | None:
+def curve_keys(curve: Node, unit: float = 1.0) -> Keys | None:
     """The keys of an AnimationCurve (None where it has none, or times and values of other lengths): each key's
     interpolation and tangents from its KeyAttrFlags and KeyAttrDataFloat (run-length coded by KeyAttrRefCount;
     ASCII files write the floats' bits as integers), as the FBX SDK evaluates them: Maya's user tangents and
@@ -428,6 +509,8 @@ def curve_keys(curve: Node) -> Keys | None:
     if t is None or v is None or not t.props or not v.props or not 0 < len(t.props[0]) == len(v.props[0]):
         return None
     ticks = np.asarray(t.props[0]).astype(np.int64)
+    if unit != 1.0:  # FBX 8's ticks (`time_unit`) in FBX 7's
+        ticks = np.round(ticks * unit).astype(np.int64)
     values = np.asarray(v.props[0]).astype(np.float64)
     K = len(values)
     unsorted = K > 1 and bool(np.any(np.diff(ticks) < 0))
@@ -610,7 +693,22 @@ def read_scene(data: bytes, src: str, take: str | None = None) -> Scene:
     chosen = chosen_take([_name(s) for s in stacks], take, src)
     stack = stacks[chosen] if chosen is not None else None
     return Scene(top, objects, links, models, model_parent, order, fps, stacks, stack,
-                 _animation(objects, links, stack))
+                 _animation(objects, links, stack, time_unit(top)))
+
+
+def time_unit(top: dict) -> float:
+    """FBX 7 ticks (`TICKS_PER_SECOND`) per tick of a file's key times: 1, but for files of FBX 8's ticks
+    (141,120,000 a second), which a header of version 1004 or later opts into by a TCDefinition other than 127
+    (FBX 8 files by default)."""
+    header = top.get("FBXHeaderExtension", Node("FBXHeaderExtension", [], []))
+    version, header_version = header.child("FBXVersion"), header.child("FBXHeaderVersion")
+    flags = header.child("OtherFlags")
+    tc = flags.child("TCDefinition") if flags is not None else None
+    new = bool(version is not None and version.props and int(version.props[0]) >= 8000)
+    if tc is not None and tc.props and header_version is not None and header_version.props \
+            and int(header_version.props[0]) >= 1004:
+        new = int(tc.props[0]) != 127
+    return TICKS_PER_SECOND / 141_120_000 if new else 1.0
 
 
 def model_transforms(scene: Scene, t: np.ndarray) -> tuple[dict, dict]:
@@ -625,8 +723,8 @@ def model_transforms(scene: Scene, t: np.ndarray) -> tuple[dict, dict]:
         props = {**template, **_props70(scene.models[i])}
         static = [_vector(props, "Lcl Translation", 0.0), _vector(props, "Lcl Rotation", 0.0),
                   _vector(props, "Lcl Scaling", 1.0)]
-        frames = [_sampled(curves.channels.get((i, key), [None] * 3), s, t) if curves else s[None]
-                  for key, s in zip("TRS", static)]
+        order = _ORDERS.get(int(props.get("RotationOrder", [0])[0]), "xyz")
+        frames = [_layered(curves, i, key, s, t, order) if curves else s[None] for key, s in zip("TRS", static)]
         p = scene.parent.get(i)
         world[i] = placed(props, frames, world.get(p))
         rest[i] = placed(props, [s[None] for s in static], rest.get(p))

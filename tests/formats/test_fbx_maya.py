@@ -3,6 +3,7 @@
 meshes placed by the transforms the reader composes (pivots and offsets, inherit types) land on Maya's own OBJ
 exports of them."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +87,48 @@ def test_curves_go_on_outside_their_keys_as_the_tool_that_wrote_them(name):
     frames, values = np.array(EXTRAPOLATED[name], dtype=np.float64).T
     got = _translation_x(name).at(frames / 24 * TICKS_PER_SECOND)
     np.testing.assert_array_less(np.abs(got - values), np.minimum(1e-3, np.maximum(np.abs(values), 1) * 1e-4) + 1e-9)
+
+
+#: maya_anim_layer_anim's cube at frames 0 to 24 (24 fps): translation and XYZ Euler rotation, its base layer and
+#: an additive layer whose weight is animated (ufbx's test/test_animation.h, as Maya evaluates it).
+LAYER_ANIM = [((0, 0, 0), (0, 0, 0))] + [((0, -y, 0), (r, 0, 0)) for y, r in (
+    (0.305556, 3.75), (0.555556, 7.5), (0.75, 11.25), (0.888889, 15), (0.972222, 18.75), (1.0, 22.5),
+    (0.972222, 26.25), (0.888889, 30), (0.75, 33.75), (0.555556, 37.5), (0.305556, 41.25), (0.0, 45),
+    (0.333333, 41.25), (0.666667, 37.5), (1.0, 33.75), (1.333333, 30), (1.666667, 26.25), (2.0, 22.5),
+    (2.333333, 18.75), (2.666667, 15), (3.0, 11.25), (3.333333, 7.5), (3.666667, 3.75), (4.0, 0))]
+
+
+def _model_worlds(name: str, seconds) -> dict:
+    """{Model name: (T, 4, 4) its transform in the world} of a file of the data folder at times `seconds`."""
+    scene = read_scene((DATA / name).read_bytes(), name)
+    world, _ = model_transforms(scene, np.asarray(seconds, dtype=np.float64) * TICKS_PER_SECOND)
+    return {str(scene.models[i].props[1]).split("\x00")[0]: M for i, M in world.items()}
+
+
+def test_animation_layers_combine_as_maya_combines_them():
+    """A stack's animation layers combine as Maya's: an additive layer whose weight is animated adds its share of
+    the translation and turns the rotation after the base's (Maya's values, 25 frames); additive layers that
+    add Euler angles and scalings as numbers, and an override-passthrough layer of animated weight blending
+    rotations as rotations, on joints of all six rotation orders (the transforms ufbx computes, in
+    maya_anim_layers_over_acc_orders_ufbx.json, within 1e-6); the base layer alone would be far off."""
+    cube = _model_worlds("maya_anim_layer_anim_7700_ascii.fbx", np.arange(25) / 24)["pCube1"]
+    translation, rotation = (np.array(v, dtype=np.float64) for v in zip(*LAYER_ANIM))
+    np.testing.assert_allclose(cube[:, :3, 3], translation, atol=1e-5)
+    np.testing.assert_allclose(cube[:, :3, :3], _euler(rotation, "xyz"), atol=1e-6)
+    reference = json.loads((DATA / "maya_anim_layers_over_acc_orders_ufbx.json").read_text())
+    seconds = [float(t) for t in reference]
+    worlds = _model_worlds("maya_anim_layers_over_acc_orders_7500_ascii.fbx", seconds)
+    scene = read_scene((DATA / "maya_anim_layers_over_acc_orders_7500_ascii.fbx").read_bytes(), "x")
+    base_only = model_transforms(scene._replace(curves=scene.curves._replace(layers=scene.curves.layers[:1])),
+                                 np.asarray(seconds) * TICKS_PER_SECOND)[0]
+    names = {str(scene.models[i].props[1]).split("\x00")[0]: i for i in scene.models}
+    for k, by_name in enumerate(reference.values()):
+        assert len(by_name) == 6
+        for name, values in by_name.items():
+            M = np.eye(4)
+            M[:3, :3], M[:3, 3] = np.reshape(values[:9], (3, 3)).T, values[9:]
+            np.testing.assert_allclose(worlds[name][k], M, atol=1e-6)
+            assert np.abs(base_only[names[name]][k] - M).max() > 0.1
 
 
 def _meshes_in_the_world(name: str, frame: int) -> np.ndarray:
