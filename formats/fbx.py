@@ -1,8 +1,10 @@
-"""FBX animation of a humanoid skeleton (Mixamo's downloads; Maya, MotionBuilder, Blender exports in FBX 7.x,
-binary or ASCII), read as the skeleton and motion `core.retarget` turns into SMPL's, as a BVH is (`formats.bvh`).
+"""FBX animation of a humanoid skeleton (Mixamo's downloads; Maya, MotionBuilder, 3ds Max, Blender exports in FBX
+7.x and 6.x, binary (either byte order) or ASCII), read as the skeleton and motion `core.retarget` turns into SMPL's,
+as a BVH is (`formats.bvh`).
 
 The binary format (nodes of typed properties, arrays zlib-compressed or not) and its ASCII form (the same nodes
-as text) are read here, with no SDK: the skeleton's joints are its Models of type LimbNode (and Root), their
+as text) are read here, with no SDK (FBX 6's objects, named rather than numbered, and its Takes' letter-coded
+keys read as FBX 7's, `_from_fbx6`): the skeleton's joints are its Models of type LimbNode (Limb, Root), their
 hierarchy from the file's connections; each joint's transform per frame is FBX's whole chain (translation,
 rotation offset and pivot, pre-rotation, the Euler rotation in its RotationOrder, post-rotation, scaling offset
 and pivot, scaling; the parent's scaling inherited as its InheritType says), its properties over the file's
@@ -13,8 +15,9 @@ tests/formats/test_fbx_maya.py) at the file's frame rate over one animation stac
 `--take` names; its span, cut to its keys' unless a curve goes on past them), its animation layers combined as
 their blend modes and weights say, a value without a curve its property's; key times in FBX 8's ticks where
 the header says so (TCDefinition). The rest pose is the file's BindPose where it has one
-(the skin's bind matrices), else the joints' own property values. FBX 6 and files without a skeleton are refused
-in one line.
+(the skin's bind matrices), else the joints' own property values. FBX 5 and older and files without a skeleton
+are refused in one line. Every node's transform agrees with ufbx's evaluation on the 681 real and synthetic
+FBX 6 and 7 files of its test data (`benchmarks/fbx_against_ufbx.py`).
 """
 
 from __future__ import annotations
@@ -50,9 +53,9 @@ _ORDERS = {0: "xyz", 1: "xzy", 2: "yzx", 3: "yxz", 4: "zxy", 5: "zyx"}
 #: The Model properties curve nodes drive, by the channel's letter.
 _LCL = {"Lcl Translation": "T", "Lcl Rotation": "R", "Lcl Scaling": "S"}
 _ARRAY_TYPES = {b"f": "f4", b"d": "f8", b"l": "i8", b"i": "i4", b"b": "?", b"c": "u1"}
-#: Scalar properties' types (struct's codes, the byte order the file's): 'C' (a flag, or a letter such as an
-#: extrapolation's Type), 'B' and 'Z' a byte.
-_SCALARS = {b"Y": "h", b"C": "B", b"B": "B", b"Z": "B", b"I": "i", b"F": "f", b"D": "d", b"L": "q"}
+#: Scalar properties' types (struct's codes, the byte order the file's): 'C' a letter (an extrapolation's Type,
+#: an FBX 6 key's kind; read as a one-letter str), 'B' and 'Z' a byte.
+_SCALARS = {b"Y": "h", b"C": "c", b"B": "B", b"Z": "B", b"I": "i", b"F": "f", b"D": "d", b"L": "q"}
 
 
 class Node(NamedTuple):
@@ -217,7 +220,8 @@ def _property(data: bytes, at: int, endian: str = "<"):
     at += 1
     if kind in _SCALARS:
         fmt = struct.Struct(endian + _SCALARS[kind])
-        return fmt.unpack_from(data, at)[0], at + fmt.size
+        value = fmt.unpack_from(data, at)[0]
+        return (value.decode("latin-1") if kind == b"C" else value), at + fmt.size
     if kind in _ARRAY_TYPES:
         length, encoding, size = struct.unpack_from(endian + "III", data, at)
         at += 12
@@ -506,6 +510,9 @@ def curve_keys(curve: Node, unit: float = 1.0) -> Keys | None:
     weights as written, auto tangents solved from the neighbouring keys (their clamping and bias), TCB ones
     from tension, continuity and bias; a curve without them (or damaged ones) straight from key to key."""
     t, v = curve.child("KeyTime"), curve.child("KeyValueFloat")
+    if t is None and curve.child("Key") is not None:  # FBX 6's
+        return _fbx6_keys(curve, unit)._replace(before=_extrapolation(curve, "Pre-Extrapolation"),
+                             after=_extrapolation(curve, "Post-Extrapolation"))
     if t is None or v is None or not t.props or not v.props or not 0 < len(t.props[0]) == len(v.props[0]):
         return None
     ticks = np.asarray(t.props[0]).astype(np.int64)
@@ -591,12 +598,100 @@ def _tangents(ticks, values, flags, data, bits) -> Keys:
                             np.where(has_prev, edge_left, np.where(has_next, edge_right, 0.0)))
         new_right = np.where(both, common, np.where(has_prev, edge_left, np.where(has_next, edge_right, 0.0)))
         slope_left, slope_right = np.where(auto, new_left, slope_left), np.where(auto, new_right, slope_right)
-    left_dx = np.where(has_prev, weight_left * dt_prev, 0.0)
-    right_dx = np.where(has_next, np.where(cubic, weight_right, third) * dt_next, 0.0)
     mode = np.where(constant, np.where((flags & _CONSTANT_NEXT) != 0, _HOLD_NEXT, _HOLD),
                     np.where(cubic, _BEZIER, _STRAIGHT))
+    return _handled(ticks, values, mode, slope_left, slope_right, weight_left, np.where(cubic, weight_right, third))
+
+
+def _handled(ticks, values, mode, slope_left, slope_right, weight_left, weight_right) -> Keys:
+    """Keys of their slopes and weights to the left and right: Bezier handles a weight of the span to the
+    neighbouring key long (none at the ends), along the slope."""
+    dt = np.diff(ticks / TICKS_PER_SECOND)
+    left_dx = np.insert(np.maximum(dt, 0.0), 0, 0.0) * weight_left
+    right_dx = np.append(np.maximum(dt, 0.0), 0.0) * weight_right
     return Keys(ticks, values, mode, np.stack([left_dx, left_dx * slope_left], axis=1),
                 np.stack([right_dx, right_dx * slope_right], axis=1))
+
+
+def _fbx6_keys(curve: Node, unit: float = 1.0) -> Keys:
+    """The keys of an FBX 6 channel: its 'Key' a run of time, value and interpolation letter, then that letter's
+    parameters ('U' cubic: its slope mode ('s'/'b' two slopes; 'a', 'p', 'q', 't', 'd' automatic) and weight
+    modes; 'L' linear; 'C' constant, its 'n' the next key's value), as the FBX SDK wrote them by KeyVer
+    (4003 to 4005); automatic slopes solved from the neighbouring keys, as ufbx does; its times `unit` FBX 7
+    ticks each (`time_unit`). ValueError where the run breaks that grammar."""
+    tokens = list(curve.child("Key").props)
+    if len(tokens) == 1 and isinstance(tokens[0], np.ndarray):
+        tokens = tokens[0].tolist()
+    version = curve.child("KeyVer")
+    key_ver = int(version.props[0]) if version is not None and version.props else 4005
+    rows = []  # time, value, mode, right slope, next key's left slope, right weight, next left weight, automatic
+    at, third = 0, 0.333333
+
+    def number(k):
+        if isinstance(tokens[k], str):
+            raise ValueError(f"a letter {tokens[k]!r} where a number belongs")
+        return float(tokens[k])
+
+    while at < len(tokens):
+        time, value, kind = number(at), number(at + 1), tokens[at + 2]
+        at += 3
+        row = [time, value, _STRAIGHT, 0.0, 0.0, third, third, False]
+        if kind == "U":
+            row[2], slope_mode, weights = _BEZIER, tokens[at], 1
+            at += 1
+            if slope_mode in ("s", "b"):
+                row[3], row[4] = number(at), number(at + 1)
+                at, weights = at + 2, 0 if key_ver == 4003 else 1
+            elif slope_mode in ("a", "p", "q", "t", "d"):
+                row[7] = True
+                skip = {"a": 0, "p": 2, "q": 2, "t": 3, "d": 1}[slope_mode]
+                weights = {"a": 0 if key_ver <= 4004 else 1, "p": 1 if key_ver <= 4004 else 2,
+                           "q": 1 if key_ver <= 4004 else 2, "t": 0, "d": 1}[slope_mode]
+                at += skip
+            else:
+                raise ValueError(f"a slope mode {slope_mode!r}")
+            for _ in range(weights):
+                weight_mode = tokens[at]
+                at += 1
+                if weight_mode == "a":
+                    row[5], row[6] = number(at), number(at + 1)
+                    at += 2
+                elif weight_mode in ("l", "r"):
+                    row[6 if weight_mode == "l" else 5] = number(at)
+                    at += 1
+                elif weight_mode not in ("n", "c"):
+                    raise ValueError(f"a weight mode {weight_mode!r}")
+        elif kind == "C":
+            row[2] = _HOLD
+            if key_ver >= 4004:
+                row[2] = _HOLD_NEXT if tokens[at] == "n" else _HOLD
+                at += 1
+        elif kind != "L":
+            raise ValueError(f"a key kind {kind!r}")
+        rows.append(row)
+    if not rows:
+        raise ValueError("no key")
+    table = np.array(rows, dtype=np.float64)
+    order = np.argsort(table[:, 0], kind="stable")
+    table = table[order]
+    ticks, values, mode = np.round(table[:, 0] * unit).astype(np.int64), table[:, 1], table[:, 2].astype(np.int64)
+    slope_right, next_left, weight_right, next_weight = table[:, 3], table[:, 4], table[:, 5], table[:, 6]
+    automatic = table[:, 7] > 0
+    seconds = ticks / TICKS_PER_SECOND
+    dt = np.diff(seconds)
+    line = np.divide(np.diff(values), dt, out=np.zeros(len(dt)), where=dt > 0)
+    straight = mode[:-1] == _STRAIGHT
+    slope_right[:-1] = np.where(straight, line, slope_right[:-1])
+    next_left[:-1] = np.where(straight, line, next_left[:-1])
+    slope_left = np.insert(next_left[:-1], 0, 0.0)
+    weight_left = np.insert(next_weight[:-1], 0, third)
+    if automatic.any():
+        dt_prev, dt_next = np.insert(dt, 0, 0.0), np.append(dt, 0.0)
+        solved = _auto_slope(seconds, values, dt_prev, dt_next, weight_left, weight_right, np.zeros(len(values)),
+                             _CLAMP_PROGRESSIVE | _TIME_INDEPENDENT)
+        solved[0] = 0.0
+        slope_left, slope_right = np.where(automatic, solved, slope_left), np.where(automatic, solved, slope_right)
+    return _handled(ticks, values, mode, slope_left, slope_right, weight_left, weight_right)
 
 
 def _auto_slope(seconds, values, dt_prev, dt_next, weight_left, weight_right, bias, flags) -> np.ndarray:
@@ -647,7 +742,7 @@ def read_fbx(path: Path, src: str, take: str | None = None) -> Skeleton:
     except InputError:
         raise
     except (IndexError, KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise InputError(f"{src}: its FBX objects are not as FBX 7 writes them ({type(exc).__name__}: "
+        raise InputError(f"{src}: its FBX objects are not as FBX writes them ({type(exc).__name__}: "
                          f"{str(exc)[:80]})") from None
 
 
@@ -669,12 +764,17 @@ class Scene(NamedTuple):
 
 
 def read_scene(data: bytes, src: str, take: str | None = None) -> Scene:
-    """The `Scene` of an FBX's bytes, its animation the stack named `take` (`chosen_take`); InputError naming
-    `src` for FBX 6 or a frame rate that is none."""
+    """The `Scene` of an FBX's bytes (FBX 6's as FBX 7's, `_from_fbx6`), its animation the stack named `take`
+    (`chosen_take`); InputError naming `src` for FBX 5 and older or a frame rate that is none."""
     version, nodes = read_nodes(data, src)
-    if version < 7000:  # FBX 6's animation lives in Takes, not in AnimationCurve objects
-        raise InputError(f"{src}: expected FBX 7 (2011 and later), got FBX {version // 1000}.{version % 1000 // 100}: "
-                         f"export it again as a newer FBX, or as a BVH")
+    header = next((n.child("FBXVersion") for n in nodes if n.name == "FBXHeaderExtension"), None)
+    if header is not None and header.props and isinstance(header.props[0], (int, np.integer)):
+        version = int(header.props[0])  # a binary FBX 5's header says 3000
+    if version < 6000:
+        raise InputError(f"{src}: expected FBX 6 or 7 (2006 and later), got FBX {version // 1000}."
+                         f"{version % 1000 // 100}: export it again as a newer FBX, or as a BVH")
+    if version < 7000:
+        nodes = _from_fbx6(nodes)
     top = {n.name: n for n in nodes}
     objects = top.get("Objects", Node("Objects", [], []))
     links = [tuple(c.props) for c in top.get("Connections", Node("Connections", [], [])).all("C") if len(c.props) >= 3]
@@ -711,6 +811,85 @@ def time_unit(top: dict) -> float:
     return TICKS_PER_SECOND / 141_120_000 if new else 1.0
 
 
+def _from_fbx6(nodes: list[Node]) -> list[Node]:
+    """FBX 6's nodes as FBX 7 holds the same (ids for the names FBX 6 links objects by, Properties70 for its
+    Properties60, an animation stack, layer, curve nodes and curves for each Take's channels, the GlobalSettings
+    of its Objects or its Version5 Settings' frame rate), for the FBX 7 reading to take as they are."""
+    top = {n.name: n for n in nodes}
+    objects = top.get("Objects", Node("Objects", [], []))
+    ids: dict = {}
+
+    def identity(name) -> int:
+        return ids.setdefault(name, 1_000_000 + len(ids))
+
+    def props70(node: Node) -> Node:  # Property: name, type, flags, values -> P: name, type, label, flags, values
+        block = node.child("Properties60")
+        entries = [Node("P", [e.props[0], e.props[1], "", *e.props[2:]], []) for e in
+                   (block.all("Property") if block is not None else []) if len(e.props) >= 3]
+        return Node("Properties70", [], entries)
+
+    out: list[Node] = []
+    for node in objects.children:
+        if node.name == "Model" and len(node.props) >= 2:
+            out.append(Node("Model", [identity(node.props[0]), node.props[0], node.props[1]],
+                            [props70(node)] + [c for c in node.children if c.name != "Properties60"]))
+        elif node.name == "Pose" and len(node.props) >= 2:
+            poses = []
+            for pose in node.all("PoseNode"):
+                at, matrix = pose.child("Node"), pose.child("Matrix")
+                if at is not None and matrix is not None and at.props:
+                    values = matrix.props[0] if len(matrix.props) == 1 else np.array(matrix.props, dtype=np.float64)
+                    poses.append(Node("PoseNode", [], [Node("Node", [identity(at.props[0])], []),
+                                                       Node("Matrix", [values], [])]))
+            out.append(Node("Pose", [identity(node.props[0]), node.props[0], node.props[1]], poses))
+    settings = objects.child("GlobalSettings") or top.get("GlobalSettings")
+    rate = next((s.child("FrameRate") for v in [top.get("Version5")] if v is not None
+                 for s in [v.child("Settings")] if s is not None), None)
+    if settings is not None and settings.child("Properties60") is not None:
+        settings = Node("GlobalSettings", [], [props70(settings)])
+    elif rate is not None and rate.props and float(rate.props[0]) > 0:
+        settings = Node("GlobalSettings", [], [Node("Properties70", [], [
+            Node("P", ["TimeMode", "enum", "", "", 14], []),
+            Node("P", ["CustomFrameRate", "double", "", "", float(rate.props[0])], [])])])
+    links = [Node("C", [c.props[0], identity(c.props[1]), identity(c.props[2])], [])
+             for c in top.get("Connections", Node("Connections", [], [])).all("Connect")
+             if len(c.props) >= 3 and c.props[1] in ids and c.props[2] in ids]
+    takes = top.get("Takes", Node("Takes", [], []))
+    for take in takes.all("Take"):
+        stack, layer = identity(("stack", take.props[0])), identity(("layer", take.props[0]))
+        span = take.child("LocalTime")
+        span_props = [Node("P", [name, "KTime", "", "", value], []) for name, value in
+                      zip(("LocalStart", "LocalStop"), span.props if span is not None else [])]
+        out += [Node("AnimationStack", [stack, f"{take.props[0]}\x00\x01AnimStack", ""],
+                     [Node("Properties70", [], span_props)]),
+                Node("AnimationLayer", [layer, "BaseLayer\x00\x01AnimLayer", ""], [])]
+        links.append(Node("C", ["OO", layer, stack], []))
+        for model in take.all("Model"):
+            if not model.props or model.props[0] not in ids:
+                continue
+            transform = next((c for c in model.all("Channel") if c.props[:1] == ["Transform"]), None)
+            for channel in transform.all("Channel") if transform is not None else []:
+                prop = {"T": "Lcl Translation", "R": "Lcl Rotation", "S": "Lcl Scaling"}.get(channel.props[0])
+                if prop is None:
+                    continue
+                curve_node = identity((take.props[0], model.props[0], prop))
+                axes = [a for a in channel.all("Channel") if a.props[:1] in (["X"], ["Y"], ["Z"])]
+                defaults = [Node("P", [f"d|{a.props[0]}", "Number", "", "A", a.child("Default").props[0]], [])
+                            for a in axes if a.child("Default") is not None and a.child("Default").props]
+                out.append(Node("AnimationCurveNode", [curve_node, f"{channel.props[0]}\x00\x01AnimCurveNode", ""],
+                                [Node("Properties70", [], defaults)]))
+                links += [Node("C", ["OO", curve_node, layer], []),
+                          Node("C", ["OP", curve_node, ids[model.props[0]], prop], [])]
+                for axis in axes:
+                    if axis.child("Key") is not None:
+                        curve = identity((take.props[0], model.props[0], prop, axis.props[0]))
+                        out.append(Node("AnimationCurve", [curve, "\x00\x01AnimCurve", ""], axis.children))
+                        links.append(Node("C", ["OP", curve, curve_node, f"d|{axis.props[0]}"], []))
+    kept = [n for n in nodes if n.name not in ("Objects", "Connections", "Takes", "GlobalSettings")]
+    return kept + ([settings] if settings is not None else []) + [Node("Objects", [], out),
+                                                                   Node("Connections", [], links)]
+
+
 def model_transforms(scene: Scene, t: np.ndarray) -> tuple[dict, dict]:
     """({Model id: (T, 4, 4) its transform in the world at times `t`, FBX ticks}, {Model id: (4, 4) at rest,
     its properties' own values}) of every Model of `scene` (`placed`: its properties over the file's template,
@@ -734,7 +913,7 @@ def model_transforms(scene: Scene, t: np.ndarray) -> tuple[dict, dict]:
 def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
     scene = read_scene(data, src, take)
     models, curves, fps = scene.models, scene.curves, scene.fps
-    joints = [i for i, m in models.items() if m.props[2] in ("LimbNode", "Root")]
+    joints = [i for i, m in models.items() if m.props[2] in ("LimbNode", "Limb", "Root")]
     if not joints:
         raise InputError(f"{src}: expected an FBX of a skeleton (Models of type LimbNode), found "
                          f"{len(models)} Model(s) and no joint: export the character's skeleton with its animation")
@@ -785,7 +964,10 @@ def animation_takes(path: Path) -> list[str]:
     """The names of the animation stacks of the FBX `path` where it holds several (`--take`), else []; InputError
     naming the file where it is no FBX `read_fbx` reads."""
     src = f"motion '{path}'"
-    objects = next((n for n in read_nodes(read_input(path, src), src)[1] if n.name == "Objects"), None)
+    version, nodes = read_nodes(read_input(path, src), src)
+    if 6000 <= version < 7000:
+        nodes = _from_fbx6(nodes)
+    objects = next((n for n in nodes if n.name == "Objects"), None)
     names = [_name(s) for s in objects.all("AnimationStack")] if objects is not None else []
     return names if len(names) > 1 else []
 

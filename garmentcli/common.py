@@ -144,12 +144,12 @@ def _holds_poses(path: Path) -> bool:
     True for one that cannot be read (named as a motion, it is refused with the reason)."""
     if path.suffix.lower() in (".bvh", ".mvnx"):
         return True
-    if path.suffix.lower() in (".fbx", ".dae"):  # an FBX's joints are LimbNode Models; a COLLADA's JOINT nodes, or
+    if path.suffix.lower() in (".fbx", ".dae"):  # an FBX's joints are Limb(Node) Models; a COLLADA's JOINT nodes, or
         try:  # the nodes a skin names (`formats.collada`)
             data = path.read_bytes()
         except OSError:
             return True
-        return b"LimbNode" in data if path.suffix.lower() == ".fbx" else (b'type="JOINT"' in data
+        return b"Limb" in data if path.suffix.lower() == ".fbx" else (b'type="JOINT"' in data
                                                                           or b"INV_BIND_MATRIX" in data)
     from formats.gltf import GLTF_SUFFIXES, holds_skeleton
     from formats.obj import USD_SUFFIXES

@@ -23,9 +23,12 @@ _ORDER = {"xyz": 0, "xzy": 1, "yzx": 2, "yxz": 3, "zxy": 4, "zyx": 5}
 
 
 def _prop(value, endian: str = "<") -> bytes:
-    """A property record of a (type code, value) pair: 'L', 'I', 'D', 'S', a byte 'B' or 'Z', or arrays 'd',
+    """A property record of a (type code, value) pair: 'L', 'I', 'D', 'S', a letter 'C', a byte 'B' or 'Z', or
+    arrays 'd',
     'l', 'f', 'c' (bytes; their upper-case code 'Dz', 'Lz', 'Fz': zlib-compressed), in byte order `endian`."""
     code, v = value
+    if code == "C":
+        return b"C" + v.encode("latin-1")
     if code in ("L", "I", "D", "B", "Z"):
         return code.encode() + struct.pack(endian + {"L": "q", "I": "i", "D": "d", "B": "B", "Z": "B"}[code], v)
     if code == "S":
@@ -65,6 +68,8 @@ def _ascii(node, depth: int = 0) -> str:
     tab = "\t" * depth
 
     def value(code, v):
+        if code == "C":  # a letter, bare
+            return v
         if code == "S":
             text, _, cls = v.partition("\x00\x01")
             return f'"{cls}::{text}"' if cls else f'"{text}"'
@@ -107,14 +112,15 @@ def _p70(*entries):
 
 
 def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None,
-            takes=None, ascii=False, floor_joint=False, creator=None, big_endian=False):
+            takes=None, ascii=False, floor_joint=False, creator=None, big_endian=False, version=7400):
     """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
     metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
     and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
     rotations are the first frame's (not the rest) and a BindPose holds the rest. extra_links: connections
     added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s. takes:
     {stack name: (poses, trans)}, one animation stack (and layer) each, instead of 'Take 001' of `poses`;
-    ascii: an ASCII FBX of the same nodes (big_endian: a big-endian binary one); floor_joint: the hips (their translation curves the path) under a
+    ascii: an ASCII FBX of the same nodes (big_endian: a big-endian binary one); version 6100: FBX 6's layout
+    of the same (`_as_fbx6`); floor_joint: the hips (their translation curves the path) under a
     static 'root' joint at the Armature's origin, as game engines' rigs are; creator: the file's Creator
     ('Blender (stable FBX IO) ...')."""
     takes = takes or {"Take 001": (poses, trans)}
@@ -201,21 +207,84 @@ def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, ext
     top = [settings, _node("Objects", [], objects), connections]
     if creator:
         top.insert(0, _node("Creator", [("S", creator)]))
-    return write_fbx(path, top, ascii=ascii, big_endian=big_endian)
+    if version < 7000:
+        top = _as_fbx6(top)
+    return write_fbx(path, top, ascii=ascii, big_endian=big_endian, version=version)
 
 
-@pytest.mark.parametrize("bind_pose, ascii, big_endian", [(False, False, False), (True, False, False),
-                                                          (True, True, False), (True, False, True)])
-def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose, ascii, big_endian):
+def _as_fbx6(top: list) -> list:
+    """`rig_fbx`'s FBX 7 nodes laid out as FBX 6 writes the same: objects named, not numbered ('Model' of the
+    name and type, Properties60's 'Property' of name, type, flags and values), Connections' 'Connect' of names,
+    the BindPose's matrices as 16 values, the frame rate in GlobalSettings' Properties60, and each animation
+    stack a Take whose Models hold Channel 'Transform' / 'T', 'R' / 'X', 'Y', 'Z', each a 'Key' of time, value and
+    'L' (linear) per key, as the FBX SDK 2009 writes them."""
+    nodes = {n[0]: n for n in top}
+    objects = nodes["Objects"][2]
+    by_id = {o[1][0][1]: o for o in objects}
+    named = {i: o[1][1][1] for i, o in by_id.items() if o[0] == "Model"}
+    named[0] = "Scene\x00\x01Model"
+
+    def props60(node):
+        block = next((c for c in node[2] if c[0] == "Properties70"), None)
+        return _node("Properties60", [], [_node("Property", [p[1][0], ("S", ""), p[1][3], *p[1][4:]])
+                                          for p in (block[2] if block else [])])
+
+    links = [tuple(v for _, v in c[1]) for c in nodes["Connections"][2]]
+    out = []
+    for o in objects:
+        if o[0] == "Model":
+            out.append(_node("Model", [("S", named[o[1][0][1]]), o[1][2]], [props60(o)]))
+        elif o[0] == "Pose":
+            out.append(_node("Pose", [("S", "BIND_POSES\x00\x01Pose"), ("S", "BindPose")],
+                             [_node("PoseNode", [], [_node("Node", [("S", named[pn[2][0][1][0][1]])]),
+                                                     _node("Matrix", [("D", float(x)) for x in pn[2][1][1][0][1]])])
+                              for pn in o[2]]))
+    settings = next(c for c in nodes["GlobalSettings"][2] if c[0] == "Properties70")
+    out.append(_node("GlobalSettings", [], [props60(("GlobalSettings", [], [settings]))]))
+    connect = [_node("Connect", [("S", kind), ("S", named[a]), ("S", named[b])]) for kind, a, b, *_ in links
+               if kind == "OO" and a in named and b in named]
+    takes = []
+    for stack in (o for o in objects if o[0] == "AnimationStack"):
+        layer = next(a for kind, a, b, *_ in links if b == stack[1][0][1])
+        span = [p[1][4][1] for p in stack[2][0][2]]
+        models: dict = {}
+        for kind, curve_node, model, *prop in links:
+            if kind != "OP" or model not in named or (curve_node, layer) not in {(a, b) for _, a, b, *_ in links}:
+                continue
+            axes = []
+            for a, (k2, curve, parent, *axis) in enumerate(lk for lk in links if lk[2] == curve_node):
+                times, values = (by_id[curve][2][j][1][0][1] for j in (0, 1))
+                keys = [x for t, v in zip(times, values) for x in (("L", int(t)), ("D", float(v)), ("C", "L"))]
+                axes.append(_node("Channel", [("S", axis[0][2])], [_node("Default", [("D", float(values[0]))]),
+                                                                  _node("KeyVer", [("I", 4005)]),
+                                                                  _node("KeyCount", [("I", len(times))]),
+                                                                  _node("Key", keys)]))
+            letter = {"Lcl Translation": "T", "Lcl Rotation": "R", "Lcl Scaling": "S"}[prop[0]]
+            models.setdefault(model, []).append(_node("Channel", [("S", letter)], axes))
+        takes.append(_node("Take", [("S", by_id[stack[1][0][1]][1][1][1].split("\x00")[0])],
+                           [_node("LocalTime", [("L", span[0]), ("L", span[1])])]
+                           + [_node("Model", [("S", named[m])], [_node("Channel", [("S", "Transform")], channels)])
+                              for m, channels in models.items()]))
+    kept = [n for n in top if n[0] not in ("Objects", "Connections", "GlobalSettings")]
+    return kept + [_node("Objects", [], out), _node("Connections", [], connect), _node("Takes", [], takes)]
+
+
+@pytest.mark.parametrize("bind_pose, ascii, big_endian, version", [
+    (False, False, False, 7400), (True, False, False, 7400), (True, True, False, 7400), (True, False, True, 7400),
+    (True, False, False, 6100), (True, True, False, 6100), (False, True, False, 6100)])
+def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose, ascii, big_endian, version):
     """A Mixamo rig's FBX (pre-rotated joint frames, six Euler orders, an Armature scaling centimetres, an A-pose
     15 % larger, 30 fps) is retarget to the SMPL motion it moves as: every body joint's rotation, the
     translation; with its static rotations another pose than the rest, its BindPose gives the rest; the same
-    FBX written as ASCII (Maya's comments, 'Model::Name' names, arrays wrapped over lines), or big-endian (as
-    Maya on PowerPC Macs wrote binary FBX) reads as well."""
+    FBX written as ASCII (Maya's comments, 'Model::Name' names, arrays wrapped over lines), big-endian (as Maya
+    on PowerPC Macs wrote binary FBX), or as FBX 6.1 (Mixamo's and the 2006-2010 tools' "FBX 6.1 (2009)": named
+    objects, Properties60, Takes of letter-coded keys), binary or ASCII, reads as well."""
     poses, trans = _motion(5, seed=7)
     poses[:, 22:] = 0
-    path = rig_fbx(tmp_path / "walk.fbx", poses, trans, bind_pose=bind_pose, ascii=ascii, big_endian=big_endian)
-    assert path.read_bytes().startswith(b"; FBX 7.4.0 project file") == ascii
+    path = rig_fbx(tmp_path / "walk.fbx", poses, trans, bind_pose=bind_pose, ascii=ascii, big_endian=big_endian,
+                   version=version)
+    assert read_nodes(path.read_bytes(), "walk.fbx")[0] == version
+    assert path.read_bytes().startswith(b"; FBX ") == ascii
     m = load_motion(path, world_checks=False)
     assert m.fps == pytest.approx(30) and m.poses.shape == (5, 24, 3) and m.rest_up == "y"
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
@@ -259,7 +328,7 @@ def test_an_ascii_broken_or_skeleton_less_fbx_is_one_line(tmp_path):
              (good[:len(good) // 2], "its FBX records are damaged or cut short"),
              (good.replace(b"LimbNode", b"MeshNode"), "expected an FBX of a skeleton (Models of type LimbNode), "
                                                       "found 28 Model(s) and no joint"),
-             (good[:23] + struct.pack("<I", 6100) + good[27:], "expected FBX 7 (2011 and later), got FBX 6.1: "
+             (good[:23] + struct.pack("<I", 5800) + good[27:], "expected FBX 6 or 7 (2006 and later), got FBX 5.8: "
                                                                "export it again")]
     assert_each_refused(tmp_path / "bad.fbx", cases)
     assert read_nodes(good, "good.fbx")[0] == 7400
@@ -349,18 +418,20 @@ def test_an_fbx_without_curves_is_its_skeleton_standing_one_frame(tmp_path, capl
     np.testing.assert_allclose(np.degrees(np.linalg.norm(m.poses[0, [16, 17]], axis=-1)), 40, atol=1e-3)
 
 
-def test_an_fbx_of_several_takes_reads_the_first_warned_or_the_one_named(tmp_path, caplog):
+@pytest.mark.parametrize("version", [7400, 6100])
+def test_an_fbx_of_several_takes_reads_the_first_warned_or_the_one_named(tmp_path, caplog, version):
     """An FBX of two animation stacks ('Walk', 5 frames; 'Run', 3 frames, another motion): the first read, the
     other named in a warning; take='run' reads the other (its case aside); a name it lacks is one line naming
     those it has; `animation_takes` lists them; a file of one stack reads as it is, a take of another name
-    warned about."""
+    warned about. FBX 6's Takes are its stacks."""
     import logging
 
     from formats.fbx import animation_takes
 
     (walk, walk_trans), (run, run_trans) = _motion(5, seed=3), _motion(3, seed=4)
     walk[:, 22:] = run[:, 22:] = 0
-    path = rig_fbx(tmp_path / "moves.fbx", None, None, takes={"Walk": (walk, walk_trans), "Run": (run, run_trans)})
+    path = rig_fbx(tmp_path / "moves.fbx", None, None, takes={"Walk": (walk, walk_trans), "Run": (run, run_trans)},
+                   version=version)
     with caplog.at_level(logging.WARNING):
         m = load_motion(path, world_checks=False)
     assert "holds 2 animation stacks ('Walk', 'Run'): reading 'Walk', the first (--take NAME reads another)" \
@@ -378,7 +449,7 @@ def test_an_fbx_of_several_takes_reads_the_first_warned_or_the_one_named(tmp_pat
     _assert_one_line(info, "moves.fbx", "expected --take one of its 2 animation stacks ('Walk', 'Run'), got 'Jump'")
     assert animation_takes(path) == ["Walk", "Run"]
 
-    one = rig_fbx(tmp_path / "one.fbx", walk, walk_trans)
+    one = rig_fbx(tmp_path / "one.fbx", walk, walk_trans, version=version)
     assert animation_takes(one) == []
     with caplog.at_level(logging.WARNING):
         m = load_motion(one, world_checks=False, take="Run")

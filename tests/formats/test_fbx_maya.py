@@ -51,13 +51,17 @@ def _translation_x(name: str) -> Keys:
 
 @pytest.mark.parametrize("name, seconds, maya, tolerance", [
     ("maya_interpolation_modes_7500_ascii.fbx", np.arange(121) / 24 + 1e-6, INTERPOLATION_MODES, 1e-4),
+    ("maya_interpolation_modes_6100_ascii.fbx", np.arange(121) / 24 + 1e-6, INTERPOLATION_MODES, 1e-4),
     ("maya_auto_clamp_7700_ascii.fbx", np.arange(31) / 24 + 1e-6, AUTO_CLAMP, 1e-3),
     ("maya_anim_interpolation_7700_ascii.fbx", [s for s, _ in ANIM_INTERPOLATION], [v for _, v in ANIM_INTERPOLATION],
-     1e-5)])
+     1e-5),
+    ("maya_anim_interpolation_6100_binary.fbx", [s for s, _ in ANIM_INTERPOLATION],
+     [v for _, v in ANIM_INTERPOLATION], 1e-4)])
 def test_curves_maya_wrote_give_mayas_values(name, seconds, maya, tolerance):
     """Curves of every kind of key Maya writes (user tangents, weighted and broken; auto tangents, clamped;
     linear; constant; constant-next) give Maya's own values between their keys, within the digits those were
-    written to; the keys joined by straight lines would be far off (up to 6.9 units)."""
+    written to, in FBX 7 and in FBX 6 (its keys' letters and parameters, ASCII and binary); the keys joined by
+    straight lines would be far off (up to 6.9 units)."""
     keys = _translation_x(name)
     t = np.asarray(seconds) * TICKS_PER_SECOND
     np.testing.assert_allclose(keys.at(t), maya, atol=tolerance)
