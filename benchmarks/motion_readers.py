@@ -6,7 +6,8 @@ One random SMPL motion of --frames frames (9,000: five minutes at 30 fps) is wri
 producer writes it (AMASS's npz; AIST++'s pickle; WHAM's joblib result with its per-frame vertices, where joblib
 is installed; Motion-X's .npy; SMPLCodec's .smpl; a BVH of the SMPL skeleton; a BVH of a Mixamo rig of 27 joints
 (fingers, CMU's hip joints) resting in an A-pose, 15 % larger, retargeted, its binary FBX (pre-rotated
-joints, curves per axis, half of them zlib-compressed), that FBX as ASCII, the rig as a .glb and as a UsdSkel
+joints, curves per axis, half of them zlib-compressed), that FBX as ASCII and as FBX 6.1 (Takes of letter-coded
+keys), the rig as a .glb and as a UsdSkel
 crate (.usdc, Blender's layout: a Skeleton, its SkelAnimation sampled per frame) and as COLLADA (a matrix per joint
 and frame, Blender's); an Xsens MVNX (23 segments' quaternions and positions
 per frame, XML); a BVH of a LAFAN1-like rig (every
@@ -114,6 +115,7 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
                                                                             a_pose=40.0)),
             "FBX (Mixamo rig, retargeted)": ("mixamo.fbx", lambda p: rig_fbx(p, poses, trans)),
             "FBX ASCII (Mixamo rig, retargeted)": ("mixamo_ascii.fbx", lambda p: rig_fbx(p, poses, trans, ascii=True)),
+            "FBX 6.1 (Mixamo rig, retargeted)": ("mixamo6.fbx", lambda p: rig_fbx(p, poses, trans, version=6100)),
             "glTF .glb (Mixamo rig, retargeted)": ("mixamo.glb", lambda p: rig_gltf(p, {"take": (poses, trans)})),
             "USD .usdc UsdSkel (Mixamo rig, retargeted)": (
                 "mixamo.usdc", lambda p: rig_usd(p, {"take": (poses, trans)}, armature=False)),

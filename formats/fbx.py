@@ -34,7 +34,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from core.errors import InputError, read_input
-from core.rotations import axis_angle_to_matrix
 from core.retarget import role_names
 from formats.bvh import Skeleton
 
@@ -56,6 +55,7 @@ _ARRAY_TYPES = {b"f": "f4", b"d": "f8", b"l": "i8", b"i": "i4", b"b": "?", b"c":
 #: Scalar properties' types (struct's codes, the byte order the file's): 'C' a letter (an extrapolation's Type,
 #: an FBX 6 key's kind; read as a one-letter str), 'B' and 'Z' a byte.
 _SCALARS = {b"Y": "h", b"C": "c", b"B": "B", b"Z": "B", b"I": "i", b"F": "f", b"D": "d", b"L": "q"}
+_STRUCTS = {(endian, kind): struct.Struct(endian + code) for endian in "<>" for kind, code in _SCALARS.items()}
 
 
 class Node(NamedTuple):
@@ -219,7 +219,7 @@ def _property(data: bytes, at: int, endian: str = "<"):
     kind = data[at:at + 1]
     at += 1
     if kind in _SCALARS:
-        fmt = struct.Struct(endian + _SCALARS[kind])
+        fmt = _STRUCTS[endian, kind]
         value = fmt.unpack_from(data, at)[0]
         return (value.decode("latin-1") if kind == b"C" else value), at + fmt.size
     if kind in _ARRAY_TYPES:
@@ -253,10 +253,16 @@ def _vector(props: dict, name: str, default: float) -> np.ndarray:
 def _euler(degrees: np.ndarray, order: str) -> np.ndarray:
     """(..., 3, 3) the rotation of Euler angles (..., 3) in degrees about x, y, z, turning about `order`'s axes
     in turn (the first axis first: 'xyz' is Rz Ry Rx)."""
-    R = np.broadcast_to(np.eye(3), degrees.shape[:-1] + (3, 3))
+    radians = np.radians(np.asarray(degrees, dtype=np.float64))
+    R = None
     for axis in order:
         k = "xyz".index(axis)
-        R = axis_angle_to_matrix(np.radians(degrees[..., k:k + 1]) * np.eye(3)[k]) @ R
+        i, j = (k + 1) % 3, (k + 2) % 3
+        c, s = np.cos(radians[..., k]), np.sin(radians[..., k])
+        turn = np.zeros(radians.shape[:-1] + (3, 3))
+        turn[..., k, k] = 1.0
+        turn[..., i, i], turn[..., i, j], turn[..., j, i], turn[..., j, j] = c, -s, s, c
+        R = turn if R is None else turn @ R
     return R
 
 
@@ -447,6 +453,8 @@ class Keys(NamedTuple):
 
     def _between(self, t: np.ndarray) -> np.ndarray:
         v, ticks = self.values, self.ticks
+        if not (self.mode[:-1] != _STRAIGHT).any():  # straight lines only (a baked motion's): at once
+            return np.interp(t, ticks, v)
         after = np.searchsorted(ticks, t, side="right")
         k = np.clip(after - 1, 0, len(v) - 1)
         n = np.minimum(k + 1, len(v) - 1)
@@ -613,6 +621,60 @@ def _handled(ticks, values, mode, slope_left, slope_right, weight_left, weight_r
                 np.stack([right_dx, right_dx * slope_right], axis=1))
 
 
+#: The numbers an FBX 6 key may carry after its time and value, as `_fbx6_key` names them.
+_FBX6_FIELDS = ("slope_right", "next_left", "weight_right", "next_weight")
+
+
+def _fbx6_key(tokens: list, at: int, key_ver: int) -> tuple[int, int, dict]:
+    """The layout of the FBX 6 key starting at `tokens[at]`: its length in tokens, its interpolation (`_HOLD`...)
+    and {field (`_FBX6_FIELDS`, or 'automatic': 1): its offset in the key}. ValueError where it breaks the
+    grammar (`_fbx6_keys`)."""
+    def letter(k):
+        if k >= len(tokens) or not isinstance(tokens[k], str):
+            raise ValueError(f"no letter at token {k}")
+        return tokens[k]
+
+    def number(k):
+        if k >= len(tokens) or isinstance(tokens[k], str):
+            raise ValueError(f"no number at token {k}")
+        return k - at
+
+    number(at), number(at + 1)
+    kind, k, fields = letter(at + 2), at + 3, {}
+    if kind == "U":
+        slope_mode, weights = letter(k), 1
+        k += 1
+        if slope_mode in ("s", "b"):
+            fields.update(slope_right=number(k), next_left=number(k + 1))
+            k, weights = k + 2, 0 if key_ver == 4003 else 1
+        elif slope_mode in ("a", "p", "q", "t", "d"):
+            fields["automatic"] = 1
+            k += {"a": 0, "p": 2, "q": 2, "t": 3, "d": 1}[slope_mode]
+            weights = {"a": 0 if key_ver <= 4004 else 1, "p": 1 if key_ver <= 4004 else 2,
+                       "q": 1 if key_ver <= 4004 else 2, "t": 0, "d": 1}[slope_mode]
+        else:
+            raise ValueError(f"a slope mode {slope_mode!r}")
+        for _ in range(weights):
+            weight_mode = letter(k)
+            k += 1
+            if weight_mode == "a":
+                fields.update(weight_right=number(k), next_weight=number(k + 1))
+                k += 2
+            elif weight_mode in ("l", "r"):
+                fields["next_weight" if weight_mode == "l" else "weight_right"] = number(k)
+                k += 1
+            elif weight_mode not in ("n", "c"):
+                raise ValueError(f"a weight mode {weight_mode!r}")
+        return k - at, _BEZIER, fields
+    if kind == "C":
+        if key_ver >= 4004:
+            return k + 1 - at, _HOLD_NEXT if letter(k) == "n" else _HOLD, fields
+        return k - at, _HOLD, fields
+    if kind == "L":
+        return k - at, _STRAIGHT, fields
+    raise ValueError(f"a key kind {kind!r}")
+
+
 def _fbx6_keys(curve: Node, unit: float = 1.0) -> Keys:
     """The keys of an FBX 6 channel: its 'Key' a run of time, value and interpolation letter, then that letter's
     parameters ('U' cubic: its slope mode ('s'/'b' two slopes; 'a', 'p', 'q', 't', 'd' automatic) and weight
@@ -624,54 +686,28 @@ def _fbx6_keys(curve: Node, unit: float = 1.0) -> Keys:
         tokens = tokens[0].tolist()
     version = curve.child("KeyVer")
     key_ver = int(version.props[0]) if version is not None and version.props else 4005
-    rows = []  # time, value, mode, right slope, next key's left slope, right weight, next left weight, automatic
-    at, third = 0, 0.333333
-
-    def number(k):
-        if isinstance(tokens[k], str):
-            raise ValueError(f"a letter {tokens[k]!r} where a number belongs")
-        return float(tokens[k])
-
-    while at < len(tokens):
-        time, value, kind = number(at), number(at + 1), tokens[at + 2]
-        at += 3
-        row = [time, value, _STRAIGHT, 0.0, 0.0, third, third, False]
-        if kind == "U":
-            row[2], slope_mode, weights = _BEZIER, tokens[at], 1
-            at += 1
-            if slope_mode in ("s", "b"):
-                row[3], row[4] = number(at), number(at + 1)
-                at, weights = at + 2, 0 if key_ver == 4003 else 1
-            elif slope_mode in ("a", "p", "q", "t", "d"):
-                row[7] = True
-                skip = {"a": 0, "p": 2, "q": 2, "t": 3, "d": 1}[slope_mode]
-                weights = {"a": 0 if key_ver <= 4004 else 1, "p": 1 if key_ver <= 4004 else 2,
-                           "q": 1 if key_ver <= 4004 else 2, "t": 0, "d": 1}[slope_mode]
-                at += skip
-            else:
-                raise ValueError(f"a slope mode {slope_mode!r}")
-            for _ in range(weights):
-                weight_mode = tokens[at]
-                at += 1
-                if weight_mode == "a":
-                    row[5], row[6] = number(at), number(at + 1)
-                    at += 2
-                elif weight_mode in ("l", "r"):
-                    row[6 if weight_mode == "l" else 5] = number(at)
-                    at += 1
-                elif weight_mode not in ("n", "c"):
-                    raise ValueError(f"a weight mode {weight_mode!r}")
-        elif kind == "C":
-            row[2] = _HOLD
-            if key_ver >= 4004:
-                row[2] = _HOLD_NEXT if tokens[at] == "n" else _HOLD
-                at += 1
-        elif kind != "L":
-            raise ValueError(f"a key kind {kind!r}")
-        rows.append(row)
-    if not rows:
-        raise ValueError("no key")
-    table = np.array(rows, dtype=np.float64)
+    third = 0.333333
+    size, mode, fields = _fbx6_key(tokens, 0, key_ver)
+    # a run of keys all laid out as the first (a baked motion's): read at once
+    grid = np.array(tokens, dtype=object).reshape(-1, size) if len(tokens) % size == 0 else None
+    letters = [j for j in range(size) if isinstance(tokens[j], str)]
+    if grid is not None and all((grid[:, j] == tokens[j]).all() for j in letters) and not any(
+            isinstance(x, str) for j in range(size) if j not in letters for x in grid[:, j]):
+        table = np.zeros((len(grid), 8))
+        table[:, 5:7] = third
+        table[:, 2], table[:, 7] = mode, fields.pop("automatic", 0)
+        for column, at in ((0, 0), (1, 1)) + tuple((_FBX6_FIELDS.index(f) + 3, j) for f, j in fields.items()):
+            table[:, column] = grid[:, at].astype(np.float64)
+    else:
+        rows, at = [], 0  # time, value, mode, right slope, next left slope, right weight, next left weight, auto
+        while at < len(tokens):
+            size, mode, fields = _fbx6_key(tokens, at, key_ver)
+            row = [float(tokens[at]), float(tokens[at + 1]), mode, 0.0, 0.0, third, third, fields.pop("automatic", 0)]
+            for field, offset in fields.items():
+                row[_FBX6_FIELDS.index(field) + 3] = float(tokens[at + offset])
+            rows.append(row)
+            at += size
+        table = np.array(rows, dtype=np.float64)
     order = np.argsort(table[:, 0], kind="stable")
     table = table[order]
     ticks, values, mode = np.round(table[:, 0] * unit).astype(np.int64), table[:, 1], table[:, 2].astype(np.int64)
@@ -898,15 +934,18 @@ def model_transforms(scene: Scene, t: np.ndarray) -> tuple[dict, dict]:
     curves = scene.curves
     world: dict = {}
     rest: dict = {}
+    props_of = {i: {**template, **_props70(scene.models[i])} for i in scene.order}
+    compensated = {scene.parent.get(i) for i, props in props_of.items()  # parents whose unscaled transforms count
+                   if int(props.get("InheritType", [1])[0]) in (0, 2)}
     for i in scene.order:
-        props = {**template, **_props70(scene.models[i])}
+        props = props_of[i]
         static = [_vector(props, "Lcl Translation", 0.0), _vector(props, "Lcl Rotation", 0.0),
                   _vector(props, "Lcl Scaling", 1.0)]
         order = _ORDERS.get(int(props.get("RotationOrder", [0])[0]), "xyz")
         frames = [_layered(curves, i, key, s, t, order) if curves else s[None] for key, s in zip("TRS", static)]
         p = scene.parent.get(i)
-        world[i] = placed(props, frames, world.get(p))
-        rest[i] = placed(props, [s[None] for s in static], rest.get(p))
+        world[i] = placed(props, frames, world.get(p), i in compensated)
+        rest[i] = placed(props, [s[None] for s in static], rest.get(p), i in compensated)
     return {i: w.matrix for i, w in world.items()}, {i: w.matrix[0] for i, w in rest.items()}
 
 
@@ -1003,14 +1042,15 @@ class Placed(NamedTuple):
     scale_from: Placed | None  # the model whose `scale` a child ignoring its parent's scaling takes instead
 
 
-def placed(props: dict, frames: list, parent: Placed | None) -> Placed:
+def placed(props: dict, frames: list, parent: Placed | None, unscaled: bool = True) -> Placed:
     """A model's transforms in the world (`Placed`) from its properties (Properties70 over the file's template)
     and its translation, Euler rotation and scaling per frame (`frames`, each (F, 3)), below `parent`'s (None: at
     the root): FBX's chain T Roff Rp Rpre R Rpost^-1 Rp^-1 Soff Sp S Sp^-1 (pre- and post-rotation and the
     RotationOrder where RotationActive is on, as the FBX SDK reads them), and the parent's scaling inherited
     as the InheritType says: 1 (Maya's transforms, the SDK's default) through the parent's whole matrix; 0 (RrSs)
     component by component, without shear; 2 (Rrs, a Maya joint's segment scale compensation) not the parent's
-    own, its translation still scaled by it."""
+    own, its translation still scaled by it. unscaled: whether its transform without its scaling is kept (for
+    children of InheritType 0 and 2; else `Placed.unscaled` is its `matrix`)."""
     T, R, S = (np.asarray(f, dtype=np.float64) for f in frames)
     rotation_space = bool(int(props.get("RotationActive", [1])[0])) and not int(
         props.get("RotationSpaceForLimitOnly", [0])[0])
@@ -1030,11 +1070,13 @@ def placed(props: dict, frames: list, parent: Placed | None) -> Placed:
         if scale_from is not None:
             S = S * scale_from.scale
         move = move * parent.scale
-    matrix, unscaled = _matrix(turn * S[..., None, :], move), _matrix(turn, move)
+    matrix = _matrix(turn * S[..., None, :], move)
+    without = _matrix(turn, move) if unscaled else None
     if parent is not None:
         above = parent.matrix if inherit not in (0, 2) else parent.unscaled
-        matrix, unscaled = above @ matrix, above @ unscaled
-    return Placed(matrix, unscaled, np.broadcast_to(S, move.shape), scale_from)
+        matrix = above @ matrix
+        without = above @ without if unscaled else None
+    return Placed(matrix, matrix if without is None else without, np.broadcast_to(S, move.shape), scale_from)
 
 
 def _matrix(linear: np.ndarray, move: np.ndarray) -> np.ndarray:
