@@ -967,7 +967,7 @@ def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
         t = curves.start + np.arange(n) * (TICKS_PER_SECOND / fps)
     world, rest = model_transforms(scene, t)
     bound = _bind_pose(scene.objects, rest)
-    rest.update(bound)
+    rest = bound_rest(rest, bound, scene.order, scene.parent)
     creator = str(scene.top["Creator"].props[:1]) if "Creator" in scene.top else ""
     if not bound and curves is not None and "Blender" in creator:
         log.warning("%s: an armature Blender wrote without its mesh holds no rest pose (no BindPose): its joints' "
@@ -1085,6 +1085,21 @@ def _matrix(linear: np.ndarray, move: np.ndarray) -> np.ndarray:
     M[..., :3, 3] = move
     M[..., 3, 3] = 1.0
     return M
+
+
+def bound_rest(rest: dict, bound: dict, order: list, parent: dict) -> dict:
+    """{id: (4, 4)} the rest of every node: its bind pose's where it has one (`bound`), else its own transform
+    from its parent's (in `rest`, as its properties hold them) below its parent's rest, so the joints a
+    BindPose leaves out (end joints, IK controls: no skin weights) keep their places along their bound parents;
+    order: the ids, parents first."""
+    out = dict(rest)
+    out.update(bound)
+    for i in order:
+        p = parent.get(i)
+        if i not in bound and p is not None and p in out and out[p] is not rest[p]:
+            if abs(np.linalg.det(rest[p][:3, :3])) > 1e-12:
+                out[i] = out[p] @ np.linalg.solve(rest[p], rest[i])
+    return out
 
 
 def _bind_pose(objects: Node, rest: dict) -> dict:

@@ -112,11 +112,13 @@ def _p70(*entries):
 
 
 def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, extra_links=(), time_mode=None,
-            takes=None, ascii=False, floor_joint=False, creator=None, big_endian=False, version=7400):
+            takes=None, ascii=False, floor_joint=False, creator=None, big_endian=False, version=7400,
+            unbound=()):
     """An FBX of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature Null scaling it to
     metres: every joint with a random pre-rotation (its frame not the world's at rest, as Maya's joint orients)
     and Euler order, its rotation curves per axis, the root's translation curves. bind_pose: its static
-    rotations are the first frame's (not the rest) and a BindPose holds the rest. extra_links: connections
+    rotations are the first frame's (not the rest) and a BindPose holds the rest (but of the joints named in
+    `unbound`, as a skin leaves out joints it does not weight). extra_links: connections
     added (kind, child, parent); time_mode: (TimeMode, CustomFrameRate) written instead of `fps`'s. takes:
     {stack name: (poses, trans)}, one animation stack (and layer) each, instead of 'Take 001' of `poses`;
     ascii: an ASCII FBX of the same nodes (big_endian: a big-endian binary one); version 6100: FBX 6's layout
@@ -186,7 +188,8 @@ def rig_fbx(path, poses, trans, rig=MIXAMO, fps=30, seed=1, bind_pose=False, ext
                                    ("Lcl Translation", "D", *(root[0] if parents[j] < 0 else translation[j])),
                                    ("Lcl Rotation", "D", *static))]))
         links.append(("OO", ids[j], ids[parents[j]] if parents[j] >= 0 else 950 if floor_joint else armature))
-        if bind_pose:  # the world matrix at rest: the Armature's scaling, the joint's frame and place
+        if bind_pose and names[j] not in unbound:  # the world at rest: the Armature's scaling, the joint's frame
+            # and place
             M = np.eye(4)
             M[:3, :3] = 0.01 * frame[j]
             M[:3, 3] = 0.01 * place[j]
@@ -289,6 +292,24 @@ def test_a_mixamo_fbx_reads_as_the_smpl_motion_it_moves_as(tmp_path, bind_pose, 
     assert m.fps == pytest.approx(30) and m.poses.shape == (5, 24, 3) and m.rest_up == "y"
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
+def test_joints_a_bind_pose_leaves_out_keep_their_places_along_their_bound_parents(tmp_path):
+    """Joints a BindPose leaves out (end joints, controls: a skin weights none of their vertices) rest where their
+    own transforms put them below their parents' bind poses, not where the file's posed values put the whole
+    chain: the head's end joint and a finger rest as with a full BindPose, the motion the same."""
+    from formats.fbx import read_fbx
+
+    poses, trans = _motion(3, seed=11)
+    poses[:, 22:] = 0
+    full = read_fbx(rig_fbx(tmp_path / "full.fbx", poses, trans, bind_pose=True), "full")
+    left_out = ("mixamorig7:HeadTop_End", "mixamorig7:LeftHandIndex1")
+    partial = read_fbx(rig_fbx(tmp_path / "partial.fbx", poses, trans, bind_pose=True, unbound=left_out), "partial")
+    ends = [full.names.index(name) for name in left_out]
+    np.testing.assert_allclose(partial.offsets[ends], full.offsets[ends], atol=1e-9)
+    assert np.abs(full.offsets[ends]).max() > 0.01
+    m = load_motion(tmp_path / "partial.fbx", world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
 
 
 def test_a_blender_fbx_of_an_armature_without_its_mesh_is_warned_about(tmp_path, caplog):
