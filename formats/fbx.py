@@ -478,6 +478,10 @@ class Keys(NamedTuple):
         value = np.full(len(t), self.values[end])
         if mode == "K":  # along the end key's tangent
             dx, dy = self.right[0] if pre else self.left[-1]
+            if not (self.mode[:-1] != _STRAIGHT).any():  # the end line's
+                dx, dy = np.diff(self.ticks[:2] if pre else self.ticks[-2:]) / TICKS_PER_SECOND, \
+                    np.diff(self.values[:2] if pre else self.values[-2:])
+                dx, dy = float(dx[0]), float(dy[0])
             return value + (dy / dx * (t - self.ticks[end]) / TICKS_PER_SECOND if dx > 0 else 0.0)
         first, last = float(self.ticks[0]), float(self.ticks[-1])
         duration = last - first
@@ -537,9 +541,8 @@ def curve_keys(curve: Node, unit: float = 1.0) -> Keys | None:
     flags_in, data_in, refs_in = arrays
     if (unsorted or flags_in is None or data_in is None or refs_in is None or len(flags_in) != len(refs_in)
             or len(data_in) != 4 * len(refs_in) or np.asarray(refs_in).astype(np.int64).clip(0).sum() < K):
-        third = np.stack([np.diff(ticks) / TICKS_PER_SECOND, np.diff(values)], axis=1) / 3.0  # lines' handles
-        keys = Keys(ticks, values, np.full(K, _STRAIGHT), np.insert(third, 0, 0.0, axis=0),
-                    np.append(third, np.zeros((1, 2)), axis=0))
+        none = np.broadcast_to(np.zeros(2), (K, 2))  # straight lines need no handles
+        keys = Keys(ticks, values, np.full(K, _STRAIGHT, dtype=np.int8), none, none)
     else:
         refs = refs_in.astype(np.int64).clip(0)
         flags = np.repeat(flags_in.astype(np.int64) & 0xFFFFFFFF, refs)[:K]
@@ -607,7 +610,7 @@ def _tangents(ticks, values, flags, data, bits) -> Keys:
         new_right = np.where(both, common, np.where(has_prev, edge_left, np.where(has_next, edge_right, 0.0)))
         slope_left, slope_right = np.where(auto, new_left, slope_left), np.where(auto, new_right, slope_right)
     mode = np.where(constant, np.where((flags & _CONSTANT_NEXT) != 0, _HOLD_NEXT, _HOLD),
-                    np.where(cubic, _BEZIER, _STRAIGHT))
+                    np.where(cubic, _BEZIER, _STRAIGHT)).astype(np.int8)
     return _handled(ticks, values, mode, slope_left, slope_right, weight_left, np.where(cubic, weight_right, third))
 
 

@@ -225,6 +225,21 @@ def test_damaged_or_missing_key_attributes_join_keys_by_straight_lines():
         np.testing.assert_allclose(keys.at(np.array([-1.0, 3.0]) * TICKS_PER_SECOND), [0.0, 0.0])
 
 
+def test_straight_keys_go_on_along_their_end_lines_where_told():
+    """Keys without attributes (straight lines) whose curve says 'K' after and before (Post-/Pre-Extrapolation)
+    go on along their last and first lines; 'C' holds the end values."""
+    def curve(kind):
+        ticks = (np.array([0.0, 1.0, 2.0]) * TICKS_PER_SECOND).astype(np.int64)
+        out = [Node("Type", [kind], []), Node("Repetition", [-1], [])]
+        return curve_keys(Node("AnimationCurve", [1, "", ""], [
+            Node("KeyTime", [ticks], []), Node("KeyValueFloat", [np.array([0.0, 2.0, 3.0])], []),
+            Node("Pre-Extrapolation", [], out), Node("Post-Extrapolation", [], out)]))
+
+    t = np.array([-1.0, 3.0]) * TICKS_PER_SECOND
+    np.testing.assert_allclose(curve("K").at(t), [-2.0, 4.0])
+    np.testing.assert_allclose(curve("C").at(t), [0.0, 3.0])
+
+
 def test_pre_rotation_and_rotation_order_apply_where_rotation_is_active():
     """A Model's pre- and post-rotation and RotationOrder apply where its RotationActive is on (its own value,
     else the file's Model template's, else on), as the FBX SDK reads them: a template of RotationActive 0 turns
