@@ -14,11 +14,12 @@ legs over the rig's (its unit too), so the feet keep their stride. Joint positio
 where the rig's joints between two matched ones do not turn; the twist about a limb is the rig's.
 
 The bones are turned from the rig's rest pose (all its rotations zero) where it stands (legs down from the hips,
-the head above the pelvis). A rig whose zero pose folds the body (LAFAN1's: every bone along its joint's own X)
-gives no forward to turn the bones by: the clip's frame that stands straightest (`_standing_frame`; upright in
-the world most frames stand in) is taken as its rest instead, warned, SMPL's T-pose turned onto it bone by bone
-(the twist about a limb then the actor's at that frame, whose hanging arms give SMPL's palms facing the thighs).
-A clip with no standing frame is refused.
+the head above the pelvis). A rig whose zero pose folds the body (LAFAN1's, Bandai Namco's: every bone along its
+joint's own X) gives no forward to turn the bones by: each bone is turned from the clip's frame it stands best
+in instead (`_turns_by_bone`: a leg, the spine or a foot nearest SMPL's rest, an arm hanging or held out; among
+the frames upright in the world most frames stand in), the pelvis from the frame whose legs are straightest
+(`_standing_frame`), warned (the twist about a limb then the actor's at its frame, whose hanging arms give SMPL's
+palms facing the thighs). A clip whose thighs and shins never come near down is refused.
 """
 
 from __future__ import annotations
@@ -74,6 +75,10 @@ _UP_COSINE = np.cos(np.radians(30.0))
 CHUNK_FRAMES = 4096
 #: A thigh or shin further than this from the body's down (degrees; up: from the pelvis to the head) does not stand.
 LEG_MAX_DEGREES = 45.0
+#: A body leaning further from the world's up than this (degrees, its median frame) gives no up axis.
+LEAN_MAX_DEGREES = 60.0
+#: Frames looked through, evenly spread, for each bone's best view where the rig's zero pose does not stand.
+BONE_FRAMES = 512
 
 
 def role_names(names: list[str]) -> int:
@@ -152,26 +157,35 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     def posed(c: slice) -> tuple[np.ndarray, np.ndarray]:
         return rig_pose(parents, offsets, rotations[c], root_positions[c], None if moving is None else moving[c])
 
-    rest_world = None
+    rest_world = by_bone = leaning_up = None
+    body_m = _body_frame(smpl_rest, itself)
     bent, leg = _bent(rest, match)
-    if bent > LEG_MAX_DEGREES:
+    if bent > LEG_MAX_DEGREES:  # each bone turned from the frame it is seen best in (`_turns_by_bone`)
         keys = (0, 15, 1, 2, 4, 5, 7, 8)  # the pelvis, head and legs: what a frame's standing is told by
         trunk = np.concatenate([posed(c)[1][:, [match[k] for k in keys]] for c in chunks])
         t, frame_bent = _standing_frame(trunk, {k: i for i, k in enumerate(keys)})
-        if frame_bent > LEG_MAX_DEGREES:
-            raise InputError(f"{src}: expected a rest pose (all rotations zero) or a frame that stands, got its "
-                             f"'{names[match[leg]]}' leg {bent:.0f} degrees from down at rest and, in its straightest "
-                             f"frame ({t}), a leg {frame_bent:.0f} degrees from down (the head above the pelvis is "
-                             f"up): a rig that never stands needs retargeting to one first")
         world_t, position_t = posed(slice(t, t + 1))
         rest, rest_world = position_t[0], world_t[0]
-        log.warning("%s: the rig's zero pose does not stand (its '%s' leg %.0f degrees from down): its frame %d, "
-                    "the straightest (legs within %.0f degrees of down), is taken as its rest; the twist about each "
-                    "limb is the actor's there", src, names[match[leg]], bent, t, frame_bent)
-    body_m, body_s = _body_frame(smpl_rest, itself), _body_frame(rest, match)
+        frames = np.union1d(np.linspace(0, len(rotations) - 1, min(len(rotations), BONE_FRAMES)).astype(int), [t])
+        world_n, position_n = posed(frames)
+        by_bone, worst, leaning_up = _turns_by_bone(match, world_n, position_n, smpl_rest, body_m, int(np.searchsorted(frames, t)))
+        if worst > LEG_MAX_DEGREES:
+            raise InputError(f"{src}: expected a rest pose (all rotations zero) or a frame that stands, got its "
+                             f"'{names[match[leg]]}' leg {bent:.0f} degrees from down at rest and, in its straightest "
+                             f"frame ({t}), a leg {frame_bent:.0f} degrees from down (each thigh and shin at best "
+                             f"{worst:.0f}; the head above the pelvis is up): a rig that never stands needs "
+                             f"retargeting to one first")
+        log.warning("%s: the rig's zero pose does not stand (its '%s' leg %.0f degrees from down): each bone is "
+                    "turned from the frame it stands best in (its legs nearest SMPL's, within %.0f degrees of down, "
+                    "an arm hanging or held out, the body upright; frame %d the straightest, legs within %.0f degrees); "
+                    "the twist about each limb is the actor's there", src, names[match[leg]], bent, worst, t,
+                    frame_bent)
+    body_s = _body_frame(rest, match)
     turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
     if rest_world is not None:  # the turns are from that frame's joint rotations, not from zero ones
         turns = {k: rest_world[match[k]].T @ turn for k, turn in turns.items()}
+    if by_bone is not None:
+        turns.update(by_bone)
     legs_m, legs_s = _legs(smpl_rest, itself), _legs(rest, match)
     if not (np.isfinite(legs_s) and legs_s > 0):
         raise InputError(f"{src}: expected legs of some length in its OFFSETs, got {legs_s}")
@@ -193,6 +207,8 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
         poses[c] = matrix_to_axis_angle(local)
         trans[c] = position[:, match[0]] * (legs_m / legs_s) - smpl_rest[0]
     up = next((axis for axis, v in _UP_AXES.items() if body_s[:, 1] @ v > _UP_COSINE), None)
+    if up is None and by_bone is not None:  # a body leaning throughout (a sad walk): the axis it leans nearest to
+        up = leaning_up
     said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
             f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}")
     return Retargeted(poses, trans, up, said)
@@ -355,6 +371,67 @@ def _leg_angles(position: np.ndarray, match: dict[int, int]) -> np.ndarray:
     bones = np.stack([position[..., match[k + 3], :] - position[..., match[k], :] for k in (1, 2, 4, 5)], axis=-2)
     bones = bones / np.maximum(np.linalg.norm(bones, axis=-1, keepdims=True), 1e-12)
     return np.degrees(np.arccos(np.clip(-np.einsum("...bi,...i->...b", bones, up), -1.0, 1.0)))
+
+
+#: SMPL's shoulders, elbows and wrists: the arm bones, which hang down where an actor stands.
+_ARM_JOINTS = (16, 17, 18, 19, 20, 21)
+
+
+def _turns_by_bone(match: dict[int, int], world: np.ndarray, position: np.ndarray, smpl_rest: np.ndarray,
+                   body_m: np.ndarray, straightest: int) -> tuple[dict[int, np.ndarray], float, str | None]:
+    """({SMPL joint: its turn (`_rest_turns`) from its rig joint's frame}, the largest angle in degrees any thigh or
+    shin keeps from down at best (the body's down, or the world's where the body leans), the world axis the body
+    stands along (`_UP_AXES`; the one it leans nearest to where it stands along none, within LEAN_MAX_DEGREES
+    in the median frame; else None)) of a rig whose zero pose does not stand, each joint's turn taken in the frame (of
+    `world` (N, J, 3, 3) and `position` (N, J, 3)) its bone is seen nearest as it stands: an arm bone hanging or
+    held out sideways (as in a T-pose), another (a leg's, the spine's, a foot's) as SMPL's at rest, in the body's
+    frame (its twist then told by the body's forward, square to it); the pelvis and joints without a bone
+    of their own in the `straightest` frame. Where the body is upright in most frames, only those are looked at
+    (an actor lying straight on the floor is no rest)."""
+    angles = _leg_angles(position, match)  # (N, 4): thighs and shins from down
+    up = _units(position[:, match[15]] - position[:, match[0]])
+    left = position[:, match[1]] - position[:, match[2]]
+    left = _units(left - np.einsum("ni,ni->n", left, up)[:, None] * up)
+    body_s = np.stack([left, up, np.cross(left, up)], axis=2)  # (N, 3, 3) each frame's `_body_frame`
+    along = up @ np.array(list(_UP_AXES.values())).T > _UP_COSINE  # (N, axes)
+    upright = along[:, int(np.argmax(along.sum(axis=0)))]
+    looked = upright if upright.sum() * 2 >= len(upright) else np.ones(len(upright), dtype=bool)
+    looked[straightest] = True
+    # the straightest frame's turns, for the pelvis and the joints without a bone of their own
+    turns = _rest_turns(match, position[straightest], smpl_rest, body_m, body_s[straightest])
+    out = {k: world[straightest, match[k]].T @ turn for k, turn in turns.items()}
+    size = np.linalg.norm(position[:, match[1]] - position[:, match[2]], axis=1)
+    for k in turns:
+        c = chain_end(k, match)
+        if k == 0 or c is None:
+            continue
+        bone_m = smpl_rest[c] - smpl_rest[k]
+        axis = 1 if abs(_unit(bone_m) @ body_m[:, 2]) > 0.7 else 2  # as `_rest_turns`
+        bone = position[:, match[c]] - position[:, match[k]]
+        if k in _ARM_JOINTS:  # hanging, or held out to its side
+            toward = _units(np.einsum("nji,nj->ni", body_s, bone))
+            cosine = np.maximum(-toward[:, 1], toward[:, 0] * (1.0 if k % 2 == 0 else -1.0))
+        else:
+            cosine = np.einsum("nji,nj,i->n", body_s, _units(bone), body_m.T @ _unit(bone_m))
+        cosine = np.where(looked & (np.linalg.norm(bone, axis=1) >= 1e-9 * size), cosine, -np.inf)
+        n = int(np.argmax(cosine))
+        if np.isfinite(cosine[n]):
+            turn = _frame(bone[n], body_s[n][:, axis]) @ _frame(bone_m, body_m[:, axis]).T
+            out[k] = world[n, match[k]].T @ turn
+    # the legs from down: the body's (pelvis to head), or the world's where the body leans over them (a sad walk):
+    # the axis it is upright along most, else the one it leans nearest to on average
+    axes = np.array(list(_UP_AXES.values()))
+    nearest = int(np.argmax(along.sum(axis=0))) if along.any() else int(np.argmax((up @ axes.T).mean(axis=0)))
+    vertical = axes[nearest]
+    bones = _units(np.stack([position[:, match[k + 3]] - position[:, match[k]] for k in (1, 2, 4, 5)], axis=1))
+    world_angles = np.degrees(np.arccos(np.clip(-bones @ vertical, -1.0, 1.0)))
+    worst = float(np.where(looked[:, None], np.minimum(angles, world_angles), np.inf).min(axis=0).max())
+    leaning = float(np.degrees(np.arccos(np.clip(np.median(up @ vertical), -1.0, 1.0))))
+    return out, worst, (list(_UP_AXES)[nearest] if leaning < LEAN_MAX_DEGREES else None)
+
+
+def _units(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 def _bent(rest: np.ndarray, match: dict[int, int]) -> tuple[float, int]:
