@@ -19,7 +19,8 @@ joint's own X) gives no forward to turn the bones by: each bone is turned from t
 in instead (`_turns_by_bone`: a leg, the spine or a foot nearest SMPL's rest, an arm hanging or held out; among
 the frames upright in the world most frames stand in), the pelvis from the frame whose legs are straightest
 (`_standing_frame`), warned (the twist about a limb then the actor's at its frame, whose hanging arms give SMPL's
-palms facing the thighs). A clip whose thighs and shins never come near down is refused.
+palms facing the thighs); where its knees and elbows bend as hinges, the bones either side are twisted onto the
+hinges' axes (`_hinged`). A clip whose thighs and shins never come near down is refused.
 """
 
 from __future__ import annotations
@@ -177,8 +178,9 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
                              f"retargeting to one first")
         log.warning("%s: the rig's zero pose does not stand (its '%s' leg %.0f degrees from down): each bone is "
                     "turned from the frame it stands best in (its legs nearest SMPL's, within %.0f degrees of down, "
-                    "an arm hanging or held out, the body upright; frame %d the straightest, legs within %.0f degrees); "
-                    "the twist about each limb is the actor's there", src, names[match[leg]], bent, worst, t,
+                    "an arm hanging or held out, the body upright; frame %d the straightest, legs within %.0f degrees; "
+                    "knees and elbows that hinge twisted onto their axes); the twist about each limb is the actor's "
+                    "there", src, names[match[leg]], bent, worst, t,
                     frame_bent)
     body_s = _body_frame(rest, match)
     turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
@@ -186,6 +188,7 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
         turns = {k: rest_world[match[k]].T @ turn for k, turn in turns.items()}
     if by_bone is not None:
         turns.update(by_bone)
+        turns.update(_hinged(match, turns, world_n, position_n, smpl_rest))
     legs_m, legs_s = _legs(smpl_rest, itself), _legs(rest, match)
     if not (np.isfinite(legs_s) and legs_s > 0):
         raise InputError(f"{src}: expected legs of some length in its OFFSETs, got {legs_s}")
@@ -428,6 +431,70 @@ def _turns_by_bone(match: dict[int, int], world: np.ndarray, position: np.ndarra
     worst = float(np.where(looked[:, None], np.minimum(angles, world_angles), np.inf).min(axis=0).max())
     leaning = float(np.degrees(np.arccos(np.clip(np.median(up @ vertical), -1.0, 1.0))))
     return out, worst, (list(_UP_AXES)[nearest] if leaning < LEAN_MAX_DEGREES else None)
+
+
+#: SMPL's hinge joints (the knees and elbows): {joint: its axis of flexion in its rest frame}, a positive turn about
+#: it bending the bone below as a body bends (the shins back, the forearms forward).
+_HINGES = {4: (1.0, 0.0, 0.0), 5: (1.0, 0.0, 0.0), 18: (0.0, -1.0, 0.0), 19: (0.0, 1.0, 0.0)}
+#: A hinge whose bends sweep less than this (the spread of the bone below across the plane it bends in, as seen
+#: from the bone above: about a tenth of a radian) tells its axis too little.
+HINGE_SWEEP = 0.02
+#: A clip of fewer frames than this does not tell a hinge from chance.
+HINGE_FRAMES = 30
+#: A limb whose bends leave the plane of a hinge by more than this (degrees, their spread) is no hinge.
+HINGE_SPREAD = 8.0
+
+
+def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarray, position: np.ndarray,
+            smpl_rest: np.ndarray) -> dict[int, np.ndarray]:
+    """{SMPL joint: its turn twisted about its bone} for the bones on either side of a knee or elbow (`_HINGES`)
+    whose rig limb bends as a hinge (frames of `world` (N, J, 3, 3) and `position` (N, J, 3)), whatever frame
+    their twists were first taken from (`_turns_by_bone`): seen from the bone above, the bone below sweeps a cone
+    about the hinge's axis, so the bone above is twisted to put that cone's axis (its circle's plane, fitted to
+    the frames) on SMPL's hinge; the bone below is then twisted to share that axis in the world, on average over
+    the frames (its own turning about its length, a forearm's, left to it). A limb whose bends leave one plane
+    (by more than HINGE_SPREAD degrees) or span too little of it, or a clip of fewer than HINGE_FRAMES frames,
+    keeps its turns."""
+    out = {}
+    for k, hinge in _HINGES.items():
+        c, parent = chain_end(k, match), next((p for p in _ancestors(k) if p in match), None)
+        if k not in match or c is None or parent is None or k not in turns or parent not in turns:
+            continue
+        h = np.asarray(hinge)
+        frame = world[:, match[parent]] @ turns[parent]  # (N, 3, 3): SMPL's thigh or upper arm in the world
+        below = _units(position[:, match[c]] - position[:, match[k]])
+        points = np.einsum("nji,nj->ni", frame, below)  # the bone below, in the frame of the one above
+        centred = points - points.mean(axis=0)
+        _, spread, axes = np.linalg.svd(centred, full_matrices=False)
+        normal = axes[2] if axes[2] @ h >= 0 else -axes[2]
+        if len(points) < HINGE_FRAMES or spread[1] / np.sqrt(len(points)) < HINGE_SWEEP or np.std(
+                centred @ normal) > np.sin(np.radians(HINGE_SPREAD)):
+            continue  # too short a clip to tell, bent too little, or not about one axis
+        bone = _unit(smpl_rest[k] - smpl_rest[parent])
+        out[parent] = turns[parent] @ _turn_about(bone, _angle_about(h, normal, bone))
+        axis_world = (world[:, match[parent]] @ out[parent]) @ h  # the hinge's axis in the world per frame
+        bone = _unit(smpl_rest[c] - smpl_rest[k])
+        frame = world[:, match[k]] @ turns[k]
+        along, now = frame @ bone, frame @ h
+        now, axis_world = (v - np.einsum("ni,ni->n", v, along)[:, None] * along for v in (now, axis_world))
+        angles = np.arctan2(np.einsum("ni,ni->n", np.cross(now, axis_world), along),
+                            np.einsum("ni,ni->n", now, axis_world))
+        mean = np.array([np.cos(angles).mean(), np.sin(angles).mean()])
+        if np.hypot(*mean) >= np.cos(np.radians(HINGE_SPREAD * 4)):
+            out[k] = turns[k] @ _turn_about(bone, float(np.arctan2(mean[1], mean[0])))
+    return out
+
+
+def _angle_about(start: np.ndarray, end: np.ndarray, axis: np.ndarray) -> float:
+    """The angle (radians) turning `start` onto `end` about the unit `axis`, both seen square to it."""
+    a, b = (v - (v @ axis) * axis for v in (start, end))
+    return float(np.arctan2(np.cross(a, b) @ axis, a @ b))
+
+
+def _turn_about(axis: np.ndarray, angle: float) -> np.ndarray:
+    """(3, 3) the rotation by `angle` (radians) about the unit `axis`."""
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
 
 
 def _units(v: np.ndarray) -> np.ndarray:

@@ -329,6 +329,37 @@ def test_a_rig_whose_zero_pose_folds_the_body_is_turned_from_its_straightest_fra
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
 
+def test_knees_and_elbows_that_hinge_twist_their_limbs_as_the_actor_s(tmp_path, monkeypatch):
+    """On a LAFAN1-like rig (its zero pose folded) of a clip whose arms never hang or reach out (held forward) and
+    whose knees and elbows bend as hinges, each to another angle in every frame: the thighs, shins, upper arms and
+    forearms turn as the actor's, twist and all (the hinges' axes fitted to the bends: within 1e-5 degrees),
+    where each bone's frame alone gives twists up to 75 degrees off; a clip of limbs that do not hinge, or too
+    short to tell, keeps those (above)."""
+    import core.retarget as retarget
+
+    rng = np.random.default_rng(5)
+    T = 60
+    poses = np.zeros((T, 24, 3))
+    poses[:, [1, 2, 3, 6, 9]] = rng.normal(0.0, 0.12, (T, 5, 3))
+    bend = np.linspace(0.15, 1.3, T)
+    poses[:, 4, 0], poses[:, 5, 0] = bend, bend[::-1]  # the knees, about x
+    poses[:, 16] = [0.0, -1.1, -0.6] + rng.normal(0.0, 0.1, (T, 3))  # the arms held forward and down
+    poses[:, 17] = [0.0, 1.1, 0.6] + rng.normal(0.0, 0.1, (T, 3))
+    poses[:, 18, 1], poses[:, 19, 1] = -bend[::-1] - 0.2, bend + 0.2  # the elbows, about -y and +y
+    trans = np.zeros((T, 3)) + [0.0, 0.0, 0.95]
+    path = rig_bvh(tmp_path / "hinges.bvh", poses, trans, LAFAN1, along_x=True, seed=4)
+    truth = _smpl_world(poses)[:, [1, 2, 4, 5, 16, 17, 18, 19]]
+
+    def limbs_off(m):  # degrees, at most, between the limbs' rotations in the world and the actor's
+        got = _smpl_world(m.poses)[:, [1, 2, 4, 5, 16, 17, 18, 19]]
+        cosine = (np.einsum("tjab,tjab->tj", got, truth) - 1.0) / 2.0
+        return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))).max())
+
+    assert limbs_off(load_motion(path, world_checks=False)) < 1e-3
+    monkeypatch.setattr(retarget, "_hinged", lambda *args: {})
+    assert limbs_off(load_motion(path, world_checks=False)) > 5.0
+
+
 def test_position_channels_of_joints_below_the_root_move_them(tmp_path):
     """A rig whose root is a joint at the floor and whose hips carry the motion's translation in their own
     position channels (as game engines' and some exporters' BVHs are), every other joint's position channels its
