@@ -451,7 +451,7 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
     whose rig limb bends as a hinge (frames of `world` (N, J, 3, 3) and `position` (N, J, 3)), whatever frame
     their twists were first taken from (`_turns_by_bone`): seen from the bone above, the bone below sweeps a cone
     about the hinge's axis, so the bone above is twisted to put that cone's axis (its circle's plane, fitted to
-    the frames) on SMPL's hinge; the bone below is then twisted to share that axis in the world, on average over
+    the frames, turned the way the limb bends: a knee or elbow flexes one way) on SMPL's hinge; the bone below is then twisted to share that axis in the world, on average over
     the frames (its own turning about its length, a forearm's, left to it). A limb whose bends leave one plane
     (by more than HINGE_SPREAD degrees) or span too little of it, or a clip of fewer than HINGE_FRAMES frames,
     keeps its turns."""
@@ -466,11 +466,12 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
         points = np.einsum("nji,nj->ni", frame, below)  # the bone below, in the frame of the one above
         centred = points - points.mean(axis=0)
         _, spread, axes = np.linalg.svd(centred, full_matrices=False)
-        normal = axes[2] if axes[2] @ h >= 0 else -axes[2]
+        bone = _unit(smpl_rest[k] - smpl_rest[parent])
+        bending = np.cross(bone, points).sum(axis=0)  # the way the bone below bends from the one above: flexion
+        normal = axes[2] if axes[2] @ bending >= 0 else -axes[2]
         if len(points) < HINGE_FRAMES or spread[1] / np.sqrt(len(points)) < HINGE_SWEEP or np.std(
                 centred @ normal) > np.sin(np.radians(HINGE_SPREAD)):
             continue  # too short a clip to tell, bent too little, or not about one axis
-        bone = _unit(smpl_rest[k] - smpl_rest[parent])
         out[parent] = turns[parent] @ _turn_about(bone, _angle_about(h, normal, bone))
         axis_world = (world[:, match[parent]] @ out[parent]) @ h  # the hinge's axis in the world per frame
         bone = _unit(smpl_rest[c] - smpl_rest[k])

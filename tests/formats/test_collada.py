@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from core.errors import InputError
 from core.rotations import axis_angle_to_matrix
 from formats.motion import load_motion
 from tests.formats.test_bvh import MIXAMO, _bone_directions, _motion, rig_motion
