@@ -470,8 +470,10 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
         bending = np.cross(bone, points).sum(axis=0)  # the way the bone below bends from the one above: flexion
         normal = axes[2] if axes[2] @ bending >= 0 else -axes[2]
         if len(points) < HINGE_FRAMES or spread[1] / np.sqrt(len(points)) < HINGE_SWEEP or np.std(
-                centred @ normal) > np.sin(np.radians(HINGE_SPREAD)):
-            continue  # too short a clip to tell, bent too little, or not about one axis
+                centred @ normal) > np.sin(np.radians(HINGE_SPREAD)) or normal @ _unit(bending) < np.cos(
+                np.radians(HINGE_SPREAD * 4)):
+            continue  # too short a clip to tell, bent too little, not about one axis (the plane of a patch of
+            # bends, square to the way it bends, is no hinge's)
         out[parent] = turns[parent] @ _turn_about(bone, _angle_about(h, normal, bone))
         axis_world = (world[:, match[parent]] @ out[parent]) @ h  # the hinge's axis in the world per frame
         bone = _unit(smpl_rest[c] - smpl_rest[k])

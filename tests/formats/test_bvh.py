@@ -333,8 +333,8 @@ def test_knees_and_elbows_that_hinge_twist_their_limbs_as_the_actor_s(tmp_path, 
     """On a LAFAN1-like rig (its zero pose folded) of a clip whose arms never hang or reach out (held forward) and
     whose knees and elbows bend as hinges, each to another angle in every frame: the thighs, shins, upper arms and
     forearms turn as the actor's, twist and all (the hinges' axes fitted to the bends: within 1e-5 degrees),
-    where each bone's frame alone gives twists up to 75 degrees off; a clip of limbs that do not hinge, or too
-    short to tell, keeps those (above)."""
+    where each bone's frame alone gives twists up to 75 degrees off; a clip of limbs that do not hinge (turning
+    every way), or too short to tell, keeps those."""
     import core.retarget as retarget
 
     rng = np.random.default_rng(5)
@@ -356,6 +356,15 @@ def test_knees_and_elbows_that_hinge_twist_their_limbs_as_the_actor_s(tmp_path, 
         return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))).max())
 
     assert limbs_off(load_motion(path, world_checks=False)) < 1e-3
+
+    # knees and elbows turning every way (a patch of bends, no hinge's plane) over as many frames, the first
+    # frame SMPL's T-pose: left as that frame gives them, so the motion reads back exactly
+    blob = rng.normal(0.0, 0.3, (T, 24, 3))
+    blob[:, 0], blob[0] = 0.0, 0.0
+    blob[1:, 4:6, 0] = np.abs(blob[1:, 4:6, 0]) + 0.5
+    m = load_motion(rig_bvh(tmp_path / "blob.bvh", blob, trans, LAFAN1, along_x=True, seed=4), world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(blob), atol=1e-4)
+
     monkeypatch.setattr(retarget, "_hinged", lambda *args: {})
     assert limbs_off(load_motion(path, world_checks=False)) > 5.0
 
