@@ -11,7 +11,8 @@ keys), the rig as a .glb and as a UsdSkel
 crate (.usdc, Blender's layout: a Skeleton, its SkelAnimation sampled per frame) and as COLLADA (a matrix per joint
 and frame, Blender's); an Xsens MVNX (23 segments' quaternions and positions
 per frame, XML); a BVH of a LAFAN1-like rig (every
-bone along its joint's X: its zero pose folds the body, so its straightest frame, the first, is its rest); PHALP's per-frame pickle with a
+bone along its joint's X: its zero pose folds the body, so each bone is turned from the frame it stands best in,
+here the first, SMPL's T-pose); PHALP's per-frame pickle with a
 4,096-value appearance feature per detection; TRAM's np.save of torch tensors; GVHMR's torch.save), then read by
 `formats.motion.load_motion` --repeats times: the median seconds, the peak of Python's traced allocations
 (tracemalloc: numpy's arrays included) over one read, the file's size, and whether the joint rotations read are
@@ -121,7 +122,7 @@ def writers(poses: np.ndarray, trans: np.ndarray, fps: float) -> dict:
                 "mixamo.usdc", lambda p: rig_usd(p, {"take": (poses, trans)}, armature=False)),
             "COLLADA .dae (Mixamo rig, retargeted)": ("mixamo.dae", lambda p: rig_dae(p, poses, trans, fps=fps)),
             "Xsens MVNX (23 segments, retargeted)": ("xsens.mvnx", lambda p: write_mvnx(p, *y_up(poses, trans))),
-            "BVH (LAFAN1-like rig, rest its straightest frame)": (
+            "BVH (LAFAN1-like rig, bones from their best frames)": (
                 "lafan.bvh", lambda p: rig_bvh(p, poses, trans, LAFAN1, along_x=True, order="ZYX")),
             "PHALP pickle": ("phalp.pkl", phalp), "TRAM npy": ("hps_track_0.npy", tram),
             "GVHMR pt": ("hmr4d_results.pt", gvhmr)}
