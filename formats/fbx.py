@@ -22,6 +22,7 @@ FBX 6 and 7 files of its test data (`benchmarks/fbx_against_ufbx.py`).
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import re
 import struct
@@ -775,9 +776,9 @@ def read_fbx(path: Path, src: str, take: str | None = None) -> Skeleton:
     BVH's: its joints' frames turned to the world's at rest (the rest its zero pose), so `core.retarget` reads it
     as a BVH; of a file of several animation stacks, the one named `take` (`chosen_take`; default: the first).
     InputError naming `src` for a file that is no FBX, a damaged one, or one without a skeleton."""
-    data = read_input(path, src)
+    parsed = parsed_file(path, src)
     try:
-        return _read(data, src, take)
+        return _read(parsed, src, take)
     except InputError:
         raise
     except (IndexError, KeyError, TypeError, ValueError, AttributeError) as exc:
@@ -802,10 +803,11 @@ class Scene(NamedTuple):
     curves: _Curves | None
 
 
-def read_scene(data: bytes, src: str, take: str | None = None) -> Scene:
-    """The `Scene` of an FBX's bytes (FBX 6's as FBX 7's, `_from_fbx6`), its animation the stack named `take`
-    (`chosen_take`); InputError naming `src` for FBX 5 and older or a frame rate that is none."""
-    version, nodes = read_nodes(data, src)
+def read_scene(data: bytes | tuple, src: str, take: str | None = None) -> Scene:
+    """The `Scene` of an FBX's bytes, or of its (version, nodes) as `read_nodes` gives them (FBX 6's as FBX 7's,
+    `_from_fbx6`), its animation the stack named `take` (`chosen_take`); InputError naming `src` for FBX 5 and
+    older or a frame rate that is none."""
+    version, nodes = read_nodes(data, src) if isinstance(data, bytes) else data
     header = next((n.child("FBXVersion") for n in nodes if n.name == "FBXHeaderExtension"), None)
     if header is not None and header.props and isinstance(header.props[0], (int, np.integer)):
         version = int(header.props[0])  # a binary FBX 5's header says 3000
@@ -952,7 +954,7 @@ def model_transforms(scene: Scene, t: np.ndarray) -> tuple[dict, dict]:
     return {i: w.matrix for i, w in world.items()}, {i: w.matrix[0] for i, w in rest.items()}
 
 
-def _read(data: bytes, src: str, take: str | None = None) -> Skeleton:
+def _read(data: bytes | tuple, src: str, take: str | None = None) -> Skeleton:
     scene = read_scene(data, src, take)
     models, curves, fps = scene.models, scene.curves, scene.fps
     joints = [i for i, m in models.items() if m.props[2] in ("LimbNode", "Limb", "Root")]
@@ -1002,11 +1004,28 @@ def chosen_take(names: list[str], take: str | None, src: str, what: str = "anima
     return 0 if names else None
 
 
+#: The last FBX file parsed: (its bytes' digest, (version, nodes)), so that reading its takes one after another
+#: (`garment info`, `bake --take all`) parses it once.
+_LAST_PARSED: list = [None, None]
+
+
+def parsed_file(path: Path, src: str) -> tuple[int, list[Node]]:
+    """`read_nodes` of the FBX `path`, parsed again only where its bytes are not the last file's parsed (their
+    digest); InputError naming `src` as `read_input` and `read_nodes` give it."""
+    data = read_input(path, src)
+    key = hashlib.blake2b(data, digest_size=16).digest()
+    if _LAST_PARSED[0] == key:
+        return _LAST_PARSED[1]
+    parsed = read_nodes(data, src)
+    _LAST_PARSED[:] = [key, parsed]
+    return parsed
+
+
 def animation_takes(path: Path) -> list[str]:
     """The names of the animation stacks of the FBX `path` where it holds several (`--take`), else []; InputError
     naming the file where it is no FBX `read_fbx` reads."""
     src = f"motion '{path}'"
-    version, nodes = read_nodes(read_input(path, src), src)
+    version, nodes = parsed_file(path, src)
     if 6000 <= version < 7000:
         nodes = _from_fbx6(nodes)
     objects = next((n for n in nodes if n.name == "Objects"), None)

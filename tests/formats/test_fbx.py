@@ -401,6 +401,21 @@ def test_curves_that_repeat_past_their_keys_read_over_the_takes_whole_span(tmp_p
     np.testing.assert_allclose(m.trans, trans[cycle], atol=1e-4)
 
 
+def test_an_fbx_read_take_after_take_is_parsed_once_and_again_when_it_changes(tmp_path):
+    """Reading a file's takes one after another (`garment info`, `bake --take all`) parses it once; the same path
+    rewritten with other bytes of the same size (another frame rate) is parsed again, not read stale."""
+    from formats import fbx
+
+    poses, trans = _motion(4, seed=2)
+    path = rig_fbx(tmp_path / "rate.fbx", poses, trans, time_mode=(14, 30.0))
+    first = fbx.parsed_file(path, "x")
+    assert fbx.parsed_file(path, "x") is first
+    size = path.stat().st_size
+    rig_fbx(path, poses, trans, time_mode=(14, 60.0))
+    assert path.stat().st_size == size and fbx.parsed_file(path, "x") is not first
+    assert load_motion(path, world_checks=False).fps == pytest.approx(60.0)
+
+
 def test_a_damaged_fbxs_cycle_reads_and_its_time_span_is_one_line(tmp_path):
     """Connections that make a cycle (the Armature under the hips it holds) are cut, not followed for ever: the
     motion reads as its own; a custom frame rate of a billion frames per second is refused before any frame is
