@@ -169,7 +169,8 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
         rest, rest_world = position_t[0], world_t[0]
         frames = np.union1d(np.linspace(0, len(rotations) - 1, min(len(rotations), BONE_FRAMES)).astype(int), [t])
         world_n, position_n = posed(frames)
-        by_bone, worst, leaning_up = _turns_by_bone(match, world_n, position_n, smpl_rest, body_m, int(np.searchsorted(frames, t)))
+        by_bone, worst, leaning_up = _turns_by_bone(match, world_n, position_n, smpl_rest, body_m,
+                                                    int(np.searchsorted(frames, t)))
         if worst > LEG_MAX_DEGREES:
             raise InputError(f"{src}: expected a rest pose (all rotations zero) or a frame that stands, got its "
                              f"'{names[match[leg]]}' leg {bent:.0f} degrees from down at rest and, in its straightest "
@@ -451,10 +452,11 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
     whose rig limb bends as a hinge (frames of `world` (N, J, 3, 3) and `position` (N, J, 3)), whatever frame
     their twists were first taken from (`_turns_by_bone`): seen from the bone above, the bone below sweeps a cone
     about the hinge's axis, so the bone above is twisted to put that cone's axis (its circle's plane, fitted to
-    the frames, turned the way the limb bends: a knee or elbow flexes one way) on SMPL's hinge; the bone below is then twisted to share that axis in the world, on average over
-    the frames (its own turning about its length, a forearm's, left to it). A limb whose bends leave one plane
-    (by more than HINGE_SPREAD degrees) or span too little of it, or a clip of fewer than HINGE_FRAMES frames,
-    keeps its turns."""
+    the frames, turned the way the limb bends: a knee or elbow flexes one way) on SMPL's hinge; the bone below is
+    then twisted to share that axis in the world, on average over the frames (its own turning about its length,
+    a forearm's, left to it). A limb whose bends leave one plane (by more than HINGE_SPREAD degrees), lie along
+    the plane's axis rather than across it (a patch of bends every way), or span too little of it, or a clip of
+    fewer than HINGE_FRAMES frames, keeps its turns."""
     out = {}
     for k, hinge in _HINGES.items():
         c, parent = chain_end(k, match), next((p for p in _ancestors(k) if p in match), None)

@@ -1021,6 +1021,11 @@ def parsed_file(path: Path, src: str) -> tuple[int, list[Node]]:
     return parsed
 
 
+def forget_parsed() -> None:
+    """Drops the last file parsed (`parsed_file`): the next read parses again (a benchmark's cold reads)."""
+    _LAST_PARSED[:] = [None, None]
+
+
 def animation_takes(path: Path) -> list[str]:
     """The names of the animation stacks of the FBX `path` where it holds several (`--take`), else []; InputError
     naming the file where it is no FBX `read_fbx` reads."""

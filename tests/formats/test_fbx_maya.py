@@ -150,7 +150,8 @@ def _meshes_in_the_world(name: str, frame: int) -> np.ndarray:
         for g in [c for c in children.get(i, []) if objects.get(c) is not None and objects[c].name == "Geometry"]:
             props = _props70(model)
             V = objects[g].child("Vertices").props[0].reshape(-1, 3) * _vector(props, "GeometricScaling", 1.0)
-            V = V @ _euler(_vector(props, "GeometricRotation", 0.0), "xyz").T + _vector(props, "GeometricTranslation", 0.0)
+            V = (V @ _euler(_vector(props, "GeometricRotation", 0.0), "xyz").T
+                 + _vector(props, "GeometricTranslation", 0.0))
             clusters = [objects[c] for skin in children.get(g, []) for c in children.get(skin, [])
                         if objects.get(c) is not None and objects[c].child("Indexes") is not None]
             moved, weight = np.zeros_like(V), np.zeros(len(V))
