@@ -158,15 +158,14 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     def posed(c: slice) -> tuple[np.ndarray, np.ndarray]:
         return rig_pose(parents, offsets, rotations[c], root_positions[c], None if moving is None else moving[c])
 
-    rest_world = by_bone = leaning_up = None
+    by_bone = leaning_up = None
     body_m = _body_frame(smpl_rest, itself)
     bent, leg = _bent(rest, match)
     if bent > LEG_MAX_DEGREES:  # each bone turned from the frame it is seen best in (`_turns_by_bone`)
         keys = (0, 15, 1, 2, 4, 5, 7, 8)  # the pelvis, head and legs: what a frame's standing is told by
         trunk = np.concatenate([posed(c)[1][:, [match[k] for k in keys]] for c in chunks])
         t, frame_bent = _standing_frame(trunk, {k: i for i, k in enumerate(keys)})
-        world_t, position_t = posed(slice(t, t + 1))
-        rest, rest_world = position_t[0], world_t[0]
+        rest = posed(slice(t, t + 1))[1][0]
         frames = np.union1d(np.linspace(0, len(rotations) - 1, min(len(rotations), BONE_FRAMES)).astype(int), [t])
         world_n, position_n = posed(frames)
         by_bone, worst, leaning_up = _turns_by_bone(match, world_n, position_n, smpl_rest, body_m,
@@ -181,15 +180,12 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
                     "turned from the frame it stands best in (its legs nearest SMPL's, within %.0f degrees of down, "
                     "an arm hanging or held out, the body upright; frame %d the straightest, legs within %.0f degrees; "
                     "knees and elbows that hinge twisted onto their axes); the twist about each limb is the actor's "
-                    "there", src, names[match[leg]], bent, worst, t,
-                    frame_bent)
+                    "there", src, names[match[leg]], bent, worst, t, frame_bent)
     body_s = _body_frame(rest, match)
-    turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
-    if rest_world is not None:  # the turns are from that frame's joint rotations, not from zero ones
-        turns = {k: rest_world[match[k]].T @ turn for k, turn in turns.items()}
-    if by_bone is not None:
-        turns.update(by_bone)
-        turns.update(_hinged(match, turns, world_n, position_n, smpl_rest))
+    if by_bone is None:
+        turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)
+    else:  # the turns are from those frames' joint rotations, not from zero ones
+        turns = {**by_bone, **_hinged(match, by_bone, world_n, position_n, smpl_rest)}
     legs_m, legs_s = _legs(smpl_rest, itself), _legs(rest, match)
     if not (np.isfinite(legs_s) and legs_s > 0):
         raise InputError(f"{src}: expected legs of some length in its OFFSETs, got {legs_s}")
@@ -410,7 +406,7 @@ def _turns_by_bone(match: dict[int, int], world: np.ndarray, position: np.ndarra
         if k == 0 or c is None:
             continue
         bone_m = smpl_rest[c] - smpl_rest[k]
-        axis = 1 if abs(_unit(bone_m) @ body_m[:, 2]) > 0.7 else 2  # as `_rest_turns`
+        axis = _twist_axis(bone_m, body_m)
         bone = position[:, match[c]] - position[:, match[k]]
         if k in _ARM_JOINTS:  # hanging, or held out to its side
             toward = _units(np.einsum("nji,nj->ni", body_s, bone))
@@ -541,10 +537,15 @@ def _rest_turns(match, rest, smpl_rest, body_m, body_s) -> dict[int, np.ndarray]
             turns[k] = turns[next(p for p in _ancestors(k) if p in turns)]
             continue
         bone_m = smpl_rest[c] - smpl_rest[k]
-        along = abs(_unit(bone_m) @ body_m[:, 2]) > 0.7  # a bone along forward (a foot) is turned about up
-        axis = 1 if along else 2
+        axis = _twist_axis(bone_m, body_m)
         turns[k] = _frame(bone_s, body_s[:, axis]) @ _frame(bone_m, body_m[:, axis]).T
     return turns
+
+
+def _twist_axis(bone_m: np.ndarray, body_m: np.ndarray) -> int:
+    """The column of the body's frame (left, up, forward) a bone's twist is told by: forward, or up for a bone
+    along forward (a foot)."""
+    return 1 if abs(_unit(bone_m) @ body_m[:, 2]) > 0.7 else 2
 
 
 def chain_end(k: int, match: dict[int, int]) -> int | None:
