@@ -195,9 +195,12 @@ def _ascii_value(m: re.Match):
 
 def _number(text: str) -> float:
     """A float of an ASCII FBX (Microsoft's '1.#INF' and '-1.#IND' as infinities and NaN)."""
-    if "#" in text:
-        return float(_MSVC_SPECIAL.sub(lambda m: m.group(1) + ("inf" if m.group(2) == "INF" else "nan"), text))
-    return float(text)
+    return float(_msvc(text) if "#" in text else text)
+
+
+def _msvc(text: str) -> str:
+    """A number's text with Microsoft's infinities and NaNs ('1.#INF', '-1.#IND') written as Python reads them."""
+    return _MSVC_SPECIAL.sub(lambda m: m.group(1) + ("inf" if m.group(2) == "INF" else "nan"), text)
 
 
 def _ascii_array(values: str, n: int, src: str) -> np.ndarray:
@@ -209,7 +212,7 @@ def _ascii_array(values: str, n: int, src: str) -> np.ndarray:
         raise InputError(f"{src}: its ASCII FBX has an array of {len(items)} values where it says {n}")
     integer = not any(c in values for c in ".eE#")
     if "#" in values:
-        items = [_MSVC_SPECIAL.sub(lambda m: m.group(1) + ("inf" if m.group(2) == "INF" else "nan"), v) for v in items]
+        items = [_msvc(v) for v in items]
     try:
         return np.array(items, dtype=np.int64 if integer else np.float64)
     except ValueError:
@@ -524,14 +527,21 @@ def curve_keys(curve: Node, unit: float = 1.0) -> Keys | None:
     from tension, continuity and bias; a curve without them (or damaged ones) straight from key to key."""
     t, v = curve.child("KeyTime"), curve.child("KeyValueFloat")
     if t is None and curve.child("Key") is not None:  # FBX 6's
-        return _fbx6_keys(curve, unit)._replace(before=_extrapolation(curve, "Pre-Extrapolation"),
-                             after=_extrapolation(curve, "Post-Extrapolation"))
-    if t is None or v is None or not t.props or not v.props or not 0 < len(t.props[0]) == len(v.props[0]):
+        keys = _fbx6_keys(curve, unit)
+    elif t is None or v is None or not t.props or not v.props or not 0 < len(t.props[0]) == len(v.props[0]):
         return None
-    ticks = np.asarray(t.props[0]).astype(np.int64)
+    else:
+        keys = _fbx7_keys(t.props[0], v.props[0], curve, unit)
+    return keys._replace(before=_extrapolation(curve, "Pre-Extrapolation"),
+                         after=_extrapolation(curve, "Post-Extrapolation"))
+
+
+def _fbx7_keys(times: np.ndarray, values: np.ndarray, curve: Node, unit: float) -> Keys:
+    """`curve_keys` of an FBX 7 curve's KeyTime and KeyValueFloat and its key attributes."""
+    ticks = np.asarray(times).astype(np.int64)
     if unit != 1.0:  # FBX 8's ticks (`time_unit`) in FBX 7's
         ticks = np.round(ticks * unit).astype(np.int64)
-    values = np.asarray(v.props[0]).astype(np.float64)
+    values = np.asarray(values).astype(np.float64)
     K = len(values)
     unsorted = K > 1 and bool(np.any(np.diff(ticks) < 0))
     if unsorted:  # keys out of order (a damaged file's): sorted, and taken straight from key to key
@@ -543,18 +553,15 @@ def curve_keys(curve: Node, unit: float = 1.0) -> Keys | None:
     if (unsorted or flags_in is None or data_in is None or refs_in is None or len(flags_in) != len(refs_in)
             or len(data_in) != 4 * len(refs_in) or np.asarray(refs_in).astype(np.int64).clip(0).sum() < K):
         none = np.broadcast_to(np.zeros(2), (K, 2))  # straight lines need no handles
-        keys = Keys(ticks, values, np.full(K, _STRAIGHT, dtype=np.int8), none, none)
+        return Keys(ticks, values, np.full(K, _STRAIGHT, dtype=np.int8), none, none)
+    refs = refs_in.astype(np.int64).clip(0)
+    flags = np.repeat(flags_in.astype(np.int64) & 0xFFFFFFFF, refs)[:K]
+    if np.issubdtype(data_in.dtype, np.integer):  # ASCII: the floats' bits
+        bits = (data_in.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
     else:
-        refs = refs_in.astype(np.int64).clip(0)
-        flags = np.repeat(flags_in.astype(np.int64) & 0xFFFFFFFF, refs)[:K]
-        if np.issubdtype(data_in.dtype, np.integer):  # ASCII: the floats' bits
-            bits = (data_in.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
-        else:
-            bits = data_in.astype(np.float32).view(np.uint32)
-        bits = np.repeat(bits.reshape(-1, 4), refs, axis=0)[:K]
-        keys = _tangents(ticks, values, flags, bits.view(np.float32).astype(np.float64), bits)
-    return keys._replace(before=_extrapolation(curve, "Pre-Extrapolation"),
-                         after=_extrapolation(curve, "Post-Extrapolation"))
+        bits = data_in.astype(np.float32).view(np.uint32)
+    bits = np.repeat(bits.reshape(-1, 4), refs, axis=0)[:K]
+    return _tangents(ticks, values, flags, bits.view(np.float32).astype(np.float64), bits)
 
 
 def _extrapolation(curve: Node, name: str) -> tuple[str, int]:
