@@ -138,15 +138,16 @@ class Retargeted(NamedTuple):
 
 
 def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotations: np.ndarray,
-             root_positions: np.ndarray, src: str, moving: np.ndarray | None = None, trees: tuple = ()
-             ) -> Retargeted:
+             root_positions: np.ndarray, src: str, moving: np.ndarray | None = None, trees: tuple = (),
+             rest_posed: bool = False) -> Retargeted:
     """SMPL's motion of a rig's (module docstring).
 
     names, parents (-1 for the root; parents before children): the rig's joints. offsets (J, 3): each joint's
     rest position from its parent (the root's: its rest position), in the rig's unit. rotations (T, J, 3, 3):
     each joint's rotation from its rest, in its parent's frame. root_positions (T, 3): the root's position.
     moving (T, J, 3): each joint's position from its parent's per frame, where they move (`rig_pose`); trees:
-    the tree the file keeps each joint in, where it keeps several (`match_joints`). InputError naming `src` where
+    the tree the file keeps each joint in, where it keeps several (`match_joints`); rest_posed: whether the rest
+    is a pose the file happened to hold, its bones then turned as a folded rig's are. InputError naming `src` where
     the rig lacks a role, its matched joints are not in a body's order, or neither its rest nor a frame stands.
     """
     rest = rest_positions(parents, offsets)
@@ -161,7 +162,7 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     by_bone = leaning_up = None
     body_m = _body_frame(smpl_rest, itself)
     bent, leg = _bent(rest, match)
-    if bent > LEG_MAX_DEGREES:  # each bone turned from the frame it is seen best in (`_turns_by_bone`)
+    if bent > LEG_MAX_DEGREES or rest_posed:  # each bone turned from the frame it is seen best in (`_turns_by_bone`)
         keys = (0, 15, 1, 2, 4, 5, 7, 8)  # the pelvis, head and legs: what a frame's standing is told by
         trunk = np.concatenate([posed(c)[1][:, [match[k] for k in keys]] for c in chunks])
         t, frame_bent = _standing_frame(trunk, {k: i for i, k in enumerate(keys)})
@@ -176,11 +177,12 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
                              f"frame ({t}), a leg {frame_bent:.0f} degrees from down (each thigh and shin at best "
                              f"{worst:.0f}; the head above the pelvis is up): a rig that never stands needs "
                              f"retargeting to one first")
-        log.warning("%s: the rig's zero pose does not stand (its '%s' leg %.0f degrees from down): each bone is "
-                    "turned from the frame it stands best in (its legs nearest SMPL's, within %.0f degrees of down, "
-                    "an arm hanging or held out, the body upright; frame %d the straightest, legs within %.0f degrees; "
-                    "knees and elbows that hinge twisted onto their axes); the twist about each limb is the actor's "
-                    "there", src, names[match[leg]], bent, worst, t, frame_bent)
+        why = ("its rest a pose the file held" if bent <= LEG_MAX_DEGREES else
+               f"the rig's zero pose does not stand (its '{names[match[leg]]}' leg {bent:.0f} degrees from down)")
+        log.warning("%s: %s: each bone is turned from the frame it stands best in (its legs nearest SMPL's, within "
+                    "%.0f degrees of down, an arm hanging or held out, the body upright; frame %d the straightest, "
+                    "legs within %.0f degrees; knees and elbows that hinge twisted onto their axes); the twist about "
+                    "each limb is the actor's there", src, why, worst, t, frame_bent)
     body_s = _body_frame(rest, match)
     if by_bone is None:
         turns = _rest_turns(match, rest, smpl_rest, body_m, body_s)

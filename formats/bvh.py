@@ -66,7 +66,8 @@ class Skeleton(NamedTuple):
     each joint's offset per frame where joints' places move (a tree of joints a file keeps apart from the body's,
     attached to the root; hips animated under a floor joint; a BVH's position channels below its root), else
     None; `trees`: where a file keeps its joints in several trees, each joint's (the index of its tree's root),
-    else () (`core.retarget.match_joints`)."""
+    else () (`core.retarget.match_joints`); `rest_posed`: whether its rest is a pose the file happened to hold (a
+    Blender FBX of an armature without its mesh), its bones then turned as a folded rig's are (`core.retarget`)."""
 
     names: list[str]
     parents: list[int]
@@ -77,6 +78,7 @@ class Skeleton(NamedTuple):
     take: str | None = None
     moving: np.ndarray | None = None
     trees: tuple = ()
+    rest_posed: bool = False
 
 
 def read_skeleton(path: Path, src: str) -> Skeleton:
@@ -121,7 +123,7 @@ def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:
     smpl = _smpl_skeleton(names, parents, offsets, src)
     if smpl is None:
         poses, trans, up, said = retarget(names, parents, offsets, rotations, root, src, skeleton.moving,
-                                          skeleton.trees)
+                                          skeleton.trees, skeleton.rest_posed)
         log.info("%s: a rig of %d joints retargeted onto SMPL's skeleton (%s), %d frames at %.6g fps", src,
                  len(names), said, n_frames, 1.0 / frame_time)
     else:

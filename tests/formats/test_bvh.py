@@ -330,6 +330,28 @@ def test_a_rig_whose_zero_pose_folds_the_body_is_turned_from_its_straightest_fra
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
 
+def hinge_motion(T=60, seed=5):
+    """(poses, trans) of a clip whose arms never hang or reach out (held forward and down) and whose knees and
+    elbows bend as hinges, each to another angle in every frame (the hips and spine turning a little)."""
+    rng = np.random.default_rng(seed)
+    poses = np.zeros((T, 24, 3))
+    poses[:, [1, 2, 3, 6, 9]] = rng.normal(0.0, 0.12, (T, 5, 3))
+    bend = np.linspace(0.15, 1.3, T)
+    poses[:, 4, 0], poses[:, 5, 0] = bend, bend[::-1]  # the knees, about x
+    poses[:, 16] = [0.0, -1.1, -0.6] + rng.normal(0.0, 0.1, (T, 3))  # the arms held forward and down
+    poses[:, 17] = [0.0, 1.1, 0.6] + rng.normal(0.0, 0.1, (T, 3))
+    poses[:, 18, 1], poses[:, 19, 1] = -bend[::-1] - 0.2, bend + 0.2  # the elbows, about -y and +y
+    return poses, np.zeros((T, 3)) + [0.0, 0.0, 0.95]
+
+
+def hinged_limbs_off(got, want) -> float:
+    """Degrees, at most over frames, between the thighs', shins', upper arms' and forearms' rotations in the world
+    of two SMPL motions."""
+    limbs = [1, 2, 4, 5, 16, 17, 18, 19]
+    cosine = (np.einsum("tjab,tjab->tj", _smpl_world(got)[:, limbs], _smpl_world(want)[:, limbs]) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))).max())
+
+
 def test_knees_and_elbows_that_hinge_twist_their_limbs_as_the_actor_s(tmp_path, monkeypatch):
     """On a LAFAN1-like rig (its zero pose folded) of a clip whose arms never hang or reach out (held forward) and
     whose knees and elbows bend as hinges, each to another angle in every frame: the thighs, shins, upper arms and
@@ -339,22 +361,12 @@ def test_knees_and_elbows_that_hinge_twist_their_limbs_as_the_actor_s(tmp_path, 
     import core.retarget as retarget
 
     rng = np.random.default_rng(5)
-    T = 60
-    poses = np.zeros((T, 24, 3))
-    poses[:, [1, 2, 3, 6, 9]] = rng.normal(0.0, 0.12, (T, 5, 3))
-    bend = np.linspace(0.15, 1.3, T)
-    poses[:, 4, 0], poses[:, 5, 0] = bend, bend[::-1]  # the knees, about x
-    poses[:, 16] = [0.0, -1.1, -0.6] + rng.normal(0.0, 0.1, (T, 3))  # the arms held forward and down
-    poses[:, 17] = [0.0, 1.1, 0.6] + rng.normal(0.0, 0.1, (T, 3))
-    poses[:, 18, 1], poses[:, 19, 1] = -bend[::-1] - 0.2, bend + 0.2  # the elbows, about -y and +y
-    trans = np.zeros((T, 3)) + [0.0, 0.0, 0.95]
+    poses, trans = hinge_motion()
+    T = len(poses)
     path = rig_bvh(tmp_path / "hinges.bvh", poses, trans, LAFAN1, along_x=True, seed=4)
-    truth = _smpl_world(poses)[:, [1, 2, 4, 5, 16, 17, 18, 19]]
 
-    def limbs_off(m):  # degrees, at most, between the limbs' rotations in the world and the actor's
-        got = _smpl_world(m.poses)[:, [1, 2, 4, 5, 16, 17, 18, 19]]
-        cosine = (np.einsum("tjab,tjab->tj", got, truth) - 1.0) / 2.0
-        return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))).max())
+    def limbs_off(m):
+        return hinged_limbs_off(m.poses, poses)
 
     assert limbs_off(load_motion(path, world_checks=False)) < 1e-3
 
