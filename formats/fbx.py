@@ -984,9 +984,8 @@ def _read(data: bytes | tuple, src: str, take: str | None = None) -> Skeleton:
     posed = not bound and curves is not None and "Blender" in creator
     if posed:
         log.warning("%s: an armature Blender wrote without its mesh holds no rest pose (no BindPose): its joints' "
-                    "values are the pose of the frame it was exported at, so each bone is turned from the frame "
-                    "it stands best in, as a rig that does not stand at rest is; export the rig with its mesh, or "
-                    "as USD or BVH", src)
+                    "values are the pose of the frame it was exported at (read as below); export the rig with its "
+                    "mesh, or as USD or BVH", src)
     skeleton = skeleton_of(joints, {i: _name(models[i]) for i in joints}, scene.parent, scene.order, world, rest,
                            1.0 / fps)._replace(rest_posed=posed)
     return skeleton._replace(take=_name(scene.stack)) if len(scene.stacks) > 1 else skeleton
