@@ -415,7 +415,8 @@ def _turns_by_bone(match: dict[int, int], world: np.ndarray, position: np.ndarra
             cosine = np.maximum(-toward[:, 1], toward[:, 0] * (1.0 if k % 2 == 0 else -1.0))
         else:
             cosine = np.einsum("nji,nj,i->n", body_s, _units(bone), body_m.T @ _unit(bone_m))
-        cosine = np.where(looked & (np.linalg.norm(bone, axis=1) >= 1e-9 * size), cosine, -np.inf)
+        cosine = np.where(looked & (np.linalg.norm(bone, axis=1) >= 1e-9 * size) & np.isfinite(cosine), cosine,
+                          -np.inf)  # a frame of NaNs (a damaged file's) is no view
         n = int(np.argmax(cosine))
         if np.isfinite(cosine[n]):
             turn = _frame(bone[n], body_s[n][:, axis]) @ _frame(bone_m, body_m[:, axis]).T
@@ -464,6 +465,9 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
         frame = world[:, match[parent]] @ turns[parent]  # (N, 3, 3): SMPL's thigh or upper arm in the world
         below = _units(position[:, match[c]] - position[:, match[k]])
         points = np.einsum("nji,nj->ni", frame, below)  # the bone below, in the frame of the one above
+        points = points[np.isfinite(points).all(axis=1)]  # frames of NaNs (a damaged file's) left out
+        if len(points) < HINGE_FRAMES:
+            continue
         centred = points - points.mean(axis=0)
         _, spread, axes = np.linalg.svd(centred, full_matrices=False)
         bone = _unit(smpl_rest[k] - smpl_rest[parent])
@@ -482,7 +486,8 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
         now, axis_world = (v - np.einsum("ni,ni->n", v, along)[:, None] * along for v in (now, axis_world))
         angles = np.arctan2(np.einsum("ni,ni->n", np.cross(now, axis_world), along),
                             np.einsum("ni,ni->n", now, axis_world))
-        mean = np.array([np.cos(angles).mean(), np.sin(angles).mean()])
+        angles = angles[np.isfinite(angles)]
+        mean = np.array([np.cos(angles).mean(), np.sin(angles).mean()]) if len(angles) else np.zeros(2)
         if np.hypot(*mean) >= np.cos(np.radians(HINGE_SPREAD * 4)):
             out[k] = turns[k] @ _turn_about(bone, float(np.arctan2(mean[1], mean[0])))
     return out

@@ -382,6 +382,23 @@ def test_knees_and_elbows_that_hinge_twist_their_limbs_as_the_actor_s(tmp_path, 
     assert limbs_off(load_motion(path, world_checks=False)) > 5.0
 
 
+def test_a_folded_rig_with_a_nan_in_a_frame_is_one_line(tmp_path):
+    """A LAFAN1-like rig's clip (each bone turned from its best frame, its hinges fitted) with one channel value
+    NaN in one frame is refused in one line naming that frame, as any motion of NaNs is (the frame's views were
+    once fed to the hinges' fit, which raised LinAlgError)."""
+    poses, trans = hinge_motion()
+    path = rig_bvh(tmp_path / "nan.bvh", poses, trans, LAFAN1, along_x=True, seed=4)
+    lines = path.read_text().splitlines()
+    at = next(k for k, line in enumerate(lines) if line.startswith("Frame Time")) + 5
+    values = lines[at].split()
+    values[10] = "nan"
+    lines[at] = " ".join(values)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError) as info:
+        load_motion(path, world_checks=False)
+    _assert_one_line(info, "nan.bvh", "poses contains NaN or Inf (first at frame 4)")
+
+
 def test_position_channels_of_joints_below_the_root_move_them(tmp_path):
     """A rig whose root is a joint at the floor and whose hips carry the motion's translation in their own
     position channels (as game engines' and some exporters' BVHs are), every other joint's position channels its
