@@ -953,11 +953,11 @@ def model_transforms(scene: Scene, t: np.ndarray) -> tuple[dict, dict]:
         props = props_of[i]
         static = [_vector(props, "Lcl Translation", 0.0), _vector(props, "Lcl Rotation", 0.0),
                   _vector(props, "Lcl Scaling", 1.0)]
-        order = _ORDERS.get(int(props.get("RotationOrder", [0])[0]), "xyz")
-        frames = [_layered(curves, i, key, s, t, order) if curves else s[None] for key, s in zip("TRS", static)]
         p = scene.parent.get(i)
-        world[i] = placed(props, frames, world.get(p), i in compensated)
         rest[i] = placed(props, [s[None] for s in static], rest.get(p), i in compensated)
+        world[i] = rest[i] if curves is None else placed(
+            props, [_layered(curves, i, key, s, t, _rotation_order(props)) for key, s in zip("TRS", static)],
+            world.get(p), i in compensated)
     return {i: w.matrix for i, w in world.items()}, {i: w.matrix[0] for i, w in rest.items()}
 
 
@@ -1091,7 +1091,7 @@ def placed(props: dict, frames: list, parent: Placed | None, unscaled: bool = Tr
         props.get("RotationSpaceForLimitOnly", [0])[0])
     if rotation_space:
         turn = (_euler(_vector(props, "PreRotation", 0.0), "xyz")
-                @ _euler(R, _ORDERS.get(int(props.get("RotationOrder", [0])[0]), "xyz"))
+                @ _euler(R, _rotation_order(props))
                 @ _euler(_vector(props, "PostRotation", 0.0), "xyz").T)
     else:
         turn = _euler(R, "xyz")
@@ -1112,6 +1112,11 @@ def placed(props: dict, frames: list, parent: Placed | None, unscaled: bool = Tr
         matrix = above @ matrix
         without = above @ without if unscaled else None
     return Placed(matrix, matrix if without is None else without, np.broadcast_to(S, move.shape), scale_from)
+
+
+def _rotation_order(props: dict) -> str:
+    """The axes a Model's Euler rotation turns about, in turn (its RotationOrder; `_euler`'s order)."""
+    return _ORDERS.get(int(props.get("RotationOrder", [0])[0]), "xyz")
 
 
 def _matrix(linear: np.ndarray, move: np.ndarray) -> np.ndarray:
