@@ -353,12 +353,12 @@ def _ancestors(k: int) -> list[int]:
 
 
 def _body_frame(rest: np.ndarray, joint: dict[int, int]) -> np.ndarray:
-    """(3, 3) columns left, up, forward of a rest skeleton (`joint`: its joint of each SMPL joint): up from the
-    pelvis to the head, left from the right hip to the left."""
-    up = _unit(rest[joint[15]] - rest[joint[0]])
-    left = rest[joint[1]] - rest[joint[2]]
-    left = _unit(left - (left @ up) * up)
-    return np.stack([left, up, np.cross(left, up)], axis=1)
+    """(..., 3, 3) columns left, up, forward of a skeleton's joint positions (..., J, 3) (`joint`: its joint of
+    each SMPL joint): up from the pelvis to the head, left from the right hip to the left."""
+    up = _units(rest[..., joint[15], :] - rest[..., joint[0], :])
+    left = rest[..., joint[1], :] - rest[..., joint[2], :]
+    left = _units(left - np.sum(left * up, axis=-1, keepdims=True) * up)
+    return np.stack([left, up, np.cross(left, up)], axis=-1)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -391,10 +391,8 @@ def _turns_by_bone(match: dict[int, int], world: np.ndarray, position: np.ndarra
     of their own in the `straightest` frame. Where the body is upright in most frames, only those are looked at
     (an actor lying straight on the floor is no rest)."""
     angles = _leg_angles(position, match)  # (N, 4): thighs and shins from down
-    up = _units(position[:, match[15]] - position[:, match[0]])
-    left = position[:, match[1]] - position[:, match[2]]
-    left = _units(left - np.einsum("ni,ni->n", left, up)[:, None] * up)
-    body_s = np.stack([left, up, np.cross(left, up)], axis=2)  # (N, 3, 3) each frame's `_body_frame`
+    body_s = _body_frame(position, match)  # (N, 3, 3)
+    up = body_s[:, :, 1]
     along = up @ np.array(list(_UP_AXES.values())).T > _UP_COSINE  # (N, axes)
     upright = along[:, int(np.argmax(along.sum(axis=0)))]
     looked = upright if upright.sum() * 2 >= len(upright) else np.ones(len(upright), dtype=bool)
@@ -478,14 +476,11 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
                 np.radians(HINGE_SPREAD * 4)):
             continue  # too short a clip to tell, bent too little, not about one axis (the plane of a patch of
             # bends, square to the way it bends, is no hinge's)
-        out[parent] = turns[parent] @ _turn_about(bone, _angle_about(h, normal, bone))
+        out[parent] = turns[parent] @ _turn_about(bone, float(_angle_about(h, normal, bone)))
         axis_world = (world[:, match[parent]] @ out[parent]) @ h  # the hinge's axis in the world per frame
         bone = _unit(smpl_rest[c] - smpl_rest[k])
         frame = world[:, match[k]] @ turns[k]
-        along, now = frame @ bone, frame @ h
-        now, axis_world = (v - np.einsum("ni,ni->n", v, along)[:, None] * along for v in (now, axis_world))
-        angles = np.arctan2(np.einsum("ni,ni->n", np.cross(now, axis_world), along),
-                            np.einsum("ni,ni->n", now, axis_world))
+        angles = _angle_about(frame @ h, axis_world, frame @ bone)
         angles = angles[np.isfinite(angles)]
         mean = np.array([np.cos(angles).mean(), np.sin(angles).mean()]) if len(angles) else np.zeros(2)
         if np.hypot(*mean) >= np.cos(np.radians(HINGE_SPREAD * 4)):
@@ -493,10 +488,11 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
     return out
 
 
-def _angle_about(start: np.ndarray, end: np.ndarray, axis: np.ndarray) -> float:
-    """The angle (radians) turning `start` onto `end` about the unit `axis`, both seen square to it."""
-    a, b = (v - (v @ axis) * axis for v in (start, end))
-    return float(np.arctan2(np.cross(a, b) @ axis, a @ b))
+def _angle_about(start: np.ndarray, end: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """The angles (radians) turning vectors `start` onto `end` about the unit `axis` (each (..., 3)), both seen
+    square to it."""
+    a, b = (v - np.sum(v * axis, axis=-1, keepdims=True) * axis for v in (start, end))
+    return np.arctan2(np.sum(np.cross(a, b) * axis, axis=-1), np.sum(a * b, axis=-1))
 
 
 def _turn_about(axis: np.ndarray, angle: float) -> np.ndarray:
