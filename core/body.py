@@ -170,6 +170,21 @@ class Body:
             A[:, :, :3, 3] += np.asarray(trans, dtype=np.float32)[:, None, :]
         return A
 
+    def smpl_view(self) -> Body | None:
+        """This SMPL+H or SMPL-X body on SMPL's 24 joints, for a model of SMPL's skeleton; None for another layout.
+
+        The 22 body joints are kept as they are (mesh, shape, weights, pose correctives, regressor); each hand's
+        finger joints become SMPL's hand joint (their skinning weights summed on it, its rest joint the mean of
+        the fingers' roots, no pose correctives: a model of SMPL's joints holds the hands at rest, as
+        `core.motion.poses_for_body` poses them), and SMPL-X's jaw and eyes the head's: the body's own points,
+        not a fit (the fingers follow the wrists). Made once per body."""
+        if self.layout not in ("smplh", "smplx"):
+            return None
+        cache = self.__dict__.setdefault("_smpl_view_cache", [])
+        if not cache:
+            cache.append(_smpl_view(self))
+        return cache[0]
+
     def _check_poses(self, poses: np.ndarray) -> np.ndarray:
         poses = np.asarray(poses, dtype=np.float32)
         if poses.ndim != 3 or poses.shape[1:] != (self.n_joints, 3):
@@ -199,6 +214,33 @@ class Body:
             b = torch.as_tensor(self.fit_betas(betas), device=poses.device).expand(poses.shape[0], -1)
             verts, _ = lbs(b, poses.float(), *self.torch(device=poses.device))
         return verts if trans is None else verts + trans[:, None].float()
+
+
+def _smpl_view(body: Body) -> Body:
+    """`Body.smpl_view`'s body (see there)."""
+    n = len(SMPL_JOINT_NAMES)
+    parents = body.parents
+    target = np.arange(body.n_joints)  # each joint's SMPL joint
+    for j in range(N_BODY_JOINTS, body.n_joints):
+        a = j
+        while a >= N_BODY_JOINTS:
+            a = int(parents[a])
+        # a finger's wrist -> SMPL's hand joint beside it; the jaw's and eyes' head -> the head
+        target[j] = {20: 22, 21: 23}.get(a, a)
+    weights = np.zeros((body.n_vertices, n), dtype=np.float64)
+    np.add.at(weights.T, target, body.weights.T.astype(np.float64))
+    regressor = np.empty((n, body.n_vertices), dtype=np.float32)
+    regressor[:N_BODY_JOINTS] = body.J_regressor[:N_BODY_JOINTS]
+    for hand, wrist in ((22, 20), (23, 21)):
+        roots = [j for j in range(N_BODY_JOINTS, body.n_joints) if parents[j] == wrist]
+        regressor[hand] = body.J_regressor[roots].mean(0) if roots else body.J_regressor[wrist]
+    posedirs = None
+    if body.posedirs is not None:  # 9 per joint after the root: the body's 21, none for the hands
+        posedirs = np.zeros((*body.posedirs.shape[:2], 9 * (n - 1)), dtype=np.float32)
+        posedirs[..., :9 * (N_BODY_JOINTS - 1)] = body.posedirs[..., :9 * (N_BODY_JOINTS - 1)]
+    return Body(v_template=body.v_template, shapedirs=body.shapedirs, posedirs=posedirs, J_regressor=regressor,
+                weights=weights.astype(np.float32), parents=np.asarray(SMPL_PARENTS, dtype=np.int64),
+                faces=body.faces, name=body.name, joint_names=SMPL_JOINT_NAMES, path=body.path)
 
 
 def lbs(betas: torch.Tensor, pose: torch.Tensor, v_template: torch.Tensor, shapedirs: torch.Tensor,

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from core.body import Body
+from core.body import SMPL_JOINT_NAMES, Body
 from core.deform import Deformer
 from core.errors import InputError
 from core.garment import Garment
@@ -227,10 +227,16 @@ class ModelDeformer(Deformer):
         if not (np.isfinite(self.lead_in_s) and self.lead_in_s >= 0):
             raise InputError(f"model lead-in: expected a non-negative number of seconds, got {lead_in_s!r}")
 
+    def _body(self, body: Body) -> Body:
+        """The body the network runs on: `body`, or its view on the model's skeleton (`model_body`); InputError
+        where it has none."""
+        view = model_body(body, self.model.config.n_joints)
+        if view is None:
+            raise InputError(skeleton_mismatch(self.model_name, self.model.config.n_joints, body))
+        return view
+
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
-        mismatch = skeleton_mismatch(self.model_name, self.model.config.n_joints, body)
-        if mismatch:
-            raise InputError(mismatch)
+        body = self._body(body)
         key = (garment.content_hash(), id(body))
         if key not in self._garments:
             self._garments[key] = prepare_garment(garment, body, self.model.config, self.cache_dir, source,
@@ -257,11 +263,13 @@ class ModelDeformer(Deformer):
         """`training_range` of a prepared garment against the model's training garments (None: unknown)."""
         if self.coverage is None:
             return None
+        body = self._body(body)
         g = self._garments[(garment.content_hash(), id(body))].inputs
         return training_range(g.prior_weights.numpy(), self.coverage, body.joint_names)
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
         self.prepare(garment, body)
+        given, body = body, self._body(body)
         # Inputs on the network's device (a GPU where the model was moved to one); results come back as numpy.
         device = next(self.model.parameters()).device
         betas = body.fit_betas(motion.betas)
@@ -332,6 +340,8 @@ class ModelDeformer(Deformer):
                        "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
         if tuner:
             self.report["cpu_threads"] = tuner.report()
+        if body is not given:
+            self.report["body_view"] = body_view_note(given)
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
         self.report.update(guard)
@@ -339,10 +349,25 @@ class ModelDeformer(Deformer):
         return out
 
 
-def skeleton_mismatch(model_name: str, n_joints: int, body: Body) -> str:
-    """Why a model of `n_joints` cannot run on `body` (an SMPL+H or SMPL-X body for a model of SMPL's 24
-    joints), or "" when it can."""
+def model_body(body: Body, n_joints: int) -> Body | None:
+    """The body a model of `n_joints` runs on for `body`: itself where the skeletons agree, an SMPL+H or SMPL-X
+    body's view on SMPL's 24 joints for a model of SMPL's (`Body.smpl_view`: the hands at rest, following the
+    wrists), else None."""
     if body.n_joints == n_joints:
+        return body
+    return body.smpl_view() if n_joints == len(SMPL_JOINT_NAMES) else None
+
+
+def body_view_note(body: Body) -> str:
+    """What a model of SMPL's joints reads of the SMPL+H or SMPL-X `body` (`summary.json`'s deformer)."""
+    return (f"body '{body.name}' ({body.layout}, {body.n_joints} joints) read on SMPL's 24: the fingers follow the "
+            "wrists" + (", the jaw and eyes the head" if body.layout == "smplx" else ""))
+
+
+def skeleton_mismatch(model_name: str, n_joints: int, body: Body) -> str:
+    """Why a model of `n_joints` cannot run on `body` (a body of SMPL's 24 joints for a model of SMPL+H's 52), or
+    "" when it can (`model_body`)."""
+    if model_body(body, n_joints) is not None:
         return ""
     return (f"model '{model_name}' was trained for a body of {n_joints} joints, got body '{body.name}' with "
             f"{body.n_joints}")

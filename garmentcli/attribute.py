@@ -75,7 +75,7 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
 
     from core.attribution import DeformationTarget, attribution_table, integrated_gradients
     from core.model_data import prepare_garment
-    from core.model_deform import skeleton_mismatch
+    from core.model_deform import model_body, skeleton_mismatch
     from formats.atomic import atomic_dir
     from formats.checkpoint import load_model
     from formats.obj import read_garment
@@ -86,16 +86,17 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     model, _ = load_model(model_path)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
-    mismatch = skeleton_mismatch(str(model_path), model.config.n_joints, body)
-    if mismatch:
-        raise click.ClickException(f"{mismatch}: pass the --body it was made for")
+    view = model_body(body, model.config.n_joints)
+    if view is None:
+        raise click.ClickException(f"{skeleton_mismatch(str(model_path), model.config.n_joints, body)}: pass the "
+                                   "--body it was made for")
     motion, _ = prepare_motion(motion_path, fps, None, 0, body=body, motion_up=motion_up, person=person,
                                take=take)
     out = Path(out_dir or f"{Path(garment_path).stem}_{Path(motion_path).stem}_f{frame}_attribution")
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
-    g = prepare_garment(garment, body, model.config, source=garment_path, near=False).inputs
-    target = DeformationTarget(model, g, body, motion, frame, vertices)
+    g = prepare_garment(garment, view, model.config, source=garment_path, near=False).inputs
+    target = DeformationTarget(model, g, view, motion, frame, vertices)
     with click.progressbar(length=1, label=f"attribute ({steps} nodes)") as bar:
         att = integrated_gradients(target, target.input, target.baseline, steps)
         bar.update(1)

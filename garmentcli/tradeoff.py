@@ -63,7 +63,7 @@ def _models(specs: tuple) -> dict:
 
 def _models_for_body(models: dict, body) -> dict:
     """The models that run on `body`: a --model of another skeleton is refused, the shipped one's rows left out
-    with a line saying why (an SMPL+H or SMPL-X body for its 24 joints)."""
+    with a line saying why (`core.model_deform.model_body`)."""
     from core.model_deform import DEFAULT_MODEL, skeleton_mismatch
     from formats.checkpoint import load_checkpoint
 

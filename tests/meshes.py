@@ -89,3 +89,30 @@ def points_around(n: int, r_min: float, r_max: float, seed: int = 0) -> np.ndarr
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     return dirs * rng.uniform(r_min, r_max, size=n)[:, None]
 
+
+
+def with_fingers(body, layout: str = "smplh", seed: int = 0) -> dict:
+    """The arrays of an SMPL+H (52 joints) or SMPL-X (55: jaw and eyes on the head first) body file made from
+    the 24-joint `body`: each hand joint's weight split among MANO's 15 finger joints (3 on each of 5 fingers
+    from the wrist) by the vertices' height, their rest joints the hand's; random pose correctives where
+    `seed` is not None (else none)."""
+    n_face = 3 if layout == "smplx" else 0
+    J = 22 + n_face + 30
+    parents = list(body.parents[:22]) + [15] * n_face
+    regressor = [body.J_regressor[j] for j in range(22)] + [body.J_regressor[15]] * n_face
+    weights = np.zeros((body.n_vertices, J), np.float32)
+    weights[:, :22] = body.weights[:, :22]
+    for side, (wrist, hand) in enumerate(((20, 22), (21, 23))):
+        start = 22 + n_face + 15 * side
+        parents += [wrist if k == 0 else start + 3 * f + k - 1 for f in range(5) for k in range(3)]
+        regressor += [body.J_regressor[hand]] * 15
+        ids = np.flatnonzero(body.weights[:, hand] > 0)
+        for j, chunk in enumerate(np.array_split(ids[np.argsort(body.v_template[ids, 1])], 15)):
+            weights[chunk, start + j] = body.weights[chunk, hand]
+    arrays = dict(v_template=body.v_template, shapedirs=body.shapedirs, f=body.faces.astype(np.uint32),
+                  J_regressor=np.array(regressor, np.float32), weights=weights,
+                  kintree_table=np.stack([np.array(parents), np.arange(J)]).astype(np.int64))
+    if seed is not None:
+        rng = np.random.default_rng(seed)
+        arrays["posedirs"] = (1e-3 * rng.standard_normal((body.n_vertices, 3, 9 * (J - 1)))).astype(np.float32)
+    return arrays

@@ -221,3 +221,34 @@ def test_default_body_file_is_small():
     ref = resources.files("core.assets").joinpath("default_body.npz")
     with resources.as_file(ref) as path:
         assert path.stat().st_size < 6e6
+
+
+@pytest.mark.parametrize("layout", ["smplh", "smplx"])
+def test_an_smplh_or_smplx_body_seen_on_smpls_joints_poses_as_itself_with_the_hands_at_rest(layout):
+    """`Body.smpl_view` (a model of SMPL's 24 joints on an SMPL+H or SMPL-X body): SMPL's skeleton, the fingers'
+    weights back on the hand joints (and SMPL-X's jaw and eyes on the head), and posed by the 22 body joints
+    with the hands at rest it puts every vertex where the whole body does (its pose correctives included)."""
+    from tests.meshes import tiny_body, with_fingers
+
+    small = tiny_body()
+    body = body_from_arrays(with_fingers(small, layout), layout)
+    assert body.layout == layout and body.posedirs is not None
+    view = body.smpl_view()
+    assert view is body.smpl_view() and small.smpl_view() is None and view.layout == "smpl"
+    np.testing.assert_array_equal(view.parents, SMPL_PARENTS)
+    assert view.joint_names == SMPL_JOINT_NAMES and view.name == layout
+    np.testing.assert_allclose(view.weights, small.weights, atol=1e-6)  # the fingers' split summed back
+    roots = [j for j in range(22, body.n_joints) if body.parents[j] == 20]
+    assert len(roots) == 5
+    np.testing.assert_allclose(view.J_regressor[22], body.J_regressor[roots].mean(0), atol=1e-7)
+    rng = np.random.default_rng(1)
+    poses = np.zeros((3, body.n_joints, 3), np.float32)
+    poses[:, :22] = 0.4 * rng.standard_normal((3, 22, 3))
+    trans = rng.standard_normal((3, 3)).astype(np.float32)
+    betas = rng.standard_normal(small.n_betas).astype(np.float32)
+    whole, _ = body.pose(poses, trans, betas)
+    seen, _ = view.pose(np.concatenate([poses[:, :22], np.zeros((3, 2, 3), np.float32)], 1), trans, betas)
+    np.testing.assert_allclose(seen, whole, atol=1e-5)
+    # the body's correctives are the view's: without them its vertices move
+    bare = body_from_arrays(with_fingers(small, layout, seed=None), layout)
+    assert np.abs(bare.pose(poses, trans, betas)[0] - whole).max() > 1e-3

@@ -47,6 +47,24 @@ def test_attribute_writes_table_arrays_and_heatmaps(scene, model_path, monkeypat
     assert "over 10 vertices" in (out / "attributions.md").read_text()
 
 
+def test_attribute_reads_an_smplh_body_on_the_models_joints(scene, model_path):
+    """A model of SMPL's 24 joints attributes on an SMPL+H body (the tiny body with MANO's finger joints) as on
+    the body it was made from: the body read on SMPL's joints (`Body.smpl_view`); it was refused."""
+    from tests.meshes import with_fingers
+
+    np.savez(scene["dir"] / "hands.npz", **with_fingers(scene["tiny"], "smplh", seed=None))
+    found = {}
+    for name, body in (("tiny", scene["body"]), ("hands", scene["dir"] / "hands.npz")):
+        r = run("attribute", model_path, scene["garment"], scene["motion"], "--frame", 3, "--steps", 2,
+                "--no-render", "--body", body, "--out", scene["out"] / name)
+        assert r.exit_code == 0, r.output
+        with np.load(scene["out"] / name / "attributions.npz") as z:
+            found[name] = {k: z[k] for k in z.files}
+    assert found["tiny"].keys() == found["hands"].keys()
+    for k, v in found["tiny"].items():
+        np.testing.assert_allclose(found["hands"][k], v, atol=1e-6, err_msg=k)
+
+
 def test_attribute_bad_inputs(scene, model_path, tmp_path):
     base = [model_path, scene["garment"], scene["motion"], "--body", scene["body"], "--no-render"]
     r = run("attribute", *base, "--frame", 999, "--out", tmp_path / "a")

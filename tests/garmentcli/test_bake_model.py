@@ -98,34 +98,62 @@ def test_a_garment_partly_inside_that_falls_back_to_lbs_is_warned_about_once(tmp
     assert sum("inside the body's rest surface" in w for w in summary["warnings"]) == 1
 
 
-def test_a_body_of_another_skeleton_is_baked_with_lbs_unless_the_model_is_asked_for(tmp_path):
-    """An SMPL+H-style body (52 joints: the default body with 30 finger joints on the wrists) for the 24-joint
-    model: the default method bakes with lbs, saying why, recorded in summary.json; --method model is one line
-    naming both skeletons (it was "expected a body with 24 joints" from deep in the model)."""
+@pytest.mark.parametrize("layout", ["smplh", "smplx"])
+def test_the_model_bakes_on_an_smplh_or_smplx_body_read_on_smpls_joints(layout, tmp_path):
+    """An SMPL+H body (the default body with MANO's 15 finger joints on each wrist, as AMASS's bodies have them)
+    and an SMPL-X one (jaw and eyes too): the shipped model of SMPL's 24 joints bakes on them (it fell back to
+    lbs), reading the body on SMPL's joints (`Body.smpl_view`, said in summary.json): the skirt as on the
+    default body to float rounding, also under a motion that curls the fingers (SMPL+H poses)."""
     from core.body import default_body
+    from tests.meshes import with_fingers
 
-    body = default_body()
-    extra = 52 - body.n_joints
-    wrists = [20] * (extra // 2) + [21] * (extra - extra // 2)
-    parents = np.r_[body.parents, wrists].astype(np.int64)
-    kintree = np.stack([parents, np.arange(52)])
-    kintree[0, 0] = 2**32 - 1
-    path = tmp_path / "smplh_like.npz"
-    np.savez(path, v_template=body.v_template, shapedirs=body.shapedirs, f=body.faces.astype(np.uint32),
-             J_regressor=np.r_[body.J_regressor, body.J_regressor[wrists]],
-             weights=np.c_[body.weights, np.zeros((body.n_vertices, extra), np.float32)],
-             kintree_table=kintree.astype(np.int64))
+    path = tmp_path / f"{layout}_like.npz"
+    np.savez(path, **with_fingers(default_body(), layout, seed=None))
+    run = np.load(ROOT / "examples" / "run.npz")
+    poses = np.zeros((len(run["poses"]), 52, 3), np.float32)
+    poses[:, :22] = run["poses"].reshape(-1, 24, 3)[:, :22]
+    poses[:, 22:] = np.random.default_rng(0).uniform(0, 1.2, (len(poses), 30, 3))  # curled fingers
+    curled = tmp_path / "curled.npz"
+    np.savez(curled, poses=poses.reshape(len(poses), -1), trans=run["trans"], betas=run["betas"],
+             mocap_framerate=run["mocap_framerate"])
     skirt = ROOT / "examples" / "skirt.obj"
-    default, summary, out = _bake(skirt, tmp_path / "default", "--body", path)
-    assert "was trained for a body of 24 joints, got body 'smplh_like' with 52: baking with lbs instead" in out
-    assert summary["method"] == "lbs" and summary["method_fallback"]["body_joints"] == 52
-    lbs, _, _ = _bake(skirt, tmp_path / "lbs", "--body", path, "--method", "lbs")
+    default, _, _ = _bake(skirt, tmp_path / "default")
+    for motion in (ROOT / "examples" / "run.npz", curled):
+        out = tmp_path / motion.stem
+        r = invoke_default(["bake", skirt, motion, "--frames", "0:8", "--out", out, "--no-obj", "--body", path])
+        assert r.exit_code == 0, r.output
+        d = out / f"skirt_{motion.stem}"
+        summary = json.loads((d / "summary.json").read_text())
+        assert summary["method"] == "model" and "method_fallback" not in summary
+        assert summary["deformer"]["body_view"].startswith(f"body '{layout}_like' ({layout}, {52 + 3 * (layout == 'smplx')} "
+                                                           "joints) read on SMPL's 24: the fingers follow the wrists")
+        baked = read_usd(d / f"skirt_{motion.stem}.usd").tracks["garment"].points
+        np.testing.assert_allclose(baked, default, atol=2e-5)
+
+
+def test_a_model_of_another_skeleton_is_left_for_lbs_unless_asked_for(tmp_path):
+    """A model of SMPL+H's 52 joints on the default body of SMPL's 24: the default method bakes with lbs, saying
+    why, recorded in summary.json; --method model is one line naming both skeletons (it was "expected a body with
+    24 joints" from deep in the model)."""
+    import dataclasses
+
+    from formats.checkpoint import save_checkpoint
+    from tests.core.model_fixtures import TINY_CONFIG, perturbed_model
+
+    config52 = dataclasses.replace(TINY_CONFIG, n_joints=52)
+    model = save_checkpoint(tmp_path / "m52.pt", config52, perturbed_model(config52, 0.2).state_dict())
+    skirt = ROOT / "examples" / "skirt.obj"
+    default, summary, out = _bake(skirt, tmp_path / "default", "--model", model)
+    assert f"model '{model}' was trained for a body of 52 joints, got body 'default' with 24: baking with lbs " \
+           "instead" in out
+    assert summary["method"] == "lbs" and summary["method_fallback"]["model_joints"] == 52
+    lbs, _, _ = _bake(skirt, tmp_path / "lbs", "--method", "lbs")
     np.testing.assert_allclose(default, lbs, atol=1e-6)
-    r = invoke_default(["bake", skirt, ROOT / "examples" / "run.npz", "--frames", "0:8", "--body", path,
+    r = invoke_default(["bake", skirt, ROOT / "examples" / "run.npz", "--frames", "0:8", "--model", model,
                         "--method", "model", "--out", tmp_path / "model"])
     assert r.exit_code != 0 and "Traceback" not in r.output and not (tmp_path / "model").exists()
     assert r.output.strip().splitlines()[-1].endswith(
-        "got body 'smplh_like' with 52: bake with --method lbs (or psd), or train a model on this body "
+        "got body 'default' with 24: bake with --method lbs (or psd), or train a model on this body "
         "(garment dataset/train --body)")
 
 

@@ -399,14 +399,36 @@ def test_a_calibrate_file_that_cannot_take_the_scene_or_a_name_given_twice_stops
     assert not measured and taken.read_text() == "not a folder\n" and "Traceback" not in r4.output
 
 
-def test_a_body_of_another_skeleton_leaves_the_shipped_models_rows_out_and_refuses_a_named_one(scene, monkeypatch):
-    """A 52-joint body (SMPL+H-like: the tiny body with 28 more joints on its last): the shipped model's rows are
-    left out with a line saying why (they stopped the run with the model's error), a --model of 24 joints is
-    refused before any row."""
+def test_a_model_of_another_skeleton_leaves_its_rows_out_or_is_refused_by_name(scene, monkeypatch):
+    """A model of SMPL+H's 52 joints on the scene's body of SMPL's 24: as the shipped model, its rows are left out
+    with a line saying why (they stopped the run with the model's error); named with --model, it is refused
+    before any row. A 52-joint body (SMPL+H-like: the tiny body with 28 more joints on its right hand) keeps the
+    shipped model's rows: a model of SMPL's joints reads it on them (they were left out as well)."""
+    import dataclasses
+
+    import core.model_deform
     import garmentcli.tradeoff
-    from core.model_deform import DEFAULT_MODEL
+    from formats.checkpoint import save_checkpoint
     from tests.meshes import tiny_body
 
+    config52 = dataclasses.replace(TINY_CONFIG, n_joints=52)
+    model52 = save_checkpoint(scene["dir"] / "m52.pt", config52, perturbed_model(config52, 0.2).state_dict())
+    measured = []
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
+    base = ["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4", "--out",
+            scene["out"]]
+    r = invoke([*base, "--model", f"mine={model52}"])
+    assert r.exit_code != 0 and "Traceback" not in r.output and not measured
+    assert "was trained for a body of 52 joints, got body 'tiny_body' with 24 (leave it out" in r.output
+    monkeypatch.setattr(core.model_deform, "DEFAULT_MODEL", model52)
+    r = invoke(base)
+    assert r.exit_code == 0, r.output
+    assert "got body 'tiny_body' with 24: its rows are left out" in r.output
+    assert measured and not any("float32" in name or "bfloat16" in name for name in measured)
+    assert "lbs" in measured and any(name.startswith("sim") for name in measured)
+    monkeypatch.undo()
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
+    measured.clear()
     body = tiny_body()
     extra = 52 - body.n_joints
     parents = np.r_[body.parents, [body.n_joints - 1] * extra].astype(np.int64)
@@ -417,14 +439,6 @@ def test_a_body_of_another_skeleton_leaves_the_shipped_models_rows_out_and_refus
              J_regressor=np.r_[body.J_regressor, np.repeat(body.J_regressor[-1:], extra, axis=0)],
              weights=np.c_[body.weights, np.zeros((body.n_vertices, extra), np.float32)],
              kintree_table=kintree.astype(np.int64))
-    measured = []
-    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
-    base = ["tradeoff", scene["garment"], scene["motion"], "--body", path, "--frames", "0:4", "--out", scene["out"]]
-    r = invoke([*base, "--model", f"mine={DEFAULT_MODEL}"])
-    assert r.exit_code != 0 and "Traceback" not in r.output and not measured
-    assert "was trained for a body of 24 joints, got body 'body52' with 52 (leave it out" in r.output
-    r = invoke(base)
+    r = invoke([*base[:4], path, *base[5:], "--overwrite"])
     assert r.exit_code == 0, r.output
-    assert "got body 'body52' with 52: its rows are left out" in r.output
-    assert measured and not any("float32" in name or "bfloat16" in name for name in measured)
-    assert "lbs" in measured and any(name.startswith("sim") for name in measured)
+    assert "rows are left out" not in r.output and any("float32" in name for name in measured)
