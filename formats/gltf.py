@@ -5,7 +5,8 @@ The file's JSON (a .glb's first chunk, its second the binary buffer; a .gltf's b
 URIs or in files beside it) is read here, with no library: the skeleton's joints are its largest skin's (a file
 of no skin, a VRM Animation's or an armature exported without its mesh: the nodes from its hips down), their
 hierarchy the nodes' children; each node's transform its matrix or its translation, rotation (a unit quaternion,
-x y z w) and scale, animated by one animation's channels (a take: the first, or the one `--take` names),
+x y z w) and scale, animated by one animation's channels (a take: the first, or the one `--take` names; a
+channel's target its node and path, or a KHR_animation_pointer to them),
 sampled at the rate its keys are spaced by (30 fps where that is unclear) with their interpolation (LINEAR: a
 quaternion's slerp, STEP, CUBICSPLINE's Hermite curves); the rest pose is the skin's bind pose (its inverse
 bind matrices: a file saved with its character posed, as game characters are, holding a weapon, stands in that
@@ -19,6 +20,7 @@ from __future__ import annotations
 import base64
 import json
 import logging
+import re
 import struct
 from pathlib import Path
 from urllib.parse import unquote
@@ -168,6 +170,20 @@ def sampled_keys(times: np.ndarray, values: np.ndarray, interpolation: str, t: n
     else:
         out = (1 - s) * a + s * b
     return out
+
+
+def _channel_target(target: dict) -> tuple[int | None, str | None]:
+    """(node, 'translation' | 'rotation' | 'scale') a channel animates, else (None, None): its target's node and
+    path, or a KHR_animation_pointer's JSON pointer ('/nodes/3/rotation', as Blender 4.2's exporter writes them
+    with "Convert TRS/weights to Animation Pointer")."""
+    path, node = target.get("path"), target.get("node")
+    if path == "pointer":
+        pointer = ((target.get("extensions") or {}).get("KHR_animation_pointer") or {}).get("pointer")
+        found = re.fullmatch(r"/nodes/(\d+)/(translation|rotation|scale)", pointer if isinstance(pointer, str) else "")
+        node, path = (int(found[1]), found[2]) if found else (None, None)
+    if path not in ("translation", "rotation", "scale") or node is None:
+        return None, None
+    return int(node), path
 
 
 def _vrm_roles(doc: dict) -> dict[int, str]:
@@ -375,15 +391,15 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
     if chosen is not None:
         animation = animations[chosen]
         for channel in animation.get("channels", []):
-            target = channel.get("target", {})
-            if target.get("path") not in ("translation", "rotation", "scale") or "node" not in target:
-                continue  # morph target weights: no skeleton's
+            node, path = _channel_target(channel.get("target", {}))
+            if node is None:
+                continue  # morph target weights, a material's colour: no skeleton's
             sampler = animation["samplers"][channel["sampler"]]
             times = _accessor(doc, buffers, sampler["input"])[:, 0]
             values = _accessor(doc, buffers, sampler["output"])
             interpolation = sampler.get("interpolation", "LINEAR")
             if len(times) and len(values) == len(times) * (3 if interpolation == "CUBICSPLINE" else 1):
-                channels[(int(target["node"]), target["path"])] = (times, values, interpolation)
+                channels[(node, path)] = (times, values, interpolation)
     if not channels:
         log.warning("%s: no animation of its nodes: its one frame is the skeleton as it stands", src)
         t, fps = np.zeros(1), DEFAULT_FPS

@@ -45,7 +45,7 @@ class _Buffer:
 
 
 def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffer="glb", int16=False,
-             skin=True, ik_feet=False, controls=0, vrm=False, posed=0.0, bind_space=None):
+             skin=True, ik_feet=False, controls=0, vrm=False, posed=0.0, bind_space=None, pointer=False):
     """A glTF of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger) under an Armature node scaling it by
     `armature_scale`: every joint node with a random rest rotation (its frame not the world's at rest), its
     rotation channel per animation, the root's translation channel; takes {name: (poses, trans)}, an animation
@@ -58,7 +58,8 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
     posed: each joint node's own rotation but the hips' and the first spine joint's then turned this many degrees
     about a random axis (a file saved with its character posed: the animation is the same); bind_space: (4, 4) the
     space the mesh was bound in, from the world (the matrices as `inv(bind_space @ world)`; default: the world, as
-    glTF says)."""
+    glTF says); pointer: every channel's target a KHR_animation_pointer ('/nodes/3/rotation'), and one more
+    channel animating a material's colour."""
     moving = {name: rig_motion(*m, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, m in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()))
     rng = np.random.default_rng(seed)
@@ -114,12 +115,22 @@ def rig_gltf(path, takes, rig=MIXAMO, fps=30, seed=1, armature_scale=0.01, buffe
             channels.append({"sampler": len(samplers) - 1, "target": {"node": j + 1, "path": "rotation"}})
         samplers.append({"input": times, "output": buf.add(take_root, "VEC3")})
         channels.append({"sampler": len(samplers) - 1, "target": {"node": 1, "path": "translation"}})
+        if pointer:
+            for channel in channels:
+                target = channel["target"]
+                channel["target"] = {"path": "pointer", "extensions": {"KHR_animation_pointer": {
+                    "pointer": f"/nodes/{target['node']}/{target['path']}"}}}
+            samplers.append({"input": times, "output": buf.add(np.ones((len(rotations), 4)), "VEC4")})
+            channels.append({"sampler": len(samplers) - 1, "target": {"path": "pointer", "extensions": {
+                "KHR_animation_pointer": {"pointer": "/materials/0/pbrMetallicRoughness/baseColorFactor"}}}})
         animations.append({"name": take, "channels": channels, "samplers": samplers})
     doc = {"asset": {"version": "2.0", "generator": "garment tests"}, "scene": 0, "scenes": [{"nodes": [0]}],
            "nodes": nodes, "animations": animations, "accessors": buf.accessors, "bufferViews": buf.views,
            "buffers": [{"byteLength": len(buf.data)}]}
     if skin:
         doc["skins"] = [{"joints": list(range(1, len(nodes))), "skeleton": 1, "inverseBindMatrices": bind}]
+    if pointer:
+        doc["extensionsUsed"] = ["KHR_animation_pointer"]
     if vrm:
         roles = {name: bone for bone, name in VRM_BONES.items()}
         bones = {roles[n.split(":")[-1]]: {"node": j + 1} for j, n in enumerate(names) if n.split(":")[-1] in roles}
@@ -180,6 +191,18 @@ def test_a_gltf_of_a_rig_reads_as_the_smpl_motion_it_moves_as(tmp_path, buffer, 
     tolerance = 1e-3 if int16 else 1e-4  # int16 quaternions: 3e-5 a component
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=tolerance)
     np.testing.assert_allclose(m.trans, trans, atol=tolerance)
+
+
+def test_a_gltf_animated_through_khr_animation_pointer_reads_as_through_its_nodes(tmp_path):
+    """KHR_animation_pointer (Blender 4.2's export can write them so): each channel's target a JSON pointer to a node's rotation or
+    translation, one more to a material's colour: the same motion as the nodes' own targets give (it read as no
+    animation, its rest's one frame)."""
+    poses, trans = _motion(5, seed=3)
+    poses[:, 22:] = 0
+    m = load_motion(rig_gltf(tmp_path / "pointer.glb", {"Walk": (poses, trans)}, pointer=True), world_checks=False)
+    assert m.n_frames == 5
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
 
 @pytest.mark.parametrize("ik_feet, controls", [(True, 0), (False, 40), (True, 40)])
