@@ -39,6 +39,9 @@ def main(argv=None) -> None:
                          "that has it)")
     ap.add_argument("--table", type=Path, required=True, help="model_table.py's per-sequence CSV")
     ap.add_argument("--model-row", required=True, help="the model's method name in the table")
+    ap.add_argument("--base", type=Path, default=None,
+                    help="a calibration to add the scenes to (its configurations, points and costs kept; the new "
+                         "scenes' costs averaged in), such as the shipped one")
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args(argv)
     rows = list(csv.DictReader(open(args.table, newline="")))
@@ -53,7 +56,7 @@ def main(argv=None) -> None:
     substeps, self_contact = json.loads(solvers.pop())
     sim_name = f"sim {substeps} substeps" + (" +self-contact" if self_contact else "")
     body = default_body()
-    cal = Calibration({})
+    cal = Calibration.load(args.base) if args.base else Calibration({})
     garments = {}
     for item in sorted({r["item"] for r in rows}):
         data = next((d for d in args.data if sequence_path(d, item).is_file()), None)

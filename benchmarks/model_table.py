@@ -198,7 +198,8 @@ def main(argv=None) -> None:
     for data in args.data:
         rows += evaluate(data, methods, args.self_every, args.max_items, skip={r.item for r in rows})
     for extra in args.held_out_data:
-        rows += evaluate(extra, methods, args.self_every, args.max_items, group=IN_RANGE_GROUP)
+        rows += evaluate(extra, methods, args.self_every, args.max_items, group=IN_RANGE_GROUP,
+                         skip={r.item for r in rows})
     summary = summarise(rows, list(methods))
     write(args.out, summary, rows, args)
     print(f"wrote {args.out}")
