@@ -53,6 +53,8 @@ DEFAULT_FPS = 30.0
 #: A sample time within this share of a key spacing of a key is the key's (float32 key times 300 s into a clip
 #: are 3e-5 s apart from their frames' times: 1e-3 of a 30 fps spacing).
 _SNAP = 2e-3
+#: Cubic curves keyed more sparsely (fps) are sampled between their keys (`cubic_rate`).
+MIN_CUBIC_FPS = 24.0
 #: Frame rates key spacings are snapped to (within 0.5 %): a glTF stores seconds, not a rate.
 _RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 23.976, 29.97, 59.94)
 
@@ -158,18 +160,24 @@ def sampled_keys(times: np.ndarray, values: np.ndarray, interpolation: str, t: n
     s = np.where(s < _SNAP, 0.0, np.where(s > 1.0 - _SNAP, 1.0, s))  # a frame on a key its float32 time missed
     a, b = keys[k], keys[k + 1]
     if interpolation == "STEP":
-        out = np.where(s >= 1.0, b, a)
-    elif interpolation == "CUBICSPLINE":
+        return np.where(s >= 1.0, b, a)
+    if interpolation == "CUBICSPLINE":
         s2, s3, dt = s * s, s * s * s, span[:, None]
         out = ((2 * s3 - 3 * s2 + 1) * a + (s3 - 2 * s2 + s) * dt * tangents_out[k]
                + (-2 * s3 + 3 * s2) * b + (s3 - s2) * dt * tangents_in[k + 1])
-    elif rotation:  # slerp along the shorter arc (of the keys made unit: quantized ones are near it)
+        if not rotation:
+            return out
+        # A span whose keys' quaternions lie in opposite hemispheres (Blender 4.2's export writes some, its
+        # tangents across them tens of units long) is slerped: its curve swings through other turns.
+        flipped = np.sum(a * b, axis=1) < 0
+        if not flipped.any():
+            return out
+    if rotation:  # slerp along the shorter arc (of the keys made unit: quantized ones are near it)
         a = a / np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)
         b = b / np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-12)
-        out = quat_slerp(a, b, s[:, 0])
-    else:
-        out = (1 - s) * a + s * b
-    return out
+        slerped = quat_slerp(a, b, s[:, 0])
+        return slerped if interpolation != "CUBICSPLINE" else np.where(flipped[:, None], slerped, out)
+    return (1 - s) * a + s * b
 
 
 def _channel_target(target: dict) -> tuple[int | None, str | None]:
@@ -215,12 +223,30 @@ def key_rate(inputs: list[np.ndarray]) -> float:
     return near if abs(near - fps) <= 0.005 * near else round(fps, 3)
 
 
-def key_times(inputs: list[np.ndarray], src: str, per_second: float = 1.0, what: str = "keys"
+def cubic_rate(fps: float) -> float:
+    """The rate to sample cubic curves keyed at `fps` at: their own from MIN_CUBIC_FPS up, else the first of
+    DEFAULT_FPS and the common rates over it of which their keys' rate divides a whole number (a hand-keyed
+    curve's key every 10 frames of 30: 30), else DEFAULT_FPS. Sampled at their keys, the curves between them
+    were lost to the slerps a bake resamples with (Blender's glTF export of a walk keyed every 10 frames: 8
+    degrees off its own curves)."""
+    if fps >= MIN_CUBIC_FPS:
+        return fps
+    for rate in (DEFAULT_FPS, *sorted(_RATES)):
+        ratio = rate / fps
+        if rate >= MIN_CUBIC_FPS and abs(ratio - round(ratio)) < 1e-3 * ratio:
+            return rate
+    return DEFAULT_FPS
+
+
+def key_times(inputs: list[np.ndarray], src: str, per_second: float = 1.0, what: str = "keys", cubic: bool = False
               ) -> tuple[np.ndarray, float]:
     """(the times of the frames, frames per second) of an animation's channels' key times `inputs` (in units
     `per_second` a second: seconds, or USD's time codes): spaced at `key_rate`, from the first key to the last;
-    InputError naming `src` for more than MAX_FRAMES frames."""
+    cubic: a channel's curves are cubic between keys (glTF's CUBICSPLINE), sampled at `cubic_rate` where its
+    keys are sparse. InputError naming `src` for more than MAX_FRAMES frames."""
     fps = key_rate([i / per_second for i in inputs])
+    if cubic:
+        fps = cubic_rate(fps)
     start, stop = min(float(i[0]) for i in inputs), max(float(i[-1]) for i in inputs)
     n = int(round((stop - start) / per_second * fps)) + 1
     if n > MAX_FRAMES:
@@ -404,7 +430,8 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
         log.warning("%s: no animation of its nodes: its one frame is the skeleton as it stands", src)
         t, fps = np.zeros(1), DEFAULT_FPS
     else:
-        t, fps = key_times([c[0] for c in channels.values()], src)
+        t, fps = key_times([c[0] for c in channels.values()], src,
+                           cubic=any(c[2] == "CUBICSPLINE" for c in channels.values()))
     needed = set()  # the joints and the nodes above them: the others' transforms are not computed
     for j in joints:
         while j is not None and j not in needed:

@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from core.errors import InputError
 from core.rotations import axis_angle_to_matrix
-from formats.gltf import VRM_BONES, key_rate, sampled_keys
+from formats.gltf import VRM_BONES, cubic_rate, key_rate, key_times, sampled_keys
 from formats.motion import load_motion, motion_takes
 from tests.formats.test_bvh import MIXAMO, _motion, rig_motion
 from tests.formats.test_motion import _assert_one_line, assert_each_refused
@@ -333,3 +333,29 @@ def test_channels_are_sampled_as_gltf_interpolates_them():
     np.testing.assert_allclose(cubic[inside], CubicHermiteSpline(times, values, tangents)(t[inside]), atol=1e-12)
     assert key_rate([np.arange(10) / 60.0]) == 60.0 and key_rate([np.arange(5) / 24.0]) == 24.0
     assert key_rate([np.array([0.0])]) == 30.0 and key_rate([np.arange(4) / 7.0]) == 7.0
+
+
+def test_sparse_cubic_keys_are_sampled_between_them_and_a_flipped_quaternion_span_is_slerped():
+    """Cubic curves keyed every 10 frames of 30 (a hand-keyed walk as Blender exports it unsampled: CUBICSPLINE
+    keys at 3 fps) are sampled at 30 fps, their curves between the keys kept (sampled at the keys' 3 fps, a bake's
+    slerps between them left Blender's own curves by up to 8 degrees); keys closer than MIN_CUBIC_FPS keep their
+    rate, and linear ones theirs. A rotation span whose key quaternions lie in opposite hemispheres is slerped
+    (its cubic, as Blender writes such tangents, swung the hips 169 degrees in one frame)."""
+    keys = np.arange(0.0, 2.01, 1 / 3)
+    t, fps = key_times([keys], "x", cubic=True)
+    assert fps == 30.0 and len(t) == 61 and np.allclose(t, np.arange(61) / 30)
+    assert key_times([keys], "x")[1] == 3.0 and key_times([np.arange(5) / 60.0], "x", cubic=True)[1] == 60.0
+    assert cubic_rate(12.0) == 24.0 and cubic_rate(2.5) == 30.0 and cubic_rate(7.0) == 30.0
+    rng = np.random.default_rng(3)
+    times = np.array([0.0, 1 / 3, 2 / 3])
+    q = Rotation.random(3, random_state=rng).as_quat()
+    q[1] *= np.sign(q[0] @ q[1])  # keys 0 and 1 in one hemisphere ...
+    q[2] *= -np.sign(q[1] @ q[2])  # ... key 2 in the other
+    tangents = 0.2 * rng.normal(size=(3, 4))
+    values = np.stack([tangents, q, tangents], 1).reshape(9, 4)
+    got = sampled_keys(times, values, "CUBICSPLINE", t[:21], rotation=True)
+    first = t[:21] <= 1 / 3
+    np.testing.assert_allclose(got[first], CubicHermiteSpline(times[:2], q[:2], tangents[:2])(t[:21][first]),
+                               atol=1e-12)
+    slerped = Slerp(times[1:], Rotation.from_quat(q[1:]))(t[:21][~first])
+    assert np.max((Rotation.from_quat(got[~first]).inv() * slerped).magnitude()) < 1e-6
