@@ -129,11 +129,13 @@ def write(out: Path, summary, rows, args) -> None:
 
     command = ("python benchmarks/model_table.py " + "".join(f"--data {d} " for d in args.data)
                + "".join(f"--held-out-data {d} " for d in args.held_out_data)
+               + (f'--group "{args.group}" ' if args.group != IN_RANGE_GROUP else "")
                + " ".join(f'--model "{m}"' for m in args.model) + (" --push-out" if args.push_out else "")
                + "".join(f' --network-only "{n}"' for n in args.network_only) + f" --self-every {args.self_every}")
     lines = ["# Learned model variants and LBS against the simulator (paper Table 1 layout)", "",
-             "Data: " + ", ".join(f"`{d}`" for d in args.data) + " test split (held-out motions; the held-out garment separately)"
-             + "".join(f"; every sequence of `{d}` ({IN_RANGE_GROUP})" for d in args.held_out_data) + ". Made by "
+             "Data: " + "; ".join([", ".join(f"`{d}`" for d in args.data) + " test split (held-out motions; the held-out "
+                                   "garment separately)"] * bool(args.data)
+                                  + [f"every sequence of `{d}` ({args.group})" for d in args.held_out_data]) + ". Made by "
              f"`{command}`.", "",
              "E_verts in mm, normal errors in degrees, E_edge in %, E_curv in 1/m^2 (core.metrics); penetration: % "
              "of garment vertices > 2 mm inside the body; self-intersection: % of garment faces crossing another "
@@ -168,18 +170,23 @@ def write(out: Path, summary, rows, args) -> None:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, action="append", required=True,
+    ap.add_argument("--data", type=Path, action="append", default=[],
                     help="`garment dataset` directory (repeatable: an item id already evaluated is not again)")
     ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH", help="a trained model (repeatable)")
     ap.add_argument("--self-every", type=int, default=6, help="self-intersection on every Nth frame")
     ap.add_argument("--held-out-data", type=Path, action="append", default=[],
-                    help=f"a `garment dataset` of garments no model was trained on: every sequence in '{IN_RANGE_GROUP}'")
+                    help=f"a `garment dataset` of garments no model was trained on: every sequence in '{IN_RANGE_GROUP}'"
+                         " (or --group)")
+    ap.add_argument("--group", default=IN_RANGE_GROUP,
+                    help="the name of --held-out-data's group (a dataset of other motions: 'real motions')")
     ap.add_argument("--max-items", type=int, default=None)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "model_table.md")
     ap.add_argument("--push-out", action="store_true", help="also each model with the penetration push-out")
     ap.add_argument("--network-only", action="append", default=[], metavar="NAME",
                     help="also the --model NAME without its contact guard (the network's raw output; repeatable)")
     args = ap.parse_args(argv)
+    if not args.data and not args.held_out_data:
+        ap.error("expected --data or --held-out-data")
     methods = {"lbs": LBSDeformer()}
     for spec in args.model:
         name, sep, path = spec.partition("=")
@@ -198,7 +205,7 @@ def main(argv=None) -> None:
     for data in args.data:
         rows += evaluate(data, methods, args.self_every, args.max_items, skip={r.item for r in rows})
     for extra in args.held_out_data:
-        rows += evaluate(extra, methods, args.self_every, args.max_items, group=IN_RANGE_GROUP,
+        rows += evaluate(extra, methods, args.self_every, args.max_items, group=args.group,
                          skip={r.item for r in rows})
     summary = summarise(rows, list(methods))
     write(args.out, summary, rows, args)
