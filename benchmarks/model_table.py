@@ -133,10 +133,10 @@ def write(out: Path, summary, rows, args) -> None:
                + " ".join(f'--model "{m}"' for m in args.model) + (" --push-out" if args.push_out else "")
                + "".join(f' --network-only "{n}"' for n in args.network_only) + f" --self-every {args.self_every}")
     lines = ["# Learned model variants and LBS against the simulator (paper Table 1 layout)", "",
-             "Data: " + "; ".join([", ".join(f"`{d}`" for d in args.data) + " test split (held-out motions; the held-out "
-                                   "garment separately)"] * bool(args.data)
-                                  + [f"every sequence of `{d}` ({args.group})" for d in args.held_out_data]) + ". Made by "
-             f"`{command}`.", "",
+             "Data: " + "; ".join([", ".join(f"`{d}`" for d in args.data) + " test split (held-out motions; the "
+                                   "held-out garment separately)"] * bool(args.data)
+                                  + [f"every sequence of `{d}` ({args.group})" for d in args.held_out_data])
+             + f". Made by `{command}`.", "",
              "E_verts in mm, normal errors in degrees, E_edge in %, E_curv in 1/m^2 (core.metrics); penetration: % "
              "of garment vertices > 2 mm inside the body; self-intersection: % of garment faces crossing another "
              f"(every {args.self_every}th frame); ms/frame: bake time per frame on this CPU.", "",
@@ -175,8 +175,8 @@ def main(argv=None) -> None:
     ap.add_argument("--model", action="append", default=[], metavar="NAME=PATH", help="a trained model (repeatable)")
     ap.add_argument("--self-every", type=int, default=6, help="self-intersection on every Nth frame")
     ap.add_argument("--held-out-data", type=Path, action="append", default=[],
-                    help=f"a `garment dataset` of garments no model was trained on: every sequence in '{IN_RANGE_GROUP}'"
-                         " (or --group)")
+                    help="a `garment dataset` of garments no model was trained on: every sequence in "
+                         f"'{IN_RANGE_GROUP}' (or --group)")
     ap.add_argument("--group", default=IN_RANGE_GROUP,
                     help="the name of --held-out-data's group (a dataset of other motions: 'real motions')")
     ap.add_argument("--max-items", type=int, default=None)

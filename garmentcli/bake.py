@@ -616,7 +616,8 @@ def _echo_throughput(frames: int, motions: int, seconds: float) -> None:
 
 def _body_joints_guard(deformer, body, explicit: bool) -> str:
     """A body whose skeleton is not the model's (`core.model_deform.model_body`: SMPL's 24 joints for a model of
-    SMPL+H's 52; an SMPL+H or SMPL-X body is read on SMPL's joints by a model of them): the JSON of a fall-back to lbs when the model was not asked for by name, else a click error naming both."""
+    SMPL+H's 52; an SMPL+H or SMPL-X body is read on SMPL's joints by a model of them): the JSON of a fall-back
+    to lbs when the model was not asked for by name, else a click error naming both."""
     from core.model_deform import skeleton_mismatch
 
     inner = getattr(deformer, "inner", deformer)  # under --push-out

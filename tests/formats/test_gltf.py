@@ -194,9 +194,9 @@ def test_a_gltf_of_a_rig_reads_as_the_smpl_motion_it_moves_as(tmp_path, buffer, 
 
 
 def test_a_gltf_animated_through_khr_animation_pointer_reads_as_through_its_nodes(tmp_path):
-    """KHR_animation_pointer (Blender 4.2's export can write them so): each channel's target a JSON pointer to a node's rotation or
-    translation, one more to a material's colour: the same motion as the nodes' own targets give (it read as no
-    animation, its rest's one frame)."""
+    """KHR_animation_pointer (Blender 4.2's export can write them so): each channel's target a JSON pointer to a
+    node's rotation or translation, one more to a material's colour: the same motion as the nodes' own targets
+    give (it read as no animation, its rest's one frame)."""
     poses, trans = _motion(5, seed=3)
     poses[:, 22:] = 0
     m = load_motion(rig_gltf(tmp_path / "pointer.glb", {"Walk": (poses, trans)}, pointer=True), world_checks=False)

@@ -125,8 +125,9 @@ def test_the_model_bakes_on_an_smplh_or_smplx_body_read_on_smpls_joints(layout, 
         d = out / f"skirt_{motion.stem}"
         summary = json.loads((d / "summary.json").read_text())
         assert summary["method"] == "model" and "method_fallback" not in summary
-        assert summary["deformer"]["body_view"].startswith(f"body '{layout}_like' ({layout}, {52 + 3 * (layout == 'smplx')} "
-                                                           "joints) read on SMPL's 24: the fingers follow the wrists")
+        joints = 52 + 3 * (layout == "smplx")
+        assert summary["deformer"]["body_view"].startswith(
+            f"body '{layout}_like' ({layout}, {joints} joints) read on SMPL's 24: the fingers follow the wrists")
         baked = read_usd(d / f"skirt_{motion.stem}.usd").tracks["garment"].points
         np.testing.assert_allclose(baked, default, atol=2e-5)
 
