@@ -465,17 +465,16 @@ def _hinged(match: dict[int, int], turns: dict[int, np.ndarray], world: np.ndarr
         points = np.einsum("nji,nj->ni", frame, below)  # the bone below, in the frame of the one above
         points = points[np.isfinite(points).all(axis=1)]  # frames of NaNs (a damaged file's) left out
         if len(points) < HINGE_FRAMES:
-            continue
+            continue  # too short a clip to tell
         centred = points - points.mean(axis=0)
         _, spread, axes = np.linalg.svd(centred, full_matrices=False)
         bone = _unit(smpl_rest[k] - smpl_rest[parent])
         bending = np.cross(bone, points).sum(axis=0)  # the way the bone below bends from the one above: flexion
         normal = axes[2] if axes[2] @ bending >= 0 else -axes[2]
-        if len(points) < HINGE_FRAMES or spread[1] / np.sqrt(len(points)) < HINGE_SWEEP or np.std(
-                centred @ normal) > np.sin(np.radians(HINGE_SPREAD)) or normal @ _unit(bending) < np.cos(
-                np.radians(HINGE_SPREAD * 4)):
-            continue  # too short a clip to tell, bent too little, not about one axis (the plane of a patch of
-            # bends, square to the way it bends, is no hinge's)
+        if spread[1] / np.sqrt(len(points)) < HINGE_SWEEP or np.std(centred @ normal) > np.sin(
+                np.radians(HINGE_SPREAD)) or normal @ _unit(bending) < np.cos(np.radians(HINGE_SPREAD * 4)):
+            continue  # bent too little, not about one axis (the plane of a patch of bends, square to the way it
+            # bends, is no hinge's)
         out[parent] = turns[parent] @ _turn_about(bone, float(_angle_about(h, normal, bone)))
         axis_world = (world[:, match[parent]] @ out[parent]) @ h  # the hinge's axis in the world per frame
         bone = _unit(smpl_rest[c] - smpl_rest[k])
