@@ -32,6 +32,8 @@ sys.path.insert(0, str(ROOT))
 from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
 from core.errors import InputError  # noqa: E402
+from core.garment import mesh_edges  # noqa: E402
+from core.geodesic import edge_lengths  # noqa: E402
 from core.model_deform import load_model_deformer  # noqa: E402
 from core.motion import poses_for_body  # noqa: E402
 from formats.obj import read_garment  # noqa: E402
@@ -42,12 +44,6 @@ from garmentcli.common import motion_files, prepare_motion  # noqa: E402
 TEAR_RATIO = 2.0
 #: ... and over this much longer (metres): a short edge stretched twice is no tear to see.
 TEAR_EXCESS_M = 0.02
-
-
-def edges_of(faces: np.ndarray) -> np.ndarray:
-    """(E, 2) the mesh's edges, each once."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    return np.unique(np.sort(e, axis=1), axis=0)
 
 
 def torn_frames(points: np.ndarray, edges: np.ndarray, rest: np.ndarray) -> np.ndarray:
@@ -71,8 +67,8 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     logging.disable(logging.WARNING)  # a folded rig's or a fast clip's warnings, once per clip
     body, garment = default_body(), read_garment(args.garment)
-    edges = edges_of(garment.faces)
-    rest = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
+    edges = mesh_edges(garment.faces)
+    rest = edge_lengths(garment.vertices, edges)
     size = float(np.ptp(garment.vertices, axis=0).max())
     methods = {"model": load_model_deformer(), "lbs": LBSDeformer()}
     files = motion_files([str(args.motions)])[::args.every]
