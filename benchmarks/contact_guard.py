@@ -1,14 +1,20 @@
-"""The model's contact guard (core/pushout.py) with its lift cut off at the bounds and faded beyond them.
+"""The model's contact guard (core/pushout.py): its lift cut off at the bounds or faded beyond them, each vertex
+lifted alone or the lifts spread over the garment.
 
     python benchmarks/contact_guard.py [--frames 90] [--garments dress skirt ...] [--motions kick_right ...]
+                                       [--data DIR ...]
+    python benchmarks/contact_guard.py --timing     # the guard's own time, each vertex lifted alone and spread
 
 The shipped model (float32) on every example garment and the four test motions of the dataset (30 fps, the
-first FRAMES frames), run three times: guard off (the network alone), guard cut off at GUARD_REACH_M and
-GUARD_DEPTH_M (the guard before 2026-12-02), guard faded over GUARD_REACH_FADE_M and GUARD_DEPTH_FADE_M beyond
-them (now). Per configuration: penetration (% of vertices > 2 mm inside the body, every frame), the share
-of vertex-frames lifted, the largest lift, and pops: a vertex's lift changing by more than POP_M between
-consecutive frames while the network moved it less than STILL_M relative to its anchor face (in depth and
-along the plane), i.e. a jump the cloth's own motion does not explain.
+first FRAMES frames), and on every sequence of the simulated datasets given with --data (against the
+simulator), run four times: guard off (the network alone); cut off at GUARD_REACH_M and GUARD_DEPTH_M, each
+vertex lifted alone (the guard before 2026-12-02); faded over GUARD_REACH_FADE_M and GUARD_DEPTH_FADE_M beyond
+them, alone (before 2026-12-06); faded, its lifts spread over the garment in GUARD_ROUNDS rounds (now). Per
+configuration: penetration (% of vertices > 2 mm inside the body), the share of vertex-frames lifted, the
+largest lift, pops (a vertex's lift changing by more than POP_M between consecutive frames while the network
+moved it less than STILL_M relative to its anchor face, in depth and along the plane: a jump the cloth's own
+motion does not explain), torn frames (an edge over TORN_RATIO times its rest length and TORN_M longer) and, on
+simulated sequences, E_verts (mm) against the simulator after its settle frames.
 Writes benchmarks/results/contact_guard.md. Nothing here is asserted by the tests.
 """
 
@@ -22,20 +28,28 @@ from pathlib import Path
 import numpy as np
 
 import core.model_deform as model_deform
+import core.pushout as pushout
 from core.bake import penetration_stats
 from core.body import default_body
-from core.motion import poses_for_body
+from core.garment import mesh_edges
+from core.geodesic import edge_lengths
+from core.motion import poses_for_body, sequence_motion
 from core.motiongen import MOTION_LIBRARY
-from core.pushout import (GUARD_DEPTH_FADE_M, GUARD_DEPTH_M, GUARD_REACH_FADE_M, GUARD_REACH_M, anchor_offsets,
-                          guard_contact)
+from core.pushout import (GUARD_DEPTH_FADE_M, GUARD_DEPTH_M, GUARD_REACH_FADE_M, GUARD_REACH_M, GUARD_ROUNDS,
+                          GUARD_SPREAD_M, anchor_offsets, guard_contact)
+from formats.dataset import read_manifest, read_sequence, sequence_path
 from formats.obj import read_obj
 from formats.report import markdown_table
 
 ROOT = Path(__file__).resolve().parents[1]
 TEST_MOTIONS = ("arm_swing_fast", "kick_right", "turn_right_wide", "walk_brisk")
-CONFIGS = {"off": None, "cut off": {"reach_fade": 0.0, "depth_fade": 0.0}, "faded": {}}
+ALONE = {"passes": 0, "rounds": 1}
+CONFIGS = {"off": None, "cut off": {"reach_fade": 0.0, "depth_fade": 0.0, **ALONE}, "faded": ALONE,
+           "faded, spread": {}}
 POP_M = 0.02
 STILL_M = 0.005
+TORN_RATIO = 2.0
+TORN_M = 0.02
 
 
 def run(deformer, garment, body, motion, guard: dict | None):
@@ -48,11 +62,21 @@ def run(deformer, garment, body, motion, guard: dict | None):
         seen["anchors"] = anchors
         return guard_contact(points, body_points, anchors, **guard)
 
-    model_deform.guard_contact = guarded
+    # On a GPU the model guards batch by batch (model_deform's name), on a CPU the whole sequence (pushout's).
+    model_deform.guard_contact = pushout.guard_contact = guarded
     try:
         return deformer.deform(garment, body, motion), seen.get("anchors")
     finally:
-        model_deform.guard_contact = guard_contact
+        model_deform.guard_contact = pushout.guard_contact = guard_contact
+
+
+def torn_frames(points: np.ndarray, faces: np.ndarray, rest: np.ndarray) -> int:
+    """Frames of `points` (T, V, 3) with an edge over TORN_RATIO times its length on `rest` (V, 3) and TORN_M
+    longer."""
+    edges = mesh_edges(faces)
+    rest_len = edge_lengths(rest, edges)
+    length = np.linalg.norm(points[:, edges[:, 0]] - points[:, edges[:, 1]], axis=-1)
+    return int(((length > TORN_RATIO * rest_len) & (length - rest_len > TORN_M)).any(axis=1).sum())
 
 
 def lift_stats(points: np.ndarray, raw: np.ndarray, still: np.ndarray) -> dict:
@@ -64,66 +88,152 @@ def lift_stats(points: np.ndarray, raw: np.ndarray, still: np.ndarray) -> dict:
             "pops": int((jump > POP_M).sum()), "largest change still, mm": 1e3 * float(jump.max(initial=0.0))}
 
 
-def report(headers: list[str], rows: list[list], frames: int) -> str:
+def summary(key: str, column) -> float | int | str:
+    """A statistic over scenes: percentages and E_verts their mean (over the scenes that have one), largest
+    values their max, counts their sum."""
+    if key.startswith("E_verts"):
+        values = [c for c in column if c != ""]
+        return float(np.mean(values)) if values else ""
+    if key.endswith("%"):
+        return float(np.mean(column))
+    return max(column) if key.startswith(("max", "largest")) else sum(column)
+
+
+def report(headers: list[str], rows: list[list], command: str) -> str:
     """The Markdown of the results: rows per scene and configuration (as `headers`: garment, motion, frames,
     guard, then the statistics) and, per configuration, over every scene."""
     overall = []
     for config in CONFIGS:
         columns = list(zip(*(r[4:] for r in rows if r[3] == config)))
-        overall.append([config, *(float(np.mean(c)) if k.endswith("%") else max(c) if k.startswith(("max", "largest"))
-                                  else sum(c) for k, c in zip(headers[4:], columns))])
+        overall.append([config, *(summary(k, c) for k, c in zip(headers[4:], columns))])
     return (
-        "# The contact guard: lift cut off at its bounds against faded beyond them\n\n"
-        f"Made by `python benchmarks/contact_guard.py --frames {frames}` on {platform.machine()} with the "
+        "# The contact guard: lift cut off at its bounds or faded beyond them, alone or spread\n\n"
+        f"Made by `python benchmarks/contact_guard.py {command}` on {platform.machine()} with the "
         f"shipped model, float32. Bounds: reach {GUARD_REACH_M * 100:g} cm along the anchor face's plane, depth "
         f"{GUARD_DEPTH_M * 100:g} cm behind it; faded: the lift falls linearly to none over "
-        f"{GUARD_REACH_FADE_M * 100:g} cm beyond the reach and {GUARD_DEPTH_FADE_M * 100:g} cm beyond the depth. "
-        "Penetration: % of vertices > 2 mm inside the body, every frame; lift: distance a vertex is moved from "
-        f"the network's output; pops: vertex-frames whose lift changes by more than {POP_M * 100:g} cm in one frame "
+        f"{GUARD_REACH_FADE_M * 100:g} cm beyond the reach and {GUARD_DEPTH_FADE_M * 100:g} cm beyond the depth; "
+        f"spread: the lifts smoothed over about {GUARD_SPREAD_M * 100:g} cm of the garment (passes of half the "
+        "neighbours' mean, as many as its median edge needs), "
+        f"in {GUARD_ROUNDS} rounds (the second lifts what the spread left behind); the others lift each vertex "
+        "alone. Torn frames: frames with an edge over "
+        f"{TORN_RATIO:g} times its rest length and {TORN_M * 100:g} cm longer. E_verts: against the simulator "
+        "(simulated sequences only). "
+        "Penetration: % of vertices > 2 mm inside the body (on evenly spaced frames); lift: distance a vertex is "
+        f"moved from the network's output; pops: vertex-frames whose lift changes by more than {POP_M * 100:g} cm "
+        "in one frame "
         f"while the network moved the vertex less than {STILL_M * 1e3:g} mm relative to its anchor face (depth "
         "below the guard's floor and distance along the plane): jumps the motion does not explain; largest change "
         "still: the largest change of the lift over those vertex-frames. The faded lift changes at most "
         "(1 + depth / depth fade) x the depth change + depth / reach fade x the lateral change, "
         f"{(1 + GUARD_DEPTH_M / GUARD_DEPTH_FADE_M + GUARD_DEPTH_M / GUARD_REACH_FADE_M) * STILL_M * 1e3:.1f} mm "
         "here.\n\n"
-        "## Over every scene (percentages: mean; largest: max; counts: sum)\n\n"
+        "## Over every scene (percentages and E_verts: mean; largest: max; counts: sum)\n\n"
         + markdown_table(["guard", *headers[4:]], overall)
         + "\n## Per scene\n\n" + markdown_table(headers, rows))
 
 
-def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=90, help="frames per motion (30 fps)")
-    ap.add_argument("--garments", nargs="*", default=None)
-    ap.add_argument("--motions", nargs="*", default=list(TEST_MOTIONS))
-    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "contact_guard.md")
-    args = ap.parse_args(argv)
-    body = default_body()
-    deformer = model_deform.load_model_deformer()
+def scenes(args):
+    """(garment name, motion name, garment, motion, simulated positions after the settle or None, settle frames)
+    of the example garments on the test motions, then of every sequence in --data."""
     paths = sorted((ROOT / "examples").glob("*.obj"))
     if args.garments:
         paths = [p for p in paths if p.stem in args.garments]
-    rows = []
     for path in paths:
         garment = read_obj(path)
         for name in args.motions:
             motion = MOTION_LIBRARY[name](fps=30.0)
             motion = dataclasses.replace(motion, poses=motion.poses[:args.frames], trans=motion.trans[:args.frames])
-            body_points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans,
-                                       body.fit_betas(motion.betas))
-            outputs = {config: run(deformer, garment, body, motion, guard) for config, guard in CONFIGS.items()}
-            raw, anchors = outputs["off"][0], outputs["faded"][1]
-            behind, lateral, _ = anchor_offsets(raw, body_points, anchors)
-            still = (np.abs(np.diff(behind, axis=0)) < STILL_M) & (np.abs(np.diff(lateral, axis=0)) < STILL_M)
-            for config, (points, _) in outputs.items():
-                stats = {"penetration %": penetration_stats(points, body_points, body.faces,
-                                                            max_frames=motion.n_frames)["mean_percent"],
-                         **lift_stats(points, raw, still)}
-                rows.append([path.stem, name, motion.n_frames, config, *stats.values()])
-            print(f"{path.stem} {name}: " + ", ".join(f"{r[3]} {r[4]:.3f} %" for r in rows[-len(CONFIGS):]),
-                  flush=True)
+            yield path.stem, name, garment, motion, None, 0
+    for data in args.data:
+        for item in read_manifest(data)["items"]:
+            seq_path = sequence_path(data, item["id"])
+            if seq_path.exists():
+                seq = read_sequence(seq_path)
+                garment = read_obj(Path(data) / "garments" / f"{seq.garment}.obj")
+                yield (seq.garment, f"{Path(data).name}/{item['id']}", garment, sequence_motion(seq, item["id"]),
+                       seq.positions[seq.n_settle:], seq.n_settle)
+
+
+def timing(args) -> None:
+    """The guard's milliseconds per frame on each example garment (the rest pose through the first 64 frames of
+    walk_brisk; one torch thread; the body posed as the bake poses it, GUARD_CHUNK_FRAMES at a time; best of 3),
+    each vertex lifted alone and spread: benchmarks/results/contact_guard_timing.md."""
+    import time
+
+    import torch
+
+    torch.set_num_threads(1)
+    body = default_body()
+    motion = MOTION_LIBRARY["walk_brisk"](fps=30.0)
+    frames, chunk = 64, pushout.GUARD_CHUNK_FRAMES
+    betas = body.fit_betas(motion.betas)
+    poses = poses_for_body(motion, body.n_joints)[:frames]
+    rows = []
+    for path in sorted((ROOT / "examples").glob("*.obj")):
+        garment = read_obj(path)
+        anchors = pushout.body_anchors(garment.vertices, garment.faces, body, betas)
+        points = np.repeat(garment.vertices[None].astype(np.float32), frames, axis=0)
+        ms = {}
+        for name, guard in (("alone", ALONE), ("spread", {})):
+            best = np.inf
+            for _ in range(3):
+                t0 = time.perf_counter()
+                for s in range(0, frames, chunk):
+                    body_points, _ = body.pose(poses[s:s + chunk], motion.trans[s:s + chunk], betas)
+                    guard_contact(points[s:s + chunk], body_points, anchors, **guard)
+                best = min(best, (time.perf_counter() - t0) / frames * 1e3)
+            ms[name] = best
+        rows.append([path.stem, garment.n_vertices, anchors.passes, ms["alone"], ms["spread"]])
+        print(rows[-1], flush=True)
+    out = args.out.with_name("contact_guard_timing.md")
+    out.write_text("# The contact guard's time per frame\n\n"
+                   f"Made by `python benchmarks/contact_guard.py --timing` on {platform.machine()}, one torch thread: "
+                   f"the body posed {chunk} frames at a time and the guard, on the first {frames} frames of "
+                   "walk_brisk (best of 3). Spread: over about "
+                   f"{GUARD_SPREAD_M * 100:g} cm, {GUARD_ROUNDS} rounds.\n\n"
+                   + markdown_table(["garment", "vertices", "spread passes", "alone ms/frame", "spread ms/frame"],
+                                    rows))
+    print(f"wrote {out}")
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=90, help="frames per test motion (30 fps)")
+    ap.add_argument("--garments", nargs="*", default=None)
+    ap.add_argument("--motions", nargs="*", default=list(TEST_MOTIONS))
+    ap.add_argument("--data", action="append", default=[], help="a simulated dataset (garment dataset) to add")
+    ap.add_argument("--penetration-frames", type=int, default=20, help="frames per scene checked for penetration "
+                    "(evenly spaced)")
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "contact_guard.md")
+    ap.add_argument("--timing", action="store_true", help="time the guard alone (contact_guard_timing.md)")
+    args = ap.parse_args(argv)
+    if args.timing:
+        return timing(args)
+    body = default_body()
+    deformer = model_deform.load_model_deformer()
+    rows = []
+    for garment_name, name, garment, motion, simulated, settle in scenes(args):
+        body_points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, body.fit_betas(motion.betas))
+        outputs = {config: run(deformer, garment, body, motion, guard) for config, guard in CONFIGS.items()}
+        raw, anchors = outputs["off"][0], outputs["faded"][1]
+        behind, lateral, _ = anchor_offsets(raw, body_points, anchors)
+        still = (np.abs(np.diff(behind, axis=0)) < STILL_M) & (np.abs(np.diff(lateral, axis=0)) < STILL_M)
+        for config, (points, _) in outputs.items():
+            after = points[settle:]
+            stats = {"penetration %": penetration_stats(points, body_points, body.faces,
+                                                        max_frames=args.penetration_frames)["mean_percent"],
+                     **lift_stats(points, raw, still), "torn frames": torn_frames(after, garment.faces,
+                                                                                  garment.vertices),
+                     "E_verts mm": "" if simulated is None else
+                     1e3 * float(np.linalg.norm(after - simulated, axis=-1).mean())}
+            rows.append([garment_name, name, len(after), config, *stats.values()])
+        print(f"{garment_name} {name}: " + ", ".join(f"{r[3]} {r[4]:.3f} % {r[-2]} torn"
+                                                     for r in rows[-len(CONFIGS):]), flush=True)
+    command = " ".join([f"--frames {args.frames}", *(["--motions", *args.motions] if args.motions != list(TEST_MOTIONS)
+                                                     else []), *(f"--data {d}" for d in args.data),
+                        f"--penetration-frames {args.penetration_frames}", f"--out {args.out.name}"])
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(report(["garment", "motion", "frames", "guard", *stats], rows, args.frames))
+    args.out.write_text(report(["garment", "motion", "frames", "guard", *stats], rows, command))
     print(f"wrote {args.out}")
 
 

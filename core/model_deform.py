@@ -293,7 +293,7 @@ class ModelDeformer(Deformer):
         guard_here = self.contact_guard and (device.type != "cpu" if self.guard_on_device is None
                                              else self.guard_on_device)
         if self.contact_guard and shaped.anchors is None:
-            shaped.anchors = body_anchors(rest.cpu().numpy(), body, betas)
+            shaped.anchors = body_anchors(rest.cpu().numpy(), garment.faces, body, betas)
         if guard_here:
             pose_t = torch.as_tensor(poses, dtype=torch.float32, device=device)
             trans_t = torch.as_tensor(motion.trans, dtype=torch.float32, device=device)
@@ -330,7 +330,7 @@ class ModelDeformer(Deformer):
         if guard_here:
             guard = guard_report([m.cpu() for m in moved], None, motion.n_frames)
         elif self.contact_guard:  # outside autocast: the body is posed in float32
-            out, guard = guard_sequence(out, rest.cpu().numpy(), body, poses, motion.trans, betas,
+            out, guard = guard_sequence(out, rest.cpu().numpy(), garment.faces, body, poses, motion.trans, betas,
                                         shaped.anchors)
         if guard:
             guard["contact_guard"]["device"] = str(device) if guard_here else "cpu"

@@ -195,6 +195,6 @@ class PSDDeformer(Deformer):
         self.report = {"method": self.name, "fit": {"source": self.source, "rank": self.fit.rank,
                                                     **self.fit.meta}}
         if self.contact_guard:  # reported as the model reports it
-            out, guard = guard_sequence(out, rest, body, poses, motion.trans, betas)
+            out, guard = guard_sequence(out, rest, garment.faces, body, poses, motion.trans, betas)
             self.report.update(guard)
         return out

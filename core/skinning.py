@@ -716,19 +716,26 @@ def shaped_garment(vertices: np.ndarray, binding: GarmentBinding, betas: np.ndar
     return vertices + np.einsum("vcs,s->vc", binding.shapedirs, betas)
 
 
+def graph_smoothing(faces: np.ndarray, n_vertices: int, strength: float = 0.5) -> sp.csr_matrix:
+    """One pass of `smooth_over_graph` as a sparse (V, V) float64 operator: x <- P @ x. A vertex without edges
+    keeps its value (its row is the identity's)."""
+    e = mesh_edges(faces)
+    adj = sp.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
+                        shape=(n_vertices, n_vertices)).tocsr()
+    deg = np.asarray(adj.sum(axis=1)).ravel()
+    has = deg > 0
+    keep = np.where(has, 1.0 - strength, 1.0)
+    return (sp.diags(keep) + sp.diags(np.where(has, strength / np.maximum(deg, 1), 0.0)) @ adj).tocsr()
+
+
 def smooth_over_graph(values: np.ndarray, faces: np.ndarray, iterations: int, strength: float = 0.5) -> np.ndarray:
     """Uniform-Laplacian smoothing of per-vertex values over the mesh edge graph.
 
     values: (V, C); faces: (F, 3). Each pass: x <- (1 - strength) x + strength * mean of neighbours.
     Isolated vertices keep their values. Returns (V, C) of the input dtype.
     """
-    V = values.shape[0]
-    e = mesh_edges(faces)
-    adj = sp.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(V, V)).tocsr()
-    deg = np.asarray(adj.sum(axis=1)).ravel()
-    has = deg > 0
-    mean_op = sp.diags(np.where(has, 1.0 / np.maximum(deg, 1), 0.0)) @ adj
+    op = graph_smoothing(faces, values.shape[0], strength)
     x = values.astype(np.float64)
     for _ in range(iterations):
-        x = np.where(has[:, None], (1 - strength) * x + strength * (mean_op @ x), x)
+        x = op @ x
     return x.astype(values.dtype)

@@ -4,7 +4,7 @@ outside; others stay) and the model's contact guard (against a vertex-by-vertex 
 import numpy as np
 
 from core.geometry import TriangleMesh, closest_point_on_triangles, face_normals, outward_faces, outward_offsets
-from core.pushout import PushOutDeformer, contact_anchors, guard_contact, push_out
+from core.pushout import GUARD_MOVED_M, PushOutDeformer, contact_anchors, guard_contact, push_out
 from tests.meshes import icosphere, points_around, tiny_body
 
 
@@ -122,7 +122,8 @@ def test_contact_guard_matches_a_vertex_by_vertex_reference_and_only_lifts():
         want = _naive_guard(skinned, body_points, faces, rest, rest_body, 0.002, **bounds)
         np.testing.assert_allclose(got, want, atol=1e-5)
         lifted = np.linalg.norm(got - skinned, axis=-1) > 1e-7
-        assert moved.tolist() == lifted.sum(axis=1).tolist() and 0 < lifted.mean() < 1
+        counted = np.linalg.norm(want - skinned, axis=-1) > GUARD_MOVED_M
+        assert moved.tolist() == counted.sum(axis=1).tolist() and 0 < lifted.mean() < 1
         outputs.append(got)
     # The fades reach vertices the cut-off leaves alone.
     assert (np.abs(outputs[0] - outputs[1]).max(axis=-1) > 1e-4).sum() >= 10
@@ -179,3 +180,95 @@ def test_contact_guard_lift_is_continuous_across_its_bounds():
     np.testing.assert_allclose(lifts["lateral"][lateral < 0.1], 0.02 + anchors.floor[0], atol=1e-5)
     assert np.all(np.diff(behind - lifts["depth"]) > -1e-5)
 
+
+
+def _grid(n: int, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """An n x n grid of vertices in the plane z = 0 (spacing in metres) and its triangles (two a cell)."""
+    ii, jj = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    verts = np.stack([ii.ravel() * spacing, jj.ravel() * spacing, np.zeros(n * n)], axis=1)
+    k = (ii[:-1, :-1] * n + jj[:-1, :-1]).ravel()
+    faces = np.concatenate([np.stack([k, k + n, k + 1], 1), np.stack([k + 1, k + n, k + n + 1], 1)])
+    return verts, faces
+
+
+def _neighbours(faces: np.ndarray, n_vertices: int) -> list[set]:
+    """Each vertex's neighbours along the faces' edges."""
+    out = [set() for _ in range(n_vertices)]
+    for a, b, c in faces:
+        for u, v in ((a, b), (b, c), (c, a)):
+            out[u].add(v)
+            out[v].add(u)
+    return out
+
+
+def _longest_edge(points: np.ndarray, neighbours: list[set]) -> float:
+    return max(float(np.linalg.norm(points[u] - points[v])) for u in range(len(points)) for v in neighbours[u])
+
+
+def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does():
+    """A garment 1 cm above a flat body with a vertex pushed 3 cm through it: the lift, shared with the
+    neighbours as four passes of (1 - 0.5) x + 0.5 * mean of the neighbours' do it vertex by vertex, and lifted
+    further in a second round; a garment pushed through whole is lifted whole (the spread changes nothing)."""
+    n = 9
+    verts, faces = _grid(n, 0.01)
+    ground = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    ground_faces = np.array([[0, 1, 3], [0, 3, 2]])  # normal +z
+    rest = verts + [0.0, 0.0, 0.01]
+    anchors = contact_anchors(rest, ground, ground_faces, garment_faces=faces)
+    dent = rest.astype(np.float32)
+    centre = (n // 2) * n + n // 2
+    dent[centre, 2] = -0.03
+    alone, _ = guard_contact(dent[None], ground[None], anchors, passes=0)
+    spread, moved = guard_contact(dent[None], ground[None], anchors, passes=4, rounds=1)
+    np.testing.assert_allclose(alone[0, centre], [*dent[centre, :2], 0.001], atol=1e-7)
+    neighbours = _neighbours(faces, n * n)
+    shift = (alone[0] - dent).astype(np.float64)  # exactly 0 where the guard left a vertex
+    for _ in range(4):
+        shift = np.array([0.5 * shift[v] + 0.5 * np.mean([shift[u] for u in neighbours[v]], axis=0)
+                          for v in range(n * n)])
+    np.testing.assert_allclose(spread[0], dent + shift, atol=1e-6)
+    assert moved.tolist() == [int((np.linalg.norm(shift, axis=1) > GUARD_MOVED_M).sum())] and 10 < moved[0] < 40
+    assert (np.abs(shift).max(axis=1) > 0).sum() > moved[0]  # the spread's tails are not counted
+    # A second round lifts what the first left behind the plane, as the guard run again on its output does.
+    again, _ = guard_contact(spread, ground[None], anchors, passes=4, rounds=1)
+    twice, _ = guard_contact(dent[None], ground[None], anchors, passes=4, rounds=2)
+    np.testing.assert_allclose(twice, again, atol=1e-6)
+    assert twice[0, centre, 2] > spread[0, centre, 2] + 0.003
+    through = (rest - [0.0, 0.0, 0.03]).astype(np.float32)
+    whole, _ = guard_contact(through[None], ground[None], anchors)
+    np.testing.assert_allclose(whole[0], through + [0.0, 0.0, 0.021], atol=1e-6)
+
+
+def test_contact_guard_spread_keeps_cloth_pushed_into_a_corner_whole():
+    """Cloth across a body's inner corner (an armpit: a wall and a floor at right angles), its vertices on either
+    side of the corner's diagonal tied to either face, pushed 4 cm into the corner: lifted each along its own
+    face's normal, neighbours across the diagonal part by 1.6 cm (edges of 5-7 mm torn); spread, they stay
+    together and the cloth still leaves the body."""
+    n, spacing = 9, 0.005
+    grid, faces = _grid(n, spacing)
+    across = np.array([1.0, 0.0, -1.0]) / np.sqrt(2.0)  # the cloth spans the corner's cross-section and its length
+    c = (n - 1) / 2 * spacing
+    rest = [0.03, 0.0, 0.03] + (grid[:, :1] - c) * across + (grid[:, 1:2] - c) * [0.0, 1.0, 0.0]
+    corner = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0],
+                       [0.0, -1.0, 1.0], [0.0, 1.0, 1.0]])
+    corner_faces = np.array([[0, 2, 3], [0, 3, 1], [0, 1, 5], [0, 5, 4]])  # the floor (+z), the wall (+x)
+    anchors = contact_anchors(rest, corner, corner_faces, garment_faces=faces)
+    pushed = (rest - [0.04, 0.0, 0.04]).astype(np.float32)
+    neighbours = _neighbours(faces, n * n)
+    alone, _ = guard_contact(pushed[None], corner[None], anchors, passes=0)
+    spread, _ = guard_contact(pushed[None], corner[None], anchors)
+    assert _longest_edge(alone[0], neighbours) > 2 * spacing * np.sqrt(2.0)  # the longest rest edge twice
+    assert _longest_edge(spread[0], neighbours) < 1.5 * spacing * np.sqrt(2.0)
+    # Every vertex lifted off its face at least half way (4 cm in at the centre, up to 1.6 cm more at the sides).
+    assert (np.maximum(spread[0, :, 0], spread[0, :, 2]) > -0.01).all()
+
+
+def test_the_spread_covers_the_same_distance_on_fine_and_coarse_garments():
+    """Passes grow with the square of the fineness (a pass spreads over about an edge); a garment coarser than
+    the spread, or degenerate, is not spread; the finest are capped."""
+    from core.pushout import GUARD_MAX_SPREAD_PASSES, GUARD_SPREAD_M, spread_passes
+
+    assert spread_passes(GUARD_SPREAD_M / 2) == 8 and spread_passes(GUARD_SPREAD_M / 4) == 32
+    assert spread_passes(GUARD_SPREAD_M) == 2 and spread_passes(2 * GUARD_SPREAD_M) == 0
+    assert spread_passes(0.0) == 0 and spread_passes(float("nan")) == 0
+    assert spread_passes(GUARD_SPREAD_M / 100) == GUARD_MAX_SPREAD_PASSES

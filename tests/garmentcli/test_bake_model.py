@@ -186,10 +186,12 @@ def test_contact_guard_is_the_default_and_can_be_left_out(tmp_path):
     raw, raw_summary, _ = _bake(dress, tmp_path / "raw", "--no-contact-guard")
     assert "contact_guard" in summary["deformer"] and "contact_guard" not in raw_summary["deformer"]
     lifted = np.linalg.norm(guarded - raw, axis=-1)
-    # The guard lifts some vertices where the network put them into the body, leaves the rest as they were, and
-    # what it lifts ends outside: fewer vertices inside the body than in the network's raw output.
+    # The guard lifts some vertices where the network put them into the body (and their neighbours, less: the
+    # spread), leaves the rest as they were, and what it lifts ends outside: fewer vertices inside the body than
+    # in the network's raw output.
     moved = summary["deformer"]["contact_guard"]["vertices_moved_per_frame_mean"]
-    assert moved > 0 and 0 < (lifted > 1e-6).mean() < 0.2
+    assert 0 < moved < 0.35 * len(raw[0]) and 0 < (lifted > 1e-3).mean() < 0.25 and (lifted > 1e-6).mean() < 0.6
+    np.testing.assert_allclose(moved, (lifted > 1e-4).sum(axis=1).mean(), rtol=0.01)
     assert summary["penetration"]["mean_percent"] < raw_summary["penetration"]["mean_percent"]
     r = invoke(["bake", dress, ROOT / "examples" / "walk.npz", "--method", "lbs", "--no-contact-guard",
                 "--out", tmp_path / "bad"])
