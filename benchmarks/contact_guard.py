@@ -4,6 +4,7 @@ lifted alone or the lifts spread over the garment.
     python benchmarks/contact_guard.py [--frames 90] [--garments dress skirt ...] [--motions kick_right ...]
                                        [--data DIR ...]
     python benchmarks/contact_guard.py --timing     # the guard's own time, each vertex lifted alone and spread
+    python benchmarks/contact_guard.py --figure     # the t-shirt's armpits: network, lone lifts, spread (PNG)
 
 The shipped model (float32) on every example garment and the four test motions of the dataset (30 fps, the
 first FRAMES frames), and on every sequence of the simulated datasets given with --data (against the
@@ -196,6 +197,35 @@ def timing(args) -> None:
     print(f"wrote {out}")
 
 
+def figure(args) -> None:
+    """The example t-shirt on frame 30 of arm_swing_fast seen from either side (garment only): the network alone,
+    the guard lifting each vertex alone, the guard spreading its lifts: contact_guard_armpit.png."""
+    from formats.render import RenderOptions, contact_sheet, render_image, scene_from_sequence, write_png
+    from formats.sequence import Sequence
+
+    body = default_body()
+    garment = read_obj(ROOT / "examples" / "tshirt.obj")
+    motion = MOTION_LIBRARY["arm_swing_fast"](fps=30.0)
+    frame = 30
+    motion = dataclasses.replace(motion, poses=motion.poses[:frame + 1], trans=motion.trans[:frame + 1])
+    deformer = model_deform.load_model_deformer(contact_guard=False)
+    raw = deformer.deform(garment, body, motion)[frame:]
+    betas = body.fit_betas(motion.betas)
+    body_points, _ = body.pose(poses_for_body(motion, body.n_joints)[frame:], motion.trans[frame:], betas)
+    anchors = pushout.body_anchors(garment.vertices, garment.faces, body, betas)
+    columns = [("network alone", raw), ("guard, lone lifts (before)", guard_contact(raw, body_points, anchors,
+                                                                                   **ALONE)[0]),
+               ("guard, spread (now)", guard_contact(raw, body_points, anchors)[0])]
+    images = []
+    for azimuth in (90.0, -90.0):
+        options = RenderOptions(width=700, height=700, azimuth_deg=azimuth, elevation_deg=-10.0)
+        images.append([render_image(scene_from_sequence(Sequence(points, garment.faces, motion.fps, source=name)),
+                                    0, "front", options) for name, points in columns])
+    out = write_png(args.out.with_name("contact_guard_armpit.png"),
+                    contact_sheet(images, [[name for name, _ in columns]] * 2, thumb_width=500))
+    print(f"wrote {out}")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=90, help="frames per test motion (30 fps)")
@@ -206,9 +236,12 @@ def main(argv=None) -> None:
                     "(evenly spaced)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "contact_guard.md")
     ap.add_argument("--timing", action="store_true", help="time the guard alone (contact_guard_timing.md)")
+    ap.add_argument("--figure", action="store_true", help="the t-shirt's armpits (contact_guard_armpit.png)")
     args = ap.parse_args(argv)
     if args.timing:
         return timing(args)
+    if args.figure:
+        return figure(args)
     body = default_body()
     deformer = model_deform.load_model_deformer()
     rows = []
