@@ -71,11 +71,11 @@ GUARD_DEPTH_FADE_M = 0.03
 #: How far (metres, the spread's standard deviation over the surface) the guard spreads its lifts, and its
 #: rounds (each lifts what the spread left behind its plane). A garment's lifts are spread by passes of
 #: `core.skinning.graph_smoothing` (strength 0.5, each spreading over about an edge: `spread_passes`), as
-#: many as its median edge length needs for this distance. Measured on 78 simulated sequences (48 of real motion
-#: capture on four garments, 30 synthetic dress motions; benchmarks/results/contact_guard.md): unspread, the guard
-#: tore (an edge over twice its rest length and 2 cm longer) a t-shirt in 386 of 427 real frames and trousers in
-#: 200, where the network alone tore 44 and 97; spread over less than 1.5 cm the t-shirt still tore in most
-#: frames; a second round leaves fewer vertices inside the body than unspread lifts did.
+#: many as its median edge length needs for this distance. Measured on 78 simulated sequences (48 of real
+#: motion capture on four garments, 30 synthetic dress motions; benchmarks/results/contact_guard_simulated.md):
+#: unspread, the guard tore (an edge over twice its rest length and 2 cm longer) a t-shirt in 386 of 427 real
+#: frames and trousers in 200, where the network alone tore 44 and 97; spread over less than 1.5 cm the t-shirt
+#: still tore in most frames; a second round leaves fewer vertices inside the body than unspread lifts did.
 GUARD_SPREAD_M = 0.03
 GUARD_ROUNDS = 2
 

@@ -18,6 +18,7 @@ from core.body import Body
 from core.errors import InputError
 from core.garment import UNIT_GUESSES, Garment, mesh_edges
 from core.geometry import Y_UP_TO_Z_UP_MATRIX, TriangleMesh
+from core.graph import adjacency
 
 log = logging.getLogger(__name__)
 
@@ -719,9 +720,7 @@ def shaped_garment(vertices: np.ndarray, binding: GarmentBinding, betas: np.ndar
 def graph_smoothing(faces: np.ndarray, n_vertices: int, strength: float = 0.5) -> sp.csr_matrix:
     """One pass of `smooth_over_graph` as a sparse (V, V) float64 operator: x <- P @ x. A vertex without edges
     keeps its value (its row is the identity's)."""
-    e = mesh_edges(faces)
-    adj = sp.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
-                        shape=(n_vertices, n_vertices)).tocsr()
+    adj = adjacency(mesh_edges(faces), n_vertices)
     deg = np.asarray(adj.sum(axis=1)).ravel()
     has = deg > 0
     keep = np.where(has, 1.0 - strength, 1.0)
