@@ -14,7 +14,8 @@ them, alone (before 2026-12-06); faded, its lifts spread over the garment in GUA
 configuration: penetration (% of vertices > 2 mm inside the body), the share of vertex-frames lifted, the
 largest lift, pops (a vertex's lift changing by more than POP_M between consecutive frames while the network
 moved it less than STILL_M relative to its anchor face, in depth and along the plane: a jump the cloth's own
-motion does not explain), torn frames (an edge over TORN_RATIO times its rest length and TORN_M longer) and, on
+motion does not explain), torn frames (real_motion_stress's: an edge over TEAR_RATIO times its rest length and
+TEAR_EXCESS_M longer) and, on
 simulated sequences, E_verts (mm) against the simulator after its settle frames.
 Writes benchmarks/results/contact_guard.md. Nothing here is asserted by the tests.
 """
@@ -24,33 +25,35 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import platform
+import sys
 from pathlib import Path
 
 import numpy as np
 
-import core.model_deform as model_deform
-import core.pushout as pushout
-from core.bake import penetration_stats
-from core.body import default_body
-from core.garment import mesh_edges
-from core.geodesic import edge_lengths
-from core.motion import poses_for_body, sequence_motion
-from core.motiongen import MOTION_LIBRARY
-from core.pushout import (GUARD_DEPTH_FADE_M, GUARD_DEPTH_M, GUARD_REACH_FADE_M, GUARD_REACH_M, GUARD_ROUNDS,
-                          GUARD_SPREAD_M, anchor_offsets, guard_contact)
-from formats.dataset import read_manifest, read_sequence, sequence_path
-from formats.obj import read_obj
-from formats.report import markdown_table
-
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.real_motion_stress import TEAR_EXCESS_M, TEAR_RATIO, torn_frames  # noqa: E402
+import core.model_deform as model_deform  # noqa: E402
+import core.pushout as pushout  # noqa: E402
+from core.bake import penetration_stats  # noqa: E402
+from core.body import default_body  # noqa: E402
+from core.garment import mesh_edges  # noqa: E402
+from core.geodesic import edge_lengths  # noqa: E402
+from core.motion import poses_for_body, sequence_motion  # noqa: E402
+from core.motiongen import MOTION_LIBRARY  # noqa: E402
+from core.pushout import (GUARD_DEPTH_FADE_M, GUARD_DEPTH_M, GUARD_REACH_FADE_M, GUARD_REACH_M,  # noqa: E402
+                          GUARD_ROUNDS, GUARD_SPREAD_M, anchor_offsets, guard_contact)
+from formats.dataset import read_manifest, read_sequence, sequence_path  # noqa: E402
+from formats.obj import read_obj  # noqa: E402
+from formats.report import markdown_table  # noqa: E402
+
 TEST_MOTIONS = ("arm_swing_fast", "kick_right", "turn_right_wide", "walk_brisk")
 ALONE = {"passes": 0, "rounds": 1}
 CONFIGS = {"off": None, "cut off": {"reach_fade": 0.0, "depth_fade": 0.0, **ALONE}, "faded": ALONE,
            "faded, spread": {}}
 POP_M = 0.02
 STILL_M = 0.005
-TORN_RATIO = 2.0
-TORN_M = 0.02
 
 
 def run(deformer, garment, body, motion, guard: dict | None):
@@ -69,15 +72,6 @@ def run(deformer, garment, body, motion, guard: dict | None):
         return deformer.deform(garment, body, motion), seen.get("anchors")
     finally:
         model_deform.guard_contact = pushout.guard_contact = guard_contact
-
-
-def torn_frames(points: np.ndarray, faces: np.ndarray, rest: np.ndarray) -> int:
-    """Frames of `points` (T, V, 3) with an edge over TORN_RATIO times its length on `rest` (V, 3) and TORN_M
-    longer."""
-    edges = mesh_edges(faces)
-    rest_len = edge_lengths(rest, edges)
-    length = np.linalg.norm(points[:, edges[:, 0]] - points[:, edges[:, 1]], axis=-1)
-    return int(((length > TORN_RATIO * rest_len) & (length - rest_len > TORN_M)).any(axis=1).sum())
 
 
 def lift_stats(points: np.ndarray, raw: np.ndarray, still: np.ndarray) -> dict:
@@ -117,7 +111,7 @@ def report(headers: list[str], rows: list[list], command: str) -> str:
         "neighbours' mean, as many as its median edge needs), "
         f"in {GUARD_ROUNDS} rounds (the second lifts what the spread left behind); the others lift each vertex "
         "alone. Torn frames: frames with an edge over "
-        f"{TORN_RATIO:g} times its rest length and {TORN_M * 100:g} cm longer. E_verts: against the simulator "
+        f"{TEAR_RATIO:g} times its rest length and {TEAR_EXCESS_M * 100:g} cm longer. E_verts: against the simulator "
         "(simulated sequences only). "
         "Penetration: % of vertices > 2 mm inside the body (on evenly spaced frames); lift: distance a vertex is "
         f"moved from the network's output; pops: vertex-frames whose lift changes by more than {POP_M * 100:g} cm "
@@ -249,14 +243,16 @@ def main(argv=None) -> None:
         body_points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, body.fit_betas(motion.betas))
         outputs = {config: run(deformer, garment, body, motion, guard) for config, guard in CONFIGS.items()}
         raw, anchors = outputs["off"][0], outputs["faded"][1]
+        edges = mesh_edges(garment.faces)
+        rest = edge_lengths(garment.vertices, edges)
         behind, lateral, _ = anchor_offsets(raw, body_points, anchors)
         still = (np.abs(np.diff(behind, axis=0)) < STILL_M) & (np.abs(np.diff(lateral, axis=0)) < STILL_M)
         for config, (points, _) in outputs.items():
             after = points[settle:]
             stats = {"penetration %": penetration_stats(points, body_points, body.faces,
                                                         max_frames=args.penetration_frames)["mean_percent"],
-                     **lift_stats(points, raw, still), "torn frames": torn_frames(after, garment.faces,
-                                                                                  garment.vertices),
+                     **lift_stats(points, raw, still),
+                     "torn frames": int(torn_frames(after, edges, rest).sum()),
                      "E_verts mm": "" if simulated is None else
                      1e3 * float(np.linalg.norm(after - simulated, axis=-1).mean())}
             rows.append([garment_name, name, len(after), config, *stats.values()])

@@ -21,7 +21,7 @@ neighbours tied to other faces or left where they were, pulls them along instead
 as a spike (where the body curves, in an armpit or behind a knee, one face's plane stands for the body badly,
 and unspread lifts tore a t-shirt's armpits in every frame of most motions).
 The face is posed exactly (it is the body's own), so this undoes what the network adds on top of
-skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at 3-5
+skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at 2-5
 ms/frame; it cannot see a vertex that slides over to another body part, which the exact push-out does.
 """
 
@@ -195,20 +195,22 @@ def anchor_offsets(points, body_points, anchors: ContactAnchors):
     return tuple(x.numpy() for x in out) if arrays else out
 
 
-def spread_over(shift: torch.Tensor, op: sp.csr_matrix, passes: int) -> torch.Tensor:
-    """`passes` passes of the sparse operator `op` (V, V) over per-vertex vectors `shift` (T, V, C), in their
-    dtype and on their device."""
-    if passes <= 0:
-        return shift
-    T, V, C = shift.shape
+def _torch_operator(op: sp.csr_matrix, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
+    """The sparse operator `op` (V, V) as a torch CSR tensor of `dtype` on `device`."""
     index = lambda a: torch.from_numpy(a.astype(np.int64))  # noqa: E731
     with warnings.catch_warnings():  # torch calls its CSR tensors beta (a product with a dense matrix is all used)
         warnings.filterwarnings("ignore", message="Sparse CSR tensor support is in beta")
-        P = torch.sparse_csr_tensor(index(op.indptr), index(op.indices), torch.from_numpy(op.data), size=op.shape,
-                                    dtype=shift.dtype, check_invariants=False).to(shift.device)
+        return torch.sparse_csr_tensor(index(op.indptr), index(op.indices), torch.from_numpy(op.data),
+                                       size=op.shape, dtype=dtype, check_invariants=False).to(device)
+
+
+def spread_over(shift: torch.Tensor, op: torch.Tensor, passes: int) -> torch.Tensor:
+    """`passes` passes of the sparse operator `op` (V, V; `_torch_operator`, in shift's dtype and on its device)
+    over per-vertex vectors `shift` (T, V, C)."""
+    T, V, C = shift.shape
     x = shift.permute(1, 0, 2).reshape(V, T * C)
     for _ in range(passes):  # CSR times dense: 3-4 x faster than a gather and index_add on a CPU
-        x = P @ x
+        x = op @ x
     return x.reshape(V, T, C).permute(1, 0, 2)
 
 
@@ -229,11 +231,12 @@ def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = G
     p = p0
     passes = anchors.passes if passes is None else passes
     spreading = anchors.spread is not None and passes > 0
+    op = _torch_operator(anchors.spread, p.dtype, p.device) if spreading else None
     for _ in range(rounds if spreading else 1):
         behind, lateral, normal = _offsets(p, bp, anchors)
         shift = (behind * _fade(behind, depth, depth_fade) * _fade(lateral, reach, reach_fade))[..., None] * normal
         if spreading:
-            shift = spread_over(shift, anchors.spread, passes)
+            shift = spread_over(shift, op, passes)
         p = p + shift
     out, moved = p.float(), (torch.linalg.norm(p - p0, dim=-1) > GUARD_MOVED_M).sum(dim=1)
     return (out.numpy(), moved.numpy()) if arrays else (out, moved)
