@@ -299,7 +299,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
                    "else the CPU].")
 @click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
 @click.option("--no-contact-guard", is_flag=True,
-              help="model, psd: leave out the contact guard (on by default, about 3-5 ms/frame), which keeps each "
+              help="model, psd: leave out the contact guard (on by default, about 2-5 ms/frame), which keeps each "
                    "vertex outside the body face it rests on; the network's or the fit's raw output.")
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
