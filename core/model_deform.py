@@ -33,6 +33,7 @@ from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body, prepend_blend
 from core.pushout import ContactAnchors, body_anchors, guard_contact, guard_report, guard_sequence
 from core.scene import SceneAnalysis, scene_levels
+from core.strain import STRAIN_LIMIT, limit_garment
 from core.threads import ThreadTuner
 
 log = logging.getLogger(__name__)
@@ -202,7 +203,8 @@ class ModelDeformer(Deformer):
 
     def __init__(self, model: GarmentModel, batch_frames: int | None = None, cache_dir=None, model_name: str = "model",
                  precision: str = "float32", coverage=None, contact_guard: bool = True,
-                 lead_in_s: float | None = None, device: torch.device | str | None = None):
+                 lead_in_s: float | None = None, device: torch.device | str | None = None,
+                 strain_limit: float | None = STRAIN_LIMIT):
         super().__init__()
         if precision not in PRECISIONS:
             raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -220,6 +222,9 @@ class ModelDeformer(Deformer):
         #: The guard batch by batch on the network's device (True), or afterwards over the sequence on the CPU
         #: (False); None: on the network's device where that is not the CPU. The two agree to float32 rounding.
         self.guard_on_device: bool | None = None
+        #: No edge longer than this times its rest length, after the guard (`core.strain`); None: off.
+        self.strain_limit = strain_limit
+        self._strain: dict = {}
         #: On a CPU, choose the threads of the network's batches while they run (`core.threads.ThreadTuner`);
         #: False: torch's count throughout.
         self.tune_threads = True
@@ -345,6 +350,9 @@ class ModelDeformer(Deformer):
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
         self.report.update(guard)
+        if self.strain_limit is not None:
+            out, strained = limit_garment(out, garment, self.strain_limit, self._strain)
+            self.report.update(strained)
         self.scene = scene.report
         return out
 

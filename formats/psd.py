@@ -15,6 +15,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.psd import PSDDeformer, PSDFit
+from core.strain import STRAIN_LIMIT
 from formats.atomic import atomic_file
 
 FORMAT = "garment-psd"
@@ -60,6 +61,8 @@ def load_fit(path: str | os.PathLike) -> PSDFit:
                   smooth_strength=float(header["smooth_strength"]), meta=dict(header.get("meta", {})))
 
 
-def psd_deformer(path: str | os.PathLike, contact_guard: bool = True) -> PSDDeformer:
+def psd_deformer(path: str | os.PathLike, contact_guard: bool = True,
+                 strain_limit: float | None = STRAIN_LIMIT) -> PSDDeformer:
     """The `psd` method of the fit at `path` (`load_fit`), its errors naming the file."""
-    return PSDDeformer(load_fit(path), source=f"psd fit '{path}'", contact_guard=contact_guard)
+    return PSDDeformer(load_fit(path), source=f"psd fit '{path}'", contact_guard=contact_guard,
+                       strain_limit=strain_limit)

@@ -21,6 +21,7 @@ from core.provenance import software_versions
 from core.quality import DEFAULT_BUDGET_MM
 from core.threads import torch_threads
 from core.scene import SKIP_METHODS, SKIPS, parse_no_skip
+from core.strain import STRAIN_LIMIT
 from formats.atomic import atomic_dir
 from formats.pointcache import POINT_CACHE_FORMATS
 from garmentcli.common import (
@@ -29,6 +30,7 @@ from garmentcli.common import (
     PIN_CHOICES,
     PIN_HELP,
     FiniteFloatRange,
+    FloatOrOff,
     OutputPath,
     betas_option,
     beyond_memory,
@@ -61,11 +63,24 @@ log = logging.getLogger(__name__)
 MAX_LBS_SMOOTH = 1000
 
 
+#: The methods --strain-limit applies to, and those it is on for by default.
+STRAIN_METHODS = ("lbs", "model", "psd")
+STRAIN_DEFAULT_METHODS = ("model", "psd")
+
+
+def strain_limit_of(method: str, option) -> float | None:
+    """The strain limit of `method` given --strain-limit's value (None: not given; 'off'; a number)."""
+    if option is None:
+        return STRAIN_LIMIT if method in STRAIN_DEFAULT_METHODS else None
+    return None if option == "off" or method not in STRAIN_METHODS else float(option)
+
+
 def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
                   iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=(),
-                  contact_guard=True, floor=None, fit_path=None, device=None):
+                  contact_guard=True, floor=None, fit_path=None, device=None, strain=None):
+    """The deformer of bake's options (`strain`: --strain-limit's value, `strain_limit_of`)."""
     deformer = _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                precision, contact_guard, floor, fit_path, device)
+                                precision, contact_guard, floor, fit_path, device, strain_limit_of(method, strain))
     deformer.skips = parse_no_skip(no_skip)
     if push_out:
         if method == "sim":
@@ -77,7 +92,7 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
 
 
 def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                     precision, contact_guard=True, floor=None, fit_path=None, device=None):
+                     precision, contact_guard=True, floor=None, fit_path=None, device=None, strain_limit=None):
     sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
                                       ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin),
                                       ("--floor", floor))
@@ -94,16 +109,17 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
     if method == "psd":
         from formats.psd import psd_deformer
 
-        return psd_deformer(fit_path, contact_guard=contact_guard)
+        return psd_deformer(fit_path, contact_guard=contact_guard, strain_limit=strain_limit)
     if method == "lbs":
-        return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth))
+        return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth, strain_limit=strain_limit))
     if method == "model":
         from core.model_deform import load_model_deformer
         from formats.cache import default_cache_dir
 
         # Garment preprocessing is cached ($GARMENT_CACHE_DIR or ~/.cache/garment), as `garment preprocess` does.
         return load_model_deformer(model_path, cache_dir=default_cache_dir(), precision=precision or "float32",
-                                   contact_guard=contact_guard, device=parse_device(device, auto=True))
+                                   contact_guard=contact_guard, device=parse_device(device, auto=True),
+                                   strain_limit=strain_limit)
     if method == "sim":
         from core.sim import Material, SimDeformer, SimOptions, load_material
 
@@ -172,6 +188,7 @@ class BakeSpec:
     threads_fixed: bool = False  # --threads N: that count throughout (no ThreadTuner), recorded in summary.json
     fallback: str = ""  # JSON: why the default model gave way to lbs, recorded in summary.json
     contact_guard: bool = True  # model, psd: keep vertices outside the body faces they rest on
+    strain: float | str | None = None  # --strain-limit as given (None: the method's default; 'off')
     betas: str = "auto"  # --betas as given (the motions arrive with it applied), recorded in summary.json
     floor: str | None = None  # sim: --floor (None: the default)
     start_frame: int = 0  # --start-frame: the number of the first frame written (USD time code, OBJ file)
@@ -201,7 +218,7 @@ def _context(spec: BakeSpec):
             torch.set_num_threads(spec.threads)
         deformer = make_deformer(spec.method, spec.lbs_smooth, spec.material_path, spec.self_contact, spec.substeps,
                                  spec.iterations, spec.model_path, spec.pin, spec.precision, spec.push_out,
-                                 spec.no_skip, spec.contact_guard, spec.floor, spec.fit_path, spec.device)
+                                 spec.no_skip, spec.contact_guard, spec.floor, spec.fit_path, spec.device, spec.strain)
         _fix_threads(deformer, spec.threads_fixed)
         garment = read_garment(spec.garment_path)
         body = load_body_option(spec.body_path)
@@ -301,6 +318,11 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--no-contact-guard", is_flag=True,
               help="model, psd: leave out the contact guard (on by default, about 2-5 ms/frame), which keeps each "
                    "vertex outside the body face it rests on; the network's or the fit's raw output.")
+@click.option("--strain-limit", "strain", type=FloatOrOff(1, "an edge's longest, as a multiple of its rest length"),
+              default=None, metavar="RATIO|off",
+              help=f"lbs, model, psd: no edge of the garment longer than RATIO times its rest length (undoes the tears "
+                   f"skinning makes between a dress's legs, at a knee, in an armpit; 5-25 ms on a frame that has one, "
+                   f"about 0.3 on one without) [default: {STRAIN_LIMIT:g} for model and psd, off for lbs].")
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
                    "on the garment, body faces out of its reach (sim), self-contact where distant parts never meet, "
@@ -366,7 +388,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
          budget_mm=None, calibration_path=None, precision=None, push_out=False, no_skip=(), workers=1,
          no_contact_guard=False, betas="auto", source_fps=None, floor=None, start_frame=0, fit_path=None,
          preroll_frames=0, device=None, motion_up="z", person=None, take=None, threads=None, point_caches=(),
-         warned=()):
+         strain=None, warned=()):
     """Bake GARMENT (OBJ or USD, on the body's rest pose) over each MOTION (AMASS-style .npz; another tool's .pkl,
     .pt, .npy, .smpl, .bvh, .fbx, .glb, .gltf, .usd of a skeleton, .dae or .mvnx, README "Inputs"; or a
     directory: every motion .npz, .smpl, .pkl, .npy, .bvh, .fbx, .glb, .gltf, .usd, .dae and .mvnx under it).
@@ -396,12 +418,15 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             raise click.UsageError(f"--lbs-smooth applies to --method lbs only (got --method {method})")
         if no_contact_guard and method not in ("model", "psd"):
             raise click.UsageError(f"--no-contact-guard applies to --method model and psd only (got --method {method})")
+        if strain is not None and method not in STRAIN_METHODS:
+            raise click.UsageError(f"--strain-limit applies to --method {', '.join(STRAIN_METHODS)} only (got --method "
+                                   f"{method}: the simulator's cloth has its own stretch stiffness)")
         for name in no_skip:
             if name != "all" and method not in SKIP_METHODS[name]:
                 raise click.UsageError(f"--no-skip {name} applies to --method {' and '.join(SKIP_METHODS[name])} "
                                        f"only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device)
+                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device, strain)
     elif method is not None or precision is not None or push_out:
         raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
                                "--precision and --push-out")
@@ -451,7 +476,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if method != "psd":
             fit_path = None  # a fit given to --quality auto is one candidate; another method was chosen
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
-                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device)
+                                 precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device, strain)
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
                                                    "motion", "features", "reason", "candidates",
                                                    "outside_calibration", "outside_motions")})
@@ -472,7 +497,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             fallback = _training_range_guard(deformer, garment, body, garment_path, explicit)
         if fallback:
             method, model_path, precision, device = "lbs", None, None, None
-            deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip)
+            deformer = make_deformer(method, lbs_smooth, push_out=push_out, no_skip=no_skip, strain=strain)
             if prepared:
                 _prepare_unwarned(deformer, garment, body, garment_path)
         elif quality != "auto":  # --quality auto has said so in its choice
@@ -488,7 +513,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     spec = BakeSpec(str(garment_path), body_path, method, lbs_smooth, material_path, self_contact, substeps, iterations,
                     model_path, pin, fps, frames, settle_frames, not no_obj, not no_body, render_video, overwrite,
                     precision, push_out, choice, tuple(sorted(set(no_skip))), fallback=fallback,
-                    contact_guard=not no_contact_guard, betas=betas, floor=floor, start_frame=start_frame,
+                    contact_guard=not no_contact_guard, strain=strain, betas=betas, floor=floor, start_frame=start_frame,
                     fit_path=fit_path, preroll_frames=preroll_frames, device=device, motion_up=motion_up,
                     person=person, take=take, threads=threads or 0, threads_fixed=threads is not None,
                     point_caches=tuple(dict.fromkeys(point_caches)))

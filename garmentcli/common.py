@@ -677,6 +677,28 @@ SEED_RANGE = click.IntRange(0, 2**32 - 1)
 MAX_FPS = 1000.0
 
 
+class FloatOrOff(click.ParamType):
+    """A finite number > `above`, or 'off' (returned as the string)."""
+
+    name = "number|off"
+
+    def __init__(self, above: float, meaning: str):
+        self.above, self.meaning = above, meaning
+
+    def convert(self, value, param, ctx):
+        import math
+
+        if isinstance(value, str) and value.strip().lower() == "off":
+            return "off"
+        try:
+            rv = float(value)
+        except (TypeError, ValueError):
+            rv = math.nan
+        if not (math.isfinite(rv) and rv > self.above):
+            self.fail(f"expected a number > {self.above:g} ({self.meaning}) or 'off', got {value!r}", param, ctx)
+        return rv
+
+
 class FiniteFloatRange(click.FloatRange):
     """click.FloatRange that also refuses nan and inf (FloatRange lets them through: nan compares false)."""
 

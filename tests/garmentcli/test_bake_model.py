@@ -182,8 +182,8 @@ def test_model_option_needs_method_model(tmp_path):
 
 def test_contact_guard_is_the_default_and_can_be_left_out(tmp_path):
     dress = ROOT / "examples" / "dress.obj"
-    guarded, summary, _ = _bake(dress, tmp_path / "guarded")
-    raw, raw_summary, _ = _bake(dress, tmp_path / "raw", "--no-contact-guard")
+    guarded, summary, _ = _bake(dress, tmp_path / "guarded", "--strain-limit", "off")  # the guard alone
+    raw, raw_summary, _ = _bake(dress, tmp_path / "raw", "--no-contact-guard", "--strain-limit", "off")
     assert "contact_guard" in summary["deformer"] and "contact_guard" not in raw_summary["deformer"]
     lifted = np.linalg.norm(guarded - raw, axis=-1)
     # The guard lifts some vertices where the network put them into the body (and their neighbours, less: the
@@ -320,3 +320,45 @@ def test_threads_n_bakes_on_that_count_throughout_and_repeats_bit_for_bit(tmp_pa
         r = invoke_default(["bake", dress, motions[0], "--threads", value, "--out", tmp_path / "bad"])
         assert r.exit_code == 2 and "--threads" in r.output and said in r.output, r.output
         assert "Traceback" not in r.output and not (tmp_path / "bad").exists()
+
+
+def test_strain_limit_is_the_default_and_can_be_turned_off(tmp_path):
+    from core.garment import mesh_edges
+
+    dress = ROOT / "examples" / "dress.obj"
+    limited, summary, _ = _bake(dress, tmp_path / "limited")
+    raw, raw_summary, _ = _bake(dress, tmp_path / "raw", "--strain-limit", "off")
+    report = summary["deformer"]["strain_limit"]
+    assert report["limit"] == 1.5 and "strain_limit" not in raw_summary["deformer"]
+    # The model stretches the dress between the legs on the run; the limit shortens those edges, and only moves
+    # cloth in the frames that had one.
+    from formats.obj import read_obj
+
+    garment = read_obj(dress)
+    edges = mesh_edges(garment.faces)
+    rest = np.linalg.norm(garment.vertices[edges[:, 1]] - garment.vertices[edges[:, 0]], axis=1)
+    length = lambda p: np.linalg.norm(p[:, edges[:, 1]] - p[:, edges[:, 0]], axis=-1)  # noqa: E731
+    assert report["frames_limited"] > 0 and (length(raw) / rest).max() > 1.6 and (length(limited) / rest).max() < 1.6
+    moved = np.abs(limited - raw).max(axis=(1, 2)) > 0
+    assert moved.sum() == report["frames_limited"] and (length(raw)[~moved] <= 1.5 * rest + 1e-3 + 1e-6).all()
+
+
+@pytest.mark.parametrize("value", ["1", "0.5", "nan", "inf", "loose"])
+def test_a_bad_strain_limit_is_one_line(tmp_path, value):
+    r = invoke_default(["bake", EXAMPLES[0], ROOT / "examples" / "walk.npz", "--strain-limit", value,
+                        "--out", tmp_path / "out"])
+    assert r.exit_code != 0 and not (tmp_path / "out").exists()
+    assert (f"Invalid value for '--strain-limit': expected a number > 1 (an edge's longest, as a multiple of its rest "
+            f"length) or 'off', got '{value}'") in r.output
+
+
+def test_strain_limit_on_lbs_when_asked_and_not_on_the_simulator(tmp_path):
+    dress = ROOT / "examples" / "dress.obj"
+    _, summary, _ = _bake(dress, tmp_path / "lbs", "--method", "lbs", "--strain-limit", "1.2")
+    assert summary["deformer"]["strain_limit"]["limit"] == 1.2
+    _, plain, _ = _bake(dress, tmp_path / "plain", "--method", "lbs")
+    assert "strain_limit" not in plain["deformer"]
+    r = invoke(["bake", dress, ROOT / "examples" / "walk.npz", "--method", "sim", "--strain-limit", "1.5",
+                "--out", tmp_path / "bad"])
+    assert r.exit_code != 0 and "--strain-limit applies to --method lbs, model, psd only" in r.output
+    assert not (tmp_path / "bad").exists()

@@ -1,0 +1,145 @@
+"""The strain limit (core/strain.py) against a reference over every edge; what it leaves alone."""
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import core.strain as strain_mod
+from core.deform import LBSDeformer, LBSOptions
+from core.garment import mesh_edges
+from core.strain import (STRAIN_CHECK_PASSES, STRAIN_PLAIN_PASSES, STRAIN_RHO, STRAIN_TOLERANCE_M, limit_garment,
+                         limit_sequence, limit_strain, strain_limit)
+from tests.meshes import grid
+
+
+def _reference(points, rest, faces, limit, iterations):
+    """limit_strain's rule frame by frame over every edge (no region): the frames with an edge longer than its
+    limit by more than the tolerance take STRAIN_CHECK_PASSES Jacobi passes at a time (each such edge's ends pulled
+    by half its excess, a vertex by the mean of its pulls), Chebyshev-accelerated after STRAIN_PLAIN_PASSES, until
+    none has one or `iterations` passes are made."""
+    edges = mesh_edges(faces)
+    a, b = edges[:, 0], edges[:, 1]
+    longest = limit * np.linalg.norm(rest[b] - rest[a], axis=1)
+    out = np.array(points, dtype=np.float64)
+
+    def over(x):
+        return np.linalg.norm(x[b] - x[a], axis=1) > longest + STRAIN_TOLERANCE_M
+
+    for t in range(len(out)):
+        x, prev, omega, done = out[t].copy(), None, 1.0, 0
+        while over(x).any() and done < iterations:
+            for _ in range(min(STRAIN_CHECK_PASSES, iterations - done)):
+                i = over(x)
+                d = x[b[i]] - x[a[i]]
+                length = np.linalg.norm(d, axis=1, keepdims=True)
+                pull = 0.5 * (length - longest[i, None]) / length * d
+                move, count = np.zeros_like(x), np.zeros(len(x))
+                np.add.at(move, a[i], pull)
+                np.add.at(move, b[i], -pull)
+                np.add.at(count, a[i], 1)
+                np.add.at(count, b[i], 1)
+                y = x + move / np.maximum(count, 1)[:, None]
+                done += 1
+                if done > STRAIN_PLAIN_PASSES:
+                    omega = 2 / (2 - STRAIN_RHO ** 2) if omega == 1.0 else 4 / (4 - STRAIN_RHO ** 2 * omega)
+                    y = omega * (y - prev) + prev
+                prev, x = x, y
+        out[t] = x
+    return out
+
+
+def _stretched(rng, n_frames=3, cells=6):
+    """A grid of `cells` x `cells` cells of 2 cm, its frames moved rigidly, then torn: one corner pulled 10 cm
+    away, the rows beyond 6 cm pulled 3 cm further, and a little noise."""
+    verts, faces = grid(cells, cells, 0.02 * cells)
+    frames = []
+    for t in range(n_frames):
+        x = verts + rng.normal(0.0, 0.001, verts.shape)
+        x[0] += [0.1, 0.05 * t, 0.0]
+        x[verts[:, 1] > 0.06] += [0.0, 0.03, 0.0]
+        frames.append(x @ np.linalg.qr(rng.normal(size=(3, 3)))[0].T + rng.normal(size=3))
+    return verts, faces, np.array(frames)
+
+
+def _torn_corner(rng, cells=30):
+    """A grid of 30 x 30 cells of 2 cm with one corner vertex pulled 8 cm away (a tear far from most edges), and
+    one with a vertex in its middle pulled 5 cm out of its plane."""
+    verts, faces = grid(cells, cells, 0.02 * cells)
+    corner, middle = verts.copy(), verts.copy()
+    corner[0] += [-0.08, 0.0, 0.0]
+    middle[np.argmin(np.linalg.norm(verts - verts.mean(axis=0), axis=1))] += [0.0, 0.0, 0.05]
+    return verts, faces, np.stack([corner, middle]) + rng.normal(0.0, 1e-4, (2, *verts.shape))
+
+
+@pytest.mark.parametrize("case", ["stretched", "torn corner"])
+def test_limit_equals_the_every_edge_reference(case):
+    rng = np.random.default_rng(0)
+    verts, faces, points = _stretched(rng) if case == "stretched" else _torn_corner(rng)
+    for limit, iterations in ((1.5, 60), (1.2, 25)):
+        got, over, passes = limit_strain(points, strain_limit(verts, faces, limit), iterations)
+        want = _reference(points, verts, faces, limit, iterations)
+        np.testing.assert_allclose(got, want, atol=2e-5)
+        edges = mesh_edges(faces)
+        length = np.linalg.norm(points[:, edges[:, 1]] - points[:, edges[:, 0]], axis=-1)
+        rest = np.linalg.norm(verts[edges[:, 1]] - verts[edges[:, 0]], axis=-1)
+        np.testing.assert_array_equal(over, (length > limit * rest + STRAIN_TOLERANCE_M).sum(axis=1))
+        assert over.min() > 0 and 0 < passes <= iterations
+
+
+def test_limit_undoes_a_tear_and_leaves_unstretched_cloth_alone():
+    rng = np.random.default_rng(1)
+    verts, faces, points = _stretched(rng)
+    edges = mesh_edges(faces)
+    rest = np.linalg.norm(verts[edges[:, 1]] - verts[edges[:, 0]], axis=-1)
+    sl = strain_limit(verts, faces)
+    got, _, passes = limit_strain(points, sl)
+    length = np.linalg.norm(got[:, edges[:, 1]] - got[:, edges[:, 0]], axis=-1)
+    assert passes < 60 and (length <= 1.5 * rest + STRAIN_TOLERANCE_M).all()
+    assert np.linalg.norm(points[:, edges[:, 1]] - points[:, edges[:, 0]], axis=-1).max() / rest.max() > 4
+    # Moved rigidly, squashed to half its size (folds): nothing to limit, the frames come back as they were.
+    calm = np.stack([verts @ np.linalg.qr(rng.normal(size=(3, 3)))[0].T + [0, 0, 1], verts * 0.5])
+    same, over, passes = limit_strain(calm, sl)
+    np.testing.assert_array_equal(same, calm.astype(np.float32))
+    assert passes == 0 and not over.any()
+    # A frame without an edge over the limit is left exactly as it was beside a torn one.
+    mixed, over, _ = limit_strain(np.stack([points[0], calm[0]]), sl)
+    np.testing.assert_array_equal(mixed[1], calm[0].astype(np.float32))
+    assert over[0] > 0 and over[1] == 0
+
+
+def test_limit_sequence_in_chunks_reports_what_it_did(monkeypatch):
+    rng = np.random.default_rng(2)
+    verts, faces, points = _stretched(rng, n_frames=5)
+    points[3] = verts  # a frame at rest
+    sl = strain_limit(verts, faces)
+    whole, _, _ = limit_strain(points, sl)
+    monkeypatch.setattr(strain_mod, "STRAIN_CHUNK_FRAMES", 2)
+    chunked, report = limit_sequence(points.astype(np.float32), sl)
+    np.testing.assert_allclose(chunked, whole, atol=1e-6)  # frames are limited each on its own
+    assert report["limit"] == 1.5 and report["frames_limited"] == 4 and report["edges_over_per_frame_max"] > 0
+    assert 0 < report["passes_max"] <= report["iterations"] and report["seconds_per_frame"] > 0
+
+
+def test_lbs_with_a_strain_limit_reports_it_and_is_off_by_default():
+    from core.body import default_body
+    from formats.motion import load_motion
+    from formats.obj import read_obj
+
+    root = Path(__file__).resolve().parents[2]
+    garment, body = read_obj(root / "examples" / "dress.obj"), default_body()
+    run = load_motion(root / "examples" / "run.npz")
+    motion = dataclasses.replace(run, poses=run.poses[20:26], trans=run.trans[20:26])  # LBS tears it between the legs
+    plain = LBSDeformer()
+    out = plain.deform(garment, body, motion)
+    assert "strain_limit" not in plain.report and LBSOptions().strain_limit is None
+    limited = LBSDeformer(LBSOptions(strain_limit=1.5))
+    got = limited.deform(garment, body, motion)
+    report = limited.report["strain_limit"]
+    assert report["limit"] == 1.5 and limited.report["options"]["strain_limit"] == 1.5
+    assert report["frames_limited"] > 0 and report["edges_over_per_frame_max"] > 10
+    cache = {}
+    want, entries = limit_garment(out, garment, 1.5, cache)
+    np.testing.assert_array_equal(got, want)
+    assert set(entries) == {"strain_limit"} and len(cache) == 1
