@@ -202,7 +202,7 @@ def figure(args) -> None:
     motion = MOTION_LIBRARY["arm_swing_fast"](fps=30.0)
     frame = 30
     motion = dataclasses.replace(motion, poses=motion.poses[:frame + 1], trans=motion.trans[:frame + 1])
-    deformer = model_deform.load_model_deformer(contact_guard=False)
+    deformer = model_deform.load_model_deformer(contact_guard=False, strain_limit=None)
     raw = deformer.deform(garment, body, motion)[frame:]
     betas = body.fit_betas(motion.betas)
     body_points, _ = body.pose(poses_for_body(motion, body.n_joints)[frame:], motion.trans[frame:], betas)
@@ -237,7 +237,7 @@ def main(argv=None) -> None:
     if args.figure:
         return figure(args)
     body = default_body()
-    deformer = model_deform.load_model_deformer()
+    deformer = model_deform.load_model_deformer(strain_limit=None)  # the guard alone (core/strain.py after it)
     rows = []
     for garment_name, name, garment, motion, simulated, settle in scenes(args):
         body_points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, body.fit_betas(motion.betas))

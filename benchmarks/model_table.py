@@ -196,7 +196,7 @@ def main(argv=None) -> None:
 
         methods[name] = load_model_deformer(path)
         if name in args.network_only:
-            methods[f"{name} (network only)"] = load_model_deformer(path, contact_guard=False)
+            methods[f"{name} (network only)"] = load_model_deformer(path, contact_guard=False, strain_limit=None)
         if args.push_out:
             from core.pushout import PushOutDeformer
 

@@ -6,7 +6,7 @@ Same scene as benchmarks/throughput.py: the example dress remeshed to about 4,00
 `walk_brisk` at 30 fps, repeated to 910 frames (--long-repeats) for the GPU. Measured in one run on one machine:
 LBS on the CPU; the model on the CPU (float32, its default batch) and on the GPU (batches of 8 to 512 frames;
 float32 with and without the contact guard, tf32 matrix products and bfloat16 without), each as a whole `deform`
-(results copied back to the host, the contact guard on the CPU included) and as the network alone; the GPU's
+(results copied back to the host, the contact guard and strain limit on the CPU included) and as the network alone; the GPU's
 results against the CPU's (same model, float32); and a profile of one GPU bake (kernels by device time, kernel
 launches per frame, how much of the wall time the GPU is busy). Medians of --repeats after a warm-up (at most
 about 5 s of runs per configuration). Nothing here is asserted by the tests. Writes a Markdown table (--out).
@@ -32,6 +32,7 @@ from benchmarks.throughput import dress_4k, median_seconds, repeated  # noqa: E4
 from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
 from core.model_deform import load_model_deformer  # noqa: E402
+from core.strain import STRAIN_LIMIT  # noqa: E402
 from core.motion import Motion, resample  # noqa: E402
 from formats.report import markdown_table, write_markdown  # noqa: E402
 
@@ -47,7 +48,8 @@ def model_rate(garment, body, motion: Motion, device: str, precision: str, batch
     memory it peaked at ("peak_mib"), its batch and last result. guard: "device" (batch by batch on `device`),
     "host" (afterwards over the sequence on the CPU) or "off"; batch None: the device's default."""
     torch.set_float32_matmul_precision("high" if precision == "tf32" else "highest")
-    d = load_model_deformer(precision="bfloat16" if precision == "bfloat16" else "float32", contact_guard=guard != "off")
+    d = load_model_deformer(precision="bfloat16" if precision == "bfloat16" else "float32", contact_guard=guard != "off",
+                            strain_limit=None if guard == "off" else STRAIN_LIMIT)
     d.batch_frames, d.guard_on_device = batch, guard == "device"
     d.model.to(device)
     d.prepare(garment, body)

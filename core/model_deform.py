@@ -220,7 +220,8 @@ class ModelDeformer(Deformer):
         #: Keep vertices outside the body faces they rest on (`core.pushout.guard_contact`).
         self.contact_guard = contact_guard
         #: The guard batch by batch on the network's device (True), or afterwards over the sequence on the CPU
-        #: (False); None: on the network's device where that is not the CPU. The two agree to float32 rounding.
+        #: (False); None: on the network's device where that is not the CPU. The two agree to float32 rounding (then the
+        #: strain limit, which can amplify rounding to millimetres where it undoes a tear: `core.strain`).
         self.guard_on_device: bool | None = None
         #: No edge longer than this times its rest length, after the guard (`core.strain`); None: off.
         self.strain_limit = strain_limit

@@ -321,8 +321,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--strain-limit", "strain", type=FloatOrOff(1, "an edge's longest, as a multiple of its rest length"),
               default=None, metavar="RATIO|off",
               help=f"lbs, model, psd: no edge of the garment longer than RATIO times its rest length (undoes the tears "
-                   f"skinning makes between a dress's legs, at a knee, in an armpit; 5-25 ms on a frame that has one, "
-                   f"about 0.3 on one without) [default: {STRAIN_LIMIT:g} for model and psd, off for lbs].")
+                   f"skinning makes between a dress's legs, at a knee, in an armpit; up to about 17 ms a frame where "
+                   f"a wide tear is, 0.2-0.6 where none) [default: {STRAIN_LIMIT:g} for model and psd, off for lbs].")
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
                    "on the garment, body faces out of its reach (sim), self-contact where distant parts never meet, "
@@ -377,7 +377,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="CPU threads of torch's work in each process (the model's network) [default: auto: chosen while "
                    "the model bakes, from a thread per core, or the cores shared out among --workers]. N: that many "
                    "throughout, so that a bake repeats bit for bit on one machine (auto's counts change a batch's "
-                   "float rounding: its bakes agree to float32 rounding), at auto's speed where no other work "
+                   "float rounding: its bakes agree to float32 rounding, but where the strain limit undoes a tear, "
+                   "by up to a few mm at a few vertices), at auto's speed where no other work "
                    "holds the cores.")
 @scheduler_options("motion", note=" --workers is then ignored.")
 @input_errors_as_click
