@@ -6,7 +6,7 @@ Garment: the example dress remeshed at a finer spacing (about 4,000 vertices). M
 `walk_brisk` of the motion library at 30 fps (repeated to 1,800 frames for LBS). Measured, all on one
 machine in one run: LBS frames per second; the model's frames per second at several batch sizes (its
 default on the device, 8 and 32) in float32 and bfloat16 (median of --repeats after a warm-up; the contact
-guard included, its share reported); the simulator's seconds per output frame
+guard and the strain limit included, their shares reported); the simulator's seconds per output frame
 (10 substeps, no self-contact, settling excluded); a `bake` of four motions (the held-out library motions,
 each played three times: about 12 s) through the CLI with --workers 1 and 2 (frames per second including
 writing, the penetration statistics and, with 2, starting the workers); and a profile of one model bake.
@@ -131,7 +131,7 @@ def main(argv=None) -> None:
     lbs_fps = long.n_frames / t
     rows.append(["lbs", "-", f"{1e3 / lbs_fps:.3f}", f"{lbs_fps:,.0f}"])
     print(rows[-1], flush=True)
-    model_fps, guard_ms = {}, []
+    model_fps, guard_ms, strain_ms = {}, [], []
     default_batch = default_batch_frames(args.device)
     for precision in ("float32", "bfloat16"):
         for batch in sorted({default_batch, 8, 32}):
@@ -144,6 +144,7 @@ def main(argv=None) -> None:
             fps = motion.n_frames / t
             model_fps[(precision, batch)] = fps
             guard_ms.append(1e3 * d.report.get("seconds_per_frame_guard", 0.0))
+            strain_ms.append(1e3 * d.report.get("strain_limit", {}).get("seconds_per_frame", 0.0))
             rows.append([f"model {precision}", batch, f"{1e3 / fps:.1f}", f"{fps:.1f}"])
             print(rows[-1], flush=True)
     sim_s = None
@@ -192,7 +193,8 @@ def main(argv=None) -> None:
         "",
         f"- model (default: float32, batch {default_batch}) vs LBS: {lbs_fps / default:.0f}x slower; fastest model "
         f"configuration {best:.1f} frames/s.",
-        f"- the model's rows include its contact guard (on by default): {np.median(guard_ms):.1f} ms/frame of them.",
+        f"- the model's rows include its contact guard (on by default): {np.median(guard_ms):.1f} ms/frame of them; "
+        f"and its strain limit (on by default): {np.median(strain_ms):.1f} ms/frame.",
     ]
     if sim_s is not None:
         lines.append(f"- model (default) vs simulator: {sim_s * default:.0f}x faster per frame; fastest configuration "
