@@ -43,6 +43,16 @@ class Deformer(ABC):
         self.skips: frozenset = frozenset(SKIPS)
         #: What the last `deform` skipped (core.scene.SceneAnalysis.report), for summary.json "scene".
         self.scene: dict = {}
+        self._strain: dict = {}  # the last garment's StrainLimit (`limit_strain_of`)
+
+    def limit_strain_of(self, points: np.ndarray, garment: Garment, limit: float | None) -> np.ndarray:
+        """`points` (T, V, 3) of `garment` with no edge longer than `limit` times its rest length
+        (`core.strain.limit_garment`; None: as they are), the limit's entry added to `report`."""
+        if limit is None:
+            return points
+        points, strained = limit_garment(points, garment, limit, self._strain)
+        self.report.update(strained)
+        return points
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         """Per-(garment, body) work done once before any motion, validating the pair.
@@ -82,7 +92,6 @@ class LBSDeformer(Deformer):
         super().__init__()
         self.options = options
         self._bindings: dict = {}
-        self._strain: dict = {}
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         key = (garment.content_hash(), id(body))
@@ -115,10 +124,7 @@ class LBSDeformer(Deformer):
         self.report = {"method": self.name, "options": asdict(o),
                        "rest_body_distance_mm": {"median": float(np.median(binding.body_distance) * 1e3),
                                                  "max": float(binding.body_distance.max() * 1e3)}}
-        if o.strain_limit is not None:
-            out, strained = limit_garment(out, garment, o.strain_limit, self._strain)
-            self.report.update(strained)
-        return out
+        return self.limit_strain_of(out, garment, o.strain_limit)
 
 
 def _lazy(module: str, name: str) -> Callable[..., Deformer]:

@@ -33,7 +33,7 @@ from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body, prepend_blend
 from core.pushout import ContactAnchors, body_anchors, guard_contact, guard_report, guard_sequence
 from core.scene import SceneAnalysis, scene_levels
-from core.strain import STRAIN_LIMIT, limit_garment
+from core.strain import STRAIN_LIMIT
 from core.threads import ThreadTuner
 
 log = logging.getLogger(__name__)
@@ -225,7 +225,6 @@ class ModelDeformer(Deformer):
         self.guard_on_device: bool | None = None
         #: No edge longer than this times its rest length, after the guard (`core.strain`); None: off.
         self.strain_limit = strain_limit
-        self._strain: dict = {}
         #: On a CPU, choose the threads of the network's batches while they run (`core.threads.ThreadTuner`);
         #: False: torch's count throughout.
         self.tune_threads = True
@@ -351,11 +350,8 @@ class ModelDeformer(Deformer):
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
         self.report.update(guard)
-        if self.strain_limit is not None:
-            out, strained = limit_garment(out, garment, self.strain_limit, self._strain)
-            self.report.update(strained)
         self.scene = scene.report
-        return out
+        return self.limit_strain_of(out, garment, self.strain_limit)
 
 
 def model_body(body: Body, n_joints: int) -> Body | None:

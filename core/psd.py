@@ -28,7 +28,7 @@ from core.motion import Motion, poses_for_body
 from core.pushout import guard_sequence
 from core.rotations import axis_angle_to_matrix
 from core.skinning import bind_garment, shaped_garment
-from core.strain import STRAIN_LIMIT, limit_garment
+from core.strain import STRAIN_LIMIT
 
 #: Principal offsets kept (the example garments: 32 leave 3-7 mm of the offsets unexplained, oracle-fitted).
 DEFAULT_RANK = 64
@@ -163,7 +163,6 @@ class PSDDeformer(Deformer):
         #: No edge longer than this times its rest length, after the guard (`core.strain`), as the model; None: off.
         self.strain_limit = strain_limit
         self._bindings: dict = {}
-        self._strain: dict = {}
 
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
         key = (garment.content_hash(), id(body))
@@ -202,7 +201,4 @@ class PSDDeformer(Deformer):
         if self.contact_guard:  # reported as the model reports it
             out, guard = guard_sequence(out, rest, garment.faces, body, poses, motion.trans, betas)
             self.report.update(guard)
-        if self.strain_limit is not None:
-            out, strained = limit_garment(out, garment, self.strain_limit, self._strain)
-            self.report.update(strained)
-        return out
+        return self.limit_strain_of(out, garment, self.strain_limit)

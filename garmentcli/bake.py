@@ -250,6 +250,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
                     "motion_up_as_read": motion.up, "person": spec.person, "person_read": motion.person,
                     "take": spec.take, "take_read": motion.take,
                     "threads": spec.threads if spec.threads_fixed else "auto",
+                    "strain_limit": strain_limit_of(spec.method, spec.strain),
                     "point_caches": list(spec.point_caches)},
         "software": software_versions("garment"),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],

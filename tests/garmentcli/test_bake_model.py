@@ -330,6 +330,7 @@ def test_strain_limit_is_the_default_and_can_be_turned_off(tmp_path):
     raw, raw_summary, _ = _bake(dress, tmp_path / "raw", "--strain-limit", "off")
     report = summary["deformer"]["strain_limit"]
     assert report["limit"] == 1.5 and "strain_limit" not in raw_summary["deformer"]
+    assert summary["options"]["strain_limit"] == 1.5 and raw_summary["options"]["strain_limit"] is None
     # The model stretches the dress between the legs on the run; the limit shortens those edges, and only moves
     # cloth in the frames that had one.
     from formats.obj import read_obj
@@ -355,9 +356,9 @@ def test_a_bad_strain_limit_is_one_line(tmp_path, value):
 def test_strain_limit_on_lbs_when_asked_and_not_on_the_simulator(tmp_path):
     dress = ROOT / "examples" / "dress.obj"
     _, summary, _ = _bake(dress, tmp_path / "lbs", "--method", "lbs", "--strain-limit", "1.2")
-    assert summary["deformer"]["strain_limit"]["limit"] == 1.2
+    assert summary["deformer"]["strain_limit"]["limit"] == summary["options"]["strain_limit"] == 1.2
     _, plain, _ = _bake(dress, tmp_path / "plain", "--method", "lbs")
-    assert "strain_limit" not in plain["deformer"]
+    assert "strain_limit" not in plain["deformer"] and plain["options"]["strain_limit"] is None
     r = invoke(["bake", dress, ROOT / "examples" / "walk.npz", "--method", "sim", "--strain-limit", "1.5",
                 "--out", tmp_path / "bad"])
     assert r.exit_code != 0 and "--strain-limit applies to --method lbs, model, psd only" in r.output
