@@ -6,7 +6,8 @@
 The example garments on the test motions of the dataset (30 fps, the first FRAMES frames), and every sequence of
 the simulated datasets given with --data (against the simulator, after its settle frames), each baked once by
 the shipped model (its contact guard on, as `bake` runs it) and once by LBS (10 smoothing passes), then limited
-at STRAIN_LIMIT with each --iterations (at most that many passes). Per method and limit: torn frames
+at STRAIN_LIMIT with each --iterations (at most that many passes), against the garment's rest lengths as authored
+(every scene here is on the mean body shape, where the deformers' rest is the authored garment). Per method and limit: torn frames
 (real_motion_stress's: an edge over TEAR_RATIO times its rest length and TEAR_EXCESS_M longer), the mean of
 |edge length / rest length - 1| (%), the largest edge stretch, penetration (% of vertices > 2 mm inside the body,
 on evenly spaced frames), E_verts (mm) against the simulator where simulated, and the limit's milliseconds per

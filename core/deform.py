@@ -45,12 +45,14 @@ class Deformer(ABC):
         self.scene: dict = {}
         self._strain: dict = {}  # the last garment's StrainLimit (`limit_strain_of`)
 
-    def limit_strain_of(self, points: np.ndarray, garment: Garment, limit: float | None) -> np.ndarray:
-        """`points` (T, V, 3) of `garment` with no edge longer than `limit` times its rest length
-        (`core.strain.limit_garment`; None: as they are), the limit's entry added to `report`."""
+    def limit_strain_of(self, points: np.ndarray, garment: Garment, rest: np.ndarray, limit: float | None
+                        ) -> np.ndarray:
+        """`points` (T, V, 3) of `garment` with no edge longer than `limit` times its length at `rest` (V, 3), the
+        garment at rest on the motion's body shape (`core.strain.limit_garment`; None: as they are), the limit's
+        entry added to `report`."""
         if limit is None:
             return points
-        points, strained = limit_garment(points, garment, limit, self._strain)
+        points, strained = limit_garment(points, garment, rest, limit, self._strain)
         self.report.update(strained)
         return points
 
@@ -124,7 +126,7 @@ class LBSDeformer(Deformer):
         self.report = {"method": self.name, "options": asdict(o),
                        "rest_body_distance_mm": {"median": float(np.median(binding.body_distance) * 1e3),
                                                  "max": float(binding.body_distance.max() * 1e3)}}
-        return self.limit_strain_of(out, garment, o.strain_limit)
+        return self.limit_strain_of(out, garment, rest, o.strain_limit)
 
 
 def _lazy(module: str, name: str) -> Callable[..., Deformer]:

@@ -351,7 +351,7 @@ class ModelDeformer(Deformer):
             self.report["native_bfloat16"] = native_bfloat16()
         self.report.update(guard)
         self.scene = scene.report
-        return self.limit_strain_of(out, garment, self.strain_limit)
+        return self.limit_strain_of(out, garment, rest.cpu().numpy(), self.strain_limit)
 
 
 def model_body(body: Body, n_joints: int) -> Body | None:

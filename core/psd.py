@@ -201,4 +201,4 @@ class PSDDeformer(Deformer):
         if self.contact_guard:  # reported as the model reports it
             out, guard = guard_sequence(out, rest, garment.faces, body, poses, motion.trans, betas)
             self.report.update(guard)
-        return self.limit_strain_of(out, garment, self.strain_limit)
+        return self.limit_strain_of(out, garment, rest, self.strain_limit)

@@ -122,7 +122,7 @@ def test_limit_sequence_in_chunks_reports_what_it_did(monkeypatch):
     assert 0 < report["passes_max"] <= report["iterations"] and report["seconds_per_frame"] > 0
 
 
-def test_lbs_with_a_strain_limit_reports_it_and_is_off_by_default():
+def _dress_on(motion_frames=slice(20, 26), betas=None):
     from core.body import default_body
     from formats.motion import load_motion
     from formats.obj import read_obj
@@ -130,7 +130,15 @@ def test_lbs_with_a_strain_limit_reports_it_and_is_off_by_default():
     root = Path(__file__).resolve().parents[2]
     garment, body = read_obj(root / "examples" / "dress.obj"), default_body()
     run = load_motion(root / "examples" / "run.npz")
-    motion = dataclasses.replace(run, poses=run.poses[20:26], trans=run.trans[20:26])  # LBS tears it between the legs
+    motion = dataclasses.replace(run, poses=run.poses[motion_frames], trans=run.trans[motion_frames],
+                                 betas=run.betas if betas is None else betas)
+    return garment, body, motion
+
+
+def test_lbs_with_a_strain_limit_reports_it_and_is_off_by_default():
+    from core.skinning import bind_garment, shaped_garment
+
+    garment, body, motion = _dress_on()  # LBS tears the dress between the legs on these frames of the run
     plain = LBSDeformer()
     out = plain.deform(garment, body, motion)
     assert "strain_limit" not in plain.report and LBSOptions().strain_limit is None
@@ -139,7 +147,25 @@ def test_lbs_with_a_strain_limit_reports_it_and_is_off_by_default():
     report = limited.report["strain_limit"]
     assert report["limit"] == 1.5 and limited.report["options"]["strain_limit"] == 1.5
     assert report["frames_limited"] > 0 and report["edges_over_per_frame_max"] > 10
+    rest = shaped_garment(garment.vertices, bind_garment(garment, body, 10, 0.5), body.fit_betas(motion.betas))
     cache = {}
-    want, entries = limit_garment(out, garment, 1.5, cache)
+    want, entries = limit_garment(out, garment, rest, 1.5, cache)
     np.testing.assert_array_equal(got, want)
     assert set(entries) == {"strain_limit"} and len(cache) == 1
+
+
+@pytest.mark.parametrize("beta", [5.0, -5.0])
+def test_the_limit_is_against_the_garment_at_rest_on_the_motion_s_body_shape(beta):
+    """On a body of betas +-5 the shape transfer lengthens (shortens) many of the dress's edges at rest by over
+    half: held at the rest pose, the limited dress is the unlimited one, nothing pulled back to the authored
+    lengths."""
+    garment, body, motion = _dress_on(slice(0, 2), np.full(10, beta))
+    motion = dataclasses.replace(motion, poses=np.zeros_like(motion.poses), trans=np.zeros_like(motion.trans))
+    plain = LBSDeformer().deform(garment, body, motion)
+    limited = LBSDeformer(LBSOptions(strain_limit=1.5))
+    np.testing.assert_array_equal(limited.deform(garment, body, motion), plain)
+    assert limited.report["strain_limit"]["frames_limited"] == 0
+    edges = mesh_edges(garment.faces)
+    authored = np.linalg.norm(garment.vertices[edges[:, 1]] - garment.vertices[edges[:, 0]], axis=1)
+    at_rest = np.linalg.norm(plain[0, edges[:, 1]] - plain[0, edges[:, 0]], axis=1)
+    assert (at_rest > 1.5 * authored + 1e-3).mean() > (0.2 if beta > 0 else 0.01)
