@@ -2,6 +2,7 @@
 
     python benchmarks/strain_limit.py [--frames 60] [--garments dress ...] [--motions kick_right ...]
                                       [--data DIR ...] [--iterations 60 100]
+    python benchmarks/strain_limit.py --figure    # the example dress torn and limited (PNG)
 
 The example garments on the test motions of the dataset (30 fps, the first FRAMES frames), and every sequence of
 the simulated datasets given with --data (against the simulator, after its settle frames), each baked once by
@@ -78,6 +79,49 @@ def overall(rows: list[list], configs: list[str]) -> list[list]:
     return out
 
 
+def vertex_stretch(points: np.ndarray, edges: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """(T, V): per vertex, the largest length / rest length of its edges."""
+    ratio = np.linalg.norm(points[:, edges[:, 1]] - points[:, edges[:, 0]], axis=-1) / rest
+    out = np.ones(points.shape[:2])
+    for end in (0, 1):
+        np.maximum.at(out, (slice(None), edges[:, end]), ratio)
+    return out
+
+
+def figure(args) -> None:
+    """The example dress on the held-out walk_brisk, at the frame of its widest tear between the legs, seen from
+    behind and from the front: the model and LBS, each without and with the limit, coloured by the largest stretch of a
+    vertex's edges: strain_limit_dress.png."""
+    from formats.obj import read_obj
+    from formats.render import RenderOptions, contact_sheet, render_image, scene_from_sequence, write_png
+    from formats.sequence import Sequence
+    from core.motiongen import MOTION_LIBRARY
+
+    body = default_body()
+    garment = read_obj(ROOT / "examples" / "dress.obj")
+    motion = MOTION_LIBRARY["walk_brisk"](fps=30.0)
+    edges = mesh_edges(garment.faces)
+    rest = edge_lengths(garment.vertices, edges)
+    limit = strain_limit(garment.vertices, garment.faces)
+    raw = {"model": load_model_deformer(strain_limit=None).deform(garment, body, motion),
+           "lbs": LBSDeformer().deform(garment, body, motion)}
+    frame = int(np.argmax(vertex_stretch(raw["model"][:args.frames], edges, rest).max(axis=1)))
+    columns = []
+    for method, points in raw.items():
+        limited, _ = limit_sequence(points[frame:frame + 1].copy(), limit)
+        columns += [(f"{method}, no limit", points[frame:frame + 1]), (f"{method}, limit {STRAIN_LIMIT:g}", limited)]
+    images = []
+    for azimuth in (180.0, 0.0):  # from behind, from the front
+        options = RenderOptions(width=700, height=700, azimuth_deg=azimuth, elevation_deg=5.0)
+        images.append([render_image(scene_from_sequence(Sequence(points, garment.faces, motion.fps, source=name),
+                                                        color="scalar", scalars=vertex_stretch(points, edges, rest),
+                                                        scalar_label="edge stretch", value_range=(1.0, 3.0)),
+                                    0, "front", options) for name, points in columns])
+    labels = [[f"{name}, frame {frame}, {side}" for name, _ in columns] for side in ("behind", "front")]
+    out = write_png(args.out.with_name("strain_limit_dress.png"), contact_sheet(images, labels, thumb_width=450))
+    print(f"wrote {out}")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=60, help="frames per test motion (30 fps)")
@@ -87,7 +131,11 @@ def main(argv=None) -> None:
     ap.add_argument("--iterations", type=int, nargs="+", default=[STRAIN_ITERATIONS])
     ap.add_argument("--penetration-frames", type=int, default=20)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "strain_limit.md")
+    ap.add_argument("--figure", action="store_true", help="the example dress torn and limited "
+                    "(strain_limit_dress.png)")
     args = ap.parse_args(argv)
+    if args.figure:
+        return figure(args)
     torch.set_num_threads(1)
     body = default_body()
     methods = {"model": load_model_deformer(strain_limit=None), "lbs": LBSDeformer()}
