@@ -21,9 +21,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from core.body import Body
-from core.deform import Deformer, LBSDeformer
+from core.deform import Deformer, LBSDeformer, LBSOptions
 from core.garment import Garment
 from core.motion import Motion, poses_for_body, written
+from core.strain import STRAIN_LIMIT
 
 #: Simulator substeps per frame of the two settings; the finest, with self-contact, is the reference.
 #: VBD (10 iterations a substep) keeps converging with substeps: on the example skirt (walk_brisk, 15
@@ -55,7 +56,7 @@ def configurations(models: dict, with_sim: bool = True, spread: bool = False, fi
     """The rows of a tradeoff run. models: name -> checkpoint path (None: the shipped model). spread: add the
     reference rerun from starting positions jittered by `SPREAD_JITTER_M` (its error is the reference's spread).
     fits: name -> the garment's fitted blend shapes (`garment fit`), a `psd` row each."""
-    rows = [Config("lbs", "lbs")]
+    rows = [Config("lbs", "lbs"), Config(f"lbs +strain-limit {STRAIN_LIMIT:g}", "lbs", {"strain_limit": STRAIN_LIMIT})]
     rows += [Config(f"psd {name}", "psd", {"path": path}) for name, path in (fits or {}).items()]
     for name, path in models.items():
         for precision in ("float32", "bfloat16"):
@@ -78,7 +79,7 @@ def configurations(models: dict, with_sim: bool = True, spread: bool = False, fi
 def make_deformer(config: Config, cache_dir=None, device=None) -> Deformer:
     """The Deformer of a configuration; a model's network on `device` (None: where its checkpoint loads, the CPU)."""
     if config.method == "lbs":
-        return LBSDeformer()
+        return LBSDeformer(LBSOptions(strain_limit=config.options.get("strain_limit")))
     if config.method == "psd":
         from formats.psd import psd_deformer
 

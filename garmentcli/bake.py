@@ -471,6 +471,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                                DEFAULT_BUDGET_MM if budget_mm is None else budget_mm, fit_path, garment_path)
         method, opts = pick["method"], pick["options"]
         precision, push_out = opts.get("precision"), bool(opts.get("push_out", False))
+        strain = opts.get("strain_limit", strain)  # a configuration measured with a limit (lbs +strain-limit)
         substeps = opts.get("substeps", substeps)
         self_contact = bool(opts.get("self_contact", self_contact))
         if method != "model":

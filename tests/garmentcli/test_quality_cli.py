@@ -53,6 +53,25 @@ def test_auto_picks_lbs_for_tight_and_slow_and_model_for_loose_and_fast(auto_sce
     assert "'lbs' is cheaper but expected" in summary["quality"]["reason"]
 
 
+def test_auto_can_choose_lbs_with_its_strain_limit(auto_scene):
+    """A calibration with `garment tradeoff`'s "lbs +strain-limit" row: where plain LBS is expected over the budget
+    and the limited one within it, the bake runs LBS with the limit, and says so."""
+    s = auto_scene
+    synthetic_calibration(lbs_limited=True).save(s["dir"] / "limited.json")
+    r = _auto(s, "tight.obj", "slow.npz", "--calibration", s["dir"] / "limited.json")
+    assert r.exit_code == 0, r.output
+    summary = json.loads((s["out"] / "tight_slow" / "summary.json").read_text())
+    assert summary["quality"]["config"] == "lbs" and summary["options"]["strain_limit"] is None
+    expected = {c["config"]: c["expected_mm"] for c in summary["quality"]["candidates"]}
+    budget = (expected["lbs"] + expected["lbs +strain-limit 1.5"]) / 2
+    r = _auto(s, "tight.obj", "slow.npz", "--calibration", s["dir"] / "limited.json", "--budget-mm", budget,
+              "--overwrite")
+    assert r.exit_code == 0, r.output
+    summary = json.loads((s["out"] / "tight_slow" / "summary.json").read_text())
+    assert summary["method"] == "lbs" and summary["quality"]["config"] == "lbs +strain-limit 1.5"
+    assert summary["options"]["strain_limit"] == summary["deformer"]["strain_limit"]["limit"] == 1.5
+
+
 def test_auto_over_motions_takes_the_costliest_choice_and_names_a_motion_beyond_the_calibration(auto_scene,
                                                                                               caplog):
     """A still motion lies below the calibration's slowest scene: there the model is expected no better than

@@ -11,15 +11,17 @@ import numpy as np
 import pytest
 import torch
 
-from core.tradeoff import configurations, pareto_front, scene_summary
+from core.tradeoff import configurations, make_deformer, pareto_front, scene_summary
 from tests.core.model_fixtures import TINY_CONFIG, perturbed_model
 from tests.garmentcli.cli import invoke
 
 
 def test_configurations_cover_methods_precisions_push_out_and_sim_settings():
     rows = configurations({"m": "m.pt"})
-    assert [r.name for r in rows][:5] == ["lbs", "m float32", "m float32 +push-out", "m bfloat16",
-                                          "m bfloat16 +push-out"]
+    assert [r.name for r in rows][:6] == ["lbs", "lbs +strain-limit 1.5", "m float32", "m float32 +push-out",
+                                          "m bfloat16", "m bfloat16 +push-out"]
+    assert rows[1].options == {"strain_limit": 1.5} and not rows[0].options
+    assert make_deformer(rows[1]).options.strain_limit == 1.5 and make_deformer(rows[0]).options.strain_limit is None
     sims = [r for r in rows if r.method == "sim"]
     assert {(r.options["substeps"], r.options["self_contact"]) for r in sims} == {(10, False), (10, True), (20, False),
                                                                                  (20, True)}
@@ -247,7 +249,7 @@ def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkey
     assert r.exit_code == 0, r.output
     assert "4 of 4 simulator rows taken from the earlier run" in r.output
     # without a terminal, one line per measured configuration (a log shows how far a long run is)
-    assert "tradeoff: 1/9 lbs: " in r.output and "tradeoff: 6/9 sim" not in r.output
+    assert "tradeoff: 1/10 lbs: " in r.output and "tradeoff: 7/10 sim" not in r.output
     assert measured and not any(name.startswith("sim") for name in measured)
     again = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
     for name in ("sim 10 substeps", "lbs"):
@@ -318,13 +320,13 @@ def test_a_fit_is_a_psd_row_left_out_of_the_calibration(scene, monkeypatch, tmp_
     from formats.obj import read_obj
     from formats.psd import save_fit
 
-    assert [(c.name, c.method) for c in configurations({"m": None}, fits={"g": "g.npz"})[:2]] == [
-        ("lbs", "lbs"), ("psd g", "psd")]
+    assert [(c.name, c.method) for c in configurations({"m": None}, fits={"g": "g.npz"})[:3]] == [
+        ("lbs", "lbs"), ("lbs +strain-limit 1.5", "lbs"), ("psd g", "psd")]
     garment, body = read_obj(scene["garment"]), load_body(scene["body"])
     motion = Motion(poses=np.zeros((3, 24, 3), np.float32), trans=np.zeros((3, 3), np.float32), fps=30.0)
     fit = tmp_path / "shell.psd.npz"
     save_fit(fit, fit_psd(garment, body, [(motion, LBSDeformer().deform(garment, body, motion))], rank=2))
-    from core.tradeoff import Config, make_deformer
+    from core.tradeoff import Config
 
     psd = make_deformer(Config("psd mine", "psd", {"path": str(fit)}))
     np.testing.assert_allclose(psd.deform(garment, body, motion), LBSDeformer().deform(garment, body, motion),
@@ -334,7 +336,7 @@ def test_a_fit_is_a_psd_row_left_out_of_the_calibration(scene, monkeypatch, tmp_
     r = invoke([*base, "--fit", f"mine={fit}", "--out", scene["out"], "--calibrate", tmp_path / "cal.json"])
     assert r.exit_code == 0, r.output
     rows = [row["config"] for row in csv.DictReader(open(scene["out"] / "shell_walk" / "tradeoff.csv"))]
-    assert rows[:2] == ["lbs", "psd mine"]
+    assert rows[:3] == ["lbs", "lbs +strain-limit 1.5", "psd mine"]
     assert "psd mine" not in json.loads((tmp_path / "cal.json").read_text())["configs"]
     r = invoke([*base, "--fit", f"x={tmp_path / 'gone.npz'}", "--out", tmp_path / "o"])
     assert r.exit_code != 0 and "fit '" in r.output and "gone.npz': no such file" in r.output
