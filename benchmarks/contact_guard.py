@@ -127,6 +127,24 @@ def report(headers: list[str], rows: list[list], command: str) -> str:
         + "\n## Per scene\n\n" + markdown_table(headers, rows))
 
 
+def scene_arguments(ap: argparse.ArgumentParser, frames: int) -> None:
+    """The options `scenes` reads: --frames (default `frames`), --garments, --motions, --data, and
+    --penetration-frames (the scenes' penetration statistics)."""
+    ap.add_argument("--frames", type=int, default=frames, help="frames per test motion (30 fps)")
+    ap.add_argument("--garments", nargs="*", default=None)
+    ap.add_argument("--motions", nargs="*", default=list(TEST_MOTIONS))
+    ap.add_argument("--data", action="append", default=[], help="a simulated dataset (garment dataset) to add")
+    ap.add_argument("--penetration-frames", type=int, default=20, help="frames per scene checked for penetration "
+                    "(evenly spaced)")
+
+
+def scene_command(args) -> list[str]:
+    """The options of `scene_arguments` as given but --penetration-frames, for a results file's command line
+    (--motions where not the test motions)."""
+    return [f"--frames {args.frames}", *(["--motions", *args.motions] if args.motions != list(TEST_MOTIONS) else []),
+            *(f"--data {d}" for d in args.data)]
+
+
 def scenes(args):
     """(garment name, motion name, garment, motion, simulated positions after the settle or None, settle frames)
     of the example garments on the test motions, then of every sequence in --data."""
@@ -222,12 +240,7 @@ def figure(args) -> None:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=90, help="frames per test motion (30 fps)")
-    ap.add_argument("--garments", nargs="*", default=None)
-    ap.add_argument("--motions", nargs="*", default=list(TEST_MOTIONS))
-    ap.add_argument("--data", action="append", default=[], help="a simulated dataset (garment dataset) to add")
-    ap.add_argument("--penetration-frames", type=int, default=20, help="frames per scene checked for penetration "
-                    "(evenly spaced)")
+    scene_arguments(ap, frames=90)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "contact_guard.md")
     ap.add_argument("--timing", action="store_true", help="time the guard alone (contact_guard_timing.md)")
     ap.add_argument("--figure", action="store_true", help="the t-shirt's armpits (contact_guard_armpit.png)")
@@ -258,9 +271,8 @@ def main(argv=None) -> None:
             rows.append([garment_name, name, len(after), config, *stats.values()])
         print(f"{garment_name} {name}: " + ", ".join(f"{r[3]} {r[4]:.3f} % {r[-2]} torn"
                                                      for r in rows[-len(CONFIGS):]), flush=True)
-    command = " ".join([f"--frames {args.frames}", *(["--motions", *args.motions] if args.motions != list(TEST_MOTIONS)
-                                                     else []), *(f"--data {d}" for d in args.data),
-                        f"--penetration-frames {args.penetration_frames}", f"--out {args.out.name}"])
+    command = " ".join([*scene_command(args), f"--penetration-frames {args.penetration_frames}",
+                        f"--out {args.out.name}"])
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(report(["garment", "motion", "frames", "guard", *stats], rows, command))
     print(f"wrote {args.out}")

@@ -29,7 +29,7 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.contact_guard import TEST_MOTIONS, scenes  # noqa: E402
+from benchmarks.contact_guard import scene_arguments, scene_command, scenes  # noqa: E402
 from benchmarks.real_motion_stress import TEAR_EXCESS_M, TEAR_RATIO, torn_frames  # noqa: E402
 from core.bake import penetration_stats  # noqa: E402
 from core.body import default_body  # noqa: E402
@@ -124,12 +124,8 @@ def figure(args) -> None:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=60, help="frames per test motion (30 fps)")
-    ap.add_argument("--garments", nargs="*", default=None)
-    ap.add_argument("--motions", nargs="*", default=list(TEST_MOTIONS))
-    ap.add_argument("--data", action="append", default=[], help="a simulated dataset (garment dataset) to add")
+    scene_arguments(ap, frames=60)
     ap.add_argument("--iterations", type=int, nargs="+", default=[STRAIN_ITERATIONS])
-    ap.add_argument("--penetration-frames", type=int, default=20)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "strain_limit.md")
     ap.add_argument("--figure", action="store_true", help="the example dress torn and limited "
                     "(strain_limit_dress.png)")
@@ -158,9 +154,8 @@ def main(argv=None) -> None:
                              report.get("frames_limited", 0), ms])
         print(f"{garment_name} {name}: " + ", ".join(f"{r[3]} {r[4]}: {r[6]} torn, {r[-1]:.1f} ms"
                                                      for r in rows[-len(methods) * len(configs):]), flush=True)
-    command = " ".join([f"--frames {args.frames}", *(["--motions", *args.motions] if args.motions != list(TEST_MOTIONS)
-                                                     else []), *(f"--data {d}" for d in args.data),
-                        "--iterations " + " ".join(map(str, args.iterations)), f"--out {args.out.name}"])
+    command = " ".join([*scene_command(args), "--iterations " + " ".join(map(str, args.iterations)),
+                        f"--out {args.out.name}"])
     headers = ["group", "garment", "motion", "method", "limit", *STATS]
     text = ("# The strain limit on the model's and LBS's output\n\n"
             f"Made by `python benchmarks/strain_limit.py {command}` on {platform.machine()}, one torch thread. The "
