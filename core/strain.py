@@ -27,7 +27,7 @@ turns it on.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -173,13 +173,13 @@ def limit_garment(points: np.ndarray, garment: Garment, rest: np.ndarray, limit:
     the garment at rest as the deformer shaped it for the motion's body (as authored on the mean shape; a body of
     betas +5 lengthens a third of the example dress's edges by more than half at rest, which a limit against the
     authored lengths would pull back into the body). The garment's edges and adjacency are made once in `cache`
-    (the deformer's). Returns (points, the report's entries: {"strain_limit": ...})."""
+    (the deformer's), the rest lengths every call. Returns (points, the report's entries: {"strain_limit": ...})."""
     key = garment.content_hash()
     if key not in cache:
         cache.clear()
-        cache[key] = strain_limit(garment.vertices, garment.faces, limit)
-    edges = cache[key].edges
-    strain = replace(cache[key], longest=limit * edge_lengths(np.asarray(rest, dtype=np.float64), edges),
-                     limit=float(limit))
+        edges = mesh_edges(garment.faces)
+        cache[key] = edges, adjacency(edges, garment.n_vertices)
+    edges, adj = cache[key]
+    strain = StrainLimit(edges, limit * edge_lengths(np.asarray(rest, dtype=np.float64), edges), adj, float(limit))
     points, report = limit_sequence(np.ascontiguousarray(points, dtype=np.float32), strain)
     return points, {"strain_limit": report}
