@@ -5,8 +5,9 @@
 Same scene as benchmarks/throughput.py: the example dress remeshed to about 4,000 vertices, the held-out
 `walk_brisk` at 30 fps, repeated to 910 frames (--long-repeats) for the GPU. Measured in one run on one machine:
 LBS on the CPU; the model on the CPU (float32, its default batch) and on the GPU (batches of 8 to 512 frames;
-float32 with and without the contact guard, tf32 matrix products and bfloat16 without), each as a whole `deform`
-(results copied back to the host, the contact guard and strain limit on the CPU included) and as the network alone; the GPU's
+float32 with and without the contact guard and strain limit, tf32 matrix products and bfloat16 without), each as a whole `deform`
+(results copied back to the host, the contact guard and the strain limit included: per batch on the GPU, or
+after it on the CPU) and as the network alone; the GPU's
 results against the CPU's (same model, float32); and a profile of one GPU bake (kernels by device time, kernel
 launches per frame, how much of the wall time the GPU is busy). Medians of --repeats after a warm-up (at most
 about 5 s of runs per configuration). Nothing here is asserted by the tests. Writes a Markdown table (--out).
@@ -45,12 +46,13 @@ TIME_PER_CONFIG_S = 5.0
 def model_rate(garment, body, motion: Motion, device: str, precision: str, batch: int | None, guard: str,
                repeats: int) -> dict:
     """The shipped model's frames/s of a whole deform ("whole") and of the network alone ("network"), the GPU
-    memory it peaked at ("peak_mib"), its batch and last result. guard: "device" (batch by batch on `device`),
-    "host" (afterwards over the sequence on the CPU) or "off"; batch None: the device's default."""
+    memory it peaked at ("peak_mib"), its batch and last result. guard (the contact guard and the strain limit):
+    "device" (batch by batch on `device`), "host" (afterwards over the sequence on the CPU) or "off"; batch None:
+    the device's default."""
     torch.set_float32_matmul_precision("high" if precision == "tf32" else "highest")
     d = load_model_deformer(precision="bfloat16" if precision == "bfloat16" else "float32", contact_guard=guard != "off",
                             strain_limit=None if guard == "off" else STRAIN_LIMIT)
-    d.batch_frames, d.guard_on_device = batch, guard == "device"
+    d.batch_frames, d.post_on_device = batch, guard == "device"
     d.model.to(device)
     d.prepare(garment, body)
     out = {}
@@ -89,7 +91,7 @@ def new_shape_rate(garment, body, motion: Motion, device: str) -> dict:
 
 
 def gpu_profile(garment, body, motion: Motion, rows: int = 10) -> tuple[list[list], dict]:
-    """Top CUDA kernels of one default bake (float32, the default batch, the guard on the GPU) by device time,
+    """Top CUDA kernels of one default bake (float32, the default batch, the guard and limit on the GPU) by device time,
     and the totals: kernel launches, the GPU's busy milliseconds."""
     from torch.profiler import ProfilerActivity, profile
 
@@ -168,7 +170,7 @@ def main(argv=None) -> None:
 
     def cfg(key):
         precision, batch, guard = key
-        return f"{precision}, batch {gpu[key]['batch']}, contact guard {guard_names[guard]}"
+        return f"{precision}, batch {gpu[key]['batch']}, guard and limit {guard_names[guard]}"
 
     name = torch.cuda.get_device_name(0) if torch.cuda.is_available() else args.device
     lines = [
@@ -180,15 +182,15 @@ def main(argv=None) -> None:
         f"{garment.n_vertices:,} vertices. Motion: walk_brisk (held out from training) at 30 fps, repeated to "
         f"{long.n_frames:,} frames ({walk.n_frames} for the model on the CPU). The shipped model "
         "(core/assets/default_model.pt). \"whole\": `ModelDeformer.deform` as `garment bake` runs it (motion "
-        "features, the network, the contact guard, the frames copied back to the host); \"network\": its batches "
-        "alone (forward passes, the guard where it runs per batch, the copies back). Contact guard: \"gpu, per "
-        "batch\" (the default on a GPU), \"cpu, after\" (over the whole sequence on the host, the default on a CPU) "
-        "or off. Peak: the GPU memory allocated at most.",
+        "features, the network, the contact guard and the strain limit, the frames copied back to the host); "
+        "\"network\": its batches alone (forward passes, the guard and limit where they run per batch, the copies "
+        "back). Guard and limit: \"gpu, per batch\" (the default on a GPU), \"cpu, after\" (over the whole "
+        "sequence on the host, the default on a CPU) or off. Peak: the GPU memory allocated at most.",
         "",
-        markdown_table(["method", "device", "precision", "batch frames", "contact guard", "frames/s whole",
+        markdown_table(["method", "device", "precision", "batch frames", "guard and limit", "frames/s whole",
                         "frames/s network", "GPU peak MiB"], rows),
         "",
-        f"- the default on the GPU (float32, batch {default['batch']}, the guard per batch on the GPU): "
+        f"- the default on the GPU (float32, batch {default['batch']}, the guard and limit per batch on the GPU): "
         f"{default['whole']:,.0f} frames/s, {default['whole'] / cpu['whole']:.0f}x the model's default on this "
         f"machine's CPU ({cpu['whole']:.0f} frames/s); the fastest: {best[1]['whole']:,.0f} ({cfg(best[0])}); the "
         f"network alone at most {best_net[1]['network']:,.0f} ({cfg(best_net[0])}). The paper reports 402 frames/s "
@@ -197,8 +199,8 @@ def main(argv=None) -> None:
         f"frames/s against {shape['cached']:,.0f} for one it has; preparing took {shape['whole_prepare_ms']:.0f} ms "
         f"against {shape['cached_prepare_ms']:.0f} ms (the motion features alone).",
         f"- LBS on this machine's CPU: {lbs_fps:,.0f} frames/s.",
-        f"- the GPU's default against the CPU's (float32, walk_brisk, {walk.n_frames} frames, the guard on each's "
-        f"default path): largest difference {diff_mm.max():.4f} mm, mean {diff_mm.mean():.5f} mm (the garment's "
+        f"- the GPU's default against the CPU's (float32, walk_brisk, {walk.n_frames} frames, the guard and limit on each's "
+        f"default path; the limit amplifies rounding where it undoes a tear): largest difference {diff_mm.max():.4f} mm, mean {diff_mm.mean():.5f} mm (the garment's "
         f"mean distance from its centre: {scale_mm:.0f} mm).",
     ]
     if on_gpu:

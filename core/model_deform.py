@@ -33,7 +33,7 @@ from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body, prepend_blend
 from core.pushout import ContactAnchors, body_anchors, guard_contact, guard_report, guard_sequence
 from core.scene import SceneAnalysis, scene_levels
-from core.strain import STRAIN_LIMIT
+from core.strain import STRAIN_ITERATIONS, STRAIN_LIMIT, garment_strain, limit_strain, strain_report
 from core.threads import ThreadTuner
 
 log = logging.getLogger(__name__)
@@ -219,10 +219,11 @@ class ModelDeformer(Deformer):
         self._shaped: dict = {}
         #: Keep vertices outside the body faces they rest on (`core.pushout.guard_contact`).
         self.contact_guard = contact_guard
-        #: The guard batch by batch on the network's device (True), or afterwards over the sequence on the CPU
-        #: (False); None: on the network's device where that is not the CPU. The two agree to float32 rounding (then the
-        #: strain limit, which can amplify rounding to millimetres where it undoes a tear: `core.strain`).
-        self.guard_on_device: bool | None = None
+        #: The guard and the strain limit batch by batch on the network's device (True), or afterwards over the
+        #: sequence on the CPU (False); None: on the network's device where that is not the CPU. The guard's two
+        #: agree to float32 rounding, the limit's to the rounding it amplifies (millimetres where it undoes a tear:
+        #: `core.strain`).
+        self.post_on_device: bool | None = None
         #: No edge longer than this times its rest length, after the guard (`core.strain`); None: off.
         self.strain_limit = strain_limit
         #: On a CPU, choose the threads of the network's batches while they run (`core.threads.ThreadTuner`);
@@ -293,10 +294,15 @@ class ModelDeformer(Deformer):
         scene.record("joints", not bool(used.all()), used=int(used.sum()), joints=len(used))
         scene.report["levels"] = {**shaped.levels, "model": self.model.config.levels,
                                   "matches": shaped.levels["suggested"] == self.model.config.levels}
-        # The contact guard batch by batch where the network runs (a GPU's frames stay there), else afterwards over
-        # the whole sequence (on a CPU: the body posed GUARD_CHUNK_FRAMES at a time, faster than per batch).
-        guard_here = self.contact_guard and (device.type != "cpu" if self.guard_on_device is None
-                                             else self.guard_on_device)
+        # The contact guard and the strain limit batch by batch where the network runs (a GPU's frames stay there),
+        # else afterwards over the whole sequence (on a CPU: the body posed GUARD_CHUNK_FRAMES at a time, faster
+        # than per batch).
+        here = device.type != "cpu" if self.post_on_device is None else self.post_on_device
+        guard_here = self.contact_guard and here
+        limit = None
+        if here and self.strain_limit is not None:
+            limit = garment_strain(garment, rest.cpu().numpy(), self.strain_limit, self._strain)
+            over, passes, limit_s = [], 0, 0.0
         if self.contact_guard and shaped.anchors is None:
             shaped.anchors = body_anchors(rest.cpu().numpy(), garment.faces, body, betas)
         if guard_here:
@@ -323,6 +329,11 @@ class ModelDeformer(Deformer):
                             verts, n = guard_contact(verts, body.pose_tensor(pose_t[at], trans_t[at], betas),
                                                     shaped.anchors)
                         moved.append(n)
+                    if limit is not None:
+                        t_limit = _synchronized(device)
+                        verts, n, done = limit_strain(verts, limit)
+                        over.append(n)
+                        passes, limit_s = max(passes, done), limit_s + time.perf_counter() - t_limit
                     copies.put(s, verts)
                     if tuner:
                         tuner.after(len(fr))
@@ -351,7 +362,21 @@ class ModelDeformer(Deformer):
             self.report["native_bfloat16"] = native_bfloat16()
         self.report.update(guard)
         self.scene = scene.report
-        return self.limit_strain_of(out, garment, rest.cpu().numpy(), self.strain_limit)
+        if limit is not None:
+            self.report["strain_limit"] = strain_report(limit, STRAIN_ITERATIONS, over, passes, limit_s,
+                                                        motion.n_frames)
+        else:
+            out = self.limit_strain_of(out, garment, rest.cpu().numpy(), self.strain_limit)
+        if "strain_limit" in self.report:
+            self.report["strain_limit"]["device"] = str(device) if limit is not None else "cpu"
+        return out
+
+
+def _synchronized(device: torch.device) -> float:
+    """perf_counter() once the work queued on `device` is done (at once on a CPU)."""
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+    return time.perf_counter()
 
 
 def model_body(body: Body, n_joints: int) -> Body | None:

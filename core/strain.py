@@ -92,8 +92,8 @@ def _pass(x: torch.Tensor, a: torch.Tensor, b: torch.Tensor, longest: torch.Tens
     ll = length[e, t]
     pull = (0.5 * (ll - longest[e, 0]) / ll)[:, None] * d[e, t]
     ends = torch.cat([a[e] * T + t, b[e] * T + t])  # (vertex, frame) of x viewed as (V * T, 3)
-    move = torch.zeros(V * T, 3).index_add_(0, ends, torch.cat([pull, -pull]))
-    count = torch.zeros(V * T).index_add_(0, ends, torch.ones(len(ends)))
+    move = torch.zeros(V * T, 3, device=x.device).index_add_(0, ends, torch.cat([pull, -pull]))
+    count = torch.zeros(V * T, device=x.device).index_add_(0, ends, torch.ones(len(ends), device=x.device))
     return x + (move / count.clamp(min=1.0)[:, None]).view(x.shape)
 
 
@@ -110,20 +110,24 @@ def _reach(seed: np.ndarray, strain: StrainLimit, rings: int) -> np.ndarray:
     return np.flatnonzero(near[strain.edges[:, 0]] | near[strain.edges[:, 1]])
 
 
-def limit_strain(points: np.ndarray, strain: StrainLimit, iterations: int = STRAIN_ITERATIONS
-                 ) -> tuple[np.ndarray, np.ndarray, int]:
+def limit_strain(points, strain: StrainLimit, iterations: int = STRAIN_ITERATIONS):
     """Shorten every edge of `points` (T, V, 3) longer than its limit.
 
     Returns (points (T, V, 3) float32, over (T,) int64: how many edges each frame had longer than the limit by
-    more than STRAIN_TOLERANCE_M before, passes made). The frames that have such an
+    more than STRAIN_TOLERANCE_M before, passes made). `points` an array: an array back; a tensor: a tensor on
+    its device (a GPU bake's frames limited where the network made them). The frames that have such an
     edge take Jacobi passes (`_pass`), Chebyshev-accelerated after STRAIN_PLAIN_PASSES, until none has one
     (checked every STRAIN_CHECK_PASSES; a frame without one is left as it is) or `iterations` passes are made.
     Between checks only the edges the passes can reach are computed: those within as many rings as passes of an
     edge over the limit or of a vertex still moving (the acceleration carries a move on); no other vertex moves.
+    A frame's result does not depend on the others given with it.
     """
-    x = torch.from_numpy(np.asarray(points, dtype=np.float32)).permute(1, 0, 2).contiguous()  # (V, T, 3)
-    a, b = torch.from_numpy(strain.edges[:, 0]), torch.from_numpy(strain.edges[:, 1])
-    longest = torch.from_numpy(strain.longest.astype(np.float32))[:, None]
+    tensor = isinstance(points, torch.Tensor)
+    x = points.float() if tensor else torch.from_numpy(np.asarray(points, dtype=np.float32))
+    x = x.permute(1, 0, 2).contiguous()  # (V, T, 3)
+    device = x.device
+    a, b = (torch.as_tensor(strain.edges[:, i], device=device) for i in (0, 1))
+    longest = torch.as_tensor(strain.longest, dtype=torch.float32, device=device)[:, None]
     over = _over(x, a, b, longest)
     counts = over.sum(dim=0)
     frames = torch.nonzero(over.any(dim=0)).ravel()
@@ -131,10 +135,10 @@ def limit_strain(points: np.ndarray, strain: StrainLimit, iterations: int = STRA
     while len(frames) and done < iterations:
         n = min(STRAIN_CHECK_PASSES, iterations - done)
         seed = np.zeros(len(x), dtype=bool)
-        seed[strain.edges[over.any(dim=1).numpy()].ravel()] = True
+        seed[strain.edges[over.any(dim=1).cpu().numpy()].ravel()] = True
         if prev is not None:
-            seed |= (sub != prev).any(dim=2).any(dim=1).numpy()
-        region = torch.from_numpy(_reach(seed, strain, n + 1))
+            seed |= (sub != prev).any(dim=2).any(dim=1).cpu().numpy()
+        region = torch.from_numpy(_reach(seed, strain, n + 1)).to(device)
         ra, rb, rl = a[region], b[region], longest[region]
         for _ in range(n):
             moved = _pass(sub, ra, rb, rl)
@@ -147,7 +151,18 @@ def limit_strain(points: np.ndarray, strain: StrainLimit, iterations: int = STRA
         over = _over(sub, a, b, longest)
         left = over.any(dim=0)
         frames, sub, prev, over = frames[left], sub[:, left], prev[:, left], over[:, left]
-    return x.permute(1, 0, 2).numpy(), counts.numpy(), done
+    x = x.permute(1, 0, 2)
+    return (x.contiguous() if tensor else x.numpy()), counts.cpu().numpy(), done
+
+
+def strain_report(strain: StrainLimit, iterations: int, over: list[np.ndarray], passes: int, seconds: float,
+                  n_frames: int) -> dict:
+    """The report's "strain_limit" entry of a sequence of `n_frames` limited in parts: their edges over the limit
+    per frame (`limit_strain`'s `over`), the most passes a part took and the seconds all took."""
+    over = np.concatenate(over) if over else np.zeros(1, dtype=np.int64)
+    return {"limit": strain.limit, "iterations": iterations, "passes_max": passes,
+            "frames_limited": int((over > 0).sum()), "edges_over_per_frame_max": int(over.max(initial=0)),
+            "seconds_per_frame": seconds / max(n_frames, 1)}
 
 
 def limit_sequence(points: np.ndarray, strain: StrainLimit, iterations: int = STRAIN_ITERATIONS
@@ -161,25 +176,28 @@ def limit_sequence(points: np.ndarray, strain: StrainLimit, iterations: int = ST
         points[fr], n, done = limit_strain(points[fr], strain, iterations)
         over.append(n)
         passes = max(passes, done)
-    over = np.concatenate(over) if over else np.zeros(1, dtype=np.int64)
-    return points, {"limit": strain.limit, "iterations": iterations, "passes_max": passes,
-                    "frames_limited": int((over > 0).sum()), "edges_over_per_frame_max": int(over.max(initial=0)),
-                    "seconds_per_frame": (time.perf_counter() - t0) / max(len(points), 1)}
+    return points, strain_report(strain, iterations, over, passes, time.perf_counter() - t0, len(points))
 
 
-def limit_garment(points: np.ndarray, garment: Garment, rest: np.ndarray, limit: float, cache: dict
-                  ) -> tuple[np.ndarray, dict]:
-    """`limit_sequence` of a deformer's output (T, V, 3) of `garment`, against its edges' lengths at `rest` (V, 3):
-    the garment at rest as the deformer shaped it for the motion's body (as authored on the mean shape; a body of
-    betas +5 lengthens a third of the example dress's edges by more than half at rest, which a limit against the
-    authored lengths would pull back into the body). The garment's edges and adjacency are made once in `cache`
-    (the deformer's), the rest lengths every call. Returns (points, the report's entries: {"strain_limit": ...})."""
+def garment_strain(garment: Garment, rest: np.ndarray, limit: float, cache: dict) -> StrainLimit:
+    """The StrainLimit of `garment` against its edges' lengths at `rest` (V, 3): the garment at rest as a deformer
+    shaped it for the motion's body (as authored on the mean shape; a body of betas +5 lengthens a third of the
+    example dress's edges by more than half at rest, which a limit against the authored lengths would pull back
+    into the body). The garment's edges and adjacency are made once in `cache` (the deformer's), the rest lengths
+    every call."""
     key = garment.content_hash()
     if key not in cache:
         cache.clear()
         edges = mesh_edges(garment.faces)
         cache[key] = edges, adjacency(edges, garment.n_vertices)
     edges, adj = cache[key]
-    strain = StrainLimit(edges, limit * edge_lengths(np.asarray(rest, dtype=np.float64), edges), adj, float(limit))
+    return StrainLimit(edges, limit * edge_lengths(np.asarray(rest, dtype=np.float64), edges), adj, float(limit))
+
+
+def limit_garment(points: np.ndarray, garment: Garment, rest: np.ndarray, limit: float, cache: dict
+                  ) -> tuple[np.ndarray, dict]:
+    """`limit_sequence` of a deformer's output (T, V, 3) of `garment` against its lengths at `rest`
+    (`garment_strain`). Returns (points, the report's entries: {"strain_limit": ...})."""
+    strain = garment_strain(garment, rest, limit, cache)
     points, report = limit_sequence(np.ascontiguousarray(points, dtype=np.float32), strain)
     return points, {"strain_limit": report}

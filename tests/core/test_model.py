@@ -390,7 +390,7 @@ def test_contact_guard_with_the_network_matches_the_guard_afterwards():
     out, reports = {}, {}
     for name, guard, on_device in (("after", True, False), ("with", True, True), ("raw", False, None)):
         d = load_model_deformer(contact_guard=guard, strain_limit=None)  # the guard alone
-        d.batch_frames, d.guard_on_device = 3, on_device  # batches of 3, 3 and 1 frames
+        d.batch_frames, d.post_on_device = 3, on_device  # batches of 3, 3 and 1 frames
         out[name] = d.deform(garment, body, motion)
         reports[name] = d.report
     after, with_net = reports["after"]["contact_guard"], reports["with"]["contact_guard"]
@@ -398,6 +398,36 @@ def test_contact_guard_with_the_network_matches_the_guard_afterwards():
     assert with_net["vertices_moved_per_frame_mean"] == after["vertices_moved_per_frame_mean"]
     assert np.abs(out["with"] - out["after"]).max() < 1e-5
     assert np.abs(out["after"] - out["raw"]).max() > 1e-3
+
+
+def test_strain_limit_with_the_network_matches_the_limit_afterwards():
+    """The strain limit batch by batch where the network runs (a GPU bake's path, here forced on the CPU) gives the
+    bits of the limit over the whole sequence afterwards on the same guarded frames, and reports the same frames
+    and edges over; the limit's frames are not the guard's."""
+    from pathlib import Path
+
+    from core.body import default_body
+    from core.model_deform import load_model_deformer
+    from core.strain import limit_garment
+    from formats.motion import load_motion
+    from formats.obj import read_garment
+
+    root = Path(__file__).resolve().parents[2]
+    garment, body = read_garment(root / "examples" / "dress.obj"), default_body()
+    run = load_motion(root / "examples" / "run.npz", fps=30.0)
+    motion = dataclasses.replace(run, poses=run.poses[40:60], trans=run.trans[40:60])
+    guarded = load_model_deformer(strain_limit=None)
+    guarded.batch_frames, guarded.post_on_device = 3, True
+    raw = guarded.deform(garment, body, motion)
+    rest = guarded._shaped_inputs(garment, body, motion.betas, torch.device("cpu")).rest.numpy()
+    after, report = limit_garment(raw.copy(), garment, rest, 1.5, {})
+    d = load_model_deformer(strain_limit=1.5)
+    d.batch_frames, d.post_on_device = 3, True  # batches of 3 frames, the last 2
+    with_net = d.deform(garment, body, motion)
+    got, want = d.report["strain_limit"], report["strain_limit"]
+    assert got["device"] == "cpu" and got["frames_limited"] == want["frames_limited"] > 0
+    assert got["edges_over_per_frame_max"] == want["edges_over_per_frame_max"] > 0
+    assert np.array_equal(with_net, after) and np.abs(with_net - raw).max() > 1e-3
 
 
 def test_model_deformer_prepares_a_body_shape_once_and_again_after_its_weights_change():

@@ -122,6 +122,22 @@ def test_limit_sequence_in_chunks_reports_what_it_did(monkeypatch):
     assert 0 < report["passes_max"] <= report["iterations"] and report["seconds_per_frame"] > 0
 
 
+def test_limit_of_a_tensor_is_a_tensor_of_the_array_s_bits():
+    """A tensor in (a GPU bake's batch; here on the CPU) gives a tensor of the frames an array gives, and the same
+    counts."""
+    import torch
+
+    rng = np.random.default_rng(3)
+    verts, faces, points = _stretched(rng)
+    sl = strain_limit(verts, faces)
+    want, over, passes = limit_strain(points, sl)
+    got, t_over, t_passes = limit_strain(torch.from_numpy(points.astype(np.float32)), sl)
+    assert isinstance(got, torch.Tensor) and got.dtype == torch.float32 and got.shape == points.shape
+    np.testing.assert_array_equal(got.numpy(), want)
+    np.testing.assert_array_equal(t_over, over)
+    assert t_passes == passes > 0 and np.abs(want - points).max() > 0.01
+
+
 def _dress_on(motion_frames=slice(20, 26), betas=None):
     from core.body import default_body
     from formats.motion import load_motion

@@ -272,8 +272,14 @@ def test_model_on_a_gpu_matches_the_cpu(tmp_path):
     gpu, summary, said = _bake(dress, tmp_path / "gpu", "--device", "cuda")
     assert summary["deformer"]["device"] == "cuda:0" and "ms/frame (model on cuda:0)" in said
     assert summary["deformer"]["contact_guard"]["device"] == "cuda:0"  # per batch, on the GPU
-    # float32 on both; the GPU's kernels sum in other orders: far under a millimetre apart.
-    assert np.abs(gpu - cpu).max() < 1e-4, np.abs(gpu - cpu).max()
+    limited = summary["deformer"]["strain_limit"]
+    assert limited["device"] == "cuda:0" and limited["frames_limited"] > 0  # per batch too; the run tears 2 frames
+    # float32 on both; the GPU's kernels sum in other orders: far under a millimetre apart without the strain limit,
+    # which amplifies rounding where it undoes a tear (millimetres at a few vertices: core/strain.py).
+    cpu_raw, _, _ = _bake(dress, tmp_path / "cpu_raw", "--device", "cpu", "--strain-limit", "off")
+    gpu_raw, _, _ = _bake(dress, tmp_path / "gpu_raw", "--device", "cuda", "--strain-limit", "off")
+    assert np.abs(gpu_raw - cpu_raw).max() < 1e-4, np.abs(gpu_raw - cpu_raw).max()
+    _near_after_the_limit(gpu, cpu)
     # Two motions in two worker processes after this process has started CUDA: spawned, each on the GPU.
     r = invoke_default(["bake", dress, ROOT / "examples" / "run.npz", ROOT / "examples" / "walk.npz", "--frames", "0:8",
                         "--out", tmp_path / "workers", "--no-obj", "--no-body", "--device", "cuda", "--workers", "2"])
@@ -282,7 +288,14 @@ def test_model_on_a_gpu_matches_the_cpu(tmp_path):
         summary = json.loads((tmp_path / "workers" / f"dress_{motion}" / "summary.json").read_text())
         assert summary["deformer"]["device"] == "cuda:0"
     workers_run = read_usd(tmp_path / "workers" / "dress_run" / "dress_run.usd").tracks["garment"].points
-    assert np.abs(workers_run - gpu).max() < 1e-5
+    _near_after_the_limit(workers_run, gpu)  # a GPU's sums (atomic adds) need not repeat their order
+
+
+def _near_after_the_limit(a, b):
+    """Frames of two bakes whose inputs to the strain limit differ by rounding: it can amplify that to millimetres
+    at a few vertices of a tear (core/strain.py), not more on average."""
+    apart = np.linalg.norm(a - b, axis=-1)
+    assert apart.max() < 0.01 and apart.mean() < 1e-5, (apart.max(), apart.mean())
 
 
 def test_threads_n_bakes_on_that_count_throughout_and_repeats_bit_for_bit(tmp_path, monkeypatch):
