@@ -20,7 +20,7 @@ limited cloth by 13 um on average and 6 mm at most; two bakes that agree to floa
 to that after it.
 
 On by default for the model and psd (`bake --strain-limit`), off for lbs, whose speed is its point (the limit
-costs it 3-7 ms/frame on average on the real and synthetic sequences measured), where `--strain-limit 1.5`
+costs it 1.6-4.2 ms/frame on average on the real and synthetic sequences measured), where `--strain-limit 1.5`
 turns it on.
 """
 
