@@ -206,14 +206,34 @@ class Body:
             )
         return cache[key]
 
-    def pose_tensor(self, poses: torch.Tensor, trans: torch.Tensor | None = None,
-                    betas: np.ndarray | None = None) -> torch.Tensor:
-        """`pose`'s vertices for tensors, computed where `poses` (B, J, 3) is (a GPU's work stays there): (B, V, 3)
-        float32 metres, no gradient. trans: (B, 3) or None."""
+    def pose_at(self, ids: np.ndarray, poses, trans=None, betas: np.ndarray | None = None):
+        """`pose`'s vertices at the body vertex ids `ids` (N,) only: (B, N, 3) float32 metres, an array for arrays
+        in, a tensor where `poses` is for tensors (a GPU's work stays there; no gradient). The shape and rest
+        joints are made once for the frames, the pose correctives and skinning at those vertices only (the
+        contact guard reads the body at its anchor faces only)."""
+        arrays = not isinstance(poses, torch.Tensor)
+        if arrays:
+            poses = torch.from_numpy(self._check_poses(poses))
+            trans = None if trans is None else torch.from_numpy(np.asarray(trans, dtype=np.float32))
+        device = poses.device
+        cache = self.__dict__.setdefault("_pose_at_cache", {})
+        key = (np.asarray(ids).tobytes(), str(device))
+        if key not in cache:
+            cache.clear()
+            v_template, shapedirs, posedirs, J_regressor, parents, weights = self.torch(device=device)
+            idx = torch.as_tensor(np.asarray(ids, dtype=np.int64), device=device)
+            cache[key] = (idx, None if posedirs is None else posedirs[idx], weights[idx])
+        idx, posedirs_at, weights_at = cache[key]
+        v_template, shapedirs, _, J_regressor, parents, _ = self.torch(device=device)
         with torch.no_grad():
-            b = torch.as_tensor(self.fit_betas(betas), device=poses.device).expand(poses.shape[0], -1)
-            verts, _ = lbs(b, poses.float(), *self.torch(device=poses.device))
-        return verts if trans is None else verts + trans[:, None].float()
+            b = torch.as_tensor(self.fit_betas(betas), device=device)[None]
+            v_shaped = v_template + torch.einsum("bs,vcs->bvc", b, shapedirs)
+            joints_rest = torch.einsum("jv,bvc->bjc", J_regressor, v_shaped).expand(poses.shape[0], -1, -1)
+            verts, _, _ = posed(axis_angle_to_matrix_torch(poses.float()), v_shaped[:, idx], joints_rest, posedirs_at,
+                                parents, weights_at)
+            if trans is not None:
+                verts = verts + trans[:, None].float()
+        return verts.numpy() if arrays else verts
 
 
 def _smpl_view(body: Body) -> Body:
@@ -255,10 +275,20 @@ def lbs(betas: torch.Tensor, pose: torch.Tensor, v_template: torch.Tensor, shape
     and with `return_transforms` the skinning transforms A (B, J, 4, 4) such that a
     rest-pose point x of the shaped body maps to A_j @ [x, 1] for joint j.
     """
-    B = pose.shape[0]
     v_shaped = v_template + torch.einsum("bs,vcs->bvc", betas, shapedirs)
     joints_rest = torch.einsum("jv,bvc->bjc", J_regressor, v_shaped)
-    rot = axis_angle_to_matrix_torch(pose)  # (B, J, 3, 3)
+    verts, joints, A = posed(axis_angle_to_matrix_torch(pose), v_shaped, joints_rest, posedirs, parents, lbs_weights)
+    if return_transforms:
+        return verts, joints, A
+    return verts, joints
+
+
+def posed(rot: torch.Tensor, v_shaped: torch.Tensor, joints_rest: torch.Tensor, posedirs: torch.Tensor | None,
+          parents: torch.Tensor, lbs_weights: torch.Tensor):
+    """`lbs` from the shaped body on: rot (B, J, 3, 3) local rotations; v_shaped (B or 1, V, 3) the shaped body's
+    vertices (or some of them, with their rows of posedirs (V, 3, P) and lbs_weights (V, J)); joints_rest
+    (B, J, 3). Returns verts (B, V, 3), joints (B, J, 3), the skinning transforms A (B, J, 4, 4)."""
+    B = rot.shape[0]
     if posedirs is not None and posedirs.shape[-1] > 0:
         eye = torch.eye(3, dtype=rot.dtype, device=rot.device)
         pose_feature = (rot[:, 1:] - eye).reshape(B, -1)
@@ -266,10 +296,7 @@ def lbs(betas: torch.Tensor, pose: torch.Tensor, v_template: torch.Tensor, shape
     else:
         v_posed = v_shaped
     A, joints = skinning_transforms(rot, joints_rest, parents)
-    verts = skin_points(v_posed, lbs_weights, A)
-    if return_transforms:
-        return verts, joints, A
-    return verts, joints
+    return skin_points(v_posed, lbs_weights, A), joints, A
 
 
 def skinning_transforms(rot: torch.Tensor, joints_rest: torch.Tensor, parents: torch.Tensor):

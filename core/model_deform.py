@@ -31,7 +31,8 @@ from core.model import (
 )
 from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body, prepend_blend
-from core.pushout import ContactAnchors, body_anchors, guard_contact, guard_report, guard_sequence
+from core.pushout import (ContactAnchors, anchored_body, body_anchors, guard_contact, guard_report,
+                          guard_sequence)
 from core.scene import SceneAnalysis, scene_levels
 from core.strain import STRAIN_ITERATIONS, STRAIN_LIMIT, garment_strain, limit_strain, strain_report
 from core.threads import ThreadTuner
@@ -308,6 +309,7 @@ class ModelDeformer(Deformer):
         if guard_here:
             pose_t = torch.as_tensor(poses, dtype=torch.float32, device=device)
             trans_t = torch.as_tensor(motion.trans, dtype=torch.float32, device=device)
+            body_ids, anchors_here = anchored_body(shaped.anchors)
             moved = []
         with torch.inference_mode(), torch.autocast(device.type, dtype=torch.bfloat16,
                                                     enabled=self.precision == "bfloat16"):
@@ -326,8 +328,8 @@ class ModelDeformer(Deformer):
                     if guard_here:
                         with torch.autocast(device.type, enabled=False):  # the body posed in float32
                             at = slice(s, s + len(fr))
-                            verts, n = guard_contact(verts, body.pose_tensor(pose_t[at], trans_t[at], betas),
-                                                    shaped.anchors)
+                            verts, n = guard_contact(verts, body.pose_at(body_ids, pose_t[at], trans_t[at], betas),
+                                                    anchors_here)
                         moved.append(n)
                     if limit is not None:
                         t_limit = _synchronized(device)

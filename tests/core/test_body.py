@@ -112,6 +112,29 @@ def test_body_pose_float32_matches_naive_with_translation():
         np.testing.assert_allclose(joints[f], j_ref + trans[f], atol=2e-5)
 
 
+@pytest.mark.parametrize("with_posedirs", [True, False])
+def test_body_posed_at_some_vertices_is_the_naive_body_there(with_posedirs):
+    """`Body.pose_at`: the posed body at the ids given only (arrays in, arrays out; tensors in, tensors out), as
+    the whole body posed there; another set of ids after it is not served the first's rows."""
+    a = tiny_body(n_joints=7, V=9, S=3, seed=5, with_posedirs=with_posedirs)
+    body = body_from_arrays(a, name="tiny")
+    rng = np.random.default_rng(6)
+    pose = rng.normal(scale=0.5, size=(4, 7, 3))
+    trans = rng.normal(size=(4, 3))
+    betas = np.array([1.0, -0.5, 0.3])
+    for ids in (np.array([1, 4, 5, 8]), np.array([0, 2])):
+        got = body.pose_at(ids, pose, trans, betas)
+        assert isinstance(got, np.ndarray) and got.shape == (4, len(ids), 3) and got.dtype == np.float32
+        for f in range(4):
+            v_ref, _ = naive_lbs(betas, pose[f], *(a[k] for k in ("v_template", "shapedirs", "posedirs",
+                                                                  "J_regressor", "parents", "weights")))
+            np.testing.assert_allclose(got[f], v_ref[ids] + trans[f], atol=2e-5)
+        tensor = body.pose_at(ids, torch.from_numpy(pose.astype(np.float32)),
+                              torch.from_numpy(trans.astype(np.float32)), betas)
+        assert isinstance(tensor, torch.Tensor)
+        np.testing.assert_allclose(tensor.numpy(), got, atol=1e-6)
+
+
 def test_fit_betas_pads_and_truncates_with_warning(caplog):
     body = body_from_arrays(tiny_body(), name="tiny")  # 4 betas
     with caplog.at_level(logging.WARNING, logger="core.body"):

@@ -272,3 +272,32 @@ def test_the_spread_covers_the_same_distance_on_fine_and_coarse_garments():
     assert spread_passes(GUARD_SPREAD_M) == 2 and spread_passes(2 * GUARD_SPREAD_M) == 0
     assert spread_passes(0.0) == 0 and spread_passes(float("nan")) == 0
     assert spread_passes(GUARD_SPREAD_M / 100) == GUARD_MAX_SPREAD_PASSES
+
+
+def test_guard_sequence_poses_the_body_at_its_anchor_faces_only():
+    """`guard_sequence` poses only the body vertices the anchor faces use (`anchored_body`, `Body.pose_at`): the
+    frames of the guard against the whole posed body, to float32 rounding of the body's points."""
+    from pathlib import Path
+
+    from core.body import default_body
+    from core.deform import LBSDeformer
+    from core.motion import poses_for_body
+    from core.pushout import anchored_body, body_anchors, guard_sequence
+    from formats.motion import load_motion
+    from formats.obj import read_garment
+
+    root = Path(__file__).resolve().parents[2]
+    garment, body = read_garment(root / "examples" / "trousers.obj"), default_body()
+    run = load_motion(root / "examples" / "run.npz", fps=30.0)
+    frames = slice(40, 60)
+    poses, trans = poses_for_body(run, body.n_joints)[frames], run.trans[frames]
+    points = LBSDeformer().deform(garment, body, run)[frames]
+    anchors = body_anchors(garment.vertices, garment.faces, body, run.betas)
+    ids, local = anchored_body(anchors)
+    assert len(ids) < body.n_vertices / 2 and np.array_equal(ids[local.faces], anchors.faces)
+    got, report = guard_sequence(points.copy(), garment.vertices, garment.faces, body, poses, trans, run.betas,
+                                 anchors)
+    whole, _ = body.pose(poses, trans, run.betas)
+    want, moved = guard_contact(points, whole, anchors)
+    assert report["contact_guard"]["vertices_moved_per_frame_max"] == moved.max() > 0
+    assert np.abs(got - want).max() < 1e-5 and np.abs(got - points).max() > 1e-3
