@@ -226,10 +226,11 @@ def add_scene(calibration: Calibration, features: dict, rows: list[dict]) -> Non
 
 #: psd's cost per frame against LBS's, its contact guard and strain limit included (on by default): the example
 #: trousers, fitted to the real captures of the calibration, on the example run and walk (151 and 181 frames, one
-#: thread): 4.95 and 4.20 ms against LBS's 0.38 and 0.31 (12.9x and 13.7x); the guard 3.5 ms of it, the limit 1.1
-#: and 0.46 (117 and 91 frames limited), the fit alone 0.48 and 0.37. (Before the limit and the guard's spread:
-#: 7.5x, 2.7 ms against 0.36.)
-PSD_COST_OVER_LBS = 13.0
+#: thread, three runs): 3.8-4.1 and 3.1-3.4 ms against LBS's 0.38-0.39 and 0.31-0.41 (about 10x); the guard about
+#: 2.5 ms of it, the limit 1.2-1.3 and 0.5 (117 and 91 frames limited), the fit alone 0.4-0.6. (Before the limit
+#: and the guard's spread: 7.5x, 2.7 ms against 0.36; with them, before the guard posed the body at its anchors
+#: only: 13x.)
+PSD_COST_OVER_LBS = 10.0
 
 
 def psd_candidate(calibration: Calibration, features: dict, fit_meta: dict) -> dict:
