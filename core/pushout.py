@@ -173,12 +173,13 @@ def _as_tensors(points, body_points) -> tuple[torch.Tensor, torch.Tensor, bool]:
 def _offsets(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors):
     """`anchor_offsets` of tensors."""
     faces = torch.as_tensor(anchors.faces, device=bp.device)
-    tri = bp[:, faces]  # (T, V, 3 corners, 3)
+    # The anchor faces' corners, each (T, V, 3) and contiguous (index_select: several times faster than indexing
+    # (T, V, 3 corners, 3) and slicing it), their barycentric blend summed by hand (3.5x faster than an einsum).
+    c0, c1, c2 = (torch.index_select(bp, 1, faces[:, k]) for k in range(3))
     w = torch.as_tensor(anchors.barycentric, dtype=bp.dtype, device=bp.device)[..., None]  # (V, 3 corners, 1)
-    point = tri[:, :, 0] * w[:, 0] + tri[:, :, 1] * w[:, 1] + tri[:, :, 2] * w[:, 2]  # 3.5x faster than an einsum
+    point = c0 * w[:, 0] + c1 * w[:, 1] + c2 * w[:, 2]
     # Unit normals, right-handed in the (outward) corner order; zero for a zero-area face (as face_normals).
-    normal = torch.nn.functional.normalize(torch.linalg.cross(tri[:, :, 1] - tri[:, :, 0], tri[:, :, 2] - tri[:, :, 0],
-                                                              dim=-1), dim=-1, eps=1e-30)
+    normal = torch.nn.functional.normalize(torch.linalg.cross(c1 - c0, c2 - c0, dim=-1), dim=-1, eps=1e-30)
     rel = p - point
     along = torch.einsum("tvc,tvc->tv", rel, normal)
     lateral = torch.linalg.norm(rel - along[..., None] * normal, dim=-1)
@@ -205,13 +206,19 @@ def _torch_operator(op: sp.csr_matrix, dtype: torch.dtype, device: torch.device)
                                        size=op.shape, dtype=dtype, check_invariants=False).to(device)
 
 
-def spread_over(shift: torch.Tensor, op: torch.Tensor, passes: int) -> torch.Tensor:
-    """`passes` passes of the sparse operator `op` (V, V; `_torch_operator`, in shift's dtype and on its device)
-    over per-vertex vectors `shift` (T, V, C)."""
+def spread_over(shift: torch.Tensor, op, passes: int) -> torch.Tensor:
+    """`passes` passes of the sparse operator `op` (V, V) over per-vertex vectors `shift` (T, V, C): on the CPU
+    `op` as scipy's CSR matrix (a float64 product 3.4x faster than torch's CSR one, float32 as fast), elsewhere as
+    `_torch_operator`'s, in shift's dtype and on its device."""
     T, V, C = shift.shape
     x = shift.permute(1, 0, 2).reshape(V, T * C)
+    if isinstance(op, sp.spmatrix):
+        x = x.numpy()
+        op = op.astype(x.dtype, copy=False)
     for _ in range(passes):  # CSR times dense: 3-4 x faster than a gather and index_add on a CPU
         x = op @ x
+    if isinstance(x, np.ndarray):
+        x = torch.from_numpy(x)
     return x.reshape(V, T, C).permute(1, 0, 2)
 
 
@@ -232,7 +239,8 @@ def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = G
     p = p0
     passes = anchors.passes if passes is None else passes
     spreading = anchors.spread is not None and passes > 0
-    op = _torch_operator(anchors.spread, p.dtype, p.device) if spreading else None
+    op = None if not spreading else anchors.spread if p.device.type == "cpu" else _torch_operator(anchors.spread,
+                                                                                                   p.dtype, p.device)
     for _ in range(rounds if spreading else 1):
         behind, lateral, normal = _offsets(p, bp, anchors)
         shift = (behind * _fade(behind, depth, depth_fade) * _fade(lateral, reach, reach_fade))[..., None] * normal
