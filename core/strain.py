@@ -56,8 +56,20 @@ STRAIN_CHECK_PASSES = 10
 #: 8.7 at 0.95, 8.5 at 0.9.
 STRAIN_RHO = 0.98
 STRAIN_PLAIN_PASSES = 10
-#: Frames limited at once (their positions as one (V, frames, 3) block).
+#: Frames limited at once (their positions as one (3, V, frames) block): at most STRAIN_CHUNK_FRAMES, fewer for a
+#: large garment (`strain_chunk_frames`: about STRAIN_CHUNK_VERTEX_FRAMES vertex-frames, STRAIN_MIN_CHUNK_FRAMES at
+#: least). LBS's torn example dress subdivided 0-3 times, 64 frames of the run, one thread: 3,240 vertices 7.7
+#: ms/frame at 32 (8.6 at 16); 12,816: 19.5 at 16 (27.0 at 32); 50,976: 99-109 at 8-16 (102 at 32, peak memory
+#: 285 MB more than at 8); 203,328: 353 at 8 (569 at 32, peak +645 MB; 392 at 4, 500 at 2).
 STRAIN_CHUNK_FRAMES = 32
+STRAIN_CHUNK_VERTEX_FRAMES = 320_000
+STRAIN_MIN_CHUNK_FRAMES = 8
+
+
+def strain_chunk_frames(n_vertices: int) -> int:
+    """Frames `limit_sequence` limits at once for a garment of `n_vertices`: a power of two."""
+    fit = 1 << max(int(STRAIN_CHUNK_VERTEX_FRAMES // max(n_vertices, 1)).bit_length() - 1, 0)
+    return min(STRAIN_CHUNK_FRAMES, max(STRAIN_MIN_CHUNK_FRAMES, fit))
 
 
 @dataclass(frozen=True)
@@ -180,12 +192,13 @@ def strain_report(strain: StrainLimit, iterations: int, over: list[np.ndarray], 
 
 def limit_sequence(points: np.ndarray, strain: StrainLimit, iterations: int = STRAIN_ITERATIONS
                    ) -> tuple[np.ndarray, dict]:
-    """`limit_strain` over a sequence (T, V, 3), STRAIN_CHUNK_FRAMES frames at a time, written in place.
+    """`limit_strain` over a sequence (T, V, 3), `strain_chunk_frames` frames at a time, written in place.
     Returns (points, the report's "strain_limit" entry)."""
     t0 = time.perf_counter()
     over, passes = [], 0
-    for s in range(0, len(points), STRAIN_CHUNK_FRAMES):
-        fr = slice(s, s + STRAIN_CHUNK_FRAMES)
+    chunk = strain_chunk_frames(points.shape[1])
+    for s in range(0, len(points), chunk):
+        fr = slice(s, s + chunk)
         points[fr], n, done = limit_strain(points[fr], strain, iterations)
         over.append(n)
         passes = max(passes, done)

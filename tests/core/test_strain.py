@@ -122,6 +122,15 @@ def test_limit_sequence_in_chunks_reports_what_it_did(monkeypatch):
     assert 0 < report["passes_max"] <= report["iterations"] and report["seconds_per_frame"] > 0
 
 
+def test_a_large_garment_is_limited_in_fewer_frames_at_once():
+    """`strain_chunk_frames`: 32 frames at once up to about 10k vertices, powers of two down to 8 frames beyond
+    (the time and peak memory measured on 3k-203k vertices: core/strain.py)."""
+    from core.strain import strain_chunk_frames
+
+    got = [strain_chunk_frames(v) for v in (1, 50, 3240, 9999, 10001, 12816, 20001, 50976, 203328, 10**8)]
+    assert got == [32, 32, 32, 32, 16, 16, 8, 8, 8, 8]
+
+
 def test_limit_of_a_tensor_is_a_tensor_of_the_array_s_bits():
     """A tensor in (a GPU bake's batch; here on the CPU) gives a tensor of the frames an array gives, and the same
     counts."""
