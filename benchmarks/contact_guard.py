@@ -170,7 +170,7 @@ def scenes(args):
 def timing(args) -> None:
     """The guard's milliseconds per frame on each example garment (the rest pose through the first 64 frames of
     walk_brisk; one torch thread; the body posed as the bake poses it, at the anchor faces' vertices,
-    GUARD_CHUNK_FRAMES frames at a time; best of 3),
+    `guard_chunk_frames` frames at a time; best of 3),
     each vertex lifted alone and spread: benchmarks/results/contact_guard_timing.md."""
     import time
 
@@ -179,7 +179,7 @@ def timing(args) -> None:
     torch.set_num_threads(1)
     body = default_body()
     motion = MOTION_LIBRARY["walk_brisk"](fps=30.0)
-    frames, chunk = 64, pushout.GUARD_CHUNK_FRAMES
+    frames = 64
     betas = body.fit_betas(motion.betas)
     poses = poses_for_body(motion, body.n_joints)[:frames]
     rows = []
@@ -187,6 +187,7 @@ def timing(args) -> None:
         garment = read_obj(path)
         ids, anchors = pushout.anchored_body(pushout.body_anchors(garment.vertices, garment.faces, body, betas))
         points = np.repeat(garment.vertices[None].astype(np.float32), frames, axis=0)
+        chunk = pushout.guard_chunk_frames(garment.n_vertices)
         ms = {}
         for name, guard in (("alone", ALONE), ("spread", {})):
             best = np.inf
@@ -197,16 +198,17 @@ def timing(args) -> None:
                     guard_contact(points[s:s + chunk], body_points, anchors, **guard)
                 best = min(best, (time.perf_counter() - t0) / frames * 1e3)
             ms[name] = best
-        rows.append([path.stem, garment.n_vertices, anchors.passes, ms["alone"], ms["spread"]])
+        rows.append([path.stem, garment.n_vertices, chunk, anchors.passes, ms["alone"], ms["spread"]])
         print(rows[-1], flush=True)
     out = args.out.with_name("contact_guard_timing.md")
     out.write_text("# The contact guard's time per frame\n\n"
                    f"Made by `python benchmarks/contact_guard.py --timing` on {platform.machine()}, one torch thread: "
-                   f"the body posed at the anchor faces' vertices {chunk} frames at a time (Body.pose_at, as a bake "
-                   f"poses it) and the guard, on the first {frames} frames of "
+                   "the body posed at the anchor faces' vertices (Body.pose_at) and the guard, frames at once as a "
+                   f"bake does it (guard_chunk_frames), on the first {frames} frames of "
                    "walk_brisk (best of 3). Spread: over about "
                    f"{GUARD_SPREAD_M * 100:g} cm, {GUARD_ROUNDS} rounds.\n\n"
-                   + markdown_table(["garment", "vertices", "spread passes", "alone ms/frame", "spread ms/frame"],
+                   + markdown_table(["garment", "vertices", "frames at once", "spread passes", "alone ms/frame",
+                                    "spread ms/frame"],
                                     rows))
     print(f"wrote {out}")
 

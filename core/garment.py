@@ -101,6 +101,13 @@ class Garment:
         return h.hexdigest()
 
 
+def frames_at_once(n_vertices: int, vertex_frames: int, least: int, most: int) -> int:
+    """Frames of a garment of `n_vertices` to work on at once: the largest power of two whose frames hold at most
+    `vertex_frames` vertex-frames, within [least, most] (a large garment's temporaries stay in cache and memory)."""
+    fit = 1 << max(int(vertex_frames // max(n_vertices, 1)).bit_length() - 1, 0)
+    return min(most, max(least, fit))
+
+
 def mesh_edges(faces: np.ndarray) -> np.ndarray:
     """Unique undirected edges of a triangle mesh.
 

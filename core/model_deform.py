@@ -296,7 +296,7 @@ class ModelDeformer(Deformer):
         scene.report["levels"] = {**shaped.levels, "model": self.model.config.levels,
                                   "matches": shaped.levels["suggested"] == self.model.config.levels}
         # The contact guard and the strain limit batch by batch where the network runs (a GPU's frames stay there),
-        # else afterwards over the whole sequence (on a CPU: the body posed GUARD_CHUNK_FRAMES at a time, faster
+        # else afterwards over the whole sequence (on a CPU: the body posed `guard_chunk_frames` at a time, faster
         # than per batch).
         here = device.type != "cpu" if self.post_on_device is None else self.post_on_device
         guard_here = self.contact_guard and here

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
-from core.garment import Garment, mesh_edges
+from core.garment import Garment, frames_at_once, mesh_edges
 from core.geodesic import edge_lengths
 from core.graph import adjacency
 
@@ -67,9 +67,8 @@ STRAIN_MIN_CHUNK_FRAMES = 8
 
 
 def strain_chunk_frames(n_vertices: int) -> int:
-    """Frames `limit_sequence` limits at once for a garment of `n_vertices`: a power of two."""
-    fit = 1 << max(int(STRAIN_CHUNK_VERTEX_FRAMES // max(n_vertices, 1)).bit_length() - 1, 0)
-    return min(STRAIN_CHUNK_FRAMES, max(STRAIN_MIN_CHUNK_FRAMES, fit))
+    """Frames `limit_sequence` limits at once for a garment of `n_vertices` (`frames_at_once`)."""
+    return frames_at_once(n_vertices, STRAIN_CHUNK_VERTEX_FRAMES, STRAIN_MIN_CHUNK_FRAMES, STRAIN_CHUNK_FRAMES)
 
 
 @dataclass(frozen=True)

@@ -301,3 +301,45 @@ def test_guard_sequence_poses_the_body_at_its_anchor_faces_only():
     want, moved = guard_contact(points, whole, anchors)
     assert report["contact_guard"]["vertices_moved_per_frame_max"] == moved.max() > 0
     assert np.abs(got - want).max() < 1e-5 and np.abs(got - points).max() > 1e-3
+
+
+def test_a_spread_of_many_passes_is_their_polynomial_within_its_tolerance():
+    """`spread_over` of a fine garment's many passes (`spread_polynomial`: a Chebyshev polynomial of the pass, of
+    fewer products) spreads lifts as the passes one by one do, within SPREAD_TOLERANCE of the largest lift, in
+    float64 on the CPU (scipy) and in float32 as a GPU would (torch); a few passes stay plain passes."""
+    import torch
+
+    from core.garment import Garment
+    from core.pushout import SPREAD_TOLERANCE, _torch_operator, spread_over, spread_polynomial
+    from core.skinning import graph_smoothing
+    from tests.meshes import grid
+
+    assert spread_polynomial(5) is None and spread_polynomial(15) is None  # the example garments' spreads
+    assert [len(spread_polynomial(n)) - 1 for n in (40, 80, 200)] == [20, 28, 45]
+    verts, faces = grid(40, 40, 0.4)
+    garment = Garment(verts.astype(np.float32), faces)
+    op = graph_smoothing(garment.faces, garment.n_vertices)
+    rng = np.random.default_rng(0)
+    shift = np.zeros((2, garment.n_vertices, 3))
+    lifted = rng.choice(garment.n_vertices, 30, replace=False)
+    shift[:, lifted] = rng.uniform(0.0, 0.05, (2, 30, 3))
+    for passes in (40, 200):
+        want = shift.transpose(1, 0, 2).reshape(garment.n_vertices, 6)
+        for _ in range(passes):
+            want = op @ want
+        want = want.reshape(garment.n_vertices, 2, 3).transpose(1, 0, 2)
+        got = spread_over(torch.from_numpy(shift), op, passes).numpy()
+        assert np.abs(got - want).max() < SPREAD_TOLERANCE * 0.05 and np.abs(want).max() > 1e-4
+        got32 = spread_over(torch.from_numpy(shift).float(), _torch_operator(op, torch.float32, "cpu"), passes)
+        assert np.abs(got32.numpy() - want).max() < 1e-6
+
+
+def test_a_large_garment_is_guarded_in_fewer_frames_at_once():
+    """`guard_chunk_frames`: 16 frames at once for a garment up to 4k vertices, powers of two down to 4 beyond (the
+    time and peak memory measured on 3k-203k vertices: core/pushout.py)."""
+    from core.garment import frames_at_once
+    from core.pushout import guard_chunk_frames
+
+    got = [guard_chunk_frames(v) for v in (1, 2016, 3240, 4001, 6698, 8001, 12816, 203328)]
+    assert got == [16, 16, 16, 8, 8, 4, 4, 4]
+    assert frames_at_once(1000, 64_000, 4, 16) == 16 and frames_at_once(3000, 64_000, 1, 64) == 16
