@@ -24,6 +24,7 @@ Pure orchestration: no files, no printing; logging via `logging.getLogger(__name
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import uuid
 from collections.abc import Callable, Iterator, Sequence
@@ -108,9 +109,9 @@ def _run_local(task, calls, names, workers: int):
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     failures = []
-    with ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(), initializer=unwind_on_sigterm) as pool:
-        futures = {pool.submit(task, *args): name for name, args in zip(names, calls)}
-        try:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(), initializer=_worker_unwinds) as pool:
+        try:  # from the first submit: a worker can start (and a SIGTERM come) before the last is made
+            futures = {pool.submit(_unwound, task, *args): name for name, args in zip(names, calls)}
             for fut in as_completed(futures):
                 exc = fut.exception()
                 if exc is not None:  # said now, raised when the others have finished (they are kept)
@@ -118,7 +119,10 @@ def _run_local(task, calls, names, workers: int):
                     failures.append((futures[fut], exc))
                 else:
                     yield futures[fut], fut.result()
-        except (KeyboardInterrupt, SystemExit):  # Ctrl-C, or SIGTERM (garmentcli.main): stop the workers too
+        # Ctrl-C, or SIGTERM (garmentcli.main), here or in the caller while it holds an item (the caller's frame
+        # unwinds and closes this generator at its yield: GeneratorExit): stop the workers too, else the pool's
+        # shutdown waits for their items.
+        except (KeyboardInterrupt, SystemExit, GeneratorExit):
             _stop_workers(pool)
             raise
     if failures:
@@ -134,15 +138,38 @@ def _terminate_as_exit(signum, frame):
 
 
 def unwind_on_sigterm() -> None:
-    """Install `_terminate_as_exit` for SIGTERM: the `garment` command does, and so does each local worker process
-    (a spawned one does not inherit it)."""
+    """Install `_terminate_as_exit` for SIGTERM: the `garment` command does (each local worker process installs
+    its own, `_worker_unwinds`: a spawned one does not inherit it)."""
     signal.signal(signal.SIGTERM, _terminate_as_exit)
 
 
+def _worker_unwinds() -> None:
+    """A local worker process's SIGTERM: unwinds its item as the command does (`_terminate_as_exit`), but further
+    SIGTERMs are ignored while it does (the pool, finding a stopped worker, sends each of the others one more:
+    a second one killed a worker in the middle of removing its item's output, which was left behind)."""
+    signal.signal(signal.SIGTERM, _terminate_worker)
+
+
+def _terminate_worker(signum, frame):
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise SystemExit(128 + signal.SIGTERM)
+
+
+def _unwound(task, *args):
+    """`task(*args)` in a local worker; stopped by SIGTERM, the worker ends once the item has unwound (the pool's
+    worker loop would otherwise catch the SystemExit and wait for another item, ignoring SIGTERM)."""
+    try:
+        return task(*args)
+    except SystemExit as exc:
+        if exc.code == 128 + signal.SIGTERM:
+            os._exit(exc.code)
+        raise
+
+
 def _stop_workers(pool) -> None:
-    """Cancel `pool`'s waiting items and send its worker processes SIGTERM: forked from the command, they unwind as
-    it does (`unwind_on_sigterm`), removing what they were writing, instead of finishing their
-    items while the command waits in the pool's shutdown."""
+    """Cancel `pool`'s waiting items and send its worker processes SIGTERM: they unwind as the command does
+    (`_worker_unwinds`), removing what they were writing, and end, instead of finishing their items while the
+    command waits in the pool's shutdown."""
     for fut in list(getattr(pool, "_pending_work_items", {}).values()):
         fut.future.cancel()
     for process in list((getattr(pool, "_processes", None) or {}).values()):

@@ -66,3 +66,21 @@ def test_sigterm_to_the_command_stops_its_local_workers_and_their_outputs(tmp_pa
     """, tmp_path, 2)
     assert status == 128 + signal.SIGTERM and alive == []
     assert list(tmp_path.iterdir()) == []
+
+
+def test_sigterm_while_the_command_holds_a_finished_item_stops_the_other_workers(tmp_path):
+    """The command stopped while it writes an item a worker finished (outside `run_items`' loop, which the unwinding
+    closes at its yield): the worker still writing its item is stopped and its output removed, not waited for."""
+    status, alive = _stopped("""
+        from core.distributed import run_items
+
+        def quick_or_slow(out, name):
+            return name if name == "a" else write_slowly(out, name)
+
+        unwind_on_sigterm()
+        for name, _ in run_items(quick_or_slow, [(sys.argv[1], "a"), (sys.argv[1], "b")], ["a", "b"], workers=2):
+            print("ready", flush=True)  # holding item 'a': the SIGTERM comes here
+            time.sleep(120)
+    """, tmp_path, 2)
+    assert status == 128 + signal.SIGTERM and alive == []
+    assert list(tmp_path.iterdir()) == []
