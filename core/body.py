@@ -216,15 +216,14 @@ class Body:
             poses = torch.from_numpy(self._check_poses(poses))
             trans = None if trans is None else torch.from_numpy(np.asarray(trans, dtype=np.float32))
         device = poses.device
+        v_template, shapedirs, posedirs, J_regressor, parents, weights = self.torch(device=device)
         cache = self.__dict__.setdefault("_pose_at_cache", {})
         key = (np.asarray(ids).tobytes(), str(device))
         if key not in cache:
             cache.clear()
-            v_template, shapedirs, posedirs, J_regressor, parents, weights = self.torch(device=device)
             idx = torch.as_tensor(np.asarray(ids, dtype=np.int64), device=device)
             cache[key] = (idx, None if posedirs is None else posedirs[idx], weights[idx])
         idx, posedirs_at, weights_at = cache[key]
-        v_template, shapedirs, _, J_regressor, parents, _ = self.torch(device=device)
         with torch.no_grad():
             b = torch.as_tensor(self.fit_betas(betas), device=device)[None]
             v_shaped = v_template + torch.einsum("bs,vcs->bvc", b, shapedirs)

@@ -86,8 +86,12 @@ def strain_limit(rest: np.ndarray, faces: np.ndarray, limit: float = STRAIN_LIMI
     """The strain limit of a garment at rest (V, 3), faces (F, 3): no edge longer than `limit` times its rest
     length."""
     edges = mesh_edges(faces)
-    return StrainLimit(edges, limit * edge_lengths(np.asarray(rest, dtype=np.float64), edges),
-                       adjacency(edges, len(rest)), float(limit))
+    return _strain_of(edges, adjacency(edges, len(rest)), rest, limit)
+
+
+def _strain_of(edges: np.ndarray, adj: sp.csr_matrix, rest: np.ndarray, limit: float) -> StrainLimit:
+    """The StrainLimit of a garment's edges (E, 2) and adjacency (V, V) against their lengths at `rest` (V, 3)."""
+    return StrainLimit(edges, limit * edge_lengths(np.asarray(rest, dtype=np.float64), edges), adj, float(limit))
 
 
 def _edges_of(x: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -215,8 +219,7 @@ def garment_strain(garment: Garment, rest: np.ndarray, limit: float, cache: dict
         cache.clear()
         edges = mesh_edges(garment.faces)
         cache[key] = edges, adjacency(edges, garment.n_vertices)
-    edges, adj = cache[key]
-    return StrainLimit(edges, limit * edge_lengths(np.asarray(rest, dtype=np.float64), edges), adj, float(limit))
+    return _strain_of(*cache[key], rest, limit)
 
 
 def limit_garment(points: np.ndarray, garment: Garment, rest: np.ndarray, limit: float, cache: dict
