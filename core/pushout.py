@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import time
 import warnings
+import weakref
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -200,12 +201,25 @@ def anchor_offsets(points, body_points, anchors: ContactAnchors):
 
 
 def _torch_operator(op: sp.csr_matrix, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
-    """The sparse operator `op` (V, V) as a torch CSR tensor of `dtype` on `device`."""
+    """The sparse operator `op` (V, V) as a torch CSR tensor of `dtype` on `device`, made once per operator, dtype
+    and device while `op` lives (a GPU's bake guards every batch with the same anchors: the copy to the device
+    was made per batch)."""
+    key = (id(op), dtype, str(torch.device(device)))
+    held = _TORCH_OPERATORS.get(key)
+    if held is not None and held[0]() is op:
+        return held[1]
     index = lambda a: torch.from_numpy(a.astype(np.int64))  # noqa: E731
     with warnings.catch_warnings():  # torch calls its CSR tensors beta (a product with a dense matrix is all used)
         warnings.filterwarnings("ignore", message="Sparse CSR tensor support is in beta")
-        return torch.sparse_csr_tensor(index(op.indptr), index(op.indices), torch.from_numpy(op.data),
-                                       size=op.shape, dtype=dtype, check_invariants=False).to(device)
+        out = torch.sparse_csr_tensor(index(op.indptr), index(op.indices), torch.from_numpy(op.data),
+                                      size=op.shape, dtype=dtype, check_invariants=False).to(device)
+    _TORCH_OPERATORS[key] = (weakref.ref(op, lambda _: _TORCH_OPERATORS.pop(key, None)), out)
+    return out
+
+
+#: `_torch_operator`'s tensors by (id of the scipy operator, dtype, device): (a weak reference to the operator,
+#: the tensor); an entry goes with its operator.
+_TORCH_OPERATORS: dict = {}
 
 
 #: A spread of many passes (a fine garment's) is computed as a Chebyshev polynomial of the pass's operator P

@@ -334,6 +334,30 @@ def test_a_spread_of_many_passes_is_their_polynomial_within_its_tolerance():
         assert np.abs(got32.numpy() - want).max() < 1e-6
 
 
+def test_the_spread_operator_is_made_for_a_device_once_per_anchors():
+    """`_torch_operator` (the spread as a torch CSR tensor, for a GPU's guard) is made once per scipy operator,
+    dtype and device and reused on the next batch; its entry goes with the operator."""
+    import gc
+
+    import torch
+
+    from core.pushout import _TORCH_OPERATORS, _torch_operator
+    from core.skinning import graph_smoothing
+    from tests.meshes import grid
+
+    verts, faces = grid(6, 6, 0.1)
+    op = graph_smoothing(faces, len(verts))
+    first = _torch_operator(op, torch.float32, "cpu")
+    assert _torch_operator(op, torch.float32, torch.device("cpu")) is first
+    other = _torch_operator(op, torch.float64, "cpu")
+    assert other is not first and other.dtype == torch.float64
+    np.testing.assert_allclose(first.to_dense().numpy(), op.toarray(), atol=1e-7)
+    assert any(key[0] == id(op) for key in _TORCH_OPERATORS)
+    del op
+    gc.collect()
+    assert not any(held[1] is first for held in _TORCH_OPERATORS.values())
+
+
 def test_a_large_garment_is_guarded_in_fewer_frames_at_once():
     """`guard_chunk_frames`: 16 frames at once for a garment up to 4k vertices, powers of two down to 4 beyond (the
     time and peak memory measured on 3k-203k vertices: core/pushout.py)."""
