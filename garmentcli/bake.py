@@ -317,12 +317,12 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
                    "else the CPU].")
 @click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
 @click.option("--no-contact-guard", is_flag=True,
-              help="model, psd: leave out the contact guard (on by default, about 2-5 ms/frame), which keeps each "
+              help="model, psd: leave out the contact guard (on by default, about 0.6-3 ms/frame on 2k-7k vertices), which keeps each "
                    "vertex outside the body face it rests on; the network's or the fit's raw output.")
 @click.option("--strain-limit", "strain", type=FloatOrOff(1, "an edge's longest, as a multiple of its rest length"),
               default=None, metavar="RATIO|off",
               help=f"lbs, model, psd: no edge of the garment longer than RATIO times its rest length (undoes the tears "
-                   f"skinning makes between a dress's legs, at a knee, in an armpit; up to about 17 ms a frame where "
+                   f"skinning makes between a dress's legs, at a knee, in an armpit; up to about 11 ms a frame where "
                    f"a wide tear is, 0.2-0.6 where none) [default: {STRAIN_LIMIT:g} for model and psd, off for lbs].")
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
