@@ -16,9 +16,10 @@ from tests.meshes import grid
 
 def _reference(points, rest, faces, limit, iterations):
     """limit_strain's rule frame by frame over every edge (no region): the frames with an edge longer than its
-    limit by more than the tolerance take STRAIN_CHECK_PASSES Jacobi passes at a time (each such edge's ends pulled
-    by half its excess, a vertex by the mean of its pulls), Chebyshev-accelerated after STRAIN_PLAIN_PASSES, until
-    none has one or `iterations` passes are made."""
+    limit by more than the tolerance take STRAIN_CHECK_PASSES Jacobi passes at a time (each edge longer than its
+    limit has its ends pulled by half its excess, a vertex by the mean of its pulls, each pull weighing its excess
+    over the tolerance, at most 1), Chebyshev-accelerated after STRAIN_PLAIN_PASSES, until none has one or
+    `iterations` passes are made."""
     edges = mesh_edges(faces)
     a, b = edges[:, 0], edges[:, 1]
     longest = limit * np.linalg.norm(rest[b] - rest[a], axis=1)
@@ -31,15 +32,16 @@ def _reference(points, rest, faces, limit, iterations):
         x, prev, omega, done = out[t].copy(), None, 1.0, 0
         while over(x).any() and done < iterations:
             for _ in range(min(STRAIN_CHECK_PASSES, iterations - done)):
-                i = over(x)
+                i = np.linalg.norm(x[b] - x[a], axis=1) > longest
                 d = x[b[i]] - x[a[i]]
                 length = np.linalg.norm(d, axis=1, keepdims=True)
                 pull = 0.5 * (length - longest[i, None]) / length * d
+                weight = np.minimum((length[:, 0] - longest[i]) / STRAIN_TOLERANCE_M, 1.0)
                 move, count = np.zeros_like(x), np.zeros(len(x))
                 np.add.at(move, a[i], pull)
                 np.add.at(move, b[i], -pull)
-                np.add.at(count, a[i], 1)
-                np.add.at(count, b[i], 1)
+                np.add.at(count, a[i], weight)
+                np.add.at(count, b[i], weight)
                 y = x + move / np.maximum(count, 1)[:, None]
                 done += 1
                 if done > STRAIN_PLAIN_PASSES:
@@ -86,6 +88,20 @@ def test_limit_equals_the_every_edge_reference(case):
         rest = np.linalg.norm(verts[edges[:, 1]] - verts[edges[:, 0]], axis=-1)
         np.testing.assert_array_equal(over, (length > limit * rest + STRAIN_TOLERANCE_M).sum(axis=1))
         assert over.min() > 0 and 0 < passes <= iterations
+
+
+def test_the_limit_passes_its_inputs_rounding_on_without_amplifying_it():
+    """A pass's pulls grow from nothing as an edge crosses its limit: noise of 1e-6 m on torn grids moves the
+    limited cloth by about as much (an all-or-nothing pull at the tolerance, each edge over counting one in its
+    vertices' means, moved these by 3.9 and 0.5 mm; a torn dress by up to 6 mm)."""
+    for seed, cells in ((1, 8), (5, 20)):
+        rng = np.random.default_rng(seed)
+        verts, faces, points = _stretched(rng, n_frames=6, cells=cells)
+        noise = rng.normal(0.0, 1e-6, points.shape)
+        sl = strain_limit(verts, faces)
+        got, _, _ = limit_strain(points, sl)
+        noisy, _, _ = limit_strain(points + noise, sl)
+        assert np.linalg.norm(noisy - got, axis=-1).max() < 5e-5 and np.abs(got - points).max() > 0.01
 
 
 def test_limit_undoes_a_tear_and_leaves_unstretched_cloth_alone():

@@ -292,10 +292,11 @@ def test_model_on_a_gpu_matches_the_cpu(tmp_path):
 
 
 def _near_after_the_limit(a, b):
-    """Frames of two bakes whose inputs to the strain limit differ by rounding: it can amplify that to millimetres
-    at a few vertices of a tear (core/strain.py), not more on average."""
+    """Frames of two bakes whose inputs to the strain limit differ by rounding: it passes that on as it comes but
+    where a frame's stop at its tolerance falls the other way (up to 0.9 mm measured at a few vertices of a tear:
+    core/strain.py), not more on average."""
     apart = np.linalg.norm(a - b, axis=-1)
-    assert apart.max() < 0.01 and apart.mean() < 1e-5, (apart.max(), apart.mean())
+    assert apart.max() < 0.003 and apart.mean() < 1e-5, (apart.max(), apart.mean())
 
 
 def test_threads_n_bakes_on_that_count_throughout_and_repeats_bit_for_bit(tmp_path, monkeypatch):
