@@ -43,6 +43,18 @@ def check_frame_rate(fps: float, where: str, advice: str = "") -> None:
                          f"per frame (a BVH Frame Time)? that is {1 / fps:.4g} fps{advice}")
 
 
+#: Frame rates a rate read from seconds (a glTF's key times, a BVH's Frame Time) is snapped to within
+#: COMMON_RATE_TOLERANCE: a file stores seconds to a few digits, not the rate.
+COMMON_RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 23.976, 29.97, 59.94)
+COMMON_RATE_TOLERANCE = 0.005
+
+
+def common_rate(fps: float) -> float | None:
+    """The rate of COMMON_RATES nearest to `fps` where within COMMON_RATE_TOLERANCE of it (relative), else None."""
+    near = min(COMMON_RATES, key=lambda r: abs(r - fps))
+    return near if abs(near - fps) <= COMMON_RATE_TOLERANCE * near else None
+
+
 @dataclass(frozen=True, eq=False)
 class Motion:
     """A pose sequence.
@@ -185,16 +197,22 @@ def resampled_frame_count(motion: Motion, fps: float) -> int:
     return motion.n_frames if grid is None else grid[2]
 
 
+#: Output frames (a share of one) an output frame may lie past the clip's end and still be written, as its end.
+RESAMPLE_SLACK_FRAMES = 1e-3
+
+
 def _resample_grid(motion: Motion, fps: float) -> tuple[int, float, int] | None:
     """(lead frames, time of output frame 0 in s, output frames) of `resample`; None where the frames stay."""
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"--fps: expected a positive number, got {fps}")
     if abs(fps - motion.fps) < 1e-9 or motion.n_frames == 1:
         return None
+    # An output frame within RESAMPLE_SLACK_FRAMES after the clip's end (or the first written frame) is its last
+    # (first): a rate read from a file's seconds (30.0003 from 0.033333) lost the last frame to the rounding.
     t_first = motion.n_lead / motion.fps  # seconds: the first frame to write
-    n_lead = int(np.floor(t_first * fps + 1e-6))
+    n_lead = int(np.floor(t_first * fps + RESAMPLE_SLACK_FRAMES))
     t0 = max(t_first - n_lead / fps, 0.0)
-    n_out = int(np.floor((motion.duration_s - t0) * fps + 1e-6)) + 1
+    n_out = int(np.floor((motion.duration_s - t0) * fps + RESAMPLE_SLACK_FRAMES)) + 1
     return n_lead, t0, n_out
 
 

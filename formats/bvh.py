@@ -23,6 +23,7 @@ import numpy as np
 
 from core.body import N_BODY_JOINTS, SMPL_JOINT_NAMES, SMPL_PARENTS
 from core.errors import InputError
+from core.motion import common_rate
 from core.retarget import canonical, retarget
 from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
@@ -85,9 +86,10 @@ def read_skeleton(path: Path, src: str) -> Skeleton:
     """The skeleton and motion of the BVH `path`; InputError naming `src` for a file that is no BVH or a damaged
     one."""
     try:
-        text = path.read_text(encoding="latin-1")
+        raw = path.read_bytes()
     except OSError as exc:
         raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+    text = raw.removeprefix(b"\xef\xbb\xbf").decode("latin-1")  # a UTF-8 byte-order mark some tools write
     head, *rest = re.split(r"^\s*MOTION\s*$", text, maxsplit=1, flags=re.MULTILINE)  # its own line
     motion = rest[0] if rest else ""
     tokens = head.split()
@@ -95,22 +97,36 @@ def read_skeleton(path: Path, src: str) -> Skeleton:
         raise InputError(f"{src}: expected a BVH file (HIERARCHY, then MOTION), got "
                          f"{'no MOTION section' if tokens[:1] == ['HIERARCHY'] else 'a file that is not one'}")
     names, parents, offsets, channels = _hierarchy(tokens[1:], src)
-    rates = re.search(r"Frames:\s*(\d+)\s+Frame\s+Time:\s*(\S+)", motion)
-    if rates is None:
-        raise InputError(f"{src}: expected 'Frames: N' and 'Frame Time: S' after MOTION, found neither")
-    n_frames, frame_time = int(rates.group(1)), _number(rates.group(2), "Frame Time", src)
+    frames = re.search(r"^\s*Frames\s*:[ \t]*(\S*)", motion, flags=re.MULTILINE)
+    timing = re.search(r"^\s*Frame\s+Time\s*:[ \t]*(\S*)", motion, flags=re.MULTILINE)
+    if frames is None or timing is None:
+        found = "neither" if frames is None and timing is None else "only 'Frames'" if timing is None else \
+            "only 'Frame Time'"
+        raise InputError(f"{src}: expected 'Frames: N' and 'Frame Time: S' (seconds per frame) after MOTION, found "
+                         f"{found}")
+    frames_text = frames.group(1)
+    if not frames_text.isdigit():
+        raise InputError(f"{src}: expected a whole number of frames after 'Frames:', got '{frames_text[:20]}'")
+    n_frames, frame_time = int(frames_text), _number(timing.group(1), "Frame Time", src)
+    if n_frames < 1:
+        raise InputError(f"{src}: expected at least 1 frame after MOTION, got 'Frames: 0' (a skeleton exported "
+                         f"without its animation?)")
+    if not (np.isfinite(frame_time) and frame_time > 0):
+        raise InputError(f"{src}: expected a Frame Time over 0 seconds, got {frame_time}")
     try:
-        values = np.array(motion[rates.end():].split(), dtype=np.float64)
+        values = np.array(motion[max(frames.end(), timing.end()):].split(), dtype=np.float64)
     except ValueError:
         raise InputError(f"{src}: expected numbers in its frames, found text among them") from None
     width = sum(len(c) for c in channels)
-    if n_frames < 1 or values.size != n_frames * width:
+    if values.size != n_frames * width:
         raise InputError(f"{src}: expected {n_frames} frames of {width} channel values ({n_frames * width}), got "
                          f"{values.size} values")
-    if not (np.isfinite(frame_time) and frame_time > 0):
-        raise InputError(f"{src}: expected a Frame Time over 0 seconds, got {frame_time}")
     rotations, root, moving = _channels(channels, offsets, values.reshape(n_frames, width))
-    return Skeleton(names, parents, offsets, rotations, root, frame_time, moving=moving)
+    # A Frame Time of a few digits (Blender's 0.033333, CMU's 0.0083333) is a common rate's: as read, 30.0003 fps
+    # lost the last frame of every bake at 30 and moved every frame a little.
+    rate = common_rate(1.0 / frame_time) if frame_time < 1.0 else None
+    return Skeleton(names, parents, offsets, rotations, root, frame_time if rate is None else 1.0 / rate,
+                    moving=moving)
 
 
 def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:

@@ -28,6 +28,7 @@ from urllib.parse import unquote
 import numpy as np
 
 from core.errors import InputError, read_input
+from core.motion import COMMON_RATES, common_rate
 from core.retarget import PELVIS_NAMES, canonical, role_names
 from core.rotations import quat_slerp, quat_to_matrix
 from formats.bvh import Skeleton
@@ -55,8 +56,6 @@ DEFAULT_FPS = 30.0
 _SNAP = 2e-3
 #: Cubic curves keyed more sparsely (fps) are sampled between their keys (`cubic_rate`).
 MIN_CUBIC_FPS = 24.0
-#: Frame rates key spacings are snapped to (within 0.5 %): a glTF stores seconds, not a rate.
-_RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 23.976, 29.97, 59.94)
 
 
 def gltf_document(path: Path, src: str) -> tuple[dict, list[bytes]]:
@@ -219,8 +218,8 @@ def key_rate(inputs: list[np.ndarray]) -> float:
     if not len(steps):
         return DEFAULT_FPS
     fps = 1.0 / float(np.median(steps))
-    near = min(_RATES, key=lambda r: abs(r - fps))
-    return near if abs(near - fps) <= 0.005 * near else round(fps, 3)
+    near = common_rate(fps)
+    return round(fps, 3) if near is None else near
 
 
 def cubic_rate(fps: float) -> float:
@@ -231,7 +230,7 @@ def cubic_rate(fps: float) -> float:
     degrees off its own curves)."""
     if fps >= MIN_CUBIC_FPS:
         return fps
-    for rate in (DEFAULT_FPS, *sorted(_RATES)):
+    for rate in (DEFAULT_FPS, *sorted(COMMON_RATES)):
         ratio = rate / fps
         if rate >= MIN_CUBIC_FPS and abs(ratio - round(ratio)) < 1e-3 * ratio:
             return rate

@@ -37,7 +37,7 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
 from core.errors import InputError
-from core.motion import (Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
+from core.motion import (MIN_SOURCE_FPS, Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
                          warn_if_not_z_up)
 from formats.atomic import atomic_file
 from formats.bvh import REST_UP_KEY, TAKE_KEY, Skeleton, read_skeleton, skeleton_arrays
@@ -218,6 +218,10 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
                              f"frame rate with --source-fps")
         fps = _read_frame_rate(arrays[key], key, src)
         what = f"'{key}'"
+        if path.suffix.lower() == ".bvh" and 0 < fps < MIN_SOURCE_FPS:
+            raise InputError(f"{src}: expected its Frame Time in seconds per frame (0.0333333 at 30 fps), got "
+                             f"{1 / fps:g}: milliseconds ({1000 * fps:.4g} fps)? pass the motion's frame rate with "
+                             f"--source-fps")
     else:
         what = "the fps override"
     check_frame_rate(fps, f"{src}, {what}", "; pass the motion's frame rate with --source-fps")

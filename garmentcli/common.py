@@ -88,7 +88,9 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
     glTF (`.glb`, `.gltf`, `.vrm`, `.vrma`), USD (`.usd`, `.usda`, `.usdc`, `.usdz`), COLLADA (`.dae`) or `.mvnx`
     under it (recursively, in sorted order) that holds poses or a skeleton (`MOTION_KEYS`; AMASS's shape.npz and
     *_stagei.npz, which hold a body shape only, and FBX, glTF, USD and COLLADA files of no skeleton are left out;
-    PyTorch files only named). A file given twice is taken once. Raises click
+    PyTorch files only named; so are hidden files and folders and `__MACOSX`: an archive unzipped on a Mac holds a
+    `._Walk.bvh` of Finder metadata beside each file, which refused the whole batch). A file given twice is taken
+    once. Raises click
     errors for a path that is not there and for a directory without motions."""
     from formats.motion import MOTION_SUFFIXES, TORCH_SUFFIXES
 
@@ -98,7 +100,7 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
         path = Path(arg)
         if path.is_dir():
             found = [str(f) for f in sorted(path.rglob("*")) if f.suffix.lower() in scanned
-                     and f.is_file() and _holds_poses(f)]
+                     and not _hidden(f.relative_to(path)) and f.is_file() and _holds_poses(f)]
             if not found:
                 raise click.BadParameter(f"directory '{arg}': expected motion files under it (.npz, .pkl or .npy, "
                                          f"with {' or '.join(repr(k) for k in MOTION_KEYS[:2])}; .bvh, .fbx, "
@@ -112,6 +114,11 @@ def motion_files(args, hint: str = "MOTION") -> list[str]:
     for f in files:
         kept.setdefault(Path(f).resolve(), f)
     return list(kept.values())
+
+
+def _hidden(relative: Path) -> bool:
+    """Whether a path under a scanned folder is hidden (a part named .*) or a Mac archive's metadata (__MACOSX)."""
+    return any(part.startswith(".") or part == "__MACOSX" for part in relative.parts)
 
 
 def motion_parts(path: str, person: str | None, take: str | None, say: bool = True) -> list[tuple[dict, str]]:

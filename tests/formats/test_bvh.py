@@ -481,11 +481,48 @@ def test_a_broken_bvh_is_one_line(tmp_path):
                                                         "in its HIERARCHY, got 'CHA'"),
                            (good.replace("OFFSET", "OFFSET x", 1), "expected a number for OFFSET, got 'x'"),
                            ("Not a BVH at all\n", "expected a BVH file (HIERARCHY, then MOTION), got a file that is "
-                                                  "not one")):
+                                                  "not one"),
+                           (good[:good.index("Frames:")] + "Frames: 0\nFrame Time: 0.033333\n",
+                            "expected at least 1 frame after MOTION, got 'Frames: 0' (a skeleton exported without"),
+                           (good.replace("Frame Time: 0.03333333\n", ""), "expected 'Frames: N' and 'Frame Time: S' "
+                                                                          "(seconds per frame) after MOTION, found only "
+                                                                          "'Frames'"),
+                           (good.replace("Frames: 3", "Frames: three"), "expected a whole number of frames after "
+                                                                        "'Frames:', got 'three'"),
+                           (good.replace("Frame Time: 0.03333333", "Frame Time: 33.333333"),
+                            "expected its Frame Time in seconds per frame (0.0333333 at 30 fps), got 33.3333: "
+                            "milliseconds (30 fps)? pass the motion's frame rate with --source-fps")):
         (tmp_path / "bad.bvh").write_text(text)
         with pytest.raises(InputError) as info:
             load_motion(tmp_path / "bad.bvh")
         _assert_one_line(info, "bad.bvh", expected)
+
+
+def test_a_frame_time_of_a_few_digits_is_its_common_rate_and_no_frame_is_lost(tmp_path):
+    """Blender writes Frame Time 0.033333, CMU 0.0083333: read as 30.0003 and 120.0005 fps, a bake at 30 lost the
+    last frame (39 of 40) and moved every frame; they are 30 and 120 (a rate off every common one stays its own).
+    A UTF-8 byte-order mark, CRLF lines and the header's lines in the other order read as the plain file."""
+    from core.motion import resample
+
+    poses, trans = _motion(40)
+    text = write_bvh(tmp_path / "walk.bvh", poses, trans, 30).read_text()
+    for frame_time, fps, frames_at_30 in (("0.033333", 30.0, 40), ("0.0083333", 120.0, 10), ("0.0345", 1 / 0.0345,
+                                                                                               41)):
+        (tmp_path / "walk.bvh").write_text(text.replace("Frame Time: 0.03333333", f"Frame Time: {frame_time}"))
+        m = load_motion(tmp_path / "walk.bvh", world_checks=False)
+        assert m.fps == pytest.approx(fps, rel=1e-12) and resample(m, 30.0).n_frames == frames_at_30
+        np.testing.assert_array_equal(resample(m, m.fps).poses, m.poses)
+    plain = load_motion(tmp_path / "walk.bvh", world_checks=False)
+    header = "Frames: 40\nFrame Time: 0.0345"
+    assert header in text.replace("Frame Time: 0.03333333", "Frame Time: 0.0345")
+    for variant in (b"\xef\xbb\xbf" + (tmp_path / "walk.bvh").read_bytes(),
+                    (tmp_path / "walk.bvh").read_bytes().replace(b"\n", b"\r\n"),
+                    (tmp_path / "walk.bvh").read_bytes().replace(b"Frames: 40\nFrame Time: 0.0345",
+                                                                 b"Frame Time : 0.0345\nFrames : 40")):
+        (tmp_path / "variant.bvh").write_bytes(variant)
+        got = load_motion(tmp_path / "variant.bvh", world_checks=False)
+        np.testing.assert_array_equal(got.poses, plain.poses)
+        assert got.fps == plain.fps
 
 
 def test_a_rig_is_retargeted_chunk_by_chunk_as_at_once(tmp_path, monkeypatch):

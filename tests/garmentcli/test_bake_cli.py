@@ -502,14 +502,20 @@ def test_outputs_keep_the_files_points_quads_and_uv_seams(scene):
 
 
 def test_bake_motions_from_a_directory_tree_keep_one_output_each(scene):
-    """A directory of motions bakes every motion under it (AMASS's shape.npz left out); two motions of one file
-    name get one output each, named by their folders (one overwrote the other before); a motion named again
-    is baked once; a directory without motions is refused."""
+    """A directory of motions bakes every motion under it (AMASS's shape.npz left out, and a Mac archive's
+    metadata: `._walk.bvh`, `__MACOSX/`, and hidden folders); two motions of one file name get one output each,
+    named by their folders (one overwrote the other before); a motion named again is baked once; a directory
+    without motions is refused."""
     tree = scene["dir"] / "mocap"
     for subject in ("s1", "s2"):
         (tree / subject).mkdir(parents=True)
         (tree / subject / "walk.npz").write_bytes(Path(scene["motion"]).read_bytes())
         np.savez(tree / subject / "shape.npz", betas=np.zeros(10), gender="male")
+    finder = b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        "  # AppleDouble metadata, no BVH
+    (tree / "s1" / "._walk.bvh").write_bytes(finder)
+    for hidden in ("__MACOSX/s1", ".ipynb_checkpoints"):
+        (tree / hidden).mkdir(parents=True)
+        (tree / hidden / "run.bvh").write_bytes(finder)
     r = run(["bake", scene["garment"], tree, tree / "s1" / "walk.npz", "--body", scene["body"], "--method", "lbs",
              "--out", scene["out"]])
     assert r.exit_code == 0, r.output
