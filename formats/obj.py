@@ -235,7 +235,7 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
             v_rows.append(parts[1:4])  # w or vertex colours follow: ignored
             v_lines.append(lineno)
         elif key == "f":
-            f_lines.append(line)
+            f_lines.append(line.split("#", 1)[0])  # a comment after the indices (as after a vertex's numbers)
             f_numbers.append(lineno)
             f_nv.append(len(v_rows))
             f_nvt.append(len(vt_rows))
@@ -546,6 +546,11 @@ def _weld(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path) -> tu
     return root[faces], n
 
 
+#: A face whose height over its longest side is under this share of that side is degenerate (dropped): a sliver
+#: of 1:1000, flat but for rounding.
+FLAT_FACE_HEIGHT = 1e-3
+
+
 def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None, label: str, path: Path,
            welded: int = 0):
     """Drop degenerate and duplicate faces and unused vertices, logging what went (not the `welded` ones)."""
@@ -555,8 +560,11 @@ def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None,
     scale = float(np.ptp(vertices[used][finite[used]], axis=0).max()) if finite[used].any() else 0.0
     tri = vertices[faces]
     area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    # Zero area relative to the mesh size; NaN areas are left for validate_garment to report.
-    zero_area = ~repeated & (area2 <= 1e-12 * scale * scale)
+    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    # Zero area relative to the mesh size, or a face flat to the file's precision: its height over its longest
+    # side under FLAT_FACE_HEIGHT of that side (three points of a line written to 6 decimals lie 1e-6 off it: such
+    # faces were kept, their normals noise). NaN areas are left for validate_garment to report.
+    zero_area = ~repeated & ((area2 <= 1e-12 * scale * scale) | (area2 <= FLAT_FACE_HEIGHT * longest * longest))
     keep = ~(repeated | zero_area)
     if (~keep).any():
         log.warning("%s '%s': dropped %d degenerate faces (%d with a repeated vertex, %d with zero area)",

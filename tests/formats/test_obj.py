@@ -101,6 +101,25 @@ def test_read_mixed_features(tmp_path, caplog):
     assert "removed 2 unused vertices" in text
 
 
+def test_faces_flat_to_the_files_precision_are_dropped_and_a_face_lines_comment_is_left_aside(tmp_path, caplog):
+    """Faces on three points of a line written to 6 decimals (an n-gon over a subdivided hem fanned into
+    triangles) are degenerate like exactly flat ones; a thin but real face stays; a comment after a face's
+    indices is left aside as after a vertex's numbers (it refused the file)."""
+    v, f = _grid(6)
+    mid = (v[f[:12, 0]] + v[f[:12, 1]]) / 2 + np.float32(4e-7)  # off the line by the file's rounding
+    thin = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.05, 0.002, 0.0]]) + [3.0, 0.0, 0.0]  # 1:50 sliver
+    verts = np.concatenate([v, mid, thin])
+    faces = np.concatenate([f, np.stack([f[:12, 0], f[:12, 1], len(v) + np.arange(12)], 1),
+                            [len(v) + 12 + np.arange(3)]])
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in verts]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" + (" # a comment" if i % 7 == 0 else "") for i, (a, b, c) in
+              enumerate(faces)]
+    with caplog.at_level(logging.WARNING, logger="formats.obj"):
+        g = read_obj(_write(tmp_path, "\n".join(lines) + "\n"))
+    assert len(g.faces) == len(f) + 1  # the grid and the sliver
+    assert "dropped 12 degenerate faces (0 with a repeated vertex, 12 with zero area)" in caplog.text
+
+
 def test_a_byte_order_mark_and_line_continuations_are_read(tmp_path):
     """A UTF-8 byte-order mark (Windows exporters) does not hide the first vertex; a line ending in a backslash
     continues on the next, except a comment (a Windows path ending in one must not swallow a vertex). Each
@@ -287,7 +306,7 @@ def test_write_read_round_trip(tmp_path, with_uvs):
     ("v 0 0 0\nv 20.1 0 0\nv 0 20 0\nf 1 2 3\n", "got an extent of 20.1 units; is it in centimetres (scale it by "
      "0.01) or inches (scale it by 0.0254)?"),
     ("v 0 0 0\nv 15 0 0\nv 0 15 0\nf 1 2 3\n", "got an extent of 15.0 units; is it in inches? scale it by 0.0254"),
-    ("v 0 0 0\nv 1e5 0 0\nv 0 1 0\nf 1 2 3\n", "got an extent of 100000.0 units"),  # no unit fits: no guess
+    ("v 0 0 0\nv 1e5 0 0\nv 0 1e5 0\nf 1 2 3\n", "got an extent of 100000.0 units"),  # no unit fits: no guess
     ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "expected finite coordinates, got NaN/Inf at vertex 1"),
     ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "got no faces"),
 ])
