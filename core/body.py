@@ -366,6 +366,10 @@ WEIGHT_SUM_TOLERANCE = 1e-3
 #: Rows further off than WEIGHT_SUM_TOLERANCE but within this (weights a tool quantised, e.g. glTF's 8-bit ones: up
 #: to about 2 % off with 4 influences) are scaled to sum to 1, with a warning; rows further off are refused.
 WEIGHT_SUM_RESCALE = 0.05
+#: Each joint regressor row (a joint as a weighted mean of the rest vertices) sums to 1 within this (SMPL, SMPL+H,
+#: SMPL-X: float32 rounding); a row of zeros put the joint at the origin, one of halves at half its place (the body
+#: and the garment posed about the wrong joints alike: nothing in a bake's numbers showed it).
+REGRESSOR_SUM_TOLERANCE = 0.01
 
 
 def validate_body_arrays(arrays: dict, source: str) -> None:
@@ -403,6 +407,13 @@ def validate_body_arrays(arrays: dict, source: str) -> None:
     if extent > MAX_BODY_EXTENT:
         raise InputError(f"body '{source}': expected metres (a body stands {BODY_SPAN_M[0]:g}-{BODY_SPAN_M[1]:g} m "
                          f"tall), got a rest mesh spanning {extent:.1f} units{unit_hint(extent, BODY_SPAN_M)}")
+    joint_sums = np.asarray(arrays["J_regressor"], dtype=np.float64).sum(axis=1)
+    wrong = np.abs(joint_sums - 1.0) > REGRESSOR_SUM_TOLERANCE
+    if wrong.any():
+        worst = int(np.argmax(np.abs(joint_sums - 1.0)))
+        raise InputError(f"body '{source}': expected J_regressor rows that sum to 1 (each joint a weighted mean of "
+                         f"the rest vertices), got {int(wrong.sum())} of {J} that do not (joint {worst}'s sums to "
+                         f"{joint_sums[worst]:.4g}): a damaged or another model's regressor?")
     sums = np.asarray(arrays["weights"], dtype=np.float64).sum(axis=1)
     off = np.abs(sums - 1.0) > WEIGHT_SUM_TOLERANCE
     if off.any():

@@ -29,6 +29,8 @@ REQUIRED_KEYS = ("v_template", "shapedirs", "J_regressor", "weights")
 #: SMPL-X files carry 300 shape + 100 expression directions in one `shapedirs`.
 SMPLX_SHAPE_AND_EXPRESSION = 400
 SMPLX_SHAPE = 300
+#: SMPL-X 1.0 files carry 10 shape + 10 expression directions.
+SMPLX_V1_SHAPE = 10
 
 
 def load_body(path: str | Path) -> Body:
@@ -36,7 +38,7 @@ def load_body(path: str | Path) -> Body:
 
     Arrays come back float32 in the file's rest frame (SMPL: Y-up, T-pose,
     metres); a 400-coefficient SMPL-X `shapedirs` keeps its first 300 (shape)
-    coefficients. Raises InputError (one line naming the file) for a missing
+    coefficients, SMPL-X 1.0's 20 its first 10. Raises InputError (one line naming the file) for a missing
     file, an unknown suffix, an unreadable file, missing keys or wrong shapes.
     """
     path = Path(path)
@@ -91,6 +93,12 @@ def body_from_file_arrays(arrays: dict, name: str, source: str) -> Body:
         log.info("%s: shapedirs has %d coefficients (SMPL-X shape + expression): keeping the first %d (shape)",
                  label, sd.shape[2], SMPLX_SHAPE)
         out["shapedirs"] = sd[:, :, :SMPLX_SHAPE]
+    elif sd.ndim == 3 and n_joints == LAYOUT_JOINTS["smplx"] and sd.shape[2] == 2 * SMPLX_V1_SHAPE:
+        # SMPL-X 1.0's files: 10 shape and 10 expression directions (as the smplx library reads them); taken whole,
+        # a motion's betas 11-16 moved the face as body shape.
+        log.info("%s: shapedirs has %d coefficients (SMPL-X 1.0: %d shape, then expression): keeping the first %d",
+                 label, sd.shape[2], SMPLX_V1_SHAPE, SMPLX_V1_SHAPE)
+        out["shapedirs"] = sd[:, :, :SMPLX_V1_SHAPE]
     try:
         return body_from_arrays(out, name=name, source=source)
     except InputError:

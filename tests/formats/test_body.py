@@ -133,14 +133,19 @@ def test_hand_families_load(tmp_path, n_joints, layout):
     assert_body_matches(body, arrays)
 
 
-def test_smplx_expression_dirs_are_dropped(tmp_path, caplog):
-    arrays = smpl_arrays(n_joints=55, n_betas=400)
+@pytest.mark.parametrize("n_dirs, n_shape", [(400, 300), (20, 10)])
+def test_smplx_expression_dirs_are_dropped(tmp_path, caplog, n_dirs, n_shape):
+    """SMPL-X 1.1's 300 shape + 100 expression directions, SMPL-X 1.0's 10 + 10 (a motion's betas 11-16 moved the
+    face as shape); an SMPL body of 20 betas keeps them all."""
+    arrays = smpl_arrays(n_joints=55, n_betas=n_dirs)
     write_npz(tmp_path / "SMPLX_NEUTRAL.npz", arrays)
     with caplog.at_level(logging.INFO, logger="formats.body"):
         body = load_body(tmp_path / "SMPLX_NEUTRAL.npz")
-    assert body.n_betas == 300
-    np.testing.assert_allclose(body.shapedirs, arrays["shapedirs"][:, :, :300], rtol=1e-6)
-    assert any("first 300" in r.getMessage() for r in caplog.records)
+    assert body.n_betas == n_shape
+    np.testing.assert_allclose(body.shapedirs, arrays["shapedirs"][:, :, :n_shape], rtol=1e-6)
+    assert any(f"first {n_shape}" in r.getMessage() for r in caplog.records)
+    write_npz(tmp_path / "smpl20.npz", smpl_arrays(n_betas=20))
+    assert load_body(tmp_path / "smpl20.npz").n_betas == 20
 
 
 def test_default_body_file_reads_as_smpl_format():
@@ -279,6 +284,19 @@ def test_weights_whose_rows_do_not_sum_to_one_are_refused(tmp_path):
     arrays["weights"] = arrays["weights"].astype(np.float32) * np.float32(1 + 1e-6)
     write_npz(tmp_path / "rounded.npz", arrays)
     load_body(tmp_path / "rounded.npz")
+
+
+def test_a_joint_regressor_whose_rows_do_not_sum_to_one_is_refused(tmp_path):
+    """A regressor of zeros (every joint at the origin) or halves (joints at half their places) posed the body and
+    the garment about the wrong joints alike, silently: one line naming the file, how many joints and the worst."""
+    for name, scale in (("zero.npz", 0.0), ("half.npz", 0.5)):
+        arrays = smpl_arrays()
+        arrays["J_regressor"] = arrays["J_regressor"] * scale
+        write_npz(tmp_path / name, arrays)
+        with pytest.raises(InputError) as e:
+            load_body(tmp_path / name)
+        _one_line(e, name, "expected J_regressor rows that sum to 1", "got 24 of 24 that do not",
+                  f"sums to {scale:g}")
 
 
 def test_weights_quantised_by_another_tool_are_scaled_to_sum_to_one_with_a_warning(tmp_path, caplog):
