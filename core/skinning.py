@@ -694,8 +694,14 @@ def oriented_outward(garment: Garment, body: Body, source: str | None = None) ->
     area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     away = centroid - TriangleMesh(body.v_template, body.faces).closest(centroid, exact=False).closest
     vote = np.sign(np.einsum("ij,ij->i", area, away)) * np.linalg.norm(area, axis=1)
-    inward = np.flatnonzero(np.bincount(piece, weights=vote) < 0)
+    sealed = closed_pieces(faces, piece)
+    inward = np.setdiff1d(np.flatnonzero(np.bincount(piece, weights=vote) < 0), sealed)
     turned = np.isin(piece, inward)
+    # A closed piece (no edge of one face: cloth given thickness, two layers joined at the rims) faces the body on
+    # one layer however it is wound: each of its faces turned away from the body on its own, so both layers read
+    # as cloth facing out (its inner layer, read facing the body, was pushed out through the outer one).
+    closed = np.isin(piece, sealed)
+    turned = np.where(closed, vote < 0, turned)
     faces[turned] = faces[turned][:, [0, 2, 1]]
     changed = (faces != garment.faces).any(axis=1)
     if not changed.any():
@@ -704,12 +710,23 @@ def oriented_outward(garment: Garment, body: Body, source: str | None = None) ->
                 "it is", source or garment.name, f"{int(changed.sum()):,}", f"{len(faces):,}",
                 "; ".join(what for what, n in (
                     (f"{rewound:,} wound against their neighbours", rewound),
-                    (f"{len(inward)} of its {int(piece.max()) + 1} pieces faced the body", len(inward))) if n))
+                    (f"{len(inward)} of its {int(piece.max()) + 1} pieces faced the body", len(inward)),
+                    (f"{int((closed & turned).sum()):,} of closed pieces (cloth given thickness?) faced the body",
+                     int((closed & turned).sum()))) if n))
     face_uvs = garment.face_uvs
     if face_uvs is not None:  # a changed face had its last two corners swapped once (twice is no change)
         face_uvs = face_uvs.copy()
         face_uvs[changed] = face_uvs[changed][:, [0, 2, 1]]
     return replace(garment, faces=faces, face_uvs=face_uvs)
+
+
+def closed_pieces(faces: np.ndarray, piece: np.ndarray) -> np.ndarray:
+    """The labels of the pieces (`piece` (F,) per face) none of whose edges belongs to one face only."""
+    directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)
+    _, edge, uses = np.unique(np.sort(directed, axis=1), axis=0, return_inverse=True, return_counts=True)
+    open_piece = np.zeros(int(piece.max(initial=-1)) + 1, dtype=bool)
+    open_piece[np.repeat(piece, 3)[uses[edge.reshape(-1)] == 1]] = True
+    return np.flatnonzero(~open_piece)
 
 
 def shaped_garment(vertices: np.ndarray, binding: GarmentBinding, betas: np.ndarray) -> np.ndarray:
