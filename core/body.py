@@ -451,7 +451,7 @@ def body_from_arrays(arrays: dict, name: str, source: str | None = None) -> Body
     a = {}
     a["v_template"] = np.asarray(arrays["v_template"], dtype=np.float32)
     sd = np.asarray(arrays["shapedirs"], dtype=np.float32)
-    if sd.ndim == 2:  # (V, 3) single coefficient
+    if sd.ndim == 2 and sd.shape[1] == 3:  # (V, 3) single coefficient
         sd = sd[..., None]
     a["shapedirs"] = sd
     Jr = arrays["J_regressor"]

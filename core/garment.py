@@ -177,6 +177,30 @@ def unit_hint(extent: float, span_m: tuple[float, float], command: str = "", sca
     return ""
 
 
+#: A vertex further from the garment's middle (the median point) than STRAY_FACTOR times the median vertex's
+#: distance, and STRAY_LEAST_M at least, is a stray: a garment's own reach no more than about 3 times the median
+#: (the example dress 2.3, a scarf or a sleeve of a T-posed shirt more), one vertex dragged off by a slip of a tool
+#: far more.
+STRAY_FACTOR = 10.0
+STRAY_LEAST_M = 1.0
+
+
+def _refuse_strays(points: np.ndarray, source: str) -> None:
+    """InputError naming `source` where some of a garment's used vertices `points` lie far from the rest (`STRAY_FACTOR`); one stray vertex 40 m off was blamed on the file's units, one 5 m off baked a spike."""
+    distance = np.linalg.norm(points - np.median(points, axis=0), axis=1)
+    typical = float(np.median(distance))
+    stray = distance > max(STRAY_FACTOR * typical, STRAY_LEAST_M * (typical > 0))
+    if not stray.any() or stray.mean() > 0.05:  # more than a few: the garment itself (its units are checked next)
+        return
+    worst = int(np.argmax(distance))
+    rest = float(distance[~stray].max())
+    where = ", ".join(f"{x:.4g}" for x in points[worst])
+    raise InputError(f"garment mesh '{source}': expected one garment, got {int(stray.sum())} "
+                     f"{'vertex' if stray.sum() == 1 else 'vertices'} far from the rest (the furthest at ({where}), "
+                     f"{distance[worst]:.3g} units from its middle; the other vertices within {rest:.3g}): stray "
+                     f"vertices a tool left? remove them")
+
+
 def validate_garment(garment: Garment, source: str, scale: float = 1.0) -> None:
     """Checks every garment must pass before it is deformed; raise InputError naming `source`. scale: what the
     file's coordinates were multiplied by (`garment unpose --scale`): a unit's scale named is relative to the file."""
@@ -188,7 +212,9 @@ def validate_garment(garment: Garment, source: str, scale: float = 1.0) -> None:
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
         raise InputError(f"garment mesh '{source}': expected finite coordinates, got NaN/Inf at vertex {int(np.argmax(bad))}")
-    extent = float(np.max(v[np.unique(f)].max(0) - v[np.unique(f)].min(0)))
+    used = v[np.unique(f)].astype(np.float64)
+    _refuse_strays(used, source)
+    extent = float(np.max(used.max(0) - used.min(0)))
     if extent > 10.0:
         # The units whose metres fit a garment: centimetres or millimetres (Marvelous Designer's and CLO's default
         # export), inches; all of those that could be it, as the file does not say.

@@ -50,6 +50,14 @@ def load_body(path: str | Path) -> Body:
     readers = {".npz": _read_npz, ".pkl": _read_pkl}
     if suffix not in readers:
         raise InputError(f"{label}: expected a .npz or .pkl SMPL-format file, got suffix '{path.suffix}'")
+    try:
+        with open(path, "rb") as fh:
+            zipped = fh.read(4) == b"PK\x03\x04"
+    except OSError:
+        zipped = False  # the reader says why it cannot read it
+    if zipped and suffix == ".pkl":  # an .npz saved under the name a pickle has (numpy's archive: a zip)
+        log.info("%s: a numpy .npz archive, read as one", label)
+        suffix = ".npz"
     arrays = readers[suffix](path, label)
     return replace(body_from_file_arrays(arrays, name=path.stem, source=str(path)), path=str(path))
 
@@ -116,7 +124,15 @@ def _read_npz(path: Path, label: str) -> dict:
             for key in files:
                 if key in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table",
                            "parents", "f", "faces") or key.endswith(("_indices", "_values", "_shape")):
-                    arrays[key] = data[key]
+                    try:
+                        arrays[key] = data[key]
+                    except ValueError as exc:
+                        if "allow_pickle" not in str(exc):
+                            raise
+                        # np.savez of an official pickle's dict: its scipy.sparse J_regressor a pickled object
+                        raise InputError(f"{label}: expected '{key}' as a numeric array, got a pickled object "
+                                         f"(numpy's savez of a scipy.sparse matrix?): save it as an array "
+                                         f"(.toarray()), or give the original .pkl") from None
     except InputError:
         raise
     except NPZ_READ_ERRORS as exc:

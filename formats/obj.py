@@ -546,9 +546,9 @@ def _weld(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path) -> tu
     return root[faces], n
 
 
-#: A face whose height over its longest side is under this share of that side is degenerate (dropped): a sliver
-#: of 1:1000, flat but for rounding.
-FLAT_FACE_HEIGHT = 1e-3
+#: A face with a corner's angle within this (radians: 0.57 degrees) of 180 degrees is degenerate (dropped): flat
+#: but for rounding.
+FLAT_FACE_ANGLE = 0.01
 
 
 def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None, label: str, path: Path,
@@ -560,11 +560,16 @@ def _clean(vertices: np.ndarray, faces: np.ndarray, face_uvs: np.ndarray | None,
     scale = float(np.ptp(vertices[used][finite[used]], axis=0).max()) if finite[used].any() else 0.0
     tri = vertices[faces]
     area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
-    # Zero area relative to the mesh size, or a face flat to the file's precision: its height over its longest
-    # side under FLAT_FACE_HEIGHT of that side (three points of a line written to 6 decimals lie 1e-6 off it: such
-    # faces were kept, their normals noise). NaN areas are left for validate_garment to report.
-    zero_area = ~repeated & ((area2 <= 1e-12 * scale * scale) | (area2 <= FLAT_FACE_HEIGHT * longest * longest))
+    # Zero area relative to the mesh size, or a face flat to the file's precision: a corner's angle within
+    # FLAT_FACE_ANGLE of 180 degrees (three points of a line written to 6 decimals lie 1e-6 off it: such faces
+    # were kept, their normals noise; a face to a stray vertex far off is thin, not flat, and stays for
+    # validate_garment to name). NaN areas are left for validate_garment to report.
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = [tri[:, (k + 1) % 3] - tri[:, k] for k in range(3)]  # edge k leaves corner k
+        cosines = [-np.einsum("fc,fc->f", out[k], out[k - 1]) / (np.linalg.norm(out[k], axis=1) *
+                                                                 np.linalg.norm(out[k - 1], axis=1)) for k in range(3)]
+        flat = np.min(cosines, axis=0) < -np.cos(FLAT_FACE_ANGLE)
+    zero_area = ~repeated & ((area2 <= 1e-12 * scale * scale) | flat)
     keep = ~(repeated | zero_area)
     if (~keep).any():
         log.warning("%s '%s': dropped %d degenerate faces (%d with a repeated vertex, %d with zero area)",

@@ -133,6 +133,27 @@ def test_hand_families_load(tmp_path, n_joints, layout):
     assert_body_matches(body, arrays)
 
 
+def test_a_body_converted_naively_or_misnamed_is_read_or_named_for_what_it_is(tmp_path):
+    """An official pickle's dict given to np.savez (its scipy.sparse J_regressor a pickled object: it was called
+    no .npz archive), a flattened shapedirs (reported with an axis the file lacks), and a body .npz named .pkl (an
+    UnpicklingError): one line naming the key, the file's own shape; the misnamed one reads."""
+    import scipy.sparse
+
+    arrays = smpl_arrays()
+    np.savez(tmp_path / "converted.npz", **{**arrays, "J_regressor": np.array(scipy.sparse.csc_matrix(
+        arrays["J_regressor"]), dtype=object)})
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "converted.npz")
+    _one_line(e, "converted.npz", "expected 'J_regressor' as a numeric array, got a pickled object", ".toarray()")
+    np.savez(tmp_path / "flat.npz", **{**arrays, "shapedirs": arrays["shapedirs"].reshape(V * 3, 10)})
+    with pytest.raises(InputError) as e:
+        load_body(tmp_path / "flat.npz")
+    _one_line(e, "flat.npz", f"expected shapedirs of shape (V={V}, 3, S), got ({V * 3}, 10)")
+    write_npz(tmp_path / "body.npz", arrays)
+    (tmp_path / "body.pkl").write_bytes((tmp_path / "body.npz").read_bytes())
+    assert_body_matches(load_body(tmp_path / "body.pkl"), arrays)
+
+
 @pytest.mark.parametrize("n_dirs, n_shape", [(400, 300), (20, 10)])
 def test_smplx_expression_dirs_are_dropped(tmp_path, caplog, n_dirs, n_shape):
     """SMPL-X 1.1's 300 shape + 100 expression directions, SMPL-X 1.0's 10 + 10 (a motion's betas 11-16 moved the

@@ -120,6 +120,26 @@ def test_faces_flat_to_the_files_precision_are_dropped_and_a_face_lines_comment_
     assert "dropped 12 degenerate faces (0 with a repeated vertex, 12 with zero area)" in caplog.text
 
 
+@pytest.mark.parametrize("far", [40.0, 5.0])
+def test_a_stray_vertex_is_named_not_taken_for_the_files_units(tmp_path, far):
+    """One vertex of a garment dragged 40 m off was blamed on the file's units (following the advice made a 5 mm
+    garment), one 5 m off baked a spike: one line naming where it is; the garment in centimetres still gets the
+    unit's advice."""
+    v, f = _grid(12)
+    spike = np.concatenate([v, [[far, 0.5, 0.0]]])
+    faces = np.concatenate([f, [[0, 1, len(v)]]])
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in spike] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    with pytest.raises(InputError) as info:
+        read_obj(_write(tmp_path, "\n".join(lines) + "\n"))
+    message = str(info.value)
+    assert "expected one garment, got 1 vertex far from the rest (the furthest at (" in message
+    assert f"{far:g}, 0.5, 0)" in message and "stray vertices a tool left? remove them" in message
+    assert "units;" not in message and "\n" not in message
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in v * 100] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in f]
+    with pytest.raises(InputError, match="is it in centimetres"):
+        read_obj(_write(tmp_path, "\n".join(lines) + "\n", "cm.obj"))
+
+
 def test_a_byte_order_mark_and_line_continuations_are_read(tmp_path):
     """A UTF-8 byte-order mark (Windows exporters) does not hide the first vertex; a line ending in a backslash
     continues on the next, except a comment (a Windows path ending in one must not swallow a vertex). Each
