@@ -679,6 +679,11 @@ def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str
     return _fix_text(_DROP.format(drop=soles), np.eye(3), np.array([0.0, -soles, 0.0]), inside, name, placed)
 
 
+#: A closed piece whose faces face the body over this share of its area or more, wound alike, is cloth of two
+#: layers (`oriented_outward`).
+LAYERED_SHARE = 0.25
+
+
 def oriented_outward(garment: Garment, body: Body, source: str | None = None) -> Garment:
     """`garment` with its faces wound alike across shared edges (`core.garment.consistent_winding`) and each
     connected piece facing away from the rest body (the faces' area, signed by whether their normal points away
@@ -694,13 +699,17 @@ def oriented_outward(garment: Garment, body: Body, source: str | None = None) ->
     area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     away = centroid - TriangleMesh(body.v_template, body.faces).closest(centroid, exact=False).closest
     vote = np.sign(np.einsum("ij,ij->i", area, away)) * np.linalg.norm(area, axis=1)
+    # A closed piece (no edge of one face) whose faces face the body over a quarter of its area or more however it
+    # is wound is cloth given thickness (two layers joined at the rims): each of its faces is turned away from the
+    # body on its own, so both layers read as cloth facing out (its inner layer, read facing the body, was pushed
+    # out through the outer one). A closed shell about the body faces one way and turns as a piece.
     sealed = closed_pieces(faces, piece)
-    inward = np.setdiff1d(np.flatnonzero(np.bincount(piece, weights=vote) < 0), sealed)
+    facing = np.bincount(piece, weights=np.maximum(vote, 0.0), minlength=len(sealed))
+    against = np.bincount(piece, weights=np.maximum(-vote, 0.0), minlength=len(sealed))
+    layered = sealed[np.minimum(facing, against)[sealed] >= LAYERED_SHARE * (facing + against)[sealed]]
+    inward = np.setdiff1d(np.flatnonzero(np.bincount(piece, weights=vote) < 0), layered)
     turned = np.isin(piece, inward)
-    # A closed piece (no edge of one face: cloth given thickness, two layers joined at the rims) faces the body on
-    # one layer however it is wound: each of its faces turned away from the body on its own, so both layers read
-    # as cloth facing out (its inner layer, read facing the body, was pushed out through the outer one).
-    closed = np.isin(piece, sealed)
+    closed = np.isin(piece, layered)
     turned = np.where(closed, vote < 0, turned)
     faces[turned] = faces[turned][:, [0, 2, 1]]
     changed = (faces != garment.faces).any(axis=1)
@@ -711,7 +720,8 @@ def oriented_outward(garment: Garment, body: Body, source: str | None = None) ->
                 "; ".join(what for what, n in (
                     (f"{rewound:,} wound against their neighbours", rewound),
                     (f"{len(inward)} of its {int(piece.max()) + 1} pieces faced the body", len(inward)),
-                    (f"{int((closed & turned).sum()):,} of closed pieces (cloth given thickness?) faced the body",
+                    (f"{int((closed & turned).sum()):,} of closed pieces of two layers (cloth given thickness?) "
+                     f"faced the body",
                      int((closed & turned).sum()))) if n))
     face_uvs = garment.face_uvs
     if face_uvs is not None:  # a changed face had its last two corners swapped once (twice is no change)
