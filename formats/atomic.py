@@ -172,17 +172,40 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
+def refuse_replacing(final: str | os.PathLike, inputs=()) -> None:
+    """InputError where replacing the folder `final` whole (`--overwrite`) would take the working folder, a folder
+    above it, or one of `inputs` with it (`render --out BAKE --overwrite` deleted the bake it rendered; `--out .`
+    everything in the working folder)."""
+    given = final
+    final = Path(os.path.abspath(final))
+    if not final.is_dir():
+        return
+    here = Path.cwd().resolve()
+    target = final.resolve()
+    if target == here or target in here.parents:
+        raise InputError(f"output '{given}' is the working folder or holds it: --overwrite replaces the output "
+                         f"folder whole; expected a folder of the outputs' own (--out)")
+    for path in inputs:
+        if path is not None and target in Path(os.path.abspath(path)).resolve().parents:
+            raise InputError(f"output '{given}' holds the input '{path}': --overwrite replaces the output folder "
+                             f"whole; expected a folder of the outputs' own (--out)")
+
+
 @contextmanager
-def atomic_dir(final: str | os.PathLike, overwrite: bool):
+def atomic_dir(final: str | os.PathLike, overwrite: bool, inputs=()):
     """Yield a temporary directory beside `final`; on success it becomes `final`.
 
-    Refuses an existing `final` unless `overwrite` (InputError naming it). On an
-    exception the temporary directory is removed and `final` is untouched.
+    Refuses an existing `final` unless `overwrite` (InputError naming it), and one whose replacing would take the
+    working folder or `inputs` with it (`refuse_replacing`). On an exception the temporary directory is removed
+    and `final` is untouched.
     """
     final = Path(final)
+    if final.name in ("", ".."):  # '.' or '..': by the name of the folder it is
+        final = Path(os.path.abspath(final))
     _refuse_special(final)
     if final.exists() and not overwrite:
         raise InputError(f"output '{final}' exists: pass --overwrite to replace it")
+    refuse_replacing(final, inputs)
     with _writing(final):
         final.parent.mkdir(parents=True, exist_ok=True)
         _sweep(final.parent, final.name)

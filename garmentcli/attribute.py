@@ -76,7 +76,7 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     from core.attribution import DeformationTarget, attribution_table, integrated_gradients
     from core.model_data import prepare_garment
     from core.model_deform import model_body, skeleton_mismatch
-    from formats.atomic import atomic_dir
+    from formats.atomic import atomic_dir, refuse_replacing
     from formats.checkpoint import load_model
     from formats.obj import read_garment
 
@@ -93,6 +93,8 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     motion, _ = prepare_motion(motion_path, fps, None, 0, body=body, motion_up=motion_up, person=person,
                                take=take)
     out = Path(out_dir or f"{Path(garment_path).stem}_{Path(motion_path).stem}_f{frame}_attribution")
+    inputs = (model_path, garment_path, motion_path, vertices_path, body_path)
+    refuse_replacing(out, inputs)
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     g = prepare_garment(garment, view, model.config, source=garment_path, near=False).inputs
@@ -117,7 +119,7 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
         per_vertex = torch.linalg.norm(verts - target.lbs, dim=-1).numpy()
         verts = verts.numpy()
     feature_map = att.phi.garment.abs().sum(1).numpy()
-    with atomic_dir(out, overwrite) as tmp:
+    with atomic_dir(out, overwrite, inputs) as tmp:
         (tmp / "attributions.md").write_text("\n".join(lines) + "\n")
         with open(tmp / "attributions.csv", "w", newline="") as fh:
             w = csv.writer(fh)

@@ -8,7 +8,7 @@ import click
 from tqdm import tqdm
 
 from core.errors import InputError
-from formats.atomic import atomic_dir
+from formats.atomic import atomic_dir, refuse_replacing
 from formats.render import check_azimuth, check_value_range
 from garmentcli.common import OutputPath, checked_by, input_errors_as_click
 
@@ -93,6 +93,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
     if out_dir is None:  # beside INPUT; for '.' or '..' beside the folder they name, never inside it
         src = input_path.resolve() if input_path.name in ("", "..") else input_path
         out_dir = src.parent / f"{src.stem}_render"
+    refuse_replacing(out_dir, (input_path, gt_path))
     if out_dir.exists() and not overwrite:
         raise click.ClickException(f"output '{out_dir}' exists: pass --overwrite to replace it")
     if no_png and no_mp4 and no_sheet:
@@ -113,7 +114,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
     scene = scene_from_sequence(seq, color=color, gt=gt, scalars=scalars, scalar_label=label,
                                 value_range=value_range, frames=frame_slice)
     total = scene.n_frames * len(options.cameras)
-    with atomic_dir(out_dir, overwrite) as tmp:
+    with atomic_dir(out_dir, overwrite, (input_path, gt_path)) as tmp:
         with tqdm(total=total, unit="frame", desc="render", disable=None, leave=False) as bar:
             written = render_outputs(scene, tmp, options, png_frames=not no_png, mp4=not no_mp4, sheet=not no_sheet,
                                      progress=bar.update)

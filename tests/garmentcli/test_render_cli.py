@@ -150,6 +150,25 @@ def test_render_dot_writes_beside_the_folder_not_inside_it(seqs, monkeypatch):
     assert not list(folder.glob("*render*"))
 
 
+def test_overwrite_never_replaces_the_input_or_the_working_folder(seqs, monkeypatch):
+    """--overwrite replaces the output folder whole: an --out that holds INPUT (the bake folder rendered into itself
+    deleted the bake), the working folder or one above it (`--out .`: everything in it; it also ended in a
+    traceback and left a hidden folder) is refused in one line before any work, and nothing is removed."""
+    bake = seqs["dir"] / "bake"
+    bake.mkdir()
+    (bake / "pred.npz").write_bytes(seqs["pred"].read_bytes())
+    before = sorted(p.name for p in seqs["dir"].iterdir())
+    line = error_line(run("render", bake / "pred.npz", "--out", bake, "--size", "64x64", "--overwrite"))
+    assert f"output '{bake}' holds the input '{bake / 'pred.npz'}'" in line
+    monkeypatch.chdir(bake)
+    for out in (".", "..", str(bake)):
+        for flag in ("--overwrite", None):
+            line = error_line(run("render", "pred.npz", "--out", out, "--size", "64x64", *([flag] if flag else [])))
+            assert "is the working folder or holds it" in line, line
+    assert sorted(p.name for p in seqs["dir"].iterdir()) == before and (bake / "pred.npz").is_file()
+    assert [p.name for p in bake.iterdir()] == ["pred.npz"]
+
+
 def test_render_frames_accepts_a_step_and_refuses_a_bad_one(seqs, tmp_path):
     res = run("render", seqs["pred"], "--out", tmp_path / "s", "--frames", "::2", "--size", "64x64", "--no-mp4",
               "--no-sheet")
