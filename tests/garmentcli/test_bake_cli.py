@@ -567,22 +567,24 @@ def test_start_frame_numbers_the_usd_time_codes_and_obj_frames(scene):
 def test_point_caches_hold_the_obj_frames_in_the_garment_files_frame(scene):
     """--point-cache pc2 --point-cache mdd: <garment>_<motion>.pc2 and .mdd beside the stage hold every OBJ frame's
     points in their order, turned back to the garment file's Y-up frame, numbered from --start-frame (MDD: its
-    times in seconds), which `metrics` reads against the bake (the same points: zero error); an unknown format is
-    refused before any work."""
+    times in seconds), which `metrics` reads against the bake (the same points: zero error; at frame 1001 of 24
+    fps the MDD's float32 times read as 23.9993 fps, refused against the bake's 24); an unknown format is refused
+    before any work."""
     from core.geometry import Y_UP_TO_Z_UP_MATRIX
     from formats.pointcache import read_point_cache
     from formats.sequence import read_sequence
 
     common = [scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs"]
     r = run(["bake", *common, "--point-cache", "pc2", "--point-cache", "mdd", "--point-cache", "pc2",
-             "--start-frame", "1", "--out", scene["out"] / "caches"])
+             "--start-frame", "1001", "--fps", "24", "--out", scene["out"] / "caches"])
     assert r.exit_code == 0, r.output
     d = scene["out"] / "caches" / "shell_walk"
     frames = read_sequence(d / "obj").points
     summary = json.loads((d / "summary.json").read_text())
     fps = summary["fps"]
     assert summary["options"]["point_caches"] == ["pc2", "mdd"]
-    for kind, stamps in (("pc2", 1 + np.arange(len(frames))), ("mdd", (1 + np.arange(len(frames))) / fps)):
+    assert fps == 24
+    for kind, stamps in (("pc2", 1001 + np.arange(len(frames))), ("mdd", (1001 + np.arange(len(frames))) / fps)):
         points, read_stamps = read_point_cache(d / f"shell_walk.{kind}")
         np.testing.assert_allclose(points @ Y_UP_TO_Z_UP_MATRIX.T, frames, atol=1e-6)
         np.testing.assert_allclose(read_stamps, stamps, rtol=1e-6)
