@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import os
 import re
 import tempfile
 import zipfile
@@ -44,6 +45,8 @@ def unwritable_reason(path: str | Path) -> str | None:
         Path(path).exists()  # a name longer than the file system takes (ENAMETOOLONG) raises here
     except OSError as exc:
         return f"{exc.strerror or exc}"
+    if Path(path).is_symlink() and not Path(path).exists():  # taken for a missing path, it failed after the work
+        return f"it is a link to '{os.readlink(path)}', which is not there (a disk not mounted?)"
     try:
         folder = nearest_existing(folder)
         if not folder.is_dir():

@@ -618,9 +618,9 @@ def test_preroll_frames_are_deformed_and_not_written(scene):
 
 
 def test_an_output_that_cannot_be_written_stops_before_any_work(scene, tmp_path, monkeypatch):
-    """--out under a file, or in a folder where nothing can be made (a read-only or virtual file system: root
-    passes every permission check, so it is tried): one line naming --out when the command line is read, nothing
-    baked or left behind."""
+    """--out under a file, a link to nothing, or in a folder where nothing can be made (a read-only or virtual file
+    system: root passes every permission check, so it is tried): one line naming --out when the command line is
+    read, nothing baked or left behind."""
     import garmentcli.bake
 
     afile = tmp_path / "afile"
@@ -628,6 +628,10 @@ def test_an_output_that_cannot_be_written_stops_before_any_work(scene, tmp_path,
     monkeypatch.setattr(garmentcli.bake, "bake_task", lambda *a, **k: pytest.fail("baked"))
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", afile / "sub"])
     assert_one_line_error(r, "'--out'", "is a file, not a folder")
+    dangling = tmp_path / "scratch"
+    dangling.symlink_to(tmp_path / "not_mounted" / "bakes")  # a link to a disk not mounted: failed after the work
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", dangling])
+    assert_one_line_error(r, "'--out'", f"it is a link to '{tmp_path / 'not_mounted' / 'bakes'}', which is not there")
     readonly = tmp_path / "readonly"
     readonly.mkdir()
 
