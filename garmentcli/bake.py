@@ -443,6 +443,10 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     if overwrite and skip_existing:
         raise click.UsageError("--overwrite and --skip-existing exclude each other")
     if skip_existing:
+        other = next((t for _, t, _ in targets if t.exists() and not (t / "summary.json").is_file()), None)
+        if other is not None:  # a file or an empty folder by the bake's name was taken for a finished bake
+            raise click.ClickException(f"output '{other}' exists and is no finished bake (no summary.json in it): "
+                                       f"remove it, or pass --overwrite instead of --skip-existing")
         done = [t for _, t, _ in targets if t.exists()]
         targets = [item for item in targets if not item[1].exists()]
         click.echo(f"{out_dir}: {len(done)} of {len(done) + len(targets)} motions already baked, skipped")

@@ -362,6 +362,11 @@ def test_skip_existing_with_every_motion_baked_does_nothing(scene):
     r = run([*args, "--skip-existing", "--quality", "auto"])  # nothing left to choose a quality for
     assert r.exit_code == 0 and "quality auto" not in r.output, r.output
     assert summary.stat().st_mtime_ns == before
+    other = scene["dir"] / "other"
+    (other / "shell_walk").mkdir(parents=True)  # an empty folder (or a file) by the bake's name: no finished bake
+    r = run([*args[:-3], "--out", other, "--skip-existing"])
+    assert_one_line_error(r, f"output '{other / 'shell_walk'}' exists and is no finished bake (no summary.json")
+    assert list((other / "shell_walk").iterdir()) == []
 
 
 def _two_panel_quad_tube(path, n_theta=16, n_rows=5, materials=("", "")):
