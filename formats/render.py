@@ -294,7 +294,9 @@ def scene_from_sequence(seq, color: str = "plain", gt=None, scalars: np.ndarray 
         check_finite_sequence(gt, "--gt")
     idx = np.arange(seq.n_frames) if frames is None else np.arange(seq.n_frames)[frames]
     if idx.size == 0:
-        raise InputError(f"--frames: selects no frame of '{seq.source}' ({seq.n_frames} frames)")
+        numbered = "" if not seq.first_frame else \
+            f", numbered {seq.first_frame}-{seq.first_frame + seq.n_frames - 1}: --frames counts them from 0"
+        raise InputError(f"--frames: selects no frame of '{seq.source}' ({seq.n_frames} frames{numbered})")
     body_points = None if seq.body_points is None else seq.body_points[idx]
     kwargs = {}
     if color == "error":
@@ -323,7 +325,7 @@ def scene_from_sequence(seq, color: str = "plain", gt=None, scalars: np.ndarray 
     elif color != "plain":
         raise InputError(f"--color: expected plain, error, penetration or scalar, got '{color}'")
     return Scene(garment_points=seq.points[idx], garment_faces=seq.faces, body_points=body_points,
-                 body_faces=seq.body_faces, fps=seq.fps, frame_numbers=idx, **kwargs)
+                 body_faces=seq.body_faces, fps=seq.fps, frame_numbers=seq.first_frame + idx, **kwargs)
 
 
 # ---------------------------------------------------------------------------
@@ -871,17 +873,19 @@ def render_outputs(scene: Scene, out_dir: str | os.PathLike, options: RenderOpti
 
 def render_bake(directory: str | os.PathLike, garment_points: np.ndarray, garment_faces: np.ndarray,
                 body_points: np.ndarray | None, body_faces: np.ndarray | None, fps: float | None,
-                options: RenderOptions = RenderOptions(cameras=("front", "side"))) -> dict[str, list[Path]]:
+                options: RenderOptions = RenderOptions(cameras=("front", "side")), first_frame: int = 0
+                ) -> dict[str, list[Path]]:
     """What `garment bake --render` writes into its output: an MP4 per camera and a contact sheet.
 
     garment_points: (T, V, 3) float32 metres, Z-up; garment_faces: (F, 3) int; body_points
-    (T, Vb, 3) and body_faces (Fb, 3) or None; fps: frames per second. No PNG frames
-    (`garment render` writes those on demand).
+    (T, Vb, 3) and body_faces (Fb, 3) or None; fps: frames per second; first_frame: the number of the first (the
+    bake's --start-frame), as the sheet labels it. No PNG frames (`garment render` writes those on demand).
     """
     scene = Scene(garment_points=np.asarray(garment_points, dtype=np.float32),
                   garment_faces=np.asarray(garment_faces, dtype=np.int64),
                   body_points=None if body_points is None else np.asarray(body_points, dtype=np.float32),
-                  body_faces=None if body_faces is None else np.asarray(body_faces, dtype=np.int64), fps=fps)
+                  body_faces=None if body_faces is None else np.asarray(body_faces, dtype=np.int64), fps=fps,
+                  frame_numbers=first_frame + np.arange(len(garment_points)))
     return render_outputs(scene, directory, options, png_frames=False, mp4=True, sheet=True)
 
 

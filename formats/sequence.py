@@ -36,6 +36,8 @@ class Sequence:
     points: (T, V, 3) float32, metres. faces: (F, 3) int64. fps: frames per
     second, or None when the file does not say. body_points: (T, Vb, 3) float32
     metres or None; body_faces: (Fb, 3) int64 or None. source: the path read.
+    first_frame: the number of its first frame (a USD stage's start time code, the first OBJ frame's file
+    number: a bake's `--start-frame`; 0 where the file tells none).
     """
 
     points: np.ndarray
@@ -44,6 +46,7 @@ class Sequence:
     body_points: np.ndarray | None = None
     body_faces: np.ndarray | None = None
     source: str = ""
+    first_frame: int = 0
 
     @property
     def n_frames(self) -> int:
@@ -262,7 +265,9 @@ def _read_obj_directory(directory: Path) -> Sequence:
                              f"({first.vertices.shape[0]} vertices, {len(first.polygons)} faces), got "
                              f"{frame.vertices.shape[0]} vertices, {len(frame.polygons)} faces in {path.name}")
         points[t] = frame.vertices
-    return Sequence(points=points, faces=faces, fps=fps, source=str(directory))
+    number = re.search(r"(\d+)$", files[0].stem)
+    return Sequence(points=points, faces=faces, fps=fps, source=str(directory),
+                    first_frame=int(number.group(1)) if number else 0)
 
 
 def _read_single_obj(path: Path) -> Sequence:
@@ -319,7 +324,8 @@ def _read_usd_sequence(path: Path, track: str) -> Sequence:
                              f"like '{garment.name}', got {body.points.shape[0]}")
         body_points, body_faces = body.points.astype(np.float32), body.faces.astype(np.int64)
     return Sequence(points=garment.points.astype(np.float32), faces=garment.faces.astype(np.int64),
-                    fps=seq.fps, body_points=body_points, body_faces=body_faces, source=str(path))
+                    fps=seq.fps, body_points=body_points, body_faces=body_faces, source=str(path),
+                    first_frame=seq.start_frame)
 
 
 def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:

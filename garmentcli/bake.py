@@ -270,7 +270,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared) ->
             from formats.render import render_bake
 
             render_bake(tmp / "render", result.garment_points, garment.faces, result.body_points,
-                        body.faces, spec.fps)
+                        body.faces, spec.fps, first_frame=spec.start_frame)
     return result.summary
 
 

@@ -169,6 +169,30 @@ def test_overwrite_never_replaces_the_input_or_the_working_folder(seqs, monkeypa
     assert [p.name for p in bake.iterdir()] == ["pred.npz"]
 
 
+def test_frames_are_numbered_as_the_sequence_numbers_them(seqs, tmp_path):
+    """OBJ frames numbered from 1001 (a bake's --start-frame) and a USD stage starting at 1001: the PNGs and the
+    sheet's labels carry 1001..., not 0...; --frames (counted from 0) that selects nothing says how they are
+    numbered."""
+    from formats.sequence import read_sequence, write_obj_sequence
+    from formats.usd import MeshTrack, write_usd_stage
+
+    vg, fg = icosphere(2, radius=0.3)
+    points = vg[None] + np.array([[0.0, 0.01 * t, 0.3] for t in range(3)])[:, None]
+    write_obj_sequence(tmp_path / "shot", points, fg, fps=24.0, start=1001)
+    assert read_sequence(tmp_path / "shot").first_frame == 1001
+    write_usd_stage(tmp_path / "shot.usd", [MeshTrack("garment", points.astype(np.float32), fg)], fps=24.0,
+                    start_frame=1001)
+    assert read_sequence(tmp_path / "shot.usd").first_frame == 1001
+    for source in ("shot", "shot.usd"):
+        out = tmp_path / f"r_{source}"
+        res = run("render", tmp_path / source, "--out", out, "--size", "64x64", "--no-mp4", "--no-sheet")
+        assert res.exit_code == 0, res.output
+        assert sorted(p.name for p in (out / "frames" / "front").iterdir()) == [
+            "frame_1001.png", "frame_1002.png", "frame_1003.png"]
+        line = error_line(run("render", tmp_path / source, "--out", tmp_path / "none", "--frames", "1001:1003"))
+        assert "(3 frames, numbered 1001-1003: --frames counts them from 0)" in line
+
+
 def test_render_frames_accepts_a_step_and_refuses_a_bad_one(seqs, tmp_path):
     res = run("render", seqs["pred"], "--out", tmp_path / "s", "--frames", "::2", "--size", "64x64", "--no-mp4",
               "--no-sheet")
