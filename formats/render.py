@@ -116,11 +116,17 @@ class Scene:
                        inside=pick(self.inside))
 
 
+#: An MP4 plays at least this many frames per second (a bake at --fps 1e-7 handed ffmpeg a rate of 0 and wrote no
+#: video): slower rates play as a slide show at this one.
+MIN_PLAYBACK_FPS = 1.0
+
+
 def playback_fps(scene: Scene) -> float:
-    """Frames per second of the scene's rows: its fps (30 if unknown) over the step between kept frames."""
+    """Frames per second of the scene's rows: its fps (30 if unknown) over the step between kept frames, at least
+    MIN_PLAYBACK_FPS."""
     steps = np.diff(scene.frame_numbers)
     step = float(np.median(steps)) if steps.size else 1.0
-    return (scene.fps or 30.0) / max(step, 1.0)
+    return max((scene.fps or 30.0) / max(step, 1.0), MIN_PLAYBACK_FPS)
 
 
 @dataclass(frozen=True)
@@ -794,8 +800,11 @@ class Mp4Writer:
             image = np.pad(image, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
         self._writer.append_data(np.asarray(image, dtype=np.uint8))
 
-    def close(self) -> None:
+    def close(self, check: bool = True) -> None:
+        """Finish the file; `check`: RenderError where ffmpeg wrote none (its failure was counted as a video)."""
         self._writer.close()
+        if check and (not self.path.is_file() or self.path.stat().st_size == 0):
+            raise RenderError(f"MP4 '{self.path.name}': ffmpeg wrote no video (its messages above say why)")
 
 
 def contact_sheet(rows: list[list[np.ndarray]], labels: list[list[str]] | None = None,
@@ -858,10 +867,12 @@ def render_outputs(scene: Scene, out_dir: str | os.PathLike, options: RenderOpti
                         row_labels.append(f"{cam} {int(scene.frame_numbers[t])}")
                     if progress is not None:
                         progress(1)
-            finally:
+            except BaseException:
                 if video is not None:
-                    video.close()
+                    video.close(check=False)
+                raise
             if video is not None:
+                video.close()
                 written["mp4"].append(video.path)
             rows.append(row)
             labels.append(row_labels)

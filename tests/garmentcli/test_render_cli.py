@@ -193,6 +193,21 @@ def test_frames_are_numbered_as_the_sequence_numbers_them(seqs, tmp_path):
         assert "(3 frames, numbered 1001-1003: --frames counts them from 0)" in line
 
 
+def test_a_camera_named_twice_is_drawn_once_and_a_slow_sequence_plays_at_one_fps(seqs, tmp_path):
+    """--camera side --camera side: one video and one row (it reported two of each, one file written); a sequence
+    at 1e-7 fps plays at MIN_PLAYBACK_FPS (ffmpeg was handed a rate of 0 and wrote no video, reported written)."""
+    from formats.render import MIN_PLAYBACK_FPS, Scene, playback_fps
+
+    out = tmp_path / "twice"
+    res = run("render", seqs["pred"], "--out", out, "--size", "64x64", "--camera", "side", "--camera", "side",
+              "--no-png")
+    assert res.exit_code == 0 and "1 camera(s)" in res.output and "1 MP4" in res.output, res.output
+    assert [p.name for p in out.glob("*.mp4")] == ["side.mp4"]
+    vg, fg = icosphere(1, radius=0.3)
+    slow = Scene(garment_points=np.repeat(vg[None], 2, 0).astype(np.float32), garment_faces=fg, fps=1e-7)
+    assert playback_fps(slow) == MIN_PLAYBACK_FPS
+
+
 def test_render_frames_accepts_a_step_and_refuses_a_bad_one(seqs, tmp_path):
     res = run("render", seqs["pred"], "--out", tmp_path / "s", "--frames", "::2", "--size", "64x64", "--no-mp4",
               "--no-sheet")
