@@ -33,6 +33,7 @@ from garmentcli.common import (
     FloatOrOff,
     OutputPath,
     betas_option,
+    check_retries,
     beyond_memory,
     body_option,
     check_preroll,
@@ -442,6 +443,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                for part, suffix in motion_parts(m, person, take)]
     if overwrite and skip_existing:
         raise click.UsageError("--overwrite and --skip-existing exclude each other")
+    check_retries(scheduler)
     if skip_existing:
         other = next((t for _, t, _ in targets if t.exists() and not (t / "summary.json").is_file()), None)
         if other is not None:  # a file or an empty folder by the bake's name was taken for a finished bake

@@ -607,6 +607,14 @@ def scheduler_options(task: str, note: str = ""):
     return decorate
 
 
+def check_retries(scheduler: str | None) -> None:
+    """click's error where --retries is given without --scheduler (it was ignored: local workers do not retry)."""
+    if scheduler is None and click.get_current_context().get_parameter_source("retries") not in (
+            None, click.core.ParameterSource.DEFAULT):
+        raise click.BadParameter("applies only with --scheduler (a Dask task run again; local workers do not "
+                                 "retry)", param_hint="--retries")
+
+
 def body_option(command):
     """--body PATH (an SMPL-format body; the embedded one by default)."""
     return click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,

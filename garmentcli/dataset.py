@@ -251,8 +251,9 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         write_manifest,
     )
     from formats.obj import read_garment
-    from garmentcli.common import load_body_option
+    from garmentcli.common import check_retries, load_body_option
 
+    check_retries(scheduler)
     if no_held_out:
         if held_out is not None:
             raise click.BadParameter(f"expected either --held-out or --no-held-out, got both (--held-out {held_out})",

@@ -258,6 +258,10 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
 
     if plots and out_dir is None:
         raise click.BadParameter("needs --out, the directory to write the pictures into", param_hint="--plots")
+    if out_dir is None and click.get_current_context().get_parameter_source("fmt") != \
+            click.core.ParameterSource.DEFAULT:
+        raise click.BadParameter("needs --out, the directory to write the reports into (without it the table is "
+                                 "printed only)", param_hint="--format")
     formats = _FORMATS[fmt]
     if depth_mm is None:
         depth_mm = _default_depth_mm()

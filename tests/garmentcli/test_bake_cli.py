@@ -747,3 +747,11 @@ def test_a_pipe_a_device_or_a_link_loop_is_named_for_what_it_is(scene):
         assert_one_line_error(invoke(["bake", scene["garment"], scene["motion"], "--body", "/dev/null", "--out",
                                       scene["out"]]), "body file '/dev/null': a device, expected a file")
     assert not scene["out"].exists()
+
+
+def test_retries_without_a_scheduler_is_refused(scene):
+    """--retries re-runs a Dask task; local workers do not retry: given without --scheduler it was ignored."""
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--retries", "5", "--out",
+             scene["out"] / "r"])
+    assert_one_line_error(r, "--retries", "applies only with --scheduler")
+    assert not (scene["out"] / "r").exists()

@@ -162,6 +162,7 @@ def test_bad_format(tmp_path, seq):
     pts, f = seq
     a = save_seq(tmp_path / "a.npz", pts, f)
     assert_clean_failure(run([a, a, "--format", "xml"]), "--format", "xml")
+    assert_clean_failure(run([a, a, "--format", "csv"]), "--format", "needs --out")  # it wrote nothing, silently
 
 
 def test_body_from_motion_matches_bake_penetration(scene):

@@ -130,9 +130,12 @@ def test_render_with_a_vtk_window_that_cannot_open_stops_before_writing(seqs, mo
     (["--range", "0", "inf"], "Invalid value for '--range': expected finite LO HI"),
     (["--azimuth", "nan"], "Invalid value for '--azimuth': expected a finite number of degrees, got nan"),
     (["--azimuth", "-inf"], "Invalid value for '--azimuth': expected a finite number of degrees"),
+    (["--color", "penetration", "--range", "0", "5"], "Invalid value for --range: applies to --color error or scalar "
+                                                       "(the colour bar's range), got --color penetration"),
 ])
 def test_render_non_finite_or_reversed_numbers_are_refused_when_read(seqs, args, needle):
-    res = run("render", seqs["pred"], "--out", seqs["dir"] / "bad", "--gt", seqs["gt"], *args)
+    gt = [] if "penetration" in args else ["--gt", seqs["gt"]]  # --range with a plain colour was ignored
+    res = run("render", seqs["pred"], "--out", seqs["dir"] / "bad", *gt, *args)
     assert needle in error_line(res) and res.exit_code == 2
     assert not (seqs["dir"] / "bad").exists() and not list(seqs["dir"].glob(".bad*"))
 
