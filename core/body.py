@@ -407,21 +407,29 @@ def validate_body_arrays(arrays: dict, source: str) -> None:
     if extent > MAX_BODY_EXTENT:
         raise InputError(f"body '{source}': expected metres (a body stands {BODY_SPAN_M[0]:g}-{BODY_SPAN_M[1]:g} m "
                          f"tall), got a rest mesh spanning {extent:.1f} units{unit_hint(extent, BODY_SPAN_M)}")
-    joint_sums = np.asarray(arrays["J_regressor"], dtype=np.float64).sum(axis=1)
-    wrong = np.abs(joint_sums - 1.0) > REGRESSOR_SUM_TOLERANCE
-    if wrong.any():
-        worst = int(np.argmax(np.abs(joint_sums - 1.0)))
+    rows_off = _rows_off(arrays["J_regressor"], REGRESSOR_SUM_TOLERANCE)
+    if rows_off:
+        count, worst, total = rows_off
         raise InputError(f"body '{source}': expected J_regressor rows that sum to 1 (each joint a weighted mean of "
-                         f"the rest vertices), got {int(wrong.sum())} of {J} that do not (joint {worst}'s sums to "
-                         f"{joint_sums[worst]:.4g}): a damaged or another model's regressor?")
-    sums = np.asarray(arrays["weights"], dtype=np.float64).sum(axis=1)
-    off = np.abs(sums - 1.0) > WEIGHT_SUM_TOLERANCE
-    if off.any():
-        worst = int(np.argmax(np.abs(sums - 1.0)))
+                         f"the rest vertices), got {count} of {J} that do not (joint {worst}'s sums to {total:.4g}): "
+                         f"a damaged or another model's regressor?")
+    rows_off = _rows_off(arrays["weights"], WEIGHT_SUM_TOLERANCE)
+    if rows_off:
+        count, worst, total = rows_off
         raise InputError(f"body '{source}': expected skinning weights whose rows sum to 1 (within "
                          f"{WEIGHT_SUM_TOLERANCE:g}; within {WEIGHT_SUM_RESCALE:g} they are scaled to it), got rows "
-                         f"that do not at {int(off.sum()):,} of {V:,} vertices (the worst sums to {sums[worst]:.4g}, "
-                         f"at vertex {worst})")
+                         f"that do not at {count:,} of {V:,} vertices (the worst sums to {total:.4g}, at vertex "
+                         f"{worst})")
+
+
+def _rows_off(matrix: np.ndarray, tolerance: float) -> tuple[int, int, float] | None:
+    """(how many rows of `matrix` do not sum to 1 within `tolerance`, the worst one's index, its sum), or None."""
+    sums = np.asarray(matrix, dtype=np.float64).sum(axis=1)
+    off = np.abs(sums - 1.0) > tolerance
+    if not off.any():
+        return None
+    worst = int(np.argmax(np.abs(sums - 1.0)))
+    return int(off.sum()), worst, float(sums[worst])
 
 
 def _rescaled_weights(weights: np.ndarray, source: str) -> np.ndarray:
