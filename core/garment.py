@@ -186,7 +186,8 @@ STRAY_LEAST_M = 1.0
 
 
 def _refuse_strays(points: np.ndarray, source: str) -> None:
-    """InputError naming `source` where some of a garment's used vertices `points` lie far from the rest (`STRAY_FACTOR`); one stray vertex 40 m off was blamed on the file's units, one 5 m off baked a spike."""
+    """InputError naming `source` where a few of a garment's used vertices `points` lie far from the rest
+    (`STRAY_FACTOR`): one stray vertex 40 m off was blamed on the file's units, one 5 m off baked a spike."""
     distance = np.linalg.norm(points - np.median(points, axis=0), axis=1)
     typical = float(np.median(distance))
     stray = distance > max(STRAY_FACTOR * typical, STRAY_LEAST_M * (typical > 0))

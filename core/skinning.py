@@ -704,8 +704,8 @@ def oriented_outward(garment: Garment, body: Body, source: str | None = None) ->
     # body on its own, so both layers read as cloth facing out (its inner layer, read facing the body, was pushed
     # out through the outer one). A closed shell about the body faces one way and turns as a piece.
     sealed = closed_pieces(faces, piece)
-    facing = np.bincount(piece, weights=np.maximum(vote, 0.0), minlength=len(sealed))
-    against = np.bincount(piece, weights=np.maximum(-vote, 0.0), minlength=len(sealed))
+    facing = np.bincount(piece, weights=np.maximum(vote, 0.0))
+    against = np.bincount(piece, weights=np.maximum(-vote, 0.0))
     layered = sealed[np.minimum(facing, against)[sealed] >= LAYERED_SHARE * (facing + against)[sealed]]
     inward = np.setdiff1d(np.flatnonzero(np.bincount(piece, weights=vote) < 0), layered)
     turned = np.isin(piece, inward)

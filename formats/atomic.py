@@ -186,7 +186,8 @@ def refuse_replacing(final: str | os.PathLike, inputs=()) -> None:
         raise InputError(f"output '{given}' is the working folder or holds it: --overwrite replaces the output "
                          f"folder whole; expected a folder of the outputs' own (--out)")
     for path in inputs:
-        if path is not None and target in Path(os.path.abspath(path)).resolve().parents:
+        read = None if path is None else Path(os.path.abspath(path)).resolve()
+        if read is not None and (read == target or target in read.parents):
             raise InputError(f"output '{given}' holds the input '{path}': --overwrite replaces the output folder "
                              f"whole; expected a folder of the outputs' own (--out)")
 

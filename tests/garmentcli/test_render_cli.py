@@ -163,6 +163,8 @@ def test_overwrite_never_replaces_the_input_or_the_working_folder(seqs, monkeypa
     before = sorted(p.name for p in seqs["dir"].iterdir())
     line = error_line(run("render", bake / "pred.npz", "--out", bake, "--size", "64x64", "--overwrite"))
     assert f"output '{bake}' holds the input '{bake / 'pred.npz'}'" in line
+    line = error_line(run("render", bake, "--out", bake, "--size", "64x64", "--overwrite"))  # the input itself
+    assert f"output '{bake}' holds the input '{bake}'" in line
     monkeypatch.chdir(bake)
     for out in (".", "..", str(bake)):
         for flag in ("--overwrite", None):
