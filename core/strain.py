@@ -16,10 +16,10 @@ shortens, never lengthens: compressed cloth (folds) is left as it is. It sees no
 contact guard, it can pull a stretched vertex back into the body by up to the excess it removes (`bake
 --push-out` runs after it). A pass's moves grow continuously from nothing as an edge crosses its limit (`_pass`),
 so the limit passes its input's rounding on nearly as it comes: noise of 1e-6 m on the torn example garments
-(dress, t-shirt, trousers; model and LBS on the kick, run and brisk walk) moved the limited cloth by 1.6-2.0 um on
-average (the noise's own size) and by 0.9 mm at most, where a frame's stop at the tolerance falls the other way
-(an all-or-nothing pull at the tolerance, each edge over counting one in its vertices' means, moved it by up to
-52 um on average and 6.2 mm at most).
+(dress, t-shirt, trousers; model and LBS on the kick, run and brisk walk) moved the limited cloth by 1.6 um on
+average (the noise's own size) and by 0.5 mm at most (0.9 in another draw of the noise), where a frame's stop at
+the tolerance falls the other way; an all-or-nothing pull at the tolerance, each edge over counting one in its
+vertices' means, moved it by 10.7 um on average and 6.2 mm at most (`benchmarks/strain_rounding.py`).
 
 On by default for the model and psd (`bake --strain-limit`), off for lbs, whose speed is its point (the limit
 costs it 1.6-4.2 ms/frame on average on the real and synthetic sequences measured), where `--strain-limit 1.5`
