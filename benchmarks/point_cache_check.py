@@ -1,7 +1,7 @@
 """Check that real Blender plays `bake --point-cache` files on the garment as it imports the garment's own OBJ
 (its points kept in the file's Y-up frame, the object turned to Blender's Z-up): a Mesh Cache modifier (PC2 and
 MDD) on the imported garment, its settings as they come but its Frame Start set to the bake's --start-frame, puts
-every vertex where the bake's OBJ frame (Z-up) puts it in the world.
+every vertex where the bake's OBJ frame puts it in the world.
 
 Blender is not a dependency of garment; run this in its own environment:
     python3 -m venv /tmp/bpyvenv && /tmp/bpyvenv/bin/pip install bpy
@@ -21,8 +21,11 @@ garment, baked = (Path(p) for p in sys.argv[sys.argv.index("--") + 1:][:2])
 
 
 def obj_points(path: Path) -> np.ndarray:
-    return np.array([[float(x) for x in line.split()[1:4]] for line in path.read_text().splitlines()
-                     if line.startswith("v ")])
+    """An OBJ frame's points in the bake's Z-up world (frames written Y-up, as sequence.json's 'up' says since
+    2026-12-06, turned back: (x, y, z) -> (x, -z, y), where Blender's import puts them)."""
+    points = np.array([[float(x) for x in line.split()[1:4]] for line in path.read_text().splitlines()
+                       if line.startswith("v ")])
+    return np.stack([points[:, 0], -points[:, 2], points[:, 1]], axis=1) if meta.get("up") == "y" else points
 
 
 meta = json.loads((baked / "obj" / "sequence.json").read_text())

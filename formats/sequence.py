@@ -183,13 +183,17 @@ def _recorded_number(meta: dict, key: str, meta_path: Path) -> int | None:
 
 def _check_recorded_frames(meta_path: Path, meta: dict, files: list[Path]) -> None:
     """Hold the frames (`_frame_files`, consecutive) to what `write_obj_sequence` recorded in `sequence.json`:
-    their `prefix`, the first frame's number `start` and their count `frames`. Each key is checked only where
+    their `prefix`, the first frame's number `start` and their count `frames` (and `up`, the frame they are written
+    in: "y" or "z"). Each key is checked only where
     present (other tools write `{"fps": 30}` alone); a mismatch is an InputError naming expected and found files."""
     where = f"garment sequence '{meta_path.parent}'"
     prefix = meta.get("prefix")
     if prefix is not None and not isinstance(prefix, str):
         raise InputError(f"garment sequence '{meta_path}': expected 'prefix' as a string (frame_ of frame_0000.obj), "
                          f"got {prefix!r}")
+    if meta.get("up", "z") not in ("y", "z"):
+        raise InputError(f"garment sequence '{meta_path}': expected 'up' as \"y\" (frames written Y-up) or \"z\", "
+                         f"got {meta['up']!r}")
     start = _recorded_number(meta, "start", meta_path)
     written = _recorded_number(meta, "frames", meta_path)
     found = f"{files[0].name} to {files[-1].name}" if len(files) > 1 else files[0].name
@@ -265,6 +269,10 @@ def _read_obj_directory(directory: Path) -> Sequence:
                              f"({first.vertices.shape[0]} vertices, {len(first.polygons)} faces), got "
                              f"{frame.vertices.shape[0]} vertices, {len(frame.polygons)} faces in {path.name}")
         points[t] = frame.vertices
+    if meta is not None and meta.get("up") == "y":  # written turned to Y-up (`write_obj_sequence`): back to Z-up
+        from core.geometry import Y_UP_TO_Z_UP_MATRIX
+
+        points = (points @ Y_UP_TO_Z_UP_MATRIX.T).astype(np.float32)
     number = re.search(r"(\d+)$", files[0].stem)
     return Sequence(points=points, faces=faces, fps=fps, source=str(directory),
                     first_frame=int(number.group(1)) if number else 0)
@@ -367,20 +375,28 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
 def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: np.ndarray,
                        uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
                        fps: float | None = None, prefix: str = "frame_",
-                       materials: np.ndarray | None = None, libraries=(), start: int = 0) -> list[Path]:
+                       materials: np.ndarray | None = None, libraries=(), start: int = 0, up: str = "z") -> list[Path]:
     """Write one OBJ per frame, `<prefix>0000.obj` ..., and `sequence.json` into `directory`.
 
-    points: (T, V, 3) float, metres; faces: (F, 3) int 0-based; uvs (U, 2) and
+    points: (T, V, 3) float, metres, Z-up (this tool's world); faces: (F, 3) int 0-based; uvs (U, 2) and
     face_uvs (F, 3), both or neither (faces (F, K): polygons, as `formats.obj.obj_face_text`); materials: (F,)
     names or None, written as `usemtl` lines; libraries: material library file names (in `directory`) for an
-    `mtllib` line; fps: frames per second or None; start: the first frame's number. Frame
-    numbers are zero padded to at least 4 digits. The face block is formatted
-    once and shared by every frame. Returns the frame paths in order.
+    `mtllib` line; fps: frames per second or None; start: the first frame's number; up: "y" writes the points
+    turned to Y-up (-90 degrees about X: an OBJ's usual frame, which Blender's, Houdini's and Maya's imports
+    assume), recorded in `sequence.json` so `read_sequence` turns them back; "z" as they are. Frame numbers are
+    zero padded to at least 4 digits. The face block is formatted once and shared by every frame. Returns the
+    frame paths in order.
     """
     directory = Path(directory)
     points = np.asarray(points)
     if points.ndim != 3 or points.shape[2] != 3:
         raise InputError(f"garment sequence '{directory}': expected points (T, V, 3), got {points.shape}")
+    if up not in ("y", "z"):
+        raise ValueError(f"up: expected 'y' or 'z', got {up!r}")
+    if up == "y":
+        from core.geometry import Y_UP_TO_Z_UP_MATRIX
+
+        points = points @ Y_UP_TO_Z_UP_MATRIX  # rows: the inverse (transposed) turn, Z-up to Y-up
     directory.mkdir(parents=True, exist_ok=True)
     n_frames = points.shape[0]
     width = max(4, len(str(max(start + n_frames - 1, 0))))
@@ -392,7 +408,8 @@ def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: 
         path.write_bytes(f"# frame {start + t}\n".encode("ascii") + library_line + obj_vertex_text(points[t]).encode("ascii")
                          + face_block)
         paths.append(path)
-    meta = {"fps": None if fps is None else float(fps), "frames": int(n_frames), "prefix": prefix, "start": int(start)}
+    meta = {"fps": None if fps is None else float(fps), "frames": int(n_frames), "prefix": prefix, "start": int(start),
+            "up": up}
     (directory / SEQUENCE_JSON).write_text(json.dumps(meta, indent=2) + "\n")
     return paths
 

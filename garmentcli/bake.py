@@ -152,7 +152,7 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
     if write_obj:  # the material libraries copied beside the frames, their textures' paths leading to them
         points, faces, uvs, face_uvs, materials = written
         write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps, materials=materials,
-                           libraries=copy_material_libraries(libraries, directory / "obj"), start=start_frame)
+                           libraries=copy_material_libraries(libraries, directory / "obj"), start=start_frame, up="y")
     for kind in point_caches:  # in the garment file's own frame (Y-up): Blender keeps an imported OBJ's points so
         from core.geometry import Y_UP_TO_Z_UP_MATRIX
         from formats.pointcache import write_point_cache

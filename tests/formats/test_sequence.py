@@ -44,6 +44,25 @@ def test_obj_sequence_round_trip(tmp_path):
     assert seq.fps == 30 and seq.body_points is None and seq.source == str(out)
 
 
+def test_obj_frames_written_y_up_read_back_in_the_z_up_world(tmp_path):
+    """up="y" (a bake's OBJ frames: the frame OBJ importers assume) writes the points turned -90 degrees about X
+    and records it; read_sequence turns them back; an unknown 'up' recorded is one line."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+
+    points, faces = _animated()
+    paths = write_obj_sequence(tmp_path / "y", points, faces, fps=24, up="y")
+    first = np.array([[float(x) for x in line.split()[1:]] for line in paths[0].read_text().splitlines()
+                      if line.startswith("v ")])
+    np.testing.assert_allclose(first, points[0] @ Y_UP_TO_Z_UP_MATRIX, atol=1e-6)  # (x, y, z) -> (x, z, -y)
+    np.testing.assert_allclose(first[:, 1], points[0, :, 2], atol=1e-6)
+    assert json.loads((tmp_path / "y" / "sequence.json").read_text())["up"] == "y"
+    np.testing.assert_allclose(read_sequence(tmp_path / "y").points, points, atol=1e-6)
+    meta = json.loads((tmp_path / "y" / "sequence.json").read_text())
+    (tmp_path / "y" / "sequence.json").write_text(json.dumps({**meta, "up": "x"}))
+    with pytest.raises(InputError, match="expected 'up' as \"y\" \\(frames written Y-up\\) or \"z\", got 'x'"):
+        read_sequence(tmp_path / "y")
+
+
 def test_obj_sequence_padding_and_no_fps(tmp_path):
     points, _ = _animated(n_frames=12)
     paths = write_obj_sequence(tmp_path / "long", points[:, :3], np.array([[0, 1, 2]]), prefix="f")

@@ -465,6 +465,8 @@ def test_outputs_keep_the_files_points_quads_and_uv_seams(scene):
     quads, its UVs, in the OBJ sequence and the USD stage alike; the summary says so."""
     from pxr import Usd, UsdGeom
 
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+
     path = scene["dir"] / "panels.obj"
     verts, quads = _two_panel_quad_tube(path, materials=("front cotton", "back_lining"))
     r = run(["bake", str(path), scene["motion"], "--body", scene["body"], "--out", scene["out"]])
@@ -496,7 +498,9 @@ def test_outputs_keep_the_files_points_quads_and_uv_seams(scene):
     obj_points = np.array([[float(x) for x in line.split()[1:]]
                            for line in (d / "obj" / "frame_0003.obj").read_text().splitlines() if line.startswith("v ")])
     assert points.shape == (90, 3)
-    np.testing.assert_allclose(points, obj_points, atol=2e-6)
+    # The OBJ frames Y-up, as OBJ importers take them (the stage Z-up, as it says): the same points turned.
+    np.testing.assert_allclose(points, obj_points @ Y_UP_TO_Z_UP_MATRIX.T, atol=2e-6)
+    assert json.loads((d / "obj" / "sequence.json").read_text())["up"] == "y"
     # The seam's two copies: one at each end of each panel's rows, where the other panel's row starts or ends.
     cols = 9
     for r in range(5):
