@@ -428,7 +428,9 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
     named = [m for m in meshes if m.GetPrim().GetName() == "garment"]
     if len(meshes) != 1 and len(named) != 1:
         names = ", ".join(str(m.GetPath()) for m in meshes[:6]) or "none"
-        raise InputError(f"{where}: expected one mesh (or one named 'garment'), got {len(meshes)}: {names}")
+        fix = ": join its pieces into one mesh (Blender's Join, Houdini's Merge) or name the garment's mesh " \
+              "'garment', or give it as an OBJ (its objects are merged, their seams welded)" if meshes else ""
+        raise InputError(f"{where}: expected one mesh (or one named 'garment'), got {len(meshes)}: {names}{fix}")
     mesh = meshes[0] if len(meshes) == 1 else named[0]
     points_attr = mesh.GetPointsAttr()
     times = points_attr.GetTimeSamples()
