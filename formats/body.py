@@ -38,8 +38,9 @@ def load_body(path: str | Path) -> Body:
 
     Arrays come back float32 in the file's rest frame (SMPL: Y-up, T-pose,
     metres); a 400-coefficient SMPL-X `shapedirs` keeps its first 300 (shape)
-    coefficients, SMPL-X 1.0's 20 its first 10. Raises InputError (one line naming the file) for a missing
-    file, an unknown suffix, an unreadable file, missing keys or wrong shapes.
+    coefficients, SMPL-X 1.0's 20 its first 10. Raises InputError (one line naming
+    the file) for a missing file, an unknown suffix, an unreadable file, missing
+    keys or wrong shapes.
     """
     path = Path(path)
     label = f"body file '{path}'"

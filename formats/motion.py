@@ -37,8 +37,8 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
 from core.errors import InputError
-from core.motion import (MIN_SOURCE_FPS, Motion, check_frame_rate, fill_untracked, validate_motion_values, warn_if_not_metres,
-                         warn_if_not_z_up)
+from core.motion import (MIN_SOURCE_FPS, Motion, check_frame_rate, fill_untracked, validate_motion_values,
+                         warn_if_not_metres, warn_if_not_z_up)
 from formats.atomic import atomic_file
 from formats.bvh import REST_UP_KEY, TAKE_KEY, Skeleton, read_skeleton, skeleton_arrays
 from formats.collada import read_collada

@@ -33,10 +33,10 @@ from garmentcli.common import (
     FloatOrOff,
     OutputPath,
     betas_option,
-    check_retries,
     beyond_memory,
     body_option,
     check_preroll,
+    check_retries,
     collected_warnings,
     frames_option,
     input_errors_as_click,
@@ -318,8 +318,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
                    "else the CPU].")
 @click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
 @click.option("--no-contact-guard", is_flag=True,
-              help="model, psd: leave out the contact guard (on by default, about 0.6-3 ms/frame on 2k-7k vertices), which keeps each "
-                   "vertex outside the body face it rests on; the network's or the fit's raw output.")
+              help="model, psd: leave out the contact guard (on by default, about 0.6-3 ms/frame on 2k-7k vertices), "
+                   "which keeps each vertex outside the body face it rests on; the network's or the fit's raw output.")
 @click.option("--strain-limit", "strain", type=FloatOrOff(1, "an edge's longest, as a multiple of its rest length"),
               default=None, metavar="RATIO|off",
               help=f"lbs, model, psd: no edge of the garment longer than RATIO times its rest length (undoes the tears "

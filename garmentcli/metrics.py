@@ -37,9 +37,8 @@ def _read_sequence(path: Path):
     if Path(path).suffix.lower() not in (".pc2", ".mdd"):
         return read_sequence(path)
     from core.geometry import Y_UP_TO_Z_UP_MATRIX
-    from formats.pointcache import read_point_cache
-
     from core.motion import common_rate
+    from formats.pointcache import read_point_cache
 
     points, stamps = read_point_cache(Path(path))
     fps = None  # MDD's times are seconds; PC2's are frames

@@ -91,8 +91,8 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
     if value_range is not None and color not in ("error", "scalar"):
         raise click.BadParameter(f"applies to --color error or scalar (the colour bar's range), got --color {color}",
                                  param_hint="--range")
-    options = RenderOptions(width=width, height=height, cameras=tuple(dict.fromkeys(cameras)) or ("front",), azimuth_deg=azimuth,
-                            framing=framing, show_body=not no_body, ground=not no_ground)
+    options = RenderOptions(width=width, height=height, cameras=tuple(dict.fromkeys(cameras)) or ("front",),
+                            azimuth_deg=azimuth, framing=framing, show_body=not no_body, ground=not no_ground)
     if out_dir is None:  # beside INPUT; for '.' or '..' beside the folder they name, never inside it
         src = input_path.resolve() if input_path.name in ("", "..") else input_path
         out_dir = src.parent / f"{src.stem}_render"

@@ -484,9 +484,9 @@ def test_a_broken_bvh_is_one_line(tmp_path):
                                                   "not one"),
                            (good[:good.index("Frames:")] + "Frames: 0\nFrame Time: 0.033333\n",
                             "expected at least 1 frame after MOTION, got 'Frames: 0' (a skeleton exported without"),
-                           (good.replace("Frame Time: 0.03333333\n", ""), "expected 'Frames: N' and 'Frame Time: S' "
-                                                                          "(seconds per frame) after MOTION, found only "
-                                                                          "'Frames'"),
+                           (good.replace("Frame Time: 0.03333333\n", ""),
+                            "expected 'Frames: N' and 'Frame Time: S' (seconds per frame) after MOTION, found only "
+                            "'Frames'"),
                            (good.replace("Frames: 3", "Frames: three"), "expected a whole number of frames after "
                                                                         "'Frames:', got 'three'"),
                            (good.replace("Frame Time: 0.03333333", "Frame Time: 33.333333"),
