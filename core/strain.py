@@ -148,7 +148,8 @@ def limit_strain(points, strain: StrainLimit, iterations: int = STRAIN_ITERATION
     (checked every STRAIN_CHECK_PASSES; a frame without one is left as it is) or `iterations` passes are made.
     Between checks the passes work on a region only: the edges within as many rings as passes of an edge longer
     than its limit by any amount (every edge a pass pulls) or of a vertex still moving (the acceleration carries
-    a move on) and their ends, renumbered; no other vertex can move. A frame's result does not depend on the others given with it.
+    a move on) and their ends, renumbered; no other vertex can move. A frame's result does not depend on the
+    others given with it.
     """
     tensor = isinstance(points, torch.Tensor)
     x = points.float() if tensor else torch.from_numpy(np.asarray(points, dtype=np.float32))
