@@ -54,7 +54,8 @@ DEFAULT_FPS = 30.0
 #: A sample time within this share of a key spacing of a key is the key's (float32 key times 300 s into a clip
 #: are 3e-5 s apart from their frames' times: 1e-3 of a 30 fps spacing).
 _SNAP = 2e-3
-#: Cubic curves keyed more sparsely (fps) are sampled between their keys (`cubic_rate`).
+#: Keys more sparse (fps) are sampled between them (`cubic_rate`): a cubic curve's shape, a linear or step
+#: channel's keys seconds apart or at uneven times.
 MIN_CUBIC_FPS = 24.0
 
 
@@ -219,7 +220,7 @@ def key_rate(inputs: list[np.ndarray]) -> float:
         return DEFAULT_FPS
     fps = 1.0 / float(np.median(steps))
     near = common_rate(fps)
-    return round(fps, 3) if near is None else near
+    return near if near is not None else round(fps, 3) if fps >= 1.0 else fps  # keys seconds apart: not 0
 
 
 def cubic_rate(fps: float) -> float:
@@ -240,14 +241,16 @@ def cubic_rate(fps: float) -> float:
 def key_times(inputs: list[np.ndarray], src: str, per_second: float = 1.0, what: str = "keys", cubic: bool = False
               ) -> tuple[np.ndarray, float]:
     """(the times of the frames, frames per second) of an animation's channels' key times `inputs` (in units
-    `per_second` a second: seconds, or USD's time codes): spaced at `key_rate`, from the first key to the last;
-    cubic: a channel's curves are cubic between keys (glTF's CUBICSPLINE), sampled at `cubic_rate` where its
-    keys are sparse. InputError naming `src` for more than MAX_FRAMES frames."""
+    `per_second` a second: seconds, or USD's time codes): spaced at `key_rate`, from the first key to the last
+    (the last frame at or past it: keys at uneven times lost the last); keys sparser than MIN_CUBIC_FPS (hand-keyed
+    poses seconds apart, refused as a rate under 1 Hz; keys at uneven times, read at their median spacing) sampled
+    at `cubic_rate` whatever their interpolation (cubic: glTF's CUBICSPLINE, its curves between the keys).
+    InputError naming `src` for more than MAX_FRAMES frames."""
     fps = key_rate([i / per_second for i in inputs])
-    if cubic:
+    if cubic or fps < MIN_CUBIC_FPS:
         fps = cubic_rate(fps)
     start, stop = min(float(i[0]) for i in inputs), max(float(i[-1]) for i in inputs)
-    n = int(round((stop - start) / per_second * fps)) + 1
+    n = int(np.ceil((stop - start) / per_second * fps - 1e-3)) + 1
     if n > MAX_FRAMES:
         raise InputError(f"{src}: expected an animation of at most {MAX_FRAMES:,} frames, got {n:,} at {fps:g} fps "
                          f"(its {what} span {(stop - start) / per_second:,.0f} s)")
@@ -423,7 +426,15 @@ def _read(doc: dict, buffers: list[bytes], src: str, take: str | None) -> Skelet
             times = _accessor(doc, buffers, sampler["input"])[:, 0]
             values = _accessor(doc, buffers, sampler["output"])
             interpolation = sampler.get("interpolation", "LINEAR")
-            if len(times) and len(values) == len(times) * (3 if interpolation == "CUBICSPLINE" else 1):
+            per_key = 3 if interpolation == "CUBICSPLINE" else 1
+            if len(values) != len(times) * per_key:  # the joint was read at rest without a word
+                raise InputError(f"{src}: expected animation sampler {channel['sampler']}'s output to hold "
+                                 f"{len(times) * per_key} values ({per_key} per key time, {interpolation}), got "
+                                 f"{len(values)}")
+            if np.any(np.diff(times) < 0):
+                raise InputError(f"{src}: expected animation sampler {channel['sampler']}'s key times to increase, "
+                                 f"got them out of order (at key {int(np.argmax(np.diff(times) < 0)) + 1})")
+            if len(times):
                 channels[(node, path)] = (times, values, interpolation)
     if not channels:
         log.warning("%s: no animation of its nodes: its one frame is the skeleton as it stands", src)

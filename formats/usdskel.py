@@ -116,7 +116,7 @@ def read_usdskel(path: Path, src: str, take: str | None = None) -> Skeleton:
         log.warning("%s: no animation of its skeleton: its one frame is the skeleton as it stands", src)
     local = np.broadcast_to(rest_local, (1 if times is None else len(times), J, 4, 4)).copy()
     if times is not None:
-        _animate(local, animation, tokens, times, rest_local)
+        _animate(local, animation, tokens, times, rest_local, src)
     else:
         times, fps = np.zeros(1), DEFAULT_FPS
     skel_space = _composed(local, parents)
@@ -172,31 +172,42 @@ def _frame_times(stage: Usd.Stage, animation, src: str) -> tuple[np.ndarray | No
     return key_times(samples, src, per_second, "samples")
 
 
-def _animate(local: np.ndarray, animation, tokens: list[str], times: np.ndarray, rest_local: np.ndarray) -> None:
+def _animate(local: np.ndarray, animation, tokens: list[str], times: np.ndarray, rest_local: np.ndarray,
+             src: str = "") -> None:
     """Write `animation`'s joints' local transforms at `times` into local (T, J, 4, 4) (the skeleton's joint
-    order); a component it does not author (at a frame) keeps the rest's."""
+    order); a component it does not author (at a frame) keeps the rest's. A joint of the animation's named by its
+    last part only (`Spine` for the skeleton's `Hips/Spine`, as some exporters write them) is the skeleton's joint
+    of that name where one only has it; those that name none are warned about (left at rest: it was silent)."""
     order = {t: j for j, t in enumerate(tokens)}
+    leaves = {}
+    for j, t in enumerate(tokens):
+        leaves.setdefault(t.rsplit("/", 1)[-1], []).append(j)
     anim_joints = [str(t) for t in (animation.GetJointsAttr().Get() or [])]
-    into = np.array([order.get(t, -1) for t in anim_joints], dtype=np.int64)
+    into = np.array([order[t] if t in order else leaves[t][0] if len(leaves.get(t, ())) == 1 else -1
+                     for t in anim_joints], dtype=np.int64)
     keep = into >= 0
+    if not keep.all():
+        unknown = [t for t, k in zip(anim_joints, keep) if not k]
+        log.warning("%s: %d of its animation's %d joints name none of its skeleton's (%s): left at rest", src,
+                    len(unknown), len(anim_joints), ", ".join(unknown[:4]) + (", ..." if len(unknown) > 4 else ""))
     into = into[keep]
     rest_scale = np.linalg.norm(rest_local[into, :3, :3], axis=1)  # (K, 3) column norms
     rest_turn = rest_local[into, :3, :3] / rest_scale[:, None, :]
-    rest_quat = np.full(4, np.nan)  # a frame without rotations: its rest's, below
     attrs = (animation.GetTranslationsAttr(), animation.GetRotationsAttr(), animation.GetScalesAttr())
     authored = [a.HasAuthoredValue() for a in attrs]
-    moves, quats, scales = [], [], []
+    moves, quats, scales, unturned = [], [], [], []
     for t in times:  # USD's values at each frame (interpolated between its samples), then all frames at once
         code = Usd.TimeCode(float(t))
         move, turn, scale = (a.Get(code) if on else None for a, on in zip(attrs, authored))
         ok = [v is not None and len(v) == len(anim_joints) for v in (move, turn, scale)]
         moves.append(np.asarray(move, float)[keep] if ok[0] else rest_local[into, :3, 3])
-        quats.append(np.asarray(turn, float)[keep] if ok[1] else np.broadcast_to(rest_quat, (len(into), 4)))
+        quats.append(np.asarray(turn, float)[keep] if ok[1] else np.broadcast_to([0.0, 0.0, 0.0, 1.0], (len(into), 4)))
+        unturned.append(not ok[1])  # a frame without rotations: its rest's, below (a NaN in one stays one)
         scales.append(np.asarray(scale, float)[keep] if ok[2] else rest_scale)
     q = np.array(quats)  # (T, K, 4) x y z w
     q /= np.maximum(np.linalg.norm(q, axis=-1, keepdims=True), 1e-12)
     R = quat_to_matrix(q[..., [3, 0, 1, 2]])
-    missing = np.isnan(q[:, 0, 0])
+    missing = np.array(unturned, dtype=bool)
     R[missing] = rest_turn
     block = local[:, into]  # (T, K, 4, 4): a copy (the joints' index apart from the matrices' slices)
     block[..., :3, :3] = R * np.array(scales)[:, :, None, :]

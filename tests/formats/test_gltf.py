@@ -338,13 +338,14 @@ def test_channels_are_sampled_as_gltf_interpolates_them():
 def test_sparse_cubic_keys_are_sampled_between_them_and_a_flipped_quaternion_span_is_slerped():
     """Cubic curves keyed every 10 frames of 30 (a hand-keyed walk as Blender exports it unsampled: CUBICSPLINE
     keys at 3 fps) are sampled at 30 fps, their curves between the keys kept (sampled at the keys' 3 fps, a bake's
-    slerps between them left Blender's own curves by up to 8 degrees); keys closer than MIN_CUBIC_FPS keep their
-    rate, and linear ones theirs. A rotation span whose key quaternions lie in opposite hemispheres is slerped
+    slerps between them left Blender's own curves by up to 8 degrees), and so are linear ones (read at 3 fps,
+    the same motion once resampled; keys 2 s apart were refused); keys closer than MIN_CUBIC_FPS keep their
+    rate. A rotation span whose key quaternions lie in opposite hemispheres is slerped
     (its cubic, as Blender writes such tangents, swung the hips 169 degrees in one frame)."""
     keys = np.arange(0.0, 2.01, 1 / 3)
     t, fps = key_times([keys], "x", cubic=True)
     assert fps == 30.0 and len(t) == 61 and np.allclose(t, np.arange(61) / 30)
-    assert key_times([keys], "x")[1] == 3.0 and key_times([np.arange(5) / 60.0], "x", cubic=True)[1] == 60.0
+    assert key_times([keys], "x")[1] == 30.0 and key_times([np.arange(5) / 60.0], "x", cubic=True)[1] == 60.0
     assert cubic_rate(12.0) == 24.0 and cubic_rate(2.5) == 30.0 and cubic_rate(7.0) == 30.0
     rng = np.random.default_rng(3)
     times = np.array([0.0, 1 / 3, 2 / 3])
@@ -359,3 +360,56 @@ def test_sparse_cubic_keys_are_sampled_between_them_and_a_flipped_quaternion_spa
                                atol=1e-12)
     slerped = Slerp(times[1:], Rotation.from_quat(q[1:]))(t[:21][~first])
     assert np.max((Rotation.from_quat(got[~first]).inv() * slerped).magnitude()) < 1e-6
+
+
+def _retimed(path, times, dest):
+    """The base64 .gltf `path` with every sampler keyed at `times` (seconds) instead (one accessor appended)."""
+    doc = json.loads(path.read_text())
+    data = bytearray(base64.b64decode(doc["buffers"][0]["uri"].split(",", 1)[1]))
+    raw = np.asarray(times, dtype="<f4").tobytes()
+    data += b"\0" * (-len(data) % 4)
+    doc["bufferViews"].append({"buffer": 0, "byteOffset": len(data), "byteLength": len(raw)})
+    data += raw
+    doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5126,
+                             "count": len(times), "type": "SCALAR"})
+    for sampler in doc["animations"][0]["samplers"]:
+        sampler["input"] = len(doc["accessors"]) - 1
+    doc["buffers"][0].update(uri="data:application/octet-stream;base64," + base64.b64encode(bytes(data)).decode(),
+                             byteLength=len(data))
+    dest.write_text(json.dumps(doc))
+    return dest
+
+
+def test_keys_seconds_apart_or_at_uneven_times_are_sampled_at_a_common_rate(tmp_path):
+    """Linear keys 2 s apart (hand-keyed poses) were refused as a frame rate of 0.5 Hz, and keys at 0, 0.2, 1 and
+    2 s read at their median spacing (1.25 fps: the pose at 0.2 s lost, the last key dropped); both are sampled at
+    30 fps, every key on a frame; keys 5000 s apart read (they divided by a rate rounded to 0)."""
+    poses, trans = _motion(4, seed=7)
+    poses[:, 22:] = 0
+    source = rig_gltf(tmp_path / "keys.gltf", {"Walk": (poses, trans)}, buffer="base64")
+    for times, frames in (([0.0, 2.0], [0, 60]), ([0.0, 0.2, 1.0, 2.0], [0, 6, 30, 60])):
+        keyed = len(times)
+        rig = rig_gltf(tmp_path / f"k{keyed}.gltf", {"Walk": (poses[:keyed], trans[:keyed])}, buffer="base64")
+        m = load_motion(_retimed(rig, times, tmp_path / f"retimed{keyed}.gltf"), world_checks=False)
+        assert m.fps == 30 and m.n_frames == 61, (m.fps, m.n_frames)
+        np.testing.assert_allclose(axis_angle_to_matrix(m.poses[frames]), axis_angle_to_matrix(poses[:keyed]),
+                                   atol=1e-4)
+    assert source.is_file()
+    from formats.gltf import key_times
+
+    t, fps = key_times([np.array([0.0, 5000.0])], "far.gltf")
+    assert fps == 30 and len(t) == 150_001 and t[-1] == 5000.0
+
+
+def test_a_sampler_of_too_few_values_or_times_out_of_order_is_one_line(tmp_path):
+    """A sampler whose output holds one value fewer than its key times (its joint was read at rest without a word)
+    and key times that go back (numpy's 'zero-size array' was the reason given): one line each."""
+    poses, trans = _motion(3, seed=7)
+    rig = rig_gltf(tmp_path / "rig.gltf", {"Walk": (poses, trans)}, buffer="base64")
+    short = _retimed(rig, [0.0, 1 / 30, 2 / 30, 3 / 30], tmp_path / "short.gltf")
+    back = _retimed(rig, [0.0, 2 / 30, 1 / 30], tmp_path / "back.gltf")
+    for path, expected in ((short, "output to hold 4 values (1 per key time, LINEAR), got 3"),
+                           (back, "key times to increase, got them out of order (at key 2)")):
+        with pytest.raises(InputError) as info:
+            load_motion(path)
+        assert path.name in str(info.value) and expected in str(info.value) and "\n" not in str(info.value)

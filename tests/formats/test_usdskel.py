@@ -137,6 +137,36 @@ def test_joints_an_animation_leaves_out_or_components_it_does_not_author_keep_th
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
 
+def test_an_animation_naming_joints_by_their_last_part_or_with_a_nan_on_its_first_reads_or_is_refused(tmp_path,
+                                                                                                       caplog):
+    """An animation whose joints are the joints' names, not the skeleton's paths (`mixamorig_Spine`, not
+    `.../mixamorig_Hips/mixamorig_Spine`), was read with every joint but the root at rest, without a word: each
+    name is its joint where one joint only has it; a name no joint has is warned about. A NaN rotation of the
+    animation's first joint (a toe) put every joint of its frame at rest: it is refused as NaNs elsewhere are."""
+    poses, trans = _motion(4, seed=31)
+    poses[:, 22:] = 0
+    path = rig_usd(tmp_path / "names.usda", {"Walk": (poses, trans)}, armature=False)
+    stage = Usd.Stage.Open(str(path))
+    animation = UsdSkel.Animation(stage.GetPrimAtPath("/Skel/Walk"))
+    tokens = [str(t).rsplit("/", 1)[-1] for t in animation.GetJointsAttr().Get()]
+    end = next(k for k, t in enumerate(tokens) if t.endswith("HeadTop_End"))  # a leaf no SMPL joint reads
+    animation.GetJointsAttr().Set(Vt.TokenArray(tokens[:end] + ["NoSuchJoint"] + tokens[end + 1:]))
+    stage.Save()
+    with caplog.at_level(logging.WARNING, logger="formats.usdskel"):
+        m = load_motion(path, world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses[:, :22]), axis_angle_to_matrix(poses[:, :22]), atol=1e-4)
+    assert "1 of its animation's" in caplog.text and "NoSuchJoint): left at rest" in caplog.text
+    path = rig_usd(tmp_path / "nan.usda", {"Walk": (poses, trans)}, armature=False)
+    stage = Usd.Stage.Open(str(path))
+    rotations = UsdSkel.Animation(stage.GetPrimAtPath("/Skel/Walk")).GetRotationsAttr()
+    code = rotations.GetTimeSamples()[2]
+    values = list(rotations.Get(code))
+    values[0] = Gf.Quatf(*[float("nan")] * 4)
+    rotations.Set(Vt.QuatfArray(values), code)
+    stage.Save()
+    assert_each_refused(path, [(path.read_bytes(), "contains NaN or Inf (first at frame 2)")])
+
+
 def test_a_usd_of_several_animations_reads_the_bound_one_or_the_one_named(tmp_path, caplog):
     (walk, walk_trans), (run, run_trans) = _motion(5, seed=3), _motion(3, seed=4)
     walk[:, 22:] = run[:, 22:] = 0
