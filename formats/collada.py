@@ -79,7 +79,7 @@ def _read(root: ET.Element, src: str) -> Skeleton:
     elements = [[(e.tag[len(ns):], e.get("sid"), _floats(e.text)) for e in n if e.tag[len(ns):] in _ELEMENTS]
                 for n in nodes]
     index = {n.get("id"): i for i, n in enumerate(nodes) if n.get("id")}
-    channels = _channels(root, ns, by_id, index, elements)
+    channels = _channels(root, ns, by_id, index, elements, src)
     if not channels:
         log.warning("%s: no animation of its joints: its one frame is the skeleton as it stands", src)
         t, fps = np.zeros(1), DEFAULT_FPS
@@ -130,7 +130,7 @@ def _source(by_id: dict, ns: str, ref: str) -> tuple[np.ndarray | list[str], int
     return (names.text or "").split(), stride
 
 
-def _channels(root: ET.Element, ns: str, by_id: dict, index: dict, elements: list) -> dict:
+def _channels(root: ET.Element, ns: str, by_id: dict, index: dict, elements: list, src: str = "") -> dict:
     """{(node, (element, member)): (times (K,), values (K, width), interpolation)} of every channel that animates
     a node's transform element; member: None (the whole element), a component (0-3) or a matrix entry (r, c)."""
     out = {}
@@ -157,8 +157,12 @@ def _channels(root: ET.Element, ns: str, by_id: dict, index: dict, elements: lis
         times, _ = _source(by_id, ns, inputs["INPUT"])
         values, stride = _source(by_id, ns, inputs["OUTPUT"])
         kinds = _source(by_id, ns, inputs["INTERPOLATION"])[0] if "INTERPOLATION" in inputs else ["LINEAR"]
-        values = np.asarray(values, dtype=np.float64).reshape(len(times), -1)
-        if len(times) and values.shape[1] == stride:
+        values = np.asarray(values, dtype=np.float64)
+        if len(times) and values.size != len(times) * stride:  # its element was read at rest, silently
+            raise InputError(f"{src}: expected animation source '{inputs['OUTPUT'].lstrip('#')}' to hold "
+                             f"{len(times) * stride} values ({stride} per key time), got {values.size}")
+        values = values.reshape(len(times), -1)
+        if len(times):
             interpolation = "STEP" if kinds and all(k == "STEP" for k in kinds) else "LINEAR"
             out[(node, (k, part))] = (np.asarray(times, dtype=np.float64), values, interpolation)
     return out

@@ -3,6 +3,7 @@ them (a matrix per joint node, keyed every frame, a skin's inverse bind matrices
 (translate and rotate elements, one channel per angle), read back as the SMPL motion they move as."""
 
 import logging
+import re
 
 import numpy as np
 import pytest
@@ -135,6 +136,9 @@ def test_a_collada_without_joints_damaged_or_still_is_one_line_or_one_frame(tmp_
               "expected a COLLADA skeleton (nodes of type JOINT), found 28 node(s) and no joint"),
              (good[:len(good) // 2].encode(), "expected a COLLADA file (XML), got XML that does not parse"),
              (b'<?xml version="1.0"?><scene/>', "expected a COLLADA document (a <COLLADA> root), got <scene>")]
+    out = re.search(r'<float_array id="([^"]*-out-array)"[^>]*>([^<]*)<', good)  # an output one value short
+    short = good[:out.start(2)] + " ".join(out.group(2).split()[:-1]) + good[out.end(2):]
+    cases.append((short.encode(), "to hold 32 values (16 per key time), got 31"))  # its joint was read at rest
     assert_each_refused(tmp_path / "bad.dae", cases)
     start, stop = good.index("<library_animations>"), good.index("</library_animations>")
     (tmp_path / "still.dae").write_text(good[:start] + good[stop + len("</library_animations>"):])
