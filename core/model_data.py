@@ -114,6 +114,8 @@ class Sequence:
 def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Body, garment: GarmentData,
                          source: str) -> Sequence:
     """Build a Sequence from an item's arrays (see module docstring); InputError naming `source` when bad."""
+    from formats.dataset import refuse_non_finite
+
     for key in ("positions", "poses", "trans", "fps"):
         if key not in arrays:
             raise InputError(f"dataset sequence '{source}': expected key '{key}', got {sorted(arrays)}")
@@ -130,6 +132,7 @@ def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Bo
                          f"got {tuple(poses.shape)}")
     if trans.shape != (T, 3):
         raise InputError(f"dataset sequence '{source}': expected trans of shape ({T}, 3), got {tuple(trans.shape)}")
+    refuse_non_finite({"positions": pos, "poses": poses, "trans": trans}, f"dataset sequence '{source}'")
     betas = body.fit_betas(arrays.get("betas"))
     fps = float(np.asarray(arrays["fps"]))
     n_settle = int(np.asarray(arrays.get("n_settle", 0)))
@@ -142,7 +145,9 @@ def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Bo
                     n_settle=n_settle)
 
 
-def _items(manifest: dict, source: str) -> dict:
+def manifest_items(manifest: dict, source: str) -> dict:
+    """A dataset manifest's items by id (its 'items' a list of records with an 'id', or a mapping); InputError naming
+    `source` otherwise."""
     items = manifest.get("items", {})
     if isinstance(items, list):
         out = {}
@@ -182,7 +187,7 @@ def _merged_manifests(roots: list[Path]) -> tuple[dict, dict, dict]:
         manifest = read_manifest(root)
         if manifest is None:
             raise InputError(f"dataset '{root}': expected a {MANIFEST} in it, found none")
-        recs = _items(manifest, str(mpath))
+        recs = manifest_items(manifest, str(mpath))
         unknown = sorted({str(rec.get("split")) for rec in recs.values()} - {"train", "val", "test"})
         if unknown:
             raise InputError(f"dataset manifest '{mpath}': expected every item's 'split' to be train, val or test, "

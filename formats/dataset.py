@@ -89,9 +89,20 @@ def read_sequence(path: str | os.PathLike) -> Sequence:
             a = {k: d[k] for k in SEQUENCE_KEYS}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise InputError(f"sequence '{path}': could not read it ({str(exc).splitlines()[0][:120]})") from None
+    refuse_non_finite({k: a[k] for k in ("positions", "poses", "trans", "betas")}, f"sequence '{path}'")
     return Sequence(positions=a["positions"], poses=a["poses"], trans=a["trans"], betas=a["betas"],
                     fps=float(a["fps"]), n_settle=int(a["n_settle"]), garment=str(a["garment"]),
                     garment_sha256=str(a["garment_sha256"]), body=str(a["body"]))
+
+
+def refuse_non_finite(arrays: dict, where: str) -> None:
+    """InputError naming `where` for the first of `arrays` ({key: array}) holding NaN or Inf: a simulated
+    sequence's (a NaN in one made fit blame --ridge and train write a model of NaN weights, exit 0)."""
+    for key, value in arrays.items():
+        value = np.asarray(value)
+        if value.dtype.kind in "fc" and not np.isfinite(value).all():
+            frame = int(np.argwhere(~np.isfinite(value))[0][0]) if value.ndim else 0
+            raise InputError(f"{where}: expected finite '{key}', got NaN or Inf (first at frame {frame})")
 
 
 def write_manifest(data_dir: str | os.PathLike, manifest: dict) -> None:
@@ -105,9 +116,13 @@ def read_manifest(data_dir: str | os.PathLike) -> dict | None:
     if not path.is_file():
         return None
     try:
-        return json.loads(path.read_text())
+        manifest = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise InputError(f"dataset manifest '{path}': expected JSON, could not parse it ({exc})") from None
+    if not isinstance(manifest, dict):  # fit, train and dataset took it for one: a traceback each
+        raise InputError(f"dataset manifest '{path}': expected a JSON object (settings, items, ...), got a "
+                         f"{type(manifest).__name__}")
+    return manifest
 
 
 def body_difference(manifest: dict, body_path: str | os.PathLike | None) -> str:

@@ -36,9 +36,10 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     LBS's speed, near the simulator on motions like those of the dataset. The sequences simulated so far are
     used (a dataset still running can be fitted)."""
     from core.deform import LBSDeformer
+    from core.model_data import manifest_items
     from core.motion import sequence_motion
     from core.psd import DEFAULT_RANK, DEFAULT_RIDGE, PSDDeformer, fit_psd
-    from formats.dataset import read_manifest, read_sequence, sequence_path
+    from formats.dataset import MANIFEST, read_manifest, read_sequence, sequence_path
     from formats.obj import read_garment, read_obj
     from formats.psd import save_fit
 
@@ -64,11 +65,11 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
                                  f"{', '.join(t.stem for t in templates) or 'none'}; the mesh must be the same)",
                                  param_hint="--data")
     splits: dict[str, list] = {"train": [], "val": [], "test": []}
-    for it in manifest.get("items", []):
-        path = sequence_path(data, it["id"])
+    for item_id, it in manifest_items(manifest, str(data / MANIFEST)).items():  # each checked as train checks it
+        path = sequence_path(data, item_id)
         if it.get("garment") in names and it.get("split") in splits and path.is_file():
             seq = read_sequence(path)
-            splits[it["split"]].append((sequence_motion(seq, it["id"], drop_settle=True),
+            splits[it["split"]].append((sequence_motion(seq, item_id, drop_settle=True),
                                         seq.positions[seq.n_settle:]))
     if not splits["train"]:
         raise click.BadParameter(f"'{data}': expected simulated training sequences of '{names[0]}', found none",

@@ -61,8 +61,9 @@ def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache,
 
     body = load_body_option(body_path)
     directory = None if no_cache else Path(cache_dir) if cache_dir else default_cache_dir()
-    for path in garment_paths:
-        garment = oriented_outward(read_garment(path), body, path)  # as the model prepares it: bake's entry
+    garments = [read_garment(path) for path in garment_paths]  # each read before any work (a missing second one
+    for path, garment in zip(garment_paths, garments):  # was found after the first's preprocessing and render)
+        garment = oriented_outward(garment, body, path)  # as the model prepares it: bake's entry
         p = preprocess_garment(garment, body, levels=levels, n_landmarks=landmarks, cache_dir=directory,
                                collision_radius_m=SELF_COLLISION_GEODESIC_M if self_collision else 0.0)
         if directory is None:

@@ -163,6 +163,11 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     device = str(parse_device(device, auto=True))
     models = _models(model_specs)
     fits = _named_files(fit_specs, "--fit", "fit")
+    if fits:
+        from formats.psd import load_fit
+
+        for path in fits.values():  # a file that is no fit stops the run now (it became a failed row, exit 0)
+            load_fit(path)
     if calibration_path and Path(calibration_path).is_file():
         from core.quality import Calibration
 

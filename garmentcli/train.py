@@ -23,6 +23,7 @@ from core.threads import torch_threads
 from core.train import LOSS_COLUMNS, TrainConfig, Trainer, train_config_from_dict
 from garmentcli.common import (
     SEED_RANGE,
+    FiniteFloatRange,
     OutputPath,
     check_dataset_body,
     input_errors_as_click,
@@ -83,7 +84,7 @@ def _parse_phases(text: str) -> tuple:
               help="Sequences per step and process; the global batch is this x the number of processes (torchrun).")
 @click.option("--device", default="cpu", show_default=True,
               help="Where to train: cpu, cuda or cuda:N. The model is initialised on the CPU from the seed either way.")
-@click.option("--time-limit", type=click.FloatRange(min=0, min_open=True), default=None, metavar="MINUTES",
+@click.option("--time-limit", type=FiniteFloatRange(min=0, min_open=True), default=None, metavar="MINUTES",
               help="Stop after this many minutes of training (checkpoint and model written); continue with --resume.")
 @click.option("--init", "init_path", type=click.Path(dir_okay=False), default=None, metavar="MODEL",
               help="Start from this model's weights and network config (fine-tuning it on --data, e.g. the "

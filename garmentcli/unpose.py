@@ -14,6 +14,7 @@ import numpy as np
 from core.unpose import A_POSE_ARM_DEGREES
 from formats.obj import STAGE_SUFFIXES
 from garmentcli.common import (
+    _check_betas_range,
     OutputPath,
     body_option,
     input_errors_as_click,
@@ -178,6 +179,9 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
                                  f"'{pose_spec}'", param_hint="--pose")
     if betas_text is not None:
         betas = betas_text
+    if betas is not None:  # as bake checks them: 1e30 overflowed, 50 wrote the garment 27 % inside the body
+        _check_betas_range(betas, "--betas" if betas_text is not None else f"pose '{pose_spec}'")
+    if betas_text is not None:
         shown = ",".join(f"{b:g}" for b in betas[:10]) + (f",... ({len(betas)} betas)" if len(betas) > 10 else "")
         what += f", shape {shown}"
     moved_by = ", ".join(([f"scaled by {scale:g}"] if scale is not None else [])

@@ -64,6 +64,10 @@ def test_bad_options(scene, extra, message):
 def test_missing_and_broken_files(scene):
     r = run("preprocess", str(scene["dir"] / "nope.obj"), "--no-cache")
     assert r.exit_code == 1 and "file not found" in r.output and len(r.output.strip().splitlines()) == 1
+    # a missing second garment: refused before the first is preprocessed (its render was left behind)
+    r = run("preprocess", scene["garment"], str(scene["dir"] / "nope.obj"), "--no-cache", "--render",
+            str(scene["dir"] / "r2"))
+    assert r.exit_code == 1 and "file not found" in r.output and not (scene["dir"] / "r2").exists()
     broken = scene["dir"] / "broken.obj"
     broken.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
     r = run("preprocess", str(broken), "--no-cache")

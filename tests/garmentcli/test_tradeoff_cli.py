@@ -137,8 +137,11 @@ def test_tradeoff_model_rows_on_a_gpu_report_its_memory(scene, model_file, monke
 @pytest.mark.parametrize("extra, needle", [(["--model", "nopath"], "NAME=PATH"),
                                            (["--model", "x=missing.pt"], "missing.pt"),
                                            (["--repeats", "0"], "--repeats"),
-                                           (["--device", "tpu"], "expected auto, cpu, cuda or cuda:N, got 'tpu'")])
+                                           (["--device", "tpu"], "expected auto, cpu, cuda or cuda:N, got 'tpu'"),
+                                           (["--fit", "f=GARMENT"], "psd fit"),  # no fit: a failed row, exit 0
+                                           ])
 def test_tradeoff_bad_options(scene, extra, needle):
+    extra = [a.replace("GARMENT", str(scene["garment"])) for a in extra]
     r = invoke(["tradeoff", scene["garment"], scene["motion"], "--out", scene["out"], *extra])
     assert r.exit_code != 0 and needle in r.output and "Traceback" not in r.output
     assert not scene["out"].exists()

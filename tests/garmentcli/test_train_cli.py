@@ -94,8 +94,9 @@ def test_train_time_limit_stops_early_and_resumes(setup):
     r = _train(root, data, body, cfg, out, "--steps", "5", "--seed", "1", "--resume")
     assert r.exit_code == 0, r.output
     assert [int(row["step"]) for row in csv.DictReader(open(root / "timed.pt.csv"))] == [1, 2, 3, 4, 5]
-    r = _train(root, data, body, cfg, root / "t2.pt", "--time-limit", "0")
-    assert r.exit_code != 0 and "--time-limit" in r.output
+    for limit in ("0", "nan"):  # nan was taken for no limit
+        r = _train(root, data, body, cfg, root / "t2.pt", "--time-limit", limit)
+        assert r.exit_code != 0 and "--time-limit" in r.output
 
 
 @pytest.mark.parametrize("sig, code, what", [("SIGINT", 130, "Ctrl-C"), ("SIGTERM", 143, "SIGTERM")])
@@ -500,3 +501,40 @@ def test_train_threads_fixed_or_chosen_while_it_trains(setup, monkeypatch):
         return
     r = _train(root, data, body, cfg, root / "tb.pt", "--threads", "auto", "--device", "cuda")
     assert r.exit_code != 0 and "auto chooses the threads of one process on the CPU" in r.output
+
+
+def test_a_manifest_that_is_no_object_or_a_sequence_with_a_nan_is_one_line_for_train_and_fit(setup, tmp_path):
+    """A manifest.json of a list (a traceback in fit, train and dataset), an item without an id (fit: a KeyError;
+    train refused it), a NaN in a simulated sequence (fit blamed --ridge; train wrote a model of NaN weights and
+    exited 0): one line each naming the file, nothing written."""
+    import shutil
+
+    root, data, body, cfg = setup
+    garment = data / "garments" / "a.obj"
+    for case in ("list", "no id", "nan"):
+        copy = tmp_path / case.replace(" ", "_")
+        shutil.copytree(data, copy)
+        manifest = json.loads((copy / "manifest.json").read_text())
+        if case == "list":
+            (copy / "manifest.json").write_text("[]")
+            expected = "expected a JSON object (settings, items, ...), got a list"
+        elif case == "no id":
+            manifest["items"] = [{k: v for k, v in it.items() if k != "id"} for it in manifest["items"]]
+            (copy / "manifest.json").write_text(json.dumps(manifest))
+            expected = "expected items with an 'id'"
+        else:
+            from formats.dataset import sequence_path
+
+            item = next(it for it in manifest["items"] if it["split"] == "train")
+            path = sequence_path(copy, item["id"])
+            arrays = dict(np.load(path))
+            arrays["positions"][1, 0, 0] = np.nan
+            np.savez(path, **arrays)
+            expected = "expected finite 'positions', got NaN or Inf (first at frame 1)"
+        runs = {"train": _train(root, copy, body, cfg, tmp_path / f"{case}.pt", "--steps", "2"),
+                "fit": CliRunner().invoke(cli, ["fit", str(garment), "--data", str(copy), "--body", str(body),
+                                                "--out", str(tmp_path / f"{case}.npz")])}
+        for command, r in runs.items():
+            lines = [line for line in r.output.splitlines() if line.startswith("Error")]
+            assert r.exit_code != 0 and len(lines) == 1 and expected in lines[0], (case, command, r.output)
+        assert not (tmp_path / f"{case}.pt").exists() and not (tmp_path / f"{case}.npz").exists()

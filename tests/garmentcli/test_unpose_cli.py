@@ -293,6 +293,8 @@ def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
     (["--pose", "tpose", "--move", "0,inf,0"], "--move: expected finite numbers, got '0,inf,0'"),
     (["--pose", "tpose", "--move", "0,25,0"], "--move: expected metres, at most 10 on each axis, got '0,25,0'"),
     (["--pose", "tpose", "--betas", "1,x"], "expected comma-separated numbers, got '1,x'"),
+    (["--pose", "tpose", "--betas", "50"], "--betas: expected betas within +-20"),  # wrote it 27 % inside the body
+    (["--pose", "tpose", "--betas", "1e30"], "--betas: expected betas within +-20"),  # numpy overflow warnings
     (["--pose", "tpose", "--betas", "1", "--frame", 1], "--frame applies to a POSE.npz file only"),
     (["--pose", "tpose", "--betas", "1", "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", "nope.npz"], "'nope.npz': no such file"),
@@ -328,7 +330,7 @@ def test_unpose_errors_and_warnings_name_the_input_not_the_output(tmp_path, capl
     import logging
 
     with caplog.at_level(logging.WARNING):
-        r = invoke(["unpose", EXAMPLES / "skirt.obj", "--pose", "tpose", "--betas", "100", "--out",
+        r = invoke(["unpose", EXAMPLES / "skirt.obj", "--pose", "tpose", "--betas", "-20", "--out",
                     tmp_path / "wide.obj"])
     assert r.exit_code == 0, r.output
     warning = next(m for m in (rec.getMessage() for rec in caplog.records) if "inside the body's rest surface" in m)
