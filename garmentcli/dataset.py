@@ -397,9 +397,9 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         finally:
             if client is not None:
                 client.close()
-    if stats:
-        manifest["item_stats"] = {**manifest.get("item_stats", {}), **stats}
-        write_manifest(out, manifest)
+            if stats:  # also when stopped (SIGTERM, Ctrl-C): a rerun skips the finished items, whose statistics
+                manifest["item_stats"] = {**manifest.get("item_stats", {}), **stats}  # were lost for good
+                write_manifest(out, manifest)
     if failed is not None:
         raise click.ClickException(f"{out}: {failed}; rerun the same command to resume")
     click.echo(f"{out}: {len(items)} sequences ready ({len(stats)} simulated now)")
