@@ -221,9 +221,13 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
                init=init, init_path=init_path, body=body, time_limit=time_limit)
     try:
         _run(out, trainer, rows, job, interrupted)
-    except BaseException:
+    except BaseException as exc:
         if main and not out.exists():  # no MODEL.json describing a model that was never written
             json_path.unlink(missing_ok=True)
+            if not ckpt_path.exists():  # nor the rows of steps whose weights are nowhere
+                csv_path.unlink(missing_ok=True)
+        if isinstance(exc, KeyboardInterrupt):  # a second Ctrl-C: the shell's code for it (click's was 1)
+            raise click.exceptions.Exit(130) from None
         raise
     finally:
         restore_sigint()

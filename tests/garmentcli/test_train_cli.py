@@ -3,6 +3,7 @@
 import csv
 import json
 import traceback
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -538,3 +539,21 @@ def test_a_manifest_that_is_no_object_or_a_sequence_with_a_nan_is_one_line_for_t
             lines = [line for line in r.output.splitlines() if line.startswith("Error")]
             assert r.exit_code != 0 and len(lines) == 1 and expected in lines[0], (case, command, r.output)
         assert not (tmp_path / f"{case}.pt").exists() and not (tmp_path / f"{case}.npz").exists()
+
+
+def test_a_second_ctrl_c_exits_130_and_leaves_no_rows_of_lost_weights(setup, monkeypatch):
+    """A second Ctrl-C stops training at once: exit 130 as the README says (click made it 1), and the CSV of
+    steps whose weights were never written (no model, no checkpoint) is removed with the model's .json."""
+    import garmentcli.train as train_module
+
+    root, data, body, cfg = setup
+    out = root / "stopped.pt"
+
+    def stopped(out_path, trainer, rows, job, interrupted):
+        Path(str(out_path) + ".csv").write_text("step,phase\n1,1\n")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(train_module, "_run", stopped)
+    r = _train(root, data, body, cfg, out, "--steps", "4")
+    assert r.exit_code == 130, r.output
+    assert not list(root.glob("stopped.pt*"))
