@@ -277,6 +277,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                                  param_hint="--first")
     if not motion_paths and not library:
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
+    if not motion_paths:  # the library's clips carry their own rate, one person, one take
+        given = next((hint for hint, value in (("--source-fps", source_fps), ("--take", take), ("--person", person))
+                      if value is not None), None)
+        if given:  # ignored, yet recorded in the settings: a resume without it was refused
+            raise click.BadParameter("applies to --motions files (the library's clips carry their own)",
+                                     param_hint=given)
     motion_paths = motion_files(motion_paths, "--motions")
     body = load_body_option(body_path)
     parts = {p: motion_parts(p, person, take) for p in motion_paths}  # each file's people or takes, read once

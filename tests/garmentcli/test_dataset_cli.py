@@ -170,6 +170,11 @@ def test_dataset_needs_motions_and_library_loads(scene):
     r = run("dataset", "--garments", scene["garment"], "--library", "--held-out", "shell", "--no-held-out",
             "--out", scene["dir"] / "d")
     assert r.exit_code != 0 and "--no-held-out" in r.output and "both" in r.output and not (scene["dir"] / "d").exists()
+    for option, value in (("--source-fps", "50"), ("--take", "foo"), ("--person", "2")):  # ignored, yet recorded
+        r = run("dataset", "--garments", scene["garment"], "--library", option, value, "--dry-run", "--out",
+                scene["dir"] / "d")
+        assert r.exit_code != 0 and f"Invalid value for {option}: applies to --motions files" in r.output, r.output
+        assert not (scene["dir"] / "d").exists()
     from garmentcli.dataset import _load_motions
 
     motions = _load_motions([], True, 30.0)
