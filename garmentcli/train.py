@@ -227,6 +227,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             if not ckpt_path.exists():  # nor the rows of steps whose weights are nowhere
                 csv_path.unlink(missing_ok=True)
         if isinstance(exc, KeyboardInterrupt):  # a second Ctrl-C: the shell's code for it (click's was 1)
+            click.echo("Aborted!", err=True)
             raise click.exceptions.Exit(130) from None
         raise
     finally:
