@@ -32,6 +32,18 @@ def check_finite_points(points, where: str, vertex: str = "vertex") -> None:
         raise InputError(f"{where}: expected finite coordinates, got {kind} at frame {t}, {vertex} {v}")
 
 
+def refuse_non_finite(arrays: dict, where: str) -> None:
+    """InputError naming `where` for the first of `arrays` ({key: array}) holding NaN or Inf: a simulated
+    sequence's (a NaN in one made fit blame --ridge and train write a model of NaN weights, exit 0)."""
+    import numpy as np  # errors.py is imported everywhere; numpy only when arrays are checked
+
+    for key, value in arrays.items():
+        value = np.asarray(value)
+        if value.dtype.kind in "fc" and not np.isfinite(value).all():
+            frame = int(np.argwhere(~np.isfinite(value))[0][0]) if value.ndim else 0
+            raise InputError(f"{where}: expected finite '{key}', got NaN or Inf (first at frame {frame})")
+
+
 def read_input(path, src: str) -> bytes:
     """The bytes of the input file `path`; InputError naming `src` where it cannot be read."""
     try:

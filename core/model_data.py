@@ -24,7 +24,7 @@ import scipy.sparse as sp
 import torch
 
 from core.body import Body
-from core.errors import InputError
+from core.errors import InputError, refuse_non_finite
 from core.garment import Garment
 from core.geodesic import SELF_COLLISION_GEODESIC_M
 from core.losses import rest_uv_frame, vertex_masses
@@ -114,8 +114,6 @@ class Sequence:
 def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Body, garment: GarmentData,
                          source: str) -> Sequence:
     """Build a Sequence from an item's arrays (see module docstring); InputError naming `source` when bad."""
-    from formats.dataset import refuse_non_finite
-
     for key in ("positions", "poses", "trans", "fps"):
         if key not in arrays:
             raise InputError(f"dataset sequence '{source}': expected key '{key}', got {sorted(arrays)}")

@@ -20,7 +20,7 @@ import numpy as np
 
 from core.body import LAYOUT_JOINTS, Body, dense_from_sparse, body_from_arrays
 from core.errors import InputError, not_a_file
-from formats.motion import NPZ_READ_ERRORS, open_npz
+from formats.motion import NPZ_READ_ERRORS, _starts_with, open_npz
 from formats.pickles import ChumpyStandIn, FastRestrictedUnpickler
 
 log = logging.getLogger(__name__)
@@ -51,12 +51,7 @@ def load_body(path: str | Path) -> Body:
     readers = {".npz": _read_npz, ".pkl": _read_pkl}
     if suffix not in readers:
         raise InputError(f"{label}: expected a .npz or .pkl SMPL-format file, got suffix '{path.suffix}'")
-    try:
-        with open(path, "rb") as fh:
-            zipped = fh.read(4) == b"PK\x03\x04"
-    except OSError:
-        zipped = False  # the reader says why it cannot read it
-    if zipped and suffix == ".pkl":  # an .npz saved under the name a pickle has (numpy's archive: a zip)
+    if suffix == ".pkl" and _starts_with(path, b"PK\x03\x04"):  # an .npz saved under a pickle's name (a zip)
         log.info("%s: a numpy .npz archive, read as one", label)
         suffix = ".npz"
     arrays = readers[suffix](path, label)

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, refuse_non_finite
 from formats.atomic import atomic_file
 
 SEQUENCE_KEYS = ("positions", "poses", "trans", "betas", "fps", "n_settle", "garment", "garment_sha256", "body")
@@ -93,16 +93,6 @@ def read_sequence(path: str | os.PathLike) -> Sequence:
     return Sequence(positions=a["positions"], poses=a["poses"], trans=a["trans"], betas=a["betas"],
                     fps=float(a["fps"]), n_settle=int(a["n_settle"]), garment=str(a["garment"]),
                     garment_sha256=str(a["garment_sha256"]), body=str(a["body"]))
-
-
-def refuse_non_finite(arrays: dict, where: str) -> None:
-    """InputError naming `where` for the first of `arrays` ({key: array}) holding NaN or Inf: a simulated
-    sequence's (a NaN in one made fit blame --ridge and train write a model of NaN weights, exit 0)."""
-    for key, value in arrays.items():
-        value = np.asarray(value)
-        if value.dtype.kind in "fc" and not np.isfinite(value).all():
-            frame = int(np.argwhere(~np.isfinite(value))[0][0]) if value.ndim else 0
-            raise InputError(f"{where}: expected finite '{key}', got NaN or Inf (first at frame {frame})")
 
 
 def write_manifest(data_dir: str | os.PathLike, manifest: dict) -> None:
