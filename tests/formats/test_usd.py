@@ -22,6 +22,15 @@ def _tracks(n_frames=4):
             MeshTrack("body", body_points, body_faces)]
 
 
+def usd_problems(path) -> list[str]:
+    """What USD's own validators (every one this pxr registers: stage metadata, subsets, material bindings,
+    shaders, composition, ...) find wrong with the stage at `path`, one line each; [] for a clean stage."""
+    from pxr import UsdValidation
+
+    context = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
+    return [f"{e.GetName()}: {e.GetMessage()}" for e in context.Validate(Usd.Stage.Open(str(path)))]
+
+
 def _mesh_stage(path, points, counts, indices):
     """A new stage at `path` with one mesh /cloth of these points and polygons: (stage, mesh), unsaved."""
     stage = Usd.Stage.CreateNew(str(path))
@@ -85,6 +94,22 @@ def test_stage_as_pxr_reads_it(tmp_path):
     assert mesh.GetDisplayColorPrimvar().GetInterpolation() == UsdGeom.Tokens.constant
     body = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/body"))
     assert len(body.GetPointsAttr().Get(Usd.TimeCode(1))) == 5
+    assert usd_problems(path) == []
+
+
+def test_usd_problems_finds_what_usds_validators_find(tmp_path):
+    """The check the written stages pass is not empty: a stage without up axis, scale or default prim and a
+    subset bound without MaterialBindingAPI to faces the mesh does not have is refused on each count."""
+    path = tmp_path / "bad.usda"
+    stage, mesh = _mesh_stage(path, [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [3], [0, 1, 2])
+    subset = UsdGeom.Subset.CreateGeomSubset(mesh, "a", UsdGeom.Tokens.face, Vt.IntArray([0, 5]),
+                                             UsdShade.Tokens.materialBind, UsdGeom.Tokens.nonOverlapping)
+    subset.GetPrim().CreateRelationship("material:binding").AddTarget(UsdShade.Material.Define(stage, "/m").GetPath())
+    stage.Save()
+    found = " ".join(usd_problems(path))
+    for name in ("MissingUpAxisMetadata", "MissingMetersPerUnitMetadata", "MissingDefaultPrim",
+                 "MissingMaterialBindingAPI", "InvalidSubsetFamily"):
+        assert name in found, found
 
 
 def test_names_are_sanitised_and_unique(tmp_path):

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from tests.garmentcli.cli import invoke
+from tests.formats.test_usd import usd_problems
 from tests.garmentcli.conftest import write_motion, write_shell_obj
 
 
@@ -431,6 +432,7 @@ def test_outputs_carry_the_files_material_library(scene):
     assert (d / texture.GetInput("file").Get().path).resolve() == (asset / "tex" / "weave.png").resolve()
     reader = UsdShade.Shader(texture.GetInput("st").GetConnectedSources()[0][0].source.GetPrim())
     assert reader.GetInput("varname").Get() == "st"
+    assert usd_problems(d / "panels_walk.usd") == []  # as usdchecker sees it
 
 
 def test_outputs_keep_the_files_ngons(scene):
