@@ -353,18 +353,23 @@ def _lies(axis: str, up: str) -> str:
     return "stands on its head" if head[2] < -0.5 else "lies on its front" if head[1] < -0.5 else "lies on its back"
 
 
-def warn_if_other_up(motion: Motion, source: str, up: str) -> bool:
-    """Log a warning, for a motion given as standing along `up` ("y" or "-y": `--motion-up`), when its body stands
-    along another axis (`standing_axis`): turned, it would lie down or stand on its head. Returns whether it
-    warned."""
+def warn_if_other_up(motion: Motion, source: str, up: str, given: bool = True) -> bool:
+    """Log a warning, for a motion read as standing along `up` ("y" or "-y": `--motion-up` where `given`, else the
+    axis its file's rest skeleton stands along), when its body stands along another axis (`standing_axis`): turned,
+    it would lie down or stand on its head. Returns whether it warned."""
     axis, share = standing_axis(motion)
     if axis is None or axis == up:
         return False
-    fix = f"leave out --motion-up {up}" if axis == "z" else f"pass --motion-up {axis}"
+    if given:
+        how = f"given as {UP_NAMES[up]} up (--motion-up {up})"
+        fix = f"leave out --motion-up {up}" if axis == "z" else f"pass --motion-up {axis}"
+    else:  # a BVH written from a Z-up capture with a Y-up rest skeleton (smpl2bvh's)
+        how = f"read as {UP_NAMES[up]} up (its rest skeleton stands along world {UP_NAMES[up]})"
+        fix = f"pass --motion-up {axis}"
     looks = "it looks Z-up already" if axis == "z" else f"it looks {UP_NAMES[axis]} up"
-    log.warning("motion '%s': given as %s up (--motion-up %s), but the body stands along world %s in %.0f %% of its "
-                "frames and along %s in none: %s, and turned it %s; %s", source, UP_NAMES[up], up,
-                UP_NAMES[axis], share[axis] * 100, UP_NAMES[up], looks, _lies(axis, up), fix)
+    log.warning("motion '%s': %s, but the body stands along world %s in %.0f %% of its frames and along %s in none: "
+                "%s, and turned it %s; %s", source, how, UP_NAMES[axis], share[axis] * 100, UP_NAMES[up], looks,
+                _lies(axis, up), fix)
     return True
 
 

@@ -346,6 +346,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     from formats.motion import load_motion
 
     motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", person=person, take=take)
+    given = motion_up not in (None, "auto")
     motion_up = resolved_up(motion, path, motion_up)
     # A motion's betas were fitted to the body model it was captured with (SMPL, SMPL+H, SMPL-X), never to the
     # embedded body, whose coefficients are anny's own basis: there they would shape another person.
@@ -372,7 +373,7 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
         motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note, warn=not foreign))
         _check_betas_range(motion.betas, source)
     if motion_up != "z":
-        motion = turned_z_up(motion, body, path, motion_up)
+        motion = turned_z_up(motion, body, path, motion_up, given)
     source_fps = motion.fps
     if frames:
         motion = preroll(motion, *parse_frame_range(frames), preroll_frames)
@@ -414,13 +415,13 @@ def resolved_up(motion, path: str, motion_up: str | None) -> str:
     return axis or "z"
 
 
-def turned_z_up(motion, body: Body | None, path: str, up: str = "y"):
-    """`core.motion.y_up_to_z_up` (from the world axis `up`, "y" or "-y") about the pelvis of `body` (the embedded
-    one when None) at the motion's betas, with the world checks `load_motion` leaves to it (along another axis?
-    metres?)."""
+def turned_z_up(motion, body: Body | None, path: str, up: str = "y", given: bool = True):
+    """`core.motion.y_up_to_z_up` (from the world axis `up`, "y" or "-y": --motion-up where `given`, else the one
+    its rest skeleton stands along) about the pelvis of `body` (the embedded one when None) at the motion's betas,
+    with the world checks `load_motion` leaves to it (along another axis? metres?)."""
     from core.motion import warn_if_not_metres, warn_if_other_up, y_up_to_z_up
 
-    warn_if_other_up(motion, path, up)
+    warn_if_other_up(motion, path, up, given)
     body = body or default_body()
     _, joints = body.shaped(body.fit_betas(motion.betas, warn=False))  # warned about where the bake fits them
     motion = y_up_to_z_up(motion, joints[0], up)

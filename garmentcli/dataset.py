@@ -58,7 +58,7 @@ def _motions_by_name(motion_paths, library: bool, source_fps: float | None, fn, 
     def read(path, part):
         motion = load_motion(path, fps=source_fps, world_checks=motion_up == "z", **part)
         up = resolved_up(motion, path, motion_up)
-        return turned_z_up(motion, body, path, up) if up != "z" else motion
+        return turned_z_up(motion, body, path, up, given=motion_up not in (None, "auto")) if up != "z" else motion
 
     if parts is None:
         parts = {p: motion_parts(p, person, take, say=False) for p in motion_paths}

@@ -296,7 +296,7 @@ def test_a_directory_of_pickled_and_smplx_argument_motions_bakes_each_as_its_ama
 
 
 def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_npz_and_a_non_humanoid_is_refused(
-        scene):
+        scene, caplog):
     """The scene's walk exported as a BVH of SMPL's skeleton (as smpl2bvh writes one: centimetres, ZYX Euler
     angles; the AMASS world kept: --motion-up z) bakes the garment of the AMASS file; so does the walk turned Y-up
     on a skeleton of Mixamo's names (retargeted; read in the world its rest stands in, +Y, with --motion-up left
@@ -332,6 +332,13 @@ def test_a_bvh_fbx_gltf_or_usd_of_the_smpl_skeleton_or_another_rig_bakes_as_its_
         r = invoke(["bake", scene["garment"], motion, "--body", scene["body"], "--out", scene["out"],
                     "--method", "lbs", *options])
         assert r.exit_code == 0, r.output
+    # smpl2bvh's BVH without --motion-up: read in the world its rest stands in (+Y), the warning names the fix
+    with caplog.at_level(logging.WARNING):
+        r = invoke(["bake", scene["garment"], bvh, "--body", scene["body"], "--out", scene["dir"] / "out_bvh_y",
+                    "--method", "lbs", "--frames", "0:2"])
+    assert r.exit_code == 0 and "read as +Y up (its rest skeleton stands along world +Y)" in caplog.text, caplog.text
+    assert "it looks Z-up already" in caplog.text and "pass --motion-up z" in caplog.text, caplog.text
+    assert "leave out" not in caplog.text and "given as" not in caplog.text, caplog.text
     for name in ("walk_bvh", "walk_rig", "walk_fbx", "walk_gltf"):
         np.testing.assert_allclose(read_sequence(scene["out"] / f"shell_{name}" / "obj").points,
                                    read_sequence(scene["out"] / "shell_walk" / "obj").points, atol=1e-4)

@@ -1,0 +1,148 @@
+"""Tests for core/ray_winding.py and the inside test built on it (`core.geometry.points_inside_mesh`): winding numbers
+against a naive solid-angle sum, rays through edges and vertices, a mesh through itself, an open mesh, a mesh of
+uneven faces."""
+
+import numpy as np
+import pytest
+
+from core import ray_winding as W
+from core.geometry import TriangleMesh, points_inside_mesh
+from tests.meshes import icosphere, points_around
+
+
+def _naive_winding(points, verts, faces):
+    """Generalised winding number: the solid angles of the faces seen from each point over 4 pi (Van Oosterom and
+    Strackee), summed face by face in a loop."""
+    out = np.zeros(len(points))
+    for f in faces:
+        a, b, c = (verts[f] - points[:, None]).transpose(1, 0, 2)
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        det = np.einsum("ij,ij->i", a, np.cross(b, c))
+        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
+            + np.einsum("ij,ij->i", c, a) * lb
+        out += 2.0 * np.arctan2(det, den) / (4.0 * np.pi)
+    return out
+
+
+def _two_spheres():
+    """One mesh of two closed spheres that overlap (a body whose arm passes into its torso)."""
+    va, fa = icosphere(2, radius=1.0)
+    vb, fb = icosphere(2, radius=0.6, center=(0.9, 0.1, 0.05))
+    return np.concatenate([va, vb]), np.concatenate([fa, fb + len(va)])
+
+
+def _cube(n=4, big_top=False):
+    """A closed, outward unit cube [0, 1]^3 of n x n quads a side split in two, its vertices at multiples of 1/n;
+    with `big_top`, its top (z = 1) two triangles across the whole side instead."""
+    verts, faces = [], []
+    for axis in range(3):
+        for side in (0.0, 1.0):
+            m = 1 if (big_top and axis == 2 and side == 1.0) else n
+            s = np.linspace(0, 1, m + 1)
+            a, b = np.meshgrid(s, s, indexing="ij")
+            p = np.zeros((m + 1, m + 1, 3))
+            others = [k for k in range(3) if k != axis]
+            p[..., others[0]], p[..., others[1]], p[..., axis] = a, b, side
+            idx = np.arange((m + 1) ** 2).reshape(m + 1, m + 1) + sum(len(x) for x in verts)
+            q = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], -1).reshape(-1, 4)
+            faces.append(np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]))
+            verts.append(p.reshape(-1, 3))
+    v, f = np.concatenate(verts), np.concatenate(faces)
+    # Wind every face outward: its normal along the direction from the cube's centre to its centroid.
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    flip = np.einsum("ij,ij->i", n, v[f].mean(axis=1) - 0.5) < 0
+    f[flip] = f[flip][:, ::-1]
+    return v, f
+
+
+@pytest.mark.parametrize("mesh", ["sphere", "two spheres"])
+def test_ray_windings_equal_the_solid_angle_sum(mesh):
+    v, f = icosphere(2, radius=1.0) if mesh == "sphere" else _two_spheres()
+    pts = np.concatenate([points_around(400, 0.0, 1.6, seed=3), points_around(200, 0.0, 0.7, seed=4) + [0.9, 0.1, 0.05]])
+    want = _naive_winding(pts, v, f)
+    clear = np.abs(want - np.round(want)) < 0.05  # not on the surface (the solid angle sum jumps there)
+    plus, minus = W.ray_windings(pts, v, f)
+    np.testing.assert_array_equal(plus[clear], np.round(want[clear]).astype(int))
+    np.testing.assert_array_equal(minus, plus)
+    if mesh == "two spheres":
+        assert (plus == 2).sum() > 50  # the overlap is counted twice
+
+
+def test_rays_through_edges_and_vertices_count_once():
+    """Points whose rays run exactly through the cube's edges and vertices (two of their coordinates multiples of
+    1/8, the cube's vertices at multiples of 1/4, along whichever axis the rays take): each inside point's winding
+    is 1, each outside point's 0, both ways, whatever the order of the faces and of their corners."""
+    v, f = _cube(4)
+    s = np.arange(-1, 10) / 8.0
+    pts = np.concatenate([np.roll(np.stack(np.meshgrid(s + 1 / 7, s, s, indexing="ij"), -1).reshape(-1, 3), a, axis=1)
+                          for a in range(3)])
+    pts = pts[~np.any((pts == 0) | (pts == 1), axis=1)]  # not on the surface
+    inside = np.all((pts > 0) & (pts < 1), axis=1)
+    assert 200 < inside.sum() < len(pts) - 200
+    rng = np.random.default_rng(0)
+    for faces in (f, np.roll(f[rng.permutation(len(f))], 1, axis=1)):
+        plus, minus = W.ray_windings(pts, v, faces)
+        np.testing.assert_array_equal(plus, inside.astype(int))
+        np.testing.assert_array_equal(minus, inside.astype(int))
+
+
+def test_a_point_inside_where_the_mesh_passes_through_itself_is_inside():
+    """A point inside the big sphere whose nearest surface is the small sphere's, itself inside the big one: the
+    nearest face's normal calls it outside (what the penetration share read before), the winding number inside."""
+    v, f = _two_spheres()
+    p = np.array([[0.9 - 0.6 - 0.03, 0.1, 0.05]])  # 3 cm from the small sphere, outside it, inside the big one
+    mesh = TriangleMesh(v, f)
+    assert mesh.signed_distance(p)[0] > 0  # the normal of the nearest face says outside
+    assert points_inside_mesh(p, v, f, depth=0.002)[0]
+    assert not points_inside_mesh(p, v, f, depth=0.05)[0]  # its depth: the distance to the nearest surface
+
+
+def test_points_inside_an_open_mesh_fall_back_to_the_nearest_faces_sign():
+    """A sphere without the faces of its top cap: a ray through the hole meets one face, the other ray none, so
+    the nearest face's normal decides; inside points under the hole stay inside, outside points outside."""
+    v, f = icosphere(3, radius=1.0)
+    open_f = f[v[f].mean(axis=1)[:, 2] < 0.95]
+    pts = points_around(500, 0.0, 1.5, seed=6)
+    r = np.linalg.norm(pts, axis=1)
+    clear = np.abs(r - 1) > 0.05
+    plus, minus = W.ray_windings(pts, v, open_f)
+    assert ((plus > 0) != (minus > 0)).any()  # some rays went through the hole
+    got = points_inside_mesh(pts, v, open_f, depth=0.002)
+    np.testing.assert_array_equal(got[clear], (r < 1)[clear])
+
+
+def test_depth_is_the_exact_distance_on_a_mesh_of_uneven_faces():
+    """A cube whose top is two faces across it and whose sides are fine: points 1 mm under the top, a few cm from
+    the fine sides, are 1 mm deep (the one-pass search over the 16 nearest centroids finds only the sides', 3-8 cm
+    away, and counted them at 2 and 5 mm)."""
+    v, f = _cube(40, big_top=True)
+    pts = np.array([[0.5, 0.5, 0.999], [0.05, 0.5, 0.999], [0.5, 0.08, 0.999], [0.03, 0.03, 0.999],
+                    [0.5, 0.5, 0.9]])
+    assert np.array_equal(points_inside_mesh(pts, v, f, depth=0.0), [True] * 5)
+    assert np.array_equal(points_inside_mesh(pts, v, f, depth=0.002), [False] * 4 + [True])
+    assert np.array_equal(points_inside_mesh(pts, v, f, depth=0.05), [False] * 4 + [True])
+    res = TriangleMesh(v, f).closest_within(pts, np.full(len(pts), 2.0))
+    np.testing.assert_allclose(res.distance, [0.001] * 4 + [0.1], atol=1e-12)
+
+
+def test_closest_within_equals_the_exact_search():
+    v, f = _two_spheres()
+    pts = points_around(300, 0.0, 1.4, seed=8)
+    mesh = TriangleMesh(v, f)
+    one_pass = mesh.closest(pts, exact=False)
+    got, want = mesh.closest_within(pts, one_pass.distance), mesh.closest(pts, exact=True)
+    np.testing.assert_allclose(got.distance, want.distance, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(got.closest - pts, axis=1), got.distance, atol=1e-12)
+    assert (one_pass.distance >= got.distance - 1e-12).all()
+
+
+def test_a_grid_of_few_cells_is_made_coarser_for_large_faces(monkeypatch):
+    """A mesh of a few faces across the whole grid keeps its entries bounded (the cells grow), and the windings
+    stay right."""
+    v, f = _cube(1)
+    monkeypatch.setattr(W, "MAX_ENTRIES_PER_FACE", 2)
+    monkeypatch.setattr(W, "CELLS_PER_FACE", 1000.0)
+    *_, cell_face = W._grid(v[:, :2], f)
+    assert len(cell_face) <= 2 * len(f) + 1024
+    pts = np.array([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5], [0.25, 0.75, 0.1]])
+    np.testing.assert_array_equal(W.ray_windings(pts, v, f)[0], [1, 0, 1])
