@@ -41,14 +41,26 @@ def shortened(text: str) -> str:
     return cut(text, LONG_LINE - 400, 300) if len(text) > LONG_LINE else text
 
 
+class _OneLineUsageError(click.UsageError):
+    """A usage error (an unknown option, a value out of its range) as one line on stderr, naming the command's
+    help, instead of click's usage, hint and blank line before it; exit code 2 as click's."""
+
+    def show(self, file=None) -> None:
+        where = f" (see '{self.ctx.command_path} --help')" if self.ctx is not None else ""
+        click.echo(f"Error: {self.format_message()}{where}", file=file, err=file is None)
+
+
 class _Group(click.Group):
     """click.Group whose commands' file-system errors on a named path (a name longer than the file system takes,
-    a device that fails to read) end as one line naming the path, not a traceback; and whose error lines repeat a
-    value given of any length only by its ends (`shortened`), click's own messages too."""
+    a device that fails to read) end as one line naming the path, not a traceback; whose usage errors are one
+    line (`_OneLineUsageError`); and whose error lines repeat a value given of any length only by its ends
+    (`shortened`), click's own messages too."""
 
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except click.UsageError as exc:
+            raise _OneLineUsageError(shortened(exc.format_message()), exc.ctx) from None
         except click.ClickException as exc:
             exc.message = shortened(exc.message)
             raise

@@ -41,7 +41,13 @@ def _read_sequence(path: Path):
     from formats.pointcache import read_point_cache
 
     points, stamps = read_point_cache(Path(path))
-    fps = None  # MDD's times are seconds; PC2's are frames
+    fps = None  # MDD's times are seconds; PC2's are frames, one a sample where it was written at every frame
+    if Path(path).suffix.lower() == ".pc2" and len(stamps) > 1 and not np.isclose(stamps[1] - stamps[0], 1.0,
+                                                                                      rtol=0, atol=1e-4):
+        step = float(stamps[1] - stamps[0])
+        raise InputError(f"point cache '{path}': expected a sample every frame (sample rate 1), got a sample every "
+                         f"{step:g} frames: compared frame by frame, it would be measured against other frames; "
+                         f"write it at every frame")
     span = float(stamps[-1]) - float(stamps[0]) if len(stamps) > 1 else 0.0
     if Path(path).suffix.lower() == ".mdd" and span > 0:
         # float32 seconds: at frame 1001 of 24 fps a step is 0.0416665 +- 2e-6; over the span, snapped to a common

@@ -606,6 +606,13 @@ def test_point_caches_hold_the_obj_frames_in_the_garment_files_frame(scene):
         assert [float(v) for v in r.output.strip().splitlines()[-1].strip("|").split("|")[:5]] == [0.0] * 5
     assert_one_line_error(run(["metrics", d / "shell_walk.pc2", d / "shell_walk.mdd"]), "are point caches: expected "
                           "one of them with its mesh")
+    # a PC2 sampled every 2nd frame (its header's sample rate 2, as Max and Houdini write one) is not compared
+    # frame by frame with a bake of every frame
+    every_other = bytearray((d / "shell_walk.pc2").read_bytes())
+    every_other[24:28] = np.float32(2.0).tobytes()
+    (d / "every_other.pc2").write_bytes(bytes(every_other))
+    assert_one_line_error(run(["metrics", d, d / "every_other.pc2"]), "every_other.pc2': expected a sample every "
+                          "frame (sample rate 1), got a sample every 2 frames")
     assert_one_line_error(run(["bake", *common, "--point-cache", "abc", "--out", scene["out"] / "bad"]),
                           "--point-cache", "'abc' is not one of 'pc2', 'mdd'")
     assert not (scene["out"] / "bad").exists()
