@@ -202,7 +202,8 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
         if trans.ndim != 2 or trans.shape[1] != 3:
             raise InputError(f"{src}: expected {trans_key} of shape ({T}, 3), got {tuple(trans.shape)}")
         if trans.shape[0] != T:
-            raise InputError(f"{src}: {trans_key} has {trans.shape[0]} frames but poses have {T}")
+            raise InputError(f"{src}: expected {trans_key} of shape ({T}, 3), one row per frame of poses, got "
+                             f"{tuple(trans.shape)}")
     else:
         log.warning("%s: no 'trans' (or 'transl') key, using zero translation", src)
         trans = np.zeros((T, 3), dtype=np.float32)

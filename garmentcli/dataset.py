@@ -364,7 +364,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                   key=lambda it: rank.get(it.garment, len(rank)))  # stable: the plan's order within each
     click.echo(f"{out}: {len(items)} items ({manifest['totals']['frames']} frames), {len(items) - len(todo)} done, "
                f"{len(todo)} to simulate; splits: " +
-               ", ".join(f"{s} {len(m)} motions" for s, m in splits["motions"].items()) +
+               ", ".join(f"{s} {len(m)} motion{'' if len(m) == 1 else 's'}" for s, m in splits["motions"].items()) +
                (f"; held-out garment(s): {', '.join(splits['held_out_garments'])}" if splits["held_out_garments"] else ""))
     if dry_run:
         for split, names in splits["motions"].items():

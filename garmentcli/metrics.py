@@ -287,8 +287,8 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
                  betas, source_fps, motion_up=motion_up, person=person, take=take)
         return
     results, failed = {}, {}
-    for name, (p, g) in pairs.items():
-        click.echo(f"{name}:", err=True)
+    for i, (name, (p, g)) in enumerate(pairs.items(), 1):
+        click.echo(f"comparing '{name}' ({i} of {len(pairs)})", err=True)  # its warnings, if any, below
         try:
             results[name] = _compare(p, g, None if out_dir is None else out_dir / name, formats, depth_mm, plots,
                                      quiet=True)

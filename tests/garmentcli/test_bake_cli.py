@@ -138,6 +138,9 @@ def test_bake_bad_input_one_line_no_output(scene, case):
         args += ["--body", scene["body"]]
     r = run(args)
     assert_one_line_error(r, *needles)
+    if r.exit_code == 2:  # a usage error: one line, not click's usage, hint and blank line before it
+        assert r.output.strip().splitlines() == [r.output.strip()], r.output
+        assert r.output.startswith("Error: ") and r.output.strip().endswith(" bake --help')"), r.output
     assert not scene["out"].exists() or not any(scene["out"].iterdir())
 
 
@@ -146,7 +149,8 @@ def test_bake_bad_motion_files(scene):
     cases = {
         "nan.npz": ({"poses": np.full((5, 72), np.nan, np.float32)}, ["nan.npz", "NaN"]),
         "shape.npz": ({"poses": np.zeros((5, 50), np.float32)}, ["shape.npz", "72"]),
-        "trans.npz": ({"trans": np.zeros((3, 3), np.float32)}, ["trans.npz", "trans"]),
+        "trans.npz": ({"trans": np.zeros((3, 3), np.float32)}, ["trans.npz", "expected trans of shape (5, 3), one row",
+                                                                "got (3, 3)"]),
     }
     for name, (over, needles) in cases.items():
         write_motion(d / name, n_frames=5, **over)
