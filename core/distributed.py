@@ -146,8 +146,12 @@ def unwind_on_sigterm() -> None:
 def _worker_unwinds() -> None:
     """A local worker process's SIGTERM: unwinds its item as the command does (`_terminate_as_exit`), but further
     SIGTERMs are ignored while it does (the pool, finding a stopped worker, sends each of the others one more:
-    a second one killed a worker in the middle of removing its item's output, which was left behind)."""
+    a second one killed a worker in the middle of removing its item's output, which was left behind). SIGINT is
+    ignored: a terminal's Ctrl-C reaches the whole process group, and the command, interrupted, stops its workers
+    with SIGTERM (`_stop_workers`); a worker unwinding its own Ctrl-C was cut short by that SIGTERM and left its
+    output's hidden folder behind."""
     signal.signal(signal.SIGTERM, _terminate_worker)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _terminate_worker(signum, frame):

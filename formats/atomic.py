@@ -15,6 +15,7 @@ import os
 import shutil
 import socket
 import tempfile
+import uuid
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
@@ -213,19 +214,43 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool, inputs=()):
         tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.{_owner()}.", suffix=".partial", dir=final.parent))
     os.chmod(tmp, 0o777 & ~_umask())
     try:
-        with _written(final):
-            yield tmp
-    except InputError as exc:  # a writer's message names what it wrote by its final path, not the hidden one
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise InputError(str(exc).replace(str(tmp), str(final))) from None
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    if final.exists():
-        old = final.with_name(f".{final.name}.old")
-        _remove(old)
-        os.replace(final, old)
-        os.replace(tmp, final)
-        _remove(old)  # a folder, or the file --overwrite replaced with one
-    else:
-        os.replace(tmp, final)
+        try:
+            with _written(final):
+                yield tmp
+        except InputError as exc:  # a writer's message names what it wrote by its final path, not the hidden one
+            raise InputError(str(exc).replace(str(tmp), str(final))) from None
+        _swap_in(tmp, final, overwrite)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)  # gone already where it became `final`
+
+
+#: Tries of `_swap_in` where another run puts its own output in place between its steps.
+SWAP_TRIES = 8
+
+
+def _swap_in(tmp: Path, final: Path, overwrite: bool) -> None:
+    """Rename the finished folder `tmp` to `final`. An output at `final` now, made by another run while this one
+    worked (two bakes into one --out), is refused without `overwrite` (the check at the start saw none), and with it
+    moved aside under a name of this process's own and removed (one shared name let two runs at once remove each
+    other's, or fail on it)."""
+    for _ in range(SWAP_TRIES):
+        old = None
+        if final.exists() or final.is_symlink():
+            if not overwrite:
+                raise InputError(f"output '{final}' was written by another run while this one worked: pass "
+                                 f"--overwrite to replace it, or give each run its own --out")
+            old = final.with_name(f".{final.name}.{_owner()}.{uuid.uuid4().hex[:8]}.partial.old")
+            try:
+                os.replace(final, old)
+            except FileNotFoundError:  # another run moved it away first
+                old = None
+        try:
+            os.rename(tmp, final)  # a folder: fails where another run's folder took the name since
+            return
+        except OSError as exc:
+            if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST, errno.ENOTDIR, errno.EISDIR):
+                raise
+        finally:
+            if old is not None:
+                _remove(old)  # a folder, or the file --overwrite replaced with one
+    raise InputError(f"output '{final}': other runs kept writing it; give each run its own --out")

@@ -8,7 +8,7 @@ import os
 import re
 import tempfile
 import zipfile
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import replace
 from pathlib import Path
 
@@ -234,17 +234,24 @@ def input_errors_as_click(func):
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
+        out = next((v for k, v in kwargs.items() if k.startswith("out") and isinstance(v, (str, os.PathLike))), None)
+        made = out is not None and not os.path.lexists(out)
         try:
-            return func(*args, **kwargs)
-        except InputError as exc:
-            raise click.ClickException(str(exc)) from None
-        except OSError as exc:
-            from formats.atomic import OUT_OF_ROOM, out_of_room
+            try:
+                return func(*args, **kwargs)
+            except InputError as exc:
+                raise click.ClickException(str(exc)) from None
+            except OSError as exc:
+                from formats.atomic import OUT_OF_ROOM, out_of_room
 
-            if exc.errno not in OUT_OF_ROOM:
-                raise
-            out = exc.filename or next((v for k, v in kwargs.items() if k.startswith("out") and v), None)
-            raise click.ClickException(str(out_of_room(out, exc))) from None
+                if exc.errno not in OUT_OF_ROOM:
+                    raise
+                raise click.ClickException(str(out_of_room(exc.filename or out, exc))) from None
+        except BaseException:
+            if made:  # failed or stopped: no empty --out folder of its own left behind
+                with suppress(OSError):
+                    os.rmdir(out)
+            raise
 
     return wrapper
 

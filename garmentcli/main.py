@@ -61,6 +61,9 @@ class _Group(click.Group):
             return super().invoke(ctx)
         except click.UsageError as exc:
             raise _OneLineUsageError(shortened(exc.format_message()), exc.ctx) from None
+        except KeyboardInterrupt:  # Ctrl-C, once the outputs being written are removed: the shell's code (click's: 1)
+            click.echo("Aborted!", err=True)
+            raise click.exceptions.Exit(130) from None
         except click.ClickException as exc:
             exc.message = shortened(exc.message)
             raise

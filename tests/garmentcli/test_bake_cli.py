@@ -772,3 +772,22 @@ def test_retries_without_a_scheduler_is_refused(scene):
              scene["out"] / "r"])
     assert_one_line_error(r, "--retries", "applies only with --scheduler")
     assert not (scene["out"] / "r").exists()
+
+
+def test_a_bake_stopped_by_ctrl_c_exits_130_and_a_failed_one_leaves_no_out_folder_of_its_own(scene, monkeypatch):
+    """Ctrl-C while the outputs are written: "Aborted!", the shell's exit code 130 (click's was 1), nothing left,
+    not even the --out folder the bake made (an empty one was left after Ctrl-C, SIGTERM or a full disk); an --out
+    that was there before stays."""
+    import formats.usd
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(formats.usd, "write_usd_stage", interrupted)
+    common = [scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs", "--frames", "0:4"]
+    r = run(["bake", *common, "--out", scene["out"] / "new"])
+    assert r.exit_code == 130 and r.output.strip().splitlines()[-1] == "Aborted!", r.output
+    assert not (scene["out"] / "new").exists()
+    (scene["out"] / "there").mkdir(parents=True)
+    r = run(["bake", *common, "--out", scene["out"] / "there"])
+    assert r.exit_code == 130 and (scene["out"] / "there").is_dir() and not any((scene["out"] / "there").iterdir())

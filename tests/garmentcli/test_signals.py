@@ -1,6 +1,7 @@
 """SIGTERM (`kill`, a batch scheduler stopping a job) unwinds a command like Ctrl-C: what it was writing is removed
 and its worker processes stop. Each case runs in its own process, stopped while it writes."""
 
+import os
 import signal
 import subprocess
 import sys
@@ -25,11 +26,12 @@ def write_slowly(out, name):
 """
 
 
-def _stopped(script: str, out: Path, readies: int):
-    """Run `script` (after PRELUDE) with `out`, wait for `readies` lines "ready", send SIGTERM to it alone;
-    returns (exit status, its child processes that outlived it)."""
+def _stopped(script: str, out: Path, readies: int, group_sigint: bool = False):
+    """Run `script` (after PRELUDE) with `out`, wait for `readies` lines "ready", send SIGTERM to it alone (or,
+    `group_sigint`, SIGINT to its whole process group, as a terminal's Ctrl-C does); returns (exit status, its
+    child processes that outlived it)."""
     proc = subprocess.Popen([sys.executable, "-c", PRELUDE + textwrap.dedent(script), str(out)], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=group_sigint)
     try:
         seen = b""
         while seen.count(b"ready") < readies:  # workers' lines may interleave ("readyready")
@@ -37,7 +39,10 @@ def _stopped(script: str, out: Path, readies: int):
             assert line, proc.stderr.read().decode()  # ended before it was ready
             seen += line
         children = psutil.Process(proc.pid).children(recursive=True)
-        proc.send_signal(signal.SIGTERM)
+        if group_sigint:
+            os.killpg(proc.pid, signal.SIGINT)
+        else:
+            proc.send_signal(signal.SIGTERM)
         status = proc.wait(timeout=60)
         _, alive = psutil.wait_procs(children, timeout=20)
         return status, alive
@@ -83,4 +88,18 @@ def test_sigterm_while_the_command_holds_a_finished_item_stops_the_other_workers
             time.sleep(120)
     """, tmp_path, 2)
     assert status == 128 + signal.SIGTERM and alive == []
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_at_a_terminal_stops_the_workers_and_their_outputs(tmp_path):
+    """A terminal's Ctrl-C reaches the command and its `--workers` at once: the workers leave it to the command,
+    which stops them (each unwinding its Ctrl-C was cut short by the command's SIGTERM and left its output's hidden
+    folder behind, in all of five tries)."""
+    status, alive = _stopped("""
+        from core.distributed import run_items
+        unwind_on_sigterm()
+        for _ in run_items(write_slowly, [(sys.argv[1], "a"), (sys.argv[1], "b")], ["a", "b"], workers=2):
+            pass
+    """, tmp_path, 2, group_sigint=True)
+    assert status == -signal.SIGINT and alive == []  # Python's own end of a KeyboardInterrupt
     assert list(tmp_path.iterdir()) == []
