@@ -37,18 +37,25 @@ class BakeResult:
     summary: dict
 
 
+def checked_frames(n_frames: int, n_vertices: int, max_frames: int = MAX_CHECKED_FRAMES) -> np.ndarray:
+    """The frames `penetration_stats` checks of a sequence of `n_frames` frames of `n_vertices` vertices: at most
+    `max_frames` evenly spaced, fewer for a garment of more than MAX_CHECKED_VERTEX_FRAMES / max_frames vertices
+    (MIN_CHECKED_FRAMES at least)."""
+    max_frames = min(max_frames, max(MIN_CHECKED_FRAMES, MAX_CHECKED_VERTEX_FRAMES // max(n_vertices, 1)))
+    return np.unique(np.linspace(0, n_frames - 1, min(n_frames, max_frames)).round().astype(int))
+
+
 def penetration_stats(garment_points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
                       max_frames: int = MAX_CHECKED_FRAMES, depth: float = PENETRATION_DEPTH_M) -> dict:
-    """Share of garment vertices more than `depth` inside the body on evenly spaced frames: `max_frames`, fewer
-    for a garment of more than MAX_CHECKED_VERTEX_FRAMES / max_frames vertices (MIN_CHECKED_FRAMES at least).
+    """Share of garment vertices more than `depth` inside the body on the `checked_frames`.
 
-    garment_points: (T, V, 3); body_points: (T, Vb, 3); body_faces: (Fb, 3).
+    garment_points: (T, V, 3); body_points: (T, Vb, 3), or the body at the checked frames only (fewer rows: a bake
+    that writes no body poses no more); body_faces: (Fb, 3).
     Returns a JSON-ready dict (percentages, the frames checked).
     """
-    T, V = garment_points.shape[:2]
-    max_frames = min(max_frames, max(MIN_CHECKED_FRAMES, MAX_CHECKED_VERTEX_FRAMES // max(V, 1)))
-    frames = np.unique(np.linspace(0, T - 1, min(T, max_frames)).round().astype(int))
-    share = penetration_per_frame(garment_points[frames], body_points[frames], body_faces, depth) * 100.0
+    frames = checked_frames(*garment_points.shape[:2], max_frames)
+    at = frames if len(body_points) == len(garment_points) else np.arange(len(frames))
+    share = penetration_per_frame(garment_points[frames], body_points[at], body_faces, depth) * 100.0
     return {
         "depth_mm": depth * 1e3,
         "frames_checked": frames.tolist(),
@@ -63,9 +70,8 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
               check_penetration: bool = True) -> BakeResult:
     """Deform `garment` on `body` over `motion` and measure it.
 
-    Returns the garment sequence (T, V, 3), the posed body (T, Vb, 3) when
-    `with_body` or `check_penetration` (both without the motion's lead frames, `Motion.n_lead`, which are
-    deformed and dropped), and a summary dict: method, frames, fps,
+    Returns the garment sequence (T, V, 3), the posed body (T, Vb, 3) when `with_body` (else None; both without
+    the motion's lead frames, `Motion.n_lead`, which are deformed and dropped), and a summary dict: method, frames, fps,
     seconds per frame of the deformation, penetration statistics, the deformer's report.
     """
     t0 = time.perf_counter()
@@ -74,8 +80,11 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
     points = points[motion.n_lead:]  # a pre-roll is deformed, not kept
     shown = written(motion)
     body_points = None
-    if with_body or check_penetration:
+    if with_body:
         body_points, _ = body.pose(poses_for_body(shown, body.n_joints), shown.trans, shown.betas)
+    elif check_penetration:  # the body of the frames checked only: 160 kB a frame of a long motion otherwise
+        at = checked_frames(len(points), points.shape[1])
+        body_points, _ = body.pose(poses_for_body(shown, body.n_joints)[at], shown.trans[at], shown.betas)
     summary = {
         "method": deformer.name,
         "frames": int(shown.n_frames),

@@ -37,22 +37,24 @@ class Deformer(ABC):
 
     def __init__(self):
         self.report: dict = {}
-        #: Called with a count of output frames just finished, by methods slow enough to report per frame.
-        self.on_frames: Callable[[int], None] | None = None
+        #: Called with a count of output frames just finished (a share of each frame where the method passes over
+        #: the frames more than once: the model's network, contact guard and strain limit), by methods slow enough
+        #: to report progress within a motion.
+        self.on_frames: Callable[[float], None] | None = None
         #: The skips of `core.scene` this method may apply (`bake --no-skip` removes some).
         self.skips: frozenset = frozenset(SKIPS)
         #: What the last `deform` skipped (core.scene.SceneAnalysis.report), for summary.json "scene".
         self.scene: dict = {}
         self._strain: dict = {}  # the last garment's StrainLimit (`limit_strain_of`)
 
-    def limit_strain_of(self, points: np.ndarray, garment: Garment, rest: np.ndarray, limit: float | None
-                        ) -> np.ndarray:
+    def limit_strain_of(self, points: np.ndarray, garment: Garment, rest: np.ndarray, limit: float | None,
+                        on_frames: Callable[[int], None] | None = None) -> np.ndarray:
         """`points` (T, V, 3) of `garment` with no edge longer than `limit` times its length at `rest` (V, 3), the
         garment at rest on the motion's body shape (`core.strain.limit_garment`; None: as they are), the limit's
-        entry added to `report`."""
+        entry added to `report`; `on_frames(n)` after each chunk of n frames."""
         if limit is None:
             return points
-        points, strained = limit_garment(points, garment, rest, limit, self._strain)
+        points, strained = limit_garment(points, garment, rest, limit, self._strain, on_frames)
         self.report.update(strained)
         return points
 

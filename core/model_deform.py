@@ -306,6 +306,10 @@ class ModelDeformer(Deformer):
             over, passes, limit_s = [], 0, 0.0
         if self.contact_guard and shaped.anchors is None:
             shaped.anchors = body_anchors(rest.cpu().numpy(), garment.faces, body, betas)
+        # Progress (`on_frames`): each frame's share of the passes over the frames, the network's and, on a CPU,
+        # the guard's and the limit's after it.
+        sweeps = 1 + (self.contact_guard and not guard_here) + (self.strain_limit is not None and limit is None)
+        tick = None if self.on_frames is None else (lambda n: self.on_frames(n / sweeps))
         if guard_here:
             pose_t = torch.as_tensor(poses, dtype=torch.float32, device=device)
             trans_t = torch.as_tensor(motion.trans, dtype=torch.float32, device=device)
@@ -339,6 +343,8 @@ class ModelDeformer(Deformer):
                     copies.put(s, verts)
                     if tuner:
                         tuner.after(len(fr))
+                    if tick is not None:
+                        tick(len(fr))
                 copies.finish()
             finally:
                 if tuner:
@@ -349,7 +355,7 @@ class ModelDeformer(Deformer):
             guard = guard_report([m.cpu() for m in moved], None, motion.n_frames)
         elif self.contact_guard:  # outside autocast: the body is posed in float32
             out, guard = guard_sequence(out, rest.cpu().numpy(), garment.faces, body, poses, motion.trans, betas,
-                                        shaped.anchors)
+                                        shaped.anchors, on_frames=tick)
         if guard:
             guard["contact_guard"]["device"] = str(device) if guard_here else "cpu"
         self.report = {"method": self.name, "model": self.model_name, "device": str(device), "batch_frames": batch,
@@ -368,7 +374,7 @@ class ModelDeformer(Deformer):
             self.report["strain_limit"] = strain_report(limit, STRAIN_ITERATIONS, over, passes, limit_s,
                                                         motion.n_frames)
         else:
-            out = self.limit_strain_of(out, garment, rest.cpu().numpy(), self.strain_limit)
+            out = self.limit_strain_of(out, garment, rest.cpu().numpy(), self.strain_limit, tick)
         if "strain_limit" in self.report:
             self.report["strain_limit"]["device"] = str(device) if limit is not None else "cpu"
         return out

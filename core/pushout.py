@@ -346,14 +346,14 @@ def guard_report(moved: list, seconds: float | None, frames: int) -> dict:
 
 def guard_sequence(points: np.ndarray, rest: np.ndarray, faces: np.ndarray, body: Body, poses: np.ndarray,
                    trans: np.ndarray, betas: np.ndarray | None,
-                   anchors: ContactAnchors | None = None) -> tuple[np.ndarray, dict]:
+                   anchors: ContactAnchors | None = None, on_frames=None) -> tuple[np.ndarray, dict]:
     """The contact guard over a deformed sequence (the model's and psd's): each vertex tied to its closest face
     of the body at rest (`body_anchors`), then kept outside it in every frame (`guard_contact`), the body posed
     `guard_chunk_frames` frames at a time.
 
     points: (T, V, 3) the sequence (written in place); rest: (V, 3) the garment at rest on the shaped body, faces
-    (F, 3); poses: (T, J, 3) in the body's layout; anchors: `body_anchors(rest, faces, body, betas)` where made.
-    Returns (points, `guard_report`'s entries).
+    (F, 3); poses: (T, J, 3) in the body's layout; anchors: `body_anchors(rest, faces, body, betas)` where made;
+    on_frames(n): called after each chunk of n frames (a progress bar). Returns (points, `guard_report`'s entries).
     """
     t0 = time.perf_counter()
     if anchors is None:
@@ -365,6 +365,8 @@ def guard_sequence(points: np.ndarray, rest: np.ndarray, faces: np.ndarray, body
         fr = slice(s, min(s + chunk, len(points)))
         points[fr], n = guard_contact(points[fr], body.pose_at(ids, poses[fr], trans[fr], betas), anchors)
         moved.append(n)
+        if on_frames is not None:
+            on_frames(fr.stop - fr.start)
     return points, guard_report(moved, time.perf_counter() - t0, len(points))
 
 

@@ -201,10 +201,11 @@ def strain_report(strain: StrainLimit, iterations: int, over: list[np.ndarray], 
             "seconds_per_frame": seconds / max(n_frames, 1)}
 
 
-def limit_sequence(points: np.ndarray, strain: StrainLimit, iterations: int = STRAIN_ITERATIONS
-                   ) -> tuple[np.ndarray, dict]:
-    """`limit_strain` over a sequence (T, V, 3), `strain_chunk_frames` frames at a time, written in place.
-    Returns (points, the report's "strain_limit" entry)."""
+def limit_sequence(points: np.ndarray, strain: StrainLimit, iterations: int = STRAIN_ITERATIONS,
+                   on_frames=None) -> tuple[np.ndarray, dict]:
+    """`limit_strain` over a sequence (T, V, 3), `strain_chunk_frames` frames at a time, written in place
+    (`on_frames(n)` after each chunk of n frames, for a progress bar). Returns (points, the report's
+    "strain_limit" entry)."""
     t0 = time.perf_counter()
     over, passes = [], 0
     chunk = strain_chunk_frames(points.shape[1])
@@ -213,6 +214,8 @@ def limit_sequence(points: np.ndarray, strain: StrainLimit, iterations: int = ST
         points[fr], n, done = limit_strain(points[fr], strain, iterations)
         over.append(n)
         passes = max(passes, done)
+        if on_frames is not None:
+            on_frames(len(points[fr]))
     return points, strain_report(strain, iterations, over, passes, time.perf_counter() - t0, len(points))
 
 
@@ -230,10 +233,10 @@ def garment_strain(garment: Garment, rest: np.ndarray, limit: float, cache: dict
     return _strain_of(*cache[key], rest, limit)
 
 
-def limit_garment(points: np.ndarray, garment: Garment, rest: np.ndarray, limit: float, cache: dict
-                  ) -> tuple[np.ndarray, dict]:
+def limit_garment(points: np.ndarray, garment: Garment, rest: np.ndarray, limit: float, cache: dict,
+                  on_frames=None) -> tuple[np.ndarray, dict]:
     """`limit_sequence` of a deformer's output (T, V, 3) of `garment` against its lengths at `rest`
-    (`garment_strain`). Returns (points, the report's entries: {"strain_limit": ...})."""
+    (`garment_strain`; `on_frames` its progress). Returns (points, the report's entries: {"strain_limit": ...})."""
     strain = garment_strain(garment, rest, limit, cache)
-    points, report = limit_sequence(np.ascontiguousarray(points, dtype=np.float32), strain)
+    points, report = limit_sequence(np.ascontiguousarray(points, dtype=np.float32), strain, on_frames=on_frames)
     return points, {"strain_limit": report}

@@ -251,6 +251,26 @@ def test_model_deformer_bakes_a_motion(body, tmp_path):
         load_model_deformer(tmp_path / "p.pt", precision="float16")
 
 
+@pytest.mark.parametrize("guard, limit, sweeps", [(True, 1.5, 3), (False, 1.5, 2), (False, None, 1)])
+def test_model_deformer_reports_progress_through_each_pass_over_the_frames(body, tmp_path, guard, limit, sweeps):
+    """`on_frames` is called as the network's batches, the contact guard's and the strain limit's chunks finish,
+    each frame's share of the passes: the counts add up to the frames, in steps before the end (a 203k-vertex bake
+    sat at 0 % for its whole run), the network's third, half or all of them by its last batch."""
+    from core.garment import Garment
+    from core.model_deform import ModelDeformer
+    from core.motion import Motion
+
+    model = perturbed_model(TINY_CONFIG, scale=0.3, seed=2)
+    v, f = tube(12, 6)
+    poses, trans, _ = sequence(body, v, f, 12, 0, None)
+    d = ModelDeformer(model, batch_frames=4, contact_guard=guard, strain_limit=limit)
+    ticks = []
+    d.on_frames = ticks.append
+    d.deform(Garment(v, f), body, Motion(poses=poses, trans=trans, fps=30.0))
+    assert sum(ticks) == pytest.approx(12)
+    assert ticks[:3] == [pytest.approx(4 / sweeps)] * 3 and len(ticks) >= 3 + (sweeps - 1)
+
+
 def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     """A motion without settle frames starts, in the network's window only, with the blend from the rest pose
     its training sequences start with: the same frames as baking the motion with that settle blend and
