@@ -959,6 +959,10 @@ class SimDeformer(Deformer):
                     off = (f"; {what(k)} fell or slid down the body: its median distance from where skinning puts it "
                            f"is {moved[k] * 100:.0f} cm (over {o.fail_off_place_m * 100:.0f} cm)"
                            + ("" if o.pin == "auto" else "; --pin auto holds waistbands and small pieces"))
+                    if o.pin == "auto" and not np.isin(np.flatnonzero(pieces == k), pinned).any():
+                        off += ("; nothing held it: no waistband to pin, and it hangs from no shoulders (a patch or "
+                                "a piece cut from its garment?): simulate the whole garment, or bake it with --method "
+                                "model or lbs")
                 raise SimulationError(
                     f"sim: frame {t} of motion '{motion.name}' failed after {o.max_retries + 1} tries "
                     f"(up to {substeps} substeps): {_describe(check, o.retry_depth_m)}{off}")

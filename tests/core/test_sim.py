@@ -818,3 +818,11 @@ def test_a_small_detached_piece_follows_the_body_or_falls_and_stops_the_bake(cap
                                               r"down the body: its median distance from where skinning puts it is "
                                               r"1\d\d cm \(over 50 cm\); --pin auto holds waistbands and small pieces"):
         SimDeformer(options=SimOptions(settle_s=1.0, max_retries=0, pin="none")).deform(patched, body, motion)
+    # The pocket alone, one piece that nothing holds (no waistband, no shoulders): it falls, and the error says why
+    # and what to do (it said only that the garment fell or slid down the body)
+    alone = Garment(patched.vertices[patch], patched.faces[patched.faces.min(axis=1) >= garment.n_vertices]
+                    - garment.n_vertices, name="pocket")
+    with pytest.raises(SimulationError, match=r"the garment fell or slid down the body: .*; nothing held it: no "
+                                              r"waistband to pin, and it hangs from no shoulders .*--method model "
+                                              r"or lbs"):
+        SimDeformer(options=SimOptions(settle_s=1.0, max_retries=0)).deform(alone, body, motion)
