@@ -474,6 +474,18 @@ def filter_native_stderr(fn, drop: bytes):
         os.close(saved)
 
 
+def require_simulator(what: str) -> None:
+    """InputError naming `what` (the command or option) where the reference simulator's packages (the `sim`
+    extra: newton, warp-lang) are not installed: a traceback of `import warp` otherwise, after the inputs were
+    read."""
+    try:
+        import newton  # noqa: F401
+        import warp  # noqa: F401
+    except ImportError as exc:
+        raise InputError(f"{what} needs the reference simulator, whose packages are not installed ({exc.name or exc} "
+                         f"is missing): pip install 'garment[sim]'") from None
+
+
 def _warp():
     os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" / "warp"))
     import warp as wp

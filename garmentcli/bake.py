@@ -122,8 +122,9 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
                                    contact_guard=contact_guard, device=parse_device(device, auto=True),
                                    strain_limit=strain_limit)
     if method == "sim":
-        from core.sim import Material, SimDeformer, SimOptions, load_material
+        from core.sim import Material, SimDeformer, SimOptions, load_material, require_simulator
 
+        require_simulator("--method sim")
         material = load_material(material_path) if material_path else Material()
         defaults = SimOptions()
         options = SimOptions(substeps=substeps or defaults.substeps, iterations=iterations or defaults.iterations,

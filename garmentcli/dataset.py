@@ -277,6 +277,10 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                                  param_hint="--first")
     if not motion_paths and not library:
         raise click.UsageError("expected motions: --motions FILE (repeatable) and/or --library")
+    if not dry_run:  # before any file is read or written
+        from core.sim import require_simulator
+
+        require_simulator("garment dataset")
     if not motion_paths:  # the library's clips carry their own rate, one person, one take
         given = next((hint for hint, value in (("--source-fps", source_fps), ("--take", take), ("--person", person))
                       if value is not None), None)

@@ -172,10 +172,9 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         from core.quality import Calibration
 
         Calibration.load(calibration_path)  # one that is no calibration stops the run now, not after its hours
-    try:
-        import newton  # noqa: F401
-    except ImportError:
-        raise click.ClickException("tradeoff needs the reference simulator: pip install 'garment[sim]'") from None
+    from core.sim import require_simulator
+
+    require_simulator("tradeoff")  # its reference rows
     target = Path(out_dir) / f"{Path(garment_path).stem}_{Path(motion_path).stem}"
     if target.exists() and not target.is_dir():  # --overwrite replaces a result folder, not another file
         raise click.ClickException(f"output '{target}' is a file: expected the scene's result folder there (remove "

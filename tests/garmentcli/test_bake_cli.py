@@ -800,3 +800,22 @@ def test_a_bake_stopped_by_ctrl_c_exits_130_and_a_failed_one_leaves_no_out_folde
     (scene["out"] / "there").mkdir(parents=True)
     r = run(["bake", *common, "--out", scene["out"] / "there"])
     assert r.exit_code == 130 and (scene["out"] / "there").is_dir() and not any((scene["out"] / "there").iterdir())
+
+
+def test_the_simulator_not_installed_is_one_line_naming_the_extra(scene, monkeypatch):
+    """Installed without the `sim` extra (newton, warp-lang), `--method sim`, `garment dataset` and `garment
+    tradeoff` say so in one line before any work (`bake --method sim` and `dataset` ended in a traceback of
+    `import warp` after reading their inputs)."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "warp", None)  # an import of it raises ImportError
+    outs = scene["dir"] / "outs"
+    common = [scene["garment"], scene["motion"], "--body", scene["body"]]
+    for args in (["bake", *common, "--method", "sim", "--out", outs / "b"],
+                 ["dataset", "--garments", scene["garment"], "--motions", scene["motion"], "--body", scene["body"],
+                  "--out", outs / "d"],
+                 ["tradeoff", *common, "--out", outs / "t"]):
+        r = run(args)
+        assert_one_line_error(r, "needs the reference simulator, whose packages are not installed (warp is missing): "
+                                 "pip install 'garment[sim]'")
+    assert not outs.exists()
