@@ -290,6 +290,11 @@ def _kd_tree(points: np.ndarray) -> cKDTree:
 CLOSEST_CHUNK_PAIRS = 16_384
 #: Threads `TriangleMesh.closest` runs its chunks on, each chunk's KD-tree query and closest-point formulas on
 #: one (both release the GIL): the formulas, 40 % of the time, ran on one core when only the query was threaded.
+#: A face whose radius (its farthest corner from its centroid) exceeds this many times the median is tried against
+#: every point by `TriangleMesh.any_within` rather than found by its centroid.
+LARGE_FACE_RADII = 4.0
+#: (point, face) pairs `TriangleMesh.any_within` works through at a time, about (taken as 64 faces a point).
+WITHIN_CHUNK_PAIRS = 200_000
 CLOSEST_THREADS = min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
@@ -434,33 +439,44 @@ class TriangleMesh:
                 dist[i], face[i], bary[i], cp[i] = d2[j], cand[j], b2[j], c2[j]
         return ClosestPoints(dist, face, bary, cp)
 
-    def closest_within(self, points: np.ndarray, bound: np.ndarray) -> ClosestPoints:
-        """Exact closest points for a few points (N, 3), each no farther from the mesh than its `bound` (N,): every
-        face whose centroid lies within the bound and the face's own radius is tried. For the points a one-pass
-        `closest` found inside a body (its distances are such bounds): a posed body's tree of centroids serves,
-        where `closest(exact=True)` builds a finer one each pose (25 ms) and re-queries a deep point's
-        neighbourhood up to 1024 samples (about 1 ms a point)."""
+    def any_within(self, points: np.ndarray, radius: float) -> np.ndarray:
+        """(N,) bool: whether some face of the mesh comes within `radius` (metres, >= 0) of each point (N, 3), exactly.
+
+        Candidates are the faces whose centroid lies within `radius` plus their own radius of the point: the
+        ordinary faces found in the tree of every centroid, the few large ones (over `LARGE_FACE_RADII` times the
+        median radius: a body's 3.7 cm against 0.48) in a tree of their own, so a large face neither goes unseen
+        (the faces of the 16 nearest centroids missed the top of a box of two faces beside fine sides: 1 mm read as
+        3-8 cm) nor widens every point's search. Chunked: memory stays flat however many points are inside.
+        """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        bound = np.asarray(bound, dtype=np.float64).reshape(-1)
-        tree = self._tree(False)[0]
+        out = np.zeros(len(points), dtype=bool)
+        if not len(points) or not len(self.faces):
+            return out
         c = self._corners_soa
-        radius = np.max([np.sqrt(_dot3_soa(x - self._centroids_soa, x - self._centroids_soa)) for x in c], axis=0)
-        near = tree.query_ball_point(points, bound + float(radius.max(initial=0)) + 1e-12)
-        pi = np.repeat(np.arange(len(points)), [len(n) for n in near])
-        fi = np.fromiter((f for n in near for f in n), dtype=np.int64, count=len(pi))
-        keep = np.sqrt(_dot3_soa(points[pi].T - self._centroids_soa[:, fi], points[pi].T - self._centroids_soa[:, fi])) \
-            <= bound[pi] + radius[fi] + 1e-12
-        pi, fi = pi[keep], fi[keep]
-        cp, b = _closest_on_triangles_soa(points[pi].T, *(x[:, fi] for x in c), flat_tol=self._flat_tol()[fi])
-        d = np.sqrt(_dot3_soa(cp - points[pi].T, cp - points[pi].T))
-        order = np.lexsort((d, pi))  # each point's pairs, nearest first
-        first = order[np.unique(pi[order], return_index=True)[1]]
-        dist = np.full(len(points), np.inf)
-        face = np.zeros(len(points), dtype=np.int64)
-        bary, closest = np.zeros((len(points), 3)), np.zeros((len(points), 3))
-        at = pi[first]
-        dist[at], face[at], bary[at], closest[at] = d[first], fi[first], b[:, first].T, cp[:, first].T
-        return ClosestPoints(dist, face, bary, closest)
+        rad = np.max([np.sqrt(_dot3_soa(x - self._centroids_soa, x - self._centroids_soa)) for x in c], axis=0)
+        cut = LARGE_FACE_RADII * float(np.median(rad))
+        large = np.flatnonzero(rad > cut)
+        searches = [(self._tree(False)[0], None, radius + cut)]  # the large ones, found here too, tried again below
+        if len(large):
+            searches.append((_kd_tree(self.centroids[large]), large, radius + float(rad[large].max())))
+        step = max(1, WITHIN_CHUNK_PAIRS // 64)
+        for s in range(0, len(points), step):
+            chunk = points[s:s + step]
+            pi, fi = [], []
+            for tree, faces_of, reach in searches:
+                near = tree.query_ball_point(chunk, reach)
+                pi.append(np.repeat(np.arange(len(chunk)), [len(n) for n in near]))
+                found = np.fromiter((f for n in near for f in n), dtype=np.int64, count=len(pi[-1]))
+                fi.append(found if faces_of is None else faces_of[found])
+            pi, fi = np.concatenate(pi), np.concatenate(fi)
+            off = chunk[pi].T - self._centroids_soa[:, fi]
+            keep = np.sqrt(_dot3_soa(off, off)) <= radius + rad[fi] + 1e-12
+            pi, fi = pi[keep], fi[keep]
+            cp, _ = _closest_on_triangles_soa(chunk[pi].T, *(x[:, fi] for x in c), flat_tol=self._flat_tol()[fi])
+            gap = cp - chunk[pi].T
+            hit = np.sqrt(_dot3_soa(gap, gap)) <= radius
+            out[s + np.unique(pi[hit])] = True
+        return out
 
     def _flat_tol(self) -> np.ndarray:
         """(F,) each face's `1e-9 * |ab|^2 * |ac|^2`, the threshold below which `_closest_on_triangles_soa` takes
@@ -554,29 +570,37 @@ def signed_distance(points: np.ndarray, verts: np.ndarray, faces: np.ndarray) ->
 
 
 def points_inside_mesh(points: np.ndarray, verts: np.ndarray, faces: np.ndarray, depth: float = 0.0) -> np.ndarray:
-    """(N,) bool: points more than `depth` metres inside a closed, outward-oriented mesh, which may pass through
-    itself (a posed body's arm pressed into its torso).
+    """(N,) bool: points more than `depth` metres inside a closed mesh, which may pass through itself (a posed
+    body's arm pressed into its torso); wound either way (the faces turned outward first: an inverted body read
+    as holding nothing).
 
     Inside is the winding number along a ray both ways (`core.ray_winding`): the sign of the nearest face's normal
     calls a point between the arm and the torso outside, the nearest face being the arm's, inside the torso. Where
-    the two rays disagree (a hole of an open mesh in one's way) that sign decides. The depth of a point inside is
-    its exact distance to the surface, found only for the points inside (`TriangleMesh.closest_within`, after a
-    one-pass search over the faces of the 16 nearest centroids: a point no deeper there is no deeper).
+    the two rays disagree (a hole of an open mesh in one's way), and on a mesh with holes wherever the rays say
+    outside (both may have left through holes: a point in a sleeve open at both ends), that sign decides, as it
+    did alone before. A point inside is more than `depth` inside where no face comes within `depth` of it
+    (`TriangleMesh.any_within`, after a one-pass search over the faces of the 16 nearest centroids: a point no
+    deeper there is no deeper).
     """
     from core.ray_winding import ray_windings
 
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    faces = outward_faces(verts, faces)
     plus, minus = ray_windings(p, verts, faces)
     inside = (plus > 0) & (minus > 0)
-    out = np.zeros(len(p), dtype=bool)
-    todo = np.flatnonzero(inside | ((plus > 0) != (minus > 0)))
-    if not len(todo):
-        return out
     mesh = TriangleMesh(verts, faces)
-    bound = mesh.closest(p[todo], exact=False).distance  # one pass: never nearer than the surface
-    todo, bound = todo[bound > depth], bound[bound > depth]
-    res = mesh.closest_within(p[todo], bound)
-    out[todo] = (res.distance > depth) & (inside[todo] | (mesh._sign(p[todo], res) < 0))
+    n_edges, face_edge = _face_edge_index(mesh.faces)
+    holes = bool((np.bincount(face_edge, minlength=n_edges) == 1).any())
+    ask = ~inside if holes else (plus > 0) != (minus > 0)  # the nearest face's sign decides these
+    todo = np.flatnonzero(inside | ask)
+    if not len(todo):
+        return np.zeros(len(p), dtype=bool)
+    res = mesh.closest(p[todo], exact=False)  # one pass: never nearer than the surface
+    inside[todo] |= ask[todo] & (res.distance * mesh._sign(p[todo], res) < 0)
+    deep = inside[todo] & (res.distance > depth)
+    todo = todo[deep]
+    out = np.zeros(len(p), dtype=bool)
+    out[todo] = ~mesh.any_within(p[todo], depth) if depth > 0 else True
     return out
 
 

@@ -13,7 +13,9 @@ Exactness: the test of a point against a face's shadow on the plane across d is 
 shadow of an edge or a vertex counts in exactly one of the faces around it (each edge's function computed once
 from its lower-numbered vertex and negated for the face that runs it the other way, a tie broken as for the point
 moved by an infinitesimal (e, e^2) in the plane), so a ray through an edge or a vertex is neither counted twice
-nor lost.
+nor lost: where the faces share the edge's vertices by index (a mesh split into faces of their own at a seam
+computes the edge twice, and float rounding can count a point exactly on its shadow twice or not at all; the two
+rays then disagree, and `core.geometry.points_inside_mesh` asks the nearest face).
 """
 
 from __future__ import annotations
@@ -124,50 +126,5 @@ def ray_windings(points: np.ndarray, verts: np.ndarray, faces: np.ndarray) -> tu
         # s = +1: the face faces +d (the ray in +d leaves through it, the ray in -d enters).
         plus += np.bincount(pi[ahead], weights=s[ahead], minlength=len(points)).astype(np.int64)
         minus -= np.bincount(pi[behind], weights=s[behind], minlength=len(points)).astype(np.int64)
-        first = last
-    return plus, minus
-    d = _ray_axis(verts, faces)
-    u, v = (d + 1) % 3, (d + 2) % 3  # (u, v, d) right-handed: a face turning counter-clockwise in (u, v) faces +d
-    uv, depth = verts[:, [u, v]], verts[:, d]
-    # Each face's edges k = corner k -> corner k + 1, kept as the edge from its lower-numbered vertex, and the sign
-    # that turns the edge's function into the face's direction.
-    start, end = faces, np.roll(faces, -1, axis=1)
-    low, high = np.minimum(start, end), np.maximum(start, end)
-    flip = np.where(start == low, 1.0, -1.0)  # (F, 3)
-    edge = uv[high] - uv[low]  # (F, 3, 2)
-    # The sign of the edge's function at a point exactly on it, moved by (e, e^2): -edge_v, else edge_u.
-    tie = np.where(edge[..., 1] != 0, -np.sign(edge[..., 1]), np.sign(edge[..., 0])) * flip
-    lo, size, shape, offsets, cell_face = _grid(uv, faces)
-    p_uv = points[:, [u, v]]
-    cell_at = np.floor((p_uv - lo) / size).astype(np.int64)
-    on_grid = np.all((cell_at >= 0) & (cell_at < shape), axis=1)
-    cell = np.where(on_grid, cell_at[:, 1] * shape[0] + cell_at[:, 0], 0)
-    n_cand = np.where(on_grid, offsets[cell + 1] - offsets[cell], 0)
-    ends = np.cumsum(n_cand)
-    first = 0
-    while first < len(points):
-        last = int(np.searchsorted(ends, ends[first - 1] + RAY_CHUNK_PAIRS if first else RAY_CHUNK_PAIRS, "right"))
-        last = max(last, first + 1)
-        counts = n_cand[first:last]
-        pi = np.repeat(np.arange(first, last), counts)
-        k = np.arange(len(pi)) - np.repeat(np.cumsum(counts) - counts, counts)
-        fi = cell_face[np.repeat(offsets[cell[first:last]], counts) + k]
-        # Each edge's function at the point, in the face's direction: (pairs, 3).
-        rel = p_uv[pi][:, None, :] - uv[low[fi]]
-        e = edge[fi]
-        w = (e[..., 0] * rel[..., 1] - e[..., 1] * rel[..., 0]) * flip[fi]
-        s = np.where(w != 0, np.sign(w), tie[fi])
-        hit = (s[:, 0] == s[:, 1]) & (s[:, 1] == s[:, 2]) & (s[:, 0] != 0)
-        pi, fi, w, s = pi[hit], fi[hit], w[hit], s[hit, 0]
-        # Where the ray meets the face: the corners' depths weighted by the edge functions opposite them.
-        total = w.sum(axis=1)
-        ok = total != 0
-        corner_depth = depth[faces[fi]]  # corner k is opposite edge k + 1
-        at = np.einsum("nk,nk->n", np.roll(w, -1, axis=1), corner_depth) / np.where(ok, total, 1.0)
-        ahead = ok & (at > points[pi, d])
-        behind = ok & (at < points[pi, d])
-        sign = s.astype(np.int64)  # +1: the face faces +d, the ray in +d leaves through it
-        np.add.at(plus, pi[ahead], sign[ahead])
-        np.add.at(minus, pi[behind], -sign[behind])
         first = last
     return plus, minus

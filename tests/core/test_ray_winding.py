@@ -5,6 +5,7 @@ uneven faces."""
 import numpy as np
 import pytest
 
+from core import geometry as G
 from core import ray_winding as W
 from core.geometry import TriangleMesh, points_inside_mesh
 from tests.meshes import icosphere, points_around
@@ -121,19 +122,50 @@ def test_depth_is_the_exact_distance_on_a_mesh_of_uneven_faces():
     assert np.array_equal(points_inside_mesh(pts, v, f, depth=0.0), [True] * 5)
     assert np.array_equal(points_inside_mesh(pts, v, f, depth=0.002), [False] * 4 + [True])
     assert np.array_equal(points_inside_mesh(pts, v, f, depth=0.05), [False] * 4 + [True])
-    res = TriangleMesh(v, f).closest_within(pts, np.full(len(pts), 2.0))
-    np.testing.assert_allclose(res.distance, [0.001] * 4 + [0.1], atol=1e-12)
-
-
-def test_closest_within_equals_the_exact_search():
-    v, f = _two_spheres()
-    pts = points_around(300, 0.0, 1.4, seed=8)
     mesh = TriangleMesh(v, f)
-    one_pass = mesh.closest(pts, exact=False)
-    got, want = mesh.closest_within(pts, one_pass.distance), mesh.closest(pts, exact=True)
-    np.testing.assert_allclose(got.distance, want.distance, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(np.linalg.norm(got.closest - pts, axis=1), got.distance, atol=1e-12)
-    assert (one_pass.distance >= got.distance - 1e-12).all()
+    for radius, want in ((0.0009, [False] * 5), (0.0011, [True] * 4 + [False]), (0.11, [True] * 5)):
+        np.testing.assert_array_equal(mesh.any_within(pts, radius), want)
+
+
+@pytest.mark.parametrize("chunk", [False, True])
+def test_any_within_is_whether_the_exact_distance_is_within_the_radius(chunk, monkeypatch):
+    """Against the exact search, on a mesh of fine and large faces, at radii around each point's distance; split
+    into chunks of a few points (memory flat however many points are inside: 200k took 3.8 GB at once), the same."""
+    v, f = _cube(12, big_top=True)
+    pts = np.random.default_rng(8).uniform(-0.2, 1.2, size=(400, 3))
+    if chunk:
+        monkeypatch.setattr(G, "WITHIN_CHUNK_PAIRS", 200)  # 5 points a chunk
+    mesh = TriangleMesh(v, f)
+    exact = mesh.closest(pts, exact=True).distance
+    for scale in (0.999, 1.001):
+        np.testing.assert_array_equal(mesh.any_within(pts, 0.0)[exact > 1e-9], False)
+        got = np.array([mesh.any_within(p[None], d * scale)[0] for p, d in zip(pts[:60], exact[:60])])
+        assert got.all() == (scale > 1) and got.any() == (scale > 1)
+        np.testing.assert_array_equal(mesh.any_within(pts, 0.05), exact <= 0.05)
+
+
+def test_an_open_tube_or_an_inverted_mesh_still_holds_its_inside():
+    """A sleeve open at both ends along the rays' axis (both rays leave through the openings: 0 and 0, read as
+    outside with no question asked) and a closed mesh wound inward (windings of -1: a body read as holding
+    nothing): their insides are inside."""
+    n, rings = 24, 21
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    z = np.linspace(-0.5, 0.5, rings)
+    v = np.stack([np.tile(0.05 * np.cos(a), rings), np.tile(0.05 * np.sin(a), rings), np.repeat(z, n)], axis=1)
+    i, j = np.meshgrid(np.arange(rings - 1), np.arange(n), indexing="ij")
+    q = np.stack([i * n + j, i * n + (j + 1) % n, (i + 1) * n + (j + 1) % n, (i + 1) * n + j], -1).reshape(-1, 4)
+    f = np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+    inner = np.array([[0.0, 0.0, 0.0], [0.02, 0.0, 0.2], [0.0, -0.03, -0.3]])
+    plus, minus = W.ray_windings(inner, v, f)
+    assert W._ray_axis(v, f) == 2 and (plus == 0).all() and (minus == 0).all()
+    assert points_inside_mesh(inner, v, f, depth=0.002).all()
+    assert not points_inside_mesh(inner + [0.2, 0, 0], v, f).any()
+    sphere_v, sphere_f = icosphere(3)
+    pts = points_around(300, 0.0, 1.5, seed=9)
+    r = np.linalg.norm(pts, axis=1)
+    clear = np.abs(r - 1) > 0.05
+    np.testing.assert_array_equal(points_inside_mesh(pts, sphere_v, sphere_f[:, ::-1], depth=0.002)[clear],
+                                  (r < 1)[clear])
 
 
 def test_a_grid_of_few_cells_is_made_coarser_for_large_faces(monkeypatch):
