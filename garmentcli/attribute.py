@@ -40,8 +40,20 @@ def _read_vertices(path: str) -> np.ndarray:
 MAX_STEPS = 1000
 
 
+class _ModelPath(click.Path):
+    """A model file, or the word 'default' for the shipped one (`core.model_deform.DEFAULT_MODEL`, inside the
+    installed package, where a user has no path to it)."""
+
+    def convert(self, value, param, ctx):
+        if value == "default":
+            from core.model_deform import DEFAULT_MODEL
+
+            value = str(DEFAULT_MODEL)
+        return super().convert(value, param, ctx)
+
+
 @click.command(name="attribute")
-@click.argument("model_path", metavar="MODEL", type=click.Path(dir_okay=False, exists=True))
+@click.argument("model_path", metavar="MODEL", type=_ModelPath(dir_okay=False, exists=True))
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False, exists=True))
 @click.argument("motion_path", metavar="MOTION", type=click.Path(dir_okay=False, exists=True))
 @click.option("--frame", type=click.IntRange(min=0), required=True, help="Output frame to explain (after --fps).")
@@ -64,6 +76,8 @@ MAX_STEPS = 1000
 def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path, top, body_path, fps, out_dir,
               overwrite, no_render, motion_up="z", person=None, take=None):
     """Attribute the model's deformation of GARMENT at frame K of MOTION to its inputs.
+
+    MODEL: a model file (.pt), or `default` for the model shipped with garment.
 
     Path-integrated gradients (Aumann-Shapley values) from a baseline (the body still in
     the rest pose, mean shape, zero garment features) with Gauss-Legendre quadrature.

@@ -142,6 +142,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
 
     source = Path(garment_path)
     require_file(source)
+    if source.suffix.lower() == ".npz":  # a motion given as GARMENT: said first, not what its options lack
+        read_garment(source)
     out = Path(out_path) if out_path else source.with_name(f"{source.stem}_rest.obj")
     if out.suffix.lower() not in (".obj", *STAGE_SUFFIXES):
         raise click.BadParameter(f"expected an .obj, .usd, .usda or .usdc file, got '{out}'", param_hint="--out")

@@ -47,6 +47,18 @@ def test_attribute_writes_table_arrays_and_heatmaps(scene, model_path, monkeypat
     assert "over 10 vertices" in (out / "attributions.md").read_text()
 
 
+def test_attribute_explains_the_shipped_model_named_default(scene, monkeypatch, tmp_path):
+    """MODEL `default`: the model shipped inside the installed package, which a user has no path to."""
+    from core.model_deform import DEFAULT_MODEL
+
+    monkeypatch.setenv("GARMENT_CACHE_DIR", str(tmp_path / "cache"))
+    out = scene["out"] / "att_default"
+    r = run("attribute", "default", scene["garment"], scene["motion"], "--frame", 1, "--steps", 2,
+            "--body", scene["body"], "--out", out, "--no-render")
+    assert r.exit_code == 0, r.output
+    assert json.loads((out / "summary.json").read_text())["model"] == str(DEFAULT_MODEL)
+
+
 def test_attribute_reads_an_smplh_body_on_the_models_joints(scene, model_path):
     """A model of SMPL's 24 joints attributes on an SMPL+H body (the tiny body with MANO's finger joints) as on
     the body it was made from: the body read on SMPL's joints (`Body.smpl_view`); it was refused."""

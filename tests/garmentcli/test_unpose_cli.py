@@ -341,8 +341,9 @@ def test_unpose_errors_and_warnings_name_the_input_not_the_output(tmp_path, capl
 def test_unpose_a_motion_given_as_garment_is_named_for_what_it_is(tmp_path):
     motion = tmp_path / "walk.npz"
     write_motion(motion, n_frames=3, fps=30.0)
-    r = invoke(["unpose", motion, "--pose", "apose", "--out", tmp_path / "out.obj"])
-    assert r.exit_code != 0 and "expected an OBJ or USD garment, got a NumPy .npz archive (a motion?)" in r.output
+    for pose in ("apose", "tpose"):  # tpose alone: said before what --pose tpose lacks
+        r = invoke(["unpose", motion, "--pose", pose, "--out", tmp_path / "out.obj"])
+        assert r.exit_code != 0 and "expected an OBJ or USD garment, got a NumPy .npz archive (a motion?)" in r.output
     assert not (tmp_path / "out.obj").exists()
 
 
