@@ -290,12 +290,12 @@ def _kd_tree(points: np.ndarray) -> cKDTree:
 CLOSEST_CHUNK_PAIRS = 16_384
 #: Threads `TriangleMesh.closest` runs its chunks on, each chunk's KD-tree query and closest-point formulas on
 #: one (both release the GIL): the formulas, 40 % of the time, ran on one core when only the query was threaded.
-#: A face whose radius (its farthest corner from its centroid) exceeds this many times the median is tried against
-#: every point by `TriangleMesh.any_within` rather than found by its centroid.
+CLOSEST_THREADS = min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+#: A face whose radius (its farthest corner from its centroid) exceeds this many times the median is found by
+#: `TriangleMesh.any_within` in a tree of the large faces' centroids, not in the tree of all of them.
 LARGE_FACE_RADII = 4.0
 #: (point, face) pairs `TriangleMesh.any_within` works through at a time, about (taken as 64 faces a point).
 WITHIN_CHUNK_PAIRS = 200_000
-CLOSEST_THREADS = min(8, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
 def _z_order(points: np.ndarray) -> np.ndarray:

@@ -38,18 +38,19 @@ def test_an_output_another_run_wrote_meanwhile_is_not_replaced_without_overwrite
     when it started; it is refused then (it replaced the first's output without a word), and nothing of it is
     left. With --overwrite the last one wins, leaving nothing beside."""
     out = tmp_path / "out"
+
+    def two_runs(overwrite):
+        with atomic_dir(out, overwrite=overwrite) as first:
+            (first / "first.txt").write_text("1")
+            with atomic_dir(out, overwrite=overwrite) as second:
+                (second / "second.txt").write_text("2")
+
     with pytest.raises(InputError, match="'.*out' was written by another run while this one worked: pass "
                                          "--overwrite to replace it, or give each run its own --out"):
-        with atomic_dir(out, overwrite=False) as first:
-            (first / "first.txt").write_text("1")
-            with atomic_dir(out, overwrite=False) as second:
-                (second / "second.txt").write_text("2")
+        two_runs(overwrite=False)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
     assert sorted(p.name for p in out.iterdir()) == ["second.txt"]
-    with atomic_dir(out, overwrite=True) as first:
-        (first / "first.txt").write_text("1")
-        with atomic_dir(out, overwrite=True) as second:
-            (second / "second.txt").write_text("2")
+    two_runs(overwrite=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
     assert sorted(p.name for p in out.iterdir()) == ["first.txt"]
 
