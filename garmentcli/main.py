@@ -56,6 +56,15 @@ class _Group(click.Group):
     line (`_OneLineUsageError`); and whose error lines repeat a value given of any length only by its ends
     (`shortened`), click's own messages too."""
 
+    def parse_args(self, ctx, args):
+        """The group's own options (`garment --bogus`) as its commands': a usage error is one line."""
+        try:
+            return super().parse_args(ctx, args)
+        except click.UsageError as exc:
+            if isinstance(exc, getattr(click.exceptions, "NoArgsIsHelpError", ())):  # `garment` alone: its help
+                raise
+            raise _OneLineUsageError(shortened(exc.format_message()), exc.ctx) from None
+
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)

@@ -819,3 +819,17 @@ def test_the_simulator_not_installed_is_one_line_naming_the_extra(scene, monkeyp
         assert_one_line_error(r, "needs the reference simulator, whose packages are not installed (warp is missing): "
                                  "pip install 'garment[sim]'")
     assert not outs.exists()
+
+
+def test_usage_errors_of_the_group_and_its_commands_are_one_line_and_garment_alone_shows_its_help():
+    """`garment --bogus`, `garment bakee`, `garment bake` without arguments: one line each, exit 2, naming the help
+    to read (click printed its usage, a hint and a blank line first); `garment` alone prints its help."""
+    for args, needle, where in ((["--bogus"], "No such option '--bogus'", "--help"),
+                                (["bakee"], "No such command 'bakee'", "--help"),
+                                (["bake"], "Missing argument 'GARMENT'", "bake --help")):
+        r = run(args)
+        lines = r.output.strip().splitlines()
+        assert r.exit_code == 2 and len(lines) == 1 and lines[0].startswith("Error: ") and needle in lines[0], r.output
+        assert lines[0].endswith(f"{where}')"), r.output
+    r = run([])
+    assert "Usage:" in r.output and "Commands:" in r.output and "bake" in r.output
