@@ -10,6 +10,7 @@ stage (or any stage of triangle/polygon meshes) back into arrays.
 from __future__ import annotations
 
 import json
+import logging
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -21,6 +22,8 @@ from core.errors import InputError
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
 from formats.atomic import atomic_file, low_space_note
 from formats.obj import STAGE_SUFFIXES
+
+log = logging.getLogger(__name__)
 
 ROOT = "/Root"
 
@@ -455,8 +458,8 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
     if order is not None:
         indices = indices[order]
     uvs, uv_index = None, None
-    st = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st")
-    if st and st.HasValue():
+    st = _uv_primvar(mesh, where)
+    if st is not None:
         flat = st.ComputeFlattened(code)
         if flat is not None and st.GetInterpolation() == UsdGeom.Tokens.faceVarying and len(flat) == len(indices):
             uvs = np.asarray(flat, dtype=np.float64).reshape(-1, 2)
@@ -464,6 +467,10 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
         elif flat is not None and st.GetInterpolation() in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) \
                 and len(flat) == len(vertices):
             uvs, uv_index = np.asarray(flat, dtype=np.float64).reshape(-1, 2), indices
+        else:
+            log.warning("%s: its UVs '%s' (%s, %d values for %d points and %d face corners) fit neither its points "
+                        "nor its face corners: left out of the outputs", where, st.GetPrimvarName(),
+                        st.GetInterpolation(), 0 if flat is None else len(flat), len(vertices), len(indices))
     starts = _polygon_starts(counts)
     polygons = np.full((len(counts), 4), -1, dtype=np.int64)
     polygon_uvs = np.full((len(counts), 4), -1, dtype=np.int64)
@@ -486,12 +493,39 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
                                  written=written, scale=scale)
 
 
+#: Texture-coordinate primvars other tools name (Blender's, Maya's), read where a mesh has no `st`.
+UV_PRIMVAR_NAMES = ("UVMap", "map1", "uv", "st0", "uv0")
+
+
+def _uv_primvar(mesh: UsdGeom.Mesh, where: str):
+    """The primvar of `mesh`'s UVs: `st`, else the one texture-coordinate primvar it has (Blender writes `UVMap`
+    where not told to write `st`, Maya `map1`: read silently as none before), else the first of UV_PRIMVAR_NAMES;
+    the other texture-coordinate primvars (a second UV set) are said to be left out. None where it has none."""
+    api = UsdGeom.PrimvarsAPI(mesh)
+    pairs = ("texCoord2f[]", "texCoord2d[]", "texCoord2h[]", "float2[]", "double2[]", "half2[]")
+    found = [p for p in api.GetPrimvarsWithValues() if str(p.GetTypeName()) in pairs
+             and (str(p.GetTypeName()).startswith("texCoord") or p.GetPrimvarName() in ("st", *UV_PRIMVAR_NAMES))]
+    if not found:
+        return None
+    names = [p.GetPrimvarName() for p in found]
+    pick = next((found[names.index(n)] for n in ("st", *UV_PRIMVAR_NAMES) if n in names), found[0])
+    others = [n for n in names if n != pick.GetPrimvarName()]
+    if others:
+        log.warning("%s: UVs read from primvar '%s'; %s left out (the outputs carry one UV set)", where,
+                    pick.GetPrimvarName(), ", ".join(f"'{n}'" for n in others))
+    return pick
+
+
 def _face_materials(mesh: UsdGeom.Mesh, n_faces: int) -> np.ndarray | None:
     """(P,) each face's material: the bound material's name of the face subset holding it (family materialBind,
-    or any face subset with a material bound; the subset's own name where none is bound), "" for a face in none;
-    None for a mesh without such subsets."""
+    or any face subset with a material bound; the subset's own name where none is bound), else the material bound
+    to the mesh itself (its faces in no such subset: all of them where it has none, as USD binds), "" for a face of
+    neither; None for a mesh of neither."""
     materials = np.full(n_faces, "", dtype=object)
-    named = False
+    whole = UsdShade.MaterialBindingAPI(mesh.GetPrim()).GetDirectBinding().GetMaterial()
+    if whole:
+        materials[:] = whole.GetPrim().GetName()
+    named = bool(whole)
     for subset in UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face):
         bound = UsdShade.MaterialBindingAPI(subset.GetPrim()).GetDirectBinding().GetMaterial()
         if subset.GetFamilyNameAttr().Get() != UsdShade.Tokens.materialBind and not bound:

@@ -303,6 +303,37 @@ def test_a_usd_garment_keeps_its_material_subsets(tmp_path):
     assert g.source.polygons.tolist() == [[0, 1, 2, 3, -1], [1, 4, 6, 5, 2]]
 
 
+def test_a_usd_garments_uvs_of_another_name_and_a_material_bound_to_the_mesh_are_kept(tmp_path, caplog):
+    """Blender's `UVMap` (a mesh without `st`) is its UVs, a second UV set is said to be left out, and a material
+    bound to the mesh itself covers its faces in no subset (all three were dropped without a word)."""
+    import logging
+
+    from formats.obj import read_garment
+
+    path = tmp_path / "panels.usda"
+    stage, mesh = _mesh_stage(path, [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (2, 1, 0)], [4, 4],
+                              [0, 1, 2, 3, 1, 4, 5, 2])
+    api = UsdGeom.PrimvarsAPI(mesh)
+    uv = api.CreatePrimvar("UVMap", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+    uv.Set(Vt.Vec2fArray([(k / 8, 1 - k / 8) for k in range(8)]))
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(UsdShade.Material.Define(stage, "/Looks/denim"))
+    back = UsdGeom.Subset.CreateGeomSubset(mesh, "back", UsdGeom.Tokens.face, [1], UsdShade.Tokens.materialBind)
+    UsdShade.MaterialBindingAPI.Apply(back.GetPrim()).Bind(UsdShade.Material.Define(stage, "/Looks/lining"))
+    stage.GetRootLayer().Save()
+    with caplog.at_level(logging.WARNING):
+        g = read_garment(path)
+    assert caplog.text == ""
+    assert g.source.materials.tolist() == ["denim", "lining"]
+    assert g.uvs is not None and sorted(map(tuple, np.round(g.uvs, 4))) == sorted(
+        {(round(k / 8, 4), round(1 - k / 8, 4)) for k in range(8)})
+    api.CreatePrimvar("st1", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying).Set(
+        Vt.Vec2fArray([(0.5, 0.5)] * 8))
+    stage.GetRootLayer().Save()
+    with caplog.at_level(logging.WARNING):
+        read_garment(path)
+    assert "UVs read from primvar 'UVMap'; 'st1' left out" in caplog.text
+
+
 def test_a_left_handed_or_mirrored_garment_reads_with_the_faces_of_its_right_handed_twin(tmp_path):
     """Houdini writes meshes leftHanded (corners clockwise seen from the front); a mirroring transform turns the
     winding too. Either reads as the same garment as its rightHanded twin: the same triangles (the fans' diagonals
