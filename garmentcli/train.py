@@ -206,10 +206,12 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
                                      f"{sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})", param_hint="--init")
     main = rank == 0
     rows = []
+    run = {"data": data_dir, "garments": sorted(garments or ()), "init": None if init_path is None else str(init_path)}
     if resume:
         ck = load_checkpoint(ckpt_path)
         if ck["config"] != dataclasses.asdict(model_cfg):
             raise click.ClickException(f"checkpoint '{ckpt_path}': its model config differs from this run's")
+        _refuse_other_run(ckpt_path, ck["train"], train_cfg, run)
         trainer.load_state(ck["model"], ck["train"])
         if csv_path.exists():
             with open(csv_path, newline="") as fh:
@@ -218,7 +220,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     # --time-limit does: checkpoint and model written.
     interrupted, restore_sigint = _defer_interrupt(launched=world > 1)
     job = _Job(main=main, world=world, device=device, sequences_per_step=sequences_per_step, data_dir=data_dir,
-               init=init, init_path=init_path, body=body, time_limit=time_limit)
+               init=init, init_path=init_path, body=body, time_limit=time_limit, run=run)
     try:
         _run(out, trainer, rows, job, interrupted)
     except BaseException as exc:
@@ -264,6 +266,7 @@ class _Job:
     init_path: str | None
     body: object
     time_limit: float | None
+    run: dict  # what a --resume must give again: data, --garment, --init (`_refuse_other_run`)
 
 
 def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: dict) -> None:
@@ -300,7 +303,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
         def checkpoint(tr):
             fh.flush()
             if main:
-                save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(), train=tr.state())
+                save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(), train={**tr.state(), "run": json.dumps(job.run)})
 
         # What the model has seen: per joint, the largest share of a training garment's weight on it.
         coverage = joint_coverage([g.inputs.prior_weights.cpu().numpy() for g in data.garments.values()])
@@ -323,7 +326,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
         trainer.run(checkpoint=checkpoint, should_stop=_time_limit(job.time_limit, world, device, interrupted))
         bar.close()
         checkpoint(trainer)
-    last_val = next((r for r in reversed(trainer.rows) if "val_verts_mm" in r), {})
+    # This process's steps, then those a --resume read back from the CSV: the last validation of the whole run.
+    last_val = next((r for r in reversed([*rows, *trainer.rows]) if r.get("val_verts_mm") not in (None, "")), {})
     meta = {"train_config": dataclasses.asdict(train_cfg), "data": job.data_dir, "init": job.init_path,
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
@@ -344,6 +348,25 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
     click.echo(f"{out}: {trainer.step} step{'' if trainer.step == 1 else 's'}{left}, phase {trainer.phase.phase}, "
                + (f"validation E_verts {float(val):.2f} mm" if val not in (None, "") else "no validation yet")
                + (f", threads chosen: {trainer.tuner.chosen}" if trainer.tuner is not None else ""))
+
+
+#: Training settings a --resume may change: how far it goes and how often it saves, not what it learns.
+RESUME_MAY_CHANGE = ("steps", "checkpoint_every")
+
+
+def _refuse_other_run(ckpt_path, saved: dict, train_cfg, run: dict) -> None:
+    """A --resume with other training settings (but RESUME_MAY_CHANGE) or other data, --garment or --init
+    than the checkpoint's run: refused naming what differs (it trained on, and recorded, the new ones as if the
+    whole run had used them). A checkpoint written before these were recorded is checked for its settings only."""
+    before = json.loads(saved["train_config"]) if "train_config" in saved else {}
+    now = dataclasses.asdict(train_cfg)
+    differ = [k for k in now if k not in RESUME_MAY_CHANGE and k in before and json.dumps(before[k]) != json.dumps(now[k])]
+    then = json.loads(saved["run"]) if "run" in saved else {}
+    differ += [f"--{k.rstrip('s') if k == 'garments' else k}" for k in run if k in then and then[k] != run[k]]
+    if differ:
+        raise click.ClickException(f"checkpoint '{ckpt_path}': --resume continues the run it was written by; this "
+                                   f"one differs in {', '.join(differ)}: give the run's own (only --steps and "
+                                   f"--checkpoint-every may change), or train anew into another --out")
 
 
 #: The signals `train` stops at after the step (checkpoint and model written): Ctrl-C, and the SIGTERM a batch

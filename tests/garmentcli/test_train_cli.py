@@ -83,6 +83,32 @@ def test_train_writes_model_log_and_resumes(setup):
     assert (root / "bake" / "g_walk" / "summary.json").is_file()
 
 
+def test_a_resume_is_of_the_same_run_and_its_card_keeps_the_runs_last_validation(setup):
+    """--resume with another --seed, learning rate or dataset is refused naming what differs (it trained on the new
+    ones and the card recorded them as the whole run's); only --steps may change. Resumed for a step without a
+    validation, the card gives the run's last one, read back from the CSV (it said "no validation yet")."""
+    from formats.checkpoint import load_checkpoint
+
+    root, data, body, cfg = setup
+    out = root / "same.pt"
+    assert _train(root, data, body, cfg, out, "--steps", "4", "--seed", "1").exit_code == 0
+    other_cfg = root / "cfg_lr.json"
+    other_cfg.write_text(json.dumps({**json.loads(cfg.read_text()),
+                                     "train": {**json.loads(cfg.read_text())["train"], "lr": 0.05}}))
+    other_data = make_dataset(root / "ds_other")
+    for extra, named in ((["--seed", "7"], "seed"), (["--config", str(other_cfg)], "lr")):
+        r = _train(root, data, body, cfg, out, "--steps", "6", "--seed", "1", "--resume", *extra)
+        assert r.exit_code == 1 and f"differs in {named}" in r.output, r.output
+    r = CliRunner().invoke(cli, ["train", "--data", str(other_data), "--out", str(out), "--body", str(body),
+                                 "--config", str(cfg), "--steps", "6", "--seed", "1", "--resume"])
+    assert r.exit_code == 1 and "differs in --data" in r.output, r.output
+    rows = list(csv.DictReader(open(root / "same.pt.csv")))
+    assert [int(x["step"]) for x in rows] == [1, 2, 3, 4] and rows[3]["val_verts_mm"] not in ("", None)
+    r = _train(root, data, body, cfg, out, "--steps", "5", "--seed", "1", "--resume")
+    assert r.exit_code == 0 and "no validation yet" not in r.output, r.output
+    assert load_checkpoint(out)["meta"]["val_verts_mm"] == rows[3]["val_verts_mm"]
+
+
 def test_train_time_limit_stops_early_and_resumes(setup):
     root, data, body, cfg = setup
     out = root / "timed.pt"
