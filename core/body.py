@@ -69,6 +69,23 @@ class Body:
     joint_names: tuple[str, ...] = field(default=())
     path: str | None = None
 
+    def content_hash(self) -> str:
+        """sha256 of the arrays that pose this body (mesh, shape and pose blend shapes, regressor, weights, tree):
+        the same body whatever its file's name or format, once per body."""
+        cache = self.__dict__.setdefault("_content_hash", [])
+        if not cache:
+            import hashlib
+
+            h = hashlib.sha256()
+            for a in (self.v_template, self.shapedirs, self.posedirs, self.J_regressor, self.weights, self.parents,
+                      self.faces):
+                if a is not None:
+                    a = np.ascontiguousarray(a)
+                    h.update(f"{a.dtype.str}{a.shape}".encode())
+                    h.update(a.tobytes())
+            cache.append(h.hexdigest())
+        return cache[0]
+
     @property
     def n_vertices(self) -> int:
         return int(self.v_template.shape[0])

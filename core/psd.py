@@ -67,7 +67,8 @@ def ridge_solve(X: np.ndarray, Y: np.ndarray, lam: float) -> np.ndarray:
 class PSDFit:
     """A garment's fitted blend shapes: offsets (T, V, 3) = (mean + (X W) basis) for features X (T, F).
 
-    garment_sha256: the garment's `content_hash` it was fitted to; body: the body's name; n_joints, n_betas:
+    garment_sha256: the garment's `content_hash` it was fitted to; body: the body's name (body_sha256: its
+    `content_hash`); n_joints, n_betas:
     the body's; mean: (3V,) float32; basis: (K, 3V) float32 orthonormal rows; weights: (F, K) float32;
     smooth_iterations / smooth_strength: the LBS binding's weight smoothing (`LBSOptions`); meta: how it was
     fitted (sequences, frames, ridge, errors).
@@ -83,6 +84,7 @@ class PSDFit:
     smooth_iterations: int = LBSOptions.smooth_iterations
     smooth_strength: float = LBSOptions.smooth_strength
     meta: dict = field(default_factory=dict)
+    body_sha256: str | None = None  # `Body.content_hash` of the body fitted on (None: a fit written before it was)
 
     @property
     def rank(self) -> int:
@@ -143,7 +145,7 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
                   weights=W.astype(np.float32), smooth_iterations=options.smooth_iterations,
                   smooth_strength=options.smooth_strength,
                   meta={"sequences": len(offsets), "frames": len(O), "rank": k, "ridge": ridge,
-                        "fit_residual_mm": residual * 1e3})
+                        "fit_residual_mm": residual * 1e3}, body_sha256=body.content_hash())
 
 
 class PSDDeformer(Deformer):
@@ -183,6 +185,10 @@ class PSDDeformer(Deformer):
         if (body.n_joints, body.n_betas) != (fit.n_joints, fit.n_betas):
             raise InputError(f"{self.source}: fitted on body '{fit.body}' ({fit.n_joints} joints, {fit.n_betas} "
                              f"betas), got '{body.name}' ({body.n_joints}, {body.n_betas})")
+        if fit.body_sha256 is not None and fit.body_sha256 != body.content_hash():
+            raise InputError(f"{self.source}: fitted on body '{fit.body}' ({fit.body_sha256[:12]}), got another body "
+                             f"'{body.name}' ({body.content_hash()[:12]}) of its joints and betas: fit it on this "
+                             f"body's simulations with `garment fit`")
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
         self.prepare(garment, body)

@@ -24,7 +24,8 @@ VERSION = 1
 
 def save_fit(path: str | os.PathLike, fit: PSDFit) -> Path:
     path = Path(path)
-    header = {"garment_sha256": fit.garment_sha256, "body": fit.body, "n_joints": fit.n_joints,
+    header = {"garment_sha256": fit.garment_sha256, "body": fit.body, "body_sha256": fit.body_sha256,
+              "n_joints": fit.n_joints,
               "n_betas": fit.n_betas, "smooth_iterations": fit.smooth_iterations,
               "smooth_strength": fit.smooth_strength, "meta": fit.meta}
     with atomic_file(path) as tmp, open(tmp, "wb") as fh:
@@ -58,7 +59,8 @@ def load_fit(path: str | os.PathLike) -> PSDFit:
     return PSDFit(garment_sha256=header["garment_sha256"], body=header["body"], n_joints=int(header["n_joints"]),
                   n_betas=int(header["n_betas"]), mean=mean, basis=basis, weights=weights,
                   smooth_iterations=int(header["smooth_iterations"]),
-                  smooth_strength=float(header["smooth_strength"]), meta=dict(header.get("meta", {})))
+                  smooth_strength=float(header["smooth_strength"]), meta=dict(header.get("meta", {})),
+                  body_sha256=header.get("body_sha256"))
 
 
 def psd_deformer(path: str | os.PathLike, contact_guard: bool = True,

@@ -1,5 +1,7 @@
 """Pose-space deformation fitted to simulations (core.psd, formats.psd)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -115,6 +117,15 @@ def test_a_fit_round_trips_and_belongs_to_its_garment_and_body(tmp_path):
     other = Garment(*tube(10, 5))
     with pytest.raises(InputError, match="fitted to another garment"):
         PSDDeformer(back).prepare(other, body, source="other.obj")
+    # another body of the same joints and betas (its shape basis reversed), refused as the README says; the same
+    # body read again (another object, the same arrays) is the body it was fitted on
+    assert back.body_sha256 == body.content_hash() == tiny_body().content_hash()
+    PSDDeformer(back).prepare(garment, tiny_body())
+    reshaped = dataclasses.replace(body, shapedirs=body.shapedirs[..., ::-1].copy())
+    with pytest.raises(InputError, match="fitted on body 'tiny' .*, got another body 'tiny' .* of its joints and "
+                                         "betas: fit it on this body's simulations"):
+        PSDDeformer(back).prepare(garment, reshaped)
+    PSDDeformer(dataclasses.replace(back, body_sha256=None)).prepare(garment, reshaped)  # a fit from before: as then
     (tmp_path / "junk.npz").write_bytes(b"junk")
     with pytest.raises(InputError, match="junk.npz': cannot be read"):
         load_fit(tmp_path / "junk.npz")

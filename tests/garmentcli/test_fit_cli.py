@@ -22,13 +22,20 @@ def setup(tmp_path_factory):
     return root, data, body, garment
 
 
-def test_fit_then_bake_with_it(setup):
+@pytest.fixture(scope="module")
+def fitted(setup):
+    """`garment fit` of the garment, once: (its result, the fit written beside the garment). Each test that uses
+    the fit asks for it (one read a fit another test wrote, and failed where xdist ran it first or elsewhere)."""
+    root, data, body, garment = setup
+    return invoke(["fit", garment, "--data", data, "--body", body, "--rank", "8"]), root / "a.psd.npz"
+
+
+def test_fit_then_bake_with_it(setup, fitted):
     """The garment's two training sequences give a fit (written beside it by default) that `bake --method psd`
     uses; the summary names it; the baked frames are finite and near LBS's (the fixture's offsets are small)."""
     root, data, body, garment = setup
-    r = invoke(["fit", garment, "--data", data, "--body", body, "--rank", "8"])
+    r, fit_path = fitted
     assert r.exit_code == 0, r.output
-    fit_path = root / "a.psd.npz"
     assert "8 blend shapes of 'a.obj' fitted to 2 sequences (24 frames)" in r.output
     assert "no validation sequences yet" in r.output  # the fixture's val split is another garment's
     fit = load_fit(fit_path)
@@ -50,8 +57,9 @@ def test_fit_then_bake_with_it(setup):
     assert r.exit_code != 0 and "exists: pass --overwrite" in r.output
 
 
-def test_fit_and_psd_bad_inputs(setup, tmp_path):
+def test_fit_and_psd_bad_inputs(setup, fitted, tmp_path):
     root, data, body, garment = setup
+    fit_path = fitted[1]
     other = tmp_path / "other.obj"
     write_obj(other, *tube(9, 4))
     r = invoke(["fit", other, "--data", data, "--body", body, "--out", tmp_path / "o.npz"])
@@ -63,10 +71,10 @@ def test_fit_and_psd_bad_inputs(setup, tmp_path):
     common = [garment, tmp_path / "walk.npz", "--body", body, "--out", tmp_path / "out"]
     r = invoke(["bake", *common, "--method", "psd"])
     assert r.exit_code != 0 and "--method psd needs --fit FILE" in r.output
-    r = invoke(["bake", *common, "--method", "lbs", "--fit", root / "a.psd.npz"])
+    r = invoke(["bake", *common, "--method", "lbs", "--fit", fit_path])
     assert r.exit_code != 0 and "--fit applies to --method psd only" in r.output
     r = invoke(["bake", other, tmp_path / "walk.npz", "--body", body, "--out", tmp_path / "out", "--method", "psd",
-                "--fit", root / "a.psd.npz"])
+                "--fit", fit_path])
     assert r.exit_code != 0 and "fitted to another garment" in r.output
     (tmp_path / "junk.npz").write_bytes(b"junk")
     r = invoke(["bake", *common, "--method", "psd", "--fit", tmp_path / "junk.npz"])
