@@ -43,6 +43,9 @@ def load_fit(path: str | os.PathLike) -> PSDFit:
     try:
         with np.load(path, allow_pickle=False) as d:
             if "format" not in d.files or str(d["format"]) != FORMAT:
+                if any(k.endswith(("/data.pkl", "serialization_id")) for k in d.files):  # torch.save's zip
+                    raise InputError(f"{where}: expected a fit written by `garment fit`, got a torch checkpoint (a "
+                                     f"model? bake it with --method model --model '{path}')")
                 raise InputError(f"{where}: expected a fit written by `garment fit` (format '{FORMAT}'), got "
                                  f"keys {sorted(d.files)[:6]}")
             if int(d["version"]) > VERSION:

@@ -399,7 +399,11 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 frames_done += frames_of[iid]
                 if bar.disable:  # no terminal (a log file, a cluster job): one line per finished sequence
                     rate = f", {stats[iid]['seconds_per_frame']:.2f} s/frame" if iid in stats else ""
-                    left = time_left((time.perf_counter() - t_start) * (total_frames - frames_done) / frames_done)
+                    # The other workers' items in flight taken as half done (counted as nothing, the first lines
+                    # said about --workers times too long)
+                    busy = min(max(workers, 1) - 1, len(todo) - finished)
+                    done = frames_done + 0.5 * busy * frames_done / finished
+                    left = time_left((time.perf_counter() - t_start) * max(total_frames - done, 0.0) / done)
                     click.echo(f"dataset: {finished}/{len(todo)} {iid}{rate}"
                                + (f"; about {left} left" if finished < len(todo) else ""), err=True)
         except ItemsFailed as exc:  # the finished items are kept (and recorded below): a rerun resumes

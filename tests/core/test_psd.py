@@ -129,6 +129,9 @@ def test_a_fit_round_trips_and_belongs_to_its_garment_and_body(tmp_path):
     (tmp_path / "junk.npz").write_bytes(b"junk")
     with pytest.raises(InputError, match="junk.npz': cannot be read"):
         load_fit(tmp_path / "junk.npz")
+    torch.save({"model": {}}, tmp_path / "model.pt")
+    with pytest.raises(InputError, match="got a torch checkpoint \\(a model\\? bake it with --method model --model"):
+        load_fit(tmp_path / "model.pt")
     np.savez(tmp_path / "motion.npz", poses=np.zeros((2, 72)))
     with pytest.raises(InputError, match="expected a fit written by `garment fit`"):
         load_fit(tmp_path / "motion.npz")
