@@ -199,6 +199,17 @@ def _index(tok: str, count: int, lineno: int, kind: str, label: str, path: Path)
 _MAX_INDEX = int(np.iinfo(np.int64).max)
 
 
+def _without_comment(words: list[str]) -> str:
+    """A statement's argument words joined, up to a word that starts a comment (`#`): a `#` inside a name
+    (`cloth#2`) is kept."""
+    kept = []
+    for word in words:
+        if word.startswith("#"):
+            break
+        kept.append(word)
+    return " ".join(kept)
+
+
 def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
               like: ObjPolygons | None = None) -> ObjPolygons:
     """Read an OBJ's vertices, texture coordinates and triangle/quad faces as written (larger polygons split).
@@ -240,10 +251,10 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
             f_nv.append(len(v_rows))
             f_nvt.append(len(vt_rows))
             f_materials.append(material)
-        elif key == "usemtl":
-            material = " ".join(parts[1:])
+        elif key == "usemtl":  # a comment after the name, after a space (`usemtl cloth # the back`), is no name
+            material = _without_comment(parts[1:])
         elif key == "mtllib":
-            libraries.append(" ".join(parts[1:]))
+            libraries.append(_without_comment(parts[1:]))
         elif key == "vt":
             if len(parts) < 2:
                 raise InputError(f"{label} '{path}': expected texture coordinates u v on line {lineno}, got none")

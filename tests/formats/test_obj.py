@@ -166,9 +166,12 @@ def test_materials_are_kept_per_polygon_and_written_back(tmp_path):
     """`usemtl` names each polygon's material (an n-gon's extra triangles take its name); a file whose mesh is
     otherwise the garment's keeps a source mesh for them; written back, each run of faces gets its usemtl and
     the pentagon is one face again."""
-    text = ("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 3 0.5 0\nv 2 1 0\n"
-            "usemtl cotton\nf 1 2 3 4\nusemtl silk lining\nf 2 5 6 7 3\n")
+    text = ("mtllib cloth.mtl # its library\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 3 0.5 0\nv 2 1 0\n"
+            "usemtl cotton # the front\nf 1 2 3 4\nusemtl silk lining\nf 2 5 6 7 3\n")
     obj = parse_obj(_write(tmp_path, text, "m.obj"))
+    assert obj.libraries == ("cloth.mtl",)  # a comment after a name is no part of it (it was: 'cotton # the front')
+    assert parse_obj(_write(tmp_path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl cloth#2\nf 1 2 3\n", "h.obj")).materials \
+        .tolist() == ["cloth#2"]
     assert obj.materials.tolist() == ["cotton", "silk lining", "silk lining", "silk lining"]
     assert obj.written.materials.tolist() == ["cotton", "silk lining"]
     g = read_obj(tmp_path / "m.obj")
