@@ -24,7 +24,7 @@ import scipy.sparse as sp
 import torch
 
 from core.body import Body
-from core.errors import InputError, refuse_non_finite
+from core.errors import InputError
 from core.garment import Garment
 from core.geodesic import SELF_COLLISION_GEODESIC_M
 from core.losses import rest_uv_frame, vertex_masses
@@ -130,7 +130,6 @@ def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Bo
                          f"got {tuple(poses.shape)}")
     if trans.shape != (T, 3):
         raise InputError(f"dataset sequence '{source}': expected trans of shape ({T}, 3), got {tuple(trans.shape)}")
-    refuse_non_finite({"positions": pos, "poses": poses, "trans": trans}, f"dataset sequence '{source}'")
     betas = body.fit_betas(arrays.get("betas"))
     fps = float(np.asarray(arrays["fps"]))
     n_settle = int(np.asarray(arrays.get("n_settle", 0)))

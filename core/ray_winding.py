@@ -121,7 +121,8 @@ def ray_windings(points: np.ndarray, verts: np.ndarray, faces: np.ndarray) -> tu
         # is opposite edge k + 1).
         total = w[0] + w[1] + w[2]
         ok = total != 0
-        at = (w[1] * corner_depth[0, fi] + w[2] * corner_depth[1, fi] + w[0] * corner_depth[2, fi]) / np.where(ok, total, 1)
+        at = (w[1] * corner_depth[0, fi] + w[2] * corner_depth[1, fi] + w[0] * corner_depth[2, fi]) \
+            / np.where(ok, total, 1)
         ahead, behind = ok & (at > p_d[pi]), ok & (at < p_d[pi])
         # s = +1: the face faces +d (the ray in +d leaves through it, the ray in -d enters).
         plus += np.bincount(pi[ahead], weights=s[ahead], minlength=len(points)).astype(np.int64)

@@ -325,8 +325,9 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--strain-limit", "strain", type=FloatOrOff(1, "an edge's longest, as a multiple of its rest length"),
               default=None, metavar="RATIO|off",
               help=f"lbs, model, psd: no edge of the garment longer than RATIO times its rest length (undoes the tears "
-                   f"skinning makes between a dress's legs, at a knee, in an armpit; on 2k-7k vertices up to about 11 ms a "
-                   f"frame where a wide tear is, 0.2-0.6 where none; 0.19 s on 203k) [default: {STRAIN_LIMIT:g} for model and psd, off for lbs].")
+                   f"skinning makes between a dress's legs, at a knee, in an armpit; on 2k-7k vertices up to about "
+                   f"11 ms a frame where a wide tear is, 0.2-0.6 where none; 0.19 s on 203k) [default: "
+                   f"{STRAIN_LIMIT:g} for model and psd, off for lbs].")
 @click.option("--no-skip", "no_skip", multiple=True, type=click.Choice([*SKIPS, "all"]),
               help="Do this work even where the scene analysis finds it unneeded (repeatable): joints without weight "
                    "on the garment, body faces out of its reach (sim), self-contact where distant parts never meet, "

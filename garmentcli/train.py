@@ -206,7 +206,8 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
                                      f"{sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})", param_hint="--init")
     main = rank == 0
     rows = []
-    run = {"data": data_dir, "garments": sorted(garments or ()), "init": None if init_path is None else str(init_path)}
+    run = {"--data": data_dir, "--garment": sorted(garments or ()),
+           "--init": None if init_path is None else str(init_path)}
     if resume:
         ck = load_checkpoint(ckpt_path)
         if ck["config"] != dataclasses.asdict(model_cfg):
@@ -266,7 +267,7 @@ class _Job:
     init_path: str | None
     body: object
     time_limit: float | None
-    run: dict  # what a --resume must give again: data, --garment, --init (`_refuse_other_run`)
+    run: dict  # what a --resume must give again, by option: --data, --garment, --init (`_refuse_other_run`)
 
 
 def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: dict) -> None:
@@ -303,7 +304,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
         def checkpoint(tr):
             fh.flush()
             if main:
-                save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(), train={**tr.state(), "run": json.dumps(job.run)})
+                save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(),
+                                train={**tr.state(), "run": json.dumps(job.run)})
 
         # What the model has seen: per joint, the largest share of a training garment's weight on it.
         coverage = joint_coverage([g.inputs.prior_weights.cpu().numpy() for g in data.garments.values()])
@@ -360,9 +362,10 @@ def _refuse_other_run(ckpt_path, saved: dict, train_cfg, run: dict) -> None:
     whole run had used them). A checkpoint written before these were recorded is checked for its settings only."""
     before = json.loads(saved["train_config"]) if "train_config" in saved else {}
     now = dataclasses.asdict(train_cfg)
-    differ = [k for k in now if k not in RESUME_MAY_CHANGE and k in before and json.dumps(before[k]) != json.dumps(now[k])]
+    differ = [k for k in now
+              if k not in RESUME_MAY_CHANGE and k in before and json.dumps(before[k]) != json.dumps(now[k])]
     then = json.loads(saved["run"]) if "run" in saved else {}
-    differ += [f"--{k.rstrip('s') if k == 'garments' else k}" for k in run if k in then and then[k] != run[k]]
+    differ += [option for option in run if option in then and then[option] != run[option]]
     if differ:
         raise click.ClickException(f"checkpoint '{ckpt_path}': --resume continues the run it was written by; this "
                                    f"one differs in {', '.join(differ)}: give the run's own (only --steps and "

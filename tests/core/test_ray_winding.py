@@ -59,7 +59,8 @@ def _cube(n=4, big_top=False):
 @pytest.mark.parametrize("mesh", ["sphere", "two spheres"])
 def test_ray_windings_equal_the_solid_angle_sum(mesh):
     v, f = icosphere(2, radius=1.0) if mesh == "sphere" else _two_spheres()
-    pts = np.concatenate([points_around(400, 0.0, 1.6, seed=3), points_around(200, 0.0, 0.7, seed=4) + [0.9, 0.1, 0.05]])
+    pts = np.concatenate([points_around(400, 0.0, 1.6, seed=3),
+                          points_around(200, 0.0, 0.7, seed=4) + [0.9, 0.1, 0.05]])
     want = _naive_winding(pts, v, f)
     clear = np.abs(want - np.round(want)) < 0.05  # not on the surface (the solid angle sum jumps there)
     plus, minus = W.ray_windings(pts, v, f)
