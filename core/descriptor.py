@@ -36,6 +36,11 @@ log = logging.getLogger(__name__)
 DEFAULT_LANDMARKS = 64
 DEFAULT_EIGENVALUES = 16
 DEFAULT_SIGMA_M = 0.3
+#: Landmark scores (metres: along the start direction, then geodesic) within this of the best count as tied,
+#: the tie going to the lexicographically smallest position: a garment's coordinates carry float32 rounding
+#: (6e-8 m at a metre) and unit round trips (3e-8 m); with ties within 1e-9 relative, a 1e-7 m nudge of the
+#: example dress (its hem flat) changed its first landmark and so all 64, and the network's output by 0.42 mm.
+LANDMARK_TIE_M = 1e-5
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,14 +74,14 @@ def _start_direction(seed: int) -> np.ndarray:
 
 
 def farthest_point_landmarks(vertices: np.ndarray, graph: sp.csr_matrix, n: int, seed: int = 0,
-                             rel_tie: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+                             tie: float = LANDMARK_TIE_M) -> tuple[np.ndarray, np.ndarray]:
     """Geodesic farthest-point sampling of `n` landmarks.
 
     vertices: (V, 3) metres; graph: `core.geodesic.geodesic_graph`. The first
     landmark is the vertex farthest along `_start_direction(seed)`; each next one
     maximises the geodesic distance to those chosen (unreachable counts as
     farthest, so every connected component gets landmarks). Near-ties (within
-    `rel_tie` relative) go to the lexicographically smallest position.
+    `tie` metres) go to the lexicographically smallest position.
     Returns (landmarks (n,) int64, distances (n, V) float64 metres from each landmark).
     """
     v = np.asarray(vertices, dtype=np.float64)
@@ -85,7 +90,7 @@ def farthest_point_landmarks(vertices: np.ndarray, graph: sp.csr_matrix, n: int,
     rank = lexicographic_rank(v)
     score = v @ _start_direction(seed)
     best = score.max()
-    cand = np.flatnonzero(score >= best - rel_tie * max(abs(best), 1e-9))
+    cand = np.flatnonzero(score >= best - tie)
     first = int(cand[np.argmin(rank[cand])])
     landmarks = [first]
     dists = np.empty((n, V))
@@ -96,7 +101,7 @@ def farthest_point_landmarks(vertices: np.ndarray, graph: sp.csr_matrix, n: int,
         score = np.where(np.isfinite(nearest), nearest, big)
         score[landmarks] = -1.0
         best = score.max()
-        cand = np.flatnonzero(score >= best - rel_tie * max(best, 1e-12))
+        cand = np.flatnonzero(score >= best - tie)
         nxt = int(cand[np.argmin(rank[cand])])
         landmarks.append(nxt)
         dists[k] = geodesic_distances_from(graph, [nxt])[0]

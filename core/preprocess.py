@@ -36,6 +36,9 @@ log = logging.getLogger(__name__)
 MAX_LEVELS = 8
 MAX_LANDMARKS = 1024
 CACHE_KIND = "preprocess"
+#: What the arrays are computed by, part of every cache entry's key: raised when the computation changes, so that
+#: entries an earlier version wrote are computed again (2: the landmarks' ties within `LANDMARK_TIE_M`).
+PREPROCESS_REVISION = 2
 
 
 @dataclass(frozen=True)
@@ -106,7 +109,8 @@ def body_key(body: Body, betas: np.ndarray | None = None) -> str:
 
 def cache_meta(garment_hash: str, body_id: str, settings: PreprocessSettings) -> dict:
     """The key fields stored with (and checked against) a cache entry."""
-    return {"garment": garment_hash, "body": body_id, "settings": dataclasses.asdict(settings)}
+    return {"garment": garment_hash, "body": body_id, "settings": dataclasses.asdict(settings),
+            "revision": PREPROCESS_REVISION}
 
 
 def cache_key(meta: dict) -> str:

@@ -58,6 +58,17 @@ def pose_features(poses: np.ndarray, trans: np.ndarray, betas: np.ndarray, fps: 
     return np.concatenate([pose, 0.1 * rate, 0.3 * root_vel, 0.3 * root_acc, 0.3 * shape, np.ones((T, 1))], axis=1)
 
 
+#: A garment's vertices within this (metres, on every axis) of those fitted to are the fitted garment's (`PSDFit.
+#: fits_garment`): float32 centimetres and back move a metre by 3e-8 m.
+FIT_SAME_GARMENT_M = 1e-5
+
+
+def _smallest_corner_first(faces: np.ndarray) -> np.ndarray:
+    """(F, 3) each face's corners turned (same winding) so that its smallest vertex index comes first."""
+    turn = np.argmin(faces, axis=1)[:, None]
+    return np.take_along_axis(faces, (turn + np.arange(3)) % 3, axis=1)
+
+
 def ridge_solve(X: np.ndarray, Y: np.ndarray, lam: float) -> np.ndarray:
     """argmin_W |X W - Y|^2 + lam |W|^2: (F, D)."""
     return np.linalg.solve(X.T @ X + lam * np.eye(X.shape[1]), X.T @ Y)
@@ -85,6 +96,22 @@ class PSDFit:
     smooth_strength: float = LBSOptions.smooth_strength
     meta: dict = field(default_factory=dict)
     body_sha256: str | None = None  # `Body.content_hash` of the body fitted on (None: a fit written before it was)
+    #: The garment fitted to: (V, 3) float32 vertices and (F, 3) int64 faces (None: a fit written before they were).
+    garment_vertices: np.ndarray | None = None
+    garment_faces: np.ndarray | None = None
+
+    def fits_garment(self, garment: Garment) -> bool:
+        """Whether `garment` is the one fitted to: the same bytes (`garment_sha256`), or the same faces (each
+        maybe starting at another corner) and vertices within FIT_SAME_GARMENT_M (a unit round trip or an export
+        moves them by float rounding, and a corner's turn changes no triangle)."""
+        if garment.content_hash() == self.garment_sha256:
+            return True
+        if self.garment_vertices is None or self.garment_faces is None:
+            return False
+        v, f = np.asarray(garment.vertices, np.float64), np.asarray(garment.faces, np.int64)
+        return (v.shape == self.garment_vertices.shape and f.shape == self.garment_faces.shape
+                and np.array_equal(_smallest_corner_first(f), _smallest_corner_first(self.garment_faces))
+                and float(np.abs(v - self.garment_vertices).max(initial=0.0)) <= FIT_SAME_GARMENT_M)
 
     @property
     def rank(self) -> int:
@@ -145,7 +172,8 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
                   weights=W.astype(np.float32), smooth_iterations=options.smooth_iterations,
                   smooth_strength=options.smooth_strength,
                   meta={"sequences": len(offsets), "frames": len(O), "rank": k, "ridge": ridge,
-                        "fit_residual_mm": residual * 1e3}, body_sha256=body.content_hash())
+                        "fit_residual_mm": residual * 1e3}, body_sha256=body.content_hash(),
+                  garment_vertices=garment.vertices.astype(np.float32), garment_faces=garment.faces.astype(np.int64))
 
 
 class PSDDeformer(Deformer):
@@ -179,7 +207,7 @@ class PSDDeformer(Deformer):
         """InputError unless the fit belongs to this garment (its mesh) and a body of its joint and beta counts."""
         fit = self.fit
         sha = garment.content_hash()
-        if sha != fit.garment_sha256:
+        if not fit.fits_garment(garment):
             raise InputError(f"{self.source}: fitted to another garment (mesh {fit.garment_sha256[:12]}), not "
                              f"'{source or garment.name}' ({sha[:12]}): fit it with `garment fit`")
         if (body.n_joints, body.n_betas) != (fit.n_joints, fit.n_betas):

@@ -10,9 +10,10 @@ It searches the closest body point of every vertex in every frame (51-98 ms/fram
 0.6-2.1x the model's own time in the tradeoff tables).
 
 Contact guard (`ContactAnchors`, `guard_contact`; on by default for `--method model`): each garment
-vertex is tied once, on the rest pose, to the body face closest to it; in every frame the vertex is kept
-on the outer side of that face's plane, at no less than min(margin, its rest offset), wherever it lies
-within GUARD_REACH_M of the face's point along the plane and no deeper than GUARD_DEPTH_M behind it; over
+vertex is tied once, on the rest pose, to where it is nearest the body (a point and a normal blended over the
+faces about as near as the nearest); in every frame the vertex is kept on the outer side of that point's
+plane, at no less than min(margin, its rest offset), wherever it lies within GUARD_REACH_M of the point
+along the plane and no deeper than GUARD_DEPTH_M behind it; over
 bands beyond both bounds (GUARD_REACH_FADE_M, GUARD_DEPTH_FADE_M) the lift fades linearly to none, so that
 it changes continuously as a vertex crosses a bound (a cut-off made cloth pop by up to 5 cm in one frame).
 The lifts are then spread over the garment's surface (over about GUARD_SPREAD_M: passes of
@@ -20,7 +21,7 @@ The lifts are then spread over the garment's surface (over about GUARD_SPREAD_M:
 neighbours tied to other faces or left where they were, pulls them along instead of standing out of the cloth
 as a spike (where the body curves, in an armpit or behind a knee, one face's plane stands for the body badly,
 and unspread lifts tore a t-shirt's armpits in every frame of most motions).
-The face is posed exactly (it is the body's own), so this undoes what the network adds on top of
+The faces are posed exactly (they are the body's own), so this undoes what the network adds on top of
 skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at 0.6-2.8
 ms/frame on the example garments; it cannot see a vertex that slides over to another body part, which the
 exact push-out does.
@@ -42,9 +43,9 @@ from core.body import Body
 from core.deform import Deformer
 from core.garment import Garment, frames_at_once, mesh_edges
 from core.geodesic import edge_lengths
-from core.geometry import TriangleMesh, face_normals, outward_faces, outward_offsets
+from core.geometry import TriangleMesh, outward_faces, outward_offsets
 from core.motion import Motion, poses_for_body
-from core.skinning import graph_smoothing
+from core.skinning import graph_smoothing, surface_blend
 
 #: Distance outside the body a pushed vertex ends at (metres): within the 2 mm depth the penetration
 #: statistics tolerate, so a pushed vertex never counts as inside.
@@ -54,7 +55,7 @@ PUSH_OUT_MARGIN_M = 0.001
 #: rest offset): within the 2 mm depth the penetration statistics tolerate.
 GUARD_MARGIN_M = 0.001
 
-#: Distance (metres) along the plane of a vertex's body face, from the face's point, within which the plane
+#: Distance (metres) along the plane of a vertex's anchor, from the anchor's point, within which the plane
 #: stands for the body: further out (a hem swung far away) the guard leaves the vertex alone. On the
 #: held-out test sequences 5 cm left twice the penetration of 10 cm; 20 cm and more changed nothing further.
 GUARD_REACH_M = 0.1
@@ -132,13 +133,19 @@ def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray
 
 @dataclass(frozen=True)
 class ContactAnchors:
-    """Per garment vertex (V of them): the body face closest to it on the rest pose as body vertex ids
-    (V, 3) int64, wound outward; the closest point's barycentric coordinates (V, 3); the least offset
-    along the face's normal the guard keeps (V,), metres; one pass of the garment's `graph_smoothing`
-    (V, V), which spreads the lifts (None: each vertex lifted alone), and how many passes it takes."""
+    """Where each garment vertex (V of them) is tied to the body, as found on the rest pose: its point, a blend
+    of the body's vertices (V, Vb) sparse, rows summing to 1 (`core.skinning.surface_blend`: the closest points
+    of every face about as near as the nearest); its normal, a blend (V, Fr) sparse of the cross products of
+    the body faces `ring` (Fr, 3) int64 (wound outward: those around the point's vertices, the area-weighted
+    vertex normals blended as the point is), normalised; the least offset along the normal the guard keeps
+    (V,), metres; one pass of the garment's `graph_smoothing` (V, V), which spreads the lifts (None: each vertex
+    lifted alone), and how many passes it takes. Point and normal change continuously with the garment and
+    the body: a vertex over an edge or equally near two faces, tied to whichever face rounding picked, was lifted
+    against that face's plane (a 1e-7 m nudge of the example dress moved its bake by 10.8 mm)."""
 
-    faces: np.ndarray
-    barycentric: np.ndarray
+    point: sp.csr_matrix
+    ring: np.ndarray
+    normal: sp.csr_matrix
     floor: np.ndarray
     spread: sp.csr_matrix | None = None
     passes: int = 0
@@ -146,22 +153,29 @@ class ContactAnchors:
 
 def contact_anchors(rest: np.ndarray, body_verts: np.ndarray, body_faces: np.ndarray,
                     margin: float = GUARD_MARGIN_M, garment_faces: np.ndarray | None = None) -> ContactAnchors:
-    """Tie each rest garment vertex (V, 3) to its closest face of the rest body (Vb, 3), faces (Fb, 3) outward;
+    """Tie each rest garment vertex (V, 3) to where it is nearest the rest body (Vb, 3), faces (Fb, 3) outward;
     the garment's faces (F, 3), where given, spread the lifts over its surface.
 
     The garment and the body must share a shape (both shaped by the same betas), in metres.
     """
     rest = np.asarray(rest, dtype=np.float64)
     verts = np.asarray(body_verts, dtype=np.float64)
-    res = TriangleMesh(verts, body_faces).closest(rest, exact=False)
-    faces = np.asarray(body_faces, dtype=np.int64)[res.face_index]
-    offset = np.einsum("vc,vc->v", rest - res.closest, face_normals(verts, faces))
+    body_faces = np.asarray(body_faces, dtype=np.int64)
+    point = surface_blend(TriangleMesh(verts, body_faces), rest)
+    used = np.zeros(len(verts), dtype=bool)
+    used[point.indices] = True
+    ring = body_faces[used[body_faces].any(axis=1)]
+    incidence = sp.csr_matrix((np.ones(ring.size), (ring.reshape(-1), np.repeat(np.arange(len(ring)), 3))),
+                              shape=(len(verts), len(ring)))
+    anchors = ContactAnchors(point, ring, (point @ incidence).tocsr(), np.zeros(len(rest)))
+    at, normal = (x[0].numpy() for x in _planes(torch.from_numpy(verts)[None], anchors))
+    offset = np.einsum("vc,vc->v", rest - at, normal)
     spread, passes = None, 0
     if garment_faces is not None:
         spread = graph_smoothing(garment_faces, len(rest))
         edges = mesh_edges(garment_faces)
         passes = spread_passes(float(np.median(edge_lengths(rest, edges)))) if len(edges) else 0
-    return ContactAnchors(faces, res.barycentric, np.minimum(margin, offset), spread, passes)
+    return replace(anchors, floor=np.minimum(margin, offset), spread=spread, passes=passes)
 
 
 def _as_tensors(points, body_points) -> tuple[torch.Tensor, torch.Tensor, bool]:
@@ -173,16 +187,31 @@ def _as_tensors(points, body_points) -> tuple[torch.Tensor, torch.Tensor, bool]:
     return as64(points), as64(body_points), True
 
 
+def _times(op: sp.csr_matrix, x: torch.Tensor) -> torch.Tensor:
+    """The sparse operator `op` (M, N) applied to per-item vectors `x` (T, N, C): (T, M, C), in x's dtype and on
+    its device (see `spread_over`)."""
+    T, N, C = x.shape
+    y = x.permute(1, 0, 2).reshape(N, T * C)
+    if x.device.type == "cpu":
+        y = torch.from_numpy(op.astype(y.numpy().dtype, copy=False) @ y.numpy())
+    else:
+        y = _torch_operator(op, x.dtype, x.device) @ y
+    return y.reshape(op.shape[0], T, C).permute(1, 0, 2)
+
+
+def _planes(bp: torch.Tensor, anchors: ContactAnchors) -> tuple[torch.Tensor, torch.Tensor]:
+    """Each vertex's anchor point (T, V, 3) and unit normal (T, V, 3; zero where its faces have no area) on the
+    posed body `bp` (T, Vb, 3)."""
+    ring = torch.as_tensor(anchors.ring, device=bp.device)
+    c0, c1, c2 = (torch.index_select(bp, 1, ring[:, k]) for k in range(3))
+    cross = torch.linalg.cross(c1 - c0, c2 - c0, dim=-1)
+    normal = torch.nn.functional.normalize(_times(anchors.normal, cross), dim=-1, eps=1e-30)
+    return _times(anchors.point, bp), normal
+
+
 def _offsets(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors):
     """`anchor_offsets` of tensors."""
-    faces = torch.as_tensor(anchors.faces, device=bp.device)
-    # The anchor faces' corners, each (T, V, 3) and contiguous (index_select: several times faster than indexing
-    # (T, V, 3 corners, 3) and slicing it), their barycentric blend summed by hand (3.5x faster than an einsum).
-    c0, c1, c2 = (torch.index_select(bp, 1, faces[:, k]) for k in range(3))
-    w = torch.as_tensor(anchors.barycentric, dtype=bp.dtype, device=bp.device)[..., None]  # (V, 3 corners, 1)
-    point = c0 * w[:, 0] + c1 * w[:, 1] + c2 * w[:, 2]
-    # Unit normals, right-handed in the (outward) corner order; zero for a zero-area face (as face_normals).
-    normal = torch.nn.functional.normalize(torch.linalg.cross(c1 - c0, c2 - c0, dim=-1), dim=-1, eps=1e-30)
+    point, normal = _planes(bp, anchors)
     rel = p - point
     along = torch.einsum("tvc,tvc->tv", rel, normal)
     lateral = torch.linalg.norm(rel - along[..., None] * normal, dim=-1)
@@ -191,8 +220,8 @@ def _offsets(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors):
 
 
 def anchor_offsets(points, body_points, anchors: ContactAnchors):
-    """Where each vertex lies against its posed anchor face: (behind (T, V), its depth below the guard's floor,
-    0 where it is above; lateral (T, V), its distance from the face's point along the plane; the face's unit
+    """Where each vertex lies against its posed anchor: (behind (T, V), its depth below the guard's floor,
+    0 where it is above; lateral (T, V), its distance from the anchor's point along the plane; the anchor's unit
     normal (T, V, 3)), metres. points: (T, V, 3); body_points: (T, Vb, 3). Arrays in, float64 arrays out;
     tensors in, tensors of `body_points`' device and dtype out (a GPU's bake keeps its frames there)."""
     p, bp, arrays = _as_tensors(points, body_points)
@@ -273,7 +302,7 @@ def spread_over(shift: torch.Tensor, op, passes: int) -> torch.Tensor:
 def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = GUARD_REACH_M,
                   depth: float = GUARD_DEPTH_M, reach_fade: float = GUARD_REACH_FADE_M,
                   depth_fade: float = GUARD_DEPTH_FADE_M, passes: int | None = None, rounds: int = GUARD_ROUNDS):
-    """Keep each vertex outside its posed anchor face's plane (see the module's docstring).
+    """Keep each vertex outside its posed anchor's plane (see the module's docstring).
 
     points: (T, V, 3) garment; body_points: (T, Vb, 3) the posed body, both arrays (float64 arithmetic) or both
     tensors (on their device, in body_points' dtype). Fades of 0 cut the lift off at the bounds. Where `anchors`
@@ -316,10 +345,10 @@ def guard_chunk_frames(n_vertices: int) -> int:
 
 
 def anchored_body(anchors: ContactAnchors) -> tuple[np.ndarray, ContactAnchors]:
-    """The body vertices the anchor faces use (ids (N,), for `Body.pose_at`: the guard need not pose the rest of
-    the body) and the anchors with their faces as indices into them."""
-    ids, local = np.unique(anchors.faces, return_inverse=True)
-    return ids, replace(anchors, faces=local.reshape(anchors.faces.shape))
+    """The body vertices the anchors use (ids (N,), for `Body.pose_at`: the guard need not pose the rest of the
+    body) and the anchors with their body vertices as indices into them."""
+    ids, local = np.unique(anchors.ring, return_inverse=True)  # every vertex of the points is one of the ring's
+    return ids, replace(anchors, point=anchors.point[:, ids].tocsr(), ring=local.reshape(anchors.ring.shape))
 
 
 def body_anchors(rest: np.ndarray, faces: np.ndarray, body: Body, betas: np.ndarray | None) -> ContactAnchors:

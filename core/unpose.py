@@ -2,8 +2,9 @@
 
 Every other command expects the garment on the rest pose (T-pose). Many garments are modelled on an
 avatar standing in an A-pose instead: baked as they are, their sleeves cut through the torso. Here each
-garment vertex takes the skinning weights of its closest point on the body posed like the garment
-(smoothed over the garment as `bind_garment` smooths them), and is moved by the inverse of its blended
+garment vertex takes the skinning weights of where it is nearest the body posed like the garment
+(`core.skinning.surface_blend`, smoothed over the garment as `bind_garment` smooths them), and is moved by the
+inverse of its blended
 skinning transform: the inverse of the linear blend skinning that `lbs` applies, so that skinning the
 result with the same weights and pose gives the input back.
 """
@@ -18,7 +19,7 @@ from core.body import Body
 from core.errors import InputError
 from core.garment import Garment
 from core.geometry import TriangleMesh
-from core.skinning import REST_INSIDE_DEPTH_M, transfer_shapedirs, transfer_weights
+from core.skinning import REST_INSIDE_DEPTH_M, surface_blend, transfer_shapedirs, transfer_weights
 
 #: The A-pose's default: each upper arm lowered this far from the T-pose (degrees, about the body's forward axis).
 A_POSE_ARM_DEGREES = 45.0
@@ -70,7 +71,9 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     A = A[0, :, :3, :].astype(np.float64)  # (J, 3, 4)
     target = garment.vertices.astype(np.float64)
     shaped, _ = body.shaped(betas)
-    hit, signed = TriangleMesh(posed[0], body.faces).signed_closest(target)
+    posed_mesh = TriangleMesh(posed[0], body.faces)
+    hit, signed = posed_mesh.signed_closest(target)
+    blend = surface_blend(posed_mesh, target, hit)
     rest_mesh = TriangleMesh(shaped, body.faces)
 
     def blended(at) -> np.ndarray:  # (V, 3, 4): each vertex's blend of the joints' transforms, weights from `at`
@@ -79,18 +82,18 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     rest = None
     for _ in range(UNPOSE_REFINE_PASSES + 1):
         if rest is not None:  # the weights `bake` will use: from the (shaped) rest body, at the unposed points
-            hit = rest_mesh.closest(rest)
-        M = blended(hit)
+            blend = surface_blend(rest_mesh, rest)
+        M = blended(blend)
         bad = np.linalg.svd(M[:, :, :3], compute_uv=False)[:, -1] < MIN_SINGULAR_VALUE
         if bad.any():
             raise InputError(f"garment mesh '{name}': cannot unpose {int(bad.sum())} vertices (e.g. vertex "
                              f"{int(np.argmax(bad))}): their closest body parts turn nearly opposite ways in this pose")
         rest = np.linalg.solve(M[:, :, :3], (target - M[:, :, 3])[..., None])[..., 0]
     # The round trip as `bake` makes it: weights taken once more at the result, skinned into `pose`.
-    M = blended(rest_mesh.closest(rest))
+    M = blended(surface_blend(rest_mesh, rest))
     reposed = np.einsum("vrc,vc->vr", M[:, :, :3], rest) + M[:, :, 3]
     if betas is not None:  # back to the mean shape the rest body has
-        rest = rest - np.einsum("vcs,s->vc", transfer_shapedirs(hit, body), betas.astype(np.float64))
+        rest = rest - np.einsum("vcs,s->vc", transfer_shapedirs(blend, body), betas.astype(np.float64))
     moved = np.linalg.norm(rest - target, axis=1)
     report = {"posed_median_distance_m": float(np.median(np.abs(signed))),
               "posed_inside_share": float(np.mean(signed < -REST_INSIDE_DEPTH_M)),

@@ -91,6 +91,17 @@ def test_changed_mesh_settings_or_body_are_never_served_stale(body, shell, tmp_p
     assert preprocess_garment(shell, body, n_landmarks=16, cache_dir=tmp_path).cache_hit
 
 
+def test_an_entry_an_earlier_computation_wrote_is_recomputed(body, shell, tmp_path, monkeypatch):
+    """A package of another `PREPROCESS_REVISION` (its landmarks chosen otherwise) does not read this one's
+    entries, nor this one its."""
+    import core.preprocess as P
+
+    assert not preprocess_garment(shell, body, n_landmarks=16, cache_dir=tmp_path).cache_hit
+    assert preprocess_garment(shell, body, n_landmarks=16, cache_dir=tmp_path).cache_hit
+    monkeypatch.setattr(P, "PREPROCESS_REVISION", P.PREPROCESS_REVISION - 1)
+    assert not preprocess_garment(shell, body, n_landmarks=16, cache_dir=tmp_path).cache_hit
+
+
 def test_a_foreign_or_broken_entry_is_recomputed(body, shell, tmp_path):
     p = preprocess_garment(shell, body, n_landmarks=16, cache_dir=tmp_path)
     path = cache_path(tmp_path, "preprocess", p.key)

@@ -117,6 +117,20 @@ def test_a_fit_round_trips_and_belongs_to_its_garment_and_body(tmp_path):
     other = Garment(*tube(10, 5))
     with pytest.raises(InputError, match="fitted to another garment"):
         PSDDeformer(back).prepare(other, body, source="other.obj")
+    # The same garment through a unit round trip (float rounding) and with its faces starting at another corner
+    # (an export's): its fit; moved by 0.1 mm, or with a face turned over, another garment.
+    rng = np.random.default_rng(0)
+    nudged = (v + rng.uniform(-1e-7, 1e-7, v.shape)).astype(np.float32)
+    turned = np.roll(f, 1, axis=1)
+    assert back.garment_vertices is not None and Garment(nudged, turned).content_hash() != fit.garment_sha256
+    PSDDeformer(back).prepare(Garment(nudged, turned), body)
+    flipped = f.copy()
+    flipped[0] = flipped[0, ::-1]
+    for changed in (Garment(v + np.float32(1e-4), f), Garment(v, flipped)):
+        with pytest.raises(InputError, match="fitted to another garment"):
+            PSDDeformer(back).prepare(changed, body)
+    with pytest.raises(InputError, match="fitted to another garment"):  # a fit written before: the bytes alone
+        PSDDeformer(dataclasses.replace(back, garment_vertices=None)).prepare(Garment(nudged, turned), body)
     # another body of the same joints and betas (its shape basis reversed), refused as the README says; the same
     # body read again (another object, the same arrays) is the body it was fitted on
     assert back.body_sha256 == body.content_hash() == tiny_body().content_hash()
