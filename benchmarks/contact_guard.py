@@ -61,17 +61,23 @@ def run(deformer, garment, body, motion, guard: dict | None):
     keyword arguments of guard_contact."""
     deformer.contact_guard = guard is not None
     seen = {}
+    anchored_body = pushout.anchored_body
 
     def guarded(points, body_points, anchors):
-        seen["anchors"] = anchors
         return guard_contact(points, body_points, anchors, **guard)
+
+    def anchored(anchors):  # the anchors on the whole body (the guard gets them on the body vertices it poses)
+        seen["anchors"] = anchors
+        return anchored_body(anchors)
 
     # On a GPU the model guards batch by batch (model_deform's name), on a CPU the whole sequence (pushout's).
     model_deform.guard_contact = pushout.guard_contact = guarded
+    model_deform.anchored_body = pushout.anchored_body = anchored
     try:
         return deformer.deform(garment, body, motion), seen.get("anchors")
     finally:
         model_deform.guard_contact = pushout.guard_contact = guard_contact
+        model_deform.anchored_body = pushout.anchored_body = anchored_body
 
 
 def lift_stats(points: np.ndarray, raw: np.ndarray, still: np.ndarray) -> dict:
@@ -245,10 +251,13 @@ def figure(args) -> None:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     scene_arguments(ap, frames=90)
-    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "contact_guard.md")
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "contact_guard.md",
+                    help="a bare name goes to benchmarks/results/ (as the results' own command lines name it)")
     ap.add_argument("--timing", action="store_true", help="time the guard alone (contact_guard_timing.md)")
     ap.add_argument("--figure", action="store_true", help="the t-shirt's armpits (contact_guard_armpit.png)")
     args = ap.parse_args(argv)
+    if args.out.parent == Path("."):
+        args.out = ROOT / "benchmarks" / "results" / args.out
     if args.timing:
         return timing(args)
     if args.figure:

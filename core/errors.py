@@ -52,6 +52,22 @@ def read_input(path, src: str) -> bytes:
         raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
 
 
+def content_kind(path) -> str | None:
+    """"an empty file" or "text ('its first line'...)" where the file `path` is one (a message's "got ..." for a
+    reader that expected binary content: an OBJ renamed .pt), else None (binary, or unreadable)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(64)
+    except OSError:
+        return None
+    if not head:
+        return "an empty file"
+    text = head.decode("utf-8", errors="replace")
+    if all(c.isprintable() or c in "\r\n\t" for c in text):
+        return f"text ({text.splitlines()[0][:40]!r}...)"
+    return None
+
+
 def not_a_file(path) -> str | None:
     """Why `path` cannot be read as an input file (None: it is a regular file, or a link to one): "no such
     file", "a directory", "a pipe ..." (a shell's process substitution `<(...)`: read once, where the readers
@@ -69,6 +85,14 @@ def not_a_file(path) -> str | None:
     if stat.S_ISFIFO(mode):
         return "a pipe (such as the shell's <(...)), expected a file: write it to a file first"
     return f"{_special(mode)}, expected a file"
+
+
+def require_input(path, label: str) -> None:
+    """InputError "{label}: file not found" (or the other reasons of `not_a_file`: a directory, a pipe, a device)
+    where `path` is no regular file to read (a pipe blocked a reader, and read as missing)."""
+    reason = not_a_file(path)
+    if reason:
+        raise InputError(f"{label}: " + ("file not found" if reason == "no such file" else reason))
 
 
 def special_kind(path) -> str | None:

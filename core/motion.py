@@ -31,6 +31,9 @@ Y_UP_TO_Z_UP = np.array([np.pi / 2, 0.0, 0.0])
 #: Source frame rates under this (Hz) are refused: no capture runs slower, and a BVH-style frame time (seconds per
 #: frame, 0.0167 for 60 fps) stored as the rate would turn 10 frames into 16,201.
 MIN_SOURCE_FPS = 1.0
+#: The most a source's frame rate may be (motion capture records at up to 2 kHz): 1e300 was read as given, the
+#: motion's whole length falling within one output frame (and its speed printed with 300 digits).
+MAX_SOURCE_FPS = 10_000.0
 
 
 def check_frame_rate(fps: float, where: str, advice: str = "") -> None:
@@ -41,6 +44,8 @@ def check_frame_rate(fps: float, where: str, advice: str = "") -> None:
     if fps < MIN_SOURCE_FPS:
         raise InputError(f"{where}: expected a frame rate of at least {MIN_SOURCE_FPS:g} Hz, got {fps:.4g}: seconds "
                          f"per frame (a BVH Frame Time)? that is {1 / fps:.4g} fps{advice}")
+    if fps > MAX_SOURCE_FPS:
+        raise InputError(f"{where}: expected a frame rate of at most {MAX_SOURCE_FPS:,.0f} Hz, got {fps:.4g}{advice}")
 
 
 #: Frame rates a rate read from seconds (a glTF's key times, a BVH's Frame Time) is snapped to within

@@ -122,6 +122,9 @@ class Calibration:
                     pts = np.asarray(c["points"], dtype=np.float64)
                     if pts.ndim != 2 or pts.shape[1] != 3 or not len(pts) or not np.isfinite(pts).all():
                         raise ValueError(f"'{name}': points must be a non-empty list of [looseness, speed, error]")
+        except UnicodeDecodeError:
+            raise InputError(f"quality calibration '{path}': expected the JSON `garment tradeoff --calibrate` writes, "
+                             "got binary content") from None
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
             raise InputError(f"quality calibration '{path}': expected the JSON `garment tradeoff --calibrate` writes, "
                              f"got {type(exc).__name__}: {exc}") from None

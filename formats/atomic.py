@@ -12,9 +12,11 @@ from __future__ import annotations
 import errno
 import logging
 import os
+import random
 import shutil
 import socket
 import tempfile
+import time
 import uuid
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -224,8 +226,11 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool, inputs=()):
         shutil.rmtree(tmp, ignore_errors=True)  # gone already where it became `final`
 
 
-#: Tries of `_swap_in` where another run puts its own output in place between its steps.
-SWAP_TRIES = 8
+#: Tries of `_swap_in` where another run puts its own output in place between its steps, each after a random
+#: wait of up to SWAP_WAIT_S times 2**try (at most 2**6): four runs writing one output 200 times each on a busy
+#: machine ran out of 8 tries without a wait.
+SWAP_TRIES = 16
+SWAP_WAIT_S = 0.001
 
 
 def _swap_in(tmp: Path, final: Path, overwrite: bool) -> None:
@@ -233,7 +238,9 @@ def _swap_in(tmp: Path, final: Path, overwrite: bool) -> None:
     worked (two bakes into one --out), is refused without `overwrite` (the check at the start saw none), and with it
     moved aside under a name of this process's own and removed (one shared name let two runs at once remove each
     other's, or fail on it)."""
-    for _ in range(SWAP_TRIES):
+    for attempt in range(SWAP_TRIES):
+        if attempt:
+            time.sleep(random.uniform(0.0, SWAP_WAIT_S * 2 ** min(attempt, 6)))
         old = None
         if final.exists() or final.is_symlink():
             if not overwrite:

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from core.body import LAYOUT_JOINTS, Body, dense_from_sparse, body_from_arrays
-from core.errors import InputError, not_a_file
+from core.errors import InputError, require_input
 from formats.motion import NPZ_READ_ERRORS, _starts_with, open_npz
 from formats.pickles import ChumpyStandIn, FastRestrictedUnpickler
 
@@ -44,9 +44,7 @@ def load_body(path: str | Path) -> Body:
     """
     path = Path(path)
     label = f"body file '{path}'"
-    reason = not_a_file(path)
-    if reason:
-        raise InputError(f"{label}: " + ("not found" if reason == "no such file" else reason))
+    require_input(path, label)
     suffix = path.suffix.lower()
     readers = {".npz": _read_npz, ".pkl": _read_pkl}
     if suffix not in readers:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import torch
 
-from core.errors import InputError
+from core.errors import InputError, not_a_file
 from formats.atomic import atomic_file
 
 FORMAT = "garment-model"
@@ -38,8 +38,10 @@ def save_checkpoint(path: str | os.PathLike, config, model_state: dict, meta: di
 def load_checkpoint(path: str | os.PathLike) -> dict:
     """Read and check a checkpoint; InputError naming the file when it is not one of this version."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"model '{path}': expected a checkpoint file, found none")
+    reason = not_a_file(path)
+    if reason:
+        raise InputError(f"model '{path}': " + ("expected a checkpoint file, found none" if reason == "no such file"
+                                                 else reason))
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for foreign or damaged files

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
-from core.errors import InputError
+from core.errors import InputError, content_kind, require_input
 from core.motion import (MIN_SOURCE_FPS, Motion, check_frame_rate, fill_untracked, validate_motion_values,
                          warn_if_not_metres, warn_if_not_z_up)
 from formats.atomic import atomic_file
@@ -172,8 +172,7 @@ def load_motion(path, fps: float | None = None, world_checks: bool = True, perso
     """
     path = Path(path)
     src = f"motion '{path}'"
-    if not path.is_file():
-        raise InputError(f"{src}: file not found")
+    require_input(path, src)
     if path.suffix.lower() in PICKLE_SUFFIXES + TORCH_SUFFIXES:
         arrays, files = _pickled_arrays(path, src, person=person)
     elif path.suffix.lower() in SKELETON_SUFFIXES:
@@ -385,6 +384,9 @@ def _unpickled(path: Path, src: str, npy: bool = False):
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - any failure to unpickle is an unreadable file
+        got = content_kind(path)  # an OBJ or a CSV renamed, an empty file
+        if got:
+            raise InputError(f"{src}: expected {kind}, got {got}") from None
         raise InputError(f"{src}: cannot read it as {kind} ({type(exc).__name__}: {_short(exc)})") from None
 
 
@@ -845,14 +847,20 @@ def _value_text(values) -> str:
 
 
 def _float_array(a, key: str, src: str) -> np.ndarray:
+    """`a` as float32 (integers and text of numbers too; integers other than 0 warned about: angles in whole
+    radians, positions in whole metres are a file's writer truncating them); InputError naming `key` otherwise."""
     dtype = np.asarray(a).dtype
     try:
         if dtype.kind not in _NUMBER_KINDS:
             raise TypeError
         with np.errstate(over="ignore"):  # float64 beyond float32's range becomes Inf, refused naming the frame
-            return np.asarray(a, dtype=np.float32)
+            out = np.asarray(a, dtype=np.float32)
     except (ValueError, TypeError):
         raise InputError(f"{src}: expected numbers in '{key}', got dtype {dtype}") from None
+    if dtype.kind in "iu" and out.any():
+        log.warning("%s: '%s' holds integers (dtype %s), not floating-point values: read as whole radians or metres, "
+                    "as given (a writer that truncated them?)", src, key, dtype)
+    return out
 
 
 def _read_gender(raw) -> str | None:

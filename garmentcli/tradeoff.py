@@ -47,6 +47,9 @@ from garmentcli.common import (
     preroll_option,
     require_file,
     source_fps_option,
+    option_file,
+    FiniteFloatRange,
+    MAX_FPS,
 )
 
 COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "seconds_prepare", "peak_memory_mb",
@@ -104,8 +107,7 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
         if name in out:  # one row each: the second would replace the first's
             raise click.BadParameter(f"expected distinct names, got {name!r} twice ('{out[name]}', '{path}')",
                                      param_hint=option)
-        if not Path(path).is_file():
-            raise click.BadParameter(f"{what} '{path}': no such file", param_hint=option)
+        option_file(path, option, what)
         out[name] = path
     return out
 
@@ -121,7 +123,8 @@ def _named_files(specs: tuple, option: str, what: str) -> dict:
 @motion_up_option
 @person_option
 @take_option
-@click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate the scene is baked at.")
+@click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
+              help="Frame rate the scene is baked at.")
 @frames_option
 @preroll_option
 @click.option("--model", "model_specs", multiple=True, metavar="NAME=PATH",

@@ -22,6 +22,7 @@ from garmentcli.common import (
     parse_betas,
     parse_numbers,
     require_file,
+    option_file,
 )
 
 
@@ -167,8 +168,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         pose = a_pose(body, A_POSE_ARM_DEGREES if arm_angle is None else arm_angle)
         what = f"A-pose, arms lowered {A_POSE_ARM_DEGREES if arm_angle is None else arm_angle:g} degrees"
     elif pose_spec.lower().endswith(MOTION_SUFFIXES):  # POSE.NPZ too, as every other command reads a motion
-        if not Path(pose_spec).is_file():
-            raise click.BadParameter(f"'{pose_spec}': no such file", param_hint="--pose")
+        option_file(pose_spec, "--pose")
         motion = load_motion(pose_spec, fps=30.0, world_checks=False)  # rotations only: no fps, root or trans
         k = frame or 0
         if k >= motion.n_frames:

@@ -77,6 +77,9 @@ def test_calibration_round_trip_and_bad_file(tmp_path):
                                        '"points": [[0.1, 1.0]]}}}')
     with pytest.raises(InputError, match="bad.json"):
         Calibration.load(tmp_path / "bad.json")
+    (tmp_path / "motion.npz").write_bytes(b"PK\x03\x04\xf3\x00 a zip")  # a motion given as --calibrate
+    with pytest.raises(InputError, match=r"motion.npz': expected the JSON .* writes, got binary content$"):
+        Calibration.load(tmp_path / "motion.npz")
 
 
 def test_psd_candidate_scales_lbs_by_the_share_the_fit_kept():

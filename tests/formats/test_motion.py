@@ -453,6 +453,29 @@ def test_non_positive_frame_rate(tmp_path, fps):
         load_motion(_write(tmp_path, "ok.npz", poses=_poses(2, 72), trans=_trans(2), mocap_framerate=30), fps=fps)
 
 
+def test_a_frame_rate_beyond_any_capture_is_refused(tmp_path):
+    """1e300 Hz was read as given: the whole motion within one output frame, its speed printed in 300 digits."""
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, poses=_poses(2, 72), trans=_trans(2), mocap_framerate=1e300))
+    _assert_one_line(info, "m.npz", "mocap_framerate", "expected a frame rate of at most 10,000 Hz, got 1e+300")
+    assert load_motion(_write(tmp_path, "fast.npz", poses=_poses(2, 72), trans=_trans(2), mocap_framerate=2000)).fps \
+        == 2000
+
+
+def test_integer_poses_are_read_with_a_warning(tmp_path, caplog):
+    """Poses stored as int8 (whole radians: a writer truncated them) baked without a word; zeros stored as integers
+    (a rest pose) are no cause for one."""
+    import logging
+
+    poses = (_poses(3, 72) * 3).astype(np.int8)
+    assert poses.any()
+    with caplog.at_level(logging.WARNING, logger="formats.motion"):
+        m = load_motion(_write(tmp_path, poses=poses, trans=np.zeros((3, 3), np.int64), mocap_framerate=30))
+    assert m.poses.dtype == np.float32
+    assert "'poses' holds integers (dtype int8), not floating-point values" in caplog.text
+    assert "'trans'" not in caplog.text
+
+
 def test_zero_frames(tmp_path):
     with pytest.raises(InputError) as info:
         load_motion(_write(tmp_path, poses=np.zeros((0, 72)), trans=np.zeros((0, 3)), mocap_framerate=30))

@@ -168,7 +168,8 @@ def test_a_pickle_that_would_run_code_is_refused_without_running_it(tmp_path):
     (pickle.dumps([1, 2, 3]), "expected a pickled dict of SMPL parameters ('poses', 'trans', ...; or one such dict "
                               "per tracked person), got list"),
     (pickle.dumps({"poses": _poses(3, 72)})[:40], "cannot read it as a Python pickle ("),
-    (b"not a pickle at all", "cannot read it as a Python pickle (UnpicklingError: invalid load key, b'n')"),
+    (b"not a pickle at all", "expected a Python pickle, got text ('not a pickle at all'...)"),
+    (b"\x01\x02 not a pickle at all", "cannot read it as a Python pickle (UnpicklingError: invalid load key, "),
     (pickle.dumps({"verts": np.zeros((2, 3))}), "expected a 'poses' array"),
     (pickle.dumps({"f0": {"time": 0, "tid": [1], "smpl": [None]}}), "got another structure (AttributeError: "),
     (pickle.dumps({"f0": {"time": 0, "tid": 5, "smpl": []}}), "got another structure (TypeError: "),
@@ -369,3 +370,14 @@ def test_an_emdb_sequence_reads_its_smpl_dict_and_keeps_the_files_gender(tmp_pat
     with pytest.raises(InputError) as info:
         load_motion(path, world_checks=False)
     _assert_one_line(info, "P1_14_outdoor_climb_data.pkl", "--source-fps")
+
+
+def test_a_pickle_or_torch_file_of_text_or_nothing_is_named_for_what_it_is(tmp_path):
+    """An OBJ renamed .pt ended in torch's UnpicklingError cut off mid-word; an empty .pkl said 'EOFError: EOFError'."""
+    (tmp_path / "shape.pt").write_text("v 0 0 0\nf 1 2 3\n")
+    (tmp_path / "empty.pkl").write_bytes(b"")
+    for name, needle in (("shape.pt", "expected a PyTorch file, got text ('v 0 0 0'...)"),
+                         ("empty.pkl", "expected a Python pickle, got an empty file")):
+        with pytest.raises(InputError) as info:
+            load_motion(tmp_path / name)
+        _assert_one_line(info, f"motion '{tmp_path / name}': {needle}")

@@ -187,6 +187,18 @@ def test_materials_are_kept_per_polygon_and_written_back(tmp_path):
     assert parse_obj(tmp_path / "back.obj").materials.tolist() == obj.materials.tolist()
 
 
+def test_faces_of_no_material_after_named_ones_are_written_back_as_none(tmp_path):
+    """A bare `usemtl` (or none at all before the first) marks faces of no material: written back, the faces after
+    a named run took that run's material (no line was written where the name became '')."""
+    text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nusemtl cloth\nf 1 3 4\nusemtl\nf 2 3 4\nusemtl cloth\nf 1 2 4\n"
+    obj = parse_obj(_write(tmp_path, text, "m.obj"))
+    assert obj.materials.tolist() == ["", "cloth", "", "cloth"]
+    write_obj(tmp_path / "back.obj", obj.vertices, obj.polygons, materials=obj.materials)
+    lines = [line for line in (tmp_path / "back.obj").read_text().splitlines() if not line.startswith("v ")]
+    assert lines == ["f 1 2 3", "usemtl cloth", "f 1 3 4", "usemtl", "f 2 3 4", "usemtl cloth", "f 1 2 4"]
+    assert parse_obj(tmp_path / "back.obj").materials.tolist() == ["", "cloth", "", "cloth"]
+
+
 def test_ngons_are_written_back_whole(tmp_path):
     """A file of triangles and n-gons alone (nothing welded) keeps a source mesh, so its outputs have the
     n-gons with their UVs: a concave L hexagon and a pentagon come back as the file's faces, point for point."""
@@ -229,6 +241,18 @@ def test_a_face_without_texture_coordinates_leaves_the_others_theirs(tmp_path, c
     np.testing.assert_allclose(g.uvs, [[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]])  # 'vt 0.5 0.5', unused, left out
     np.testing.assert_array_equal(g.face_uvs, [[0, 1, 2], [0, 2, 3], [4, 4, 4]])
     assert "part.obj" in caplog.text and "1 of 2 faces have no texture coordinates (from line" in caplog.text
+
+
+@pytest.mark.parametrize("corner", ["3", "3//1"])
+def test_a_face_with_texture_coordinates_at_some_corners_only_is_refused(tmp_path, corner):
+    """A file cut short in its last corner ('f 1873/1971 1945/2044 2015/2015' -> '... 201') baked a wrong triangle
+    without a word; no exporter mixes corners with and without texture coordinates in one face."""
+    text = UV_OBJ.replace("f 2/2/1 -1/-1/1 3/3/1", f"f 2/2/1 -1/-1/1 {corner}")
+    assert text != UV_OBJ
+    with pytest.raises(InputError, match=r"part.obj': expected texture coordinates at every corner of a face or at "
+                                         r"none, got them at 2 of 3 on line \d+ \('f 2/2/1 -1/-1/1 3.*'\): a file cut "
+                                         r"short or broken\?"):
+        read_obj(_write(tmp_path, text, "part.obj"))
 
 
 def test_triangulate_against_naive_split():

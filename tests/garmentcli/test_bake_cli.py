@@ -124,6 +124,15 @@ BAD_CASES = {
                         ["--lbs-smooth", "0<=x<=1000"]),
     "lbs-smooth for the simulator": (lambda s: ["bake", s["garment"], s["motion"], "--method", "sim", "--lbs-smooth",
                                                 20], ["--lbs-smooth applies to --method lbs only (got --method sim)"]),
+    # accepted before (fuzz audit): 1e-9 fps wrote one frame; 1e300 Hz put the motion within one frame; a billion
+    # substeps ran for ever; a start frame of 1e20 merged the frames into one USD time code
+    "tiny output fps": (lambda s: ["bake", s["garment"], s["motion"], "--fps", "1e-9"], ["--fps", "1.0<=x<=1000.0"]),
+    "huge source fps": (lambda s: ["bake", s["garment"], s["motion"], "--source-fps", "1e300"],
+                        ["--source-fps", "expected a frame rate of at most 10,000 Hz, got 1e+300"]),
+    "billion substeps": (lambda s: ["bake", s["garment"], s["motion"], "--method", "sim", "--substeps", 10**9],
+                         ["--substeps", "1<=x<=1000"]),
+    "start frame beyond doubles": (lambda s: ["bake", s["garment"], s["motion"], "--start-frame", 10**20],
+                                   ["--start-frame", "0<=x<=1000000000"]),
     # the memory refusal advised --frames parts larger than the motion
     "settle beyond memory": (lambda s: ["bake", s["garment"], s["motion"], "--method", "lbs", "--settle", 10**10],
                              ["--settle 10000000000: 10000000000 frames", "lower --settle"]),
@@ -675,13 +684,22 @@ def test_an_output_that_cannot_be_written_stops_before_any_work(scene, tmp_path,
     assert list(readonly.iterdir()) == []
 
 
-def test_an_empty_or_too_long_name_is_one_line_naming_it(scene, tmp_path):
-    """--out '' or a name longer than the file system takes (ENAMETOOLONG: pathlib raised it from exists()), as
-    --out or as MOTION: one line, no traceback, nothing written."""
+def test_an_empty_or_too_long_name_is_one_line_naming_it(scene, tmp_path, monkeypatch):
+    """An empty argument (a shell variable never set) anywhere: as MOTION it was the current folder (every motion
+    under it baked), as --body the current folder, as --frames every frame; or a name longer than the file system
+    takes (ENAMETOOLONG: pathlib raised it from exists()), as --out or as MOTION: one line, no traceback, nothing
+    written."""
     base = ["bake", scene["garment"], scene["motion"], "--body", scene["body"]]
     long_name = "x" * 300
-    r = run([*base, "--out", ""])
-    assert_one_line_error(r, "'--out'", "expected a path, got ''")
+    monkeypatch.chdir(scene["dir"])  # a folder holding a motion
+    for args, named in (([*base, "--out", ""], "after '--out'"), (["bake", scene["garment"], "", "--out", "o"],
+                                                                  f"after '{scene['garment']}'"),
+                        ([*base, "--frames", "", "--out", "o"], "after '--frames'"),
+                        ([*base, "--frames=", "--out", "o"], "of '--frames'"),
+                        (["info", ""], "after 'info'"), (["metrics", "o", ""], "after 'o'")):
+        r = run(args)
+        assert_one_line_error(r, f"an empty argument {named}: expected a path or a value, got ''")
+        assert r.exit_code == 2 and not (scene["dir"] / "o").exists()
     r = run([*base, "--out", tmp_path / long_name])
     assert_one_line_error(r, "'--out'", "File name too long")
     r = run(["bake", scene["garment"], tmp_path / long_name, "--body", scene["body"], "--out", tmp_path / "o"])
@@ -769,6 +787,19 @@ def test_a_pipe_a_device_or_a_link_loop_is_named_for_what_it_is(scene):
     assert_one_line_error(invoke(["bake", d / "loop_a.obj", scene["motion"], *base]), "loop_a.obj'",
                           "a symbolic link loop")
     assert_one_line_error(invoke(["metrics", d / "pipe.npz", scene["garment"]]), "pipe.npz'", pipe)
+    # Every other command that reads a garment, a motion or a file option (info, preprocess and dataset waited for
+    # the pipe's writer for ever; attribute, unpose and render called it missing).
+    for args in (["info", d / "pipe.obj"], ["preprocess", d / "pipe.obj", "--no-cache", "--body", scene["body"]],
+                 ["dataset", "--dry-run", "--garments", d / "pipe.obj", "--motions", scene["motion"], "--body",
+                  scene["body"], "--out", scene["out"]],
+                 ["attribute", "default", scene["garment"], d / "pipe.npz", "--frame", "0", "--no-render"],
+                 ["unpose", scene["garment"], "--pose", d / "pipe.npz", "--body", scene["body"], "--out",
+                  scene["out"] / "u.obj"],
+                 ["tradeoff", scene["garment"], scene["motion"], "--fit", f"f={d / 'pipe.npz'}", "--out", scene["out"]],
+                 ["bake", scene["garment"], scene["motion"], "--method", "model", "--model", d / "pipe.npz", *base]):
+        r = invoke(args)
+        assert r.exit_code != 0 and "pipe." in r.output and pipe in r.output, (args, r.output)
+        assert len(r.output.strip().splitlines()) == 1 or args[0] == "info", (args, r.output)
     if Path("/dev/null").exists():
         assert_one_line_error(invoke(["bake", scene["garment"], scene["motion"], "--body", "/dev/null", "--out",
                                       scene["out"]]), "body file '/dev/null': a device, expected a file")

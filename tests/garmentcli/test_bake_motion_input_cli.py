@@ -46,12 +46,18 @@ def test_a_frame_time_for_a_frame_rate_is_refused_and_1_hz_bakes(scene):
     assert json.loads((scene["out"] / "shell_slow" / "summary.json").read_text())["frames"] == 61  # 2 s at 30 fps
 
 
-def test_an_fps_that_makes_more_frames_than_fit_is_refused_before_resampling(scene):
-    """--fps 1e9 on the 12-frame walk (60 fps) makes 183,333,334 frames: refused naming --fps and the memory
-    before anything is allocated (it was numpy's _ArrayMemoryError from resample); --source-fps 1e-9 is refused as
-    a frame time."""
-    r = _bake(scene, scene["motion"], "--fps", "1e9")
-    assert_one_line_error(r, "walk.npz", "183333334 frames", "is free", "lower --fps 1e+09")
+def test_an_fps_that_makes_more_frames_than_fit_is_refused_before_resampling(scene, monkeypatch):
+    """--fps 1000 on the 12-frame walk (60 fps) makes 184 frames, more than 1 MB free holds: refused naming --fps
+    and the memory before anything is allocated (it was numpy's _ArrayMemoryError from resample); --fps beyond
+    1000 (1e9 made 183,333,334 frames) is out of its range; --source-fps 1e-9 is refused as a frame time."""
+    import psutil
+
+    free = psutil.virtual_memory()._replace(available=1)
+    with monkeypatch.context() as m:
+        m.setattr(psutil, "virtual_memory", lambda: free)
+        r = _bake(scene, scene["motion"], "--fps", "1000")
+    assert_one_line_error(r, "walk.npz", "184 frames", "is free", "lower --fps 1000")
+    assert_one_line_error(_bake(scene, scene["motion"], "--fps", "1e9"), "--fps", "1.0<=x<=1000.0")
     r = _bake(scene, scene["motion"], "--source-fps", "1e-9")
     assert_one_line_error(r, "--source-fps", "1e-09", "seconds per frame")
     assert not scene["out"].exists()

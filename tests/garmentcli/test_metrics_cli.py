@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -352,6 +353,35 @@ def test_plots_refuse_to_overwrite_any_file_they_would_write(tmp_path, seq, old)
     assert_clean_failure(r, "--out", old, "--overwrite")
     assert sorted(p.name for p in out.iterdir()) == [old]  # nothing written
     assert (out / old).read_bytes() == b"older report"
+
+
+def test_plots_that_fail_part_way_leave_no_report_nor_half_a_picture(tmp_path, seq, monkeypatch):
+    """A full disk while the pictures were written left metrics.json, .csv, .md and half a heatmap in --out (each
+    report said 'wrote'): the pictures are made first, beside, and nothing is left when one fails; then the whole
+    set, pictures linked in the report."""
+    import errno
+
+    import formats.plots as P
+
+    pts, f = seq
+    a, b = save_seq(tmp_path / "a.npz", pts, f), save_seq(tmp_path / "b.npz", pts, f)
+    out = tmp_path / "out"
+
+    def full(result, path, *args, **kwargs):
+        Path(path).write_bytes(b"\x89PNG half")
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    with monkeypatch.context() as m:
+        m.setattr(P, "plot_error_histograms", full)
+        r = run([a, b, "--out", out, "--plots"])
+    assert r.exit_code != 0 and "No space left on device" in r.output and "wrote" not in r.output, r.output
+    assert not out.exists() or not list(out.iterdir())
+    r = run([a, b, "--out", out, "--plots"])
+    assert r.exit_code == 0, r.output
+    names = {p.name for p in out.iterdir()}
+    assert {"metrics.json", "metrics.csv", "metrics.md", "metrics_per_frame.png", "metrics_report.html"} <= names
+    assert not any(n.startswith(".") for n in names)
+    assert "metrics_per_frame.png" in (out / "metrics_report.html").read_text()
 
 
 def test_gt_penetration_is_taken_against_gts_own_body(tmp_path):

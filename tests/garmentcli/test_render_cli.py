@@ -69,10 +69,21 @@ def test_render_colour_modes(seqs, tmp_path):
     (["--color", "scalar"], "--scalars"),
     (["--size", "huge"], "--size: expected WIDTHxHEIGHT"),
     (["--frames", "5:9"], "--frames"),
-    (["--scalars", "missing.npz"], "--scalars: file 'missing.npz' not found"),
+    (["--scalars", "missing.npz"], "--scalars: file 'missing.npz': file not found"),
 ])
 def test_render_bad_input(seqs, args, needle):
     assert needle in error_line(run("render", seqs["pred"], "--out", seqs["dir"] / "bad", *args))
+    assert not (seqs["dir"] / "bad").exists()
+
+
+def test_render_scalars_of_another_kind_of_file_are_named_for_what_they_are(seqs):
+    """An OBJ or an empty file as --scalars: numpy's advice to load pickled data unsafely was relayed."""
+    (seqs["dir"] / "shape.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (seqs["dir"] / "empty.npz").write_bytes(b"")
+    for name, got in (("shape.obj", "got text ('v 0 0 0'...)"), ("empty.npz", "got an empty file")):
+        line = error_line(run("render", seqs["pred"], "--out", seqs["dir"] / "bad", "--color", "scalar", "--scalars",
+                              seqs["dir"] / name))
+        assert f"{name}': expected a .npz of arrays, {got}" in line and "allow_pickle" not in line, line
     assert not (seqs["dir"] / "bad").exists()
 
 

@@ -269,7 +269,7 @@ def test_train_refuses_an_existing_out_an_empty_one_and_absurd_threads_or_seed(s
     r = _train(root, data, body, cfg, garment, "--steps", 1)
     assert r.exit_code != 0 and isinstance(r.exception, SystemExit) and f"output '{garment}' exists" in r.output
     assert garment.read_text() == "v 0 0 0\n" and not (tmp_path / "garment.obj.ckpt").exists()
-    for extra, needle in (([], "expected a path, got ''"), (["--threads", 2**31], "from 1 to 1024"), (["--seed", -1], "0<=x<=4294967295")):
+    for extra, needle in (([], "an empty argument after '--out'"), (["--threads", 2**31], "from 1 to 1024"), (["--seed", -1], "0<=x<=4294967295")):
         out = "" if not extra else tmp_path / "m.pt"
         r = _train(root, data, body, cfg, out, "--steps", 1, *extra)
         assert r.exit_code != 0 and isinstance(r.exception, SystemExit), (extra, r.output)
