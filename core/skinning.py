@@ -269,12 +269,12 @@ def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | N
     rows, cols, values = [], [], []
     for pi, fi, bary, dist in mesh.faces_within(points, hit.distance + margin):
         w = np.clip(1.0 - (dist - hit.distance[pi]) / margin[pi], 0.0, 1.0)
-        rows.append(np.repeat(pi, 3))
-        cols.append(mesh.faces[fi].reshape(-1))
+        rows.append(np.repeat(pi.astype(np.int32), 3))
+        cols.append(mesh.faces[fi].reshape(-1).astype(np.int32))
         values.append((w[:, None] * bary).reshape(-1))
     blend = sp.csr_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
                           shape=(len(points), len(mesh.verts)))  # a vertex met through several faces: summed
-    blend = (sp.diags(1.0 / np.asarray(blend.sum(axis=1)).reshape(-1)) @ blend).tocsr()
+    blend.data /= np.repeat(np.asarray(blend.sum(axis=1)).reshape(-1), np.diff(blend.indptr))  # rows sum to 1
     _LAST_BLEND[:] = [key, blend]
     return blend
 
