@@ -258,12 +258,16 @@ def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | N
     [`BLEND_MIN_M`, `BLEND_MAX_M`]) of the nearest contributes its closest point's barycentric coordinates,
     weighted by 1 - (its distance - the nearest) / margin: the rows are continuous in the points and the mesh
     (a point equally near two parts takes both halves; the nearest point alone jumps from one to the other).
-    hit: `mesh.closest(points)`, where the caller has it."""
+    hit: `mesh.closest(points)`, where the caller has it (nothing else: the result is cached by the points and the
+    mesh, `_LAST_BLEND`; each call gets a copy of it)."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    key = hashlib.blake2b(b"".join(np.ascontiguousarray(a).tobytes() for a in (  # + 0.0: -0.0 as 0.0
-        mesh.verts + 0.0, np.sort(mesh.faces, axis=1), points + 0.0, (BLEND_SHARE, BLEND_MIN_M, BLEND_MAX_M)))).digest()
+    parts = (mesh.verts + 0.0, np.sort(mesh.faces, axis=1), points + 0.0)  # + 0.0: -0.0 as 0.0
+    key = hashlib.blake2b(b"".join([np.ascontiguousarray(a).tobytes() for a in parts] + [repr(
+        ([a.shape for a in parts], BLEND_SHARE, BLEND_MIN_M, BLEND_MAX_M)).encode()])).digest()
     if _LAST_BLEND[0] == key:  # a model's or psd's bake blends the same points twice: weights, then contact anchors
-        return _LAST_BLEND[1]
+        return _LAST_BLEND[1].copy()
+    if not len(points) or not len(mesh.faces):
+        return sp.csr_matrix((len(points), len(mesh.verts)))
     hit = mesh.closest(points) if hit is None else hit
     margin = np.clip(BLEND_SHARE * hit.distance, BLEND_MIN_M, BLEND_MAX_M)
     rows, cols, values = [], [], []
@@ -276,7 +280,7 @@ def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | N
                           shape=(len(points), len(mesh.verts)))  # a vertex met through several faces: summed
     blend.data /= np.repeat(np.asarray(blend.sum(axis=1)).reshape(-1), np.diff(blend.indptr))  # rows sum to 1
     _LAST_BLEND[:] = [key, blend]
-    return blend
+    return blend.copy()
 
 
 #: `surface_blend`'s last (key: a hash of its mesh, points and margins; result).

@@ -60,11 +60,14 @@ class _Group(click.Group):
         """The group's own options (`garment --bogus`) as its commands': a usage error is one line. An empty
         argument (a shell variable never set) is refused: as a path it was the current folder (`bake g.obj ""`
         baked every motion under it), as a value the option left out (`--frames ""`: every frame)."""
-        empty = next((k for k, a in enumerate(args) if a == "" or (isinstance(a, str) and a.startswith("--")
-                                                                  and a.endswith("="))), None)
-        if empty is not None:
+        given = args[:args.index("--")] if "--" in args else args  # after '--', names as they are
+        empty = next((k for k, a in enumerate(given) if a == "" or (isinstance(a, str) and a.startswith("--")
+                                                                   and a.endswith("="))), None)
+        if empty is not None and not ctx.resilient_parsing:  # (shell completion parses what is typed so far)
             after = f" of '{args[empty][:-1]}'" if args[empty] else f" after '{args[empty - 1]}'" if empty else ""
-            raise _OneLineUsageError(f"an empty argument{after}: expected a path or a value, got ''", ctx)
+            command = f"{ctx.command_path} {args[0]}" if args and args[0] in self.commands else ctx.command_path
+            raise _OneLineUsageError(f"an empty argument{after}: expected a path or a value, got '' (see "
+                                     f"'{command} --help')", None)
         try:
             return super().parse_args(ctx, args)
         except click.UsageError as exc:

@@ -55,6 +55,23 @@ def test_surface_blend_matches_an_exhaustive_reference():
         np.testing.assert_allclose(got[i], want / want.sum(), atol=1e-9)
 
 
+def test_surface_blend_is_cached_as_copies_and_takes_no_points():
+    """The weights and the guard's anchors blend the same points: the second gets the first's result, a copy (a
+    caller changing its own changes no other's); no points, no faces: an empty blend (numpy's concatenate of
+    nothing raised)."""
+    from core.geometry import TriangleMesh
+    from core.skinning import surface_blend
+
+    body = tiny_body()
+    mesh = TriangleMesh(body.v_template, body.faces)
+    points = body.v_template[:5] * 1.1
+    first = surface_blend(mesh, points)
+    first.data *= 2.0
+    again = surface_blend(TriangleMesh(body.v_template, body.faces), points)
+    np.testing.assert_allclose(np.asarray(again.sum(axis=1)).ravel(), 1.0)
+    assert surface_blend(mesh, np.zeros((0, 3))).shape == (0, len(body.v_template))
+
+
 def test_a_vertex_equally_near_two_body_parts_takes_both_and_a_nudge_moves_it_little():
     """Between two walls (legs) 10 cm either side, a vertex takes half of each; nudged by 1e-7 m either way (float
     rounding of an export), its blend moves by about as little (the nearest point alone jumped from one wall to

@@ -698,8 +698,14 @@ def test_an_empty_or_too_long_name_is_one_line_naming_it(scene, tmp_path, monkey
                         ([*base, "--frames=", "--out", "o"], "of '--frames'"),
                         (["info", ""], "after 'info'"), (["metrics", "o", ""], "after 'o'")):
         r = run(args)
-        assert_one_line_error(r, f"an empty argument {named}: expected a path or a value, got ''")
+        assert_one_line_error(r, f"an empty argument {named}: expected a path or a value, got '' (see '",
+                              f" {args[0]} --help')")
         assert r.exit_code == 2 and not (scene["dir"] / "o").exists()
+    # Shell completion parses what is typed so far, an empty word too; after '--' a name is taken as it is.
+    from garmentcli.main import cli
+
+    assert cli.make_context("garment", ["bake", "", "--fr"], resilient_parsing=True) is not None
+    assert run(["info", scene["motion"], "--", "--x="]).output.count("an empty argument") == 0
     r = run([*base, "--out", tmp_path / long_name])
     assert_one_line_error(r, "'--out'", "File name too long")
     r = run(["bake", scene["garment"], tmp_path / long_name, "--body", scene["body"], "--out", tmp_path / "o"])
