@@ -375,7 +375,8 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
 def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: np.ndarray,
                        uvs: np.ndarray | None = None, face_uvs: np.ndarray | None = None,
                        fps: float | None = None, prefix: str = "frame_",
-                       materials: np.ndarray | None = None, libraries=(), start: int = 0, up: str = "z") -> list[Path]:
+                       materials: np.ndarray | None = None, libraries=(), start: int = 0, up: str = "z",
+                       on_frame=None) -> list[Path]:
     """Write one OBJ per frame, `<prefix>0000.obj` ..., and `sequence.json` into `directory`.
 
     points: (T, V, 3) float, metres, Z-up (this tool's world); faces: (F, 3) int 0-based; uvs (U, 2) and
@@ -384,8 +385,8 @@ def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: 
     `mtllib` line; fps: frames per second or None; start: the first frame's number; up: "y" writes the points
     turned to Y-up (-90 degrees about X: an OBJ's usual frame, which Blender's, Houdini's and Maya's imports
     assume), recorded in `sequence.json` so `read_sequence` turns them back; "z" as they are. Frame numbers are
-    zero padded to at least 4 digits. The face block is formatted once and shared by every frame. Returns the
-    frame paths in order.
+    zero padded to at least 4 digits. The face block is formatted once and shared by every frame. on_frame(1):
+    called after each frame is written (a progress bar). Returns the frame paths in order.
     """
     directory = Path(directory)
     points = np.asarray(points)
@@ -408,6 +409,8 @@ def write_obj_sequence(directory: str | os.PathLike, points: np.ndarray, faces: 
         path.write_bytes(f"# frame {start + t}\n".encode("ascii") + library_line + obj_vertex_text(points[t]).encode("ascii")
                          + face_block)
         paths.append(path)
+        if on_frame is not None:
+            on_frame(1)
     meta = {"fps": None if fps is None else float(fps), "frames": int(n_frames), "prefix": prefix, "start": int(start),
             "up": up}
     (directory / SEQUENCE_JSON).write_text(json.dumps(meta, indent=2) + "\n")

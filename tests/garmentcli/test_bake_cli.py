@@ -812,6 +812,39 @@ def test_a_pipe_a_device_or_a_link_loop_is_named_for_what_it_is(scene):
     assert not scene["out"].exists()
 
 
+def test_the_writing_of_the_obj_frames_has_a_bar_of_its_own(scene, monkeypatch):
+    """After the bake bar's 100 % the OBJ frames are written (a 203k-vertex garment's 1.3 GB took a minute without a
+    word): a "write" bar counts them, per motion; none with --no-obj."""
+    import garmentcli.bake
+
+    bars = []
+
+    class Recorder:
+        def __init__(self, total=None, desc=None, **kwargs):
+            self.desc, self.total, self.n = desc, total, 0
+            bars.append(self)
+
+        def update(self, n=1):
+            self.n += n
+
+        def close(self):
+            pass
+
+        __enter__ = lambda self: self  # noqa: E731
+        __exit__ = lambda self, *exc: None  # noqa: E731
+
+    monkeypatch.setattr(garmentcli.bake, "tqdm", Recorder)
+    common = [scene["garment"], scene["motion"], scene["motion2"], "--body", scene["body"], "--method", "lbs"]
+    r = run(["bake", *common, "--out", scene["out"] / "a"])
+    assert r.exit_code == 0, r.output
+    written = [(b.total, b.n) for b in bars if b.desc == "write"]
+    frames = [len(list((scene["out"] / "a" / f"shell_{m}" / "obj").glob("*.obj"))) for m in ("walk", "jump")]
+    assert written == [(n, n) for n in frames] and min(frames) > 0
+    bars.clear()
+    assert run(["bake", *common, "--out", scene["out"] / "b", "--no-obj"]).exit_code == 0
+    assert [b.desc for b in bars] == ["bake"]
+
+
 def test_retries_without_a_scheduler_is_refused(scene):
     """--retries re-runs a Dask task; local workers do not retry: given without --scheduler it was ignored."""
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--retries", "5", "--out",
