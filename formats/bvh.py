@@ -122,11 +122,21 @@ def read_skeleton(path: Path, src: str) -> Skeleton:
         raise InputError(f"{src}: expected {n_frames} frames of {width} channel values ({n_frames * width}), got "
                          f"{values.size} values")
     rotations, root, moving = _channels(channels, offsets, values.reshape(n_frames, width))
-    # A Frame Time of a few digits (Blender's 0.033333, CMU's 0.0083333) is a common rate's: as read, 30.0003 fps
-    # lost the last frame of every bake at 30 and moved every frame a little.
-    rate = common_rate(1.0 / frame_time) if frame_time < 1.0 else None
+    rate = _written_rate(frame_time, timing.group(1))
     return Skeleton(names, parents, offsets, rotations, root, frame_time if rate is None else 1.0 / rate,
                     moving=moving)
+
+
+def _written_rate(frame_time: float, text: str) -> float | None:
+    """The common rate (`core.motion.common_rate`) a Frame Time of a few digits stands for, or None: Blender's
+    0.033333 and CMU's 0.0083333 are 30 and 120 fps (as read, 30.0003 fps lost the last frame of every bake at 30
+    and moved every frame a little), where the rate's frame time rounds to the digits written, within 1.5 units of
+    the last (0.03353438, 8 digits, is 29.82 fps, not 29.97: snapped, a minute's last frame moved by 0.3 s)."""
+    rate = common_rate(1.0 / frame_time) if frame_time < 1.0 else None
+    written = re.fullmatch(r"\+?\d*\.(\d+)", text)
+    if rate is not None and written and abs(1.0 / rate - frame_time) > 1.5 * 10.0 ** -len(written.group(1)):
+        return None
+    return rate
 
 
 def skeleton_arrays(skeleton: Skeleton, src: str) -> dict:

@@ -500,14 +500,18 @@ def test_a_broken_bvh_is_one_line(tmp_path):
 
 def test_a_frame_time_of_a_few_digits_is_its_common_rate_and_no_frame_is_lost(tmp_path):
     """Blender writes Frame Time 0.033333, CMU 0.0083333: read as 30.0003 and 120.0005 fps, a bake at 30 lost the
-    last frame (39 of 40) and moved every frame; they are 30 and 120 (a rate off every common one stays its own).
+    last frame (39 of 40) and moved every frame; they are 30 and 120 (a rate off every common one, or near one but
+    not its frame time to the digits written, stays its own).
     A UTF-8 byte-order mark, CRLF lines and the header's lines in the other order read as the plain file."""
     from core.motion import resample
 
     poses, trans = _motion(40)
     text = write_bvh(tmp_path / "walk.bvh", poses, trans, 30).read_text()
+    # 0.03353438 (8 digits) is 29.82 fps, within 0.5 % of 29.97 but not its frame time to the digits written: it
+    # was snapped (a minute's last frame 0.3 s off); 0.033367 (6 digits) is 29.97's.
     for frame_time, fps, frames_at_30 in (("0.033333", 30.0, 40), ("0.0083333", 120.0, 10), ("0.0345", 1 / 0.0345,
-                                                                                               41)):
+                                                                                               41),
+                                          ("0.03353438", 1 / 0.03353438, 40), ("0.033367", 29.97, 40)):
         (tmp_path / "walk.bvh").write_text(text.replace("Frame Time: 0.03333333", f"Frame Time: {frame_time}"))
         m = load_motion(tmp_path / "walk.bvh", world_checks=False)
         assert m.fps == pytest.approx(fps, rel=1e-12) and resample(m, 30.0).n_frames == frames_at_30

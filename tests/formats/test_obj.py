@@ -467,11 +467,19 @@ def test_panels_exported_separately_are_welded_at_their_seams(tmp_path, caplog):
     np.testing.assert_allclose(np.sort(g.vertices, axis=0), np.sort(skirt.vertices, axis=0), atol=1e-6)
 
 
-def test_vertices_apart_by_more_than_the_weld_distance_stay_apart(tmp_path, caplog):
-    path, skirt = _panels(tmp_path, gap=1e-4)  # 0.1 mm: a real gap, 10x the weld distance
+def test_vertices_apart_by_more_than_the_weld_distance_stay_apart_and_a_near_miss_is_warned_about(tmp_path, caplog):
+    """Panels 0.1 mm apart (10x the weld distance) stay apart; so near, their seam is named: baked apart it opens
+    (a seam just beyond the weld gaped 19 cm on the walk, without a word). Panels 5 mm apart: no seam to name."""
+    path, skirt = _panels(tmp_path, gap=1e-4)
     with caplog.at_level(logging.WARNING):
         g = read_obj(path)
-    assert "welded" not in caplog.text and g.n_vertices == skirt.n_vertices + 112
+    assert "welded 112" not in caplog.text and g.n_vertices == skirt.n_vertices + 112
+    assert "112 pairs of open-edge vertices lie 0.1-0.3 mm apart, not welded (the weld takes 0.01 mm)" in caplog.text
+    caplog.clear()
+    path, _ = _panels(tmp_path, gap=5e-3, name="apart.obj")
+    with caplog.at_level(logging.WARNING):
+        read_obj(path)
+    assert "open-edge" not in caplog.text
 
 
 def test_welding_keeps_uv_seams():
