@@ -22,7 +22,7 @@ neighbours tied to other faces or left where they were, pulls them along instead
 as a spike (where the body curves, in an armpit or behind a knee, one face's plane stands for the body badly,
 and unspread lifts tore a t-shirt's armpits in every frame of most motions).
 The faces are posed exactly (they are the body's own), so this undoes what the network adds on top of
-skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at 0.6-2.8
+skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at 0.7-3.0
 ms/frame on the example garments; it cannot see a vertex that slides over to another body part, which the
 exact push-out does.
 """

@@ -384,8 +384,8 @@ def _unpickled(path: Path, src: str, npy: bool = False):
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - any failure to unpickle is an unreadable file
-        got = content_kind(path)  # an OBJ or a CSV renamed, an empty file
-        if got:
+        got = content_kind(path)  # an OBJ or a CSV renamed, an empty file; not a text pickle (protocol 0)
+        if got and not got.startswith(tuple(f"text ({q}{c}" for q in "'\"" for c in "(c}]ISVFLN")):
             raise InputError(f"{src}: expected {kind}, got {got}") from None
         raise InputError(f"{src}: cannot read it as {kind} ({type(exc).__name__}: {_short(exc)})") from None
 
