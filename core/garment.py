@@ -113,18 +113,19 @@ def mesh_edges(faces: np.ndarray) -> np.ndarray:
 
     faces: (F, 3) int -> (E, 2) int64 with edges[:, 0] < edges[:, 1], sorted.
     """
-    faces = np.asarray(faces, dtype=np.int64)
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    e.sort(axis=1)
-    return np.unique(e, axis=0)
+    return edge_face_counts(faces)[0]
 
 
 def edge_face_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unique undirected edges (E, 2) int64 (sorted rows, as `mesh_edges`) and how many faces use each (E,)."""
+    """Unique undirected edges (E, 2) int64 (sorted rows, as `mesh_edges`) and how many faces use each (E,).
+    Each edge is made one number (low * n + high: the rows' order kept) for `np.unique`, several times faster than
+    its row search (`axis=0`)."""
     faces = np.asarray(faces, dtype=np.int64)
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     e.sort(axis=1)
-    return np.unique(e, axis=0, return_counts=True)
+    n = np.int64(e.max(initial=-1) + 1)
+    keys, counts = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
+    return np.stack([keys // n, keys % n], axis=1) if n else np.zeros((0, 2), np.int64), counts
 
 
 def boundary_edges(faces: np.ndarray) -> np.ndarray:

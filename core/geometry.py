@@ -351,6 +351,7 @@ class TriangleMesh:
         self._trees: dict = {}
         self._pseudo = None
         self._flat = None
+        self._radii = None
 
     def _tree(self, exact: bool):
         """(KD-tree, sample -> face map, cover radius), built on first use.
@@ -361,8 +362,7 @@ class TriangleMesh:
         meshes whose triangle sizes vary a lot.
         """
         if exact not in self._trees:
-            radius = np.max([np.sqrt(_dot3_soa(x - self._centroids_soa, x - self._centroids_soa))
-                             for x in self._corners_soa], axis=0)  # (F,) farthest corner from the centroid
+            radius = self._face_radii()
             if not exact:
                 self._trees[exact] = (_kd_tree(self.centroids), np.arange(len(self.faces)), float(radius.max(initial=0)))
             else:
@@ -467,7 +467,7 @@ class TriangleMesh:
         if not len(points) or not len(self.faces):
             return
         c = self._corners_soa
-        rad = np.max([np.sqrt(_dot3_soa(x - self._centroids_soa, x - self._centroids_soa)) for x in c], axis=0)
+        rad = self._face_radii()
         cut = LARGE_FACE_RADII * float(np.median(rad))
         large = np.flatnonzero(rad > cut)
         large_tree = _kd_tree(self.centroids[large]) if len(large) else None
@@ -499,6 +499,13 @@ class TriangleMesh:
                 hit = dist <= radius[pi]
                 yield pi[hit], fi[hit], bary[:, hit].T, dist[hit]
             todo, k = np.concatenate(later), min(4 * k, F)
+
+    def _face_radii(self) -> np.ndarray:
+        """(F,) each face's farthest corner from its centroid, metres (once per mesh)."""
+        if self._radii is None:
+            self._radii = np.max([np.sqrt(_dot3_soa(x - self._centroids_soa, x - self._centroids_soa))
+                                  for x in self._corners_soa], axis=0)
+        return self._radii
 
     def _flat_tol(self) -> np.ndarray:
         """(F,) each face's `1e-9 * |ab|^2 * |ac|^2`, the threshold below which `_closest_on_triangles_soa` takes

@@ -206,10 +206,9 @@ class PSDDeformer(Deformer):
     def check(self, garment: Garment, body: Body, source: str | None = None) -> None:
         """InputError unless the fit belongs to this garment (its mesh) and a body of its joint and beta counts."""
         fit = self.fit
-        sha = garment.content_hash()
         if not fit.fits_garment(garment):
             raise InputError(f"{self.source}: fitted to another garment (mesh {fit.garment_sha256[:12]}), not "
-                             f"'{source or garment.name}' ({sha[:12]}): fit it with `garment fit`")
+                             f"'{source or garment.name}' ({garment.content_hash()[:12]}): fit it with `garment fit`")
         if (body.n_joints, body.n_betas) != (fit.n_joints, fit.n_betas):
             raise InputError(f"{self.source}: fitted on body '{fit.body}' ({fit.n_joints} joints, {fit.n_betas} "
                              f"betas), got '{body.name}' ({body.n_joints}, {body.n_betas})")

@@ -4,9 +4,8 @@ Every other command expects the garment on the rest pose (T-pose). Many garments
 avatar standing in an A-pose instead: baked as they are, their sleeves cut through the torso. Here each
 garment vertex takes the skinning weights of where it is nearest the body posed like the garment
 (`core.skinning.surface_blend`, smoothed over the garment as `bind_garment` smooths them), and is moved by the
-inverse of its blended
-skinning transform: the inverse of the linear blend skinning that `lbs` applies, so that skinning the
-result with the same weights and pose gives the input back.
+inverse of its blended skinning transform: the inverse of the linear blend skinning that `lbs` applies, so that
+skinning the result with the same weights and pose gives the input back.
 """
 
 from __future__ import annotations

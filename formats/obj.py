@@ -535,6 +535,11 @@ def triangulate(vertices: np.ndarray, polygons: np.ndarray, polygon_uvs: np.ndar
     return faces, face_uvs, split_ac
 
 
+def _weld_tolerance(edge_lengths: np.ndarray) -> float:
+    """The weld's distance, metres: WELD_DISTANCE_M, at most 1 % of the (finite) median edge length."""
+    return min(WELD_DISTANCE_M, 0.01 * float(np.median(edge_lengths[np.isfinite(edge_lengths)])))
+
+
 def _weld(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path) -> tuple[np.ndarray, int]:
     """(faces with every vertex that lies within WELD_DISTANCE_M, and 1 % of the median edge, of an earlier
     used one replaced by the earliest, how many were); warns when any were. Vertices are left in place
@@ -546,7 +551,7 @@ def _weld(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path) -> tu
     if len(used) < 2:
         return faces, 0
     edges = np.linalg.norm(vertices[faces] - vertices[np.roll(faces, 1, axis=1)], axis=2)
-    tol = min(WELD_DISTANCE_M, 0.01 * float(np.median(edges[np.isfinite(edges)])))
+    tol = _weld_tolerance(edges)
     pairs = cKDTree(vertices[used]).query_pairs(tol, output_type="ndarray")
     if not len(pairs):
         return faces, 0
@@ -573,29 +578,29 @@ def _warn_open_seams(vertices: np.ndarray, faces: np.ndarray, label: str, path: 
     joined to them by an edge: a seam left open by a weld that just missed."""
     from scipy.spatial import cKDTree
 
+    from core.garment import edge_face_counts
+
     if not len(faces):
         return
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    n = np.int64(len(vertices))
-    keys, counts = np.unique(edges[:, 0] * n + edges[:, 1], return_counts=True)  # an edge as one number: fast
-    unique = np.stack([keys // n, keys % n], axis=1)
-    rim = np.unique(unique[counts == 1])
+    edges, counts = edge_face_counts(faces)
+    rim = np.unique(edges[counts == 1])
     rim = rim[np.isfinite(vertices[rim]).all(axis=1)]
     if len(rim) < 2:
         return
-    lengths = np.linalg.norm(vertices[unique[:, 0]] - vertices[unique[:, 1]], axis=1)
+    lengths = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
     near = min(OPEN_SEAM_M, 0.25 * float(np.median(lengths[np.isfinite(lengths)])))
     pairs = rim[cKDTree(vertices[rim]).query_pairs(near, output_type="ndarray")]
     if not len(pairs):
         return
+    n = np.int64(len(vertices))
     pairs = np.sort(pairs, axis=1)
-    pairs = pairs[~np.isin(pairs[:, 0] * n + pairs[:, 1], keys)]  # neighbours along an edge are no seam
+    pairs = pairs[~np.isin(pairs[:, 0] * n + pairs[:, 1], edges[:, 0] * n + edges[:, 1])]  # neighbours: no seam
     if len(pairs):
         gap = np.linalg.norm(vertices[pairs[:, 0]] - vertices[pairs[:, 1]], axis=1)
         log.warning("%s '%s': %d pairs of open-edge vertices lie %.3g-%.3g mm apart, not welded (the weld takes "
                     "%.3g mm): panels exported apart? they are baked as separate pieces and their seam opens: "
                     "join them in the tool that made the garment", label, path, len(pairs), gap.min() * 1e3,
-                    gap.max() * 1e3, min(WELD_DISTANCE_M, 0.01 * float(np.median(lengths))) * 1e3)
+                    gap.max() * 1e3, _weld_tolerance(lengths) * 1e3)
 
 
 #: A face with a corner's angle within this (radians: 0.57 degrees) of 180 degrees is degenerate (dropped): flat
