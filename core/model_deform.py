@@ -205,7 +205,7 @@ class ModelDeformer(Deformer):
     def __init__(self, model: GarmentModel, batch_frames: int | None = None, cache_dir=None, model_name: str = "model",
                  precision: str = "float32", coverage=None, contact_guard: bool = True,
                  lead_in_s: float | None = None, device: torch.device | str | None = None,
-                 strain_limit: float | None = STRAIN_LIMIT):
+                 strain_limit: float | None = STRAIN_LIMIT, trained_body: dict | None = None):
         super().__init__()
         if precision not in PRECISIONS:
             raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -231,6 +231,9 @@ class ModelDeformer(Deformer):
         #: False: torch's count throughout.
         self.tune_threads = True
         self.lead_in_s = DEFAULT_LEAD_IN_S if lead_in_s is None else float(lead_in_s)
+        #: The body the network was trained on, {"name", "sha256"} (`trained_body`); None: not recorded.
+        self.trained_body = trained_body
+        self._other_bodies: dict = {}
         if not (np.isfinite(self.lead_in_s) and self.lead_in_s >= 0):
             raise InputError(f"model lead-in: expected a non-negative number of seconds, got {lead_in_s!r}")
 
@@ -242,7 +245,24 @@ class ModelDeformer(Deformer):
             raise InputError(skeleton_mismatch(self.model_name, self.model.config.n_joints, body))
         return view
 
+    def body_difference(self, body: Body) -> str:
+        """Where `body` (as the network reads it: `_body`) is not the body the model was trained on, what a user
+        should know ("" where it is, or where the checkpoint does not say); warned once per body (log)."""
+        body = self._body(body)
+        if self.trained_body is None or self.trained_body.get("sha256") in (None, body.content_hash()):
+            return ""
+        if id(body) not in self._other_bodies:
+            trained = self.trained_body
+            what = (f"model '{self.model_name}' was trained on body '{trained.get('name')}' (sha256 "
+                    f"{trained['sha256'][:8]}), got body '{body.name}' (sha256 {body.content_hash()[:8]}): its "
+                    "accuracy on this body is not measured (`garment tradeoff --body` measures it; `garment dataset "
+                    "--body` and `garment train --init` fit a model to it)")
+            log.warning(what)
+            self._other_bodies[id(body)] = (body, what)  # the body kept, so its id is not reused
+        return self._other_bodies[id(body)][1]
+
     def prepare(self, garment: Garment, body: Body, source: str | None = None) -> None:
+        self.body_difference(body)
         body = self._body(body)
         key = (garment.content_hash(), id(body))
         if key not in self._garments:
@@ -366,6 +386,8 @@ class ModelDeformer(Deformer):
             self.report["cpu_threads"] = tuner.report()
         if body is not given:
             self.report["body_view"] = body_view_note(given)
+        if self.body_difference(given):
+            self.report["trained_body"] = {**self.trained_body, "body": body.name, "body_sha256": body.content_hash()}
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
         self.report.update(guard)
@@ -422,4 +444,19 @@ def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
         path = DEFAULT_MODEL
     model, data = load_model(path)
     kwargs.setdefault("lead_in_s", data["meta"].get("lead_in_s"))
-    return ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"), **kwargs)
+    return ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"),
+                         trained_body=trained_body(data["meta"]), **kwargs)
+
+
+def trained_body(meta: dict) -> dict | None:
+    """{"name", "sha256"} of the body a checkpoint's model was trained on (its `meta`): `garment train` records
+    both; a model trained before it did records the name only, and one named 'default' was trained on the
+    embedded body (unchanged since 2026-11-24, before the first model). None: the checkpoint does not say."""
+    name, sha = meta.get("body"), meta.get("body_sha256")
+    if isinstance(sha, str) and sha:
+        return {"name": str(name), "sha256": sha}
+    if name == "default":
+        from core.body import default_body
+
+        return {"name": name, "sha256": default_body().content_hash()}
+    return None

@@ -321,7 +321,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
                 save_checkpoint(out.with_name(f"{out.stem}.phase{phase}{out.suffix}"), model_cfg,
                                 {k: v.cpu() for k, v in tr.model.state_dict().items()},
                                 meta={"steps": tr.step, "phase": phase, "of": out.name, "joint_coverage": coverage,
-                                      "lead_in_s": lead_in})
+                                      "lead_in_s": lead_in, "body": job.body.name,
+                                      "body_sha256": job.body.content_hash()})
 
         trainer.progress = progress
         trainer.on_switch = snapshot
@@ -333,7 +334,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
     meta = {"train_config": dataclasses.asdict(train_cfg), "data": job.data_dir, "init": job.init_path,
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
-            "val_verts_mm": last_val.get("val_verts_mm"), "body": job.body.name, "joint_coverage": coverage,
+            "val_verts_mm": last_val.get("val_verts_mm"), "body": job.body.name,
+            "body_sha256": job.body.content_hash(), "joint_coverage": coverage,
             "lead_in_s": lead_in,
             "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
             "sequences_missing": data.missing, "garments": sorted(data.garments),

@@ -125,11 +125,53 @@ def test_the_model_bakes_on_an_smplh_or_smplx_body_read_on_smpls_joints(layout, 
         d = out / f"skirt_{motion.stem}"
         summary = json.loads((d / "summary.json").read_text())
         assert summary["method"] == "model" and "method_fallback" not in summary
+        assert summary["deformer"]["trained_body"]["name"] == "default"  # SMPL's joints of another body
         joints = 52 + 3 * (layout == "smplx")
         assert summary["deformer"]["body_view"].startswith(
             f"body '{layout}_like' ({layout}, {joints} joints) read on SMPL's 24: the fingers follow the wrists")
         baked = read_usd(d / f"skirt_{motion.stem}.usd").tracks["garment"].points
         np.testing.assert_allclose(baked, default, atol=2e-5)
+
+
+def _default_body_file(path, scale=1.0):
+    """The embedded body written as an SMPL-format file, its mesh scaled by `scale` (1: the same body)."""
+    from core.body import default_body
+
+    b = default_body()
+    kintree = np.stack([b.parents, np.arange(b.n_joints)])
+    kintree[0, 0] = 2**32 - 1
+    np.savez(path, v_template=b.v_template * np.float32(scale), shapedirs=b.shapedirs, J_regressor=b.J_regressor,
+             weights=b.weights, kintree_table=kintree.astype(np.int64), f=b.faces.astype(np.uint32))
+    return path
+
+
+def test_a_body_other_than_the_models_is_warned_about_once_and_recorded(tmp_path, caplog):
+    """The shipped model (trained on the embedded body, 'default') on another body of SMPL's joints baked
+    without a word: it now says once that its accuracy there is not measured, naming both bodies' hashes, and
+    summary.json records both; the embedded body written to a file (another name, the same arrays) is no other
+    body. A checkpoint whose meta names no body says nothing."""
+    from core.body import default_body
+    from formats.checkpoint import load_checkpoint, save_checkpoint
+
+    skirt = ROOT / "examples" / "skirt.obj"
+    same = _default_body_file(tmp_path / "same.npz")
+    taller = _default_body_file(tmp_path / "taller.npz", 1.03)
+    _, summary, _ = _bake(skirt, tmp_path / "same", "--body", same)
+    assert "was trained on body" not in caplog.text and "trained_body" not in summary["deformer"]
+    _, summary, _ = _bake(skirt, tmp_path / "taller", "--body", taller)
+    sha = default_body().content_hash()
+    assert caplog.text.count(f"model '{DEFAULT_MODEL}' was trained on body 'default' (sha256 {sha[:8]}), got body 'taller' "
+                     "(sha256 ") == 1, caplog.text
+    assert "its accuracy on this body is not measured" in caplog.text
+    record = summary["deformer"]["trained_body"]
+    assert record["name"] == "default" and record["sha256"] == sha and record["body"] == "taller"
+    assert record["body_sha256"] not in (None, sha)
+    data = load_checkpoint(DEFAULT_MODEL)
+    unnamed = save_checkpoint(tmp_path / "unnamed.pt", data["config"], data["model"],
+                              {k: v for k, v in data["meta"].items() if k not in ("body", "body_sha256")})
+    caplog.clear()
+    _, summary, _ = _bake(skirt, tmp_path / "unnamed", "--body", taller, "--model", unnamed)
+    assert "was trained on body" not in caplog.text and "trained_body" not in summary["deformer"]
 
 
 def test_a_model_of_another_skeleton_is_left_for_lbs_unless_asked_for(tmp_path):

@@ -417,6 +417,9 @@ def test_train_partial_uses_the_sequences_simulated_so_far(setup, tmp_path):
     meta = load_checkpoint(tmp_path / "m.pt")["meta"]
     assert meta["sequences"] == {"train": 1, "val": 1} and meta["sequences_missing"] == {"train": 1, "val": 0}
     assert meta["lead_in_s"] is None  # a manifest without `garment dataset`'s settings: the default lead-in
+    from formats.body import load_body
+
+    assert meta["body_sha256"] == load_body(body).content_hash()  # what `bake` checks its body against
     (part / "sequences" / "s2.npz").unlink()
     r = _train(root, part, body, cfg, tmp_path / "n.pt", "--steps", "2", "--partial")
     assert r.exit_code != 0 and "expected sequences in its 'val' split, got none simulated yet" in r.output
