@@ -853,10 +853,17 @@ def _float_array(a, key: str, src: str) -> np.ndarray:
     try:
         if dtype.kind not in _NUMBER_KINDS:
             raise TypeError
-        with np.errstate(over="ignore"):  # float64 beyond float32's range becomes Inf, refused naming the frame
+        with np.errstate(over="ignore"):  # float64 beyond float32's range becomes Inf: refused below
             out = np.asarray(a, dtype=np.float32)
     except (ValueError, TypeError):
         raise InputError(f"{src}: expected numbers in '{key}', got dtype {dtype}") from None
+    if dtype.kind == "f" and dtype.itemsize > 4:
+        source = np.asarray(a)
+        beyond = np.isinf(out) & np.isfinite(source)
+        if beyond.any():  # it was called NaN or Inf, which the file does not hold
+            at = np.unravel_index(int(np.argmax(beyond)), beyond.shape)
+            raise InputError(f"{src}: expected '{key}' within float32's range (3.4e+38), got {source[at]:.3g} at "
+                             f"index {tuple(int(i) for i in at)}: no angle or position of a motion (a damaged file?)")
     if dtype.kind in "iu" and out.any():
         log.warning("%s: '%s' holds integers (dtype %s), not floating-point values: read as whole radians or metres, "
                     "as given (a writer that truncated them?)", src, key, dtype)

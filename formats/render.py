@@ -170,9 +170,10 @@ class RenderOptions:
 
 
 def check_azimuth(degrees: float) -> None:
-    """--azimuth: a finite number of degrees (NaN or Inf would draw blank frames)."""
-    if not math.isfinite(degrees):
-        raise InputError(f"--azimuth: expected a finite number of degrees, got {degrees}")
+    """--azimuth: degrees within one turn either way (NaN or Inf would draw blank frames; 1e300 is no angle: its
+    remainder of a turn is rounding)."""
+    if not (math.isfinite(degrees) and abs(degrees) <= 360):
+        raise InputError(f"--azimuth: expected degrees within -360..360, got {degrees:g}")
 
 
 def check_value_range(value_range: tuple[float, float]) -> None:

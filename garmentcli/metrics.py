@@ -232,8 +232,8 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
 @motion_up_option
 @person_option
 @take_option
-@click.option("--depth-mm", type=FiniteFloatRange(min=0.0), default=None,
-              help="A garment vertex counts as penetrating when more than this inside the body "
+@click.option("--depth-mm", type=FiniteFloatRange(min=0.0, max=1000.0), default=None,
+              help="A garment vertex counts as penetrating when more than this inside the body, 0-1000 "
                    "[default: as garment bake, 2 mm].")
 @click.option("--plots", is_flag=True,
               help="With --out: also write per-frame curves and error histograms (PNG), an error heatmap render "

@@ -56,7 +56,7 @@ def _frame_slice(frames: str | None, every: int) -> slice:
 @click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Render every N-th frame.")
 @click.option("--size", default="1280x720", show_default=True, metavar="WxH", help="Image size in pixels.")
 @click.option("--azimuth", type=float, default=0.0, show_default=True, callback=checked_by(check_azimuth),
-              help="Turn every camera preset by this many degrees about the up axis (Z).")
+              help="Turn every camera preset by this many degrees about the up axis (Z), -360 to 360.")
 @click.option("--framing", type=click.Choice(("auto", "fixed", "follow")), default="auto", show_default=True,
               help="fixed: one view of the whole animation; follow: track the body; auto: follow when it travels.")
 @click.option("--no-body", is_flag=True, help="Draw the garment alone.")

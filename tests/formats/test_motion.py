@@ -444,6 +444,19 @@ def test_nan_inf(tmp_path, key, value):
     _assert_one_line(info, "m.npz", key, "NaN or Inf", "frame 3")
 
 
+@pytest.mark.parametrize("key", ["poses", "trans", "betas"])
+def test_values_beyond_float32_are_named_as_such(tmp_path, key):
+    """A float64 value of 1e300 was called "NaN or Inf" (what it became in float32), which the file does not hold:
+    it is named, with where it is."""
+    arrays = {"poses": _poses(5, 72).astype(np.float64), "trans": _trans(5).astype(np.float64),
+              "betas": np.zeros(10), "mocap_framerate": 30}
+    arrays[key].reshape(arrays[key].shape[0], -1)[-1, -1] = -1e300
+    with pytest.raises(InputError) as info:
+        load_motion(_write(tmp_path, **arrays))
+    _assert_one_line(info, "m.npz", f"expected '{key}' within float32's range (3.4e+38), got -1e+300 at index (")
+    assert "NaN" not in str(info.value)
+
+
 @pytest.mark.parametrize("fps", [0.0, -30.0, np.nan])
 def test_non_positive_frame_rate(tmp_path, fps):
     with pytest.raises(InputError) as info:

@@ -276,8 +276,10 @@ def test_range_and_azimuth_must_be_finite_and_ordered():
                           ((0.0, float("inf")), "finite LO HI")):
         with pytest.raises(InputError, match=f"--range: expected {expected}"):
             R.scene_from_sequence(seq, color="error", gt=gt, value_range=bad)
-    with pytest.raises(InputError, match="--azimuth: expected a finite number"):
-        R.RenderOptions(azimuth_deg=float("nan"))
+    for bad in (float("nan"), 360.5, -1e300):
+        with pytest.raises(InputError, match=r"--azimuth: expected degrees within -360\.\.360"):
+            R.RenderOptions(azimuth_deg=bad)
+    assert R.RenderOptions(azimuth_deg=-360.0).azimuth_deg == -360.0
 
 
 def test_follow_framing_keeps_a_fast_traveller_in_view_and_leaves_ordinary_travel_alone():

@@ -139,8 +139,9 @@ def test_render_with_a_vtk_window_that_cannot_open_stops_before_writing(seqs, mo
     (["--range", "2", "2"], "Invalid value for '--range': expected LO < HI"),
     (["--range", "nan", "nan"], "Invalid value for '--range': expected finite LO HI, got nan nan"),
     (["--range", "0", "inf"], "Invalid value for '--range': expected finite LO HI"),
-    (["--azimuth", "nan"], "Invalid value for '--azimuth': expected a finite number of degrees, got nan"),
-    (["--azimuth", "-inf"], "Invalid value for '--azimuth': expected a finite number of degrees"),
+    (["--azimuth", "nan"], "Invalid value for '--azimuth': expected degrees within -360..360, got nan"),
+    (["--azimuth", "-inf"], "Invalid value for '--azimuth': expected degrees within -360..360, got -inf"),
+    (["--azimuth", "1e300"], "Invalid value for '--azimuth': expected degrees within -360..360, got 1e+300"),
     (["--color", "penetration", "--range", "0", "5"], "Invalid value for --range: applies to --color error or scalar "
                                                        "(the colour bar's range), got --color penetration"),
 ])
