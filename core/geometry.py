@@ -568,15 +568,16 @@ class TriangleMesh:
 
 
 def outward_offsets(points: np.ndarray, verts: np.ndarray, faces: np.ndarray,
-                    exact: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    exact: bool = False, mesh: TriangleMesh | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where each point sits against a closed, outward-oriented mesh.
 
-    points: (N, 3); verts: (V, 3); faces: (F, 3). Returns (signed distance (N,) negative inside, closest
-    surface point (N, 3), outward unit direction at it (N, 3)): from the surface to the point for a point
-    outside, from the point to the surface for one inside, the face's normal for a point on the surface.
+    points: (N, 3); verts: (V, 3); faces: (F, 3) (or `mesh`, already built of them). Returns (signed distance (N,)
+    negative inside, closest surface point (N, 3), outward unit direction at it (N, 3)): from the surface to the
+    point for a point outside, from the point to the surface for one inside, the face's normal for a point on the
+    surface.
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    mesh = TriangleMesh(verts, faces)
+    mesh = TriangleMesh(verts, faces) if mesh is None else mesh
     res, signed = mesh.signed_closest(p, exact=exact)
     away = p - res.closest
     length = np.linalg.norm(away, axis=1, keepdims=True)
@@ -611,26 +612,38 @@ def points_inside_mesh(points: np.ndarray, verts: np.ndarray, faces: np.ndarray,
     (`TriangleMesh.any_within`, after a one-pass search over the faces of the 16 nearest centroids: a point no
     deeper there is no deeper).
     """
-    from core.ray_winding import ray_windings
+    return InsideTest(verts, faces)(points, depth)
 
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    faces = outward_faces(verts, faces)
-    plus, minus = ray_windings(p, verts, faces)
-    inside = (plus > 0) & (minus > 0)
-    mesh = TriangleMesh(verts, faces)
-    n_edges, face_edge = _face_edge_index(mesh.faces)
-    holes = bool((np.bincount(face_edge, minlength=n_edges) == 1).any())
-    ask = ~inside if holes else (plus > 0) != (minus > 0)  # the nearest face's sign decides these
-    todo = np.flatnonzero(inside | ask)
-    if not len(todo):
-        return np.zeros(len(p), dtype=bool)
-    res = mesh.closest(p[todo], exact=False)  # one pass: never nearer than the surface
-    inside[todo] |= ask[todo] & (res.distance * mesh._sign(p[todo], res) < 0)
-    deep = inside[todo] & (res.distance > depth)
-    todo = todo[deep]
-    out = np.zeros(len(p), dtype=bool)
-    out[todo] = ~mesh.any_within(p[todo], depth) if depth > 0 else True
-    return out
+
+class InsideTest:
+    """`points_inside_mesh` of one mesh prepared once (faces turned outward, the rays' grid, the mesh's closest-point
+    search, whether it has holes) for many queries in the same pose."""
+
+    def __init__(self, verts: np.ndarray, faces: np.ndarray):
+        from core.ray_winding import RayWindings
+
+        faces = outward_faces(verts, faces)
+        self.windings = RayWindings(verts, faces)
+        self.mesh = TriangleMesh(verts, faces)
+        n_edges, face_edge = _face_edge_index(self.mesh.faces)
+        self.holes = bool((np.bincount(face_edge, minlength=n_edges) == 1).any())
+
+    def __call__(self, points: np.ndarray, depth: float = 0.0) -> np.ndarray:
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        plus, minus = self.windings(p)
+        inside = (plus > 0) & (minus > 0)
+        ask = ~inside if self.holes else (plus > 0) != (minus > 0)  # the nearest face's sign decides these
+        todo = np.flatnonzero(inside | ask)
+        if not len(todo):
+            return np.zeros(len(p), dtype=bool)
+        mesh = self.mesh
+        res = mesh.closest(p[todo], exact=False)  # one pass: never nearer than the surface
+        inside[todo] |= ask[todo] & (res.distance * mesh._sign(p[todo], res) < 0)
+        deep = inside[todo] & (res.distance > depth)
+        todo = todo[deep]
+        out = np.zeros(len(p), dtype=bool)
+        out[todo] = ~mesh.any_within(p[todo], depth) if depth > 0 else True
+        return out
 
 
 def penetration_per_frame(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,

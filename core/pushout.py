@@ -43,7 +43,7 @@ from core.body import Body
 from core.deform import Deformer
 from core.garment import Garment, frames_at_once, mesh_edges
 from core.geodesic import edge_lengths
-from core.geometry import TriangleMesh, outward_faces, outward_offsets
+from core.geometry import InsideTest, TriangleMesh, face_normals, outward_faces, outward_offsets
 from core.motion import Motion, poses_for_body
 from core.skinning import graph_smoothing, surface_blend
 
@@ -109,26 +109,128 @@ def _fade(x: torch.Tensor, bound: float, width: float) -> torch.Tensor:
 
 
 def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
-             margin: float = PUSH_OUT_MARGIN_M, ground_z: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+             margin: float = PUSH_OUT_MARGIN_M, ground_z: float | None = None,
+             report: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Lift vertices under `ground_z` + `margin` (the ground, world Z metres; None: no ground) straight up to that
-    height, then move those closer than `margin` to the body's surface (or inside it) to `margin` outside (the
-    body wins where both cannot hold: cloth pinched under a foot on the ground stays just below it).
+    height, then move those inside the body, or outside it closer than `margin` to its surface, to `margin`
+    outside (the body wins where both cannot hold: cloth pinched under a foot on the ground stays just below it).
+
+    Inside is the body's winding number (`core.geometry.points_inside_mesh`), as the penetration statistics count
+    it: a posed body passes through itself where it touches itself (an arm pressed to the torso, the thighs of a
+    crouch), and there the nearest face can lie inside another part. A vertex inside goes to its closest body
+    point, `margin` out along that face's outward side, where that lands outside; where it does not (the point
+    lies inside another part, e.g. a sleeve's vertex between the arm and the torso, whose nearest face is the
+    arm's), to the closest point of the body's outer surface (the faces whose outer side is outside every other
+    part), `margin` out along its face's normal. A vertex outside within `margin` of the surface is moved out
+    along its own side (never through the face nearest it into another part).
 
     points: (T, V, 3) garment; body_points: (T, Vb, 3) posed body (closed, outward-oriented faces);
-    body_faces: (Fb, 3). Returns (pushed points (T, V, 3) float32, moved (T,) vertex counts).
+    body_faces: (Fb, 3). Returns (pushed points (T, V, 3) float32, moved (T,) vertex counts); `report`, where
+    given, gets how many were moved to the outer surface and how many it left inside (summed over frames).
     """
     out = np.array(points, dtype=np.float32, copy=True)
     moved = np.zeros(len(out), dtype=np.int64)
+    body_faces = np.asarray(body_faces, dtype=np.int64)
+    to_outer = left_inside = 0
     for t in range(len(out)):
         low = np.zeros(out.shape[1], dtype=bool)
         if ground_z is not None:
             low = out[t, :, 2] < ground_z + margin
             out[t, low, 2] = ground_z + margin
-        signed, closest, direction = outward_offsets(out[t], body_points[t], body_faces)
-        sel = signed < margin
-        out[t, sel] = (closest[sel] + margin * direction[sel]).astype(np.float32)
+        p = out[t].astype(np.float64)
+        test = InsideTest(body_points[t], body_faces)  # one per frame: every query below is in this pose
+        signed, closest, direction = outward_offsets(p, None, None, mesh=test.mesh)
+        inside = test(p)
+        # `direction` is the nearest face's outward side where it calls the point inside, else the point's own
+        # side; a point outside that the nearest face calls inside (in a crease between two parts) keeps its own.
+        near = ~inside & (np.abs(signed) < margin)
+        own_side = np.where((signed < 0)[:, None], -direction, direction)
+        target = np.where(inside[:, None], direction, own_side)
+        sel = inside | near
+        new = closest + margin * target
+        still = np.flatnonzero(inside)
+        if len(still):
+            still = still[test(new[still])]
+        if len(still):
+            new[still], left = _to_outer_surface(new[still], p[still], test, margin)
+            to_outer += len(still)
+            left_inside += left
+        out[t, sel] = new[sel].astype(np.float32)
         moved[t] = int((sel | low).sum())
+    if report is not None:
+        report.update(vertices_to_outer_surface=int(to_outer), vertices_left_inside=int(left_inside))
     return out, moved
+
+
+#: How far outside a face (metres, along its normal) its centroid and corners are probed to tell whether it is
+#: on the body's outer surface.
+OUTER_PROBE_M = 1e-4
+#: The first radius (metres) searched for outer faces about a vertex left inside another part; doubled until
+#: one is found (at most OUTER_SEARCH_MAX_M: no body part is thicker).
+OUTER_SEARCH_M = 0.01
+OUTER_SEARCH_MAX_M = 1.0
+#: Outer faces tried per vertex, the nearest first, while the point out of them is inside.
+OUTER_TRIES = 4
+
+
+def _to_outer_surface(new: np.ndarray, points: np.ndarray, test: InsideTest, margin: float) -> tuple[np.ndarray, int]:
+    """`points` (inside the body, whose closest point's face pushed them into another part: `new`) moved to the
+    closest point of the body's outer surface, `margin` out along that face's normal; returns (those targets,
+    how many are still inside there: left at `new`, also where no outer face lies within OUTER_SEARCH_MAX_M).
+
+    A face is outer where its centroid and its corners, OUTER_PROBE_M out along its normal, are all outside
+    (a face that the line where two parts meet crosses is not); only the faces within a growing radius of the
+    points are probed (about 1 % of a body's faces)."""
+    normals = face_normals(test.mesh.verts, test.mesh.faces)
+    outer = np.zeros(len(normals), dtype=np.int8)  # 0 unknown, 1 outer, -1 not
+    target, chosen = new.copy(), np.full(len(points), -1)
+    todo = np.arange(len(points))
+    for _ in range(OUTER_TRIES):
+        target[todo], chosen[todo] = _nearest_outer(test, normals, outer, points[todo], new[todo], margin)
+        # a target still inside (1 mm out of a face beside a crease, the other part within 1 mm): that face is
+        # taken as not outer and the next nearest looked for
+        todo = todo[(chosen[todo] >= 0) & test(target[todo])]
+        if not len(todo):
+            break
+        outer[chosen[todo]] = -1
+    left = np.flatnonzero(chosen < 0)
+    if len(todo):
+        left = np.union1d(left, todo)
+    target[left] = new[left]
+    return target, len(left)
+
+
+def _nearest_outer(test: InsideTest, normals: np.ndarray, outer: np.ndarray, points: np.ndarray, new: np.ndarray,
+                   margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """(`margin` out of the nearest outer face of each point, that face (-1: none within OUTER_SEARCH_MAX_M; the
+    point's `new` kept)); `outer` (per face: 0 unknown, 1 outer, -1 not) filled in as faces are probed."""
+    mesh = test.mesh
+    verts, faces = mesh.verts, mesh.faces
+    target, chosen = new.copy(), np.full(len(points), -1)
+    found = np.zeros(len(points), dtype=bool)
+    radius = OUTER_SEARCH_M
+    while radius <= OUTER_SEARCH_MAX_M and not found.all():
+        todo = np.flatnonzero(~found)
+        pairs = [(todo[pi], fi, bary, dist) for pi, fi, bary, dist in
+                 mesh.faces_within(points[todo], np.full(len(todo), radius))]
+        if pairs:
+            pi, fi, bary, dist = (np.concatenate(a) for a in zip(*pairs))
+            unknown = np.unique(fi[outer[fi] == 0])
+            if len(unknown):
+                probes = np.concatenate([verts[faces[unknown]], verts[faces[unknown]].mean(axis=1, keepdims=True)],
+                                        axis=1) + OUTER_PROBE_M * normals[unknown, None]
+                inside = test(probes.reshape(-1, 3)).reshape(len(unknown), 4)
+                outer[unknown] = np.where(inside.any(axis=1), -1, 1)
+            ok = outer[fi] == 1
+            pi, fi, bary, dist = pi[ok], fi[ok], bary[ok], dist[ok]
+            order = np.lexsort((dist, pi))  # each point's nearest outer face first
+            pi, fi, bary = pi[order], fi[order], bary[order]
+            _, first = np.unique(pi, return_index=True)
+            pi, fi, bary = pi[first], fi[first], bary[first]
+            target[pi] = np.einsum("pk,pkd->pd", bary, verts[faces[fi]]) + margin * normals[fi]
+            chosen[pi], found[pi] = fi, True
+        radius *= 2.0
+    return target, chosen
 
 
 @dataclass(frozen=True)
@@ -417,8 +519,10 @@ class PushOutDeformer(Deformer):
         body_points, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
         # The ground, as the simulator's: the lowest point the body reaches (never above a body point).
         ground = float(body_points[..., 2].min())
-        pushed, moved = push_out(points, body_points, body.faces, self.margin, ground)
+        outer: dict = {}
+        pushed, moved = push_out(points, body_points, body.faces, self.margin, ground, report=outer)
         self.report = {**self.inner.report, "push_out": {"margin_m": self.margin, "ground_z_m": ground,
                                                          "vertices_moved_per_frame_mean": float(moved.mean()),
-                                                         "vertices_moved_per_frame_max": int(moved.max(initial=0))}}
+                                                         "vertices_moved_per_frame_max": int(moved.max(initial=0)),
+                                                         **outer}}
         return pushed

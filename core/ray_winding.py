@@ -77,55 +77,76 @@ def ray_windings(points: np.ndarray, verts: np.ndarray, faces: np.ndarray) -> tu
     """Winding numbers of points (N, 3) in the mesh (verts (V, 3), faces (F, 3)) counted along the ray in +d and
     in -d from each point (d the axis of the smallest shadows): (N,) int each, equal on a closed mesh (1 inside an
     outward-oriented one, 0 outside). A point on the surface may count either way."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    verts = np.asarray(verts, dtype=np.float64)
-    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    plus = np.zeros(len(points), dtype=np.int64)
-    minus = np.zeros(len(points), dtype=np.int64)
-    if not len(points) or not len(faces):
+    return RayWindings(verts, faces)(points)
+
+
+class RayWindings:
+    """`ray_windings` of one mesh prepared once (its edges' functions and the grid of its faces' shadows) for
+    many queries: the points of a garment, then those a post-process moved, in the same posed body."""
+
+    def __init__(self, verts: np.ndarray, faces: np.ndarray):
+        verts = np.asarray(verts, dtype=np.float64)
+        faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+        self.n_faces = len(faces)
+        if not len(faces):
+            return
+        d = _ray_axis(verts, faces)
+        u, v = (d + 1) % 3, (d + 2) % 3  # (u, v, d) right-handed: a face turning counter-clockwise in (u, v) faces +d
+        self.axes = u, v, d
+        uv, depth = verts[:, [u, v]], verts[:, d]
+        # Each face's edge k (corner k -> corner k + 1) kept as the edge from its lower-numbered vertex, with the
+        # sign that turns the edge's function into the face's direction; coordinates first, one (F,) array each.
+        start, end = faces.T, np.roll(faces, -1, axis=1).T  # (3, F)
+        low, high = np.minimum(start, end), np.maximum(start, end)
+        self.flip = np.where(start == low, 1.0, -1.0)
+        self.low_u, self.low_v = uv[low, 0], uv[low, 1]
+        self.edge_u, self.edge_v = uv[high, 0] - self.low_u, uv[high, 1] - self.low_v
+        # The sign of the edge's function at a point exactly on it, moved by (e, e^2): -edge_v, else edge_u.
+        self.tie = np.where(self.edge_v != 0, -np.sign(self.edge_v), np.sign(self.edge_u)) * self.flip
+        self.corner_depth = depth[faces.T]  # (3, F)
+        self.grid = _grid(uv, faces)
+
+    def __call__(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        plus = np.zeros(len(points), dtype=np.int64)
+        minus = np.zeros(len(points), dtype=np.int64)
+        if not len(points) or not self.n_faces:
+            return plus, minus
+        u, v, d = self.axes
+        flip, low_u, low_v, edge_u, edge_v, tie = self.flip, self.low_u, self.low_v, self.edge_u, self.edge_v, self.tie
+        corner_depth = self.corner_depth
+        lo, size, shape, offsets, cell_face = self.grid
+        p_u, p_v, p_d = points[:, u], points[:, v], points[:, d]
+        cell_at = np.floor((points[:, [u, v]] - lo) / size).astype(np.int64)
+        on_grid = np.all((cell_at >= 0) & (cell_at < shape), axis=1)
+        cell = np.where(on_grid, cell_at[:, 1] * shape[0] + cell_at[:, 0], 0)
+        n_cand = np.where(on_grid, offsets[cell + 1] - offsets[cell], 0)
+        ends = np.cumsum(n_cand)
+        first = 0
+        while first < len(points):
+            last = max(int(np.searchsorted(ends, (ends[first - 1] if first else 0) + RAY_CHUNK_PAIRS, "right")),
+                       first + 1)
+            counts = n_cand[first:last]
+            pi = np.repeat(np.arange(first, last), counts)
+            fi = cell_face[np.repeat(offsets[cell[first:last]] - (np.cumsum(counts) - counts), counts)
+                           + np.arange(len(pi))]
+            w, s = [], None
+            for k in range(3):  # each edge's function at the point in the face's direction; on while signs agree
+                wk = (edge_u[k, fi] * (p_v[pi] - low_v[k, fi]) - edge_v[k, fi] * (p_u[pi] - low_u[k, fi])) \
+                    * flip[k, fi]
+                sk = np.where(wk != 0, np.sign(wk), tie[k, fi])
+                keep = sk != 0 if s is None else sk == s
+                pi, fi, s = pi[keep], fi[keep], sk[keep]
+                w = [x[keep] for x in w] + [wk[keep]]
+            # Where the ray meets the face: the corners' depths weighted by the edge functions opposite them
+            # (corner k is opposite edge k + 1).
+            total = w[0] + w[1] + w[2]
+            ok = total != 0
+            at = (w[1] * corner_depth[0, fi] + w[2] * corner_depth[1, fi] + w[0] * corner_depth[2, fi]) \
+                / np.where(ok, total, 1)
+            ahead, behind = ok & (at > p_d[pi]), ok & (at < p_d[pi])
+            # s = +1: the face faces +d (the ray in +d leaves through it, the ray in -d enters).
+            plus += np.bincount(pi[ahead], weights=s[ahead], minlength=len(points)).astype(np.int64)
+            minus -= np.bincount(pi[behind], weights=s[behind], minlength=len(points)).astype(np.int64)
+            first = last
         return plus, minus
-    d = _ray_axis(verts, faces)
-    u, v = (d + 1) % 3, (d + 2) % 3  # (u, v, d) right-handed: a face turning counter-clockwise in (u, v) faces +d
-    uv, depth = verts[:, [u, v]], verts[:, d]
-    # Each face's edge k (corner k -> corner k + 1) kept as the edge from its lower-numbered vertex, with the sign
-    # that turns the edge's function into the face's direction; coordinates first, one (F,) array each.
-    start, end = faces.T, np.roll(faces, -1, axis=1).T  # (3, F)
-    low, high = np.minimum(start, end), np.maximum(start, end)
-    flip = np.where(start == low, 1.0, -1.0)
-    low_u, low_v = uv[low, 0], uv[low, 1]
-    edge_u, edge_v = uv[high, 0] - low_u, uv[high, 1] - low_v
-    # The sign of the edge's function at a point exactly on it, moved by (e, e^2): -edge_v, else edge_u.
-    tie = np.where(edge_v != 0, -np.sign(edge_v), np.sign(edge_u)) * flip
-    corner_depth = depth[faces.T]  # (3, F)
-    lo, size, shape, offsets, cell_face = _grid(uv, faces)
-    p_u, p_v, p_d = points[:, u], points[:, v], points[:, d]
-    cell_at = np.floor((points[:, [u, v]] - lo) / size).astype(np.int64)
-    on_grid = np.all((cell_at >= 0) & (cell_at < shape), axis=1)
-    cell = np.where(on_grid, cell_at[:, 1] * shape[0] + cell_at[:, 0], 0)
-    n_cand = np.where(on_grid, offsets[cell + 1] - offsets[cell], 0)
-    ends = np.cumsum(n_cand)
-    first = 0
-    while first < len(points):
-        last = max(int(np.searchsorted(ends, (ends[first - 1] if first else 0) + RAY_CHUNK_PAIRS, "right")), first + 1)
-        counts = n_cand[first:last]
-        pi = np.repeat(np.arange(first, last), counts)
-        fi = cell_face[np.repeat(offsets[cell[first:last]] - (np.cumsum(counts) - counts), counts) + np.arange(len(pi))]
-        w, s = [], None
-        for k in range(3):  # each edge's function at the point in the face's direction; on only while signs agree
-            wk = (edge_u[k, fi] * (p_v[pi] - low_v[k, fi]) - edge_v[k, fi] * (p_u[pi] - low_u[k, fi])) * flip[k, fi]
-            sk = np.where(wk != 0, np.sign(wk), tie[k, fi])
-            keep = sk != 0 if s is None else sk == s
-            pi, fi, s = pi[keep], fi[keep], sk[keep]
-            w = [x[keep] for x in w] + [wk[keep]]
-        # Where the ray meets the face: the corners' depths weighted by the edge functions opposite them (corner k
-        # is opposite edge k + 1).
-        total = w[0] + w[1] + w[2]
-        ok = total != 0
-        at = (w[1] * corner_depth[0, fi] + w[2] * corner_depth[1, fi] + w[0] * corner_depth[2, fi]) \
-            / np.where(ok, total, 1)
-        ahead, behind = ok & (at > p_d[pi]), ok & (at < p_d[pi])
-        # s = +1: the face faces +d (the ray in +d leaves through it, the ray in -d enters).
-        plus += np.bincount(pi[ahead], weights=s[ahead], minlength=len(points)).astype(np.int64)
-        minus -= np.bincount(pi[behind], weights=s[behind], minlength=len(points)).astype(np.int64)
-        first = last
-    return plus, minus

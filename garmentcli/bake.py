@@ -508,7 +508,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if pick["outside_motions"]:
             log.warning("--quality auto: motion %s beyond the calibration's scenes: expected errors there are "
                         "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "
-                        "such a motion measures them", ", ".join(f"'{m}'" for m in pick["outside_motions"]))
+                        "such a motion measures them", ", ".join(f"'{m}'" for m in pick["outside_paths"]))
         explicit = False
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
     _check_memory(garment, body, [(mo, src_fps, m) for (mo, src_fps), m, _ in motions], method,
@@ -777,6 +777,8 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
     # expected error); a motion beyond the calibration is named whichever motion the choice came from.
     pick = max(picks, key=lambda p: (p["ms_per_frame"], p["expected_mm"]))
     pick["outside_motions"] = [p["motion"] for p in picks if p["outside_calibration"]]
+    # as given: the warning naming them is kept in those motions' summaries only (`_warnings_of`)
+    pick["outside_paths"] = [str(path) for p, (_, path) in zip(picks, motions) if p["outside_calibration"]]
     if pick["method"] == "model" and model_path:
         pick["options"] = {**pick["options"], "path": str(model_path)}
     return pick

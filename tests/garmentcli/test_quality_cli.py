@@ -90,12 +90,15 @@ def test_auto_over_motions_takes_the_costliest_choice_and_names_a_motion_beyond_
     model = next(c for c in q["candidates"] if c["config"] == "model float32")
     assert model["expected_mm"] == q["expected_mm"] > model["expected_mm_calibration"]
     warned = [rec.getMessage() for rec in caplog.records if "beyond the calibration" in rec.getMessage()]
-    assert len(warned) == 1 and "'still.npz'" in warned[0]
+    assert len(warned) == 1 and f"'{s['dir'] / 'still.npz'}'" in warned[0]  # as given
     r = _auto(s, "loose.obj", "still.npz", s["dir"] / "fast.npz", "--budget-mm", 250, "--overwrite")
     assert r.exit_code == 0, r.output
     for name in ("loose_still", "loose_fast"):
-        q = json.loads((s["out"] / name / "summary.json").read_text())["quality"]
+        summary = json.loads((s["out"] / name / "summary.json").read_text())
+        q = summary["quality"]
         assert q["config"] == "model float32" and q["motion"] == "fast.npz" and q["outside_motions"] == ["still.npz"]
+        # the warning naming the still motion in its own summary only (it named the file, the filter its path)
+        assert any("beyond the calibration" in w for w in summary["warnings"]) == (name == "loose_still")
         assert q["features"]["speed_m_s"] == pytest.approx(5.1, rel=1e-3)
 
 
