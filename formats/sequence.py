@@ -232,24 +232,52 @@ def _check_recorded_frames(meta_path: Path, meta: dict, files: list[Path]) -> No
                          f"{'at the end' if written > len(files) else 'from the record'}?")
 
 
-def _read_obj_directory(directory: Path) -> Sequence:
+#: Up axes of OBJ frames: "y" (an OBJ's usual frame, turned to this tool's Z-up world as read) or "z".
+UP_AXES = ("y", "z")
+
+
+def _recorded_meta(meta_path: Path) -> dict | None:
+    """A frame folder's `sequence.json` as a dict (None where there is none); InputError naming it otherwise."""
+    if not meta_path.is_file():
+        return None
+    try:
+        meta = json.loads(meta_path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"garment sequence '{meta_path}': expected JSON like {{\"fps\": 30}}, "
+                         f"got unreadable content ({exc})") from None
+    if not isinstance(meta, dict):
+        raise InputError(f"garment sequence '{meta_path}': expected a JSON object like {{\"fps\": 30}}, "
+                         f"got {type(meta).__name__}")
+    return meta
+
+
+def _obj_up(meta: dict | None, up: str | None) -> str:
+    """The up axis OBJ frames are read in: `up` where given; else what their `sequence.json` records ("z" where it
+    records none: `garment bake` wrote Z-up frames before 2026-12-06, and a sequence.json of `fps` alone was read
+    so); else, with no sequence.json (frames from Blender, Maya, Houdini), "y", the frame OBJ files are written in."""
+    if up is not None:
+        return up
+    return "y" if meta is None else meta.get("up", "z")
+
+
+def _turned_to_z_up(points: np.ndarray, up: str) -> np.ndarray:
+    """Points of frames written `up` in this tool's Z-up world."""
+    if up != "y":
+        return points
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+
+    return (points @ Y_UP_TO_Z_UP_MATRIX.T).astype(np.float32)
+
+
+def _read_obj_directory(directory: Path, up: str | None = None) -> Sequence:
     where = f"garment sequence '{directory}'"
     files = _obj_files(directory)
     if not files:
         raise InputError(f"{where}: expected OBJ frames (frame_0000.obj, ...) or a `garment bake` output (its "
                          f".usd stage or obj/ frames), got a directory with neither")
-    fps = meta = None
     meta_path = directory / SEQUENCE_JSON
-    if meta_path.is_file():
-        try:
-            meta = json.loads(meta_path.read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise InputError(f"garment sequence '{meta_path}': expected JSON like {{\"fps\": 30}}, "
-                             f"got unreadable content ({exc})") from None
-        if not isinstance(meta, dict):
-            raise InputError(f"garment sequence '{meta_path}': expected a JSON object like {{\"fps\": 30}}, "
-                             f"got {type(meta).__name__}")
-        fps = _fps(meta.get("fps"), f"garment sequence '{meta_path}'")
+    meta = _recorded_meta(meta_path)
+    fps = None if meta is None else _fps(meta.get("fps"), f"garment sequence '{meta_path}'")
     recorded = meta.get("prefix") if meta is not None else None
     files = _frame_files(directory, files, recorded if isinstance(recorded, str) else None)
     if meta is not None:
@@ -269,19 +297,25 @@ def _read_obj_directory(directory: Path) -> Sequence:
                              f"({first.vertices.shape[0]} vertices, {len(first.polygons)} faces), got "
                              f"{frame.vertices.shape[0]} vertices, {len(frame.polygons)} faces in {path.name}")
         points[t] = frame.vertices
-    if meta is not None and meta.get("up") == "y":  # written turned to Y-up (`write_obj_sequence`): back to Z-up
-        from core.geometry import Y_UP_TO_Z_UP_MATRIX
-
-        points = (points @ Y_UP_TO_Z_UP_MATRIX.T).astype(np.float32)
+    points = _turned_to_z_up(points, _obj_up(meta, up))
     number = re.search(r"(\d+)$", files[0].stem)
     return Sequence(points=points, faces=faces, fps=fps, source=str(directory),
                     first_frame=int(number.group(1)) if number else 0)
 
 
-def _read_single_obj(path: Path) -> Sequence:
+def _read_single_obj(path: Path, up: str | None = None) -> Sequence:
+    """One OBJ as a one-frame sequence: a frame of a folder whose `sequence.json` records it (its prefix) read in
+    the frame and numbered as that records; another OBJ (a garment, a frame exported alone) Y-up, frame 0."""
     obj = parse_obj(path, label="garment sequence frame")
     faces, _, _ = triangulate(obj.vertices, obj.polygons)
-    return Sequence(points=obj.vertices[None].astype(np.float32), faces=faces, fps=None, source=str(path))
+    meta = _recorded_meta(path.parent / SEQUENCE_JSON)
+    prefix = None if meta is None else meta.get("prefix")
+    stem = path.stem
+    if not (isinstance(prefix, str) and stem.lower().startswith(prefix.lower()) and stem[len(prefix):].isdigit()):
+        meta = None  # not one of the frames it records
+    points = _turned_to_z_up(obj.vertices[None].astype(np.float32), _obj_up(meta, up))
+    return Sequence(points=points, faces=faces, fps=None if meta is None else _fps(meta.get("fps"), str(path)),
+                    source=str(path), first_frame=0 if meta is None else int(stem[len(prefix):]))
 
 
 def _read_npz(path: Path) -> Sequence:
@@ -336,7 +370,7 @@ def _read_usd_sequence(path: Path, track: str) -> Sequence:
                     first_frame=seq.start_frame)
 
 
-def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
+def read_sequence(path: str | os.PathLike, track: str = "garment", up: str | None = None) -> Sequence:
     """Read a garment sequence from any supported form.
 
     path: a directory of OBJ frames (ordered by the number in their names; all
@@ -346,6 +380,8 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
     `body_points (T, Vb, 3)`, `body_faces (Fb, 3)`, a USD stage
     (`.usd/.usda/.usdc`: the mesh named `track`, else the only mesh, plus a
     mesh named "body" as the body), or one `.obj` (a single frame).
+    OBJ frames are turned from the up axis `up` ("y" or "z") to this tool's Z-up world; None: as their
+    `sequence.json` records (Z-up where it records none), Y-up without one (`_obj_up`).
     Returns a `Sequence` (points float32 metres, faces int64).
     Raises InputError naming the path for a missing path, an unknown suffix, an
     empty directory, OBJ frames with a gap in their numbers or differing topology,
@@ -357,7 +393,7 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
         raise InputError(f"garment sequence '{path}': not found")
     if path.is_dir():
         inner = bake_directory_sequence(path)
-        return _read_obj_directory(path) if inner is None else read_sequence(inner, track)
+        return _read_obj_directory(path, up) if inner is None else read_sequence(inner, track, up)
     reason = not_a_file(path)
     if reason:  # a pipe, a device, a socket
         raise InputError(f"garment sequence '{path}': {reason}")
@@ -367,7 +403,7 @@ def read_sequence(path: str | os.PathLike, track: str = "garment") -> Sequence:
     if suffix in STAGE_SUFFIXES:
         return _read_usd_sequence(path, track)
     if suffix == ".obj":
-        return _read_single_obj(path)
+        return _read_single_obj(path, up)
     raise InputError(f"garment sequence '{path}': expected a directory of OBJ frames, .npz, .obj or "
                      f".usd/.usda/.usdc, got '{path.suffix or path.name}'")
 

@@ -59,6 +59,9 @@ def _frame_slice(frames: str | None, every: int) -> slice:
               help="Turn every camera preset by this many degrees about the up axis (Z), -360 to 360.")
 @click.option("--framing", type=click.Choice(("auto", "fixed", "follow")), default="auto", show_default=True,
               help="fixed: one view of the whole animation; follow: track the body; auto: follow when it travels.")
+@click.option("--up", type=click.Choice(("auto", "y", "z")), default="auto", show_default=True,
+              help="The up axis of OBJ input (a frame folder or one .obj; --gt too). auto: as its sequence.json "
+                   "records (a bake's frames), else y, the frame OBJ files are written in (Blender, Maya, Houdini).")
 @click.option("--no-body", is_flag=True, help="Draw the garment alone.")
 @click.option("--no-ground", is_flag=True, help="Leave out the ground grid.")
 @click.option("--no-png", is_flag=True, help="Skip the PNG frames.")
@@ -67,7 +70,7 @@ def _frame_slice(frames: str | None, every: int) -> slice:
 @click.option("--overwrite", is_flag=True, help="Replace an existing output directory.")
 @input_errors_as_click
 def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_range, frames, every, size, azimuth,
-           framing, no_body, no_ground, no_png, no_mp4, no_sheet, overwrite):
+           framing, up, no_body, no_ground, no_png, no_mp4, no_sheet, overwrite):
     """Render INPUT (a baked USD, an OBJ-sequence directory or a sequence .npz) off-screen.
 
     Draws the garment with the body it moved on (when INPUT carries one) on a
@@ -103,8 +106,9 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
         raise click.BadParameter("nothing to write: drop one of --no-png, --no-mp4, --no-sheet", param_hint="--no-png")
     check_render_window()  # before any work or output: VTK crashes on a window it cannot open
 
-    seq = read_sequence(input_path)
-    gt = read_sequence(gt_path) if gt_path is not None else None
+    up = None if up == "auto" else up
+    seq = read_sequence(input_path, up=up)
+    gt = read_sequence(gt_path, up=up) if gt_path is not None else None
     scalars, label = None, "value"
     if scalars_spec is not None:
         file, key = scalars_spec, ""

@@ -76,7 +76,7 @@ def test_obj_directory_sorted_by_frame_number(tmp_path):
     points, faces = _animated(n_frames=11)
     for t in range(11):  # unpadded names: lexical order would put 10 before 2
         write_obj(tmp_path / f"shot_{t}.obj", points[t], faces)
-    seq = read_sequence(tmp_path)
+    seq = read_sequence(tmp_path, up="z")
     np.testing.assert_allclose(seq.points, points, atol=1e-6)
 
 
@@ -86,7 +86,7 @@ def test_obj_directory_quads_keep_frame0_split(tmp_path):
     q1 = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv -0.5 1 0\nf 1 2 3 4\n"
     (tmp_path / "frame_0000.obj").write_text(q0)
     (tmp_path / "frame_0001.obj").write_text(q1)
-    seq = read_sequence(tmp_path)
+    seq = read_sequence(tmp_path, up="z")
     np.testing.assert_array_equal(seq.faces, [[0, 1, 3], [1, 2, 3]])
     np.testing.assert_allclose(seq.points[1, 3], [-0.5, 1, 0])
 
@@ -96,6 +96,34 @@ def test_single_obj_is_one_frame(tmp_path):
     write_obj(tmp_path / "g.obj", points[0], faces)
     seq = read_sequence(tmp_path / "g.obj")
     assert seq.points.shape == (1,) + points.shape[1:] and seq.fps is None
+
+
+def test_obj_frames_without_a_record_are_read_y_up_and_a_bake_frame_alone_as_its_folder_records(tmp_path):
+    """OBJ frames with no sequence.json (Blender's, Maya's, Houdini's exports) and a single OBJ (a garment, a frame
+    exported alone) were read as Z-up, so `render` drew them lying on their backs: they are read Y-up, as OBJ files
+    are written, unless --up says otherwise; a sequence.json of fps alone reads as before (Z-up: the bakes before
+    2026-12-06); one frame of a bake's folder is read as the folder records it (Y-up, its number and rate)."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+
+    points, faces = _animated(n_frames=3)
+    y_up = (points @ Y_UP_TO_Z_UP_MATRIX).astype(np.float32)  # as written Y-up: rows turned back
+    exported = tmp_path / "exported"
+    exported.mkdir()
+    for t in range(3):
+        write_obj(exported / f"cloth_{t + 1:04d}.obj", y_up[t], faces)
+    np.testing.assert_allclose(read_sequence(exported).points, points, atol=1e-6)
+    np.testing.assert_allclose(read_sequence(exported, up="z").points, y_up, atol=1e-6)
+    np.testing.assert_allclose(read_sequence(exported / "cloth_0002.obj").points, points[1:2], atol=1e-6)
+    (exported / "sequence.json").write_text('{"fps": 24}')  # a record of the rate alone: Z-up, as before
+    np.testing.assert_allclose(read_sequence(exported).points, y_up, atol=1e-6)
+    baked = tmp_path / "baked"
+    write_obj_sequence(baked, points, faces, fps=24, up="y", start=40)
+    one = read_sequence(baked / "frame_0041.obj")
+    np.testing.assert_allclose(one.points, points[1:2], atol=1e-6)
+    assert one.first_frame == 41 and one.fps == 24
+    (baked / "other.obj").write_bytes((baked / "frame_0041.obj").read_bytes())  # not one of the recorded frames
+    other = read_sequence(baked / "other.obj")
+    assert other.first_frame == 0 and other.fps is None
 
 
 @pytest.mark.parametrize("with_body", [False, True])
@@ -254,7 +282,7 @@ def test_obj_frames_with_a_polygon_of_five_corners_keep_frame_0s_triangles(tmp_p
             pts[1] = [1, 1.2, 0.2]  # a dent: frame 2 alone would be split differently
         (tmp_path / f"frame_{t:04d}.obj").write_text(
             "".join(f"v {x} {y} {z}\n" for x, y, z in pts) + "f 1 2 3 4 5\n")
-    seq = read_sequence(tmp_path)
+    seq = read_sequence(tmp_path, up="z")
     assert seq.points.shape == (3, 5, 3) and seq.faces.shape == (3, 3)
     np.testing.assert_allclose(seq.points[2, 1], [1, 1.2, 0.2])
 
@@ -291,7 +319,7 @@ def test_obj_frames_numbered_from_any_start_are_read_in_order(tmp_path, names):
     points, faces = _animated(n_frames=3)
     for name, pts in zip(names, points):
         write_obj(tmp_path / f"{name}.obj", pts, faces)
-    np.testing.assert_allclose(read_sequence(tmp_path).points, points, atol=1e-6)
+    np.testing.assert_allclose(read_sequence(tmp_path, up="z").points, points, atol=1e-6)
 
 
 def test_a_stray_obj_among_the_frames_is_left_out_with_a_warning(tmp_path, caplog):
