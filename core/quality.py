@@ -165,6 +165,11 @@ class Calibration:
         return out
 
 
+#: How far apart two equally valid simulations of the tradeoff scenes end up, E_verts mm (the reference rerun from
+#: starting positions jittered by 1 um: `benchmarks/results/reference_spread.md`): the floor under any error.
+REFERENCE_SPREAD_MM = (5.6, 8.3)
+
+
 def choose(calibration: Calibration, features: dict, budget_mm: float, extra=()) -> dict:
     """The cheapest configuration expected within `budget_mm`: {"config", "method", "options", "expected_mm",
     "candidates": [{name, expected_mm, ms_per_frame}], "reason"}. extra: more candidates of that form (a
@@ -193,8 +198,12 @@ def choose(calibration: Calibration, features: dict, budget_mm: float, extra=())
     if ok:
         pick = ok[0]
         cheaper = [c for c in cands if c["ms_per_frame"] < pick["ms_per_frame"]]
-        why = (f"{scene}: '{pick['config']}' is expected at {pick['expected_mm']:.1f} mm <= {budget_mm:g} mm, "
-               f"{pick['ms_per_frame']:.2f} ms/frame"
+        reference = calibration.configs.get(pick["config"], {}).get("reference", False)
+        expected = (f"is the calibration's reference, 0 mm by definition (two equally valid simulations of a scene "
+                    f"differ by {REFERENCE_SPREAD_MM[0]:g}-{REFERENCE_SPREAD_MM[1]:g} mm: a smaller budget asks "
+                    "more than the reference can tell)" if reference else
+                    f"is expected at {pick['expected_mm']:.1f} mm <= {budget_mm:g} mm")
+        why = (f"{scene}: '{pick['config']}' {expected}, {pick['ms_per_frame']:.2f} ms/frame"
                + "".join(f"; '{c['config']}' is cheaper but expected at {c['expected_mm']:.1f} mm" for c in cheaper))
     else:
         pick = min(cands, key=lambda c: c["expected_mm"])

@@ -62,6 +62,9 @@ def test_choose_cheapest_within_budget():
     assert pick["ms_per_frame"] == pytest.approx(40.0)  # 10 ms per 1k vertices x 4k
     pick = choose(cal, loose_run, budget_mm=5.0)
     assert pick["config"] == "sim" and "'model float32' is cheaper but expected at" in pick["reason"]
+    # the reference is not "expected at 0.0 mm": that is its definition, and two valid simulations differ more
+    assert "'sim' is the calibration's reference, 0 mm by definition (two equally valid simulations of a scene " \
+           "differ by 5.6-8.3 mm" in pick["reason"] and "expected at 0.0" not in pick["reason"]
     # A calibration without the reference: nothing meets the budget -> the most accurate, said so.
     del cal.configs["sim"]
     pick = choose(cal, loose_run, budget_mm=5.0)
