@@ -13,6 +13,7 @@ E_fnorm degrees, E_edge %, E_curv) and the penetration rate (% of vertices > 2 m
 
 from __future__ import annotations
 
+import json
 import statistics
 import threading
 import time
@@ -170,6 +171,8 @@ class Measurement:
     metrics: dict = field(default_factory=dict)
     #: `GpuPeakMemory`'s (None: not run on a GPU through torch).
     gpu_peak_memory_mb: float | None = None
+    #: The simulator's frames run again with more substeps ({"frame", "tries", "kept_substeps"}: `core.sim`).
+    retries: list = field(default_factory=list)
 
 
 def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeats: int = 3,
@@ -191,7 +194,7 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
             points = deformer.deform(garment, body, motion)
             times.append(time.perf_counter() - t)
     return Measurement(config, points[motion.n_lead:], statistics.median(times) / motion.n_frames, prep, mem.peak_mb,
-                       runs, gpu_peak_memory_mb=gpu.peak_mb)
+                       runs, gpu_peak_memory_mb=gpu.peak_mb, retries=list(deformer.report.get("retries", [])))
 
 
 def simulation_scene(garment: Garment, body: Body, motion: Motion):
@@ -229,10 +232,13 @@ def sim_file_name(config: Config) -> str:
     return config.name.replace(" ", "_").replace("+", "") + ".npz"
 
 
-def save_simulation(path, m: Measurement, key: str) -> None:
-    """Store a simulator row (points and timings) for `load_simulation`."""
-    np.savez_compressed(path, points=m.points.astype(np.float32), key=key, seconds_per_frame=m.seconds_per_frame,
-                        seconds_prepare=m.seconds_prepare, peak_memory_mb=m.peak_memory_mb, runs=m.runs)
+def save_simulation(path, m: Measurement, key: str, faces: np.ndarray, fps: float) -> None:
+    """Store a simulator row (points and timings) for `load_simulation`; with the garment's faces and the frame
+    rate, an `.npz` sequence that `garment metrics` and `render` read (a bake measured against the reference)."""
+    np.savez_compressed(path, points=m.points.astype(np.float32), faces=np.asarray(faces, dtype=np.int64),
+                        fps=float(fps), key=key, seconds_per_frame=m.seconds_per_frame,
+                        seconds_prepare=m.seconds_prepare, peak_memory_mb=m.peak_memory_mb, runs=m.runs,
+                        retries=json.dumps(m.retries))
 
 
 def load_simulation(path, config: Config, key: str) -> Measurement | None:
@@ -245,7 +251,8 @@ def load_simulation(path, config: Config, key: str) -> Measurement | None:
         if str(d["key"]) != key:
             return None
         return Measurement(config, np.array(d["points"]), float(d["seconds_per_frame"]),
-                           float(d["seconds_prepare"]), float(d["peak_memory_mb"]), int(d["runs"]))
+                           float(d["seconds_prepare"]), float(d["peak_memory_mb"]), int(d["runs"]),
+                           retries=json.loads(str(d["retries"])) if "retries" in d else [])
 
 
 def memory_needed(n_rows: int, garment: Garment, body: Body, n_frames: int) -> int:

@@ -220,7 +220,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                                    device=device))
             if key is not None:
                 staged.mkdir(parents=True, exist_ok=True)
-                save_simulation(staged / sim_file_name(config), results[-1], key)
+                save_simulation(staged / sim_file_name(config), results[-1], key, garment.faces, motion.fps)
             if bar.disable:  # no terminal (a log file, a batch job): one line per configuration
                 click.echo(f"tradeoff: {i}/{len(rows)} {config.name}: "
                            f"{results[-1].seconds_per_frame:.4g} s/frame", err=True)
@@ -244,18 +244,22 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                       "frames_per_second": 1.0 / m.seconds_per_frame, "seconds_prepare": m.seconds_prepare,
                       "peak_memory_mb": m.peak_memory_mb, "gpu_peak_memory_mb": m.gpu_peak_memory_mb, **m.metrics,
                       "pareto": on,
-                      "reference": m.config.reference, "spread": m.config.spread, "runs": m.runs, "failed": ""})
+                      "reference": m.config.reference, "spread": m.config.spread, "runs": m.runs, "failed": "",
+                      "retries": m.retries})
     for config, reason in failed:
         table.append({"config": config.name, "method": config.method, "pareto": False, "reference": False,
                       "spread": config.spread, "runs": 0, "failed": reason})
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
     try:
-        _write(tmp, table, garment_path, motion_path, motion, garment, device)
+        _write(tmp, table, garment_path, motion_path, motion, garment, device,
+               {"frames": frames, "repeats": repeats, "preroll": preroll_frames, "source_fps": source_fps,
+                "betas": betas, "body": str(body_path) if body_path else "embedded default"})
         (tmp / SIMULATIONS).mkdir()
         for m in results:
             if m.config.method == "sim":
-                save_simulation(tmp / SIMULATIONS / sim_file_name(m.config), m, simulation_key(m.config, scene))
+                save_simulation(tmp / SIMULATIONS / sim_file_name(m.config), m, simulation_key(m.config, scene),
+                                garment.faces, motion.fps)
         if target.exists():
             shutil.rmtree(target)
         tmp.rename(target)
@@ -287,22 +291,34 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                          if r["spread"] and not r["failed"]))
 
 
+def _retried(row: dict) -> str:
+    """The frames a simulator row ran again with more substeps, in words ("" where none)."""
+    return "; ".join(f"frame {r['frame']} run again at {r['kept_substeps']} substeps (try {r['tries']})"
+                     for r in row.get("retries") or [])
+
+
 def _or_dash(value):
     return "-" if value is None else value
 
 
-def _write(directory: Path, table: list[dict], garment_path, motion_path, motion, garment, device: str) -> None:
+def _write(directory: Path, table: list[dict], garment_path, motion_path, motion, garment, device: str,
+           options: dict) -> None:
     from formats.plots import plot_pareto
     from formats.report import markdown_table
 
     with open(directory / "tradeoff.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=[*COLUMNS, "reference", "spread", "runs", "failed"])
+        w = csv.DictWriter(fh, fieldnames=[*COLUMNS, "reference", "spread", "runs", "failed", "retries"])
         w.writeheader()
-        w.writerows(table)
+        w.writerows([{**r, "retries": _retried(r)} for r in table])
+    from core.provenance import software_versions
+    from core.sim import SIMULATOR_VERSION
+
     (directory / "tradeoff.json").write_text(json.dumps(
         {"garment": str(garment_path), "motion": str(motion_path), "frames": motion.n_written,
          "preroll_frames": motion.n_lead, "fps": motion.fps,
-         "vertices": garment.n_vertices, "model_device": device, "rows": table}, indent=1))
+         "vertices": garment.n_vertices, "model_device": device, "options": options,
+         "simulator_version": SIMULATOR_VERSION,
+         "software": software_versions("garment", "numpy", "torch", "newton", "warp-lang"), "rows": table}, indent=1))
     ref = next(r["config"] for r in table if r["reference"])
     done = [r for r in table if not r["failed"]]
     spread = next((r for r in done if r["spread"]), None)
@@ -320,12 +336,13 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
           + (f" `{spread['config']}`: the reference run again from starting positions moved by a seeded "
              f"{SPREAD_JITTER_M * 1e6:g} um; its error, {spread['e_verts']:.1f} mm, is how far two equally valid "
              "simulations of this scene end up apart, the floor under every row's error." if spread else ""), "",
-          markdown_table(["config", "s/frame", "fps", "prepare s", "peak MB", *(["GPU peak MB"] if gpu else []),
+          markdown_table(["config", "s/frame", "fps", "prepare s", "memory rise MB", *(["GPU peak MB"] if gpu else []),
                           *METRIC_COLUMNS, "Pareto"],
                          [[r["config"], r["seconds_per_frame"], r["frames_per_second"], r["seconds_prepare"],
                            r["peak_memory_mb"], *([_or_dash(r["gpu_peak_memory_mb"])] if gpu else []),
                            *[r[k] for k in METRIC_COLUMNS], "yes" if r["pareto"] else ""] for r in done])]
     md += [f"\n`{r['config']}` failed: {r['failed']}" for r in table if r["failed"]]
+    md += [f"\n`{r['config']}`: {_retried(r)}" for r in done if r.get("retries")]
     (directory / "tradeoff.md").write_text("\n".join(md))
     rows = [r for r in done if not r["spread"]]
     plot_pareto([r["config"] for r in rows], [r["seconds_per_frame"] for r in rows],

@@ -163,7 +163,8 @@ def _fake_measure(fail, error=None):
         if fail(config):
             raise error or SimulationError(f"sim: frame 3 of motion '{motion.name}' failed after 3 tries")
         pts = LBSDeformer().deform(garment, body, motion)[motion.n_lead:] + (0.0 if config.reference else 0.01)
-        return Measurement(config, pts, 1.0 if config.method == "sim" else 0.01, 0.0, 0.0, 1)
+        retries = [{"frame": 1, "tries": 2, "kept_substeps": 20}] if config.name == "sim 10 substeps" else []
+        return Measurement(config, pts, 1.0 if config.method == "sim" else 0.01, 0.0, 0.0, 1, retries=retries)
 
     return measure
 
@@ -246,6 +247,19 @@ def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkey
     d = scene["out"] / "shell_walk"
     first = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
     assert len(list((d / "simulations").glob("*.npz"))) == 4
+    # a stored simulation is a sequence `metrics` and `render` read (it held no faces), a retried frame is said
+    from formats.obj import read_obj
+    from formats.sequence import read_sequence
+
+    stored = read_sequence(d / "simulations" / "sim_20_substeps_self-contact.npz")
+    np.testing.assert_array_equal(stored.faces, read_obj(scene["garment"]).faces)
+    assert stored.n_frames == 2 and stored.fps == 30.0
+    retried = "`sim 10 substeps`: frame 1 run again at 20 substeps (try 2)"
+    assert retried in (d / "tradeoff.md").read_text()
+    assert first["sim 10 substeps"]["retries"] == "frame 1 run again at 20 substeps (try 2)"
+    meta = json.loads((d / "tradeoff.json").read_text())
+    assert meta["options"]["frames"] == "0:4" and meta["options"]["repeats"] == 3 and meta["simulator_version"] >= 1
+    assert "torch" in meta["software"]
     measured = []
     monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
     r = invoke([*base, "--reuse-sim", "--frames", "0:4"])
@@ -255,6 +269,7 @@ def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkey
     assert "tradeoff: 1/10 lbs: " in r.output and "tradeoff: 7/10 sim" not in r.output
     assert measured and not any(name.startswith("sim") for name in measured)
     again = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
+    assert retried in (d / "tradeoff.md").read_text()  # kept with the stored row
     for name in ("sim 10 substeps", "lbs"):
         assert float(again[name]["e_verts"]) == pytest.approx(float(first[name]["e_verts"]), abs=1e-6)
     assert again["sim 10 substeps"]["seconds_per_frame"] == first["sim 10 substeps"]["seconds_per_frame"]
