@@ -1,13 +1,14 @@
 """Two post-processes against body penetration: the exact push-out and the model's contact guard.
 
 Push-out: any method's output can be pushed out (`bake --push-out`, and the `+push-out` rows of `garment
-tradeoff`). A vertex whose signed distance to the posed body is below `margin` is moved to the closest
-body point plus `margin` along the direction from the body to the vertex (outward for a vertex inside,
-the vertex's own side for one within the margin outside); before that, one below the ground (the lowest
+tradeoff`). A vertex inside the posed body (its winding number) or outside closer than `margin` is moved to the
+closest body point plus `margin` outward (the vertex's own side for one outside), or, where that point lies
+inside another part of a body that passes through itself, to the nearest point of its outer surface
+(`push_out`); before that, one below the ground (the lowest
 point the body reaches in the motion, as the simulator's) is lifted straight up to `margin` above it. The
 cloth's own shape is not relaxed afterwards: a pushed region can stretch by up to its depth of penetration.
-It searches the closest body point of every vertex in every frame (51-98 ms/frame on the example garments:
-0.6-2.1x the model's own time in the tradeoff tables).
+It searches the closest body point and tests the winding number of every vertex in every frame (59-111 ms/frame
+on the example garments: `benchmarks/results/push_out.md`).
 
 Contact guard (`ContactAnchors`, `guard_contact`; on by default for `--method model`): each garment
 vertex is tied once, on the rest pose, to where it is nearest the body (a point and a normal blended over the
