@@ -445,9 +445,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                                        f"only (got --method {method})")
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                  precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device, strain)
-    elif method is not None or precision is not None or push_out:
-        raise click.UsageError("--quality auto chooses the method, precision and push-out: leave out --method, "
-                               "--precision and --push-out")
+    elif method is not None or precision is not None:
+        raise click.UsageError("--quality auto chooses the method and precision: leave out --method and --precision")
     require_file(garment_path)
     motion_paths = motion_files(motion_paths)
     garment = read_garment(garment_path)
@@ -491,7 +490,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         pick = _choose_quality(garment, body, [(mo, m) for (mo, _), m, _ in motions], model_path, calibration_path,
                                DEFAULT_BUDGET_MM if budget_mm is None else budget_mm, fit_path, garment_path)
         method, opts = pick["method"], pick["options"]
-        precision, push_out = opts.get("precision"), bool(opts.get("push_out", False))
+        # --push-out asked for: after the chosen method, where it is not the simulator (which handles contact)
+        asked_push_out = push_out and method != "sim" and not opts.get("push_out")
+        precision, push_out = opts.get("precision"), bool(opts.get("push_out", False)) or asked_push_out
         strain = opts.get("strain_limit", strain)  # a configuration measured with a limit (lbs +strain-limit)
         substeps = opts.get("substeps", substeps)
         self_contact = bool(opts.get("self_contact", self_contact))
@@ -504,7 +505,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
                                                    "motion", "features", "reason", "candidates",
                                                    "outside_calibration", "outside_motions")})
-        click.echo(f"quality auto: {pick['config']} ({pick['reason']})")
+        click.echo(f"quality auto: {pick['config']}{' +push-out (--push-out)' if asked_push_out else ''} "
+                   f"({pick['reason']})")
         if pick["outside_motions"]:
             log.warning("--quality auto: motion %s beyond the calibration's scenes: expected errors there are "
                         "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "

@@ -122,7 +122,7 @@ def test_the_model_on_a_motion_beyond_its_calibration_is_warned_about_in_that_mo
 
 
 @pytest.mark.parametrize("extra, needle", [(["--method", "lbs"], "leave out --method"),
-                                           (["--push-out"], "leave out --method"),
+                                           (["--precision", "bfloat16"], "leave out --method and --precision"),
                                            (["--calibration", "nope.json"], "nope.json"),
                                            (["--budget-mm", "nan"], "expected a finite number > 0, got 'nan'"),
                                            (["--budget-mm", "inf"], "expected a finite number > 0, got 'inf'")])
@@ -130,6 +130,17 @@ def test_auto_bad_combinations(auto_scene, extra, needle):
     r = _auto(auto_scene, "tight.obj", "slow.npz", *extra)
     assert r.exit_code != 0 and needle in r.output and "Traceback" not in r.output
     assert not auto_scene["out"].exists()
+
+
+def test_auto_with_push_out_pushes_the_chosen_methods_output_out(auto_scene):
+    """--quality auto with --push-out was refused, while the bake it chose (lbs on the tight garment) then
+    suggested --push-out: the push-out now follows the chosen method, said and recorded."""
+    s = auto_scene
+    r = _auto(s, "tight.obj", "slow.npz", "--push-out")
+    assert r.exit_code == 0, r.output
+    assert "quality auto: lbs +push-out (--push-out) (" in r.output
+    summary = json.loads((s["out"] / "tight_slow" / "summary.json").read_text())
+    assert summary["method"] == "lbs" and summary["push_out"] is True and "push_out" in summary["deformer"]
 
 
 def test_budget_without_auto_and_model_without_calibration(auto_scene):
