@@ -254,8 +254,9 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared, on
     with collected_warnings() as warned:
         result = bake_item(garment, body, motion, deformer, with_body=spec.with_body)
     result.summary.update({
-        "inputs": {"garment": str(spec.garment_path), "motion": str(motion_path),
-                   "body": str(spec.body_path) if spec.body_path else "embedded default (anny)"},
+        # absolute, however the command named them (a batch on workers named the garment so, the motion not)
+        "inputs": {"garment": str(Path(spec.garment_path).resolve()), "motion": str(Path(motion_path).resolve()),
+                   "body": str(Path(spec.body_path).resolve()) if spec.body_path else "embedded default (anny)"},
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
                     "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,
@@ -825,9 +826,11 @@ def _bake_in_workers(spec: BakeSpec, motions, scheduler: str | None, retries: in
 
     absolute = lambda p: str(Path(p).resolve()) if p else None  # noqa: E731 - workers run elsewhere
     spec = replace(spec, garment_path=absolute(spec.garment_path), body_path=absolute(spec.body_path),
-                   material_path=absolute(spec.material_path), model_path=absolute(spec.model_path))
+                   material_path=absolute(spec.material_path), model_path=absolute(spec.model_path),
+                   warnings=tuple((absolute(m), w) for m, w in spec.warnings))
     client = connect(scheduler) if scheduler else None
-    calls = [(spec, str(m), target.resolve(), prepared) for prepared, m, target in motions]  # m: a label only
+    # m: read here (`prepared`), named to the workers as the client's path
+    calls = [(spec, absolute(m), target.resolve(), prepared) for prepared, m, target in motions]
     names = [target.name for _, _, target in motions]
     target_of = {target.name: target for _, _, target in motions}
     try:

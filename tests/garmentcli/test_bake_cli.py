@@ -286,19 +286,24 @@ def test_the_command_gives_numpy_one_blas_thread_unless_told_otherwise():
 
 
 @pytest.mark.parametrize("workers", [1, 2])
-def test_summary_records_the_warnings_of_its_own_inputs(scene, workers):
+def test_summary_records_the_warnings_of_its_own_inputs(scene, workers, monkeypatch):
     """A Y-up motion's warning lands in its own summary.json, not in that of the other motion of the batch
-    (baked here or in worker processes)."""
+    (baked here or in worker processes); the inputs are recorded as absolute paths either way (on workers the
+    garment was, the motion not)."""
     d = scene["dir"]
     poses = np.zeros((12, 72), np.float32)  # root unturned: the body stands along world +Y
     write_motion(d / "yup.npz", poses=poses)
-    r = run(["bake", scene["garment"], scene["motion"], d / "yup.npz", "--body", scene["body"], "--method", "lbs",
-             "--out", scene["out"], "--no-obj", "--workers", workers])
+    monkeypatch.chdir(d)
+    rel = [os.path.relpath(p, d) for p in (scene["garment"], scene["motion"], d / "yup.npz", scene["body"])]
+    r = run(["bake", *rel[:3], "--body", rel[3], "--method", "lbs", "--out", scene["out"], "--no-obj",
+             "--workers", workers])
     assert r.exit_code == 0, r.output
-    yup = json.loads((scene["out"] / "shell_yup" / "summary.json").read_text())["warnings"]
+    yup = json.loads((scene["out"] / "shell_yup" / "summary.json").read_text())
     walk = json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())["warnings"]
-    assert len(yup) == 1 and "yup.npz" in yup[0] and "looks Y-up" in yup[0]
+    assert len(yup["warnings"]) == 1 and "yup.npz" in yup["warnings"][0] and "looks Y-up" in yup["warnings"][0]
     assert walk == []
+    assert yup["inputs"] == {"garment": str(Path(scene["garment"]).resolve()), "motion": str((d / "yup.npz").resolve()),
+                             "body": str(Path(scene["body"]).resolve())}
 
 
 def test_betas_option_sets_the_body_shape_and_rejects_garbage(scene):
