@@ -48,6 +48,14 @@ PENETRATION_GARMENT_COLOR = (0.36, 0.56, 0.80)  # neutral blue so the red of pen
 PENETRATION_COLOR = (0.92, 0.05, 0.05)
 BACKGROUND_COLOR = (0.95, 0.95, 0.96)
 GROUND_COLOR = (0.88, 0.88, 0.86)
+#: The ground plane's width over that of its grid (which reaches 1.5 m beyond the animation).
+GROUND_REACH = 20.0
+
+
+def ground_scale(extent: float) -> float:
+    """The ground grid's scale for a scene whose frames span `extent` at most, a power of ten: 1 for a person or a
+    garment in metres (0.54-5.4 units), 100 in centimetres (a centimetre scene was drawn a solid grey plane)."""
+    return 10.0 ** round(math.log10(max(extent, 1e-9) / 1.7))
 GRID_COLOR = (0.62, 0.62, 0.60)
 ERROR_CMAP = "YlOrRd"                  # light = small, so folds stay visible where the error is low
 
@@ -640,21 +648,25 @@ class Renderer:
         self._label = None
 
     def _add_ground(self, pv) -> None:
-        """A ground plane under the lowest point of the animation with a 25 cm grid on it."""
+        """A ground plane under the lowest point of the animation with a grid on it: 25 cm squares 1.5 m beyond
+        where the animation goes, for a scene of a person in metres (`ground_scale`: 25 units in centimetres),
+        on a plane GROUND_REACH times wider, so that its far edge, the horizon, stays put as a camera follows."""
         lo, hi = self.frame_lo.min(0), self.frame_hi.max(0)
-        z = float(lo[2]) - 0.002
-        size = float(max(hi[0] - lo[0], hi[1] - lo[1])) + 3.0
+        scale = ground_scale(float((self.frame_hi - self.frame_lo).max(initial=0.0)))
+        z = float(lo[2]) - 0.002 * scale
+        size = float(max(hi[0] - lo[0], hi[1] - lo[1])) + 3.0 * scale
         cx, cy = (lo[:2] + hi[:2]) / 2.0
-        step = 0.25
+        step = 0.25 * scale
         half = math.ceil(size / 2.0 / step) * step
         x0, x1 = math.floor((cx - half) / step) * step, math.ceil((cx + half) / step) * step
         y0, y1 = math.floor((cy - half) / step) * step, math.ceil((cy + half) / step) * step
         plane = pv.Plane(center=((x0 + x1) / 2, (y0 + y1) / 2, z), direction=(0, 0, 1),
-                         i_size=x1 - x0, j_size=y1 - y0, i_resolution=1, j_resolution=1)
+                         i_size=GROUND_REACH * (x1 - x0), j_size=GROUND_REACH * (y1 - y0), i_resolution=1,
+                         j_resolution=1)
         self.plotter.add_mesh(plane, color=GROUND_COLOR, ambient=0.35, diffuse=0.65, specular=0.0)
         xs = np.arange(x0, x1 + step / 2, step)
         ys = np.arange(y0, y1 + step / 2, step)
-        zl = z + 0.003
+        zl = z + 0.003 * scale
         pts, lines = [], []
         for x in xs:
             pts += [(x, y0, zl), (x, y1, zl)]
