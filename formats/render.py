@@ -633,6 +633,7 @@ class Renderer:
             actor.mapper.interpolate_before_map = True
             p.scalar_bar.SetBarRatio(0.3)
             p.scalar_bar.SetTextPositionToPrecedeScalarBar()  # labels left of the bar, inside the image
+            p.scalar_bar.SetVerticalTitleSeparation(max(6, h // 40))  # the title above the top label, not on it
         elif s.inside is not None:
             rgb = np.empty((s.garment_points.shape[1], 3), dtype=np.uint8)
             garment.point_data["rgb"] = rgb
