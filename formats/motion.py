@@ -582,7 +582,8 @@ def _refuse_degrees(poses: np.ndarray, src: str) -> None:
     over = float(np.mean(angle > 2 * np.pi)) if angle.size else 0.0
     if over > DEGREES_SHARE or (angle.size and angle.max() > DEGREES_MAX_NORM):
         raise InputError(f"{src}: expected joint rotations as axis-angle radians, got {over:.0%} of them over a full "
-                         f"turn (2 pi; the largest {angle.max():.1f}): in degrees? multiply poses by pi / 180")
+                         f"turn (2 pi; the largest {angle.max():.1f}): in degrees? multiply poses by pi / 180 (radians "
+                         "wound past a full turn: reduce each rotation to within pi)")
 
 
 def _body_only(poses: np.ndarray) -> np.ndarray:

@@ -396,7 +396,12 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     if check_frames is not None:
         check_frames(n_frames, source_fps)
     _check_resample_memory(path, motion, fps, n_frames)
+    given_frames = motion.n_written
     motion = resample(motion, fps)
+    if given_frames > 1 and motion.n_written == 1:  # its poses after the first fall between the output frames
+        log.warning("motion '%s': its %d frames at %g fps span %.3g s, less than one frame at --fps %g: baked as one "
+                    "frame, its first (--fps %g keeps every frame)", path, given_frames, source_fps,
+                    (given_frames - 1) / source_fps, fps, source_fps)
     return settle(motion, settle_frames), source_fps
 
 

@@ -94,6 +94,21 @@ def test_bake_frames_fps_and_no_outputs(scene):
     assert not Usd.Stage.Open(str(d / "shell_walk.usd")).GetPrimAtPath("/Root/body")
 
 
+def test_a_motion_shorter_than_one_output_frame_is_baked_as_one_frame_with_a_warning(scene, caplog):
+    """Two source frames at 60 fps (1/60 s) fall within one frame at 30 fps: the second pose was dropped without
+    a word (0.84 m of travel in the audit's case); it is said, naming --fps."""
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
+             "--frames", "0:2", "--no-obj", "--method", "lbs"])
+    assert r.exit_code == 0, r.output
+    assert json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())["frames"] == 1
+    assert f"motion '{scene['motion']}': its 2 frames at 60 fps span 0.0167 s, less than one frame at --fps 30: " \
+           "baked as one frame, its first (--fps 60 keeps every frame)" in caplog.text
+    caplog.clear()
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
+             "--frames", "0:3", "--no-obj", "--method", "lbs", "--overwrite"])
+    assert r.exit_code == 0 and "less than one frame" not in caplog.text  # 1/30 s: two frames
+
+
 def bad_obj(tmp_path, text, name="bad.obj"):
     p = tmp_path / name
     p.write_text(text)
