@@ -977,7 +977,8 @@ class SimDeformer(Deformer):
                                 "model or lbs")
                 raise SimulationError(
                     f"sim: frame {t} of motion '{motion.name}' failed after {o.max_retries + 1} tries "
-                    f"(up to {substeps} substeps): {_describe(check, o.retry_depth_m)}{off}")
+                    f"(up to {substeps} substeps): {_describe(check, o.retry_depth_m)}{off}"
+                    f"{_cut_before(body_pts, offset, t, motion.fps)}")
             out[t] = points
             stats.append(check)
             if self.on_frames is not None:
@@ -1043,6 +1044,28 @@ def _worse(a: dict, b: dict) -> bool:
         return (not c["finite"], round(c["tunnelled_share"], 4), c["mean_strain"])
 
     return key(b) < key(a)
+
+
+#: A body vertex faster than this (m/s) between two frames is no human motion: a teleport of the root or a cut
+#: in the capture (a hand in a throw reaches about 20 m/s).
+CUT_SPEED_M_S = 25.0
+#: Frames before a failing one searched for such a cut (the cloth fails a few frames after it).
+CUT_LOOKBACK = 4
+
+
+def _cut_before(body_pts: np.ndarray, offset: int, t: int, fps: float) -> str:
+    """Where the body jumped in the frames up to output frame `t` (body_pts (T', Vb, 3), output frame k at
+    `offset` + k), the advice for a failure after it: "" where it did not."""
+    lo = max(offset + t - CUT_LOOKBACK, 1)
+    hi = offset + t
+    if hi < lo:
+        return ""
+    jumps = np.array([float(np.linalg.norm(body_pts[k] - body_pts[k - 1], axis=1).max()) for k in range(lo, hi + 1)])
+    k = int(np.argmax(jumps))
+    if jumps[k] * fps <= CUT_SPEED_M_S:
+        return ""
+    return (f"; the body moved {jumps[k]:.2f} m in one frame at frame {lo + k - offset} ({jumps[k] * fps:.0f} m/s: a "
+            "teleport or a cut in the capture?): bake the parts before and after it apart with --frames")
 
 
 def _describe(check: dict, tunnel_depth_m: float) -> str:

@@ -826,3 +826,23 @@ def test_a_small_detached_piece_follows_the_body_or_falls_and_stops_the_bake(cap
                                               r"waistband to pin, and it hangs from no shoulders .*--method model "
                                               r"or lbs"):
         SimDeformer(options=SimOptions(settle_s=1.0, max_retries=0)).deform(alone, body, motion)
+
+
+def test_a_failure_after_a_jump_of_the_body_names_it_and_the_split():
+    """A 10 m teleport or a 180-degree flip of the root stops the simulator a few frames later with one line that
+    said nothing of the jump: it names the frame and the speed, and --frames (`_cut_before`); a human motion's
+    fastest vertex (a throw, 20 m/s) is not called one."""
+    from core.sim import _cut_before
+
+    rng = np.random.default_rng(0)
+    body = np.cumsum(rng.normal(scale=0.002, size=(14, 50, 3)), axis=0)  # about 0.1-0.3 m/s at 30 fps
+    body[7:] += [10.0, 0.0, 0.0]  # frame 7 (output frame 5 after 2 lead frames) 10 m away
+    assert _cut_before(body, 2, 7, 30.0) == ("; the body moved 10.00 m in one frame at frame 5 (300 m/s: a teleport "
+                                             "or a cut in the capture?): bake the parts before and after it apart "
+                                             "with --frames")
+    assert _cut_before(body, 2, 2, 30.0) == ""  # the jump comes after the failing frame
+    assert _cut_before(body, 2, 9, 30.0).startswith("; the body moved 10.00 m")  # CUT_LOOKBACK frames before it
+    assert _cut_before(body, 2, 10, 30.0) == ""  # more
+    throw = body.copy()
+    throw[5:] += [0.6, 0.0, 0.0]  # 18 m/s: a hand in a throw
+    assert _cut_before(throw, 2, 4, 30.0) == ""
