@@ -5,6 +5,8 @@ message must name the file or option, what was expected and what was found.
 """
 
 import errno
+import functools
+import logging
 import os
 import stat
 from pathlib import Path
@@ -12,6 +14,51 @@ from pathlib import Path
 
 class InputError(ValueError):
     """Bad user input: a file, an array or an option value that cannot be used."""
+
+
+def warnings_held(read):
+    """Decorate a reader of a user's file: the warnings (and worse) it logs are shown once it returns, and dropped
+    where it refuses the file (InputError), so a refusal is its one line, not warnings about the file it then
+    refuses (a garment of one point was warned about twice: its welded vertices, its dropped face). A reader
+    called within another's holds nothing of its own: the outer one decides."""
+
+    @functools.wraps(read)
+    def held(*args, **kwargs):
+        root = logging.getLogger()
+        if any(isinstance(f, _Held) for h in root.handlers for f in h.filters):
+            return read(*args, **kwargs)
+        hold = _Held()
+        handlers = list(root.handlers)
+        for h in handlers:
+            h.addFilter(hold)
+        try:
+            result = read(*args, **kwargs)
+        except InputError:
+            hold.records.clear()
+            raise
+        finally:
+            for h in handlers:
+                h.removeFilter(hold)
+            for record in hold.records:  # shown once, in order, where the reader returned or failed otherwise
+                logging.getLogger(record.name).handle(record)
+        return result
+
+    return held
+
+
+class _Held(logging.Filter):
+    """Keeps the records of WARNING and worse from every handler of the root logger (`warnings_held`)."""
+
+    def __init__(self):
+        super().__init__()
+        self.records: list[logging.LogRecord] = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno < logging.WARNING:
+            return True
+        if not any(r is record for r in self.records):  # each root handler sees the same record
+            self.records.append(record)
+        return False
 
 
 def frames_text(n: int) -> str:

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from core.body import LAYOUT_JOINTS, Body, dense_from_sparse, body_from_arrays
-from core.errors import InputError, require_input
+from core.errors import InputError, require_input, warnings_held
 from formats.motion import NPZ_READ_ERRORS, _starts_with, open_npz
 from formats.pickles import ChumpyStandIn, FastRestrictedUnpickler
 
@@ -33,6 +33,7 @@ SMPLX_SHAPE = 300
 SMPLX_V1_SHAPE = 10
 
 
+@warnings_held
 def load_body(path: str | Path) -> Body:
     """Load an SMPL-format body file (`.npz` or `.pkl`) as a validated `Body`.
 

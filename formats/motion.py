@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from core.body import LAYOUT_JOINTS, N_BODY_JOINTS
-from core.errors import InputError, content_kind, require_input
+from core.errors import InputError, content_kind, require_input, warnings_held
 from core.motion import (MIN_SOURCE_FPS, Motion, check_frame_rate, fill_untracked, validate_motion_values,
                          warn_if_not_metres, warn_if_not_z_up)
 from formats.atomic import atomic_file
@@ -157,6 +157,7 @@ def open_npz(path: Path, refuse):
             yield data
 
 
+@warnings_held
 def load_motion(path, fps: float | None = None, world_checks: bool = True, person: str | None = None,
                 take: str | None = None) -> Motion:
     """Read a motion: an AMASS-style .npz, or a pickle or PyTorch file of the same parameters (module docstring).

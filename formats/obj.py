@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError, require_input
+from core.errors import InputError, require_input, warnings_held
 from core.garment import Garment, SourceMesh, validate_garment
 
 log = logging.getLogger(__name__)
@@ -667,6 +667,7 @@ OTHER_MESH_FORMATS = {".ply": "PLY", ".stl": "STL", ".fbx": "FBX", ".glb": "glTF
                       ".zpac": "Marvelous Designer garment", ".avt": "Marvelous Designer avatar"}
 
 
+@warnings_held
 def read_garment(path: str | os.PathLike, scale: float = 1.0) -> Garment:
     """A garment file: a USD stage (by its suffix, `USD_SUFFIXES`) or else an OBJ (`read_obj`); its coordinates
     times `scale` (metres per unit of a file in other units: `garment unpose --scale`)."""

@@ -589,3 +589,22 @@ def test_a_material_library_name_no_file_can_have_is_warned_about_not_raised(tmp
     with caplog.at_level(logging.WARNING):
         garment = read_obj(path)
     assert garment.source.libraries == () and "is not there" in caplog.text
+
+
+def test_a_refused_garment_is_one_line_without_the_warnings_before_it(tmp_path, caplog):
+    """A garment of one point was warned about twice (its welded vertices, its dropped face) and then refused:
+    the refusal is the one line (`core.errors.warnings_held`); a garment read is warned about as before, once."""
+    from formats.obj import read_garment
+
+    one = tmp_path / "one.obj"
+    one.write_text("v 0 1 0\nv 0 1 0\nv 0 1 0\nf 1 2 3\n")
+    with caplog.at_level(logging.WARNING), pytest.raises(InputError, match="expected faces with an area"):
+        read_garment(one)
+    assert caplog.records == []
+    kept = tmp_path / "kept.obj"
+    kept.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n")  # a face twice once welded
+    with caplog.at_level(logging.WARNING):
+        g = read_garment(kept)
+    messages = [r.getMessage() for r in caplog.records]
+    assert g.faces.shape == (1, 3) and len(messages) == len(set(messages)) >= 2
+    assert any("welded 1 vertices" in m for m in messages)
