@@ -9,6 +9,7 @@ import functools
 import logging
 import os
 import stat
+import threading
 from pathlib import Path
 
 
@@ -17,47 +18,49 @@ class InputError(ValueError):
 
 
 def warnings_held(read):
-    """Decorate a reader of a user's file: the warnings (and worse) it logs are shown once it returns, and dropped
-    where it refuses the file (InputError), so a refusal is its one line, not warnings about the file it then
-    refuses (a garment of one point was warned about twice: its welded vertices, its dropped face). A reader
-    called within another's holds nothing of its own: the outer one decides."""
+    """Decorate a reader of a user's file: what it logs (its thread's records reaching the root logger's handlers)
+    is shown once it returns, in order, and dropped where it refuses the file (InputError), so a refusal is its
+    one line, not warnings about the file it then refuses (a garment of one point was warned about twice: its
+    welded vertices, its dropped face). A reader called within another's holds nothing of its own: the outer one
+    decides."""
 
     @functools.wraps(read)
     def held(*args, **kwargs):
         root = logging.getLogger()
-        if any(isinstance(f, _Held) for h in root.handlers for f in h.filters):
+        thread = threading.get_ident()
+        if any(isinstance(f, _Held) and f.thread == thread for h in root.handlers for f in h.filters):
             return read(*args, **kwargs)
-        hold = _Held()
-        handlers = list(root.handlers)
-        for h in handlers:
+        records: list = []
+        holds = [(h, _Held(thread, h, records)) for h in root.handlers]
+        for h, hold in holds:
             h.addFilter(hold)
         try:
             result = read(*args, **kwargs)
         except InputError:
-            hold.records.clear()
+            records.clear()
             raise
         finally:
-            for h in handlers:
+            for h, hold in holds:
                 h.removeFilter(hold)
-            for record in hold.records:  # shown once, in order, where the reader returned or failed otherwise
-                logging.getLogger(record.name).handle(record)
+            for record, handler in records:  # in order, to the handlers they reached, once the reader is done
+                handler.handle(record)
         return result
 
     return held
 
 
 class _Held(logging.Filter):
-    """Keeps the records of WARNING and worse from every handler of the root logger (`warnings_held`)."""
+    """Keeps the records of one thread that reach one of the root logger's handlers, with it, in `records`
+    (`warnings_held`)."""
 
-    def __init__(self):
+    def __init__(self, thread: int, handler: logging.Handler, records: list):
         super().__init__()
-        self.records: list[logging.LogRecord] = []
+        self.thread, self.handler, self.records = thread, handler, records
 
     def filter(self, record: logging.LogRecord) -> bool:
-        if record.levelno < logging.WARNING:
+        if record.thread != self.thread:
             return True
-        if not any(r is record for r in self.records):  # each root handler sees the same record
-            self.records.append(record)
+        self.records.append((record, self.handler))
         return False
 
 

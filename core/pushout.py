@@ -121,9 +121,9 @@ def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray
     crouch), and there the nearest face can lie inside another part. A vertex inside goes to its closest body
     point, `margin` out along that face's outward side, where that lands outside; where it does not (the point
     lies inside another part, e.g. a sleeve's vertex between the arm and the torso, whose nearest face is the
-    arm's), to the closest point of the body's outer surface (the faces whose outer side is outside every other
-    part), `margin` out along its face's normal. A vertex outside within `margin` of the surface is moved out
-    along its own side (never through the face nearest it into another part).
+    arm's), to the nearest point of the body's outer surface from which `margin` out along its face's normal is
+    outside (`_to_outer_surface`). A vertex outside within `margin` of the surface is moved out along its own side
+    (never through the face nearest it into another part; to the outer surface where that lands inside one).
 
     points: (T, V, 3) garment; body_points: (T, Vb, 3) posed body (closed, outward-oriented faces);
     body_faces: (Fb, 3). Returns (pushed points (T, V, 3) float32, moved (T,) vertex counts); `report`, where
@@ -149,12 +149,12 @@ def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray
         target = np.where(inside[:, None], direction, own_side)
         sel = inside | near
         new = closest + margin * target
-        still = np.flatnonzero(inside)
+        still = np.flatnonzero(sel)  # those that land inside (another part within the margin too)
         if len(still):
             still = still[test(new[still])]
         if len(still):
             new[still], left = _to_outer_surface(new[still], p[still], test, margin)
-            to_outer += len(still)
+            to_outer += len(still) - left
             left_inside += left
         out[t, sel] = new[sel].astype(np.float32)
         moved[t] = int((sel | low).sum())
@@ -167,27 +167,33 @@ def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray
 #: on the body's outer surface.
 OUTER_PROBE_M = 1e-4
 #: The first radius (metres) searched for outer faces about a vertex left inside another part; doubled until
-#: one is found (at most OUTER_SEARCH_MAX_M: no body part is thicker).
+#: one is found, the last OUTER_SEARCH_MAX_M (no body part is thicker).
 OUTER_SEARCH_M = 0.01
 OUTER_SEARCH_MAX_M = 1.0
 #: Outer faces tried per vertex, the nearest first, while the point out of them is inside.
-OUTER_TRIES = 4
+OUTER_TRIES = 8
 
 
 def _to_outer_surface(new: np.ndarray, points: np.ndarray, test: InsideTest, margin: float) -> tuple[np.ndarray, int]:
     """`points` (inside the body, whose closest point's face pushed them into another part: `new`) moved to the
-    closest point of the body's outer surface, `margin` out along that face's normal; returns (those targets,
-    how many are still inside there: left at `new`, also where no outer face lies within OUTER_SEARCH_MAX_M).
+    nearest point of the body's outer surface from which `margin` out along that face's normal is outside;
+    returns (those targets, how many are still inside: left at `new`, also where no outer face lies within
+    OUTER_SEARCH_MAX_M).
 
-    A face is outer where its centroid and its corners, OUTER_PROBE_M out along its normal, are all outside
-    (a face that the line where two parts meet crosses is not); only the faces within a growing radius of the
-    points are probed (about 1 % of a body's faces)."""
+    A face is outer where its centroid or a corner, OUTER_PROBE_M out along its normal, is outside (a face that
+    the line where two parts meet crosses is outer in part); only the faces within a growing radius of the points
+    are probed (about 1 % of a body's faces). The nearest face's point is taken where `margin` out of it is
+    outside, else that face is set aside and the next nearest tried (OUTER_TRIES): the target lies within about a
+    face's width of the nearest outer point (on three overlapping spheres of 3-5 cm faces, 2 mm further, the
+    margin, at the median, 14 mm at the 99th percentile and 22 mm at most, beside the line where two meet)."""
     normals = face_normals(test.mesh.verts, test.mesh.faces)
-    outer = np.zeros(len(normals), dtype=np.int8)  # 0 unknown, 1 outer, -1 not
+    outer = np.zeros(len(normals), dtype=np.int8)  # 0 unknown, 2 outer, 1 outer in part, -1 not
     target, chosen = new.copy(), np.full(len(points), -1)
     todo = np.arange(len(points))
-    for _ in range(OUTER_TRIES):
-        target[todo], chosen[todo] = _nearest_outer(test, normals, outer, points[todo], new[todo], margin)
+    for attempt in range(OUTER_TRIES + 1):
+        # the last try takes wholly outer faces only (their points out of them lie outside but at sharp creases)
+        least = 2 if attempt == OUTER_TRIES else 1
+        target[todo], chosen[todo] = _nearest_outer(test, normals, outer, points[todo], new[todo], margin, least)
         # a target still inside (1 mm out of a face beside a crease, the other part within 1 mm): that face is
         # taken as not outer and the next nearest looked for
         todo = todo[(chosen[todo] >= 0) & test(target[todo])]
@@ -202,15 +208,16 @@ def _to_outer_surface(new: np.ndarray, points: np.ndarray, test: InsideTest, mar
 
 
 def _nearest_outer(test: InsideTest, normals: np.ndarray, outer: np.ndarray, points: np.ndarray, new: np.ndarray,
-                   margin: float) -> tuple[np.ndarray, np.ndarray]:
+                   margin: float, least: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """(`margin` out of the nearest outer face of each point, that face (-1: none within OUTER_SEARCH_MAX_M; the
-    point's `new` kept)); `outer` (per face: 0 unknown, 1 outer, -1 not) filled in as faces are probed."""
+    point's `new` kept)); `outer` (per face: 0 unknown, 2 outer, 1 outer in part, -1 not) filled in as faces are
+    probed, those of at least `least` taken."""
     mesh = test.mesh
     verts, faces = mesh.verts, mesh.faces
     target, chosen = new.copy(), np.full(len(points), -1)
     found = np.zeros(len(points), dtype=bool)
     radius = OUTER_SEARCH_M
-    while radius <= OUTER_SEARCH_MAX_M and not found.all():
+    while not found.all():
         todo = np.flatnonzero(~found)
         pairs = [(todo[pi], fi, bary, dist) for pi, fi, bary, dist in
                  mesh.faces_within(points[todo], np.full(len(todo), radius))]
@@ -221,8 +228,8 @@ def _nearest_outer(test: InsideTest, normals: np.ndarray, outer: np.ndarray, poi
                 probes = np.concatenate([verts[faces[unknown]], verts[faces[unknown]].mean(axis=1, keepdims=True)],
                                         axis=1) + OUTER_PROBE_M * normals[unknown, None]
                 inside = test(probes.reshape(-1, 3)).reshape(len(unknown), 4)
-                outer[unknown] = np.where(inside.any(axis=1), -1, 1)
-            ok = outer[fi] == 1
+                outer[unknown] = np.where(inside.all(axis=1), -1, np.where(inside.any(axis=1), 1, 2))
+            ok = outer[fi] >= least
             pi, fi, bary, dist = pi[ok], fi[ok], bary[ok], dist[ok]
             order = np.lexsort((dist, pi))  # each point's nearest outer face first
             pi, fi, bary = pi[order], fi[order], bary[order]
@@ -230,7 +237,9 @@ def _nearest_outer(test: InsideTest, normals: np.ndarray, outer: np.ndarray, poi
             pi, fi, bary = pi[first], fi[first], bary[first]
             target[pi] = np.einsum("pk,pkd->pd", bary, verts[faces[fi]]) + margin * normals[fi]
             chosen[pi], found[pi] = fi, True
-        radius *= 2.0
+        if radius >= OUTER_SEARCH_MAX_M:
+            break
+        radius = min(2.0 * radius, OUTER_SEARCH_MAX_M)
     return target, chosen
 
 

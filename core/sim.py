@@ -1056,7 +1056,7 @@ CUT_LOOKBACK = 4
 def _cut_before(body_pts: np.ndarray, offset: int, t: int, fps: float) -> str:
     """Where the body jumped in the frames up to output frame `t` (body_pts (T', Vb, 3), output frame k at
     `offset` + k), the advice for a failure after it: "" where it did not."""
-    lo = max(offset + t - CUT_LOOKBACK, 1)
+    lo = max(offset + t - CUT_LOOKBACK, offset, 1)  # a written frame: --frames names it
     hi = offset + t
     if hi < lo:
         return ""

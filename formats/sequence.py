@@ -251,13 +251,17 @@ def _recorded_meta(meta_path: Path) -> dict | None:
     return meta
 
 
-def _obj_up(meta: dict | None, up: str | None) -> str:
+def _obj_up(meta: dict | None, up: str | None, meta_path: Path | None = None) -> str:
     """The up axis OBJ frames are read in: `up` where given; else what their `sequence.json` records ("z" where it
     records none: `garment bake` wrote Z-up frames before 2026-12-06, and a sequence.json of `fps` alone was read
     so); else, with no sequence.json (frames from Blender, Maya, Houdini), "y", the frame OBJ files are written in."""
     if up is not None:
         return up
-    return "y" if meta is None else meta.get("up", "z")
+    recorded = "y" if meta is None else meta.get("up", "z")
+    if recorded not in UP_AXES:
+        raise InputError(f"garment sequence '{meta_path}': expected 'up' as \"y\" (frames written Y-up) or \"z\", "
+                         f"got {recorded!r}")
+    return recorded
 
 
 def _turned_to_z_up(points: np.ndarray, up: str) -> np.ndarray:
@@ -297,25 +301,35 @@ def _read_obj_directory(directory: Path, up: str | None = None) -> Sequence:
                              f"({first.vertices.shape[0]} vertices, {len(first.polygons)} faces), got "
                              f"{frame.vertices.shape[0]} vertices, {len(frame.polygons)} faces in {path.name}")
         points[t] = frame.vertices
-    points = _turned_to_z_up(points, _obj_up(meta, up))
+    points = _turned_to_z_up(points, _obj_up(meta, up, meta_path))
     number = re.search(r"(\d+)$", files[0].stem)
     return Sequence(points=points, faces=faces, fps=fps, source=str(directory),
                     first_frame=int(number.group(1)) if number else 0)
 
 
 def _read_single_obj(path: Path, up: str | None = None) -> Sequence:
-    """One OBJ as a one-frame sequence: a frame of a folder whose `sequence.json` records it (its prefix) read in
-    the frame and numbered as that records; another OBJ (a garment, a frame exported alone) Y-up, frame 0."""
+    """One OBJ as a one-frame sequence: a frame of a folder whose `sequence.json` records it (its prefix, or none
+    recorded and the file numbered) read in the frame, at the rate and with the number that folder is read with;
+    another OBJ (a garment, a frame exported alone, an OBJ beside a sequence.json it cannot read) Y-up, frame 0."""
     obj = parse_obj(path, label="garment sequence frame")
     faces, _, _ = triangulate(obj.vertices, obj.polygons)
-    meta = _recorded_meta(path.parent / SEQUENCE_JSON)
+    meta_path = path.parent / SEQUENCE_JSON
+    try:
+        meta = _recorded_meta(meta_path)
+    except InputError:
+        meta = None  # the folder's, which reading the folder refuses; not this file's
     prefix = None if meta is None else meta.get("prefix")
     stem = path.stem
-    if not (isinstance(prefix, str) and stem.lower().startswith(prefix.lower()) and stem[len(prefix):].isdigit()):
+    match = _FRAME_NAME.match(stem)
+    if isinstance(prefix, str):
+        number = stem[len(prefix):] if stem.lower().startswith(prefix.lower()) else ""
+    else:
+        number = match.group(2) if match and prefix is None else ""
+    if not number.isdigit():
         meta = None  # not one of the frames it records
-    points = _turned_to_z_up(obj.vertices[None].astype(np.float32), _obj_up(meta, up))
-    return Sequence(points=points, faces=faces, fps=None if meta is None else _fps(meta.get("fps"), str(path)),
-                    source=str(path), first_frame=0 if meta is None else int(stem[len(prefix):]))
+    points = _turned_to_z_up(obj.vertices[None].astype(np.float32), _obj_up(meta, up, meta_path))
+    return Sequence(points=points, faces=faces, fps=None if meta is None else _fps(meta.get("fps"), str(meta_path)),
+                    source=str(path), first_frame=0 if meta is None else int(number))
 
 
 def _read_npz(path: Path) -> Sequence:

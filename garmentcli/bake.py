@@ -492,6 +492,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                                DEFAULT_BUDGET_MM if budget_mm is None else budget_mm, fit_path, garment_path)
         method, opts = pick["method"], pick["options"]
         # --push-out asked for: after the chosen method, where it is not the simulator (which handles contact)
+        wanted_push_out = push_out
         asked_push_out = push_out and method != "sim" and not opts.get("push_out")
         precision, push_out = opts.get("precision"), bool(opts.get("push_out", False)) or asked_push_out
         strain = opts.get("strain_limit", strain)  # a configuration measured with a limit (lbs +strain-limit)
@@ -508,6 +509,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                                                    "outside_calibration", "outside_motions")})
         click.echo(f"quality auto: {pick['config']}{' +push-out (--push-out)' if asked_push_out else ''} "
                    f"({pick['reason']})")
+        if wanted_push_out and method == "sim":
+            click.echo("quality auto: --push-out left out: the simulator handles contact itself", err=True)
         if pick["outside_motions"]:
             log.warning("--quality auto: motion %s beyond the calibration's scenes: expected errors there are "
                         "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "

@@ -636,6 +636,15 @@ def check_retries(scheduler: str | None) -> None:
                                  "retry)", param_hint="--retries")
 
 
+def obj_up_option(command):
+    """--up auto|y|z: the up axis of OBJ frames read (`formats.sequence.read_sequence`'s `up`; auto: None)."""
+    return click.option("--up", type=click.Choice(("auto", "y", "z")), default="auto", show_default=True,
+                        callback=lambda ctx, param, value: None if value == "auto" else value,
+                        help="The up axis of OBJ input (a frame folder or one .obj). auto: as its sequence.json "
+                             "records (a bake's frames), else y, the frame OBJ files are written in (Blender, Maya, "
+                             "Houdini).")(command)
+
+
 def body_option(command):
     """--body PATH (an SMPL-format body; the embedded one by default)."""
     return click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,

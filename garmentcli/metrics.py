@@ -16,6 +16,7 @@ from garmentcli.common import (
     OutputPath,
     betas_option,
     input_errors_as_click,
+    obj_up_option,
     motion_up_option,
     person_option,
     take_option,
@@ -31,14 +32,14 @@ _FORMATS = {"json": ("json",), "csv": ("csv",), "md": ("md",), "all": ("json", "
 FPS_RTOL = 1e-4
 
 
-def _read_sequence(path: Path):
+def _read_sequence(path: Path, up: str | None = None):
     """`formats.sequence.read_sequence`, imported on use so `garment --help` stays quick; a point cache (.pc2,
     .mdd: `formats.pointcache`, in the garment file's Y-up frame, as `bake --point-cache` writes it) turned to the
     bakes' Z-up world, without faces (the other side's are taken: `_borrow_faces`)."""
     from formats.sequence import Sequence, read_sequence
 
     if Path(path).suffix.lower() not in (".pc2", ".mdd"):
-        return read_sequence(path)
+        return read_sequence(path, up=up)
     from core.geometry import Y_UP_TO_Z_UP_MATRIX
     from core.motion import common_rate
     from formats.pointcache import read_point_cache
@@ -239,11 +240,12 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
               help="With --out: also write per-frame curves and error histograms (PNG), an error heatmap render "
                    "of the worst frame, and metrics_report.md / metrics_report.html showing them with the tables.")
 @click.option("--overwrite", is_flag=True, help="Replace existing report files in --out.")
+@obj_up_option
 @input_errors_as_click
 def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Path | None,
             motion_file: Path | None, fps: float, frames: str | None, settle_frames: int, depth_mm: float | None,
             overwrite: bool, plots: bool = False, betas: str = "auto", source_fps: float | None = None,
-            motion_up: str = "z", person: str | None = None, take: str | None = None) -> None:
+            motion_up: str = "z", person: str | None = None, take: str | None = None, up: str | None = None) -> None:
     """Compare a predicted garment sequence PRED with a ground truth GT.
 
     PRED and GT are bake output directories, OBJ-sequence directories, USD files or .npz sequences of the
@@ -288,14 +290,14 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
             raise InputError(f"--out: '{existing[0]}' exists; pass --overwrite to replace it")
     if pairs is None:
         _compare(pred, gt, out_dir, formats, depth_mm, plots, body_file, motion_file, fps, frames, settle_frames,
-                 betas, source_fps, motion_up=motion_up, person=person, take=take)
+                 betas, source_fps, motion_up=motion_up, person=person, take=take, up=up)
         return
     results, failed = {}, {}
     for i, (name, (p, g)) in enumerate(pairs.items(), 1):
         click.echo(f"comparing '{name}' ({i} of {len(pairs)})", err=True)  # its warnings, if any, below
         try:
             results[name] = _compare(p, g, None if out_dir is None else out_dir / name, formats, depth_mm, plots,
-                                     quiet=True)
+                                     quiet=True, up=up)
         except InputError as exc:  # one mismatched pair: the others are still compared, it is reported at the end
             failed[name] = str(exc)
     from formats.report import batch_rows
@@ -341,14 +343,14 @@ def _bake_pairs(pred: Path, gt: Path) -> dict | None:
 
 def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: float, plots: bool, body_file=None,
              motion_file=None, fps=30.0, frames=None, settle_frames=0, betas="auto", source_fps=None,
-             quiet: bool = False, motion_up="z", person=None, take=None):
+             quiet: bool = False, motion_up="z", person=None, take=None, up=None):
     """Compare one PRED with one GT: print the overall table (unless `quiet`), write the reports (and plots) into
     `out_dir` when given; returns the MetricsResult."""
     from core.metrics import check_comparable, compute_metrics
     from formats.report import overall_markdown, write_report
 
-    p_seq = _read_sequence(pred)
-    g_seq = _read_sequence(gt)
+    p_seq = _read_sequence(pred, up)
+    g_seq = _read_sequence(gt, up)
     p_seq, g_seq = _borrow_faces(p_seq, g_seq, pred, gt)
     if p_seq.fps is not None and g_seq.fps is not None and not np.isclose(p_seq.fps, g_seq.fps, rtol=FPS_RTOL):
         raise InputError(f"'{pred}' is at {p_seq.fps:g} fps, '{gt}' at {g_seq.fps:g} fps: expected the same frame "

@@ -10,7 +10,7 @@ from tqdm import tqdm
 from core.errors import InputError, require_input
 from formats.atomic import atomic_dir, refuse_replacing
 from formats.render import check_azimuth, check_value_range
-from garmentcli.common import OutputPath, checked_by, input_errors_as_click
+from garmentcli.common import OutputPath, checked_by, input_errors_as_click, obj_up_option
 
 COLORS = ("plain", "error", "penetration", "scalar")
 CAMERA_CHOICES = ("front", "side", "back", "orbit")
@@ -59,9 +59,7 @@ def _frame_slice(frames: str | None, every: int) -> slice:
               help="Turn every camera preset by this many degrees about the up axis (Z), -360 to 360.")
 @click.option("--framing", type=click.Choice(("auto", "fixed", "follow")), default="auto", show_default=True,
               help="fixed: one view of the whole animation; follow: track the body; auto: follow when it travels.")
-@click.option("--up", type=click.Choice(("auto", "y", "z")), default="auto", show_default=True,
-              help="The up axis of OBJ input (a frame folder or one .obj; --gt too). auto: as its sequence.json "
-                   "records (a bake's frames), else y, the frame OBJ files are written in (Blender, Maya, Houdini).")
+@obj_up_option
 @click.option("--no-body", is_flag=True, help="Draw the garment alone.")
 @click.option("--no-ground", is_flag=True, help="Leave out the ground grid.")
 @click.option("--no-png", is_flag=True, help="Skip the PNG frames.")
@@ -106,7 +104,6 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
         raise click.BadParameter("nothing to write: drop one of --no-png, --no-mp4, --no-sheet", param_hint="--no-png")
     check_render_window()  # before any work or output: VTK crashes on a window it cannot open
 
-    up = None if up == "auto" else up
     seq = read_sequence(input_path, up=up)
     gt = read_sequence(gt_path, up=up) if gt_path is not None else None
     scalars, label = None, "value"

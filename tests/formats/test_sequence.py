@@ -116,6 +116,15 @@ def test_obj_frames_without_a_record_are_read_y_up_and_a_bake_frame_alone_as_its
     np.testing.assert_allclose(read_sequence(exported / "cloth_0002.obj").points, points[1:2], atol=1e-6)
     (exported / "sequence.json").write_text('{"fps": 24}')  # a record of the rate alone: Z-up, as before
     np.testing.assert_allclose(read_sequence(exported).points, y_up, atol=1e-6)
+    one = read_sequence(exported / "cloth_0002.obj")  # one of its frames read alone: as the folder is read
+    np.testing.assert_allclose(one.points, y_up[1:2], atol=1e-6)
+    assert one.fps == 24 and one.first_frame == 2
+    (exported / "sequence.json").write_text('{"fps": 24, "up": "x"}')
+    with pytest.raises(InputError, match="expected 'up' as"):
+        read_sequence(exported / "cloth_0002.obj")
+    (exported / "sequence.json").write_text("{broken")  # the folder's to refuse, not a garment's beside it
+    write_obj(exported / "garment.obj", y_up[0], faces)
+    np.testing.assert_allclose(read_sequence(exported / "garment.obj").points, points[:1], atol=1e-6)
     baked = tmp_path / "baked"
     write_obj_sequence(baked, points, faces, fps=24, up="y", start=40)
     one = read_sequence(baked / "frame_0041.obj")

@@ -480,3 +480,23 @@ def test_one_frame_is_one_frame_in_messages(tmp_path, seq):
     one = save_seq(tmp_path / "one.npz", pts[:1], f)
     line = assert_clean_failure(run([one, save_seq(tmp_path / "three.npz", pts, f)]), "one.npz", "three.npz")
     assert "has 1 frame," in line and "1 frames" not in line
+
+
+def test_obj_frames_without_a_record_are_read_y_up_unless_up_says_z(tmp_path, seq):
+    """OBJ frames without a sequence.json (another tool's) are read Y-up, as OBJ files are written; --up z reads
+    those written Z-up (this tool's world) as they are: against the same points in an .npz, E_verts 0 then."""
+    from formats.obj import write_obj
+
+    pts, f = seq
+    gt = save_seq(tmp_path / "gt.npz", pts, f)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for t, p in enumerate(pts):
+        write_obj(frames / f"frame_{t:04d}.obj", p, f)
+    r = run([frames, gt, "--out", tmp_path / "z", "--format", "json", "--up", "z"])
+    assert r.exit_code == 0, r.output
+    assert json.loads((tmp_path / "z" / "metrics.json").read_text())["overall"]["e_verts"] == pytest.approx(0.0,
+                                                                                                           abs=1e-3)
+    r = run([frames, gt, "--out", tmp_path / "y", "--format", "json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads((tmp_path / "y" / "metrics.json").read_text())["overall"]["e_verts"] > 10.0
