@@ -38,6 +38,9 @@ def test_pareto_front_naive():
     pts = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 0.0), (2.0, 3.0)]
     # (3, 4) is beaten by (2, 3); the two equal (2, 3) do not beat each other.
     assert pareto_front(pts) == [True, True, False, True, True]
+    # 3x the time for 0.00004 mm less is no gain (errors within PARETO_TOLERANCE_MM are one); 0.02 mm less is
+    assert pareto_front([(1.0, 30.5619), (3.0, 30.5618)]) == [True, False]
+    assert pareto_front([(1.0, 30.5619), (3.0, 30.5419)]) == [True, True]
 
 
 def _row(config, method, s, mm, reference=False, failed=""):
