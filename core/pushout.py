@@ -189,11 +189,13 @@ def _to_outer_surface(new: np.ndarray, points: np.ndarray, test: InsideTest, mar
     normals = face_normals(test.mesh.verts, test.mesh.faces)
     outer = np.zeros(len(normals), dtype=np.int8)  # 0 unknown, 2 outer, 1 outer in part, -1 not
     target, chosen = new.copy(), np.full(len(points), -1)
+    reach = np.full(len(points), OUTER_SEARCH_M)  # where each point's search starts: its last face's distance
     todo = np.arange(len(points))
     for attempt in range(OUTER_TRIES + 1):
         # the last try takes wholly outer faces only (their points out of them lie outside but at sharp creases)
         least = 2 if attempt == OUTER_TRIES else 1
-        target[todo], chosen[todo] = _nearest_outer(test, normals, outer, points[todo], new[todo], margin, least)
+        target[todo], chosen[todo], reach[todo] = _nearest_outer(test, normals, outer, points[todo], new[todo],
+                                                                 margin, least, reach[todo])
         # a target still inside (1 mm out of a face beside a crease, the other part within 1 mm): that face is
         # taken as not outer and the next nearest looked for
         todo = todo[(chosen[todo] >= 0) & test(target[todo])]
@@ -208,19 +210,20 @@ def _to_outer_surface(new: np.ndarray, points: np.ndarray, test: InsideTest, mar
 
 
 def _nearest_outer(test: InsideTest, normals: np.ndarray, outer: np.ndarray, points: np.ndarray, new: np.ndarray,
-                   margin: float, least: int = 1) -> tuple[np.ndarray, np.ndarray]:
+                   margin: float, least: int, start: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(`margin` out of the nearest outer face of each point, that face (-1: none within OUTER_SEARCH_MAX_M; the
-    point's `new` kept)); `outer` (per face: 0 unknown, 2 outer, 1 outer in part, -1 not) filled in as faces are
-    probed, those of at least `least` taken."""
+    point's `new` kept), its distance (where the next search may start)); `outer` (per face: 0 unknown, 2 outer,
+    1 outer in part, -1 not) filled in as faces are probed, those of at least `least` taken; each point's search
+    starts at its radius in `start` (no nearer face is left to take) and doubles."""
     mesh = test.mesh
     verts, faces = mesh.verts, mesh.faces
     target, chosen = new.copy(), np.full(len(points), -1)
+    distance = np.array(start, dtype=np.float64)
     found = np.zeros(len(points), dtype=bool)
-    radius = OUTER_SEARCH_M
+    radius = np.clip(np.asarray(start, dtype=np.float64) * 1.0001, OUTER_SEARCH_M, OUTER_SEARCH_MAX_M)
     while not found.all():
         todo = np.flatnonzero(~found)
-        pairs = [(todo[pi], fi, bary, dist) for pi, fi, bary, dist in
-                 mesh.faces_within(points[todo], np.full(len(todo), radius))]
+        pairs = [(todo[pi], fi, bary, dist) for pi, fi, bary, dist in mesh.faces_within(points[todo], radius[todo])]
         if pairs:
             pi, fi, bary, dist = (np.concatenate(a) for a in zip(*pairs))
             unknown = np.unique(fi[outer[fi] == 0])
@@ -232,15 +235,15 @@ def _nearest_outer(test: InsideTest, normals: np.ndarray, outer: np.ndarray, poi
             ok = outer[fi] >= least
             pi, fi, bary, dist = pi[ok], fi[ok], bary[ok], dist[ok]
             order = np.lexsort((dist, pi))  # each point's nearest outer face first
-            pi, fi, bary = pi[order], fi[order], bary[order]
+            pi, fi, bary, dist = pi[order], fi[order], bary[order], dist[order]
             _, first = np.unique(pi, return_index=True)
-            pi, fi, bary = pi[first], fi[first], bary[first]
+            pi, fi, bary, dist = pi[first], fi[first], bary[first], dist[first]
             target[pi] = np.einsum("pk,pkd->pd", bary, verts[faces[fi]]) + margin * normals[fi]
-            chosen[pi], found[pi] = fi, True
-        if radius >= OUTER_SEARCH_MAX_M:
+            chosen[pi], distance[pi], found[pi] = fi, dist, True
+        if (radius[~found] >= OUTER_SEARCH_MAX_M).all():
             break
-        radius = min(2.0 * radius, OUTER_SEARCH_MAX_M)
-    return target, chosen
+        radius = np.where(found, radius, np.minimum(2.0 * radius, OUTER_SEARCH_MAX_M))
+    return target, chosen, distance
 
 
 @dataclass(frozen=True)
