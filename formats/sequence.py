@@ -307,6 +307,30 @@ def _read_obj_directory(directory: Path, up: str | None = None) -> Sequence:
                     first_frame=int(number.group(1)) if number else 0)
 
 
+def _frame_number_of(stem: str, meta: dict | None) -> str:
+    """The frame number of the OBJ named `stem` in a folder whose `sequence.json` is `meta`: its digits after the
+    recorded prefix (or, none recorded, after its name), "" where it is not one of the frames recorded."""
+    if meta is None:
+        return ""
+    prefix = meta.get("prefix")
+    if isinstance(prefix, str):
+        number = stem[len(prefix):] if stem.lower().startswith(prefix.lower()) else ""
+    else:
+        match = _FRAME_NAME.match(stem)
+        number = match.group(2) if match and prefix is None else ""
+    return number if number.isdigit() else ""
+
+
+def recorded_frame(path: str | os.PathLike) -> bool:
+    """Whether the OBJ at `path` is one of the frames its folder's `sequence.json` records (a bake's frame)."""
+    path = Path(path)
+    try:
+        meta = _recorded_meta(path.parent / SEQUENCE_JSON)
+    except InputError:
+        return False
+    return bool(_frame_number_of(path.stem, meta))
+
+
 def _read_single_obj(path: Path, up: str | None = None) -> Sequence:
     """One OBJ as a one-frame sequence: a frame of a folder whose `sequence.json` records it (its prefix, or none
     recorded and the file numbered) read in the frame, at the rate and with the number that folder is read with;
@@ -318,14 +342,8 @@ def _read_single_obj(path: Path, up: str | None = None) -> Sequence:
         meta = _recorded_meta(meta_path)
     except InputError:
         meta = None  # the folder's, which reading the folder refuses; not this file's
-    prefix = None if meta is None else meta.get("prefix")
-    stem = path.stem
-    match = _FRAME_NAME.match(stem)
-    if isinstance(prefix, str):
-        number = stem[len(prefix):] if stem.lower().startswith(prefix.lower()) else ""
-    else:
-        number = match.group(2) if match and prefix is None else ""
-    if not number.isdigit():
+    number = _frame_number_of(path.stem, meta)
+    if not number:
         meta = None  # not one of the frames it records
     points = _turned_to_z_up(obj.vertices[None].astype(np.float32), _obj_up(meta, up, meta_path))
     return Sequence(points=points, faces=faces, fps=None if meta is None else _fps(meta.get("fps"), str(meta_path)),

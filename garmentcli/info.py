@@ -49,6 +49,74 @@ def garment_info(path: str, body) -> dict:
             "refused": refused, "notes": notes}
 
 
+def bake_info(path: Path) -> dict:
+    """A `garment bake` output (its folder, its USD stage, its OBJ frames or one of them): the sequence it holds
+    (frames, rate, vertices) and, from its `summary.json` where there is one, how it was made (method, inputs)."""
+    from formats.sequence import read_sequence
+
+    seq = read_sequence(path)
+    folder = path if path.is_dir() else path.parent
+    summary_path = next((d / "summary.json" for d in (folder, folder.parent) if (d / "summary.json").is_file()), None)
+    summary = json.loads(summary_path.read_text()) if summary_path is not None else {}
+    return {"path": str(path), "kind": "bake", "frames": seq.n_frames, "fps": seq.fps,
+            "vertices": int(seq.points.shape[1]), "first_frame": seq.first_frame,
+            "method": summary.get("method"), "inputs": summary.get("inputs"), "notes": []}
+
+
+def body_info(path: Path) -> dict:
+    """An SMPL-format body file: its vertices, joints, shape coefficients, layout and content hash."""
+    from formats.body import load_body
+
+    with collected_notes() as notes:
+        body = load_body(path)
+    return {"path": str(path), "kind": "body", "vertices": body.n_vertices, "joints": body.n_joints,
+            "betas": body.n_betas, "layout": body.layout, "sha256": body.content_hash(), "notes": notes}
+
+
+def fit_info(path: Path) -> dict:
+    """A `garment fit` file: the garment and body it was fitted to, its shapes and how well it fitted."""
+    from formats.psd import load_fit
+
+    fit = load_fit(path)
+    return {"path": str(path), "kind": "fit", "body": fit.body, "shapes": int(fit.basis.shape[0]),
+            "vertices": int(fit.mean.size // 3), "meta": fit.meta, "notes": []}
+
+
+def _kind_of(path: Path) -> str:
+    """What `info` reads `path` as: "bake" (a bake's folder, stage or OBJ frames), "bakes" (a `bake --out` folder
+    of several), "body", "fit", "garment" or "motion"."""
+    from formats.obj import USD_SUFFIXES
+    from formats.sequence import SEQUENCE_JSON, bake_batch, bake_directory_sequence, recorded_frame
+    from formats.usdskel import holds_skeleton
+
+    suffix = path.suffix.lower()
+    if path.is_dir():
+        if bake_batch(path) is not None:
+            return "bakes"
+        baked = (path / "summary.json").is_file() or (path / SEQUENCE_JSON).is_file() or \
+            bake_directory_sequence(path) is not None
+        return "bake" if baked else "motion"
+    if suffix == ".obj":
+        return "bake" if recorded_frame(path) else "garment"
+    if suffix in USD_SUFFIXES:
+        if holds_skeleton(path):
+            return "motion"
+        return "bake" if (path.parent / "summary.json").is_file() else "garment"
+    if suffix == ".npz" and path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as d:
+                keys = set(d.files)
+        except Exception:  # not an npz: the motion reader says what it is
+            return "motion"
+        if "v_template" in keys:
+            return "body"
+        if "format" in keys and "basis" in keys:
+            return "fit"
+        if {"points", "faces"} <= keys:
+            return "bake"
+    return "motion"
+
+
 def motion_info(path: str, person: str | None = None, take: str | None = None,
                 source_fps: float | None = None) -> dict:
     """A motion file as `garment bake` reads it (with --person, --take, --source-fps; --motion-up left out): its
@@ -88,7 +156,23 @@ def _text(record: dict, body_name: str) -> str:
     """One report line (and its notes) of a record of `garment_info` or `motion_info`."""
     if "error" in record:
         return f"{record['path']}: error: {record['error']}"
-    if record["kind"] == "garment":
+    if record["kind"] == "bake":
+        made = f", baked with {record['method']}" if record["method"] else ""
+        inputs = record["inputs"] or {}
+        of = f" of '{Path(inputs['garment']).name}' on '{Path(inputs['motion']).name}'" if {"garment", "motion"} <= \
+            set(inputs) else ""
+        rate = f" at {record['fps']:g} fps" if record["fps"] else ""
+        line = (f"{record['path']}: a baked garment sequence{of}{made}, {_frames(record['frames'])}{rate} from frame "
+                f"{record['first_frame']}, {record['vertices']:,} vertices (garment metrics and render read it; "
+                "not a garment to bake)")
+    elif record["kind"] == "body":
+        line = (f"{record['path']}: body ({record['layout']}), {record['vertices']:,} vertices, {record['joints']} "
+                f"joints, {record['betas']} betas, sha256 {record['sha256'][:12]} (give it to bake with --body)")
+    elif record["kind"] == "fit":
+        line = (f"{record['path']}: psd fit of a {record['vertices']:,}-vertex garment on body '{record['body']}', "
+                f"{record['shapes']} shape{'' if record['shapes'] == 1 else 's'} (give it to bake with --method psd "
+                "--fit)")
+    elif record["kind"] == "garment":
         x, y, z = record["extent_m"]
         verdict = f"refused: {record['refused']}" if record["refused"] else "bakes as it is"
         line = (f"{record['path']}: garment, {record['vertices']:,} vertices, {record['triangles']:,} triangles, "
@@ -126,18 +210,22 @@ def info(paths, body_path, person, take, source_fps, fmt):
 
     Exits with 1 where a file cannot be read or its garment would be refused (each told), else 0.
     """
-    from formats.obj import USD_SUFFIXES
-    from formats.usdskel import holds_skeleton
-
     body = load_body_option(body_path)
     body_name = f"the body '{body_path}'" if body_path else "the embedded default body"
     records = []
+    readers = {"bake": bake_info, "body": body_info, "fit": fit_info, "garment": lambda p: garment_info(str(p), body)}
     for arg in paths:
-        suffix = Path(arg).suffix.lower()
-        garment = suffix == ".obj" or (suffix in USD_SUFFIXES and not holds_skeleton(Path(arg)))
-        for path in [arg] if garment else motion_files([arg], hint="PATH"):
+        kind = _kind_of(Path(arg))
+        if kind == "bakes":
+            from formats.sequence import bake_batch
+
+            kind, found = "bake", list(bake_batch(Path(arg)).values())
+        else:
+            found = [Path(arg)] if kind != "motion" else motion_files([arg], hint="PATH")
+        for path in found:
             try:
-                records.append(garment_info(path, body) if garment else motion_info(path, person, take, source_fps))
+                records.append(readers[kind](path) if kind != "motion"
+                               else motion_info(path, person, take, source_fps))
             except InputError as exc:
                 records.append({"path": str(path), "error": str(exc)})
     if fmt == "json":

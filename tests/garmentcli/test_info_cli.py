@@ -90,3 +90,38 @@ def test_info_of_a_folder_tells_each_motion_in_it(scene, tmp_path):
     assert r.exit_code == 0, r.output
     assert [Path(rec["path"]).name for rec in records] == ["a.npz", "b.npz", "c.pkl"]
     assert {(rec["frames"], rec["fps"]) for rec in records} == {(records[0]["frames"], 30.0)}
+
+
+def test_info_tells_a_bake_a_body_and_a_fit_for_what_they_are(tmp_path):
+    """A bake's folder, its USD stage, its OBJ frames and one of them were read as a garment (a frame said to be
+    refused, with an `unpose` that made no usable garment of it) or as a motion folder ("expected motion files");
+    a body file and a psd fit as motions with no 'poses'. Each is told for what it is (exit 0)."""
+    from core.body import default_body
+    from core.psd import PSDFit
+    from formats.psd import save_fit
+
+    out = tmp_path / "bakes"
+    r = invoke(["bake", ROOT / "examples" / "skirt.obj", WALK, "--method", "lbs", "--frames", "0:6", "--out", out])
+    assert r.exit_code == 0, r.output
+    bake = out / "skirt_walk"
+    body = tmp_path / "body.npz"
+    b = default_body()
+    np.savez(body, v_template=b.v_template, shapedirs=b.shapedirs, J_regressor=b.J_regressor, weights=b.weights,
+             parents=b.parents, faces=b.faces)
+    fit = save_fit(tmp_path / "skirt.psd.npz", PSDFit("0" * 64, "default", 24, 10, np.zeros(6, np.float32),
+                                                      np.zeros((1, 6), np.float32), np.zeros((3, 1), np.float32)))
+    paths = [out, bake, bake / "skirt_walk.usd", bake / "obj", bake / "obj" / "frame_0002.obj", body, fit]
+    r = invoke(["info", *paths])
+    assert r.exit_code == 0, r.output
+    lines = r.output.splitlines()
+    for line in lines[:5]:
+        assert "a baked garment sequence of 'skirt.obj' on 'walk.npz', baked with lbs" in line and "not a garment" \
+               in line
+    assert "3 frames at 30 fps from frame 0, 2,016 vertices" in lines[0]
+    assert lines[4].endswith("obj/frame_0002.obj: a baked garment sequence of 'skirt.obj' on 'walk.npz', baked with "
+                             "lbs, 1 frame at 30 fps from frame 2, 2,016 vertices (garment metrics and render read "
+                             "it; not a garment to bake)")
+    assert lines[5].endswith(f"body.npz: body (smpl), 13,348 vertices, 24 joints, 10 betas, sha256 "
+                             f"{b.content_hash()[:12]} (give it to bake with --body)")
+    assert lines[6].endswith("skirt.psd.npz: psd fit of a 2-vertex garment on body 'default', 1 shape (give it to "
+                             "bake with --method psd --fit)")
