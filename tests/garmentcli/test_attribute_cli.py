@@ -47,6 +47,22 @@ def test_attribute_writes_table_arrays_and_heatmaps(scene, model_path, monkeypat
     assert "over 10 vertices" in (out / "attributions.md").read_text()
 
 
+def test_attribute_takes_betas_as_bake_does(scene, model_path, monkeypatch, tmp_path):
+    """A motion's betas warned about on the embedded body suggested `--betas motion`, which `attribute` did not
+    have: the body shape's row was 0 whatever the user wanted. `--betas` is bake's: the mean shape attributes
+    nothing to the body's shape, coefficients something."""
+    monkeypatch.setenv("GARMENT_CACHE_DIR", str(tmp_path / "cache"))
+    phi = {}
+    for betas in ("mean", "1.5,-1,0.5"):
+        out = scene["out"] / f"att_{betas}"
+        r = run("attribute", model_path, scene["garment"], scene["motion"], "--frame", 2, "--steps", 2, "--no-render",
+                "--body", scene["body"], "--betas", betas, "--out", out)
+        assert r.exit_code == 0, r.output
+        with np.load(out / "attributions.npz") as z:
+            phi[betas] = float(np.abs(z["phi_body"]).sum())
+    assert phi["mean"] == 0.0 and phi["1.5,-1,0.5"] > 0.0
+
+
 def test_attribute_explains_the_shipped_model_named_default(scene, monkeypatch, tmp_path):
     """MODEL `default`: the model shipped inside the installed package, which a user has no path to."""
     from core.model_deform import DEFAULT_MODEL
