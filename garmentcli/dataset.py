@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -12,6 +11,7 @@ from tqdm import tqdm
 
 from core.provenance import software_versions
 from garmentcli.common import (
+    file_sha256,
     FLOOR_CHOICES,
     MAX_FPS,
     FiniteFloatRange,
@@ -32,10 +32,6 @@ from garmentcli.common import (
     source_fps_option,
     MAX_SOLVER_STEPS,
 )
-
-
-def _sha256(path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 #: Pre-roll frames ahead of a clip that does not start its motion (0.33 s at the default 30 fps).
@@ -322,12 +318,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
         settings["person"] = person
     if take is not None:
         settings["take"] = take
-    inputs = {"garments": {k: {"path": str(p), "sha256": _sha256(p), "mesh_sha256": garments[k].content_hash()}
+    inputs = {"garments": {k: {"path": str(p), "sha256": file_sha256(p), "mesh_sha256": garments[k].content_hash()}
                            for k, p in zip((Path(p).stem for p in garment_paths), garment_paths)},
-              "motions": {name: {"path": str(p), "sha256": _sha256(p)} for name, p in file_motions.items()},
+              "motions": {name: {"path": str(p), "sha256": file_sha256(p)} for name, p in file_motions.items()},
               "motion_library": (sorted(set(motion_frames) - set(file_motions)) if library else []),
               "body": {"path": str(body_path) if body_path else "embedded default (anny)",
-                       "sha256": _sha256(body_path) if body_path else None}}
+                       "sha256": file_sha256(body_path) if body_path else None}}
     manifest = build_manifest(settings, items, splits, betas, inputs, software_versions("garment", "newton", "warp-lang", "numpy", "torch"))
     if old is not None and old.get("plan_key") != manifest["plan_key"]:
         diff = settings_difference(old.get("settings", {}), manifest["settings"])

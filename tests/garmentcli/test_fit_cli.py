@@ -1,6 +1,7 @@
 """`garment fit` and `bake --method psd` through click's CliRunner, on the tiny dataset of model_fixtures."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -46,6 +47,10 @@ def test_fit_then_bake_with_it(setup, fitted):
     assert r.exit_code == 0, r.output
     summary = json.loads((root / "out" / "a_walk" / "summary.json").read_text())
     assert summary["method"] == "psd"
+    import hashlib  # the fit is an input, recorded as such (it was a relative path inside a sentence)
+
+    assert summary["inputs"]["fit"] == str(Path(fit_path).resolve())
+    assert summary["inputs"]["fit_sha256"] == hashlib.sha256(Path(fit_path).read_bytes()).hexdigest()
     r = invoke(["bake", garment, root / "walk.npz", "--method", "lbs", "--body", body, "--out", root / "lbs"])
     assert r.exit_code == 0, r.output
     from formats.sequence import read_sequence
