@@ -34,7 +34,7 @@ from core.motion import Motion, poses_for_body, prepend_blend
 from core.pushout import (ContactAnchors, anchored_body, body_anchors, guard_contact, guard_report,
                           guard_sequence)
 from core.scene import SceneAnalysis, scene_levels
-from core.strain import STRAIN_ITERATIONS, STRAIN_LIMIT, garment_strain, limit_strain, strain_report
+from core.strain import STRAIN_ITERATIONS, STRAIN_LIMIT, garment_strain, limit_strain, still_over, strain_report
 from core.threads import ThreadTuner
 
 log = logging.getLogger(__name__)
@@ -323,7 +323,7 @@ class ModelDeformer(Deformer):
         limit = None
         if here and self.strain_limit is not None:
             limit = garment_strain(garment, rest.cpu().numpy(), self.strain_limit, self._strain)
-            over, passes, limit_s = [], 0, 0.0
+            over, left, passes, limit_s = [], [], 0, 0.0
         if self.contact_guard and shaped.anchors is None:
             shaped.anchors = body_anchors(rest.cpu().numpy(), garment.faces, body, betas)
         # Progress (`on_frames`): each frame's share of the passes over the frames, the network's and, on a CPU,
@@ -359,6 +359,7 @@ class ModelDeformer(Deformer):
                         t_limit = _synchronized(device)
                         verts, n, done = limit_strain(verts, limit)
                         over.append(n)
+                        left.append(still_over(verts, limit))
                         passes, limit_s = max(passes, done), limit_s + time.perf_counter() - t_limit
                     copies.put(s, verts)
                     if tuner:
@@ -394,7 +395,7 @@ class ModelDeformer(Deformer):
         self.scene = scene.report
         if limit is not None:
             self.report["strain_limit"] = strain_report(limit, STRAIN_ITERATIONS, over, passes, limit_s,
-                                                        motion.n_frames)
+                                                        motion.n_frames, left)
         else:
             out = self.limit_strain_of(out, garment, rest.cpu().numpy(), self.strain_limit, tick)
         if "strain_limit" in self.report:

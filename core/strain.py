@@ -191,13 +191,30 @@ def limit_strain(points, strain: StrainLimit, iterations: int = STRAIN_ITERATION
     return (x.contiguous() if tensor else x.numpy()), counts.cpu().numpy(), done
 
 
+def still_over(points, strain: StrainLimit) -> tuple[np.ndarray, np.ndarray]:
+    """After the limit: per frame of `points` (T, V, 3; an array or a tensor), how many edges are still longer than
+    their limit by more than STRAIN_TOLERANCE_M (T,) and the largest excess (T,) metres (0 where none is over)."""
+    x = points.float() if isinstance(points, torch.Tensor) else torch.from_numpy(np.asarray(points, np.float32))
+    x = x.permute(2, 1, 0)
+    a, b = (torch.as_tensor(strain.edges[:, i], device=x.device) for i in (0, 1))
+    longest = torch.as_tensor(strain.longest, dtype=torch.float32, device=x.device)[:, None]
+    excess = _excess(x, a, b, longest)
+    return ((excess > STRAIN_TOLERANCE_M).sum(dim=0).cpu().numpy(),
+            excess.max(dim=0).values.clamp(min=0.0).cpu().numpy() if len(excess) else np.zeros(x.shape[2]))
+
+
 def strain_report(strain: StrainLimit, iterations: int, over: list[np.ndarray], passes: int, seconds: float,
-                  n_frames: int) -> dict:
+                  n_frames: int, left: list[tuple[np.ndarray, np.ndarray]] = ()) -> dict:
     """The report's "strain_limit" entry of a sequence of `n_frames` limited in parts: their edges over the limit
-    per frame (`limit_strain`'s `over`), the most passes a part took and the seconds all took."""
+    per frame before it (`limit_strain`'s `over`), those still over after it (`still_over` of each part: where its
+    passes ran out before the widest tears were undone), the most passes a part took and the seconds all took."""
     over = np.concatenate(over) if over else np.zeros(1, dtype=np.int64)
+    after = np.concatenate([n for n, _ in left]) if left else np.zeros(1, dtype=np.int64)
+    excess = np.concatenate([e for _, e in left]) if left else np.zeros(1)
     return {"limit": strain.limit, "iterations": iterations, "passes_max": passes,
             "frames_limited": int((over > 0).sum()), "edges_over_per_frame_max": int(over.max(initial=0)),
+            "frames_still_over": int((after > 0).sum()), "edges_still_over_per_frame_max": int(after.max(initial=0)),
+            "excess_left_max_mm": round(float(excess.max(initial=0.0)) * 1e3, 3),
             "seconds_per_frame": seconds / max(n_frames, 1)}
 
 
@@ -207,16 +224,17 @@ def limit_sequence(points: np.ndarray, strain: StrainLimit, iterations: int = ST
     (`on_frames(n)` after each chunk of n frames, for a progress bar). Returns (points, the report's
     "strain_limit" entry)."""
     t0 = time.perf_counter()
-    over, passes = [], 0
+    over, left, passes = [], [], 0
     chunk = strain_chunk_frames(points.shape[1])
     for s in range(0, len(points), chunk):
         fr = slice(s, s + chunk)
         points[fr], n, done = limit_strain(points[fr], strain, iterations)
         over.append(n)
+        left.append(still_over(points[fr], strain))
         passes = max(passes, done)
         if on_frames is not None:
             on_frames(len(points[fr]))
-    return points, strain_report(strain, iterations, over, passes, time.perf_counter() - t0, len(points))
+    return points, strain_report(strain, iterations, over, passes, time.perf_counter() - t0, len(points), left)
 
 
 def garment_strain(garment: Garment, rest: np.ndarray, limit: float, cache: dict) -> StrainLimit:
