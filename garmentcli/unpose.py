@@ -180,12 +180,13 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     else:
         raise click.BadParameter(f"expected 'tpose', 'apose' or a motion file ({', '.join(MOTION_SUFFIXES)}), got "
                                  f"'{pose_spec}'", param_hint="--pose")
-    if betas_text is not None:
-        betas = betas_text
+    if betas_text is not None:  # fewer than the body has: the rest are 0, as --help says (no warning)
+        betas = betas_text if len(betas_text) >= body.n_betas else body.fit_betas(betas_text, warn=False)
     if betas is not None:  # as bake checks them: 1e30 overflowed, 50 wrote the garment 27 % inside the body
         _check_betas_range(betas, "--betas" if betas_text is not None else f"pose '{pose_spec}'")
     if betas_text is not None:
-        shown = ",".join(f"{b:g}" for b in betas[:10]) + (f",... ({len(betas)} betas)" if len(betas) > 10 else "")
+        shown = ",".join(f"{b:g}" for b in betas_text[:10]) + (f",... ({len(betas_text)} betas)"
+                                                                if len(betas_text) > 10 else "")
         what += f", shape {shown}"
     moved_by = ", ".join(([f"scaled by {scale:g}"] if scale is not None else [])
                          + [f"turned {turn}" for turn in turns]
