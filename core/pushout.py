@@ -7,7 +7,7 @@ inside another part of a body that passes through itself, to the nearest point o
 (`push_out`); before that, one below the ground (the lowest
 point the body reaches in the motion, as the simulator's) is lifted straight up to `margin` above it. The
 cloth's own shape is not relaxed afterwards: a pushed region can stretch by up to its depth of penetration.
-It searches the closest body point and tests the winding number of every vertex in every frame (59-111 ms/frame
+It searches the closest body point and tests the winding number of every vertex in every frame (34-127 ms/frame
 on the example garments: `benchmarks/results/push_out.md`).
 
 Contact guard (`ContactAnchors`, `guard_contact`; on by default for `--method model`): each garment
