@@ -145,8 +145,10 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
             options: LBSOptions = LBSOptions()) -> PSDFit:
     """Fit `garment`'s blend shapes to simulated `sequences`: (Motion, positions (T, V, 3) world metres) pairs,
     the motion without settle frames. Raises InputError for no frames or positions of another shape."""
+    from core.quality import joint_speed
+
     binding = bind_garment(garment, body, options.smooth_iterations, options.smooth_strength)
-    offsets, features = [], []
+    offsets, features, speeds, shapes = [], [], [], [0.0]
     for motion, positions in sequences:
         positions = np.asarray(positions, np.float64)
         if positions.shape != (motion.n_frames, garment.n_vertices, 3):
@@ -157,6 +159,8 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
         rest = shaped_garment(garment.vertices, binding, betas).astype(np.float64)
         offsets.append((unskin(M, positions) - rest).reshape(len(positions), -1))
         features.append(X)
+        speeds.append(joint_speed(body, motion))
+        shapes.append(float(np.abs(betas).max(initial=0.0)))
     if not offsets:
         raise InputError("psd fit: expected simulated sequences of the garment, got none")
     O, X = np.concatenate(offsets), np.concatenate(features)
@@ -172,8 +176,39 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
                   weights=W.astype(np.float32), smooth_iterations=options.smooth_iterations,
                   smooth_strength=options.smooth_strength,
                   meta={"sequences": len(offsets), "frames": len(O), "rank": k, "ridge": ridge,
-                        "fit_residual_mm": residual * 1e3}, body_sha256=body.content_hash(),
+                        "fit_residual_mm": residual * 1e3,
+                        # what it was fitted on: the motions' joint speeds (`core.quality.joint_speed`), the
+                        # largest beta (`beyond_fit`)
+                        "speed_m_s": [min(speeds), max(speeds)], "betas_abs_max": max(shapes)},
+                  body_sha256=body.content_hash(),
                   garment_vertices=garment.vertices.astype(np.float32), garment_faces=garment.faces.astype(np.int64))
+
+
+#: How far beyond a fit's training motions a motion may go before it is warned about: joint speeds this many
+#: times below the slowest or above the fastest (as `core.quality.OUTSIDE_FACTOR`), betas this much larger.
+FIT_SPEED_FACTOR = 1.25
+FIT_BETAS_MARGIN = 1.0
+
+
+def beyond_fit(fit: PSDFit, body: Body, motion: Motion) -> str:
+    """Where `motion` lies beyond what `fit` was fitted on (its joint speed, its body shape), in words; "" where
+    it does not, or the fit records nothing of it (written before 2026-12-06). There a fit can do worse than LBS:
+    its blend shapes answer poses and speeds it never saw."""
+    from core.quality import joint_speed
+
+    out = []
+    if "speed_m_s" in fit.meta:
+        lo, hi = fit.meta["speed_m_s"]
+        speed = joint_speed(body, motion)
+        if speed > hi * FIT_SPEED_FACTOR:
+            out.append(f"its joints move at {speed:.2g} m/s, the fastest fitted {hi:.2g}")
+        elif speed < lo / FIT_SPEED_FACTOR:
+            out.append(f"its joints move at {speed:.2g} m/s, the slowest fitted {lo:.2g}")
+    if "betas_abs_max" in fit.meta and motion.betas is not None:
+        largest = float(np.abs(motion.betas).max(initial=0.0))
+        if largest > fit.meta["betas_abs_max"] + FIT_BETAS_MARGIN:
+            out.append(f"a beta of {largest:.2g}, the largest fitted {fit.meta['betas_abs_max']:.2g}")
+    return "; ".join(out)
 
 
 class PSDDeformer(Deformer):

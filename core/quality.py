@@ -76,17 +76,18 @@ def looseness(garment: Garment, body: Body, betas=None) -> float:
 def scene_features(garment: Garment, body: Body, motion: Motion) -> dict:
     """looseness_m: mean distance of the garment's rest vertices to the rest body (shaped by the motion's betas);
     speed_m_s: 95th percentile over frames and joints of joint speed; vertices; frames."""
+    return {"looseness_m": looseness(garment, body, motion.betas), "speed_m_s": joint_speed(body, motion),
+            "vertices": int(garment.n_vertices), "frames": int(motion.n_frames)}
+
+
+def joint_speed(body: Body, motion: Motion) -> float:
+    """The 95th percentile over frames and joints of the joints' speed (m/s) of `body` posed by `motion`."""
     _, joints_rest = body.shaped(motion.betas)
-    loose = looseness(garment, body, motion.betas)
     A = body.skinning_transforms(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
     joints = np.einsum("tjrc,jc->tjr", A[:, :, :3, :3], joints_rest) + A[:, :, :3, 3]
-    if len(joints) > 1:
-        speed = np.linalg.norm(np.diff(joints, axis=0), axis=-1) * motion.fps
-        speed95 = float(np.percentile(speed, 95))
-    else:
-        speed95 = 0.0
-    return {"looseness_m": loose, "speed_m_s": speed95, "vertices": int(garment.n_vertices),
-            "frames": int(motion.n_frames)}
+    if len(joints) < 2:
+        return 0.0
+    return float(np.percentile(np.linalg.norm(np.diff(joints, axis=0), axis=-1) * motion.fps, 95))
 
 
 def _point(looseness: float, speed: float) -> np.ndarray:

@@ -522,6 +522,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
     _check_memory(garment, body, [(mo, src_fps, m) for (mo, src_fps), m, _ in motions], method,
                   workers if not scheduler else 1, settle_frames, not no_body)
+    if method == "psd":
+        _warn_beyond_fit(getattr(deformer, "inner", deformer).fit, body, [(mo, m) for (mo, _), m, _ in motions],
+                         fit_path)
     if method == "model":
         fallback = _body_joints_guard(deformer, body, explicit)
         prepared = not fallback
@@ -732,6 +735,20 @@ def _calibration_beside(model_path) -> Path:
 
     model = Path(model_path) if model_path else DEFAULT_MODEL
     return model.with_name(model.stem + ".calibration.json")
+
+
+def _warn_beyond_fit(fit, body, motions, fit_path) -> None:
+    """Warn about each motion (motions: [(Motion, path)]) beyond the sequences a psd fit was fitted on
+    (`core.psd.beyond_fit`): there its blend shapes answer poses and speeds they never saw (a run at six times its
+    speed on betas +5: 22 mm against LBS's 15)."""
+    from core.psd import beyond_fit
+
+    for motion, motion_path in motions:
+        beyond = beyond_fit(fit, body, motion)
+        if beyond:
+            log.warning("motion '%s': beyond the sequences the fit '%s' was fitted on (%s): psd can do worse than "
+                        "lbs there; `garment tradeoff --fit` measures it on this motion", motion_path, fit_path,
+                        beyond)
 
 
 def _warn_beyond_calibration(garment, body, motions, model_path) -> None:

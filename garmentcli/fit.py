@@ -93,6 +93,9 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     result.meta.update({"data": str(data), "garment": names[0], "errors": errors})
     save_fit(out, result)
     measured = "; ".join(f"{split} ({v['sequences']} sequences): {v['psd_mm']:.1f} mm from the simulator, LBS "
-                         f"{v['lbs_mm']:.1f} mm" for split, v in errors.items()) or "no validation sequences yet"
+                         f"{v['lbs_mm']:.1f} mm" + (" (worse than LBS: the fit does not carry over to these motions; "
+                                                   "fit on more of them, or a larger --ridge)"
+                                                   if v["psd_mm"] > v["lbs_mm"] else "")
+                         for split, v in errors.items()) or "no validation sequences yet"
     click.echo(f"{out}: {result.rank} blend shapes of '{source.name}' fitted to {result.meta['sequences']} "
                f"sequences ({result.meta['frames']} frames) of '{data}'; {measured}")

@@ -58,6 +58,27 @@ def test_fit_then_bake_with_it(setup, fitted):
     psd, lbs = (read_sequence(root / d / "a_walk").points for d in ("out", "lbs"))
     gap = np.linalg.norm(psd - lbs, axis=-1)
     assert np.isfinite(psd).all() and 0 < gap.mean() < 0.03
+
+
+def test_a_motion_beyond_what_the_fit_saw_is_warned_about(setup, fitted):
+    """psd said nothing where a motion lay beyond its training sequences (a run at six times its speed on betas
+    +5: 22 mm against LBS's 15): the fit records its motions' joint speeds and largest beta, and a motion far
+    faster, or of a body shape far larger, is warned about in its own summary."""
+    root, data, body, garment = setup
+    _, fit_path = fitted
+    meta = load_fit(fit_path).meta
+    lo, hi = meta["speed_m_s"]
+    assert 0 < lo <= hi and meta["betas_abs_max"] >= 0
+    write_motion(root / "fast.npz", n_frames=12, fps=300.0)  # the fixture's poses ten times faster
+    write_motion(root / "shaped.npz", n_frames=12, fps=30.0, betas=np.full(16, 4.0, np.float32))
+    for name, extra, needle in (("fast", ["--fps", "300"], "its joints move at"), ("shaped", ["--betas", "motion"],
+                                                                                     "a beta of 4")):
+        r = invoke(["bake", garment, root / f"{name}.npz", "--method", "psd", "--fit", fit_path, "--body", body,
+                    "--out", root / f"beyond_{name}", *extra])
+        assert r.exit_code == 0, r.output
+        warnings = json.loads((root / f"beyond_{name}" / f"a_{name}" / "summary.json").read_text())["warnings"]
+        beyond = [w for w in warnings if "beyond the sequences the fit" in w]
+        assert len(beyond) == 1 and needle in beyond[0] and "psd can do worse than lbs there" in beyond[0], warnings
     r = invoke(["fit", garment, "--data", data, "--body", body])
     assert r.exit_code != 0 and "exists: pass --overwrite" in r.output
 
