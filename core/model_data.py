@@ -45,7 +45,8 @@ class GarmentData:
 
     inputs: GarmentInputs. near: (V, V) sparse rest 10 cm neighbourhood (Eq. 6), None where not built
     (`prepare_garment(near=False)`, inference). masses: (V,) kg.
-    dm_inv: (F, 2, 2) rest (u, v) frames (Eq. 10); area: (F,) m^2.
+    dm_inv: (F, 2, 2) rest (u, v) frames (Eq. 10); area: (F,) m^2. preprocess_cache: where its preprocessing
+    came from: "hit" (the cache), "miss" (computed, and stored where the cache can be written), "off" (no cache).
     """
 
     garment: Garment
@@ -54,6 +55,7 @@ class GarmentData:
     masses: torch.Tensor
     dm_inv: torch.Tensor
     area: torch.Tensor
+    preprocess_cache: str = "off"
 
 
 def prepare_garment(garment: Garment, body: Body, config: ModelConfig, cache_dir=None,
@@ -72,7 +74,8 @@ def prepare_garment(garment: Garment, body: Body, config: ModelConfig, cache_dir
     return GarmentData(garment=garment, inputs=garment_inputs(prep, binding, garment.faces, config.levels),
                        near=prep.collision_near,
                        masses=torch.from_numpy(vertex_masses(garment.vertices, garment.faces)),
-                       dm_inv=torch.from_numpy(dm), area=torch.from_numpy(area))
+                       dm_inv=torch.from_numpy(dm), area=torch.from_numpy(area),
+                       preprocess_cache="hit" if prep.cache_hit else "miss" if cache_dir is not None else "off")
 
 
 @dataclass(frozen=True, eq=False)

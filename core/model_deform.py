@@ -382,6 +382,7 @@ class ModelDeformer(Deformer):
         self.report = {"method": self.name, "model": self.model_name, "device": str(device), "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
                        "lead_in_frames": lead, "prepare_seconds": t1 - t0,
+                       "preprocess_cache": self._garments[(garment.content_hash(), id(body))].preprocess_cache,
                        "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}
         if tuner:
             self.report["cpu_threads"] = tuner.report()

@@ -419,3 +419,13 @@ def test_strain_limit_on_lbs_when_asked_and_not_on_the_simulator(tmp_path):
                 "--out", tmp_path / "bad"])
     assert r.exit_code != 0 and "--strain-limit applies to --method lbs, model, psd only" in r.output
     assert not (tmp_path / "bad").exists()
+
+
+def test_summary_says_whether_the_preprocessing_came_from_the_cache(tmp_path, monkeypatch):
+    """bake reuses `garment preprocess`'s cache entry, and said nothing of it: the summary says a miss (computed
+    and stored), then a hit."""
+    monkeypatch.setenv("GARMENT_CACHE_DIR", str(tmp_path / "cache"))
+    skirt = ROOT / "examples" / "skirt.obj"
+    _, first, _ = _bake(skirt, tmp_path / "first")
+    _, again, _ = _bake(skirt, tmp_path / "again")
+    assert (first["deformer"]["preprocess_cache"], again["deformer"]["preprocess_cache"]) == ("miss", "hit")
