@@ -228,8 +228,9 @@ def _nearest_outer(test: InsideTest, normals: np.ndarray, outer: np.ndarray, poi
             pi, fi, bary, dist = (np.concatenate(a) for a in zip(*pairs))
             unknown = np.unique(fi[outer[fi] == 0])
             if len(unknown):
-                probes = np.concatenate([verts[faces[unknown]], verts[faces[unknown]].mean(axis=1, keepdims=True)],
-                                        axis=1) + OUTER_PROBE_M * normals[unknown, None]
+                corners = verts[faces[unknown]]  # (U, 3, 3)
+                probes = np.concatenate([corners, corners.mean(axis=1, keepdims=True)], axis=1) \
+                    + OUTER_PROBE_M * normals[unknown, None]
                 inside = test(probes.reshape(-1, 3)).reshape(len(unknown), 4)
                 outer[unknown] = np.where(inside.all(axis=1), -1, np.where(inside.any(axis=1), 1, 2))
             ok = outer[fi] >= least

@@ -119,13 +119,13 @@ def body_difference(manifest: dict, body_path: str | os.PathLike | None) -> str:
     """"" when the body at `body_path` (None: the embedded default) is the one the dataset of `manifest` was
     simulated on (the same file content: `inputs.body.sha256`, None for the default) or the manifest does not
     record it; else a sentence saying which body the dataset was simulated on and which was given."""
-    import hashlib
+    from core.provenance import file_sha256
 
     inputs = manifest.get("inputs") if isinstance(manifest, dict) else None
     recorded = inputs.get("body") if isinstance(inputs, dict) else None
     if not isinstance(recorded, dict) or "sha256" not in recorded:
         return ""
-    given = None if body_path is None else hashlib.sha256(Path(body_path).read_bytes()).hexdigest()
+    given = None if body_path is None else file_sha256(body_path)
     if given == recorded["sha256"]:
         return ""
     simulated_on = ("the embedded default body" if recorded["sha256"] is None

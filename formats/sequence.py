@@ -191,9 +191,7 @@ def _check_recorded_frames(meta_path: Path, meta: dict, files: list[Path]) -> No
     if prefix is not None and not isinstance(prefix, str):
         raise InputError(f"garment sequence '{meta_path}': expected 'prefix' as a string (frame_ of frame_0000.obj), "
                          f"got {prefix!r}")
-    if meta.get("up", "z") not in ("y", "z"):
-        raise InputError(f"garment sequence '{meta_path}': expected 'up' as \"y\" (frames written Y-up) or \"z\", "
-                         f"got {meta['up']!r}")
+    _recorded_up(meta, meta_path)
     start = _recorded_number(meta, "start", meta_path)
     written = _recorded_number(meta, "frames", meta_path)
     found = f"{files[0].name} to {files[-1].name}" if len(files) > 1 else files[0].name
@@ -251,17 +249,23 @@ def _recorded_meta(meta_path: Path) -> dict | None:
     return meta
 
 
-def _obj_up(meta: dict | None, up: str | None, meta_path: Path | None = None) -> str:
-    """The up axis OBJ frames are read in: `up` where given; else what their `sequence.json` records ("z" where it
-    records none: `garment bake` wrote Z-up frames before 2026-12-06, and a sequence.json of `fps` alone was read
-    so); else, with no sequence.json (frames from Blender, Maya, Houdini), "y", the frame OBJ files are written in."""
-    if up is not None:
-        return up
-    recorded = "y" if meta is None else meta.get("up", "z")
+def _recorded_up(meta: dict, meta_path: Path) -> str:
+    """The up axis a `sequence.json` records ("z" where it records none: `garment bake` wrote Z-up frames before
+    2026-12-06, and a sequence.json of `fps` alone was read so); InputError naming it for another value."""
+    recorded = meta.get("up", "z")
     if recorded not in UP_AXES:
         raise InputError(f"garment sequence '{meta_path}': expected 'up' as \"y\" (frames written Y-up) or \"z\", "
                          f"got {recorded!r}")
     return recorded
+
+
+def _obj_up(meta: dict | None, up: str | None, meta_path: Path) -> str:
+    """The up axis OBJ frames are read in: `up` where given; else what their `sequence.json` records
+    (`_recorded_up`); else, with no sequence.json (frames from Blender, Maya, Houdini), "y", the frame OBJ files
+    are written in."""
+    if up is not None:
+        return up
+    return "y" if meta is None else _recorded_up(meta, meta_path)
 
 
 def _turned_to_z_up(points: np.ndarray, up: str) -> np.ndarray:
@@ -321,14 +325,20 @@ def _frame_number_of(stem: str, meta: dict | None) -> str:
     return number if number.isdigit() else ""
 
 
-def recorded_frame(path: str | os.PathLike) -> bool:
-    """Whether the OBJ at `path` is one of the frames its folder's `sequence.json` records (a bake's frame)."""
-    path = Path(path)
+def _frame_record(path: Path) -> tuple[dict | None, str]:
+    """(its folder's `sequence.json`, its frame number) of the OBJ at `path` where that records it, else (None,
+    ""): a sequence.json that cannot be read is the folder's to refuse, not a file's beside it."""
     try:
         meta = _recorded_meta(path.parent / SEQUENCE_JSON)
     except InputError:
-        return False
-    return bool(_frame_number_of(path.stem, meta))
+        return None, ""
+    number = _frame_number_of(path.stem, meta)
+    return (meta if number else None), number
+
+
+def recorded_frame(path: str | os.PathLike) -> bool:
+    """Whether the OBJ at `path` is one of the frames its folder's `sequence.json` records (a bake's frame)."""
+    return bool(_frame_record(Path(path))[1])
 
 
 def _read_single_obj(path: Path, up: str | None = None) -> Sequence:
@@ -338,13 +348,7 @@ def _read_single_obj(path: Path, up: str | None = None) -> Sequence:
     obj = parse_obj(path, label="garment sequence frame")
     faces, _, _ = triangulate(obj.vertices, obj.polygons)
     meta_path = path.parent / SEQUENCE_JSON
-    try:
-        meta = _recorded_meta(meta_path)
-    except InputError:
-        meta = None  # the folder's, which reading the folder refuses; not this file's
-    number = _frame_number_of(path.stem, meta)
-    if not number:
-        meta = None  # not one of the frames it records
+    meta, number = _frame_record(path)
     points = _turned_to_z_up(obj.vertices[None].astype(np.float32), _obj_up(meta, up, meta_path))
     return Sequence(points=points, faces=faces, fps=None if meta is None else _fps(meta.get("fps"), str(meta_path)),
                     source=str(path), first_frame=0 if meta is None else int(number))

@@ -18,7 +18,7 @@ from core.bake import bake_item
 from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
-from core.provenance import software_versions
+from core.provenance import file_sha256, software_versions
 from core.quality import DEFAULT_BUDGET_MM
 from core.threads import torch_threads
 from core.scene import SKIP_METHODS, SKIPS, parse_no_skip
@@ -26,7 +26,6 @@ from core.strain import STRAIN_LIMIT
 from formats.atomic import atomic_dir
 from formats.pointcache import POINT_CACHE_FORMATS
 from garmentcli.common import (
-    file_sha256,
     FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,

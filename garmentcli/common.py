@@ -636,17 +636,6 @@ def check_retries(scheduler: str | None) -> None:
                                  "retry)", param_hint="--retries")
 
 
-def file_sha256(path) -> str:
-    """sha256 of a file's bytes, read in blocks (an input recorded in a summary or a manifest)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def obj_up_option(command):
     """--up auto|y|z: the up axis of OBJ frames read (`formats.sequence.read_sequence`'s `up`; auto: None)."""
     return click.option("--up", type=click.Choice(("auto", "y", "z")), default="auto", show_default=True,

@@ -9,9 +9,8 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from core.provenance import software_versions
+from core.provenance import file_sha256, software_versions
 from garmentcli.common import (
-    file_sha256,
     FLOOR_CHOICES,
     MAX_FPS,
     FiniteFloatRange,
