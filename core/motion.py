@@ -256,11 +256,28 @@ def preroll(motion: Motion, start: int | None, stop: int | None, n_frames: int) 
     if n_frames < 0:
         raise InputError(f"--preroll: expected a non-negative number of frames, got {n_frames}")
     first = select_frames(motion, start, stop)  # refuses an empty selection, naming it
+    _warn_beyond(motion, start, stop)
     begin = range(motion.n_frames)[slice(start, stop)][0]
     lead = min(n_frames, begin)
+    if lead < n_frames:
+        log.warning("--preroll %d: motion '%s' has %s before --frames START (frame %d): %s", n_frames, motion.name,
+                    f"only {begin} frame{'' if begin == 1 else 's'}" if begin else "no frame", begin,
+                    f"deformed {lead} before it" if lead else "the cloth starts at rest there")
     if lead == 0:
         return first
     return replace(select_frames(motion, begin - lead, begin + first.n_frames), n_lead=lead)
+
+
+def _warn_beyond(motion: Motion, start: int | None, stop: int | None) -> None:
+    """Warn where --frames START or STOP lies beyond `motion`'s frames (Python's slice clamps them silently)."""
+    n = motion.n_frames
+    text = f"{'' if start is None else start}:{'' if stop is None else stop}"
+    if start is not None and start < -n:
+        log.warning("--frames %s: START %d lies before the first of the %d frames of motion '%s': starts at frame 0",
+                    text, start, n, motion.name)
+    if stop is not None and stop > n:
+        log.warning("--frames %s: STOP %d lies beyond the %d frames of motion '%s': stops after its last (frame %d)",
+                    text, stop, n, motion.name, n - 1)
 
 
 def blend_in(first_pose: np.ndarray, n_frames: int) -> np.ndarray:

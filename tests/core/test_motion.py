@@ -1,5 +1,8 @@
 """Tests of core/motion.py: resampling, joint layouts, frame selection, settle blends."""
 
+import logging
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -272,6 +275,27 @@ def test_preroll_is_clipped_at_the_motion_start_and_excludes_settle():
         settle(p, 3)
     with pytest.raises(InputError, match="selects no frame"):
         preroll(m, 40, 50, 5)
+
+
+def test_frames_and_preroll_beyond_the_motion_are_said(caplog):
+    """Python's slice clamps a STOP beyond the motion, a START before it and a pre-roll longer than the frames
+    before START: each is said, naming the motion; a range within it and a pre-roll that fits say nothing."""
+    from core.motion import preroll
+
+    m = replace(_random_motion(30, 24), name="walk")
+    with caplog.at_level(logging.WARNING, logger="core.motion"):
+        assert preroll(m, 10, 20, 4).n_frames == 14 and preroll(m, -5, None, 2).n_lead == 2
+        assert not caplog.records
+        assert preroll(m, 5, 100, 0).n_frames == 25
+        assert preroll(m, -40, 3, 0).n_frames == 3
+        assert preroll(m, 3, 20, 10).n_lead == 3
+        assert preroll(m, 0, 20, 10).n_lead == 0
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 4
+    assert "--frames 5:100: STOP 100 lies beyond the 30 frames of motion 'walk'" in said[0]
+    assert "--frames -40:3: START -40 lies before the first of the 30 frames of motion 'walk'" in said[1]
+    assert "--preroll 10: motion 'walk' has only 3 frames before --frames START (frame 3): deformed 3" in said[2]
+    assert "--preroll 10: motion 'walk' has no frame before --frames START (frame 0): the cloth starts at rest" in said[3]
 
 
 @pytest.mark.parametrize("src_fps, dst_fps, lead", [(120.0, 30.0, 0), (59.94, 30.0, 0), (30.0, 60.0, 0),
