@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import InputError, frames_text, not_a_file
+from core.errors import InputError, frames_text, not_a_file, warnings_held
 from formats.motion import open_npz
 from formats.obj import STAGE_SUFFIXES, mtllib_text, obj_face_text, obj_vertex_text, parse_obj, triangulate
 from formats.usd import read_usd
@@ -406,6 +406,7 @@ def _read_usd_sequence(path: Path, track: str) -> Sequence:
                     first_frame=seq.start_frame)
 
 
+@warnings_held
 def read_sequence(path: str | os.PathLike, track: str = "garment", up: str | None = None) -> Sequence:
     """Read a garment sequence from any supported form.
 

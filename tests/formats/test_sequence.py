@@ -352,6 +352,21 @@ def test_obj_frames_with_a_repeated_frame_number_are_refused(tmp_path):
         read_sequence(tmp_path)
 
 
+def test_a_refused_sequence_is_its_one_line_without_the_warnings_before_it(tmp_path, caplog):
+    """The stray file's warning comes before the frames are found wanting: the refusal alone is said."""
+    points, faces = _animated(n_frames=3)
+    for name, pts in zip(["f1", "f01", "f2"], points):
+        write_obj(tmp_path / f"{name}.obj", pts, faces)
+    write_obj(tmp_path / "other.obj", points[0] + 1, faces)
+    with caplog.at_level("WARNING"), pytest.raises(InputError, match="one file per frame number"):
+        read_sequence(tmp_path)
+    assert not caplog.records
+    (tmp_path / "f01.obj").unlink()
+    with caplog.at_level("WARNING"):
+        read_sequence(tmp_path)
+    assert [r.getMessage() for r in caplog.records if "left out 1 OBJ file" in r.getMessage()]
+
+
 def test_one_frame_is_one_frame_in_messages(tmp_path):
     points, faces = _animated(n_frames=1)
     body_points, body_faces = _body(n_frames=2)
