@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 
-from core.errors import InputError, require_input
+from core.errors import InputError, content_kind, require_input
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
 from formats.atomic import atomic_file, low_space_note
 from formats.obj import STAGE_SUFFIXES
@@ -387,14 +387,34 @@ def open_stage(path: Path, where: str) -> Usd.Stage:
             detail = " ".join(str(exc).split())
         except UnicodeDecodeError:  # pxr quotes the offending bytes
             raise InputError(f"{where}: cannot be opened as USD (its text is not UTF-8)") from None
-        # pxr prefixes the reason with the C++ function and source line: keep the reason.
-        if " : '" in detail:
-            detail = detail.rsplit(" : '", 1)[1].rstrip("'").strip()
-        detail = detail[:200]
-        raise InputError(f"{where}: cannot be opened as USD ({detail})") from None
+        # pxr prefixes each reason with the C++ function and source line: keep the first reason that says more
+        # than "Failed to open layer" (a text file's parse error names its line and column).
+        reasons = [part.rsplit(" : '", 1)[1].strip().rstrip("'").strip() for part in detail.split("Error in '")
+                   if " : '" in part] or [detail]
+        detail = next((r for r in reasons if not r.startswith("Failed to open layer")), reasons[-1])
+        detail = detail.replace(f"{path.resolve()}:", "line ", 1)[:200]
+        raise InputError(f"{where}: cannot be opened as USD ({_not_usd(path) or detail})") from None
     if stage is None:
-        raise InputError(f"{where}: cannot be opened as USD")
+        raise InputError(f"{where}: cannot be opened as USD ({_not_usd(path) or 'no reason given'})")
     return stage
+
+
+#: The first bytes of USD's three file forms: text, binary crate, usdz package (a zip).
+USD_MAGIC = (b"#usda", b"PXR-USDC", b"PK\x03\x04")
+
+
+def _not_usd(path: Path) -> str | None:
+    """What the file `path` holds where it is none of USD's forms by its first bytes ("expected ..., got an empty
+    file", "got text ('v 0 0 0'...)"), else None (a USD file that pxr could not read: its own reason tells why)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(16)
+    except OSError:
+        return None
+    if head.startswith(USD_MAGIC):
+        return None
+    got = content_kind(path) or f"binary data starting {head[:8]!r}"
+    return f"expected text starting '#usda', a binary crate 'PXR-USDC' or a usdz package, got {got}"
 
 
 def _stage_to(stage: Usd.Stage, up: str) -> np.ndarray:

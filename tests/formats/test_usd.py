@@ -176,6 +176,15 @@ def test_bad_input(tmp_path):
     with pytest.raises(InputError, match=r"USD stage '.*corrupt\.usd': cannot be opened as USD") as err:
         read_usd(corrupt)
     assert "\n" not in str(err.value)
+    assert str(err.value).endswith("got binary data starting b'this is ')")
+    for name, content, said in [("nothing.usd", b"", "got an empty file)"),
+                                ("mesh.usd", b"v 0 0 0\nf 1 2 3\n", "got text ('v 0 0 0'...))"),
+                                ("noise.usdc", b"\xc1\xce\x00\x84", "got binary data starting b'\\xc1\\xce\\x00\\x84')"),
+                                ("broken.usda", b"#usda 1.0\n(\n broken", "(line 3:2: Expected ) at 'broken' in </>)")]:
+        (tmp_path / name).write_bytes(content)
+        with pytest.raises(InputError, match="cannot be opened as USD") as err:
+            read_usd(tmp_path / name)
+        assert str(err.value).endswith(said), err.value
     empty = tmp_path / "empty.usda"
     stage = Usd.Stage.CreateNew(str(empty))
     UsdGeom.Xform.Define(stage, "/Root")
