@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -10,7 +12,9 @@ from tqdm import tqdm
 from core.errors import InputError, require_input
 from formats.atomic import atomic_dir, refuse_replacing
 from formats.render import check_azimuth, check_value_range
-from garmentcli.common import OutputPath, checked_by, input_errors_as_click, obj_up_option
+from garmentcli.common import MAX_FPS, FiniteFloatRange, OutputPath, checked_by, input_errors_as_click, obj_up_option
+
+log = logging.getLogger(__name__)
 
 COLORS = ("plain", "error", "penetration", "scalar")
 CAMERA_CHOICES = ("front", "side", "back", "orbit")
@@ -34,6 +38,21 @@ def _frame_slice(frames: str | None, every: int) -> slice:
         step = max(step, every)
     start, stop = parse_frame_range(frames) if frames else (None, None)
     return slice(start, stop, step)
+
+
+def _at_rate(seq, fps: float | None):
+    """`seq` (None: None) at --fps: where it records no rate, --fps or 30 (said); where it records another, --fps
+    (warned: INPUT's own rate is overridden)."""
+    if seq is None:
+        return None
+    if seq.fps is None:
+        if fps is None:
+            click.echo(f"note: '{seq.source}' records no frame rate: played at 30 fps (--fps sets it)")
+        return replace(seq, fps=fps or 30.0)
+    if fps is not None and fps != seq.fps:
+        log.warning("--fps %g: '%s' records %g fps: rendered at %g", fps, seq.source, seq.fps, fps)
+        return replace(seq, fps=fps)
+    return seq
 
 
 @click.command(name="render")
@@ -60,6 +79,10 @@ def _frame_slice(frames: str | None, every: int) -> slice:
 @click.option("--framing", type=click.Choice(("auto", "fixed", "follow")), default="auto", show_default=True,
               help="fixed: one view of the whole animation; follow: track the body; auto: follow when it travels.")
 @obj_up_option
+@click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=None,
+              help="Frames per second of INPUT where it records none (OBJ frames without a sequence.json, another "
+                   "tool's npz) [default: its recorded rate, else 30]: the MP4's rate and the follow camera's "
+                   "half-second smoothing.")
 @click.option("--no-body", is_flag=True, help="Draw the garment alone.")
 @click.option("--no-ground", is_flag=True, help="Leave out the ground grid.")
 @click.option("--no-png", is_flag=True, help="Skip the PNG frames.")
@@ -68,7 +91,7 @@ def _frame_slice(frames: str | None, every: int) -> slice:
 @click.option("--overwrite", is_flag=True, help="Replace an existing output directory.")
 @input_errors_as_click
 def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_range, frames, every, size, azimuth,
-           framing, up, no_body, no_ground, no_png, no_mp4, no_sheet, overwrite):
+           framing, up, fps, no_body, no_ground, no_png, no_mp4, no_sheet, overwrite):
     """Render INPUT (a baked USD, an OBJ-sequence directory or a sequence .npz) off-screen.
 
     Draws the garment with the body it moved on (when INPUT carries one) on a
@@ -106,6 +129,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
 
     seq = read_sequence(input_path, up=up)
     gt = read_sequence(gt_path, up=up) if gt_path is not None else None
+    seq, gt = (_at_rate(s, fps) for s in (seq, gt))
     scalars, label = None, "value"
     if scalars_spec is not None:
         file, key = scalars_spec, ""

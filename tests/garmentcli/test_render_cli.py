@@ -249,3 +249,36 @@ def test_render_error_refuses_a_gt_at_another_frame_rate(seqs, tmp_path):
     line = error_line(run("render", seqs["pred"], "--gt", fast, "--out", tmp_path / "r", "--size", "96x64"))
     assert "60 fps" in line and "30 fps" in line and "gt60.npz" in line
     assert not (tmp_path / "r").exists()
+
+
+def test_render_fps_sets_the_rate_of_a_sequence_that_records_none(seqs, tmp_path, caplog):
+    """OBJ frames without a sequence.json record no rate: played at 30 fps, said, or at --fps (the MP4's rate
+    and the follow camera's smoothing); a rate INPUT records is kept unless --fps overrides it, warned."""
+    import imageio.v2 as iio
+
+    from formats.obj import write_obj
+    from formats.sequence import read_sequence
+
+    seq = read_sequence(seqs["pred"])
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for t, pts in enumerate(seq.points):
+        write_obj(frames / f"shirt_{t + 1:04d}.obj", pts[:, [0, 2, 1]] * [1, 1, -1], seq.faces)
+
+    def mp4_fps(out):
+        with iio.get_reader(out / "front.mp4") as reader:
+            return reader.get_meta_data()["fps"]
+
+    args = ("--size", "64x64", "--no-png", "--no-sheet")
+    res = run("render", frames, "--out", tmp_path / "a", *args)
+    assert res.exit_code == 0 and f"note: '{frames}' records no frame rate: played at 30 fps" in res.output
+    assert mp4_fps(tmp_path / "a") == pytest.approx(30.0)
+    res = run("render", frames, "--out", tmp_path / "b", "--fps", "24", *args)
+    assert res.exit_code == 0 and "records no frame rate" not in res.output, res.output
+    assert mp4_fps(tmp_path / "b") == pytest.approx(24.0)
+    assert not caplog.records
+    res = run("render", seqs["pred"], "--out", tmp_path / "c", "--fps", "60", *args)
+    assert res.exit_code == 0, res.output
+    assert [r.getMessage() for r in caplog.records] == [f"--fps 60: '{seqs['pred']}' records 30 fps: rendered at 60"]
+    assert mp4_fps(tmp_path / "c") == pytest.approx(60.0)
+    assert "--fps" in error_line(run("render", frames, "--out", tmp_path / "d", "--fps", "0", *args))
