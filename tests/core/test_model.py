@@ -277,7 +277,7 @@ def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     dropping it; frames whose window no longer reaches it are unchanged; a motion with its own settle blend
     gets none; the checkpoint's "lead_in_s" sets it, in seconds."""
     from core.garment import Garment
-    from core.model_deform import DEFAULT_LEAD_IN_S, ModelDeformer, load_model_deformer
+    from core.model_deform import DEFAULT_LEAD_IN_S, LEAD_FADE_FRAMES, ModelDeformer, load_model_deformer
     from core.motion import Motion, settle
     from formats.checkpoint import save_checkpoint
 
@@ -286,17 +286,31 @@ def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     garment = Garment(v, f)
     poses, trans, _ = sequence(body, v, f, 9, 0, None)
     motion = Motion(poses=poses, trans=trans, fps=30.0)
-    led = ModelDeformer(model, lead_in_s=4 / 30, contact_guard=False)
+    led = ModelDeformer(model, lead_in_s=4 / 30, contact_guard=False, strain_limit=None)
     out = led.deform(garment, body, motion)
-    assert led.report["lead_in_frames"] == 4
-    plain = ModelDeformer(model, lead_in_s=0, contact_guard=False)
+    assert led.report["lead_in_frames"] == 4 and led.report["lead_in_fade_frames"] == LEAD_FADE_FRAMES == 3
+    plain = ModelDeformer(model, lead_in_s=0, contact_guard=False, strain_limit=None)
     blended = plain.deform(garment, body, settle(motion, 4))
-    assert plain.report["lead_in_frames"] == 0  # the settle blend is the motion's own: no lead-in on top
-    np.testing.assert_allclose(out, blended[4:], atol=1e-5)
+    assert plain.report["lead_in_frames"] == plain.report["lead_in_fade_frames"] == 0  # the motion's own blend
     still = plain.deform(garment, body, motion)
-    w = TINY_CONFIG.window
+    last = TINY_CONFIG.window - 1  # the last frame whose window holds a lead-in velocity
+    np.testing.assert_allclose(out[:last + 1], blended[4:][:last + 1], atol=1e-5)
     assert np.abs(out[0] - still[0]).max() > 1e-4  # the first frame's window holds the blend, not a still body
-    np.testing.assert_allclose(out[w + 1:], still[w + 1:], atol=1e-5)  # past the window (and frame 0's rates)
+    # The blend's effect at the last frame, out of a window that starts still, fades out over the next three
+    # frames (it stopped dead there: a 146 mm jump on the skirt's brisk walk), then the frames are the still
+    # start's.
+    residual = out[last] - still[last]
+    assert np.abs(residual).max() > 1e-4
+    for k, weight in enumerate((0.75, 0.5, 0.25), start=1):
+        np.testing.assert_allclose(out[last + k] - still[last + k], weight * residual, atol=1e-5)
+    np.testing.assert_allclose(out[last + 4:], still[last + 4:], atol=1e-5)
+    np.testing.assert_allclose(out[last + 4:], blended[4 + last + 4:], atol=1e-5)
+    # batches of any size fade the same frames
+    batched = ModelDeformer(model, lead_in_s=4 / 30, contact_guard=False, strain_limit=None, batch_frames=2)
+    np.testing.assert_allclose(batched.deform(garment, body, motion), out, atol=1e-5)
+    short = Motion(poses=poses[:last + 1], trans=trans[:last + 1], fps=30.0)  # no frame after the window's
+    np.testing.assert_allclose(led.deform(garment, body, short), out[:last + 1], atol=1e-5)
+    assert led.report["lead_in_fade_frames"] == 0
     led.deform(garment, body, Motion(poses=poses, trans=trans, fps=60.0))
     assert led.report["lead_in_frames"] == 8  # as many seconds at twice the frame rate
     assert ModelDeformer(model).lead_in_s == DEFAULT_LEAD_IN_S
