@@ -81,8 +81,8 @@ def run_items(task: Callable[..., Any], calls: Sequence[tuple], names: Sequence[
     workers: local processes when `scheduler` is None (1: in this process).
     retries: re-runs of a Dask task that raised (local runs do not retry).
     client: an already connected `distributed.Client` to use instead of `scheduler` (not closed here).
-    Raises ItemsFailed after every other item has finished (cluster, local processes), or the task's own
-    exception (in this process).
+    Raises ItemsFailed after every other item has finished (cluster, local processes or this process; Ctrl-C
+    and SIGTERM stop at once).
     """
     if len(calls) != len(names):
         raise ValueError(f"expected one name per call, got {len(names)} names for {len(calls)} calls")
@@ -102,13 +102,21 @@ def run_items(task: Callable[..., Any], calls: Sequence[tuple], names: Sequence[
 
 
 def _run_local(task, calls, names, workers: int):
-    if workers <= 1:
+    failures = []
+    if workers <= 1:  # in this process; a failing item said at once and the others run, as in processes
         for name, args in zip(names, calls):
-            yield name, task(*args)
+            try:
+                result = task(*args)
+            except Exception as exc:
+                log.warning("item '%s' failed: %s: %s", name, type(exc).__name__, exc)
+                failures.append((name, exc))
+                continue
+            yield name, result
+        if failures:
+            raise ItemsFailed(failures, len(calls))
         return
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    failures = []
     with ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(), initializer=_worker_unwinds) as pool:
         try:  # from the first submit: a worker can start (and a SIGTERM come) before the last is made
             futures = {pool.submit(_unwound, task, *args): name for name, args in zip(names, calls)}

@@ -59,13 +59,15 @@ def _square_but_not_one(x):
     return x * x
 
 
-def test_local_processes_keep_going_past_a_failed_item(caplog):
+@pytest.mark.parametrize("workers", [2, 1])
+def test_local_processes_keep_going_past_a_failed_item(caplog, workers):
     """In local processes, a failing item is said at once and the others still finish (a long dataset run used to
-    wait silently for every other item before its error surfaced)."""
+    wait silently for every other item before its error surfaced); in this process too (`dataset --workers 1`
+    stopped at its first failing item with a traceback, the other garments' items never run)."""
     got = {}
     with pytest.raises(ItemsFailed, match="1 of 5 items failed; first: 'i1': ValueError: one is broken") as info:
         for name, value in run_items(_square_but_not_one, [(x,) for x in range(5)], [f"i{x}" for x in range(5)],
-                                     workers=2):
+                                     workers=workers):
             got[name] = value
     assert got == {"i0": 0, "i2": 4, "i3": 9, "i4": 16} and info.value.total == 5
     assert "item 'i1' failed: ValueError: one is broken" in caplog.text
