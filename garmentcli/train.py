@@ -334,7 +334,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
     meta = {"train_config": dataclasses.asdict(train_cfg), "data": job.data_dir, "init": job.init_path,
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
-            "val_verts_mm": last_val.get("val_verts_mm"), "body": job.body.name,
+            "val_verts_mm": None if last_val.get("val_verts_mm") in (None, "") else float(last_val["val_verts_mm"]),
+            "body": job.body.name,
             "body_sha256": job.body.content_hash(), "joint_coverage": coverage,
             "lead_in_s": lead_in,
             "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
@@ -354,7 +355,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
                + (f", threads chosen: {trainer.tuner.chosen}" if trainer.tuner is not None else ""))
 
 
-#: Training settings a --resume may change: how far it goes and how often it saves, not what it learns.
+#: Training settings a --resume may change: how far it goes and how often it saves, not what it learns (--steps not
+#: below the checkpoint's step, nor at all where lr_final sets a curve over the run's --steps).
 RESUME_MAY_CHANGE = ("steps", "checkpoint_every")
 
 
@@ -372,6 +374,15 @@ def _refuse_other_run(ckpt_path, saved: dict, train_cfg, run: dict) -> None:
         raise click.ClickException(f"checkpoint '{ckpt_path}': --resume continues the run it was written by; this "
                                    f"one differs in {', '.join(differ)}: give the run's own (only --steps and "
                                    f"--checkpoint-every may change), or train anew into another --out")
+    step = int(saved.get("step", 0))
+    if train_cfg.steps < step:
+        raise click.BadParameter(f"{train_cfg.steps} is behind the checkpoint '{ckpt_path}', at step {step}: give "
+                                 f"--steps {step} or more (the run continues to --steps)", param_hint="--steps")
+    if before.get("lr_final") is not None and before.get("steps") not in (None, train_cfg.steps):
+        raise click.BadParameter(f"{train_cfg.steps}: the run's learning rate decays to lr_final "
+                                 f"({before['lr_final']:g}) at its --steps ({before['steps']}), and another count "
+                                 f"would bend that curve at step {step}: give --steps {before['steps']}, or train "
+                                 "anew into another --out", param_hint="--steps")
 
 
 #: The signals `train` stops at after the step (checkpoint and model written): Ctrl-C, and the SIGTERM a batch

@@ -104,9 +104,21 @@ def test_a_resume_is_of_the_same_run_and_its_card_keeps_the_runs_last_validation
     assert r.exit_code == 1 and "differs in --data" in r.output, r.output
     rows = list(csv.DictReader(open(root / "same.pt.csv")))
     assert [int(x["step"]) for x in rows] == [1, 2, 3, 4] and rows[3]["val_verts_mm"] not in ("", None)
+    r = _train(root, data, body, cfg, out, "--steps", "3", "--seed", "1", "--resume")  # it trained nothing, said done
+    assert r.exit_code == 2 and "--steps: 3 is behind the checkpoint" in r.output and "at step 4" in r.output
     r = _train(root, data, body, cfg, out, "--steps", "5", "--seed", "1", "--resume")
     assert r.exit_code == 0 and "no validation yet" not in r.output, r.output
-    assert load_checkpoint(out)["meta"]["val_verts_mm"] == rows[3]["val_verts_mm"]
+    meta = load_checkpoint(out)["meta"]
+    assert meta["val_verts_mm"] == float(rows[3]["val_verts_mm"])  # a number, as a run never stopped records
+    # With lr_final the learning rate's curve spans the run's --steps: another count would bend it at the resume
+    # (it fell to lr_final over 13 steps and jumped back to 6e-4 resumed to 30).
+    cosine = root / "cfg_cosine.json"
+    cosine.write_text(json.dumps({**json.loads(cfg.read_text()),
+                                  "train": {**json.loads(cfg.read_text())["train"], "lr_final": 1e-5}}))
+    out = root / "cosine.pt"
+    assert _train(root, data, body, cosine, out, "--steps", "2", "--seed", "1").exit_code == 0
+    r = _train(root, data, body, cosine, out, "--steps", "4", "--seed", "1", "--resume")
+    assert r.exit_code == 2 and "decays to lr_final (1e-05) at its --steps (2)" in r.output, r.output
 
 
 def test_train_time_limit_stops_early_and_resumes(setup):
