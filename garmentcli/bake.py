@@ -97,12 +97,17 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
     return deformer
 
 
+def sim_options_given(material_path, self_contact, substeps, iterations, pin, floor) -> list[str]:
+    """The simulator's options given (not left at their defaults), by name."""
+    return [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
+                                 ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin),
+                                 ("--floor", floor))
+            if v is not None]
+
+
 def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                      precision, contact_guard=True, floor=None, fit_path=None, device=None, strain_limit=None):
-    sim_given = [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
-                                      ("--substeps", substeps), ("--iterations", iterations), ("--pin", pin),
-                                      ("--floor", floor))
-                 if v is not None]
+    sim_given = sim_options_given(material_path, self_contact, substeps, iterations, pin, floor)
     if method != "sim" and sim_given:
         raise click.UsageError(f"{sim_given[0]} applies to --method sim only (got --method {method})")
     for name, v in (("--model", model_path), ("--precision", precision), ("--device", device)):
@@ -504,6 +509,24 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             model_path, precision, device = None, None, None
         if method != "psd":
             fit_path = None  # a fit given to --quality auto is one candidate; another method was chosen
+        # Options of other methods than the one chosen are left out, said (an explicit --method refuses them).
+        given = click.get_current_context().get_parameter_source("lbs_smooth") not in (
+            click.core.ParameterSource.DEFAULT, None)
+        left = [name for name, off in (("--lbs-smooth", given and method != "lbs"),
+                                       ("--no-contact-guard", no_contact_guard and method not in ("model", "psd")),
+                                       ("--strain-limit", "strain_limit" not in opts and strain is not None
+                                        and method not in STRAIN_METHODS),
+                                       *[(f"--no-skip {n}", n != "all" and method not in SKIP_METHODS[n])
+                                         for n in no_skip])
+                if off]
+        if method != "sim":
+            left += sim_options_given(material_path, self_contact, substeps, iterations, pin, floor)
+            material_path, self_contact, substeps, iterations, pin, floor = None, False, None, None, None, None
+        if "--lbs-smooth" in left:
+            lbs_smooth = LBSOptions.smooth_iterations
+        no_contact_guard = no_contact_guard and "--no-contact-guard" not in left
+        strain = None if "--strain-limit" in left else strain
+        no_skip = tuple(n for n in no_skip if f"--no-skip {n}" not in left)
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                  precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device, strain)
         choice = json.dumps({k: pick[k] for k in ("config", "method", "options", "expected_mm", "budget_mm",
@@ -513,6 +536,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                    f"({pick['reason']})")
         if wanted_push_out and method == "sim":
             click.echo("quality auto: --push-out left out: the simulator handles contact itself", err=True)
+        if left:
+            click.echo(f"quality auto: {', '.join(left)} left out: {'it applies' if len(left) == 1 else 'they apply'}"
+                       f" to other methods than the {method} chosen", err=True)
         if pick["outside_motions"]:
             log.warning("--quality auto: motion %s beyond the calibration's scenes: expected errors there are "
                         "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "

@@ -143,6 +143,22 @@ def test_auto_with_push_out_pushes_the_chosen_methods_output_out(auto_scene):
     assert summary["method"] == "lbs" and summary["push_out"] is True and "push_out" in summary["deformer"]
 
 
+def test_auto_leaves_out_the_options_of_other_methods_than_the_one_chosen_and_says_so(auto_scene):
+    """An explicit --method refuses another method's options; --quality auto dropped them without a word
+    (--lbs-smooth, --no-contact-guard, --strain-limit with the simulator chosen), or failed naming a --method never
+    given (--material with the model chosen): they are left out, named."""
+    s = auto_scene
+    (s["dir"] / "mat.json").write_text("{}")
+    r = _auto(s, "tight.obj", "slow.npz", "--no-contact-guard", "--material", s["dir"] / "mat.json",
+              "--substeps", "20", "--lbs-smooth", "5")
+    assert r.exit_code == 0, r.output
+    assert "quality auto: lbs (" in r.output
+    assert ("quality auto: --no-contact-guard, --material, --substeps left out: they apply to other methods than the "
+            "lbs chosen") in r.output
+    summary = json.loads((s["out"] / "tight_slow" / "summary.json").read_text())
+    assert summary["method"] == "lbs" and summary["deformer"]["options"]["smooth_iterations"] == 5
+
+
 def test_budget_without_auto_and_model_without_calibration(auto_scene):
     s = auto_scene
     r = invoke(["bake", s["dir"] / "tight.obj", s["dir"] / "slow.npz", "--body", s["body"], "--budget-mm", 5,
