@@ -46,14 +46,15 @@ def summary_lines(path: str, p: Preprocessed, cache_note: str) -> list[str]:
               help="Write OUT_DIR/<garment>_hierarchy.png with the levels side by side.")
 @click.option("--self-collision", is_flag=True,
               help="Also the pairs within 10 cm along the rest surface that training's self-collision loss leaves "
-                   "out (what `garment train` builds; bake does not need them).")
+                   "out (what `garment train --cache-dir` reads from the same folder; bake does not need them).")
 @input_errors_as_click
 def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache, render_dir, self_collision=False):
     """Preprocess each GARMENT (OBJ or USD, on the body's rest pose) for the learned model.
 
     Builds vertex features, the pooling hierarchy and the Nystrom style descriptor (with --self-collision also the
     self-collision near set), stores them in the cache (keyed by the mesh's content, the settings and the body:
-    the entry `bake --method model` reads, or with --self-collision `garment train`'s) and prints a summary.
+    the entry `bake --method model` reads, or with --self-collision `garment train --cache-dir`'s) and prints a
+    summary.
     """
     from core.skinning import oriented_outward
     from formats.cache import cache_path, default_cache_dir

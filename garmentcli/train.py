@@ -70,16 +70,19 @@ def _parse_phases(text: str) -> tuple:
               help="Simulator dataset directory (repeatable: trained on together; their garments of one name must "
                    "be the same mesh, their motions in the same split and their settle blends alike).")
 @click.option("--out", "out_path", required=True, type=OutputPath(dir_okay=False), help="Model file to write.")
-@click.option("--phases", default="1,2,3", show_default=True, help="Training phases: 1, 1,2 or 1,2,3.")
-@click.option("--steps", type=click.IntRange(min=1), default=None, help="Optimizer steps (default from config).")
+@click.option("--phases", default=None, help="Training phases: 1, 1,2 or 1,2,3 [default: --config's, else 1,2,3].")
+@click.option("--steps", type=click.IntRange(min=1), default=None, help="Optimizer steps [default: --config's, else 20000].")
 @click.option("--seed", type=SEED_RANGE, default=None, help="Seed of initialisation and sampling (default 0).")
 @click.option("--resume", is_flag=True, help="Continue from <MODEL>.ckpt exactly where it stopped.")
-@click.option("--checkpoint-every", type=click.IntRange(min=0), default=None, help="Steps between checkpoints.")
+@click.option("--checkpoint-every", type=click.IntRange(min=0), default=None,
+              help="Steps between checkpoints; 0: at the end only [default: --config's, else 1000].")
 @click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
               help='JSON {"model": {...ModelConfig}, "train": {...TrainConfig}}; unknown keys are errors.')
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
               help="SMPL-format body the dataset was simulated on. Default: the embedded body.")
-@click.option("--cache-dir", type=click.Path(file_okay=False), default=None, help="Preprocessing cache directory.")
+@click.option("--cache-dir", type=click.Path(file_okay=False), default=None,
+              help="Preprocessing cache directory, e.g. the one `garment preprocess --self-collision` filled "
+                   "(~/.cache/garment by default there) [default: none, each garment preprocessed anew].")
 @click.option("--sequences-per-step", type=click.IntRange(min=1), default=1, show_default=True,
               help="Sequences per step and process; the global batch is this x the number of processes (torchrun).")
 @click.option("--device", default="cpu", show_default=True,
@@ -174,7 +177,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         hint, src = ("--init", f"'{init_path}'") if init is not None else ("--config", f"--config '{config_path}'")
         raise click.BadParameter(f"{src}: expected a network of the body's {body.n_joints} joints, got "
                                  f"{model_values['n_joints']} joints (pass the --body it was made for)", param_hint=hint)
-    overrides = {"phases": list(_parse_phases(phases))}
+    overrides = {} if phases is None else {"phases": list(_parse_phases(phases))}  # --config's where left out
     for key, val in (("steps", steps), ("seed", seed), ("checkpoint_every", checkpoint_every)):
         if val is not None:
             overrides[key] = val

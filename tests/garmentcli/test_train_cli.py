@@ -255,6 +255,21 @@ def test_train_on_a_gpu_follows_the_cpu(setup):
     assert next(model.parameters()).device.type == "cpu"
 
 
+def test_train_phases_come_from_the_config_unless_given(setup):
+    """--phases left out took its shown default, 1,2,3, over the phases --config names: the config's now, and
+    --phases given overrides them."""
+    from formats.checkpoint import load_checkpoint
+
+    root, data, body, cfg = setup
+    one = root / "cfg_phase1.json"
+    one.write_text(json.dumps({**json.loads(cfg.read_text()),
+                               "train": {**json.loads(cfg.read_text())["train"], "phases": [1]}}))
+    assert _train(root, data, body, one, root / "p1.pt", "--steps", "1").exit_code == 0
+    assert list(load_checkpoint(root / "p1.pt")["meta"]["train_config"]["phases"]) == [1]
+    assert _train(root, data, body, one, root / "p12.pt", "--steps", "1", "--phases", "1,2").exit_code == 0
+    assert list(load_checkpoint(root / "p12.pt")["meta"]["train_config"]["phases"]) == [1, 2]
+
+
 def test_train_bad_inputs(setup):
     root, data, body, cfg = setup
     r = _train(root, data, body, cfg, root / "x.pt", "--phases", "2,3")
