@@ -16,7 +16,8 @@ from garmentcli.common import MAX_FPS, FiniteFloatRange, OutputPath, input_error
               help="Directory to write the examples into.")
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=60.0, show_default=True,
               help="Frame rate of the generated motions (1 to 1000).")
-@click.option("--overwrite", is_flag=True, help="Replace an existing output directory.")
+@click.option("--overwrite", is_flag=True,
+              help="Replace the examples in an existing output directory (its other files are kept).")
 @input_errors_as_click
 def examples(out_dir, fps, overwrite):
     """Write the example garments, fitted to the default body, and the example motions.
@@ -26,8 +27,9 @@ def examples(out_dir, fps, overwrite):
     CPU the t-shirt may differ at up to a few hundred of its 6,698 vertices
     by up to 8 mm (the generator's thresholds decide some of its vertices
     by that CPU's float rounding; on a Zen 4 EPYC: 78 to 167 vertices, 7-8
-    mm, depending on the commit); the other garments and the motions are
-    the same to file precision.
+    mm, depending on the commit), and the trousers' and jumpsuit's UVs may
+    differ (an AVX2 Xeon: one face, and the jumpsuit's layout rescaled by
+    0.5 %); the dress, the skirt and the motions came out bit for bit.
     """
     from core.body import default_body
     from core.garmentgen import generate_example_garments
@@ -41,9 +43,10 @@ def examples(out_dir, fps, overwrite):
     body = default_body()
     garments = generate_example_garments(body)
     motions = generate_example_motions(fps=fps)
-    keep = [p for p in out.iterdir() if p.suffix not in (".obj", ".npz")] if out.is_dir() else []
+    written = {f"{name}.obj" for name in garments} | {f"{name}.npz" for name in motions}
+    keep = [p for p in out.iterdir() if p.name not in written] if out.is_dir() else []
     with atomic_dir(out, overwrite) as tmp:
-        for p in keep:  # hand-written files (a README) and folders (textures) survive a regeneration
+        for p in keep:  # every file and folder but the examples' own (a README, textures, a garment of the user's)
             if p.is_dir():
                 shutil.copytree(p, tmp / p.name, symlinks=True)
             elif p.is_file():
@@ -55,3 +58,7 @@ def examples(out_dir, fps, overwrite):
         for name, m in motions.items():
             save_motion(tmp / f"{name}.npz", m)
             click.echo(f"{out / (name + '.npz')}: {m.n_frames} frames at {m.fps:g} fps")
+        others = sorted(p.name for p in keep if p.suffix in (".obj", ".npz"))
+        if others:
+            click.echo(f"{out}: kept {', '.join(others[:5])}{', ...' if len(others) > 5 else ''} (not examples: "
+                       "remove them yourself where they are stale ones)")

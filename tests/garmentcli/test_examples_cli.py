@@ -52,4 +52,8 @@ def test_examples_overwrite_keeps_hand_made_files_and_folders(tmp_path, tiny_gen
     assert r.exit_code == 0, r.output
     assert (out / "README.md").read_text() == "my notes\n"
     assert (out / "textures" / "patch.png").read_bytes() == b"png"
-    assert not (out / "old_garment.obj").exists()  # the examples' own kinds of file are replaced
+    # a garment or capture of the user's beside them is kept, said (it was deleted without a word)
+    assert (out / "old_garment.obj").read_text() == "v 0 0 0\n"
+    assert f"{out}: kept old_garment.obj (not examples" in r.output
+    assert sorted(p.name for p in out.iterdir()) == ["README.md", "old_garment.obj", "patch.obj", "still.npz",
+                                                     "textures"]
