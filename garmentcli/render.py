@@ -108,9 +108,15 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
         raise click.BadParameter("--color error needs --gt", param_hint="--gt")
     if color == "scalar" and scalars_spec is None:
         raise click.BadParameter("--color scalar needs --scalars FILE.npz[:KEY]", param_hint="--scalars")
-    if gt_path is not None and color != "error":
+    if gt_path is not None and color not in ("plain", "error"):  # it replaced --color penetration without a word
+        raise click.BadParameter(f"colours the error (--color error), got --color {color} as well: leave out one",
+                                 param_hint="--gt")
+    if scalars_spec is not None and color not in ("plain", "scalar"):
+        raise click.BadParameter(f"colours by its values (--color scalar), got --color {color} as well: leave out "
+                                 "one", param_hint="--scalars")
+    if gt_path is not None:
         color = "error"  # --gt alone means: show the error
-    if scalars_spec is not None and color == "plain":
+    if scalars_spec is not None:
         color = "scalar"
     if value_range is not None and color not in ("error", "scalar"):
         raise click.BadParameter(f"applies to --color error or scalar (the colour bar's range), got --color {color}",

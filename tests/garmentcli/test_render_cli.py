@@ -282,3 +282,19 @@ def test_render_fps_sets_the_rate_of_a_sequence_that_records_none(seqs, tmp_path
     assert [r.getMessage() for r in caplog.records] == [f"--fps 60: '{seqs['pred']}' records 30 fps: rendered at 60"]
     assert mp4_fps(tmp_path / "c") == pytest.approx(60.0)
     assert "--fps" in error_line(run("render", frames, "--out", tmp_path / "d", "--fps", "0", *args))
+
+
+def test_render_gt_or_scalars_with_another_colour_is_refused(seqs, tmp_path):
+    """--gt with --color penetration rendered the error without a word, --scalars with --color penetration
+    ignored them: each is refused naming both; --gt alone still means the error, --scalars alone the values."""
+    line = error_line(run("render", seqs["pred"], "--gt", seqs["gt"], "--color", "penetration", "--out",
+                          tmp_path / "a"))
+    assert "--gt" in line and "got --color penetration as well" in line
+    np.savez(tmp_path / "v.npz", v=np.zeros(seqs["V"], np.float32))
+    line = error_line(run("render", seqs["pred"], "--scalars", f"{tmp_path / 'v.npz'}:v", "--color", "penetration",
+                          "--out", tmp_path / "b"))
+    assert "--scalars" in line and "got --color penetration as well" in line
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+    res = run("render", seqs["pred"], "--gt", seqs["gt"], "--out", tmp_path / "c", "--size", "64x64", "--no-mp4",
+              "--no-sheet")
+    assert res.exit_code == 0, res.output
