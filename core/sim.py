@@ -976,8 +976,9 @@ class SimDeformer(Deformer):
                                 "a piece cut from its garment?): simulate the whole garment, or bake it with --method "
                                 "model or lbs")
                 raise SimulationError(
-                    f"sim: frame {t} of motion '{motion.name}' failed after {o.max_retries + 1} tries "
-                    f"(up to {substeps} substeps): {_describe(check, o.retry_depth_m)}{off}"
+                    f"sim: frame {t} of motion '{motion.name}' failed after "
+                    + (f"{attempt + 1} tries (up to {substeps} substeps)" if attempt else f"1 try ({substeps} substeps)")
+                    + f": {_describe(check, o.retry_depth_m)}{off}"
                     f"{_cut_before(body_pts, offset, t, motion.fps)}")
             out[t] = points
             stats.append(check)

@@ -90,7 +90,7 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
     deformer.skips = parse_no_skip(no_skip)
     if push_out:
         if method == "sim":
-            raise click.UsageError("--push-out applies to --method lbs or model (the simulator handles contact)")
+            raise click.UsageError("--push-out applies to --method lbs, model or psd (the simulator handles contact)")
         from core.pushout import PushOutDeformer
 
         deformer = PushOutDeformer(deformer)
@@ -336,7 +336,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--device", default=None, metavar="DEVICE",
               help="model: where the network runs: cpu, cuda or cuda:N [default: auto, the first CUDA GPU torch sees, "
                    "else the CPU].")
-@click.option("--push-out", is_flag=True, help="lbs, model: move vertices inside the body to just outside it.")
+@click.option("--push-out", is_flag=True, help="lbs, model, psd: move vertices inside the body to just outside it.")
 @click.option("--no-contact-guard", is_flag=True,
               help="model, psd: leave out the contact guard (on by default, about 0.6-3 ms/frame on 2k-7k vertices), "
                    "which keeps each vertex outside the body face it rests on; the network's or the fit's raw output.")
@@ -372,7 +372,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="sim: cloth material JSON (fields of core.sim.Material; unknown keys are rejected).")
 @click.option("--self-contact", is_flag=True, help="sim: cloth-cloth contact (about 3-10x slower).")
 @click.option("--substeps", type=click.IntRange(1, MAX_SOLVER_STEPS), default=None,
-              help="sim: solver steps per frame [default: 10].")
+              help="sim: solver steps per frame [default: 10]; a frame that fails the simulator's checks is run "
+                   "again at 2x, then 4x them.")
 @click.option("--iterations", type=click.IntRange(1, MAX_SOLVER_STEPS), default=None,
               help="sim: VBD iterations per substep [default: 10].")
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default=None, help=f"sim: {PIN_HELP} [default: auto]")
@@ -696,7 +697,7 @@ def _note_rest_start(frames: str | None, preroll_frames: int, motions: list) -> 
         speed, path = max(moving)
         others = f" (and {len(moving) - 1} more motions)" if len(moving) > 1 else ""
         click.echo(f"note: motion '{path}'{others} moves at {speed:.1f} m/s from its first frame: the simulated cloth "
-                   "starts at rest and trails the body for a few frames; --frames K: --preroll K leaves the first K "
+                   "starts at rest and trails the body for a few frames; `--frames K: --preroll K` leaves the first K "
                    "source frames out of the output", err=True)
 
 

@@ -175,10 +175,10 @@ MAX_BODIES = 10000
 
 @click.command(name="dataset")
 @click.option("--garments", "garment_paths", multiple=True, required=True, type=click.Path(dir_okay=False, exists=True),
-              help="Garment OBJ on the body's rest pose (repeat the option for several).")
+              help="Garment (OBJ or USD) on the body's rest pose (repeat the option for several).")
 @click.option("--motions", "motion_paths", multiple=True, type=click.Path(exists=True),
-              help="AMASS-style motion .npz (or .pkl, .pt), or a directory: every motion .npz and .pkl under "
-                   "it (repeat the option).")
+              help="Motion file of any form `bake` reads (AMASS-style .npz, .pkl, BVH, FBX, glTF, ...), or a "
+                   "directory: every motion file under it (repeat the option).")
 @click.option("--library", is_flag=True, help="Add the built-in motion library (30 generated clips: walks, runs, turns, "
               "jumps, arm swings, bends, kicks, sitting down).")
 @click.option("--bodies", "n_bodies", type=click.IntRange(min=1, max=MAX_BODIES), default=3, show_default=True,
@@ -221,7 +221,8 @@ MAX_BODIES = 10000
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="Cloth material JSON (fields of core.sim.Material).")
 @click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 3-10x slower).")
-@click.option("--substeps", type=click.IntRange(1, MAX_SOLVER_STEPS), default=10, show_default=True)
+@click.option("--substeps", type=click.IntRange(1, MAX_SOLVER_STEPS), default=10, show_default=True,
+              help="Solver steps per frame; a frame that fails the simulator's checks is run again at 2x, then 4x.")
 @click.option("--iterations", type=click.IntRange(1, MAX_SOLVER_STEPS), default=10, show_default=True)
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default="auto", show_default=True, help=PIN_HELP)
 @click.option("--floor", type=click.Choice(FLOOR_CHOICES), default="auto", show_default=True, help=FLOOR_HELP)

@@ -222,7 +222,7 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
               help="Body model to pose with --motion (default: the embedded body).")
 @click.option("--motion", "motion_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               default=None, help="Motion (.npz) of the bake: the body posed with it (same --fps, --frames, --settle "
-                                 "as the bake) gives the penetration rate when PRED carries no body.")
+                                 "as the bake) gives the penetration rate, in place of any body PRED carries.")
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
               help="With --motion: the frame rate of the bake.")
 @click.option("--frames", default=None, metavar="START:STOP", help="With --motion: the source frames of the bake.")
@@ -274,6 +274,7 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
         raise click.BadParameter("needs --out, the directory to write the reports into (without it the table is "
                                  "printed only)", param_hint="--format")
     formats = _FORMATS[fmt]
+    depth_given = depth_mm is not None
     if depth_mm is None:
         depth_mm = _default_depth_mm()
     pairs = _bake_pairs(pred, gt)
@@ -290,7 +291,7 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
             raise InputError(f"--out: '{existing[0]}' exists; pass --overwrite to replace it")
     if pairs is None:
         _compare(pred, gt, out_dir, formats, depth_mm, plots, body_file, motion_file, fps, frames, settle_frames,
-                 betas, source_fps, motion_up=motion_up, person=person, take=take, up=up)
+                 betas, source_fps, motion_up=motion_up, person=person, take=take, up=up, depth_given=depth_given)
         return
     results, failed = {}, {}
     for i, (name, (p, g)) in enumerate(pairs.items(), 1):
@@ -343,7 +344,7 @@ def _bake_pairs(pred: Path, gt: Path) -> dict | None:
 
 def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: float, plots: bool, body_file=None,
              motion_file=None, fps=30.0, frames=None, settle_frames=0, betas="auto", source_fps=None,
-             quiet: bool = False, motion_up="z", person=None, take=None, up=None):
+             quiet: bool = False, motion_up="z", person=None, take=None, up=None, depth_given: bool = False):
     """Compare one PRED with one GT: print the overall table (unless `quiet`), write the reports (and plots) into
     `out_dir` when given; returns the MetricsResult."""
     from core.metrics import check_comparable, compute_metrics
@@ -369,6 +370,9 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
             click.echo(f"warning: PRED and GT carry different bodies ({difference}): each side's penetration is "
                        f"taken against its own body", err=True)
     inside_fn = _inside_fn(depth_mm * 1e-3) if body is not None else None
+    if body is None and depth_given:
+        click.echo(f"warning: --depth-mm {depth_mm:g}: neither '{pred}' nor '{gt}' carries a body (nor is one posed "
+                   "by --motion): no penetration to measure", err=True)
 
     def body_name(b):
         return None if b is None else f"{b.source or (pred if b is p_seq else gt)} body"

@@ -154,7 +154,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
              preroll_frames=0, device=None, motion_up="z", person=None, take=None):
     """Run every method and configuration on GARMENT over MOTION and measure speed against accuracy.
 
-    Rows: lbs; each --fit (psd); each model in float32 and bfloat16, with and without penetration push-out; the
+    Rows: lbs, and lbs with --strain-limit 1.5; each --fit (psd); each model in float32 and bfloat16, with and
+    without penetration push-out; the
     simulator at two substep settings with and without self-contact. The finest simulation with
     self-contact is the reference the errors are measured against.
     """

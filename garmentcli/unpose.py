@@ -15,6 +15,7 @@ from core.unpose import A_POSE_ARM_DEGREES
 from formats.obj import STAGE_SUFFIXES
 from garmentcli.common import (
     _check_betas_range,
+    FiniteFloatRange,
     OutputPath,
     body_option,
     collected_notes,
@@ -118,8 +119,8 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
 @click.option("--move", "move", default=None, callback=_check_move, metavar="DX,DY,DZ",
               help="Metres to move the garment by first, in the body's frame (Y up): for a garment authored on a "
                    "body whose origin stands elsewhere (bake names the move).")
-@click.option("--arm-angle", type=float, default=None,
-              help=f"apose: degrees each arm is lowered from the T-pose [default: {A_POSE_ARM_DEGREES:g}].")
+@click.option("--arm-angle", type=FiniteFloatRange(min=-90.0, max=90.0), default=None,
+              help=f"apose: degrees each arm is lowered from the T-pose, -90 to 90 [default: {A_POSE_ARM_DEGREES:g}].")
 @click.option("--frame", type=click.IntRange(min=0), default=None, help="POSE.npz: the frame to use [default: 0].")
 @body_option
 @click.option("--out", "out_path", type=OutputPath(dir_okay=False), default=None,

@@ -232,6 +232,11 @@ def test_failing_frames_are_retried_with_more_substeps_then_kept_or_refused():
                                        substeps=4))
     with pytest.raises(SimulationError, match=r"frame 0 of motion 'still' failed after 2 tries \(up to 8 substeps\)"):
         d.deform(garment, body, motion)
+    # A frame whose try passes the retries' checks but fails the final ones was tried once, at its substeps (it
+    # said "after 3 tries (up to 4 substeps)")
+    d = SimDeformer(options=SimOptions(settle_s=0.0, max_retries=2, fail_mean_strain=-1.0, substeps=4))
+    with pytest.raises(SimulationError, match=r"frame 0 of motion 'still' failed after 1 try \(4 substeps\): "):
+        d.deform(garment, body, motion)
 
 
 def test_material_json_round_trip_and_unknown_key(tmp_path):

@@ -475,6 +475,15 @@ def test_a_non_finite_depth_is_refused_when_read(tmp_path, seq, value):
     assert ("finite" in line or "1000" in line) and not (tmp_path / "m").exists()
 
 
+def test_a_depth_with_no_body_to_measure_it_against_is_said(tmp_path, seq):
+    """--depth-mm where neither side carries a body (nor --motion poses one) measured nothing without a word."""
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    r = run([a, a, "--depth-mm", "5"])
+    assert r.exit_code == 0 and "warning: --depth-mm 5: neither" in r.output and "no penetration to measure" in r.output
+    assert "--depth-mm" not in run([a, a]).output
+
+
 def test_one_frame_is_one_frame_in_messages(tmp_path, seq):
     pts, f = seq
     one = save_seq(tmp_path / "one.npz", pts[:1], f)

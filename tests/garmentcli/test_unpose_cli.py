@@ -322,7 +322,7 @@ def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
     (["--pose", "nope.npz"], "'nope.npz': no such file"),
     (["--pose", "NOPE.NPZ"], "'NOPE.NPZ': no such file"),  # a pose file, whatever the case of its suffix
     (["--pose", "apose", "--frame", 2], "--frame applies to a POSE.npz file only"),
-    (["--pose", "apose", "--arm-angle", 200], "--arm-angle: expected degrees in [-90, 90], got 200.0"),
+    (["--pose", "apose", "--arm-angle", 200], "--arm-angle': 200.0 is not in the range -90.0<=x<=90.0"),
     (["--pose", str(EXAMPLES / "walk.npz"), "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", str(EXAMPLES / "walk.npz"), "--frame", 9999], "expected a frame in 0..180"),
     (["--pose", "apose", "--out", "SELF"], "is GARMENT itself"),
