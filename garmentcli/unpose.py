@@ -108,7 +108,8 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
 @click.option("--betas", "betas_text", default=None, callback=_check_shape, metavar="B0,B1,...",
               help="The body shape the garment was authored on (coefficients of the body's own basis, missing ones "
                    "0), taken off as well: the result fits the mean shape that bake shapes to each motion's "
-                   "betas [default: a POSE.npz's betas, else the mean shape].")
+                   "betas [default: a POSE.npz's betas on a --body, else the mean shape: a motion's betas belong to the "
+                   "body model it was fitted to].")
 @click.option("--scale", type=float, default=None, callback=_check_scale, metavar="S",
               help="Metres per unit of GARMENT, multiplied in first, about the origin: 0.01 for a file in "
                    "centimetres, 0.001 millimetres, 0.0254 inches (bake names it for a garment in other units).")
@@ -178,6 +179,13 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
                                      param_hint="--frame")
         pose, betas = poses_for_body(motion, body.n_joints)[k], motion.betas
         what = f"frame {k} of '{pose_spec}'"
+        if body_path is None and betas is not None and np.any(betas != 0) and betas_text is None:
+            # fitted to SMPL's (or SMPL+H's, SMPL-X's) shape basis, not the embedded body's own: as bake does
+            click.echo(f"warning: pose '{pose_spec}': its betas were fitted to another body model (SMPL, SMPL+H or "
+                       f"SMPL-X), but the embedded body's {body.n_betas} shape coefficients are its own basis: taken "
+                       "off as its mean shape (pass --body with the model the pose was fitted to, or --betas the "
+                       "embedded body's coefficients)", err=True)
+            betas = None
     else:
         raise click.BadParameter(f"expected 'tpose', 'apose' or a motion file ({', '.join(MOTION_SUFFIXES)}), got "
                                  f"'{pose_spec}'", param_hint="--pose")

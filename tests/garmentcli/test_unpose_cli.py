@@ -395,3 +395,24 @@ def test_turn_given_twice_turns_twice(tmp_path):
     r = invoke(["unpose", upside, "--pose", "tpose", "--scale", "0.01", "--turn", "z-up", "--turn", "z-up"])
     assert r.exit_code == 0 and "scaled by 0.01, turned z-up, turned z-up" in r.output, r.output
     assert np.abs(read_obj(tmp_path / "upside_rest.obj").vertices - g.vertices).max() < 1e-5
+
+
+def test_a_pose_files_betas_are_not_taken_as_the_embedded_bodys_own(tmp_path):
+    """A POSE.npz's betas were fitted to SMPL's shape basis (AMASS's are): taken off the embedded body they shaped
+    it as nobody in particular, without a word, where bake bakes such a motion on the mean shape, warned. Now the
+    mean shape, warned, as a pose file without betas; --betas still takes off the coefficients given."""
+    walk = dict(np.load(EXAMPLES / "walk.npz"))
+    np.savez(tmp_path / "fitted.npz", **{**walk, "betas": np.array([2.0, 1.5] + [0.0] * 8, np.float32)})
+    np.savez(tmp_path / "plain.npz", **{**walk, "betas": np.zeros(10, np.float32)})
+    outs = {}
+    for name in ("fitted", "plain"):
+        r = invoke(["unpose", EXAMPLES / "skirt.obj", "--pose", tmp_path / f"{name}.npz", "--out",
+                    tmp_path / f"{name}.obj"])
+        assert r.exit_code == 0, r.output
+        assert ("its betas were fitted to another body model" in r.output) == (name == "fitted")
+        outs[name] = read_obj(tmp_path / f"{name}.obj").vertices
+    np.testing.assert_array_equal(outs["fitted"], outs["plain"])
+    r = invoke(["unpose", EXAMPLES / "skirt.obj", "--pose", tmp_path / "fitted.npz", "--betas", "2,1.5", "--out",
+                tmp_path / "given.obj"])
+    assert r.exit_code == 0 and "fitted to another body model" not in r.output, r.output
+    assert np.abs(read_obj(tmp_path / "given.obj").vertices - outs["plain"]).max() > 1e-3
