@@ -82,9 +82,28 @@ def fit_info(path: Path) -> dict:
             "vertices": int(fit.mean.size // 3), "meta": fit.meta, "notes": []}
 
 
+#: The suffixes of `garment train`'s model and resume-state files (a motion may be a `.pt` too).
+MODEL_SUFFIXES = (".pt", ".pth", ".ckpt")
+
+
+def model_info(path: Path) -> dict:
+    """A model checkpoint of `garment train` (or its resume state, MODEL.ckpt): what it was trained on."""
+    from core.model_deform import trained_body
+    from formats.checkpoint import load_checkpoint
+
+    data = load_checkpoint(path)
+    meta, cfg = data.get("meta") or {}, data.get("config") or {}
+    body = trained_body(meta)
+    return {"path": str(path), "kind": "model", "resume_state": "train" in data,
+            "steps": meta.get("steps", (data.get("train") or {}).get("step")), "phase": meta.get("phase"),
+            "body": None if body is None else body["name"], "body_sha256": None if body is None else body["sha256"],
+            "garments": meta.get("garments"), "val_verts_mm": meta.get("val_verts_mm"),
+            "levels": cfg.get("levels"), "joints": cfg.get("n_joints"), "notes": []}
+
+
 def _kind_of(path: Path) -> str:
     """What `info` reads `path` as: "bake" (a bake's folder, stage or OBJ frames), "bakes" (a `bake --out` folder
-    of several), "body", "fit", "garment" or "motion"."""
+    of several), "body", "fit", "model", "garment" or "motion"."""
     from formats.obj import USD_SUFFIXES
     from formats.sequence import SEQUENCE_JSON, bake_batch, bake_directory_sequence, recorded_frame
     from formats.usdskel import holds_skeleton
@@ -102,6 +121,14 @@ def _kind_of(path: Path) -> str:
         if holds_skeleton(path):
             return "motion"
         return "bake" if (path.parent / "summary.json").is_file() else "garment"
+    if suffix in MODEL_SUFFIXES and path.is_file():
+        from formats.checkpoint import load_checkpoint
+
+        try:
+            load_checkpoint(path)
+            return "model"
+        except InputError:  # a motion of PyTorch's format (the motion reader says what it is)
+            return "motion"
     if suffix == ".npz" and path.is_file():
         try:
             with np.load(path, allow_pickle=False) as d:
@@ -172,6 +199,18 @@ def _text(record: dict, body_name: str) -> str:
         line = (f"{record['path']}: psd fit of a {record['vertices']:,}-vertex garment on body '{record['body']}', "
                 f"{record['shapes']} shape{'' if record['shapes'] == 1 else 's'} (give it to bake with --method psd "
                 "--fit)")
+    elif record["kind"] == "model":
+        trained = ", ".join(filter(None, [
+            f"{record['steps']} steps" if record["steps"] is not None else "",
+            f"phase {record['phase']}" if record["phase"] is not None else "",
+            f"on body '{record['body']}' (sha256 {record['body_sha256'][:12]})" if record["body"] else "",
+            f"garments {', '.join(record['garments'])}" if record["garments"] else "",
+            f"validation E_verts {float(record['val_verts_mm']):.1f} mm" if record["val_verts_mm"] is not None
+            else ""]))
+        line = (f"{record['path']}: " + ("training state of a garment model (`garment train --resume` continues it)"
+                                         if record["resume_state"] else
+                                         "garment model (give it to bake with --method model --model)")
+                + f", {record['levels']} pooling levels, {record['joints']} joints" + (f"; {trained}" if trained else ""))
     elif record["kind"] == "garment":
         x, y, z = record["extent_m"]
         verdict = f"refused: {record['refused']}" if record["refused"] else "bakes as it is"
@@ -206,14 +245,16 @@ def _text(record: dict, body_name: str) -> str:
 def info(paths, body_path, person, take, source_fps, fmt):
     """Tell what `garment bake` reads in each PATH, before any bake: a garment (OBJ or USD) and how it rests on
     the body, or a motion (any format bake reads, a USD of a skeleton too; a directory: its motion files) and the
-    tracked people or animations (takes) it holds.
+    tracked people or animations (takes) it holds. A bake's output, a body, a psd fit and a model checkpoint are
+    told for what they are.
 
     Exits with 1 where a file cannot be read or its garment would be refused (each told), else 0.
     """
     body = load_body_option(body_path)
     body_name = f"the body '{body_path}'" if body_path else "the embedded default body"
     records = []
-    readers = {"bake": bake_info, "body": body_info, "fit": fit_info, "garment": lambda p: garment_info(str(p), body)}
+    readers = {"bake": bake_info, "body": body_info, "fit": fit_info, "model": model_info,
+               "garment": lambda p: garment_info(str(p), body)}
     for arg in paths:
         kind = _kind_of(Path(arg))
         if kind == "bakes":

@@ -125,3 +125,29 @@ def test_info_tells_a_bake_a_body_and_a_fit_for_what_they_are(tmp_path):
                              f"{b.content_hash()[:12]} (give it to bake with --body)")
     assert lines[6].endswith("skirt.psd.npz: psd fit of a 2-vertex garment on body 'default', 1 shape (give it to "
                              "bake with --method psd --fit)")
+
+
+def test_info_tells_a_model_and_its_resume_state_for_what_they_are_and_a_motion_pt_still_as_a_motion(tmp_path):
+    """`garment info MODEL.pt` read a trained model as a motion ("expected a 'poses' array"); a checkpoint now tells
+    its training (steps, body, garments, validation), a resume state says so, and a PyTorch motion file is still
+    read as a motion."""
+    import torch
+
+    from core.body import default_body
+    from formats.checkpoint import save_checkpoint
+    from tests.core.model_fixtures import TINY_CONFIG
+
+    meta = {"steps": 30, "phase": 2, "body": "default", "garments": ["skirt"], "val_verts_mm": 38.1}
+    model = save_checkpoint(tmp_path / "m.pt", TINY_CONFIG, {}, meta=meta)
+    state = save_checkpoint(tmp_path / "m.pt.ckpt", TINY_CONFIG, {}, train={"step": 12})
+    walk = dict(np.load(WALK))
+    torch.save({"poses": torch.as_tensor(walk["poses"][:4]), "trans": torch.as_tensor(walk["trans"][:4]),
+                "mocap_framerate": 60.0}, tmp_path / "walk.pt")
+    r = invoke(["info", model, state, tmp_path / "walk.pt"])
+    lines = r.output.splitlines()
+    assert lines[0] == (f"{model}: garment model (give it to bake with --method model --model), {TINY_CONFIG.levels} "
+                        f"pooling levels, {TINY_CONFIG.n_joints} joints; 30 steps, phase 2, on body 'default' (sha256 "
+                        f"{default_body().content_hash()[:12]}), garments skirt, validation E_verts 38.1 mm")
+    assert lines[1].startswith(f"{state}: training state of a garment model (`garment train --resume` continues it)")
+    assert lines[1].endswith("; 12 steps")
+    assert lines[2].startswith(f"{tmp_path / 'walk.pt'}: motion, 4 frames at 60 fps")
