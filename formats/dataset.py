@@ -129,8 +129,8 @@ def body_difference(manifest: dict, body_path: str | os.PathLike | None) -> str:
     if given == recorded["sha256"]:
         return ""
     simulated_on = ("the embedded default body" if recorded["sha256"] is None
-                    else f"body '{recorded.get('path')}' (sha256 {str(recorded['sha256'])[:8]})")
-    got = "the embedded default" if body_path is None else f"'{body_path}' (sha256 {given[:8]})"
+                    else f"body '{recorded.get('path')}' (file sha256 {str(recorded['sha256'])[:8]})")
+    got = "the embedded default" if body_path is None else f"'{body_path}' (file sha256 {given[:8]})"
     return f"was simulated on {simulated_on}, got {got}"
 
 

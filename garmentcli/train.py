@@ -208,7 +208,7 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             raise click.BadParameter(f"'{init_path}': its weights do not match its config (missing "
                                      f"{sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})", param_hint="--init")
     main = rank == 0
-    rows = []
+    rows, sequences_before = [], None
     run = {"--data": data_dir, "--garment": sorted(garments or ()),
            "--init": None if init_path is None else str(init_path)}
     if resume:
@@ -217,14 +217,24 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
             raise click.ClickException(f"checkpoint '{ckpt_path}': its model config differs from this run's")
         _refuse_other_run(ckpt_path, ck["train"], train_cfg, run)
         trainer.load_state(ck["model"], ck["train"])
+        before = json.loads(ck["train"].get("sequences", "null")) if isinstance(ck["train"], dict) else None
+        now = {split: len(seqs) for split, seqs in data.splits.items()}
+        if before and before != now:  # a --partial run whose dataset has grown: trained on both, recorded
+            sequences_before = before
+            click.echo(f"note: --resume: the dataset holds {now} sequences per split, the run's checkpoint was "
+                       f"written on {before}: the steps before it trained on those (recorded in the model's card, "
+                       "sequences_before_resume)", err=True)
         if csv_path.exists():
             with open(csv_path, newline="") as fh:
-                rows = [r for r in csv.DictReader(fh) if int(r["step"]) <= trainer.step]
+                # a row cut by a kill after the checkpoint (the CSV is flushed at checkpoints) has fields missing
+                rows = [r for r in csv.DictReader(fh) if None not in r.values() and r["step"].isdigit()
+                        and int(r["step"]) <= trainer.step]
     # Ctrl-C (SIGINT), or a scheduler's SIGTERM (preemption), while training finishes the step and stops as
     # --time-limit does: checkpoint and model written.
     interrupted, restore_sigint = _defer_interrupt(launched=world > 1)
     job = _Job(main=main, world=world, device=device, sequences_per_step=sequences_per_step, data_dir=data_dir,
-               init=init, init_path=init_path, body=body, time_limit=time_limit, run=run)
+               init=init, init_path=init_path, body=body, time_limit=time_limit, run=run,
+               sequences_before=sequences_before)
     try:
         _run(out, trainer, rows, job, interrupted)
     except BaseException as exc:
@@ -271,6 +281,8 @@ class _Job:
     body: object
     time_limit: float | None
     run: dict  # what a --resume must give again, by option: --data, --garment, --init (`_refuse_other_run`)
+    sequences_before: dict | None = None  # a resumed --partial run's sequences per split at its checkpoint, where
+    # the dataset has gained some since
 
 
 def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: dict) -> None:
@@ -304,11 +316,14 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
             bar.update(1)
             bar.set_postfix_str(f"phase {phase} loss {row['loss']:.4g} vert {row['vert']:.3g}", refresh=False)
 
+        sequences = {split: len(seqs) for split, seqs in data.splits.items()}
+
         def checkpoint(tr):
             fh.flush()
             if main:
                 save_checkpoint(ckpt_path, model_cfg, tr.model.state_dict(),
-                                train={**tr.state(), "run": json.dumps(job.run)})
+                                train={**tr.state(), "run": json.dumps(job.run),
+                                       "sequences": json.dumps(job.sequences_before or sequences)})
 
         # What the model has seen: per joint, the largest share of a training garment's weight on it.
         coverage = joint_coverage([g.inputs.prior_weights.cpu().numpy() for g in data.garments.values()])
@@ -343,6 +358,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
             "lead_in_s": lead_in,
             "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
             "sequences_missing": data.missing, "garments": sorted(data.garments),
+            "sequences_per_step": job.sequences_per_step,
+            **({"sequences_before_resume": job.sequences_before} if job.sequences_before else {}),
             "threads": trainer.tuner.report() if trainer.tuner is not None else {"fixed": torch.get_num_threads()}}
     if trainer.tuner is not None:
         trainer.tuner.close()

@@ -128,7 +128,7 @@ def test_fit_refuses_a_body_other_than_the_datasets(setup, tmp_path):
     ds = copy_recording_body(data, body, tmp_path / "ds")
     r = invoke(["fit", garment, "--data", ds, "--rank", "4", "--out", tmp_path / "a.npz"])
     assert r.exit_code != 0 and "Traceback" not in r.output
-    assert f"was simulated on body '{body}' (sha256 " in r.output and "got the embedded default" in r.output
+    assert f"was simulated on body '{body}' (file sha256 " in r.output and "got the embedded default" in r.output
     assert not (tmp_path / "a.npz").exists()
     r = invoke(["fit", garment, "--data", ds, "--body", body, "--rank", "4", "--out", tmp_path / "a.npz"])
     assert r.exit_code == 0, r.output

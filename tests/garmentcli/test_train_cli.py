@@ -121,6 +121,20 @@ def test_a_resume_is_of_the_same_run_and_its_card_keeps_the_runs_last_validation
     assert r.exit_code == 2 and "decays to lr_final (1e-05) at its --steps (2)" in r.output, r.output
 
 
+def test_a_resume_drops_a_csv_row_cut_by_a_kill(setup, tmp_path):
+    """The CSV is flushed at checkpoints: a kill can leave a row cut inside its step number ('1' of '13,...'),
+    which the resume kept as a row of step 1 with no values."""
+    root, data, body, cfg = setup
+    out = tmp_path / "cut.pt"
+    assert _train(root, data, body, cfg, out, "--steps", "2", "--seed", "1").exit_code == 0
+    with open(tmp_path / "cut.pt.csv", "a") as fh:
+        fh.write("1")
+    r = _train(root, data, body, cfg, out, "--steps", "3", "--seed", "1", "--resume")
+    assert r.exit_code == 0, r.output
+    rows = list(csv.DictReader(open(tmp_path / "cut.pt.csv")))
+    assert [int(x["step"]) for x in rows] == [1, 2, 3] and all(x["loss"] for x in rows)
+
+
 def test_train_time_limit_stops_early_and_resumes(setup):
     root, data, body, cfg = setup
     out = root / "timed.pt"
@@ -447,6 +461,14 @@ def test_train_partial_uses_the_sequences_simulated_so_far(setup, tmp_path):
     from formats.body import load_body
 
     assert meta["body_sha256"] == load_body(body).content_hash()  # what `bake` checks its body against
+    assert meta["sequences_per_step"] == 1 and "sequences_before_resume" not in meta
+    # Resumed once the missing sequence is there: said, and the card keeps the counts the steps before trained on
+    # (it read as if the whole run had had them all)
+    shutil.copy(data / "sequences" / "s1.npz", part / "sequences" / "s1.npz")
+    r = _train(root, part, body, cfg, tmp_path / "m.pt", "--steps", "3", "--partial", "--resume")
+    assert r.exit_code == 0 and "note: --resume: the dataset holds {'train': 2, 'val': 1} sequences" in r.output
+    meta = load_checkpoint(tmp_path / "m.pt")["meta"]
+    assert meta["sequences"] == {"train": 2, "val": 1} and meta["sequences_before_resume"] == {"train": 1, "val": 1}
     (part / "sequences" / "s2.npz").unlink()
     r = _train(root, part, body, cfg, tmp_path / "n.pt", "--steps", "2", "--partial")
     assert r.exit_code != 0 and "expected sequences in its 'val' split, got none simulated yet" in r.output
@@ -519,7 +541,7 @@ def test_train_refuses_a_body_other_than_the_datasets(setup, tmp_path):
     r = CliRunner().invoke(cli, ["train", "--data", str(ds), "--out", str(tmp_path / "a.pt"), "--config", str(cfg),
                                  "--steps", "1"])
     assert r.exit_code != 0 and "Traceback" not in r.output
-    assert f"dataset '{ds}' was simulated on body '{body}' (sha256 " in r.output and "the embedded default" in r.output
+    assert f"dataset '{ds}' was simulated on body '{body}' (file sha256 " in r.output and "the embedded default" in r.output
     assert not (tmp_path / "a.pt").exists()
     r = _train(root, ds, body, cfg, tmp_path / "b.pt", "--steps", "1")
     assert r.exit_code == 0, r.output
