@@ -29,7 +29,10 @@ def _default_out() -> Path:
 @click.option("--seed", type=SEED_RANGE, default=0, show_default=True, help="Random seed of the phenotype sampler.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 def make_body(out: Path | None, samples: int, seed: int, overwrite: bool) -> None:
-    """Build the default SMPL-format body (24 joints, 10 betas) from anny and save it."""
+    """Build the default SMPL-format body (24 joints, 10 betas) from anny and save it.
+
+    anny builds a model cache of about 800 MB on its first use (a few minutes; ANNY_CACHE_DIR sets where).
+    """
     out = out or _default_out()
     if out.suffix != ".npz":
         raise click.BadParameter(f"expected a path ending in .npz, got '{out}'", param_hint="--out")
@@ -40,6 +43,10 @@ def make_body(out: Path | None, samples: int, seed: int, overwrite: bool) -> Non
         arrays = build_default_body_arrays(n_samples=samples, seed=seed)
     except (ImportError, RuntimeError) as exc:
         raise click.ClickException(f"make-body: {exc}") from None
+    except OSError as exc:  # anny's model cache (about 800 MB, built on first use) cannot be written there
+        where = f" '{exc.filename}'" if exc.filename else ""
+        raise click.ClickException(f"make-body: anny's model cache{where}: {exc.strerror or exc}: set "
+                                   "ANNY_CACHE_DIR to a writable folder with about 1 GB free") from None
     with atomic_file(out) as tmp:
         np.savez_compressed(tmp, **arrays)
     click.echo(f"wrote {out}: {arrays['v_template'].shape[0]} vertices, "

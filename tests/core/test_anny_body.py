@@ -159,3 +159,21 @@ def test_make_body_refuses_existing_output_and_bad_suffix(tmp_path):
     assert out.read_bytes() == b"keep"
     result = CliRunner().invoke(make_body, ["--out", str(tmp_path / "b.pkl")])
     assert result.exit_code != 0 and ".npz" in result.output
+
+
+def test_make_body_names_annys_cache_where_it_cannot_be_written(tmp_path, monkeypatch):
+    """An unwritable anny cache said only "Error: '<dir>/v14': Read-only file system": it names the cache and
+    ANNY_CACHE_DIR, and writes nothing."""
+    import errno
+
+    import core.anny_body
+    from garmentcli.make_body import make_body
+
+    def unwritable(**kwargs):
+        raise OSError(errno.EROFS, "Read-only file system", str(tmp_path / "cache" / "v14"))
+
+    monkeypatch.setattr(core.anny_body, "build_default_body_arrays", unwritable)
+    result = CliRunner().invoke(make_body, ["--out", str(tmp_path / "b.npz")])
+    assert result.exit_code == 1 and not (tmp_path / "b.npz").exists()
+    assert (f"make-body: anny's model cache '{tmp_path / 'cache' / 'v14'}': Read-only file system: set ANNY_CACHE_DIR "
+            "to a writable folder") in result.output
