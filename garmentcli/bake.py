@@ -586,6 +586,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()
     total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
+    if workers > 1 and len(motions) == 1 and not scheduler:
+        click.echo(f"note: --workers {workers}: one motion, baked in this process (the workers share out motions)",
+                   err=True)
     if scheduler or (workers > 1 and len(motions) > 1):  # the workers prepare their own copy (once per process)
         if not scheduler and not spec.threads_fixed:
             spec = replace(spec, threads=max(1, (os.cpu_count() or 1) // min(workers, len(motions))))

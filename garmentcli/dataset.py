@@ -187,8 +187,10 @@ MAX_BODIES = 10000
               help="Sampled betas are uniform in [-R, R] (R at most 5).")
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
               help="SMPL-format body (.npz or .pkl). Default: the embedded body.")
-@click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="garment_dataset", show_default=True)
-@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Processes.")
+@click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="garment_dataset", show_default=True,
+              help="Dataset directory: garments/, sequences/ and manifest.json; a rerun resumes it.")
+@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Local processes simulating items side by side (the cores are shared out among them).")
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
               help="Frame rate of the simulated sequences (1 to 1000).")
 @source_fps_option
@@ -223,7 +225,8 @@ MAX_BODIES = 10000
 @click.option("--self-contact", is_flag=True, help="Cloth-cloth contact (about 3-10x slower).")
 @click.option("--substeps", type=click.IntRange(1, MAX_SOLVER_STEPS), default=10, show_default=True,
               help="Solver steps per frame; a frame that fails the simulator's checks is run again at 2x, then 4x.")
-@click.option("--iterations", type=click.IntRange(1, MAX_SOLVER_STEPS), default=10, show_default=True)
+@click.option("--iterations", type=click.IntRange(1, MAX_SOLVER_STEPS), default=10, show_default=True,
+              help="VBD iterations per substep.")
 @click.option("--pin", type=click.Choice(PIN_CHOICES), default="auto", show_default=True, help=PIN_HELP)
 @click.option("--floor", type=click.Choice(FLOOR_CHOICES), default="auto", show_default=True, help=FLOOR_HELP)
 @scheduler_options("item", note=" --workers is then ignored.")

@@ -47,8 +47,10 @@ def summary_lines(path: str, p: Preprocessed, cache_note: str) -> list[str]:
 @click.option("--self-collision", is_flag=True,
               help="Also the pairs within 10 cm along the rest surface that training's self-collision loss leaves "
                    "out (what `garment train --cache-dir` reads from the same folder; bake does not need them).")
+@click.option("--overwrite", is_flag=True, help="Replace the --render pictures of an earlier run.")
 @input_errors_as_click
-def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache, render_dir, self_collision=False):
+def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache, render_dir, self_collision=False,
+               overwrite=False):
     """Preprocess each GARMENT (OBJ or USD, on the body's rest pose) for the learned model.
 
     Builds vertex features, the pooling hierarchy and the Nystrom style descriptor (with --self-collision also the
@@ -60,6 +62,12 @@ def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache,
     from formats.cache import cache_path, default_cache_dir
     from formats.obj import read_garment
 
+    if no_cache and cache_dir:
+        raise click.UsageError("--no-cache and --cache-dir exclude each other (no cache is read or written)")
+    if render_dir:  # a picture of this name is replaced by its rerun only with --overwrite, as every output
+        taken = [p for p in (Path(render_dir) / f"{Path(g).stem}_hierarchy.png" for g in garment_paths) if p.exists()]
+        if taken and not overwrite:
+            raise click.ClickException(f"output '{taken[0]}' exists: pass --overwrite to replace it")
     body = load_body_option(body_path)
     directory = None if no_cache else Path(cache_dir) if cache_dir else default_cache_dir()
     garments = [read_garment(path) for path in garment_paths]  # each read before any work (a missing second one

@@ -274,6 +274,10 @@ def test_bake_workers_equal_one_process_and_report_throughput(scene):
         np.testing.assert_allclose(outs[2][name], outs[1][name], atol=1e-6)
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--workers", 0])
     assert_one_line_error(r, "--workers")
+    # one motion: baked here, said (the option was quietly ignored)
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"] / "one",
+             "--workers", 2, "--no-body", "--no-obj"])
+    assert r.exit_code == 0 and "note: --workers 2: one motion, baked in this process" in r.output, r.output
 
 
 def test_bake_suggests_push_out_where_much_of_the_garment_is_inside_the_body(scene):

@@ -50,6 +50,19 @@ def test_render_writes_a_png(scene):
     assert r.exit_code == 0, r.output
     png = out / "shell_hierarchy.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # its rerun replaced the picture without a word: --overwrite, as every other output
+    png.write_bytes(b"mine")
+    args = ("preprocess", scene["garment"], "--body", scene["body"], "--no-cache", "--landmarks", "8", "--render",
+            str(out))
+    r = run(*args)
+    assert r.exit_code == 1 and f"output '{png}' exists: pass --overwrite" in r.output and png.read_bytes() == b"mine"
+    assert run(*args, "--overwrite").exit_code == 0 and png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_no_cache_with_a_cache_dir_is_refused(scene):
+    """--no-cache --cache-dir X ignored X without a word."""
+    r = run("preprocess", scene["garment"], "--no-cache", "--cache-dir", str(scene["dir"] / "c"))
+    assert r.exit_code == 2 and "--no-cache and --cache-dir exclude each other" in r.output
 
 
 @pytest.mark.parametrize("extra, message", [
