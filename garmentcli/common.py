@@ -653,7 +653,7 @@ def body_option(command):
 
 def frames_option(command):
     """--frames START:STOP (source frames, parsed by `core.motion.parse_frame_range`)."""
-    return click.option("--frames", default=None, metavar="START:STOP",
+    return click.option("--frames", default=None, metavar="START:STOP", callback=checked_by(parse_frame_range),
                         help="Source frames (Python slice, STOP exclusive).")(command)
 
 

@@ -11,10 +11,12 @@ import numpy as np
 
 from core.errors import InputError
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
+from core.motion import parse_frame_range
 from garmentcli.common import (
     FiniteFloatRange,
     OutputPath,
     betas_option,
+    checked_by,
     input_errors_as_click,
     obj_up_option,
     motion_up_option,
@@ -225,7 +227,8 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
                                  "as the bake) gives the penetration rate, in place of any body PRED carries.")
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
               help="With --motion: the frame rate of the bake.")
-@click.option("--frames", default=None, metavar="START:STOP", help="With --motion: the source frames of the bake.")
+@click.option("--frames", default=None, metavar="START:STOP", callback=checked_by(parse_frame_range),
+              help="With --motion: the source frames of the bake.")
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="With --motion: the settle frames of the bake.")
 @betas_option

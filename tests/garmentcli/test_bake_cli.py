@@ -927,3 +927,13 @@ def test_usage_errors_of_the_group_and_its_commands_are_one_line_and_garment_alo
         assert lines[0].endswith(f"{where}')"), r.output
     r = run([])
     assert "Usage:" in r.output and "Commands:" in r.output and "bake" in r.output
+
+
+@pytest.mark.parametrize("command", ["bake", "tradeoff"])
+def test_a_bad_frames_value_is_a_usage_error_when_the_command_line_is_read(scene, command):
+    """A malformed --frames exited 1 as a failure of the work ("Error: --frames: ..."), other bad values 2 with the
+    command's help named: it is one of those now."""
+    r = run([command, scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"] / "f",
+             "--frames", "0:5:2"])
+    assert r.exit_code == 2 and "Invalid value for '--frames': expected START:STOP" in r.output, r.output
+    assert f"(see 'cli {command} --help')" in r.output and not (scene["out"] / "f").exists()
