@@ -305,9 +305,10 @@ class ModelDeformer(Deformer):
 
     def _lead_fade(self, network, mf, lead: int, body: Body, poses: np.ndarray, motion: Motion, betas,
                    device) -> tuple[torch.Tensor, torch.Tensor] | None:
-        """(weights (T,), residual (V, 3)) that fade the lead-in's last effect out over `LEAD_FADE_FRAMES` frames
-        after the last frame whose window holds a lead-in velocity, or None (no lead-in, or no frame after it).
-        network(features, frames): the network's vertices at `frames` of `features` (windows as the bake's)."""
+        """(weights (T,), residual (V, 3) in the root's frame) that fade the lead-in's last effect out over
+        `LEAD_FADE_FRAMES` frames after the last frame whose window holds a lead-in velocity, or None (no lead-in,
+        or no frame after it). network(features, frames): the network's vertices at `frames` of `features`
+        (windows as the bake's)."""
         last = self.model.config.window - 1
         if lead == 0 or motion.n_frames <= last + 1:
             return None
@@ -316,6 +317,8 @@ class ModelDeformer(Deformer):
                                device)  # its window clamped at frame 0: a body that stood still before it
         residual = (network(mf, torch.tensor([lead + last], device=device))
                     - network(still, torch.tensor([last], device=device)))[0]
+        # in the root's frame at that frame, carried with the root after it (a turning body turns it along)
+        residual = residual @ mf.transforms[lead + last, 0, :3, :3].float()
         weights = torch.zeros(motion.n_frames, device=device)
         k = torch.arange(1, min(LEAD_FADE_FRAMES, motion.n_frames - last - 1) + 1, device=device)
         weights[last + k] = 1.0 - k / (LEAD_FADE_FRAMES + 1)
@@ -380,8 +383,9 @@ class ModelDeformer(Deformer):
                         tuner.before()
                     fr = torch.arange(lead + s, lead + min(s + batch, motion.n_frames), device=device)
                     verts = network(mf, fr)
-                    if fade is not None:
-                        verts = verts + fade[0][s:s + len(fr), None, None] * fade[1]
+                    if fade is not None:  # the root's rotation of each frame turns the residual
+                        turned = torch.einsum("vj,bij->bvi", fade[1], mf.transforms[fr, 0, :3, :3].float())
+                        verts = verts + fade[0][s:s + len(fr), None, None] * turned
                     if guard_here:
                         with torch.autocast(device.type, enabled=False):  # the body posed in float32
                             at = slice(s, s + len(fr))

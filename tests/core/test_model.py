@@ -308,6 +308,20 @@ def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     # batches of any size fade the same frames
     batched = ModelDeformer(model, lead_in_s=4 / 30, contact_guard=False, strain_limit=None, batch_frames=2)
     np.testing.assert_allclose(batched.deform(garment, body, motion), out, atol=1e-5)
+    # A body turning about the vertical: the residual turns with its root (it stayed put in the world)
+    from core.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+    spin = np.zeros((len(poses), 3), np.float32)
+    spin[:, 2] = np.linspace(0.0, 2.0, len(poses))  # 0.25 rad a frame about world Z
+    turning = poses.copy()
+    turning[:, 0] = matrix_to_axis_angle(axis_angle_to_matrix(spin) @ axis_angle_to_matrix(poses[:, 0]))
+    turned_motion = Motion(poses=turning, trans=trans, fps=30.0)
+    out_t, still_t = led.deform(garment, body, turned_motion), plain.deform(garment, body, turned_motion)
+    root = axis_angle_to_matrix(turning[:, 0])
+    residual_t = out_t[last] - still_t[last]
+    for k, weight in enumerate((0.75, 0.5, 0.25), start=1):
+        expected = weight * residual_t @ root[last] @ root[last + k].T
+        np.testing.assert_allclose(out_t[last + k] - still_t[last + k], expected, atol=1e-5)
     short = Motion(poses=poses[:last + 1], trans=trans[:last + 1], fps=30.0)  # no frame after the window's
     np.testing.assert_allclose(led.deform(garment, body, short), out[:last + 1], atol=1e-5)
     assert led.report["lead_in_fade_frames"] == 0
