@@ -40,19 +40,21 @@ def _frame_slice(frames: str | None, every: int) -> slice:
     return slice(start, stop, step)
 
 
-def _at_rate(seq, fps: float | None):
-    """`seq` (None: None) at --fps: where it records no rate, --fps or 30 (said); where it records another, --fps
-    (warned: INPUT's own rate is overridden)."""
-    if seq is None:
-        return None
-    if seq.fps is None:
-        if fps is None:
-            click.echo(f"note: '{seq.source}' records no frame rate: played at 30 fps (--fps sets it)")
-        return replace(seq, fps=fps or 30.0)
-    if fps is not None and fps != seq.fps:
+def _at_rates(seq, gt, fps: float | None):
+    """INPUT `seq` and --gt `gt` (or None) at their rates: INPUT at --fps where given (warned where it records
+    another: overridden), else its own, else GT's, else 30 (said); GT at its own, else INPUT's (its recorded rate
+    is never overridden: a GT of another rate is refused as `metrics` refuses it)."""
+    if seq.fps is not None and fps is not None and fps != seq.fps:
         log.warning("--fps %g: '%s' records %g fps: rendered at %g", fps, seq.source, seq.fps, fps)
-        return replace(seq, fps=fps)
-    return seq
+        seq = replace(seq, fps=fps)
+    elif seq.fps is None:
+        rate = fps or (gt.fps if gt is not None else None)
+        if rate is None:
+            click.echo(f"note: '{seq.source}' records no frame rate: played at 30 fps (--fps sets it)")
+        seq = replace(seq, fps=rate or 30.0)
+    if gt is not None and gt.fps is None:
+        gt = replace(gt, fps=seq.fps)
+    return seq, gt
 
 
 @click.command(name="render")
@@ -80,9 +82,9 @@ def _at_rate(seq, fps: float | None):
               help="fixed: one view of the whole animation; follow: track the body; auto: follow when it travels.")
 @obj_up_option
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=None,
-              help="Frames per second of INPUT where it records none (OBJ frames without a sequence.json, another "
-                   "tool's npz) [default: its recorded rate, else 30]: the MP4's rate and the follow camera's "
-                   "half-second smoothing.")
+              help="Frames per second of INPUT (OBJ frames without a sequence.json, another tool's npz record "
+                   "none; a recorded rate is overridden, warned) [default: its recorded rate, else --gt's, else 30]: "
+                   "the MP4's rate and the follow camera's half-second smoothing.")
 @click.option("--no-body", is_flag=True, help="Draw the garment alone.")
 @click.option("--no-ground", is_flag=True, help="Leave out the ground grid.")
 @click.option("--no-png", is_flag=True, help="Skip the PNG frames.")
@@ -135,7 +137,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
 
     seq = read_sequence(input_path, up=up)
     gt = read_sequence(gt_path, up=up) if gt_path is not None else None
-    seq, gt = (_at_rate(s, fps) for s in (seq, gt))
+    seq, gt = _at_rates(seq, gt, fps)
     scalars, label = None, "value"
     if scalars_spec is not None:
         file, key = scalars_spec, ""

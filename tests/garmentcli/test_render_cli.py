@@ -282,6 +282,15 @@ def test_render_fps_sets_the_rate_of_a_sequence_that_records_none(seqs, tmp_path
     assert [r.getMessage() for r in caplog.records] == [f"--fps 60: '{seqs['pred']}' records 30 fps: rendered at 60"]
     assert mp4_fps(tmp_path / "c") == pytest.approx(60.0)
     assert "--fps" in error_line(run("render", frames, "--out", tmp_path / "d", "--fps", "0", *args))
+    # A --gt's recorded rate is INPUT's where INPUT records none (an invented 30 refused a 60 fps GT), and is never
+    # overridden: --fps 30 against it is refused as metrics refuses frames of other times
+    fast = tmp_path / "gt60.npz"
+    write_npz_sequence(fast, seq.points * 1.01, seq.faces, fps=60.0)
+    res = run("render", frames, "--gt", fast, "--out", tmp_path / "e", *args)
+    assert res.exit_code == 0 and "records no frame rate" not in res.output, res.output
+    assert mp4_fps(tmp_path / "e") == pytest.approx(60.0)
+    line = error_line(run("render", frames, "--gt", fast, "--fps", "30", "--out", tmp_path / "f", *args))
+    assert "60 fps" in line and "30 fps" in line and not (tmp_path / "f").exists()
 
 
 def test_render_gt_or_scalars_with_another_colour_is_refused(seqs, tmp_path):
