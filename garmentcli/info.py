@@ -122,13 +122,15 @@ def _kind_of(path: Path) -> str:
             return "motion"
         return "bake" if (path.parent / "summary.json").is_file() else "garment"
     if suffix in MODEL_SUFFIXES and path.is_file():
-        from formats.checkpoint import load_checkpoint
+        import torch
 
-        try:
-            load_checkpoint(path)
-            return "model"
-        except InputError:  # a motion of PyTorch's format (the motion reader says what it is)
+        from formats.checkpoint import FORMAT
+
+        try:  # a checkpoint by its format field, whatever its version (`model_info` says what is wrong with it)
+            data = torch.load(path, map_location="cpu", weights_only=True)
+        except Exception:  # a motion of PyTorch's format, or no torch file (the motion reader says what it is)
             return "motion"
+        return "model" if isinstance(data, dict) and data.get("format") == FORMAT else "motion"
     if suffix == ".npz" and path.is_file():
         try:
             with np.load(path, allow_pickle=False) as d:
@@ -210,7 +212,8 @@ def _text(record: dict, body_name: str) -> str:
         line = (f"{record['path']}: " + ("training state of a garment model (`garment train --resume` continues it)"
                                          if record["resume_state"] else
                                          "garment model (give it to bake with --method model --model)")
-                + f", {record['levels']} pooling levels, {record['joints']} joints" + (f"; {trained}" if trained else ""))
+                + f", {record['levels']} pooling level{'' if record['levels'] == 1 else 's'}, {record['joints']} joints"
+                + (f"; {trained}" if trained else ""))
     elif record["kind"] == "garment":
         x, y, z = record["extent_m"]
         verdict = f"refused: {record['refused']}" if record["refused"] else "bakes as it is"

@@ -65,7 +65,12 @@ def preprocess(garment_paths, levels, landmarks, body_path, cache_dir, no_cache,
     if no_cache and cache_dir:
         raise click.UsageError("--no-cache and --cache-dir exclude each other (no cache is read or written)")
     if render_dir:  # a picture of this name is replaced by its rerun only with --overwrite, as every output
-        taken = [p for p in (Path(render_dir) / f"{Path(g).stem}_hierarchy.png" for g in garment_paths) if p.exists()]
+        pictures = [Path(render_dir) / f"{Path(g).stem}_hierarchy.png" for g in garment_paths]
+        twice = next((p for k, p in enumerate(pictures) if p in pictures[:k]), None)
+        if twice is not None:
+            raise click.BadParameter(f"two garments named '{twice.name.removesuffix('_hierarchy.png')}' would draw "
+                                     f"one picture, '{twice}': render them in two runs", param_hint="--render")
+        taken = [p for p in pictures if p.exists()]
         if taken and not overwrite:
             raise click.ClickException(f"output '{taken[0]}' exists: pass --overwrite to replace it")
     body = load_body_option(body_path)

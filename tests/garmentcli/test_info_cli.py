@@ -146,8 +146,12 @@ def test_info_tells_a_model_and_its_resume_state_for_what_they_are_and_a_motion_
     r = invoke(["info", model, state, tmp_path / "walk.pt"])
     lines = r.output.splitlines()
     assert lines[0] == (f"{model}: garment model (give it to bake with --method model --model), {TINY_CONFIG.levels} "
-                        f"pooling levels, {TINY_CONFIG.n_joints} joints; 30 steps, phase 2, on body 'default' (sha256 "
+                        f"pooling level{'' if TINY_CONFIG.levels == 1 else 's'}, {TINY_CONFIG.n_joints} joints; 30 steps, phase 2, on body 'default' (sha256 "
                         f"{default_body().content_hash()[:12]}), garments skirt, validation E_verts 38.1 mm")
     assert lines[1].startswith(f"{state}: training state of a garment model (`garment train --resume` continues it)")
     assert lines[1].endswith("; 12 steps")
     assert lines[2].startswith(f"{tmp_path / 'walk.pt'}: motion, 4 frames at 60 fps")
+    # a checkpoint of another version is a model with that wrong (it was a motion "expected a 'poses' array")
+    torch.save({"format": "garment-model", "version": 9, "config": {}, "model": {}}, tmp_path / "v9.pt")
+    r = invoke(["info", tmp_path / "v9.pt"])
+    assert r.exit_code == 1 and r.output.strip().endswith("expected checkpoint format version 1, got version 9")

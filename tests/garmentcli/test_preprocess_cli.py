@@ -59,6 +59,17 @@ def test_render_writes_a_png(scene):
     assert run(*args, "--overwrite").exit_code == 0 and png.read_bytes()[:4] == b"\x89PNG"
 
 
+def test_two_garments_of_one_name_are_refused_one_picture(scene, tmp_path):
+    """Two garments named alike in one run drew one picture, the second over the first, without --overwrite."""
+    import shutil
+
+    (tmp_path / "other").mkdir()
+    twin = shutil.copy(scene["garment"], tmp_path / "other" / Path(scene["garment"]).name)
+    r = run("preprocess", scene["garment"], str(twin), "--no-cache", "--render", str(tmp_path / "r"))
+    assert r.exit_code == 2 and "two garments named 'shell' would draw one picture" in r.output
+    assert not (tmp_path / "r").exists()
+
+
 def test_no_cache_with_a_cache_dir_is_refused(scene):
     """--no-cache --cache-dir X ignored X without a word."""
     r = run("preprocess", scene["garment"], "--no-cache", "--cache-dir", str(scene["dir"] / "c"))
