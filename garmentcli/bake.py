@@ -504,6 +504,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         asked_push_out = push_out and method != "sim" and not opts.get("push_out")
         precision, push_out = opts.get("precision"), bool(opts.get("push_out", False)) or asked_push_out
         strain = opts.get("strain_limit", strain)  # a configuration measured with a limit (lbs +strain-limit)
+        replaced = [f"--substeps {substeps}"] if substeps is not None and opts.get("substeps") not in (None,
+                                                                                                  substeps) else []
         substeps = opts.get("substeps", substeps)
         self_contact = bool(opts.get("self_contact", self_contact))
         if method != "model":
@@ -540,6 +542,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if left:
             click.echo(f"quality auto: {', '.join(left)} left out: {'it applies' if len(left) == 1 else 'they apply'}"
                        f" to other methods than the {method} chosen", err=True)
+        if replaced and method == "sim":
+            click.echo(f"quality auto: {', '.join(replaced)} replaced by the configuration chosen ({pick['config']}; "
+                       "--method sim keeps yours)", err=True)
         if pick["outside_motions"]:
             log.warning("--quality auto: motion %s beyond the calibration's scenes: expected errors there are "
                         "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "

@@ -178,6 +178,9 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         raise click.BadParameter(f"{src}: expected a network of the body's {body.n_joints} joints, got "
                                  f"{model_values['n_joints']} joints (pass the --body it was made for)", param_hint=hint)
     overrides = {} if phases is None else {"phases": list(_parse_phases(phases))}  # --config's where left out
+    if resume and steps is None and ckpt_path.is_file():  # the run's own --steps (it went on to the default 20000)
+        saved = load_checkpoint(ckpt_path).get("train") or {}
+        steps = json.loads(saved.get("train_config", "{}")).get("steps")
     for key, val in (("steps", steps), ("seed", seed), ("checkpoint_every", checkpoint_every)):
         if val is not None:
             overrides[key] = val

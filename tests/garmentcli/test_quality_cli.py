@@ -220,3 +220,20 @@ def test_auto_with_a_calibration_of_the_wrong_form_is_one_line(auto_scene, confi
     r = _auto(auto_scene, "tight.obj", "slow.npz", "--calibration", path)
     assert r.exit_code != 0 and f"quality calibration '{path}'" in r.output and needle in r.output
     assert "Traceback" not in r.output and not auto_scene["out"].exists()
+
+
+def test_auto_choosing_the_simulator_says_it_replaced_the_users_substeps(auto_scene, monkeypatch):
+    """The simulator's configuration chosen replaced --substeps 5 by its own without a word (the simulator itself
+    is stood in for by lbs here: only what is said is tested)."""
+    import garmentcli.bake as bake_cli
+
+    choose, make = bake_cli._choose_quality, bake_cli.make_deformer
+
+    def sim_chosen(*args, **kwargs):
+        return {**choose(*args, **kwargs), "method": "sim", "options": {"substeps": 20}, "config": "sim 20 substeps"}
+
+    monkeypatch.setattr(bake_cli, "_choose_quality", sim_chosen)
+    monkeypatch.setattr(bake_cli, "make_deformer", lambda method, *a, **k: make("lbs", *a[:1]))
+    r = _auto(auto_scene, "tight.obj", "slow.npz", "--substeps", "5")
+    assert r.exit_code == 0, r.output
+    assert "quality auto: --substeps 5 replaced by the configuration chosen (sim 20 substeps" in r.output
