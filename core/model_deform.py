@@ -317,8 +317,10 @@ class ModelDeformer(Deformer):
                                device)  # its window clamped at frame 0: a body that stood still before it
         residual = (network(mf, torch.tensor([lead + last], device=device))
                     - network(still, torch.tensor([last], device=device)))[0]
-        # in the root's frame at that frame, carried with the root after it (a turning body turns it along)
-        residual = residual @ mf.transforms[lead + last, 0, :3, :3].float()
+        # in the root's frame at that frame, carried with the root after it (a turning body turns it along); in
+        # float32 under bfloat16 autocast too, as every world coordinate
+        with torch.autocast(device.type, enabled=False):
+            residual = residual.float() @ mf.transforms[lead + last, 0, :3, :3].float()
         weights = torch.zeros(motion.n_frames, device=device)
         k = torch.arange(1, min(LEAD_FADE_FRAMES, motion.n_frames - last - 1) + 1, device=device)
         weights[last + k] = 1.0 - k / (LEAD_FADE_FRAMES + 1)
@@ -384,8 +386,9 @@ class ModelDeformer(Deformer):
                     fr = torch.arange(lead + s, lead + min(s + batch, motion.n_frames), device=device)
                     verts = network(mf, fr)
                     if fade is not None:  # the root's rotation of each frame turns the residual
-                        turned = torch.einsum("vj,bij->bvi", fade[1], mf.transforms[fr, 0, :3, :3].float())
-                        verts = verts + fade[0][s:s + len(fr), None, None] * turned
+                        with torch.autocast(device.type, enabled=False):
+                            turned = torch.einsum("vj,bij->bvi", fade[1], mf.transforms[fr, 0, :3, :3].float())
+                            verts = verts + fade[0][s:s + len(fr), None, None] * turned
                     if guard_here:
                         with torch.autocast(device.type, enabled=False):  # the body posed in float32
                             at = slice(s, s + len(fr))
@@ -418,7 +421,7 @@ class ModelDeformer(Deformer):
             guard["contact_guard"]["device"] = str(device) if guard_here else "cpu"
         self.report = {"method": self.name, "model": self.model_name, "device": str(device), "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
-                       "lead_in_frames": lead, "lead_in_fade_frames": LEAD_FADE_FRAMES if fade is not None else 0,
+                       "lead_in_frames": lead, "lead_in_fade_frames": 0 if fade is None else int((fade[0] > 0).sum()),
                        "prepare_seconds": t1 - t0,
                        "preprocess_cache": self._garments[(garment.content_hash(), id(body))].preprocess_cache,
                        "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}

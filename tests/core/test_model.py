@@ -322,6 +322,9 @@ def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     for k, weight in enumerate((0.75, 0.5, 0.25), start=1):
         expected = weight * residual_t @ root[last] @ root[last + k].T
         np.testing.assert_allclose(out_t[last + k] - still_t[last + k], expected, atol=1e-5)
+    short = Motion(poses=poses[:last + 3], trans=trans[:last + 3], fps=30.0)  # two frames after the window's
+    led.deform(garment, body, short)
+    assert led.report["lead_in_fade_frames"] == 2  # the frames faded, not the fade's length
     short = Motion(poses=poses[:last + 1], trans=trans[:last + 1], fps=30.0)  # no frame after the window's
     np.testing.assert_allclose(led.deform(garment, body, short), out[:last + 1], atol=1e-5)
     assert led.report["lead_in_fade_frames"] == 0
