@@ -392,7 +392,11 @@ def open_stage(path: Path, where: str) -> Usd.Stage:
         reasons = [part.rsplit(" : '", 1)[1].strip().rstrip("'").strip() for part in detail.split("Error in '")
                    if " : '" in part] or [detail]
         detail = next((r for r in reasons if not r.startswith("Failed to open layer")), reasons[-1])
-        detail = detail.replace(f"{path.resolve()}:", "line ", 1)[:200]
+        for name in (str(path.resolve()), os.path.abspath(path), str(path)):  # pxr's own path: resolved or not
+            if detail.startswith(f"{name}:"):
+                detail = "line " + detail[len(name) + 1:]
+                break
+        detail = detail[:200]
         raise InputError(f"{where}: cannot be opened as USD ({_not_usd(path) or detail})") from None
     if stage is None:
         raise InputError(f"{where}: cannot be opened as USD ({_not_usd(path) or 'no reason given'})")
@@ -413,6 +417,8 @@ def _not_usd(path: Path) -> str | None:
         return None
     if head.startswith(USD_MAGIC):
         return None
+    if head.startswith(b"\xef\xbb\xbf#usda"):
+        return "got text with a UTF-8 byte-order mark before '#usda', which USD does not read: save it without one"
     got = content_kind(path) or f"binary data starting {head[:8]!r}"
     return f"expected text starting '#usda', a binary crate 'PXR-USDC' or a usdz package, got {got}"
 

@@ -180,11 +180,18 @@ def test_bad_input(tmp_path):
     for name, content, said in [("nothing.usd", b"", "got an empty file)"),
                                 ("mesh.usd", b"v 0 0 0\nf 1 2 3\n", "got text ('v 0 0 0'...))"),
                                 ("noise.usdc", b"\xc1\xce\x00\x84", "got binary data starting b'\\xc1\\xce\\x00\\x84')"),
-                                ("broken.usda", b"#usda 1.0\n(\n broken", "(line 3:2: Expected ) at 'broken' in </>)")]:
+                                ("broken.usda", b"#usda 1.0\n(\n broken", "(line 3:2: Expected ) at 'broken' in </>)"),
+                                ("bom.usda", b"\xef\xbb\xbf#usda 1.0\n", "byte-order mark before '#usda', which USD does "
+                                 "not read: save it without one)")]:
         (tmp_path / name).write_bytes(content)
         with pytest.raises(InputError, match="cannot be opened as USD") as err:
             read_usd(tmp_path / name)
         assert str(err.value).endswith(said), err.value
+    (tmp_path / "real").mkdir()
+    (tmp_path / "real" / "broken.usda").write_bytes(b"#usda 1.0\n(\n broken")
+    (tmp_path / "link").symlink_to(tmp_path / "real")
+    with pytest.raises(InputError, match=r"\(line 3:2: Expected \) at 'broken' in </>\)$"):  # through a link too
+        read_usd(tmp_path / "link" / "broken.usda")
     empty = tmp_path / "empty.usda"
     stage = Usd.Stage.CreateNew(str(empty))
     UsdGeom.Xform.Define(stage, "/Root")

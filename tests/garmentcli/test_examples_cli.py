@@ -57,3 +57,10 @@ def test_examples_overwrite_keeps_hand_made_files_and_folders(tmp_path, tiny_gen
     assert f"{out}: kept old_garment.obj (not examples" in r.output
     assert sorted(p.name for p in out.iterdir()) == ["README.md", "old_garment.obj", "patch.obj", "still.npz",
                                                      "textures"]
+    # a folder of the user's by an example's name was deleted with what it held: refused, kept
+    (out / "still.npz").unlink()
+    (out / "still.npz").mkdir()
+    (out / "still.npz" / "mine.txt").write_text("mine")
+    r = invoke(["examples", "--out", out, "--overwrite"])
+    assert r.exit_code == 1 and "still.npz' is a folder where an example file goes" in r.output
+    assert (out / "still.npz" / "mine.txt").read_text() == "mine"
