@@ -57,6 +57,7 @@ from garmentcli.common import (
     thread_count,
     with_collected_warnings,
     option_file,
+    option_given,
     MAX_FPS,
     MAX_SOLVER_STEPS,
     MAX_START_FRAME,
@@ -440,8 +441,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                 raise click.UsageError(f"{name} applies to --quality auto only")
         explicit = method is not None
         method = method or "model"
-        if method != "lbs" and click.get_current_context().get_parameter_source("lbs_smooth") not in (
-                click.core.ParameterSource.DEFAULT, None):
+        if method != "lbs" and option_given("lbs_smooth"):
             raise click.UsageError(f"--lbs-smooth applies to --method lbs only (got --method {method})")
         if no_contact_guard and method not in ("model", "psd"):
             raise click.UsageError(f"--no-contact-guard applies to --method model and psd only (got --method {method})")
@@ -513,9 +513,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if method != "psd":
             fit_path = None  # a fit given to --quality auto is one candidate; another method was chosen
         # Options of other methods than the one chosen are left out, said (an explicit --method refuses them).
-        given = click.get_current_context().get_parameter_source("lbs_smooth") not in (
-            click.core.ParameterSource.DEFAULT, None)
-        left = [name for name, off in (("--lbs-smooth", given and method != "lbs"),
+        left = [name for name, off in (("--lbs-smooth", option_given("lbs_smooth") and method != "lbs"),
                                        ("--no-contact-guard", no_contact_guard and method not in ("model", "psd")),
                                        ("--strain-limit", "strain_limit" not in opts and strain is not None
                                         and method not in STRAIN_METHODS),

@@ -628,10 +628,15 @@ def scheduler_options(task: str, note: str = ""):
     return decorate
 
 
+def option_given(name: str) -> bool:
+    """Whether the current command's parameter `name` was given (on the command line or by the environment), not
+    left at its default."""
+    return click.get_current_context().get_parameter_source(name) not in (None, click.core.ParameterSource.DEFAULT)
+
+
 def check_retries(scheduler: str | None) -> None:
     """click's error where --retries is given without --scheduler (it was ignored: local workers do not retry)."""
-    if scheduler is None and click.get_current_context().get_parameter_source("retries") not in (
-            None, click.core.ParameterSource.DEFAULT):
+    if scheduler is None and option_given("retries"):
         raise click.BadParameter("applies only with --scheduler (a Dask task run again; local workers do not "
                                  "retry)", param_hint="--retries")
 

@@ -359,8 +359,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
             "body": job.body.name,
             "body_sha256": job.body.content_hash(), "joint_coverage": coverage,
             "lead_in_s": lead_in,
-            "sequences": {split: len(seqs) for split, seqs in data.splits.items()},
-            "sequences_missing": data.missing, "garments": sorted(data.garments),
+            "sequences": sequences, "sequences_missing": data.missing, "garments": sorted(data.garments),
             "sequences_per_step": job.sequences_per_step,
             **({"sequences_before_resume": job.sequences_before} if job.sequences_before else {}),
             "threads": trainer.tuner.report() if trainer.tuner is not None else {"fixed": torch.get_num_threads()}}
