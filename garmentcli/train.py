@@ -352,7 +352,12 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
         checkpoint(trainer)
     # This process's steps, then those a --resume read back from the CSV: the last validation of the whole run.
     last_val = next((r for r in reversed([*rows, *trainer.rows]) if r.get("val_verts_mm") not in (None, "")), {})
+    from core.provenance import file_sha256, software_versions
+
     meta = {"train_config": dataclasses.asdict(train_cfg), "data": job.data_dir, "init": job.init_path,
+            # by content too: a file of that name may later hold another model (the shipped one named itself)
+            "init_sha256": file_sha256(job.init_path) if job.init_path and Path(job.init_path).is_file() else None,
+            "software": software_versions("garment", "torch", "numpy", "scipy", "torch-geometric"),
             "manifest_splits": data.manifest.get("splits", {}), "steps": trainer.step,
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
             "val_verts_mm": None if last_val.get("val_verts_mm") in (None, "") else float(last_val["val_verts_mm"]),

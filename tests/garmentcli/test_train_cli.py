@@ -358,6 +358,9 @@ def test_train_init_starts_from_a_model(setup):
     assert t["config"] == b["config"]
     assert all(torch.allclose(t["model"][k], b["model"][k], atol=1e-9) for k in b["model"])
     assert t["meta"]["init"] == str(base) and json.loads((root / "tuned.pt.json").read_text())["init"] == str(base)
+    from core.provenance import file_sha256
+
+    assert t["meta"]["init_sha256"] == file_sha256(base)  # by content: a later file of that name is another
     # the base was trained on the same garments: the coverage is the data's either way
     assert t["meta"]["joint_coverage"] == pytest.approx(b["meta"]["joint_coverage"])
     fresh = root / "fresh.pt"
@@ -466,6 +469,7 @@ def test_train_partial_uses_the_sequences_simulated_so_far(setup, tmp_path):
 
     assert meta["body_sha256"] == load_body(body).content_hash()  # what `bake` checks its body against
     assert meta["sequences_per_step"] == 1 and "sequences_before_resume" not in meta
+    assert meta["init_sha256"] is None and meta["software"]["torch"] == torch.__version__  # what made it
     # Resumed once the missing sequence is there: said, and the card keeps the counts the steps before trained on
     # (it read as if the whole run had had them all)
     shutil.copy(data / "sequences" / "s1.npz", part / "sequences" / "s1.npz")
