@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -101,6 +101,7 @@ class Calibration:
 
     configs: dict
     source: str = ""
+    provenance: dict = field(default_factory=dict)  # the last `tradeoff --calibrate`'s date and software
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Calibration:
@@ -129,13 +130,20 @@ class Calibration:
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
             raise InputError(f"quality calibration '{path}': expected the JSON `garment tradeoff --calibrate` writes, "
                              f"got {type(exc).__name__}: {exc}") from None
-        return cls(configs=configs, source=str(path))
+        provenance = data.get("provenance")
+        return cls(configs=configs, source=str(path), provenance=provenance if isinstance(provenance, dict) else {})
 
     def save(self, path: str | os.PathLike) -> None:
         from formats.atomic import atomic_file
 
         with atomic_file(Path(path)) as tmp:
-            Path(tmp).write_text(json.dumps({"configs": self.configs}, indent=1))
+            Path(tmp).write_text(json.dumps({"configs": self.configs, **({"provenance": self.provenance}
+                                                                         if self.provenance else {})}, indent=1))
+
+    def models(self) -> set[str]:
+        """The sha256 of every model file whose scenes the model configurations hold (`add_scene`'s
+        "model_sha256"; empty for a calibration made before 2026-12-06, which recorded none)."""
+        return {sha for c in self.configs.values() if c.get("method") == "model" for sha in c.get("models", {})}
 
     def expected_error(self, name: str, features: dict) -> float:
         """Expected E_verts (mm) of configuration `name` on a scene with `features`; 0 for the reference."""
@@ -224,7 +232,8 @@ def describe_outside(o: dict) -> str:
 
 
 def add_scene(calibration: Calibration, features: dict, rows: list[dict]) -> None:
-    """Append one tradeoff run (rows: config, method, seconds_per_frame, e_verts, options) to `calibration`."""
+    """Append one tradeoff run (rows: config, method, seconds_per_frame, e_verts, options, and for a model its
+    file's model_sha256) to `calibration`."""
     kvert = max(features["vertices"], 1) / 1000.0
     for r in rows:
         c = calibration.configs.setdefault(r["config"], {"method": r["method"], "options": r.get("options", {}),
@@ -235,6 +244,9 @@ def add_scene(calibration: Calibration, features: dict, rows: list[dict]) -> Non
         c["ms_per_frame_per_kvert"] = (c["ms_per_frame_per_kvert"] * n + cost) / (n + 1)
         c["scenes"] = n + 1
         c["points"].append([features["looseness_m"], features["speed_m_s"], float(r["e_verts"])])
+        if r.get("model_sha256"):  # which model's errors these are (`Calibration.models`)
+            models = c.setdefault("models", {})
+            models[r["model_sha256"]] = models.get(r["model_sha256"], 0) + 1
 
 
 #: psd's cost per frame against LBS's, its contact guard and strain limit included (on by default): the example

@@ -821,6 +821,16 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
     else:
         option_file(calibration_path, "--calibration")
     calibration = Calibration.load(calibration_path)
+    measured = calibration.models()
+    if measured:  # which model's errors its model configurations are (a calibration of before 2026-12-06: unknown)
+        from core.provenance import file_sha256
+
+        used = file_sha256(model_path or DEFAULT_MODEL)
+        if used not in measured:
+            log.warning("--quality auto: calibration '%s' measured model %s on its scenes, not '%s' (sha256 %s): "
+                        "its expected errors for the model are another model's (`garment tradeoff --calibrate` "
+                        "measures this one)", calibration_path, " and ".join(sorted(m[:8] for m in measured)),
+                        model_path or DEFAULT_MODEL, used[:8])
     if fit_path is not None:
         from formats.psd import psd_deformer
 

@@ -11,6 +11,7 @@ import csv
 import json
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import click
@@ -58,6 +59,18 @@ COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "second
 
 #: Subdirectory of a scene's results holding its simulator rows (points, timings, key) for --reuse-sim.
 SIMULATIONS = "simulations"
+
+
+#: The software a tradeoff run records (tradeoff.json, the calibration's provenance).
+SOFTWARE = ("garment", "numpy", "torch", "newton", "warp-lang")
+
+
+def _model_sha256(path) -> str:
+    """sha256 of a model file (None: the shipped model's), as a calibration records which model it measured."""
+    from core.model_deform import DEFAULT_MODEL
+    from core.provenance import file_sha256
+
+    return file_sha256(path or DEFAULT_MODEL)
 
 
 def _models(specs: tuple) -> dict:
@@ -268,13 +281,17 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     if calibration_path:
+        from core.provenance import software_versions
         from core.quality import Calibration, add_scene, scene_features
 
         # read again (not the copy checked above): another run may have added its scene meanwhile
         cal = Calibration.load(calibration_path) if Path(calibration_path).is_file() else Calibration({})
         features = scene_features(garment, body, motion)
-        add_scene(cal, features, [{**r, "options": {k: v for k, v in m.config.options.items() if k != "path"}}
+        add_scene(cal, features, [{**r, "options": {k: v for k, v in m.config.options.items() if k != "path"},
+                                   **({"model_sha256": _model_sha256(m.config.options.get("path"))}
+                                      if m.config.method == "model" else {})}
                                   for r, m in zip(table, results) if not m.config.spread and m.config.method != "psd"])
+        cal.provenance = {"updated": time.strftime("%Y-%m-%d"), "software": software_versions(*SOFTWARE)}
         cal.save(calibration_path)
         click.echo(f"{calibration_path}: added the scene (looseness {features['looseness_m'] * 100:.1f} cm, "
                    f"speed {features['speed_m_s']:.2f} m/s)")
@@ -319,7 +336,7 @@ def _write(directory: Path, table: list[dict], garment_path, motion_path, motion
          "preroll_frames": motion.n_lead, "fps": motion.fps,
          "vertices": garment.n_vertices, "model_device": device, "options": options,
          "simulator_version": SIMULATOR_VERSION,
-         "software": software_versions("garment", "numpy", "torch", "newton", "warp-lang"), "rows": table}, indent=1))
+         "software": software_versions(*SOFTWARE), "rows": table}, indent=1))
     ref = next(r["config"] for r in table if r["reference"])
     done = [r for r in table if not r["failed"]]
     spread = next((r for r in done if r["spread"]), None)

@@ -237,3 +237,30 @@ def test_auto_choosing_the_simulator_says_it_replaced_the_users_substeps(auto_sc
     r = _auto(auto_scene, "tight.obj", "slow.npz", "--substeps", "5")
     assert r.exit_code == 0, r.output
     assert "quality auto: --substeps 5 replaced by the configuration chosen (sim 20 substeps" in r.output
+
+
+def test_auto_warns_where_the_calibration_measured_another_model(auto_scene, caplog):
+    """A calibration records which model file its model configurations measured (`tradeoff --calibrate`): one of
+    another model is warned about, naming both; one of this model, or one that records none, is not."""
+    import logging
+
+    from core.provenance import file_sha256
+    from core.quality import Calibration
+
+    s = auto_scene
+    path = s["dir"] / "tiny.calibration.json"
+    cal = Calibration.load(path)
+    for sha, warned in (("f" * 64, True), (file_sha256(s["model"]), False)):
+        for c in cal.configs.values():
+            if c["method"] == "model":
+                c["models"] = {sha: 3}
+        cal.save(path)
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            r = _auto(s, "tight.obj", "slow.npz", "--overwrite")
+        assert r.exit_code == 0, r.output
+        said = [rec.getMessage() for rec in caplog.records if "measured model" in rec.getMessage()]
+        assert bool(said) == warned, said
+        if warned:
+            assert f"measured model ffffffff on its scenes, not '{s['model']}' (sha256 {file_sha256(s['model'])[:8]})" \
+                in said[0]

@@ -358,7 +358,15 @@ def test_a_fit_is_a_psd_row_left_out_of_the_calibration(scene, monkeypatch, tmp_
     assert r.exit_code == 0, r.output
     rows = [row["config"] for row in csv.DictReader(open(scene["out"] / "shell_walk" / "tradeoff.csv"))]
     assert rows[:3] == ["lbs", "lbs +strain-limit 1.5", "psd mine"]
-    assert "psd mine" not in json.loads((tmp_path / "cal.json").read_text())["configs"]
+    cal = json.loads((tmp_path / "cal.json").read_text())
+    assert "psd mine" not in cal["configs"]
+    # which model the model rows measured, by content, and what made the file (the shipped calibration says neither)
+    from core.model_deform import DEFAULT_MODEL
+    from core.provenance import file_sha256
+
+    models = [c["models"] for c in cal["configs"].values() if c["method"] == "model"]
+    assert models and all(m == {file_sha256(DEFAULT_MODEL): 1} for m in models)
+    assert "models" not in cal["configs"]["lbs"] and cal["provenance"]["software"]["garment"]
     r = invoke([*base, "--fit", f"x={tmp_path / 'gone.npz'}", "--out", tmp_path / "o"])
     assert r.exit_code != 0 and "fit '" in r.output and "gone.npz': no such file" in r.output
 
