@@ -71,8 +71,8 @@ def _parse_phases(text: str) -> tuple:
                    "be the same mesh, their motions in the same split and their settle blends alike).")
 @click.option("--out", "out_path", required=True, type=OutputPath(dir_okay=False), help="Model file to write.")
 @click.option("--phases", default=None, help="Training phases: 1, 1,2 or 1,2,3 [default: --config's, else 1,2,3].")
-@click.option("--steps", type=click.IntRange(min=1), default=None, help="Optimizer steps [default: --config's, else 20000].")
-@click.option("--seed", type=SEED_RANGE, default=None, help="Seed of initialisation and sampling (default 0).")
+@click.option("--steps", type=click.IntRange(min=1), default=None, help="Optimizer steps [default: --config's, else 20000; with --resume the run's].")
+@click.option("--seed", type=SEED_RANGE, default=None, help="Seed of initialisation and sampling [default: --config's, else 0; with --resume the run's].")
 @click.option("--resume", is_flag=True, help="Continue from <MODEL>.ckpt exactly where it stopped.")
 @click.option("--checkpoint-every", type=click.IntRange(min=0), default=None,
               help="Steps between checkpoints; 0: at the end only [default: --config's, else 1000].")
@@ -178,9 +178,11 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         raise click.BadParameter(f"{src}: expected a network of the body's {body.n_joints} joints, got "
                                  f"{model_values['n_joints']} joints (pass the --body it was made for)", param_hint=hint)
     overrides = {} if phases is None else {"phases": list(_parse_phases(phases))}  # --config's where left out
-    if resume and steps is None and ckpt_path.is_file():  # the run's own --steps (it went on to the default 20000)
-        saved = load_checkpoint(ckpt_path).get("train") or {}
-        steps = json.loads(saved.get("train_config", "{}")).get("steps")
+    if resume and (steps is None or seed is None) and ckpt_path.is_file():
+        # the run's own --steps (it went on to the default 20000) and --seed (refused as another) where left out
+        saved = json.loads((load_checkpoint(ckpt_path).get("train") or {}).get("train_config", "{}"))
+        steps = saved.get("steps") if steps is None else steps
+        seed = saved.get("seed") if seed is None else seed
     for key, val in (("steps", steps), ("seed", seed), ("checkpoint_every", checkpoint_every)):
         if val is not None:
             overrides[key] = val
