@@ -105,7 +105,10 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
     from formats.sequence import read_sequence
 
     width, height = parse_size(size)
-    frame_slice = _frame_slice(frames, every)  # its errors before any work
+    try:
+        frame_slice = _frame_slice(frames, every)  # its errors before any work, as click's (exit 2)
+    except InputError as exc:
+        raise click.BadParameter(str(exc).removeprefix("--frames: "), param_hint="--frames") from None
     if color == "error" and gt_path is None:
         raise click.BadParameter("--color error needs --gt", param_hint="--gt")
     if color == "scalar" and scalars_spec is None:

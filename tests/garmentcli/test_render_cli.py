@@ -231,8 +231,9 @@ def test_render_frames_accepts_a_step_and_refuses_a_bad_one(seqs, tmp_path):
     assert res.exit_code == 0, res.output
     assert sorted(p.name for p in (tmp_path / "s" / "frames" / "front").iterdir()) == ["frame_0000.png",
                                                                                        "frame_0002.png"]
-    assert "expected a positive integer STEP in START:STOP:STEP, got '0'" in error_line(
-        run("render", seqs["pred"], "--out", tmp_path / "b", "--frames", "0:3:0"))
+    bad = run("render", seqs["pred"], "--out", tmp_path / "b", "--frames", "0:3:0")
+    assert "Invalid value for --frames: expected a positive integer STEP in START:STOP:STEP, got '0'" in \
+        error_line(bad) and bad.exit_code == 2  # a usage error, as bake's (it exited 1)
     assert "expected one step, got both" in error_line(
         run("render", seqs["pred"], "--out", tmp_path / "b", "--frames", "::2", "--every", "2"))
     assert not (tmp_path / "b").exists()
