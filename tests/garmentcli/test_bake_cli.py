@@ -741,7 +741,7 @@ def test_an_error_repeats_a_huge_value_by_its_ends(scene, tmp_path):
     """A value of 100,000 characters (a file pasted as an option) in our message and in click's own: the error is
     one short line naming the option and the value's length; a value of ordinary length is repeated whole."""
     base = ["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", tmp_path / "o"]
-    for option, needle in (("--frames", "--frames: expected START:STOP"), ("--lbs-smooth", "'--lbs-smooth'")):
+    for option, needle in (("--frames", "'--frames': expected START:STOP"), ("--lbs-smooth", "'--lbs-smooth'")):
         r = run([*base, option, "1" * 100_000])
         assert_one_line_error(r, needle, "...(100,00")
         assert len(r.output) < 1000, len(r.output)
