@@ -149,6 +149,7 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
 
     binding = bind_garment(garment, body, options.smooth_iterations, options.smooth_strength)
     offsets, features, speeds, shapes = [], [], [], [0.0]
+    angles = np.zeros(body.n_joints)  # each joint's largest rotation over the frames fitted (`beyond_fit`)
     for motion, positions in sequences:
         positions = np.asarray(positions, np.float64)
         if positions.shape != (motion.n_frames, garment.n_vertices, 3):
@@ -159,6 +160,7 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
         rest = shaped_garment(garment.vertices, binding, betas).astype(np.float64)
         offsets.append((unskin(M, positions) - rest).reshape(len(positions), -1))
         features.append(X)
+        angles = np.maximum(angles, np.linalg.norm(poses, axis=-1).max(axis=0))
         speeds.append(joint_speed(body, motion))
         shapes.append(float(np.abs(betas).max(initial=0.0)))
     if not offsets:
@@ -179,7 +181,11 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
                         "fit_residual_mm": residual * 1e3,
                         # what it was fitted on: the motions' joint speeds (`core.quality.joint_speed`), the
                         # largest beta (`beyond_fit`)
-                        "speed_m_s": [min(speeds), max(speeds)], "betas_abs_max": max(shapes)},
+                        "speed_m_s": [min(speeds), max(speeds)], "betas_abs_max": max(shapes),
+                        # and each joint's largest rotation, of the joints that move the garment (not the root)
+                        "joint_angle_max_deg": {name: round(float(np.degrees(angles[j])), 2)
+                                                for j, name in enumerate(body.joint_names)
+                                                if j > 0 and binding.weights[:, j].max() > FIT_JOINT_WEIGHT}},
                   body_sha256=body.content_hash(),
                   garment_vertices=garment.vertices.astype(np.float32), garment_faces=garment.faces.astype(np.int64))
 
@@ -188,12 +194,17 @@ def fit_psd(garment: Garment, body: Body, sequences, rank: int = DEFAULT_RANK, r
 #: times below the slowest or above the fastest (as `core.quality.OUTSIDE_FACTOR`), betas this much larger.
 FIT_SPEED_FACTOR = 1.25
 FIT_BETAS_MARGIN = 1.0
+#: A joint moves the garment where some vertex has more than this of its weight (its rotations recorded); a
+#: motion that turns one of them more than FIT_ANGLE_MARGIN_DEG beyond the fitted frames' largest is warned about
+#: (the arms raised on a fit of walks came 7.2 mm off where the cloth did not move).
+FIT_JOINT_WEIGHT = 0.05
+FIT_ANGLE_MARGIN_DEG = 20.0
 
 
 def beyond_fit(fit: PSDFit, body: Body, motion: Motion) -> str:
-    """Where `motion` lies beyond what `fit` was fitted on (its joint speed, its body shape), in words; "" where
-    it does not, or the fit records nothing of it (written before 2026-12-06). There a fit can do worse than LBS:
-    its blend shapes answer poses and speeds it never saw."""
+    """Where `motion` lies beyond what `fit` was fitted on (its joint speed, a joint's rotation, its body shape), in
+    words; "" where it does not, or the fit records nothing of it (an older fit). There a fit can do worse than
+    LBS: its blend shapes answer poses and speeds it never saw."""
     from core.quality import joint_speed
 
     out = []
@@ -204,6 +215,17 @@ def beyond_fit(fit: PSDFit, body: Body, motion: Motion) -> str:
             out.append(f"its joints move at {speed:.2g} m/s, the fastest fitted {hi:.2g}")
         elif speed < lo / FIT_SPEED_FACTOR:
             out.append(f"its joints move at {speed:.2g} m/s, the slowest fitted {lo:.2g}")
+    fitted = fit.meta.get("joint_angle_max_deg") or {}
+    if fitted:
+        turned = np.degrees(np.linalg.norm(poses_for_body(motion, body.n_joints), axis=-1).max(axis=0))
+        over = sorted(((turned[body.joint_names.index(name)] - most, name, most) for name, most in fitted.items()
+                       if name in body.joint_names
+                       and turned[body.joint_names.index(name)] > most + FIT_ANGLE_MARGIN_DEG), reverse=True)
+        if over:
+            excess, name, most = over[0]
+            out.append(f"its {name} turns {most + excess:.0f} degrees, the most fitted {most:.0f}"
+                       + (f" (and {len(over) - 1} more joint{'' if len(over) == 2 else 's'} beyond)"
+                          if len(over) > 1 else ""))
     if "betas_abs_max" in fit.meta and motion.betas is not None:
         largest = float(np.abs(motion.betas).max(initial=0.0))
         if largest > fit.meta["betas_abs_max"] + FIT_BETAS_MARGIN:

@@ -83,6 +83,29 @@ def test_a_motion_beyond_what_the_fit_saw_is_warned_about(setup, fitted):
     assert r.exit_code != 0 and "exists: pass --overwrite" in r.output
 
 
+def test_a_motion_turning_a_joint_beyond_the_fitted_frames_is_warned_about(setup, fitted):
+    """The fit records the largest rotation of each joint that moves the garment (the fixture's sequences swing the
+    hips 0.5 rad): a motion turning a hip 1.5 rad is warned about, naming the joint; one within is not (the arms
+    raised on a fit of walks came 7.2 mm off without a word)."""
+    root, data, body, garment = setup
+    _, fit_path = fitted
+    angles = load_fit(fit_path).meta["joint_angle_max_deg"]
+    assert angles["left_hip"] == pytest.approx(np.degrees(0.5), abs=0.5) and "pelvis" not in angles
+    for name, hip, warned in (("wide", 1.5, True), ("narrow", 0.4, False)):
+        poses = np.zeros((12, 72), np.float32)
+        poses[:, :3] = [np.pi / 2, 0, 0]
+        poses[:, 3] = hip * np.sin(np.linspace(0, np.pi, 12))  # left hip about X
+        write_motion(root / f"{name}.npz", n_frames=12, fps=30.0, poses=poses)
+        r = invoke(["bake", garment, root / f"{name}.npz", "--method", "psd", "--fit", fit_path, "--body", body,
+                    "--out", root / f"turn_{name}"])
+        assert r.exit_code == 0, r.output
+        warnings = json.loads((root / f"turn_{name}" / f"a_{name}" / "summary.json").read_text())["warnings"]
+        beyond = [w for w in warnings if "beyond the sequences the fit" in w]
+        assert bool(beyond) == warned, warnings
+        if warned:
+            assert "its left_hip turns 85 degrees, the most fitted 29" in beyond[0]  # 1.5 rad at its 12 samples
+
+
 def test_fit_and_psd_bad_inputs(setup, fitted, tmp_path):
     root, data, body, garment = setup
     fit_path = fitted[1]
