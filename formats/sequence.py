@@ -406,6 +406,16 @@ def _read_usd_sequence(path: Path, track: str) -> Sequence:
                     first_frame=seq.start_frame)
 
 
+def takes_up(path: str | os.PathLike) -> bool:
+    """Whether `read_sequence`'s `up` applies to the sequence at `path`: OBJ frames or one OBJ (a USD stage or an
+    npz records its own frame; a bake's folder is read through its stage where it has one)."""
+    path = Path(path)
+    if path.is_dir():
+        inner = bake_directory_sequence(path)
+        return inner is None or takes_up(inner)
+    return path.suffix.lower() == ".obj"
+
+
 @warnings_held
 def read_sequence(path: str | os.PathLike, track: str = "garment", up: str | None = None) -> Sequence:
     """Read a garment sequence from any supported form.

@@ -650,6 +650,18 @@ def obj_up_option(command):
                              "Houdini).")(command)
 
 
+def warn_up_unused(up: str | None, *paths) -> None:
+    """Say where --up (y or z) was given but no input of `paths` (None: left out) is OBJ frames, whose frame it
+    names: a USD stage or an npz records its own (`formats.sequence.takes_up`)."""
+    from formats.sequence import takes_up
+
+    given = [p for p in paths if p is not None]
+    if up is not None and not any(takes_up(p) for p in given):
+        which = (f"'{given[0]}' is not" if len(given) == 1 else f"neither '{given[0]}' nor '{given[1]}' is")
+        click.echo(f"warning: --up {up}: {which} OBJ frames (a USD stage or an npz records its own frame): left "
+                   "unused", err=True)
+
+
 def body_option(command):
     """--body PATH (an SMPL-format body; the embedded one by default)."""
     return click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,

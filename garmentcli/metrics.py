@@ -19,6 +19,7 @@ from garmentcli.common import (
     checked_by,
     input_errors_as_click,
     obj_up_option,
+    warn_up_unused,
     motion_up_option,
     person_option,
     take_option,
@@ -355,6 +356,7 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
 
     p_seq = _read_sequence(pred, up)
     g_seq = _read_sequence(gt, up)
+    warn_up_unused(up, pred, gt)
     p_seq, g_seq = _borrow_faces(p_seq, g_seq, pred, gt)
     if p_seq.fps is not None and g_seq.fps is not None and not np.isclose(p_seq.fps, g_seq.fps, rtol=FPS_RTOL):
         raise InputError(f"'{pred}' is at {p_seq.fps:g} fps, '{gt}' at {g_seq.fps:g} fps: expected the same frame "

@@ -12,7 +12,8 @@ from tqdm import tqdm
 from core.errors import InputError, require_input
 from formats.atomic import atomic_dir, refuse_replacing
 from formats.render import check_azimuth, check_value_range
-from garmentcli.common import MAX_FPS, FiniteFloatRange, OutputPath, checked_by, input_errors_as_click, obj_up_option
+from garmentcli.common import (MAX_FPS, FiniteFloatRange, OutputPath, checked_by, input_errors_as_click, obj_up_option,
+                               warn_up_unused)
 
 log = logging.getLogger(__name__)
 
@@ -141,6 +142,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
     seq = read_sequence(input_path, up=up)
     gt = read_sequence(gt_path, up=up) if gt_path is not None else None
     seq, gt = _at_rates(seq, gt, fps)
+    warn_up_unused(up, input_path, gt_path)
     scalars, label = None, "value"
     if scalars_spec is not None:
         file, key = scalars_spec, ""

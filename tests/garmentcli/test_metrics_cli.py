@@ -484,6 +484,15 @@ def test_a_depth_with_no_body_to_measure_it_against_is_said(tmp_path, seq):
     assert "--depth-mm" not in run([a, a]).output
 
 
+def test_up_where_no_input_is_obj_frames_is_said(tmp_path, seq):
+    """--up names the frame of OBJ input: given with two npz sequences it did nothing, without a word."""
+    pts, f = seq
+    a = save_seq(tmp_path / "a.npz", pts, f)
+    r = run([a, a, "--up", "y"])
+    assert r.exit_code == 0 and f"warning: --up y: neither '{a}' nor '{a}' is OBJ frames" in r.output, r.output
+    assert "--up" not in run([a, a]).output
+
+
 def test_one_frame_is_one_frame_in_messages(tmp_path, seq):
     pts, f = seq
     one = save_seq(tmp_path / "one.npz", pts[:1], f)
