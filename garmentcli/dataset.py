@@ -19,6 +19,7 @@ from garmentcli.common import (
     PIN_CHOICES,
     PIN_HELP,
     SEED_RANGE,
+    body_option,
     input_errors_as_click,
     motion_files,
     motion_names,
@@ -185,8 +186,7 @@ MAX_BODIES = 10000
               help="Body shapes: the mean shape plus N-1 sampled ones.")
 @click.option("--betas-range", type=FiniteFloatRange(min=0.0, max=MAX_BETAS_RANGE), default=2.0, show_default=True,
               help="Sampled betas are uniform in [-R, R] (R at most 5).")
-@click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
-              help="SMPL-format body (.npz or .pkl). Default: the embedded body.")
+@body_option
 @click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="garment_dataset", show_default=True,
               help="Dataset directory: garments/, sequences/ and manifest.json; a rerun resumes it.")
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,

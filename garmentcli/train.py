@@ -85,7 +85,7 @@ def _parse_phases(text: str) -> tuple:
                    "(~/.cache/garment by default there) [default: none, each garment preprocessed anew].")
 @click.option("--sequences-per-step", type=click.IntRange(min=1), default=1, show_default=True,
               help="Sequences per step and process; the global batch is this x the number of processes (torchrun).")
-@click.option("--device", default="cpu", show_default=True,
+@click.option("--device", default="cpu", show_default=True, metavar="DEVICE",
               help="Where to train: cpu, cuda or cuda:N. The model is initialised on the CPU from the seed either way.")
 @click.option("--time-limit", type=FiniteFloatRange(min=0, min_open=True), default=None, metavar="MINUTES",
               help="Stop after this many minutes of training (checkpoint and model written); continue with --resume.")
