@@ -214,6 +214,13 @@ def choose(calibration: Calibration, features: dict, budget_mm: float, extra=())
                     f"is expected at {pick['expected_mm']:.1f} mm <= {budget_mm:g} mm")
         why = (f"{scene}: '{pick['config']}' {expected}, {pick['ms_per_frame']:.2f} ms/frame"
                + "".join(f"; '{c['config']}' is cheaper but expected at {c['expected_mm']:.1f} mm" for c in cheaper))
+        # taken over a learned method only because the scene is beyond the calibration: name what that costs
+        held = [c for c in cheaper if c.get("expected_mm_calibration", budget_mm + 1) <= budget_mm]
+        if held:
+            c = held[-1]
+            why += (f" (the calibration's nearest scenes would expect '{c['config']}' at "
+                    f"{c['expected_mm_calibration']:.1f} mm: `--method {c['method']}` bakes it regardless, "
+                    f"{pick['ms_per_frame'] / max(c['ms_per_frame'], 1e-9):.0f}x cheaper)")
     else:
         pick = min(cands, key=lambda c: c["expected_mm"])
         why = (f"{scene}: no configuration is expected within {budget_mm:g} mm: the most accurate, "

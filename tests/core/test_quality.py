@@ -114,6 +114,11 @@ def test_a_scene_beyond_the_calibration_expects_the_learned_methods_no_better_th
     assert m["expected_mm"] == pytest.approx(lbs) and m["expected_mm_calibration"] == pytest.approx(model)
     assert "speed 0.05 m/s, under the smallest calibrated, 0.2" in pick["reason"]
     assert "no better than lbs" in pick["reason"]
+    # the simulator chosen for that alone says what the model would have been expected at, and its cost
+    ratio = pick["ms_per_frame"] / m["ms_per_frame"]
+    assert (f"(the calibration's nearest scenes would expect 'model float32' at {model:.1f} mm: `--method model` "
+            f"bakes it regardless, {ratio:.0f}x cheaper)") in pick["reason"]
+    assert "would expect" not in choose(cal, {**still, "speed_m_s": 1.0}, budget_mm=15.0)["reason"]
     assert choose(cal, still, budget_mm=30.0)["config"] == "lbs"  # as good and cheaper
     # Within OUTSIDE_FACTOR of the range it is a calibrated scene; beyond it on either side or feature, not.
     for features, outside in (({"looseness_m": 0.09, "speed_m_s": 0.2 / 1.2}, []),
