@@ -502,14 +502,14 @@ take_option = _part_option(
 def motion_up_option(command):
     """--motion-up z|y|-y|auto: the motions' world up axis (`prepare_motion`, `resolved_up`); None where it is
     left out (z, or a BVH's own)."""
-    return click.option("--motion-up", type=click.Choice(["z", "y", "-y", "auto"]), default="z", show_default=True,
+    return click.option("--motion-up", type=click.Choice(["z", "y", "-y", "auto"]), default="z", show_default=False,
                         callback=_left_out_as_none,
                         help="The motions' world up axis: z (AMASS), y (the world of most video pose estimators: "
                              "GVHMR, WHAM, TRAM) or -y (camera coordinates, y down the image: per-image estimators "
                              "such as SMPLer-X, 4D-Humans), turned to Z-up exactly (about the body's "
                              "pelvis); auto: per motion, the axis its file's rest skeleton stands along (a BVH's or "
-                             "FBX's), else its body in most frames (z where none). Left out: z, but a BVH's or FBX's "
-                             "world is the one its rest skeleton stands in.")(command)
+                             "FBX's), else its body in most frames (z where none) [default: z, but a BVH's or FBX's "
+                             "world is the one its rest skeleton stands in].")(command)
 
 
 #: Betas beyond this (standard deviations of the body's shape space) are warned about: the methods are tested
