@@ -106,23 +106,12 @@ def baked_back_error(rest: Garment, body: Body, pose: np.ndarray, betas: np.ndar
     """The largest distance (metres) between `target` (V, 3), the garment as authored in `pose` on the body shaped by
     `betas`, and `rest` (the unposed garment as `bake` reads it from the file written: its polygons split at the
     rest positions, which the in-memory garment's split at the posed ones differs from) baked back into `pose` by
-    `lbs` with its defaults (`core.skinning.bind_garment`, the body's shape by the garment's blend shapes)."""
-    import torch
+    `lbs` with its defaults (`core.deform.LBSDeformer`)."""
+    from core.deform import LBSDeformer
+    from core.motion import Motion
 
-    from core.body import skin_points
-    from core.deform import LBSOptions
-    from core.skinning import bind_garment
-
-    options = LBSOptions()
-    binding = bind_garment(rest, body, options.smooth_iterations, options.smooth_strength)
-    points = rest.vertices.astype(np.float64)
     pose = np.asarray(pose, dtype=np.float32).reshape(1, body.n_joints, 3).copy()
     pose[0, 0] = 0.0
-    if betas is not None:
-        betas = body.fit_betas(betas)
-        points = points + np.einsum("vcs,s->vc", binding.shapedirs.astype(np.float64), betas.astype(np.float64))
-    A = body.skinning_transforms(pose, np.zeros((1, 3), np.float32), betas)
-    posed = skin_points(torch.from_numpy(points.astype(np.float32)), torch.from_numpy(binding.weights),
-                        torch.from_numpy(A)).numpy()[0]
+    posed = LBSDeformer().deform(rest, body, Motion(poses=pose, trans=np.zeros((1, 3), np.float32), fps=30.0,
+                                                    betas=betas))[0]
     return float(np.linalg.norm(posed - np.asarray(target, dtype=np.float64), axis=1).max(initial=0.0))
-
