@@ -217,10 +217,10 @@ def beyond_fit(fit: PSDFit, body: Body, motion: Motion) -> str:
             out.append(f"its joints move at {speed:.2g} m/s, the slowest fitted {lo:.2g}")
     fitted = fit.meta.get("joint_angle_max_deg") or {}
     if fitted:
-        turned = np.degrees(np.linalg.norm(poses_for_body(motion, body.n_joints), axis=-1).max(axis=0))
-        over = sorted(((turned[body.joint_names.index(name)] - most, name, most) for name, most in fitted.items()
-                       if name in body.joint_names
-                       and turned[body.joint_names.index(name)] > most + FIT_ANGLE_MARGIN_DEG), reverse=True)
+        turned = dict(zip(body.joint_names,
+                          np.degrees(np.linalg.norm(poses_for_body(motion, body.n_joints), axis=-1).max(axis=0))))
+        over = sorted(((turned[name] - most, name, most) for name, most in fitted.items()
+                       if turned.get(name, -np.inf) > most + FIT_ANGLE_MARGIN_DEG), reverse=True)
         if over:
             excess, name, most = over[0]
             out.append(f"its {name} turns {most + excess:.0f} degrees, the most fitted {most:.0f}"

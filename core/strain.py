@@ -125,6 +125,12 @@ def _pass(x: torch.Tensor, a: torch.Tensor, b: torch.Tensor, longest: torch.Tens
     return x + (move / count.clamp(min=1.0)).view(x.shape)
 
 
+def _edge_tensors(strain: StrainLimit, device) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The edges' ends a, b (E,) and their longest lengths (E, 1) float32 of `strain`, on `device`."""
+    a, b = (torch.as_tensor(strain.edges[:, i], device=device) for i in (0, 1))
+    return a, b, torch.as_tensor(strain.longest, dtype=torch.float32, device=device)[:, None]
+
+
 def _excess(x: torch.Tensor, a: torch.Tensor, b: torch.Tensor, longest: torch.Tensor) -> torch.Tensor:
     """(E, T): how much longer than its limit each edge (a, b) of positions x (3, V, T) is (negative: shorter)."""
     return _edges_of(x, a, b)[1] - longest
@@ -155,8 +161,7 @@ def limit_strain(points, strain: StrainLimit, iterations: int = STRAIN_ITERATION
     x = points.float() if tensor else torch.from_numpy(np.asarray(points, dtype=np.float32))
     x = x.permute(2, 1, 0).contiguous()  # (3, V, T): coordinate planes
     device = x.device
-    a, b = (torch.as_tensor(strain.edges[:, i], device=device) for i in (0, 1))
-    longest = torch.as_tensor(strain.longest, dtype=torch.float32, device=device)[:, None]
+    a, b, longest = _edge_tensors(strain, device)
     excess = _excess(x, a, b, longest)
     counts = (excess > STRAIN_TOLERANCE_M).sum(dim=0)
     frames = torch.nonzero(counts).ravel()
@@ -196,9 +201,7 @@ def still_over(points, strain: StrainLimit) -> tuple[np.ndarray, np.ndarray]:
     their limit by more than STRAIN_TOLERANCE_M (T,) and the largest excess (T,) metres (0 where none is over)."""
     x = points.float() if isinstance(points, torch.Tensor) else torch.from_numpy(np.asarray(points, np.float32))
     x = x.permute(2, 1, 0)
-    a, b = (torch.as_tensor(strain.edges[:, i], device=x.device) for i in (0, 1))
-    longest = torch.as_tensor(strain.longest, dtype=torch.float32, device=x.device)[:, None]
-    excess = _excess(x, a, b, longest)
+    excess = _excess(x, *_edge_tensors(strain, x.device))
     return ((excess > STRAIN_TOLERANCE_M).sum(dim=0).cpu().numpy(),
             excess.max(dim=0).values.clamp(min=0.0).cpu().numpy() if len(excess) else np.zeros(x.shape[2]))
 
