@@ -44,12 +44,12 @@ def examples(out_dir, fps, overwrite):
     garments = generate_example_garments(body)
     motions = generate_example_motions(fps=fps)
     written = {f"{name}.obj" for name in garments} | {f"{name}.npz" for name in motions}
-    keep = [p for p in out.iterdir() if p.name not in written] if out.is_dir() else []
-    if out.is_dir():  # a folder of the user's where an example goes is not replaced by it
-        blocked = sorted(p.name for p in out.iterdir() if p.name in written and not p.is_file())
-        if blocked:
-            raise click.ClickException(f"'{out / blocked[0]}' is a folder where an example file goes: move it, or "
-                                       "write the examples elsewhere with --out")
+    listed = list(out.iterdir()) if out.is_dir() else []
+    keep = [p for p in listed if p.name not in written]
+    blocked = sorted(p.name for p in listed if p.name in written and not p.is_file())
+    if blocked:  # a folder of the user's where an example goes is not replaced by it
+        raise click.ClickException(f"'{out / blocked[0]}' is a folder where an example file goes: move it, or "
+                                   "write the examples elsewhere with --out")
     with atomic_dir(out, overwrite) as tmp:
         for p in keep:  # every file and folder but the examples' own (a README, textures, a garment of the user's)
             if p.is_dir():
