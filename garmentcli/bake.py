@@ -98,6 +98,24 @@ def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact
     return deformer
 
 
+def _options_of_other_methods(method: str, no_contact_guard: bool, strain, no_skip) -> list[tuple[str, str]]:
+    """(option, why it does not apply) for each option given that applies to other methods than `method` but the
+    simulator's (`sim_options_given`): --method refuses the first, --quality auto leaves them out, said."""
+    found = []
+    if method != "lbs" and option_given("lbs_smooth"):
+        found.append(("--lbs-smooth", f"--lbs-smooth applies to --method lbs only (got --method {method})"))
+    if no_contact_guard and method not in ("model", "psd"):
+        found.append(("--no-contact-guard",
+                      f"--no-contact-guard applies to --method model and psd only (got --method {method})"))
+    if strain is not None and method not in STRAIN_METHODS:
+        found.append(("--strain-limit", f"--strain-limit applies to --method {', '.join(STRAIN_METHODS)} only (got "
+                                        f"--method {method}: the simulator's cloth has its own stretch stiffness)"))
+    found += [(f"--no-skip {name}", f"--no-skip {name} applies to --method {' and '.join(SKIP_METHODS[name])} only "
+                                    f"(got --method {method})")
+              for name in no_skip if name != "all" and method not in SKIP_METHODS[name]]
+    return found
+
+
 def sim_options_given(material_path, self_contact, substeps, iterations, pin, floor) -> list[str]:
     """The simulator's options given (not left at their defaults), by name."""
     return [name for name, v in (("--material", material_path), ("--self-contact", self_contact or None),
@@ -441,17 +459,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                 raise click.UsageError(f"{name} applies to --quality auto only")
         explicit = method is not None
         method = method or "model"
-        if method != "lbs" and option_given("lbs_smooth"):
-            raise click.UsageError(f"--lbs-smooth applies to --method lbs only (got --method {method})")
-        if no_contact_guard and method not in ("model", "psd"):
-            raise click.UsageError(f"--no-contact-guard applies to --method model and psd only (got --method {method})")
-        if strain is not None and method not in STRAIN_METHODS:
-            raise click.UsageError(f"--strain-limit applies to --method {', '.join(STRAIN_METHODS)} only (got --method "
-                                   f"{method}: the simulator's cloth has its own stretch stiffness)")
-        for name in no_skip:
-            if name != "all" and method not in SKIP_METHODS[name]:
-                raise click.UsageError(f"--no-skip {name} applies to --method {' and '.join(SKIP_METHODS[name])} "
-                                       f"only (got --method {method})")
+        other = _options_of_other_methods(method, no_contact_guard, strain, no_skip)
+        if other:
+            raise click.UsageError(other[0][1])
         deformer = make_deformer(method, lbs_smooth, material_path, self_contact, substeps, iterations, model_path, pin,
                                  precision, push_out, no_skip, not no_contact_guard, floor, fit_path, device, strain)
     elif method is not None or precision is not None:
@@ -513,13 +523,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if method != "psd":
             fit_path = None  # a fit given to --quality auto is one candidate; another method was chosen
         # Options of other methods than the one chosen are left out, said (an explicit --method refuses them).
-        left = [name for name, off in (("--lbs-smooth", option_given("lbs_smooth") and method != "lbs"),
-                                       ("--no-contact-guard", no_contact_guard and method not in ("model", "psd")),
-                                       ("--strain-limit", "strain_limit" not in opts and strain is not None
-                                        and method not in STRAIN_METHODS),
-                                       *[(f"--no-skip {n}", n != "all" and method not in SKIP_METHODS[n])
-                                         for n in no_skip])
-                if off]
+        left = [name for name, _ in _options_of_other_methods(method, no_contact_guard,
+                                                                  None if "strain_limit" in opts else strain, no_skip)]
         if method != "sim":
             left += sim_options_given(material_path, self_contact, substeps, iterations, pin, floor)
             material_path, self_contact, substeps, iterations, pin, floor = None, False, None, None, None, None
