@@ -72,7 +72,7 @@ def sequences(garment: Garment, frames: int):
     body = default_body()
     motion = select_frames(load_motion(ROOT / "examples" / "walk.npz"), 0, frames)
     pred = bake_item(garment, body, motion, LBSDeformer(), check_penetration=False)
-    gt = bake_item(garment, body, motion, LBSDeformer(LBSOptions(smooth_iterations=0)), check_penetration=False)
+    gt = bake_item(garment, body, motion, LBSDeformer(LBSOptions(smooth_iterations=0, leg_spread_m=None)), check_penetration=False)
     return pred.garment_points, gt.garment_points, pred.body_points, body.faces
 
 

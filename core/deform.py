@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import torch
@@ -26,7 +26,7 @@ from core.scene import (
     active_joints,
     restrict_weights,
 )
-from core.skinning import bind_garment, shaped_garment
+from core.skinning import LEG_SPREAD_M, bind_garment, shaped_garment, spread_leg_weights
 from core.strain import limit_garment
 
 
@@ -79,12 +79,15 @@ class LBSOptions:
       (3,914 frames/s for a 3,960-vertex dress on a 2-core AMD EPYC, 2,290 at 512).
     strain_limit: no edge longer than this times its rest length (`core.strain`); None: off (the default: LBS
       is for speed: the limit costs it 3-7 ms/frame on average on real and synthetic motions).
+    leg_spread_m: the weights of cloth skinned to the legs spread over about this much of the garment after the
+      smoothing passes (`core.skinning.spread_leg_weights`: a skirt between the legs follows both); None: off.
     """
 
     smooth_iterations: int = 10
     smooth_strength: float = 0.5
     batch_frames: int = 32
     strain_limit: float | None = None
+    leg_spread_m: float | None = LEG_SPREAD_M
 
 
 class LBSDeformer(Deformer):
@@ -101,12 +104,17 @@ class LBSDeformer(Deformer):
         key = (garment.content_hash(), id(body))
         if key not in self._bindings:
             o = self.options
-            self._bindings[key] = bind_garment(garment, body, o.smooth_iterations, o.smooth_strength, source=source)
+            binding = bind_garment(garment, body, o.smooth_iterations, o.smooth_strength, source=source)
+            passes = 0
+            if o.leg_spread_m:
+                weights, passes = spread_leg_weights(binding.weights, garment, body, o.leg_spread_m)
+                binding = replace(binding, weights=weights)
+            self._bindings[key] = binding, passes
 
     def deform(self, garment: Garment, body: Body, motion: Motion) -> np.ndarray:
         o = self.options
         self.prepare(garment, body)
-        binding = self._bindings[(garment.content_hash(), id(body))]
+        binding, leg_passes = self._bindings[(garment.content_hash(), id(body))]
         betas = body.fit_betas(motion.betas)
         rest = shaped_garment(garment.vertices, binding, betas)
         poses = poses_for_body(motion, body.n_joints)
@@ -125,7 +133,7 @@ class LBSDeformer(Deformer):
             for s in range(0, motion.n_frames, o.batch_frames):
                 out[s:s + o.batch_frames] = skin_points(x, w, torch.from_numpy(A[s:s + o.batch_frames])).numpy()
         self.scene = scene.report
-        self.report = {"method": self.name, "options": asdict(o),
+        self.report = {"method": self.name, "options": asdict(o), "leg_spread_passes": leg_passes,
                        "rest_body_distance_mm": {"median": float(np.median(binding.body_distance) * 1e3),
                                                  "max": float(binding.body_distance.max() * 1e3)}}
         return self.limit_strain_of(out, garment, rest, o.strain_limit)

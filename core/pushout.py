@@ -46,7 +46,7 @@ from core.garment import Garment, frames_at_once, mesh_edges
 from core.geodesic import edge_lengths
 from core.geometry import InsideTest, TriangleMesh, face_normals, outward_faces, outward_offsets
 from core.motion import Motion, poses_for_body
-from core.skinning import graph_smoothing, surface_blend
+from core.skinning import graph_smoothing, spread_passes_over, surface_blend
 
 #: Distance outside the body a pushed vertex ends at (metres): within the 2 mm depth the penetration
 #: statistics tolerate, so a pushed vertex never counts as inside.
@@ -93,13 +93,8 @@ GUARD_MAX_SPREAD_PASSES = 200
 
 
 def spread_passes(edge_m: float, spread_m: float = GUARD_SPREAD_M, strength: float = 0.5) -> int:
-    """Passes of `graph_smoothing` (`strength`) that spread values over about `spread_m` metres of a mesh of
-    edges `edge_m` long: a pass spreads a value's variance by about strength x edge^2 (a random walk's),
-    so (spread / edge)^2 / strength of them, rounded (none where the edges are longer than twice the spread);
-    at most GUARD_MAX_SPREAD_PASSES, none on a degenerate mesh."""
-    if not edge_m > 0:
-        return 0
-    return int(min(np.round((spread_m / edge_m) ** 2 / strength), GUARD_MAX_SPREAD_PASSES))
+    """`core.skinning.spread_passes_over`, at most GUARD_MAX_SPREAD_PASSES."""
+    return spread_passes_over(edge_m, spread_m, GUARD_MAX_SPREAD_PASSES, strength)
 
 
 def _fade(x: torch.Tensor, bound: float, width: float) -> torch.Tensor:

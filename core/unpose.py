@@ -106,12 +106,13 @@ def baked_back_error(rest: Garment, body: Body, pose: np.ndarray, betas: np.ndar
     """The largest distance (metres) between `target` (V, 3), the garment as authored in `pose` on the body shaped by
     `betas`, and `rest` (the unposed garment as `bake` reads it from the file written: its polygons split at the
     rest positions, which the in-memory garment's split at the posed ones differs from) baked back into `pose` by
-    `lbs` with its defaults (`core.deform.LBSDeformer`)."""
-    from core.deform import LBSDeformer
+    `lbs` with the weights unposing inverts (UNPOSE_SMOOTH_ITERATIONS passes, no legs' spread: the model's prior's;
+    `core.deform.LBSDeformer`)."""
+    from core.deform import LBSDeformer, LBSOptions
     from core.motion import Motion
 
     pose = np.asarray(pose, dtype=np.float32).reshape(1, body.n_joints, 3).copy()
     pose[0, 0] = 0.0
-    posed = LBSDeformer().deform(rest, body, Motion(poses=pose, trans=np.zeros((1, 3), np.float32), fps=30.0,
-                                                    betas=betas))[0]
+    lbs = LBSDeformer(LBSOptions(smooth_iterations=UNPOSE_SMOOTH_ITERATIONS, leg_spread_m=None))
+    posed = lbs.deform(rest, body, Motion(poses=pose, trans=np.zeros((1, 3), np.float32), fps=30.0, betas=betas))[0]
     return float(np.linalg.norm(posed - np.asarray(target, dtype=np.float64), axis=1).max(initial=0.0))

@@ -70,6 +70,33 @@ log = logging.getLogger(__name__)
 MAX_LBS_SMOOTH = 1000
 
 
+class LbsSmooth(click.ParamType):
+    """--lbs-smooth: 'auto' (returned as the string) or passes 0..MAX_LBS_SMOOTH."""
+
+    name = "auto|N"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) and not isinstance(value, bool):
+            n = value
+        elif isinstance(value, str) and value.strip().lower() == "auto":
+            return "auto"
+        else:
+            try:
+                n = int(str(value).strip())
+            except ValueError:
+                n = -1
+        if not 0 <= n <= MAX_LBS_SMOOTH:
+            self.fail(f"expected 'auto' or passes from 0 to {MAX_LBS_SMOOTH}, got {value!r}", param, ctx)
+        return n
+
+
+def lbs_options(lbs_smooth, strain_limit: float | None = None) -> LBSOptions:
+    """LBS's options of --lbs-smooth ('auto': the default's passes with the legs' spread; N: N passes, no spread)."""
+    if lbs_smooth == "auto":
+        return LBSOptions(strain_limit=strain_limit)
+    return LBSOptions(smooth_iterations=int(lbs_smooth), leg_spread_m=None, strain_limit=strain_limit)
+
+
 #: The methods --strain-limit applies to, and those it is on for by default.
 STRAIN_METHODS = ("lbs", "model", "psd")
 STRAIN_DEFAULT_METHODS = ("model", "psd")
@@ -82,7 +109,7 @@ def strain_limit_of(method: str, option) -> float | None:
     return None if option == "off" or method not in STRAIN_METHODS else float(option)
 
 
-def make_deformer(method: str, lbs_smooth: int, material_path=None, self_contact=False, substeps=None,
+def make_deformer(method: str, lbs_smooth: int | str, material_path=None, self_contact=False, substeps=None,
                   iterations=None, model_path=None, pin=None, precision=None, push_out=False, no_skip=(),
                   contact_guard=True, floor=None, fit_path=None, device=None, strain=None):
     """The deformer of bake's options (`strain`: --strain-limit's value, `strain_limit_of`)."""
@@ -141,7 +168,7 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
 
         return psd_deformer(fit_path, contact_guard=contact_guard, strain_limit=strain_limit)
     if method == "lbs":
-        return LBSDeformer(LBSOptions(smooth_iterations=lbs_smooth, strain_limit=strain_limit))
+        return LBSDeformer(lbs_options(lbs_smooth, strain_limit))
     if method == "model":
         from core.model_deform import load_model_deformer
         from formats.cache import default_cache_dir
@@ -201,7 +228,7 @@ class BakeSpec:
     garment_path: str
     body_path: str | None
     method: str
-    lbs_smooth: int
+    lbs_smooth: int | str
     material_path: str | None
     self_contact: bool
     substeps: int | None
@@ -385,8 +412,11 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
               help="Frames blending from the rest pose into the first frame, prepended to the output.")
 @preroll_option
-@click.option("--lbs-smooth", type=click.IntRange(0, MAX_LBS_SMOOTH), default=LBSOptions.smooth_iterations,
-              show_default=True, help="lbs: smoothing passes of the transferred skinning weights over the garment graph.")
+@click.option("--lbs-smooth", type=LbsSmooth(), default="auto", show_default=True,
+              help="lbs: smoothing of the transferred skinning weights over the garment: auto (10 passes, and the "
+                   "weights of cloth skinned to the legs spread over about 20 cm, so that a skirt or dress between "
+                   "the legs follows both and does not tear at a stride), or N passes over the whole garment, no "
+                   "spread (10: LBS before 2026-12-06).")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="sim: cloth material JSON (fields of core.sim.Material; unknown keys are rejected).")
 @click.option("--self-contact", is_flag=True, help="sim: cloth-cloth contact (about 3-10x slower).")
@@ -529,7 +559,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             left += sim_options_given(material_path, self_contact, substeps, iterations, pin, floor)
             material_path, self_contact, substeps, iterations, pin, floor = None, False, None, None, None, None
         if "--lbs-smooth" in left:
-            lbs_smooth = LBSOptions.smooth_iterations
+            lbs_smooth = "auto"
         no_contact_guard = no_contact_guard and "--no-contact-guard" not in left
         strain = None if "--strain-limit" in left else strain
         no_skip = tuple(n for n in no_skip if f"--no-skip {n}" not in left)

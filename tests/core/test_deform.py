@@ -1,5 +1,6 @@
 import logging
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -95,8 +96,6 @@ def test_a_vertex_equally_near_two_body_parts_takes_both_and_a_nudge_moves_it_li
 def test_the_example_skirt_binds_alike_after_a_centimetre_round_trip():
     """The example skirt's vertices through float32 centimetres and back (moves of up to 3e-8 m): its weights move
     by as little (the nearest point alone swapped 4 vertices' dominant joint between the hips)."""
-    from pathlib import Path
-
     from core.body import default_body
     from formats.obj import read_garment
 
@@ -135,6 +134,65 @@ def test_smoothing_matches_naive_loop():
     np.testing.assert_allclose(smooth_over_graph(x, f, 3, 0.3), ref, atol=1e-12)
 
 
+def test_leg_spread_blends_by_the_legs_share_as_a_naive_reference():
+    """Each vertex's weights blended with the weights smoothed over LEG_SPREAD_M by its share on the legs."""
+    from core.skinning import LEG_JOINTS, spread_leg_weights, spread_passes_over
+
+    body = tiny_body(min_weight=0.05)  # few joints per vertex: the top of the torso has no leg weight
+    g = shell_garment(body)
+    w = bind_garment(g, body, smooth_iterations=2).weights
+    out, passes = spread_leg_weights(w, g, body, 0.3)
+    edges = {tuple(sorted((int(a), int(b)))) for f in g.faces for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))}
+    median = np.median([np.linalg.norm(g.vertices[a] - g.vertices[b]) for a, b in edges])
+    assert passes == spread_passes_over(float(median), 0.3, 1000) > 30
+    legs = [body.joint_names.index(n) for n in LEG_JOINTS]
+    wide = smooth_over_graph(w.astype(np.float64), g.faces, passes)
+    wide /= wide.sum(axis=1, keepdims=True)
+    share = w[:, legs].sum(axis=1, keepdims=True)
+    ref = share * wide + (1 - share) * w
+    np.testing.assert_allclose(out, ref / ref.sum(axis=1, keepdims=True), atol=1e-6)
+    np.testing.assert_allclose(out.sum(axis=1), 1.0, atol=1e-6)
+    assert out.min() >= 0
+    untouched = share[:, 0] == 0
+    assert 0 < untouched.sum() < len(w)
+    np.testing.assert_allclose(out[untouched], w[untouched], atol=1e-7)
+    assert np.abs(out[share[:, 0] > 0.5] - w[share[:, 0] > 0.5]).max() > 0.05
+    # a body without SMPL's joint names keeps the weights as they are
+    from dataclasses import replace
+
+    other = replace(body, joint_names=tuple(f"joint{j}" for j in range(body.n_joints)))
+    same, none = spread_leg_weights(w, g, other, 0.3)
+    assert none == 0 and same is w
+
+
+def test_lbs_default_keeps_the_example_skirt_whole_between_the_legs_of_a_walk():
+    """Skinned to one thigh or the other, the cloth between the legs tore at every stride of the example walk
+    (LBS's default before the legs' spread: 10 passes); by default now it follows both."""
+    from core.body import default_body
+    from core.garment import mesh_edges
+    from formats.motion import load_motion
+    from formats.obj import read_garment
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    body = default_body()
+    garment = read_garment(examples / "skirt.obj")
+    m = load_motion(examples / "walk.npz")
+    step = max(1, round(m.fps / 30))
+    motion = Motion(poses=m.poses[:12 * step:step], trans=m.trans[:12 * step:step], fps=30.0)
+    e = mesh_edges(garment.faces)
+    rest = np.linalg.norm(garment.vertices[e[:, 0]] - garment.vertices[e[:, 1]], axis=1)
+
+    def torn_frames(options):
+        lbs = LBSDeformer(options)
+        p = lbs.deform(garment, body, motion)
+        length = np.linalg.norm(p[:, e[:, 0]] - p[:, e[:, 1]], axis=2)
+        return int(((length > 2 * rest) & (length > rest + 0.02)).any(axis=1).sum()), lbs.report
+
+    before, report = torn_frames(LBSOptions(leg_spread_m=None))
+    assert before >= 4 and report["leg_spread_passes"] == 0
+    after, report = torn_frames(LBSOptions())
+    assert after == 0 and report["leg_spread_passes"] > 100 and report["options"]["leg_spread_m"] == 0.2
+
+
 def test_lbs_identity_for_rest_pose():
     body = tiny_body()
     g = shell_garment(body)
@@ -163,7 +221,7 @@ def test_lbs_follows_body_shape():
     g = Garment(body.v_template.copy(), body.faces.copy())
     betas = np.array([1.0, -0.5, 0.0, 2.0], np.float32)
     m = Motion(poses=np.zeros((1, 24, 3), np.float32), trans=np.zeros((1, 3), np.float32), fps=30, betas=betas)
-    out = LBSDeformer(LBSOptions(smooth_iterations=0)).deform(g, body, m)
+    out = LBSDeformer(LBSOptions(smooth_iterations=0, leg_spread_m=None)).deform(g, body, m)
     shaped, _ = body.shaped(betas)
     np.testing.assert_allclose(out[0], shaped, atol=1e-5)
 
@@ -176,7 +234,7 @@ def test_lbs_matches_body_skinning_for_garment_on_body_surface():
     poses = (rng.normal(size=(5, 24, 3)) * 0.4).astype(np.float32)
     trans = rng.normal(size=(5, 3)).astype(np.float32)
     m = Motion(poses=poses, trans=trans, fps=30)
-    out = LBSDeformer(LBSOptions(smooth_iterations=0)).deform(g, body, m)
+    out = LBSDeformer(LBSOptions(smooth_iterations=0, leg_spread_m=None)).deform(g, body, m)
     ref, _ = body.pose(poses, trans)
     np.testing.assert_allclose(out, ref, atol=1e-4)
 

@@ -55,6 +55,26 @@ def test_bake_writes_usd_obj_and_summary(scene):
     assert jump["frames"] == 5
 
 
+def test_lbs_smooth_auto_spreads_the_legs_weights_and_a_number_of_passes_does_not(scene):
+    from formats.sequence import read_sequence
+
+    baked = {}
+    for value in (None, "AUTO", "10"):
+        extra = [] if value is None else ["--lbs-smooth", value]
+        out = scene["out"] / f"smooth_{value}"
+        r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--method", "lbs", "--frames",
+                 "0:4", "--no-obj", "--out", out, *extra])
+        assert r.exit_code == 0, r.output
+        summary = json.loads((out / "shell_walk" / "summary.json").read_text())
+        baked[value] = summary["deformer"], read_sequence(out / "shell_walk" / "shell_walk.usd").points
+    (auto, auto_points), (named, named_points), (ten, ten_points) = baked.values()
+    assert auto["options"]["leg_spread_m"] == named["options"]["leg_spread_m"] == 0.2
+    assert auto["leg_spread_passes"] > 0 and auto["options"]["smooth_iterations"] == 10
+    np.testing.assert_array_equal(auto_points, named_points)
+    assert ten["options"]["leg_spread_m"] is None and ten["leg_spread_passes"] == 0
+    assert np.abs(auto_points - ten_points).max() > 1e-4
+
+
 def test_bake_matches_between_obj_and_usd(scene):
     from formats.sequence import read_sequence
 
@@ -136,7 +156,7 @@ BAD_CASES = {
                                       "--settle", 2], ["--settle and --preroll"]),
     # 1,000,000 passes (a typo) took minutes; --lbs-smooth with another method did nothing
     "lbs-smooth typo": (lambda s: ["bake", s["garment"], s["motion"], "--method", "lbs", "--lbs-smooth", 1_000_000],
-                        ["--lbs-smooth", "0<=x<=1000"]),
+                        ["--lbs-smooth", "expected 'auto' or passes from 0 to 1000, got '1000000'"]),
     "lbs-smooth for the simulator": (lambda s: ["bake", s["garment"], s["motion"], "--method", "sim", "--lbs-smooth",
                                                 20], ["--lbs-smooth applies to --method lbs only (got --method sim)"]),
     # accepted before (fuzz audit): 1e-9 fps wrote one frame; 1e300 Hz put the motion within one frame; a billion
