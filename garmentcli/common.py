@@ -343,6 +343,13 @@ MOTION_BETAS_NOTE = ("a motion's betas belong to the body model it was fitted to
 RESAMPLE_BYTES_PER_JOINT = 512
 
 
+def foreign_betas(what: str, then: str) -> str:
+    """The warning where `what`'s betas, fitted to SMPL's (or SMPL+H's, SMPL-X's) shape basis, meet the embedded
+    body, whose coefficients are its own basis; `then`: what is done about it."""
+    return (f"{what}: its betas were fitted to another body model (SMPL, SMPL+H or SMPL-X), but the embedded body's "
+            f"{default_body().n_betas} shape coefficients are its own basis: {then}")
+
+
 def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
                    check_frames=None, motion_up: str | None = "z", person: str | None = None,
@@ -369,10 +376,8 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
     embedded = body is None or body is default_body()
     if betas in (None, "auto"):
         if fitted and embedded:
-            log.warning("motion '%s': its betas were fitted to another body model (SMPL, SMPL+H or SMPL-X), but the "
-                        "embedded body's %d shape coefficients are its own basis: baked on its mean shape (pass "
-                        "--body with the model the motion was fitted to; --betas motion applies them anyway)",
-                        path, default_body().n_betas)
+            log.warning(foreign_betas(f"motion '{path}'", "baked on its mean shape (pass --body with the model the "
+                                      "motion was fitted to; --betas motion applies them anyway)"))
         betas = "mean" if embedded else "motion"
     if betas != "motion":
         motion = replace(motion, betas=None if betas == "mean" else parse_betas(betas))
@@ -381,10 +386,9 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
                         (f"--betas (motion '{path}')", ""))
         foreign = betas == "motion" and embedded and fitted
         if foreign:
-            log.warning("motion '%s': its betas were fitted to another body model (SMPL, SMPL+H or SMPL-X), but the "
-                        "embedded body's %d shape coefficients are its own basis, so --betas motion shapes it "
-                        "otherwise than the motion's person: pass --body with the model the motion was fitted to, "
-                        "or leave out --betas", path, body.n_betas)
+            log.warning(foreign_betas(f"motion '{path}'", "--betas motion shapes it otherwise than the motion's "
+                                      "person (pass --body with the model the motion was fitted to, or leave out "
+                                      "--betas)"))
         motion = replace(motion, betas=body.fit_betas(motion.betas, source=source, note=note, warn=not foreign))
         _check_betas_range(motion.betas, source)
     if motion_up != "z":

@@ -18,6 +18,7 @@ from garmentcli.common import (
     FiniteFloatRange,
     OutputPath,
     body_option,
+    foreign_betas,
     collected_notes,
     input_errors_as_click,
     load_body_option,
@@ -181,10 +182,9 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         what = f"frame {k} of '{pose_spec}'"
         if body_path is None and betas is not None and np.any(betas != 0) and betas_text is None:
             # fitted to SMPL's (or SMPL+H's, SMPL-X's) shape basis, not the embedded body's own: as bake does
-            click.echo(f"warning: pose '{pose_spec}': its betas were fitted to another body model (SMPL, SMPL+H or "
-                       f"SMPL-X), but the embedded body's {body.n_betas} shape coefficients are its own basis: taken "
-                       "off as its mean shape (pass --body with the model the pose was fitted to, or --betas the "
-                       "embedded body's coefficients)", err=True)
+            click.echo("warning: " + foreign_betas(f"pose '{pose_spec}'", "taken off as its mean shape (pass --body "
+                                                   "with the model the pose was fitted to, or --betas the embedded "
+                                                   "body's coefficients)"), err=True)
             betas = None
     else:
         raise click.BadParameter(f"expected 'tpose', 'apose' or a motion file ({', '.join(MOTION_SUFFIXES)}), got "
