@@ -409,7 +409,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
               help="Output frame rate (any ratio to the source).")
 @frames_option
-@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
+@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True, metavar="K",
               help="Frames blending from the rest pose into the first frame, prepended to the output.")
 @preroll_option
 @click.option("--lbs-smooth", type=LbsSmooth(), default="auto", show_default=True,

@@ -213,9 +213,9 @@ MAX_BODIES = 10000
                    "garment, on the test motions).")
 @click.option("--dry-run", is_flag=True,
               help="Write the plan (OUT/manifest.json, OUT/garments) and print its size; simulate nothing.")
-@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=10, show_default=True,
+@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=10, show_default=True, metavar="K",
               help="Blend frames from the rest pose prepended to every clip (stored, flagged by n_settle).")
-@click.option("--preroll", type=click.IntRange(min=0), default=DEFAULT_PREROLL, show_default=True,
+@click.option("--preroll", type=click.IntRange(min=0), default=DEFAULT_PREROLL, show_default=True, metavar="N",
               help="Frames of the motion simulated ahead of every clip that does not start it (after the settle "
                    "blend; stored and flagged with it by n_settle), so the cloth enters the clip moving with the "
                    "body instead of starting there at rest, as `bake --preroll`. The first clip has none.")

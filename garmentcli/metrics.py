@@ -230,7 +230,7 @@ _MOTION_ONLY = (("fps", "--fps"), ("frames", "--frames"), ("settle_frames", "--s
               help="With --motion: the frame rate of the bake.")
 @click.option("--frames", default=None, metavar="START:STOP", callback=checked_by(parse_frame_range),
               help="With --motion: the source frames of the bake.")
-@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True,
+@click.option("--settle", "settle_frames", type=click.IntRange(min=0), default=0, show_default=True, metavar="K",
               help="With --motion: the settle frames of the bake.")
 @betas_option
 @source_fps_option

