@@ -414,8 +414,8 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @preroll_option
 @click.option("--lbs-smooth", type=LbsSmooth(), default="auto", show_default=True,
               help="lbs: smoothing of the transferred skinning weights over the garment: auto (10 passes, and the "
-                   "weights of cloth skinned to the legs spread over about 20 cm, so that a skirt or dress between "
-                   "the legs follows both and does not tear at a stride), or N passes over the whole garment, no "
+                   "weights of cloth skinned to the legs spread over about 10 cm, so that a skirt or dress between "
+                   "the legs follows both thighs and tears less at a stride), or N passes over the whole garment, no "
                    "spread (10: LBS before 2026-12-06).")
 @click.option("--material", "material_path", type=click.Path(dir_okay=False, exists=True), default=None,
               help="sim: cloth material JSON (fields of core.sim.Material; unknown keys are rejected).")

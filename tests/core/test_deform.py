@@ -10,7 +10,7 @@ from core.errors import InputError
 from core.garment import Garment
 from core.motion import Motion
 from core.rotations import axis_angle_to_matrix
-from core.skinning import bind_garment, smooth_over_graph
+from core.skinning import LEG_SPREAD_M, bind_garment, smooth_over_graph
 from tests.meshes import grid, tiny_body
 
 
@@ -190,7 +190,7 @@ def test_lbs_default_keeps_the_example_skirt_whole_between_the_legs_of_a_walk():
     before, report = torn_frames(LBSOptions(leg_spread_m=None))
     assert before >= 4 and report["leg_spread_passes"] == 0
     after, report = torn_frames(LBSOptions())
-    assert after == 0 and report["leg_spread_passes"] > 100 and report["options"]["leg_spread_m"] == 0.2
+    assert after == 0 and report["leg_spread_passes"] > 30 and report["options"]["leg_spread_m"] == LEG_SPREAD_M
 
 
 def test_lbs_identity_for_rest_pose():

@@ -56,6 +56,7 @@ def test_bake_writes_usd_obj_and_summary(scene):
 
 
 def test_lbs_smooth_auto_spreads_the_legs_weights_and_a_number_of_passes_does_not(scene):
+    from core.skinning import LEG_SPREAD_M
     from formats.sequence import read_sequence
 
     baked = {}
@@ -68,7 +69,7 @@ def test_lbs_smooth_auto_spreads_the_legs_weights_and_a_number_of_passes_does_no
         summary = json.loads((out / "shell_walk" / "summary.json").read_text())
         baked[value] = summary["deformer"], read_sequence(out / "shell_walk" / "shell_walk.usd").points
     (auto, auto_points), (named, named_points), (ten, ten_points) = baked.values()
-    assert auto["options"]["leg_spread_m"] == named["options"]["leg_spread_m"] == 0.2
+    assert auto["options"]["leg_spread_m"] == named["options"]["leg_spread_m"] == LEG_SPREAD_M
     assert auto["leg_spread_passes"] > 0 and auto["options"]["smooth_iterations"] == 10
     np.testing.assert_array_equal(auto_points, named_points)
     assert ten["options"]["leg_spread_m"] is None and ten["leg_spread_passes"] == 0
