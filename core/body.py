@@ -508,8 +508,23 @@ def body_from_arrays(arrays: dict, name: str, source: str | None = None) -> Body
     if a["posedirs"] is not None and a["posedirs"].shape[-1] == 0:
         a["posedirs"] = None
     J = a["parents"].shape[0]
-    names = tuple(arrays.get("joint_names", ())) or (SMPL_JOINT_NAMES if J == 24 else tuple(f"joint{j}" for j in range(J)))
+    names = tuple(arrays.get("joint_names", ())) or default_joint_names(J)
     return Body(name=name, joint_names=tuple(str(n) for n in names), **a)
+
+
+#: SMPL+H's and SMPL-X's fingers, each hand's in this order after its layout's body joints (the smplx package's).
+_FINGERS = tuple(f"{finger}{k}" for finger in ("index", "middle", "pinky", "ring", "thumb") for k in (1, 2, 3))
+
+
+def default_joint_names(n_joints: int) -> tuple[str, ...]:
+    """The joint names of a body file that names none: SMPL's for its 24 joints; SMPL+H's (52) and SMPL-X's (55)
+    first 22 are SMPL's, then SMPL-X's jaw and eyes and each hand's fingers; others `joint<j>`."""
+    hands = tuple(f"{side}_{f}" for side in ("left", "right") for f in _FINGERS)
+    layouts = {LAYOUT_JOINTS["smpl"]: SMPL_JOINT_NAMES,
+               LAYOUT_JOINTS["smplh"]: SMPL_JOINT_NAMES[:N_BODY_JOINTS] + hands,
+               LAYOUT_JOINTS["smplx"]: SMPL_JOINT_NAMES[:N_BODY_JOINTS] + ("jaw", "left_eye_smplhf",
+                                                                          "right_eye_smplhf") + hands}
+    return layouts.get(n_joints, tuple(f"joint{j}" for j in range(n_joints)))
 
 
 DEFAULT_BODY_RESOURCE = "default_body.npz"

@@ -297,7 +297,8 @@ def transfer_weights(blend: sp.csr_matrix, body: Body, faces: np.ndarray, smooth
     return weights / np.maximum(weights.sum(axis=1, keepdims=True), 1e-12)
 
 
-#: The joints whose weights `spread_leg_weights` spreads (SMPL's names; SMPL+H's and SMPL-X's are the same).
+#: The joints whose weights `spread_leg_weights` spreads (SMPL's names; SMPL+H's and SMPL-X's, the first 22 of
+#: theirs, are the same: `core.body.default_joint_names`).
 LEG_JOINTS = ("left_hip", "right_hip", "left_knee", "right_knee", "left_ankle", "right_ankle", "left_foot",
               "right_foot")
 #: How far (metres, over the garment's surface) LBS spreads the weights of cloth skinned to the legs by default

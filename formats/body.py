@@ -102,6 +102,12 @@ def body_from_file_arrays(arrays: dict, name: str, source: str) -> Body:
         log.info("%s: shapedirs has %d coefficients (SMPL-X 1.0: %d shape, then expression): keeping the first %d",
                  label, sd.shape[2], SMPLX_V1_SHAPE, SMPLX_V1_SHAPE)
         out["shapedirs"] = sd[:, :, :SMPLX_V1_SHAPE]
+    if "joint_names" in arrays:  # a file that names its joints (the embedded body's, `garment make-body`'s)
+        names = np.asarray(arrays["joint_names"])
+        if names.shape != (n_joints,) or names.dtype.kind not in "US":
+            raise InputError(f"{label}: expected joint_names to be {n_joints} strings (one per joint), got "
+                             f"{names.dtype} of shape {names.shape}")
+        out["joint_names"] = [str(n) for n in names]
     try:
         return body_from_arrays(out, name=name, source=source)
     except InputError:
@@ -118,12 +124,14 @@ def _read_npz(path: Path, label: str) -> dict:
             arrays = {}
             for key in files:
                 if key in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights", "kintree_table",
-                           "parents", "f", "faces") or key.endswith(("_indices", "_values", "_shape")):
+                           "parents", "f", "faces", "joint_names") or key.endswith(("_indices", "_values", "_shape")):
                     try:
                         arrays[key] = data[key]
                     except ValueError as exc:
                         if "allow_pickle" not in str(exc):
                             raise
+                        if key == "joint_names":  # names saved as objects: the layout's are taken
+                            continue
                         # np.savez of an official pickle's dict: its scipy.sparse J_regressor a pickled object
                         raise InputError(f"{label}: expected '{key}' as a numeric array, got a pickled object "
                                          f"(numpy's savez of a scipy.sparse matrix?): save it as an array "

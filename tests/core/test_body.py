@@ -275,3 +275,32 @@ def test_an_smplh_or_smplx_body_seen_on_smpls_joints_poses_as_itself_with_the_ha
     # the body's correctives are the view's: without them its vertices move
     bare = body_from_arrays(with_fingers(small, layout, seed=None), layout)
     assert np.abs(bare.pose(poses, trans, betas)[0] - whole).max() > 1e-3
+
+
+@pytest.mark.parametrize("layout", ["smplh", "smplx"])
+def test_a_body_file_names_its_joints_by_its_layout_or_by_its_own_names(layout, tmp_path):
+    """SMPL+H's and SMPL-X's files name no joints: their first 22 are SMPL's (so that what looks joints up by name,
+    LBS's legs' spread, finds the legs; they were 'joint1'...), then SMPL-X's jaw and eyes and the fingers; a file
+    that names its joints keeps its names, and one whose names are not one string per joint is refused."""
+    from core.body import default_joint_names
+    from core.errors import InputError
+    from formats.body import load_body
+    from tests.meshes import tiny_body, with_fingers
+
+    arrays = with_fingers(tiny_body(), layout)
+    np.savez(tmp_path / "plain.npz", **arrays)
+    body = load_body(tmp_path / "plain.npz")
+    assert body.joint_names == default_joint_names(body.n_joints) and len(set(body.joint_names)) == body.n_joints
+    assert body.joint_names[:22] == SMPL_JOINT_NAMES[:22]
+    assert body.joint_names[22] == ("jaw" if layout == "smplx" else "left_index1")
+    assert body.joint_names[-1] == "right_thumb3" and body.parents[body.joint_names.index("left_index1")] == 20
+    own = [f"j{k}" for k in range(body.n_joints)]
+    np.savez(tmp_path / "named.npz", joint_names=np.array(own), **arrays)
+    assert load_body(tmp_path / "named.npz").joint_names == tuple(own)
+    np.savez(tmp_path / "objects.npz", joint_names=np.array(own, dtype=object), **arrays)
+    assert load_body(tmp_path / "objects.npz").joint_names == body.joint_names  # unreadable names: the layout's
+    np.savez(tmp_path / "short.npz", joint_names=np.array(own[:5]), **arrays)
+    with pytest.raises(InputError, match=r"short.npz': expected joint_names to be \d+ strings \(one per joint\), "
+                                         r"got <U\d+ of shape \(5,\)"):
+        load_body(tmp_path / "short.npz")
+    assert default_joint_names(24) == SMPL_JOINT_NAMES and default_joint_names(3) == ("joint0", "joint1", "joint2")

@@ -157,6 +157,17 @@ def test_leg_spread_blends_by_the_legs_share_as_a_naive_reference():
     assert 0 < untouched.sum() < len(w)
     np.testing.assert_allclose(out[untouched], w[untouched], atol=1e-7)
     assert np.abs(out[share[:, 0] > 0.5] - w[share[:, 0] > 0.5]).max() > 0.05
+    # an SMPL+H body (its file names no joints) has SMPL's legs: the same spread
+    from core.body import body_from_arrays
+    from tests.meshes import with_fingers
+
+    hands = body_from_arrays(with_fingers(body, "smplh"), "smplh")
+    w_hands = np.zeros((len(w), hands.n_joints), np.float32)
+    w_hands[:, :22] = w[:, :22]
+    w_hands[:, 22], w_hands[:, 37] = w[:, 22], w[:, 23]
+    spread_hands, passes_hands = spread_leg_weights(w_hands, g, hands, 0.3)
+    assert passes_hands == passes
+    np.testing.assert_allclose(spread_hands[:, :22], out[:, :22], atol=1e-6)
     # a body without SMPL's joint names keeps the weights as they are
     from dataclasses import replace
 

@@ -4,7 +4,7 @@ outside; others stay) and the model's contact guard (against a vertex-by-vertex 
 import numpy as np
 
 from core.geometry import TriangleMesh, closest_point_on_triangles, face_cross, normalise, outward_faces, outward_offsets
-from core.pushout import GUARD_MOVED_M, PushOutDeformer, contact_anchors, guard_contact, push_out
+from core.pushout import GUARD_MARGIN_M, GUARD_MOVED_M, PushOutDeformer, contact_anchors, guard_contact, push_out
 from tests.meshes import icosphere, points_around, tiny_body
 
 
@@ -279,7 +279,7 @@ def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does():
     dent[centre, 2] = -0.03
     alone, _ = guard_contact(dent[None], ground[None], anchors, passes=0)
     spread, moved = guard_contact(dent[None], ground[None], anchors, passes=4, rounds=1)
-    np.testing.assert_allclose(alone[0, centre], [*dent[centre, :2], 0.001], atol=1e-7)
+    np.testing.assert_allclose(alone[0, centre], [*dent[centre, :2], GUARD_MARGIN_M], atol=1e-7)
     neighbours = _neighbours(faces, n * n)
     shift = (alone[0] - dent).astype(np.float64)  # exactly 0 where the guard left a vertex
     for _ in range(4):
@@ -295,7 +295,7 @@ def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does():
     assert twice[0, centre, 2] > spread[0, centre, 2] + 0.003
     through = (rest - [0.0, 0.0, 0.03]).astype(np.float32)
     whole, _ = guard_contact(through[None], ground[None], anchors)
-    np.testing.assert_allclose(whole[0], through + [0.0, 0.0, 0.021], atol=1e-6)
+    np.testing.assert_allclose(whole[0], through + [0.0, 0.0, 0.02 + GUARD_MARGIN_M], atol=1e-6)
 
 
 def test_contact_guard_spread_keeps_cloth_pushed_into_a_corner_whole():
