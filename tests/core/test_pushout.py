@@ -2,6 +2,7 @@
 outside; others stay) and the model's contact guard (against a vertex-by-vertex reference)."""
 
 import numpy as np
+import torch
 
 from core.geometry import TriangleMesh, closest_point_on_triangles, face_cross, normalise, outward_faces, outward_offsets
 from core.pushout import GUARD_MARGIN_M, GUARD_MOVED_M, PushOutDeformer, contact_anchors, guard_contact, push_out
@@ -119,7 +120,10 @@ def _naive_weight(x, bound, fade):
 def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach, depth, reach_fade, depth_fade):
     """Vertex by vertex: every rest body face's closest point (exhaustive), those within the blend's margin of
     the nearest weighted down to 0 at it, their points and area-weighted vertex normals blended; in each posed
-    frame the same blend of the posed body's."""
+    frame the same blend of the posed body's; beyond GUARD_NEAR_FROM_M along that plane blended with the plane of
+    the nearest vertices of the faces touching the blends' vertices (their normals over those faces, blended), as
+    far as the nearest is at most half as far as the anchor's point."""
+    from core.pushout import GUARD_NEAR_FROM_M, GUARD_NEAR_TO_M, GUARD_NEAR_VERTICES
     from core.skinning import BLEND_MAX_M, BLEND_MIN_M, BLEND_SHARE
 
     out = np.array(points, dtype=np.float64)
@@ -134,7 +138,8 @@ def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach
         n = sum(w * cross[around[b]].sum(axis=0) for b, w in blend.items())  # area-weighted vertex normals
         return q, n / np.linalg.norm(n)
 
-    for i, p in enumerate(np.asarray(rest, dtype=np.float64)):
+    blends = []
+    for p in np.asarray(rest, dtype=np.float64):
         cps, barys = closest_point_on_triangles(p[None], tris[:, 0], tris[:, 1], tris[:, 2])  # every face
         d = np.linalg.norm(cps - p, axis=1)
         width = min(max(BLEND_SHARE * d.min(), BLEND_MIN_M), BLEND_MAX_M)
@@ -144,17 +149,42 @@ def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach
                 b = int(body_faces[k][corner])
                 blend[b] = blend.get(b, 0.0) + (1.0 - (d[k] - d.min()) / width) * barys[k][corner]
         total = sum(blend.values())
-        blend = {b: w / total for b, w in blend.items()}
-        q0, n0 = plane(rest_body, blend)
+        blends.append({b: w / total for b, w in blend.items()})
+    used = {b for blend in blends for b in blend}
+    ring = [k for k, f in enumerate(body_faces) if used & set(int(b) for b in f)]
+    ring_vertices = sorted({int(b) for k in ring for b in body_faces[k]})
+
+    def nearest_plane(verts, x):  # the nearest ring vertices' points and normals over the ring's faces, blended
+        order = sorted(ring_vertices, key=lambda v: np.linalg.norm(verts[v] - x))[:GUARD_NEAR_VERTICES + 1]
+        d = [np.linalg.norm(verts[v] - x) for v in order]
+        weights = [max(1.0 - di / d[-1], 0.0) for di in d[:-1]]
+        c0, c1, c2 = (verts[body_faces[ring][:, k]] for k in range(3))
+        cross = np.cross(c1 - c0, c2 - c0)
+        q, n = np.zeros(3), np.zeros(3)
+        for b, w in zip(order, weights):
+            nb = cross[[j for j, k in enumerate(ring) if b in body_faces[k]]].sum(axis=0)
+            q, n = q + w * verts[b], n + w * nb / np.linalg.norm(nb)
+        return q / sum(weights), n / np.linalg.norm(n), d[0]
+
+    for i, p in enumerate(np.asarray(rest, dtype=np.float64)):
+        q0, n0 = plane(rest_body, blends[i])
         floor = min(margin, float(np.dot(p - q0, n0)))
         for t in range(len(out)):
-            q, n = plane(body_points[t].astype(np.float64), blend)
-            along = np.dot(out[t, i] - q, n)
-            lateral = np.linalg.norm(out[t, i] - q - along * n)
-            if along < floor:
-                behind = floor - along
-                weight = _naive_weight(behind, depth, depth_fade) * _naive_weight(lateral, reach, reach_fade)
-                out[t, i] += behind * weight * n
+            verts = body_points[t].astype(np.float64)
+            x = out[t, i].copy()
+            q, n = plane(verts, blends[i])
+            along = np.dot(x - q, n)
+            lateral = np.linalg.norm(x - q - along * n)
+            within = _naive_weight(lateral, reach, reach_fade)
+            behind = max(floor - along, 0.0)
+            lift = behind * _naive_weight(behind, depth, depth_fade) * within * n
+            w = min(max((lateral - GUARD_NEAR_FROM_M) / (GUARD_NEAR_TO_M - GUARD_NEAR_FROM_M), 0.0), 1.0) * within
+            if w > 0:
+                qn, nn, nearest = nearest_plane(verts, x)
+                w *= min(max(2.0 - 2.0 * nearest / np.linalg.norm(x - q), 0.0), 1.0)  # its vertices nearer
+                behind_n = max(floor - np.dot(x - qn, nn), 0.0)
+                lift = (1.0 - w) * lift + w * behind_n * _naive_weight(behind_n, depth, depth_fade) * nn
+            out[t, i] += lift
     return out
 
 
@@ -236,7 +266,9 @@ def test_contact_guard_lift_is_continuous_across_its_bounds():
         assert np.abs(np.diff(lifts[name])).max() < step * (1 + 0.05 / 0.03) + 1e-5, name
         assert lifts[name].max() <= 0.05 + 1e-5 and lifts[name][-1] < 1e-6, name  # none beyond the fade
     np.testing.assert_allclose(lifts["depth"][behind < 0.05], behind[behind < 0.05], atol=1e-5)
-    np.testing.assert_allclose(lifts["lateral"][lateral < 0.1], 0.02 + anchors.floor[0], atol=1e-5)
+    from core.pushout import GUARD_NEAR_FROM_M  # beyond, the body's nearest vertices' planes blend in
+
+    np.testing.assert_allclose(lifts["lateral"][lateral < GUARD_NEAR_FROM_M], 0.02 + anchors.floor[0], atol=1e-5)
     assert np.all(np.diff(behind - lifts["depth"]) > -1e-5)
 
 
@@ -427,3 +459,56 @@ def test_a_large_garment_is_guarded_in_fewer_frames_at_once():
     got = [guard_chunk_frames(v) for v in (1, 2016, 3240, 4001, 6698, 8001, 12816, 203328)]
     assert got == [16, 16, 16, 8, 8, 4, 4, 4]
     assert frames_at_once(1000, 64_000, 4, 16) == 16 and frames_at_once(3000, 64_000, 1, 64) == 16
+
+
+def test_a_vertex_slid_far_along_its_anchor_is_kept_out_of_the_body_vertices_nearest_it(monkeypatch):
+    """Cloth lagging centimetres behind the body along it: its anchor's plane (the flat ground it rested over)
+    calls it outside where it sank into a step the body rises to there (the t-shirt's front into the belly on the
+    run: holes in every render); beyond GUARD_NEAR_TO_M the nearest body vertices' plane lifts it, and within
+    GUARD_NEAR_FROM_M nothing changes."""
+    import core.pushout as pushout
+    from core.pushout import GUARD_NEAR_FROM_M, GUARD_NEAR_TO_M
+
+    body, body_faces = _grid(25, 0.01)
+    body[:, :2] -= [0.05, 0.12]
+    body[body[:, 0] >= 0.05 - 1e-9, 2] = 0.03  # a step 3 cm up from x = 5 cm
+    xs, ys = np.meshgrid(np.arange(0.0, 0.125, 0.01), np.arange(-0.02, 0.025, 0.01), indexing="ij")
+    rest = np.stack([xs.ravel(), ys.ravel(), np.where(xs.ravel() >= 0.05 - 1e-9, 0.04, 0.01)], axis=1)
+    n, m = xs.shape
+    k = (np.arange(n - 1)[:, None] * m + np.arange(m - 1)[None]).ravel()
+    faces = np.concatenate([np.stack([k, k + m, k + 1], 1), np.stack([k + 1, k + m, k + m + 1], 1)])
+    anchors = contact_anchors(rest, body, body_faces, garment_faces=faces)
+    posed = (rest + [0.04, 0.0, 0.0]).astype(np.float32)
+    alone, _ = guard_contact(posed[None], body[None], anchors, passes=0)
+    sank = np.flatnonzero((rest[:, 0] >= 0.02 - 1e-9) & (rest[:, 0] <= 0.04 + 1e-9))  # now over the step
+    assert 0.04 >= GUARD_NEAR_TO_M and alone[0, sank, 2].min() > 0.028  # out of it, within a millimetre at its edge
+    # 3 cm from its edge (the vertices around it on its top): to the margin above it, straight up
+    flat = np.flatnonzero(np.abs(rest[:, 0] - 0.03) < 1e-9)
+    np.testing.assert_allclose(alone[0, flat], posed[flat] + [0.0, 0.0, 0.02 + GUARD_MARGIN_M], atol=1e-6)
+    edge = np.flatnonzero((rest[:, 0] >= 0.01 - 1e-9) & (rest[:, 0] <= 0.04 + 1e-9))  # and the one onto its edge
+    others = np.setdiff1d(np.arange(len(rest)), edge)
+    np.testing.assert_allclose(alone[0, others], posed[others], atol=1e-7)  # above their planes: left
+    spread, _ = guard_contact(posed[None], body[None], anchors)  # lifts spread over the cloth: half way
+    assert spread[0, sank, 2].min() > 0.02
+    # Within GUARD_NEAR_FROM_M of its anchor, the anchor's plane alone, as before.
+    near = (rest + [0.9 * GUARD_NEAR_FROM_M, 0.0, 0.0]).astype(np.float32)
+    got, _ = guard_contact(near[None], body[None], anchors, passes=0)
+    within = pushout.anchor_offsets(near[None], body[None], anchors)[1][0] < GUARD_NEAR_FROM_M
+    assert within.mean() > 0.9 and np.abs(got - near)[0, within].max() > 1e-3  # some slid onto the ramp: lifted
+    monkeypatch.setattr(pushout, "GUARD_NEAR_FROM_M", 1e3)
+    monkeypatch.setattr(pushout, "GUARD_NEAR_TO_M", 1e3 + 0.02)
+    np.testing.assert_array_equal(got[0, within], guard_contact(near[None], body[None], anchors, passes=0)[0][0, within])
+
+
+def test_the_nearest_body_vertices_of_a_gpu_are_the_k_d_trees():
+    """The search on a GPU (all distances, `_nearest_by_distances`) finds what the CPU's k-d tree does."""
+    from core.pushout import _nearest_body_vertices, _nearest_by_distances
+
+    rng = np.random.default_rng(4)
+    bp = torch.from_numpy(rng.normal(size=(2, 300, 3)))
+    p = torch.from_numpy(np.concatenate([rng.integers(0, 2, (50, 1)), rng.normal(size=(50, 3))], axis=1))
+    index, distance = _nearest_body_vertices(p, bp, 5)
+    for s in range(len(p)):
+        want_d, want_i = _nearest_by_distances(p[s:s + 1, 1:], bp[int(p[s, 0])], 5)
+        assert index[s].tolist() == want_i[0].tolist()
+        np.testing.assert_allclose(distance[s].numpy(), want_d[0].numpy(), atol=1e-12)
