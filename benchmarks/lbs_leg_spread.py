@@ -16,34 +16,17 @@ from __future__ import annotations
 
 import argparse
 import platform
-import sys
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from example_scenes import ROOT, example_scenes, mean_error_mm, write_report  # (benchmarks/ is the script's folder)
 
-from core.bake import penetration_stats  # noqa: E402
-from core.body import default_body  # noqa: E402
-from core.deform import LBSDeformer, LBSOptions  # noqa: E402
-from core.garment import mesh_edges  # noqa: E402
-from core.motion import poses_for_body  # noqa: E402
-from formats.obj import read_garment  # noqa: E402
-from formats.report import markdown_table  # noqa: E402
-from garmentcli.common import prepare_motion  # noqa: E402
-
-REFERENCES = ROOT / "benchmarks" / "results" / "tradeoff_v5"
-GARMENTS = ("skirt", "dress", "trousers", "jumpsuit", "tshirt")
-#: (name, motion file, --frames)
-MOTIONS = (("walk", ROOT / "examples" / "walk.npz", None), ("run", ROOT / "examples" / "run.npz", None),
-           ("walk_brisk 0:30", ROOT / "data" / "heldout" / "walk_brisk.npz", "0:30"))
-
-
-def torn_and_stretch(points: np.ndarray, edges: np.ndarray, rest: np.ndarray) -> tuple[int, float]:
-    """(frames with an edge over twice its rest length and 2 cm longer, the largest length over rest length)."""
-    length = np.linalg.norm(points[:, edges[:, 0]] - points[:, edges[:, 1]], axis=2)
-    return int(((length > 2 * rest) & (length > rest + 0.02)).any(axis=1).sum()), float((length / rest).max())
+from benchmarks.real_motion_stress import torn_frames
+from core.bake import penetration_stats
+from core.body import default_body
+from core.deform import LBSDeformer, LBSOptions
+from core.garment import mesh_edges
 
 
 def main() -> None:
@@ -53,37 +36,27 @@ def main() -> None:
     args = parser.parse_args()
     body = default_body()
     rows = []
-    for garment_name in GARMENTS:
-        garment = read_garment(ROOT / "examples" / f"{garment_name}.obj")
+    for scene in example_scenes(body, ("walk", "run")):
+        garment = scene.garment
         edges = mesh_edges(garment.faces)
         rest = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
-        for motion_name, motion_path, frames in MOTIONS:
-            if not motion_path.is_file():
-                print(f"skipped {garment_name} on {motion_name}: not on this machine", flush=True)
-                continue
-            motion, _ = prepare_motion(str(motion_path), 30.0, frames, 0, body=body)
-            posed, _ = body.pose(poses_for_body(motion, body.n_joints), motion.trans, body.fit_betas(motion.betas))
-            reference = REFERENCES / f"{garment_name}_walk_brisk" / "simulations" / "sim_20_substeps_self-contact.npz"
-            ref = np.load(reference)["points"] if frames and reference.is_file() else None
-            for spread in args.spreads:
-                lbs = LBSDeformer(LBSOptions(leg_spread_m=spread or None))
-                points = lbs.deform(garment, body, motion)
-                torn, stretch = torn_and_stretch(points, edges, rest)
-                inside = penetration_stats(points, posed, body.faces, max_frames=len(points))["mean_percent"]
-                error = "-" if ref is None else f"{np.linalg.norm(points - ref, axis=2).mean() * 1e3:.2f}"
-                rows.append([garment_name, motion_name, f"{spread:g}", lbs.report["leg_spread_passes"],
-                             f"{torn} of {len(points)}", f"{stretch:.2f}", f"{inside:.2f}", error])
-                print(rows[-1], flush=True)
-    header = ["garment", "motion", "spread m", "passes", "torn frames", "largest stretch", "inside %", "error mm"]
-    text = ("# LBS's legs' spread\n\n"
-            f"`python benchmarks/lbs_leg_spread.py` on {platform.processor() or platform.machine()}: `lbs` (10 "
-            "passes, no strain limit) at 30 fps; spread 0: no spread (LBS before 2026-12-06, `--lbs-smooth 10`). "
-            "Torn: an edge over twice its rest length and 2 cm longer; inside: vertices more than 2 mm inside the "
-            "posed body, mean over the frames; error: mean vertex distance from the simulator's reference (20 "
-            "substeps, self-contact) where one is stored.\n\n" + markdown_table(header, rows) + "\n")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
+        for spread in args.spreads:
+            lbs = LBSDeformer(LBSOptions(leg_spread_m=spread or None))
+            points = lbs.deform(garment, body, scene.motion)
+            length = np.linalg.norm(points[:, edges[:, 0]] - points[:, edges[:, 1]], axis=2)
+            inside = penetration_stats(points, scene.posed, body.faces, max_frames=len(points))["mean_percent"]
+            rows.append([scene.garment_name, scene.motion_name, f"{spread:g}", lbs.report["leg_spread_passes"],
+                         f"{torn_frames(points, edges, rest).sum()} of {len(points)}", f"{(length / rest).max():.2f}",
+                         f"{inside:.2f}", mean_error_mm(points, scene.reference)])
+            print(rows[-1], flush=True)
+    write_report(args.out, "LBS's legs' spread",
+                 f"`python benchmarks/lbs_leg_spread.py` on {platform.processor() or platform.machine()}: `lbs` (10 "
+                 "passes, no strain limit) at 30 fps; spread 0: no spread (LBS before 2026-12-06, `--lbs-smooth "
+                 "10`). Torn: an edge over twice its rest length and 2 cm longer; inside: vertices more than 2 mm "
+                 "inside the posed body, mean over the frames; error: mean vertex distance from the simulator's "
+                 "reference (20 substeps, self-contact) where one is stored.",
+                 ["garment", "motion", "spread m", "passes", "torn frames", "largest stretch", "inside %", "error mm"],
+                 rows)
 
 
 if __name__ == "__main__":

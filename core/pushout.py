@@ -24,9 +24,9 @@ neighbours tied to other faces or left where they were, pulls them along instead
 as a spike (where the body curves, in an armpit or behind a knee, one face's plane stands for the body badly,
 and unspread lifts tore a t-shirt's armpits in every frame of most motions).
 The faces are posed exactly (they are the body's own), so this undoes what the network adds on top of
-skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at 0.7-3.0
-ms/frame on the example garments; it cannot see a vertex that slides over to another body part, which the
-exact push-out does.
+skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at 3-14
+ms/frame on the example garments (0.7-3.0 before the nearest vertices' planes, `benchmarks/results/guard_near.md`);
+it cannot see a vertex that slides over to another body part, which the exact push-out does.
 """
 
 from __future__ import annotations
@@ -378,7 +378,8 @@ def _nearest_by_distances(x: torch.Tensor, verts: torch.Tensor, k: int) -> tuple
 GUARD_NEAR_VERTICES = 4
 #: The guard's rounds (of GUARD_ROUNDS) that look for the nearest body vertices: the first only. Its search is the
 #: guard's cost (a k-d tree per frame on the CPU); in both rounds the t-shirt's share inside on the example run fell
-#: from 1.82 % (the anchors alone) to 0.53 % (0.78 in the first only) at 22 ms/frame (13; the anchors alone 4).
+#: from 1.82 % (the anchors alone) to 0.53 % (0.78 in the first only) at 22 ms/frame (about 12; the anchors alone
+#: 4).
 GUARD_NEAR_ROUNDS = 1
 
 
