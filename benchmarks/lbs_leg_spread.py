@@ -27,6 +27,7 @@ from core.bake import penetration_stats
 from core.body import default_body
 from core.deform import LBSDeformer, LBSOptions
 from core.garment import mesh_edges
+from core.geodesic import edge_lengths
 
 
 def main() -> None:
@@ -39,7 +40,7 @@ def main() -> None:
     for scene in example_scenes(body, ("walk", "run")):
         garment = scene.garment
         edges = mesh_edges(garment.faces)
-        rest = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
+        rest = edge_lengths(garment.vertices, edges)
         for spread in args.spreads:
             lbs = LBSDeformer(LBSOptions(leg_spread_m=spread or None))
             points = lbs.deform(garment, body, scene.motion)

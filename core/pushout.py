@@ -326,12 +326,17 @@ def _times(op: sp.csr_matrix, x: torch.Tensor) -> torch.Tensor:
     return y.reshape(op.shape[0], T, C).permute(1, 0, 2)
 
 
+def _ring_cross(bp: torch.Tensor, ring: torch.Tensor) -> torch.Tensor:
+    """(T, Fr, 3) cross products of the anchors' `ring` faces (Fr, 3) on the posed body `bp` (T, Vb, 3): along
+    each face's normal, twice its area (`core.geometry.face_cross` of tensors)."""
+    c0, c1, c2 = (torch.index_select(bp, 1, ring[:, k]) for k in range(3))
+    return torch.linalg.cross(c1 - c0, c2 - c0, dim=-1)
+
+
 def _planes(bp: torch.Tensor, anchors: ContactAnchors) -> tuple[torch.Tensor, torch.Tensor]:
     """Each vertex's anchor point (T, V, 3) and unit normal (T, V, 3; zero where its faces have no area) on the
     posed body `bp` (T, Vb, 3)."""
-    ring = torch.as_tensor(anchors.ring, device=bp.device)
-    c0, c1, c2 = (torch.index_select(bp, 1, ring[:, k]) for k in range(3))
-    cross = torch.linalg.cross(c1 - c0, c2 - c0, dim=-1)
+    cross = _ring_cross(bp, torch.as_tensor(anchors.ring, device=bp.device))
     normal = torch.nn.functional.normalize(_times(anchors.normal, cross), dim=-1, eps=1e-30)
     return _times(anchors.point, bp), normal
 
@@ -392,8 +397,7 @@ def _near_lift(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors, where
     body vertex is at most half as far as the anchor's point (`anchor_distance`), falling linearly to 0 where it
     is as far (a body coarser than the slide, whose vertices are no nearer than the anchor)."""
     ring = torch.as_tensor(anchors.ring, device=bp.device)
-    c0, c1, c2 = (torch.index_select(bp, 1, ring[:, k]) for k in range(3))
-    cross = torch.linalg.cross(c1 - c0, c2 - c0, dim=-1)  # (T, Fr, 3), twice the area along the normal
+    cross = _ring_cross(bp, ring)
     normals = torch.zeros_like(bp)
     for k in range(3):
         normals.index_add_(1, ring[:, k], cross)
@@ -519,13 +523,14 @@ def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = G
         behind, lateral, normal, distance = _offsets(p, bp, anchors)
         within = _fade(lateral, reach, reach_fade)
         shift = (behind * _fade(behind, depth, depth_fade) * within)[..., None] * normal
-        near = ((lateral - GUARD_NEAR_FROM_M) / (GUARD_NEAR_TO_M - GUARD_NEAR_FROM_M)).clamp(0.0, 1.0) * within
-        where = torch.nonzero(near > 0)
-        if round_ < GUARD_NEAR_ROUNDS and len(where):  # slid far along its anchor: the nearest body's plane too
-            t, v = where[:, 0], where[:, 1]
-            lift, trust = _near_lift(p, bp, anchors, where, distance[t, v], depth, depth_fade)
-            w = (near[t, v] * trust)[:, None]
-            shift = shift.index_put((t, v), (1.0 - w) * shift[t, v] + w * lift)
+        if round_ < GUARD_NEAR_ROUNDS:  # slid far along its anchor: the nearest body's plane too
+            near = ((lateral - GUARD_NEAR_FROM_M) / (GUARD_NEAR_TO_M - GUARD_NEAR_FROM_M)).clamp(0.0, 1.0) * within
+            where = torch.nonzero(near > 0)
+            if len(where):
+                t, v = where[:, 0], where[:, 1]
+                lift, trust = _near_lift(p, bp, anchors, where, distance[t, v], depth, depth_fade)
+                w = (near[t, v] * trust)[:, None]
+                shift = shift.index_put((t, v), (1.0 - w) * shift[t, v] + w * lift)
         if spreading:
             shift = spread_over(shift, op, passes)
         p = p + shift

@@ -21,6 +21,7 @@ import scipy.sparse as sp
 from core.body import Body
 from core.errors import InputError
 from core.garment import UNIT_GUESSES, Garment, mesh_edges
+from core.geodesic import edge_lengths
 from core.geometry import Y_UP_TO_Z_UP_MATRIX, ClosestPoints, TriangleMesh
 from core.graph import adjacency
 
@@ -343,8 +344,8 @@ def spread_leg_weights(weights: np.ndarray, garment: Garment, body: Body,
     edges = mesh_edges(garment.faces)
     if share is None or not share.any() or not len(edges):
         return weights, 0
-    lengths = np.linalg.norm(garment.vertices[edges[:, 0]] - garment.vertices[edges[:, 1]], axis=1)
-    passes = spread_passes_over(float(np.median(lengths)), spread_m, LEG_SPREAD_MAX_PASSES)
+    passes = spread_passes_over(float(np.median(edge_lengths(garment.vertices, edges))), spread_m,
+                                LEG_SPREAD_MAX_PASSES)
     if not passes:
         return weights, 0
     used = np.flatnonzero(weights.any(axis=0))  # a joint of no weight has none after smoothing either
