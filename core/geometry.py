@@ -319,7 +319,7 @@ def _z_order(points: np.ndarray) -> np.ndarray:
     return np.argsort(code, kind="stable")
 
 
-def _in_threads(fn, starts) -> None:
+def in_threads(fn, starts) -> None:
     """fn(s) for every s of `starts` on up to CLOSEST_THREADS threads (inline for one); fn writes its own slice."""
     starts = list(starts)
     workers = min(CLOSEST_THREADS, len(starts))
@@ -419,7 +419,7 @@ class TriangleMesh:
                 bary[upd], cp[upd] = b[:, rows, best].T[better], c[:, rows, best].T[better]
                 kth[s:s + step] = cd.reshape(len(idx), k)[:, -1]
 
-            _in_threads(candidate_pass, range(0, len(todo), step))
+            in_threads(candidate_pass, range(0, len(todo), step))
             if k >= S or not exact:
                 break
             # Every point of a face lies within cover_radius of one of its samples; a face none of whose

@@ -501,12 +501,14 @@ def test_a_vertex_slid_far_along_its_anchor_is_kept_out_of_the_body_vertices_nea
 
 
 def test_the_nearest_body_vertices_of_a_gpu_are_the_k_d_trees():
-    """The search on a GPU (all distances, `_nearest_by_distances`) finds what the CPU's k-d tree does."""
+    """The search on a GPU (all distances, `_nearest_by_distances`) finds what the CPU's k-d trees (a frame per
+    thread; points in any order of frames, a frame with none) do."""
     from core.pushout import _nearest_body_vertices, _nearest_by_distances
 
     rng = np.random.default_rng(4)
-    bp = torch.from_numpy(rng.normal(size=(2, 300, 3)))
-    p = torch.from_numpy(np.concatenate([rng.integers(0, 2, (50, 1)), rng.normal(size=(50, 3))], axis=1))
+    bp = torch.from_numpy(rng.normal(size=(4, 300, 3)))
+    frames = rng.choice([0, 2, 3], size=(50, 1))
+    p = torch.from_numpy(np.concatenate([frames, rng.normal(size=(50, 3))], axis=1))
     index, distance = _nearest_body_vertices(p, bp, 5)
     for s in range(len(p)):
         want_d, want_i = _nearest_by_distances(p[s:s + 1, 1:], bp[int(p[s, 0])], 5)
