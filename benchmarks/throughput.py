@@ -45,6 +45,18 @@ CLI_REPEATS = 3
 SPACING_4K_M = 0.0149
 
 
+def cpu_name() -> str:
+    """The CPU's model name as Linux reports it (the machine's kind: these VMs differ run to run), else the
+    platform's processor string."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
 def _yes_no(flag: bool | None) -> str:
     return {True: "yes", False: "no"}.get(flag, "unknown")
 
@@ -183,7 +195,7 @@ def main(argv=None) -> None:
         "# Throughput on a 4k-vertex garment",
         "",
         f"Made by `python benchmarks/throughput.py --sim-frames {args.sim_frames}` on {platform.machine()} "
-        f"({os.cpu_count()} cores, {torch.get_num_threads()} torch threads, CPU vector unit "
+        f"({cpu_name()}, {os.cpu_count()} cores, {torch.get_num_threads()} torch threads, CPU vector unit "
         f"{torch.backends.cpu.get_cpu_capability()}, native bfloat16: {_yes_no(native_bfloat16())}, model on "
         f"{args.device}), torch "
         f"{torch.__version__}. Garment: the example dress remeshed to {garment.n_vertices:,} vertices. Motion: "
