@@ -333,17 +333,20 @@ def _ring_cross(bp: torch.Tensor, ring: torch.Tensor) -> torch.Tensor:
     return torch.linalg.cross(c1 - c0, c2 - c0, dim=-1)
 
 
-def _planes(bp: torch.Tensor, anchors: ContactAnchors) -> tuple[torch.Tensor, torch.Tensor]:
+def _planes(bp: torch.Tensor, anchors: ContactAnchors,
+            cross: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """Each vertex's anchor point (T, V, 3) and unit normal (T, V, 3; zero where its faces have no area) on the
-    posed body `bp` (T, Vb, 3)."""
-    cross = _ring_cross(bp, torch.as_tensor(anchors.ring, device=bp.device))
+    posed body `bp` (T, Vb, 3); `cross`: the ring's `_ring_cross` where made already."""
+    if cross is None:
+        cross = _ring_cross(bp, torch.as_tensor(anchors.ring, device=bp.device))
     normal = torch.nn.functional.normalize(_times(anchors.normal, cross), dim=-1, eps=1e-30)
     return _times(anchors.point, bp), normal
 
 
-def _offsets(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors):
-    """`anchor_offsets` of tensors, and each vertex's distance (T, V) from its anchor's point."""
-    point, normal = _planes(bp, anchors)
+def _offsets(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors, planes=None):
+    """`anchor_offsets` of tensors, and each vertex's distance (T, V) from its anchor's point; `planes`: `_planes`
+    of `bp` where made already (the body stands still while the guard's rounds move the cloth)."""
+    point, normal = _planes(bp, anchors) if planes is None else planes
     rel = p - point
     along = torch.einsum("tvc,tvc->tv", rel, normal)
     lateral = torch.linalg.norm(rel - along[..., None] * normal, dim=-1)
@@ -399,15 +402,16 @@ GUARD_NEAR_ROUNDS = 1
 
 
 def _near_lift(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors, where: torch.Tensor,
-               anchor_distance: torch.Tensor, depth: float, depth_fade: float) -> tuple[torch.Tensor, torch.Tensor]:
+               anchor_distance: torch.Tensor, depth: float, depth_fade: float,
+               cross: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """(S, 3) lifts of the vertices `where` (S, 2: frame, vertex) of `p` (T, V, 3) out of the plane of the posed
     body vertices nearest each (GUARD_NEAR_VERTICES of the anchors' `ring` faces' vertices, their points and
     area-weighted normals over those faces blended): to the vertex's floor in front of it, fading out with the
     depth as the anchor's lift does; and (S,) how far those planes stand for the body there: 1 where the nearest
     body vertex is at most half as far as the anchor's point (`anchor_distance`), falling linearly to 0 where it
-    is as far (a body coarser than the slide, whose vertices are no nearer than the anchor)."""
+    is as far (a body coarser than the slide, whose vertices are no nearer than the anchor). `cross`: the
+    ring's `_ring_cross` on `bp`."""
     ring = torch.as_tensor(anchors.ring, device=bp.device)
-    cross = _ring_cross(bp, ring)
     normals = torch.zeros_like(bp)
     for k in range(3):
         normals.index_add_(1, ring[:, k], cross)
@@ -529,8 +533,10 @@ def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = G
     spreading = anchors.spread is not None and passes > 0
     op = None if not spreading else anchors.spread if p.device.type == "cpu" else _torch_operator(anchors.spread,
                                                                                                    p.dtype, p.device)
+    cross = _ring_cross(bp, torch.as_tensor(anchors.ring, device=bp.device))
+    planes = _planes(bp, anchors, cross)
     for round_ in range(rounds if spreading else 1):
-        behind, lateral, normal, distance = _offsets(p, bp, anchors)
+        behind, lateral, normal, distance = _offsets(p, bp, anchors, planes)
         within = _fade(lateral, reach, reach_fade)
         shift = (behind * _fade(behind, depth, depth_fade) * within)[..., None] * normal
         if round_ < GUARD_NEAR_ROUNDS:  # slid far along its anchor: the nearest body's plane too
@@ -538,7 +544,7 @@ def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = G
             where = torch.nonzero(near > 0)
             if len(where):
                 t, v = where[:, 0], where[:, 1]
-                lift, trust = _near_lift(p, bp, anchors, where, distance[t, v], depth, depth_fade)
+                lift, trust = _near_lift(p, bp, anchors, where, distance[t, v], depth, depth_fade, cross)
                 w = (near[t, v] * trust)[:, None]
                 shift = shift.index_put((t, v), (1.0 - w) * shift[t, v] + w * lift)
         if spreading:
