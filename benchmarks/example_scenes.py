@@ -58,6 +58,27 @@ def example_scenes(body: Body, motions: tuple[str, ...]) -> Iterator[Scene]:
             yield Scene(garment_name, garment, motion_name, motion, posed, reference)
 
 
+def model_variants(body: Body, motions: tuple[str, ...], variants) -> Iterator[tuple[Scene, str, object, np.ndarray]]:
+    """(scene, variant's name, the shipped model's deformer, its points (T, V, 3)) of every scene of
+    `example_scenes` and each of `variants`: (name, {name of a `core.pushout` constant: value}), set while the
+    model (float32, contact guard and strain limit on) bakes the scene, as they were after."""
+    import core.pushout as pushout
+    from core.model_deform import load_model_deformer
+
+    for scene in example_scenes(body, motions):
+        for name, settings in variants:
+            before = {key: getattr(pushout, key) for key in settings}
+            for key, value in settings.items():
+                setattr(pushout, key, value)
+            try:
+                model = load_model_deformer()
+                points = model.deform(scene.garment, body, scene.motion)
+            finally:
+                for key, value in before.items():
+                    setattr(pushout, key, value)
+            yield scene, name, model, points
+
+
 def mean_error_mm(points: np.ndarray, reference: np.ndarray | None) -> str:
     """The mean vertex distance (mm) of `points` from `reference`, as a table cell ('-' without one)."""
     return "-" if reference is None else f"{np.linalg.norm(points - reference, axis=2).mean() * 1e3:.2f}"

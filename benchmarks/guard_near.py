@@ -19,16 +19,14 @@ from pathlib import Path
 
 import torch
 
-from example_scenes import ROOT, example_scenes, mean_error_mm, write_report  # (benchmarks/ is the script's folder)
+from example_scenes import ROOT, mean_error_mm, model_variants, write_report  # (benchmarks/ is the script's folder)
 
-import core.pushout as pushout
 from core.bake import penetration_stats
 from core.body import default_body
-from core.model_deform import load_model_deformer
 
-#: (row name, (GUARD_NEAR_FROM_M, GUARD_NEAR_TO_M)): the anchors' planes alone (beyond any lateral distance), now.
-VARIANTS = (("anchor planes alone", (1e3, 1e3 + 0.02)),
-            ("nearest vertex beyond", (pushout.GUARD_NEAR_FROM_M, pushout.GUARD_NEAR_TO_M)))
+#: (row name, constants): the anchors' planes alone (beyond any lateral distance), now.
+VARIANTS = (("anchor planes alone", {"GUARD_NEAR_FROM_M": 1e3, "GUARD_NEAR_TO_M": 1e3 + 0.02}),
+            ("nearest vertex beyond", {}))
 
 
 def main() -> None:
@@ -38,16 +36,12 @@ def main() -> None:
     torch.set_num_threads(1)
     body = default_body()
     rows = []
-    for scene in example_scenes(body, ("run", "jump")):
-        for name, (near_from, near_to) in VARIANTS:
-            pushout.GUARD_NEAR_FROM_M, pushout.GUARD_NEAR_TO_M = near_from, near_to
-            model = load_model_deformer()
-            points = model.deform(scene.garment, body, scene.motion)
-            inside = penetration_stats(points, scene.posed, body.faces, max_frames=len(points))
-            guard_ms = model.report.get("seconds_per_frame_guard", float("nan")) * 1e3
-            rows.append([scene.garment_name, scene.motion_name, name, f"{inside['mean_percent']:.2f}",
-                         f"{inside['max_percent']:.2f}", f"{guard_ms:.1f}", mean_error_mm(points, scene.reference)])
-            print(rows[-1], flush=True)
+    for scene, name, model, points in model_variants(body, ("run", "jump"), VARIANTS):
+        inside = penetration_stats(points, scene.posed, body.faces, max_frames=len(points))
+        guard_ms = model.report.get("seconds_per_frame_guard", float("nan")) * 1e3
+        rows.append([scene.garment_name, scene.motion_name, name, f"{inside['mean_percent']:.2f}",
+                     f"{inside['max_percent']:.2f}", f"{guard_ms:.1f}", mean_error_mm(points, scene.reference)])
+        print(rows[-1], flush=True)
     write_report(args.out, "The contact guard's nearest-vertex planes",
                  f"`python benchmarks/guard_near.py` on {platform.processor() or platform.machine()}, one torch "
                  "thread: the shipped model, contact guard and strain limit on, 30 fps. Inside: vertices more than "

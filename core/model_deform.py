@@ -31,8 +31,8 @@ from core.model import (
 )
 from core.model_data import prepare_garment
 from core.motion import Motion, poses_for_body, prepend_blend
-from core.pushout import (ContactAnchors, anchored_body, body_anchors, guard_contact, guard_report,
-                          guard_sequence)
+from core.pushout import (ContactAnchors, alternate_guard_limit, anchored_body, body_anchors, guard_and_limit,
+                          guard_contact, guard_report)
 from core.scene import SceneAnalysis, scene_levels
 from core.strain import STRAIN_ITERATIONS, STRAIN_LIMIT, garment_strain, limit_strain, still_over, strain_report
 from core.threads import ThreadTuner
@@ -359,14 +359,14 @@ class ModelDeformer(Deformer):
         if self.contact_guard and shaped.anchors is None:
             shaped.anchors = body_anchors(rest.cpu().numpy(), garment.faces, body, betas)
         # Progress (`on_frames`): each frame's share of the passes over the frames, the network's and, on a CPU,
-        # the guard's and the limit's after it.
-        sweeps = 1 + (self.contact_guard and not guard_here) + (self.strain_limit is not None and limit is None)
+        # the guard's and the limit's after it (one: `guard_and_limit` alternates them chunk by chunk).
+        sweeps = 1 + (not here and (self.contact_guard or self.strain_limit is not None))
         tick = None if self.on_frames is None else (lambda n: self.on_frames(n / sweeps))
         if guard_here:
             pose_t = torch.as_tensor(poses, dtype=torch.float32, device=device)
             trans_t = torch.as_tensor(motion.trans, dtype=torch.float32, device=device)
             body_ids, anchors_here = anchored_body(shaped.anchors)
-            moved = []
+            moved, alternations = [], 1
         with torch.inference_mode(), torch.autocast(device.type, dtype=torch.bfloat16,
                                                     enabled=self.precision == "bfloat16"):
             t1 = time.perf_counter()
@@ -392,10 +392,19 @@ class ModelDeformer(Deformer):
                     if guard_here:
                         with torch.autocast(device.type, enabled=False):  # the body posed in float32
                             at = slice(s, s + len(fr))
-                            verts, n = guard_contact(verts, body.pose_at(body_ids, pose_t[at], trans_t[at], betas),
-                                                    anchors_here)
-                        moved.append(n)
-                    if limit is not None:
+                            posed = body.pose_at(body_ids, pose_t[at], trans_t[at], betas)
+                            if limit is not None:  # as `guard_and_limit` does on the CPU
+                                verts, done = alternate_guard_limit(verts, posed, anchors_here, limit,
+                                                                    lambda: _synchronized(device))
+                                moved.append(done["moved"])
+                                alternations = done["alternations"]
+                                over.append(done["over"])
+                                left.append(done["left"])
+                                passes, limit_s = max(passes, done["passes"]), limit_s + done["limit_seconds"]
+                            else:
+                                verts, n = guard_contact(verts, posed, anchors_here)
+                                moved.append(n)
+                    elif limit is not None:
                         t_limit = _synchronized(device)
                         verts, n, done = limit_strain(verts, limit)
                         over.append(n)
@@ -411,14 +420,6 @@ class ModelDeformer(Deformer):
                 if tuner:
                     tuner.close()
         t2 = time.perf_counter()
-        guard = {}
-        if guard_here:
-            guard = guard_report([m.cpu() for m in moved], None, motion.n_frames)
-        elif self.contact_guard:  # outside autocast: the body is posed in float32
-            out, guard = guard_sequence(out, rest.cpu().numpy(), garment.faces, body, poses, motion.trans, betas,
-                                        shaped.anchors, on_frames=tick)
-        if guard:
-            guard["contact_guard"]["device"] = str(device) if guard_here else "cpu"
         self.report = {"method": self.name, "model": self.model_name, "device": str(device), "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
                        "lead_in_frames": lead, "lead_in_fade_frames": 0 if fade is None else int((fade[0] > 0).sum()),
@@ -433,13 +434,20 @@ class ModelDeformer(Deformer):
             self.report["trained_body"] = {**self.trained_body, "body": body.name, "body_sha256": body.content_hash()}
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
-        self.report.update(guard)
         self.scene = scene.report
-        if limit is not None:
-            self.report["strain_limit"] = strain_report(limit, STRAIN_ITERATIONS, over, passes, limit_s,
-                                                        motion.n_frames, left)
-        else:
-            out = self.limit_strain_of(out, garment, rest.cpu().numpy(), self.strain_limit, tick)
+        if here:
+            guard = guard_report([m.cpu() for m in moved], None, motion.n_frames) if guard_here else {}
+            if guard:
+                guard["contact_guard"]["alternations_with_strain_limit"] = alternations
+            if limit is not None:
+                self.report["strain_limit"] = strain_report(limit, STRAIN_ITERATIONS, over, passes, limit_s,
+                                                            motion.n_frames, left)
+        else:  # outside autocast: the body is posed in float32
+            out, guard = guard_and_limit(self, out, garment, rest.cpu().numpy(), body, poses, motion.trans, betas,
+                                         shaped.anchors if self.contact_guard else None, self.strain_limit, tick)
+        if guard:
+            guard["contact_guard"]["device"] = str(device) if guard_here else "cpu"
+        self.report.update(guard)
         if "strain_limit" in self.report:
             self.report["strain_limit"]["device"] = str(device) if limit is not None else "cpu"
         return out

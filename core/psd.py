@@ -25,7 +25,7 @@ from core.deform import Deformer, LBSOptions
 from core.errors import InputError
 from core.garment import Garment
 from core.motion import Motion, poses_for_body
-from core.pushout import body_anchors, guard_sequence
+from core.pushout import body_anchors, guard_and_limit
 from core.rotations import axis_angle_to_matrix
 from core.skinning import bind_garment, shaped_garment
 from core.strain import STRAIN_LIMIT
@@ -289,10 +289,13 @@ class PSDDeformer(Deformer):
                 out[s:s + batch] = skin_points(points, w, A[s:s + batch]).numpy()
         self.report = {"method": self.name, "fit": {"source": self.source, "rank": self.fit.rank,
                                                     **self.fit.meta}}
+        anchors = None
         if self.contact_guard:  # reported as the model reports it
             key = (garment.content_hash(), id(body), np.asarray(betas).tobytes())
             if key not in self._anchors:
                 self._anchors = {key: body_anchors(rest, garment.faces, body, betas)}
-            out, guard = guard_sequence(out, rest, garment.faces, body, poses, motion.trans, betas, self._anchors[key])
-            self.report.update(guard)
-        return self.limit_strain_of(out, garment, rest, self.strain_limit)
+            anchors = self._anchors[key]
+        out, guard = guard_and_limit(self, out, garment, rest, body, poses, motion.trans, betas, anchors,
+                                     self.strain_limit)
+        self.report.update(guard)
+        return out

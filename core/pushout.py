@@ -22,7 +22,10 @@ The lifts are then spread over the garment's surface (over about GUARD_SPREAD_M:
 `graph_smoothing`), and the guard run again on the result (GUARD_ROUNDS): a vertex lifted alone, its
 neighbours tied to other faces or left where they were, pulls them along instead of standing out of the cloth
 as a spike (where the body curves, in an armpit or behind a knee, one face's plane stands for the body badly,
-and unspread lifts tore a t-shirt's armpits in every frame of most motions).
+and unspread lifts tore a t-shirt's armpits in every frame of most motions). A last round, unspread, lifts what
+the spread left behind its plane (GUARD_TOP_UP). With the strain limit on (`guard_and_limit`), the guard's spread
+rounds run, then the limit, then that last round on what the limit pulled back in, then the limit again
+(GUARD_LIMIT_ALTERNATIONS).
 The faces are posed exactly (they are the body's own), so this undoes what the network adds on top of
 skinning (blend shapes pushing cloth into the body, learned weights that drift from the body's) at 3-14
 ms/frame on the example garments (0.7-3.0 before the nearest vertices' planes, `benchmarks/results/guard_near.md`);
@@ -48,6 +51,8 @@ from core.geodesic import edge_lengths
 from core.geometry import InsideTest, TriangleMesh, face_normals, in_threads, outward_faces, outward_offsets
 from core.motion import Motion, poses_for_body
 from core.skinning import graph_smoothing, spread_passes_over, surface_blend
+from core.strain import (STRAIN_ITERATIONS, garment_strain, limit_strain, still_over, strain_chunk_frames,
+                         strain_report)
 
 #: Distance outside the body a pushed vertex ends at (metres): within the 2 mm depth the penetration
 #: statistics tolerate, so a pushed vertex never counts as inside.
@@ -310,7 +315,8 @@ def _as_tensors(points, body_points) -> tuple[torch.Tensor, torch.Tensor, bool]:
     whether they came as arrays."""
     if isinstance(body_points, torch.Tensor):
         return points.to(body_points.dtype), body_points, False
-    as64 = lambda a: torch.from_numpy(np.asarray(a, dtype=np.float64))  # noqa: E731
+    # contiguous: the strain limit's output is a transposed view, whose norms along the last axis ran 10x slower
+    as64 = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=np.float64))  # noqa: E731
     return as64(points), as64(body_points), True
 
 
@@ -354,10 +360,12 @@ def _offsets(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors, planes=
     return (floor[None] - along).clamp(min=0.0), lateral, normal, torch.linalg.norm(rel, dim=-1)
 
 
-def _nearest_body_vertices(p: torch.Tensor, bp: torch.Tensor, k: int) -> tuple[torch.Tensor, torch.Tensor]:
+def _nearest_body_vertices(p: torch.Tensor, bp: torch.Tensor, k: int,
+                           trees: dict | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """(indices (S, k), distances (S, k)) of the `k` body vertices of `bp` (T, N, 3) nearest each of the points `p`
     (S, 4): (frame, x, y, z), nearest first (on the CPU by a k-d tree per frame, frames on threads: the query
-    releases the GIL, and on two cores the dress of benchmarks/throughput.py searched in 1.9 ms/frame, 3.5 on one)."""
+    releases the GIL, and on two cores the dress of benchmarks/throughput.py searched in 1.9 ms/frame, 3.5 on one).
+    `trees`: the k-d trees by frame of `bp` made by earlier searches of the same body, kept for later ones."""
     frames = p[:, 0].long()
     k = min(k, bp.shape[1])
     index = torch.empty((len(p), k), dtype=torch.long, device=p.device)
@@ -373,9 +381,13 @@ def _nearest_body_vertices(p: torch.Tensor, bp: torch.Tensor, k: int) -> tuple[t
     bounds = torch.searchsorted(frames[order], torch.arange(bp.shape[0] + 1, device=p.device)).tolist()
     x, d_out, i_out = p[order, 1:].numpy(), np.empty((len(p), k)), np.empty((len(p), k), dtype=np.int64)
 
+    trees = {} if trees is None else trees
+
     def one(t: int) -> None:
         a, b = bounds[t], bounds[t + 1]
-        d, i = cKDTree(bp[t].numpy()).query(x[a:b], k=k)
+        if t not in trees:
+            trees[t] = cKDTree(bp[t].numpy())
+        d, i = trees[t].query(x[a:b], k=k)
         d_out[a:b], i_out[a:b] = d.reshape(b - a, k), i.reshape(b - a, k)
 
     in_threads(one, [t for t in range(bp.shape[0]) if bounds[t + 1] > bounds[t]])
@@ -399,28 +411,36 @@ GUARD_NEAR_VERTICES = 4
 #: from 1.82 % (the anchors alone) to 0.53 % (0.78 in the first only) at 22 ms/frame (about 12; the anchors alone
 #: 4).
 GUARD_NEAR_ROUNDS = 1
+#: After its spread rounds the guard lifts once more, unspread, each vertex still behind its plane (its anchor's,
+#: or for those round 0 lifted by their nearest body vertices' planes, those blended as in round 0: a search of
+#: those vertices only): the spread left the edges of a lifted patch behind it (the example jumpsuit's seat
+#: through the cloth at each stride of the run). Its lifts are not spread: next to the spread ones they are small
+#: (with the strain limit on, `alternate_guard_limit` runs this round after the limit, and the limit again).
+GUARD_TOP_UP = True
 
 
 def _near_lift(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors, where: torch.Tensor,
                anchor_distance: torch.Tensor, depth: float, depth_fade: float,
-               cross: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+               body: dict) -> tuple[torch.Tensor, torch.Tensor]:
     """(S, 3) lifts of the vertices `where` (S, 2: frame, vertex) of `p` (T, V, 3) out of the plane of the posed
     body vertices nearest each (GUARD_NEAR_VERTICES of the anchors' `ring` faces' vertices, their points and
     area-weighted normals over those faces blended): to the vertex's floor in front of it, fading out with the
     depth as the anchor's lift does; and (S,) how far those planes stand for the body there: 1 where the nearest
     body vertex is at most half as far as the anchor's point (`anchor_distance`), falling linearly to 0 where it
-    is as far (a body coarser than the slide, whose vertices are no nearer than the anchor). `cross`: the
-    ring's `_ring_cross` on `bp`."""
+    is as far (a body coarser than the slide, whose vertices are no nearer than the anchor). `body`: what is
+    known of the posed body (`guard_contact`'s: the ring's cross products "cross"): its vertices' normals and k-d trees are added to it."""
     ring = torch.as_tensor(anchors.ring, device=bp.device)
-    normals = torch.zeros_like(bp)
-    for k in range(3):
-        normals.index_add_(1, ring[:, k], cross)
-    normals = torch.nn.functional.normalize(normals, dim=-1, eps=1e-30)
+    if "normals" not in body:
+        normals = torch.zeros_like(bp)
+        for k in range(3):
+            normals.index_add_(1, ring[:, k], body["cross"])
+        body["normals"] = torch.nn.functional.normalize(normals, dim=-1, eps=1e-30)
+    normals = body["normals"]
     t, v = where[:, 0], where[:, 1]
     x = p[t, v]
     ids = torch.unique(ring)  # the anchors' body vertices (all of `bp` where `anchored_body` made it)
     near, distance = _nearest_body_vertices(torch.cat([t[:, None].to(x.dtype), x], dim=1), bp[:, ids],
-                                            GUARD_NEAR_VERTICES + 1)
+                                            GUARD_NEAR_VERTICES + 1, body.setdefault("trees", {}))
     weight = (1.0 - distance / distance[:, -1:].clamp(min=1e-12)).clamp(min=0.0)[:, :-1]
     weight = weight / weight.sum(dim=1, keepdim=True).clamp(min=1e-12)
     near = ids[near[:, :-1]]
@@ -516,14 +536,19 @@ def spread_over(shift: torch.Tensor, op, passes: int) -> torch.Tensor:
 
 def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = GUARD_REACH_M,
                   depth: float = GUARD_DEPTH_M, reach_fade: float = GUARD_REACH_FADE_M,
-                  depth_fade: float = GUARD_DEPTH_FADE_M, passes: int | None = None, rounds: int = GUARD_ROUNDS):
+                  depth_fade: float = GUARD_DEPTH_FADE_M, passes: int | None = None, rounds: int = GUARD_ROUNDS,
+                  state: dict | None = None, top_up: bool | None = None):
     """Keep each vertex outside its posed anchor's plane (see the module's docstring).
 
     points: (T, V, 3) garment; body_points: (T, Vb, 3) the posed body, both arrays (float64 arithmetic) or both
     tensors (on their device, in body_points' dtype). Fades of 0 cut the lift off at the bounds. Where `anchors`
     has the garment's surface and `passes` (None: the anchors' own) is not 0, the lifts are spread over it in
     that many passes and the guard runs `rounds` times (each lifting what the spread left behind); else once,
-    each vertex lifted alone.
+    each vertex lifted alone. `state`: a dict carried between guards of the same frames (`guard_and_limit`):
+    empty, it is filled with round 0's blend weights of the nearest body vertices' planes ("held", (T, V)) and
+    the vertices those planes lifted ("lifted"); filled, the guard searches those vertices only, as its top-up
+    round does, the others keeping their share of the anchor's lift; what the guards know of the posed body
+    (its planes, normals and k-d trees: "body") is kept there too.
     Returns (points (T, V, 3) float32, moved (T,) counts of vertices moved more than GUARD_MOVED_M), arrays or
     tensors as given.
     """
@@ -533,23 +558,41 @@ def guard_contact(points, body_points, anchors: ContactAnchors, reach: float = G
     spreading = anchors.spread is not None and passes > 0
     op = None if not spreading else anchors.spread if p.device.type == "cpu" else _torch_operator(anchors.spread,
                                                                                                    p.dtype, p.device)
-    cross = _ring_cross(bp, torch.as_tensor(anchors.ring, device=bp.device))
-    planes = _planes(bp, anchors, cross)
-    for round_ in range(rounds if spreading else 1):
-        behind, lateral, normal, distance = _offsets(p, bp, anchors, planes)
+    body = {} if state is None else state.setdefault("body", {})
+    if "planes" not in body:
+        body["cross"] = _ring_cross(bp, torch.as_tensor(anchors.ring, device=bp.device))
+        body["planes"] = _planes(bp, anchors, body["cross"])
+    spread_rounds = rounds if spreading else 1
+    top_up = spreading and (GUARD_TOP_UP if top_up is None else top_up)
+    prior = state is not None and "held" in state
+    # round 0's (or an earlier guard's): the nearest body vertices' planes' weights, the vertices they lifted
+    held, lifted = (state["held"], state["lifted"]) if prior else (None, None)
+    for round_ in range(spread_rounds + top_up):
+        final = round_ == spread_rounds
+        subset = final or prior
+        behind, lateral, normal, distance = _offsets(p, bp, anchors, body["planes"])
         within = _fade(lateral, reach, reach_fade)
-        shift = (behind * _fade(behind, depth, depth_fade) * within)[..., None] * normal
-        if round_ < GUARD_NEAR_ROUNDS:  # slid far along its anchor: the nearest body's plane too
+        shift = anchor_shift = (behind * _fade(behind, depth, depth_fade) * within)[..., None] * normal
+        if round_ < GUARD_NEAR_ROUNDS or final:  # slid far along its anchor: the nearest body's plane too
             near = ((lateral - GUARD_NEAR_FROM_M) / (GUARD_NEAR_TO_M - GUARD_NEAR_FROM_M)).clamp(0.0, 1.0) * within
-            where = torch.nonzero(near > 0)
+            if subset:  # those round 0 left to the anchor's plane alone keep its share of the lift
+                if held is None:  # round 0 searched none
+                    held, lifted = torch.zeros_like(near), torch.zeros_like(near, dtype=torch.bool)
+                shift = anchor_shift * (1.0 - held)[..., None]
+            where = torch.nonzero(lifted if subset else near > 0)
             if len(where):
                 t, v = where[:, 0], where[:, 1]
-                lift, trust = _near_lift(p, bp, anchors, where, distance[t, v], depth, depth_fade, cross)
-                w = (near[t, v] * trust)[:, None]
-                shift = shift.index_put((t, v), (1.0 - w) * shift[t, v] + w * lift)
-        if spreading:
+                lift, trust = _near_lift(p, bp, anchors, where, distance[t, v], depth, depth_fade, body)
+                w = near[t, v] * trust
+                if round_ == 0 and not prior:
+                    held = torch.zeros_like(near).index_put((t, v), w)
+                    lifted = torch.zeros_like(near, dtype=torch.bool).index_put((t, v), (w > 0) & (lift != 0).any(1))
+                shift = shift.index_put((t, v), (1.0 - w)[:, None] * anchor_shift[t, v] + w[:, None] * lift)
+        if spreading and not final:
             shift = spread_over(shift, op, passes)
         p = p + shift
+    if state is not None and not prior and held is not None:
+        state.update(held=held, lifted=lifted)
     out, moved = p.float(), (torch.linalg.norm(p - p0, dim=-1) > GUARD_MOVED_M).sum(dim=1)
     return (out.numpy(), moved.numpy()) if arrays else (out, moved)
 
@@ -623,6 +666,78 @@ def guard_sequence(points: np.ndarray, rest: np.ndarray, faces: np.ndarray, body
         if on_frames is not None:
             on_frames(fr.stop - fr.start)
     return points, guard_report(moved, time.perf_counter() - t0, len(points))
+
+
+#: Times the contact guard and then the strain limit run over a sequence where both are on (`guard_and_limit`,
+#: `alternate_guard_limit`): the limit sees no body, and pulling a stretched edge short it pulled cloth the guard
+#: had lifted back in (the example jumpsuit's seat showed through at each stride of the run: 154 vertices inside
+#: at frame 5 where the guard alone left 22); the guard's top-up round lifts those out again, the second limit
+#: undoes the stretch that makes. On the example garments' run, jump and held-out walk (`python
+#: benchmarks/guard_limit.py`): the jumpsuit 0.65 -> 0.30 % of vertices inside on the run (worst frame 2.90 ->
+#: 1.68), 0.93 -> 0.58 on the walk; the t-shirt 0.78 -> 0.53 on the run, 2.08 -> 1.51 on the jump; the dress
+#: 0.48 -> 0.40 on the run; the skirt's jump 0.05 -> 0.07 and the trousers' worst frame there 2.22 -> 2.46; no
+#: torn frame, the error against the simulator within 0.04 mm; the 4k dress of benchmarks/throughput.py about 2
+#: ms/frame more (of 18-20).
+GUARD_LIMIT_ALTERNATIONS = 2
+
+
+def guard_and_limit(deformer: Deformer, points: np.ndarray, garment: Garment, rest: np.ndarray, body: Body,
+                    poses: np.ndarray, trans: np.ndarray, betas: np.ndarray | None, anchors: ContactAnchors | None,
+                    limit: float | None, on_frames=None) -> tuple[np.ndarray, dict]:
+    """The contact guard (`guard_sequence` with `anchors`; None: off) and then the strain limit
+    (`deformer.limit_strain_of`; `limit` None: off) over a deformed sequence (T, V, 3) written in place; where
+    both are on, GUARD_LIMIT_ALTERNATIONS times over each `guard_chunk_frames` frames (`alternate_guard_limit`;
+    `on_frames(n)` once per chunk). Returns (points, the guard's `guard_report` entries, {} without one); the
+    limit's entry goes to the deformer's report."""
+    if anchors is None or limit is None:
+        guard = {}
+        if anchors is not None:
+            points, guard = guard_sequence(points, rest, garment.faces, body, poses, trans, betas, anchors, on_frames)
+            guard["contact_guard"]["alternations_with_strain_limit"] = 1
+        return deformer.limit_strain_of(points, garment, rest, limit, on_frames), guard
+    t0 = time.perf_counter()
+    strain = garment_strain(garment, rest, limit, deformer._strain)
+    ids, anchors = anchored_body(anchors)
+    moved, over, left, passes, limit_s = [], [], [], 0, 0.0
+    chunk = min(guard_chunk_frames(points.shape[1]), strain_chunk_frames(points.shape[1]))
+    for s in range(0, len(points), chunk):
+        fr = slice(s, min(s + chunk, len(points)))
+        posed = body.pose_at(ids, poses[fr], trans[fr], betas)
+        points[fr], out = alternate_guard_limit(points[fr], posed, anchors, strain)
+        moved.append(out["moved"])
+        over.append(out["over"])
+        left.append(out["left"])
+        passes, limit_s = max(passes, out["passes"]), limit_s + out["limit_seconds"]
+        if on_frames is not None:
+            on_frames(fr.stop - fr.start)
+    guard = guard_report(moved, time.perf_counter() - t0 - limit_s, len(points))
+    guard["contact_guard"]["alternations_with_strain_limit"] = GUARD_LIMIT_ALTERNATIONS
+    deformer.report["strain_limit"] = strain_report(strain, STRAIN_ITERATIONS, over, passes, limit_s, len(points),
+                                                    left)
+    return points, guard
+
+
+def alternate_guard_limit(points, posed, anchors: ContactAnchors, strain, synchronize=lambda: None):
+    """`guard_contact` and then `core.strain.limit_strain` of frames `points` (T, V, 3) on the posed body's
+    anchored vertices `posed` (`anchored_body`), GUARD_LIMIT_ALTERNATIONS times: the first guard its spread rounds
+    (no top-up round), each later one its top-up round alone, searching only the vertices the first lifted by
+    their nearest body vertices' planes (its `state`). Returns (points, {"moved": the first guard's counts (T,),
+    "over": the first limit's edges over (T,), "left": `still_over` after the last, "passes": the most a limit
+    took, "limit_seconds": the limits' time, "alternations"}), arrays or tensors as given. `synchronize`: waits
+    for the device before a limit is timed."""
+    state, out, limit_s, passes = {}, {}, 0.0, 0
+    for k in range(GUARD_LIMIT_ALTERNATIONS):
+        points, moved = guard_contact(points, posed, anchors, rounds=0 if k else GUARD_ROUNDS, state=state,
+                                      top_up=k > 0)
+        synchronize()
+        t = time.perf_counter()
+        points, over, done = limit_strain(points, strain)
+        synchronize()
+        limit_s, passes = limit_s + time.perf_counter() - t, max(passes, done)
+        if k == 0:
+            out = {"moved": moved, "over": over}
+    return points, {**out, "left": still_over(points, strain), "passes": passes, "limit_seconds": limit_s,
+                    "alternations": GUARD_LIMIT_ALTERNATIONS}
 
 
 class PushOutDeformer(Deformer):

@@ -296,10 +296,14 @@ def _longest_edge(points: np.ndarray, neighbours: list[set]) -> float:
     return max(float(np.linalg.norm(points[u] - points[v])) for u in range(len(points)) for v in neighbours[u])
 
 
-def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does():
+def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does(monkeypatch):
     """A garment 1 cm above a flat body with a vertex pushed 3 cm through it: the lift, shared with the
     neighbours as four passes of (1 - 0.5) x + 0.5 * mean of the neighbours' do it vertex by vertex, and lifted
-    further in a second round; a garment pushed through whole is lifted whole (the spread changes nothing)."""
+    further in a second round; a garment pushed through whole is lifted whole (the spread changes nothing). The
+    top-up round after the spread ones is the guard once more, unspread: it leaves no vertex behind its plane."""
+    from core import pushout
+
+    monkeypatch.setattr(pushout, "GUARD_TOP_UP", False)
     n = 9
     verts, faces = _grid(n, 0.01)
     ground = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
@@ -328,6 +332,10 @@ def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does():
     through = (rest - [0.0, 0.0, 0.03]).astype(np.float32)
     whole, _ = guard_contact(through[None], ground[None], anchors)
     np.testing.assert_allclose(whole[0], through + [0.0, 0.0, 0.02 + GUARD_MARGIN_M], atol=1e-6)
+    monkeypatch.setattr(pushout, "GUARD_TOP_UP", True)
+    topped, _ = guard_contact(dent[None], ground[None], anchors, passes=4, rounds=2)
+    np.testing.assert_allclose(topped, guard_contact(twice, ground[None], anchors, passes=0)[0], atol=1e-6)
+    assert twice[0, centre, 2] < GUARD_MARGIN_M - 1e-3 and topped[0, :, 2].min() >= GUARD_MARGIN_M - 1e-6
 
 
 def test_contact_guard_spread_keeps_cloth_pushed_into_a_corner_whole():

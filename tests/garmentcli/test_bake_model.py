@@ -378,10 +378,16 @@ def test_threads_n_bakes_on_that_count_throughout_and_repeats_bit_for_bit(tmp_pa
         assert "Traceback" not in r.output and not (tmp_path / "bad").exists()
 
 
-def test_strain_limit_is_the_default_and_can_be_turned_off(tmp_path):
+def test_strain_limit_is_the_default_and_can_be_turned_off(tmp_path, monkeypatch):
+    """On by default, off with `--strain-limit off`; the limit alone (one pass after the guard's spread rounds, not
+    the default's top-up round and limit again after it) moves cloth only in the frames it limits."""
+    from core import pushout
     from core.garment import mesh_edges
 
     dress = ROOT / "examples" / "dress.obj"
+    default, _, _ = _bake(dress, tmp_path / "default")
+    monkeypatch.setattr(pushout, "GUARD_LIMIT_ALTERNATIONS", 1)
+    monkeypatch.setattr(pushout, "GUARD_TOP_UP", False)  # the guard alone, as the limit's first pass sees it
     limited, summary, _ = _bake(dress, tmp_path / "limited")
     raw, raw_summary, _ = _bake(dress, tmp_path / "raw", "--strain-limit", "off")
     report = summary["deformer"]["strain_limit"]
@@ -398,6 +404,7 @@ def test_strain_limit_is_the_default_and_can_be_turned_off(tmp_path):
     assert report["frames_limited"] > 0 and (length(raw) / rest).max() > 1.6 and (length(limited) / rest).max() < 1.6
     moved = np.abs(limited - raw).max(axis=(1, 2)) > 0
     assert moved.sum() == report["frames_limited"] and (length(raw)[~moved] <= 1.5 * rest + 1e-3 + 1e-6).all()
+    assert (length(default) / rest).max() < 1.6 and np.abs(default - limited).max() > 1e-3
 
 
 @pytest.mark.parametrize("value", ["1", "0.5", "nan", "inf", "loose"])
