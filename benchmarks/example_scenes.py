@@ -58,6 +58,22 @@ def example_scenes(body: Body, motions: tuple[str, ...]) -> Iterator[Scene]:
             yield Scene(garment_name, garment, motion_name, motion, posed, reference)
 
 
+def benchmark_start(doc: str, out_name: str) -> tuple[Path, Body]:
+    """A benchmark's `--out` (default benchmarks/results/`out_name`; `doc`'s first line its description) and the
+    default body; torch on one thread (each row's time then does not depend on what else the machine runs)."""
+    import argparse
+
+    import torch
+
+    from core.body import default_body
+
+    parser = argparse.ArgumentParser(description=doc.split("\n")[0])
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / out_name)
+    out = parser.parse_args().out
+    torch.set_num_threads(1)
+    return out, default_body()
+
+
 def model_variants(body: Body, motions: tuple[str, ...], variants) -> Iterator[tuple[Scene, str, object, np.ndarray]]:
     """(scene, variant's name, the shipped model's deformer, its points (T, V, 3)) of every scene of
     `example_scenes` and each of `variants`: (name, {name of a `core.pushout` constant: value}), set while the

@@ -14,17 +14,12 @@ simulations/` holds one (20 substeps, self-contact). Nothing here is asserted by
 
 from __future__ import annotations
 
-import argparse
 import platform
-from pathlib import Path
 
-import torch
-
-from example_scenes import ROOT, mean_error_mm, model_variants, write_report  # (benchmarks/ is the script's folder)
+from example_scenes import benchmark_start, mean_error_mm, model_variants, write_report  # benchmarks/: its folder
 
 from benchmarks.real_motion_stress import torn_frames
 from core.bake import penetration_stats
-from core.body import default_body
 from core.garment import mesh_edges
 from core.geodesic import edge_lengths
 
@@ -33,22 +28,18 @@ VARIANTS = (("guard, then limit", {"GUARD_LIMIT_ALTERNATIONS": 1}), ("alternatin
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "guard_limit.md")
-    args = parser.parse_args()
-    torch.set_num_threads(1)
-    body = default_body()
+    out, body = benchmark_start(__doc__, "guard_limit.md")
     rows = []
     for scene, name, model, points in model_variants(body, ("run", "jump"), VARIANTS):
         garment = scene.garment
         edges = mesh_edges(garment.faces)
-        torn = torn_frames(points, edges, edge_lengths(garment.vertices, edges)).sum()
+        torn = int(torn_frames(points, edges, edge_lengths(garment.vertices, edges)).sum())
         inside = penetration_stats(points, scene.posed, body.faces, max_frames=len(points))
         post_ms = 1e3 * (model.report["seconds_per_frame_guard"] + model.report["strain_limit"]["seconds_per_frame"])
         rows.append([scene.garment_name, scene.motion_name, name, f"{inside['mean_percent']:.2f}",
                      f"{inside['max_percent']:.2f}", torn, f"{post_ms:.1f}", mean_error_mm(points, scene.reference)])
         print(rows[-1], flush=True)
-    write_report(args.out, "The contact guard and the strain limit alternating",
+    write_report(out, "The contact guard and the strain limit alternating",
                  f"`python benchmarks/guard_limit.py` on {platform.processor() or platform.machine()}, one torch "
                  "thread: the shipped model, contact guard and strain limit on, 30 fps. Inside: vertices more than "
                  "2 mm inside the posed body (every frame); torn: frames with an edge over twice its rest length "

@@ -13,16 +13,11 @@ Writes benchmarks/results/guard_near.md. Nothing here is asserted by the tests.
 
 from __future__ import annotations
 
-import argparse
 import platform
-from pathlib import Path
 
-import torch
-
-from example_scenes import ROOT, mean_error_mm, model_variants, write_report  # (benchmarks/ is the script's folder)
+from example_scenes import benchmark_start, mean_error_mm, model_variants, write_report  # benchmarks/: its folder
 
 from core.bake import penetration_stats
-from core.body import default_body
 
 #: (row name, constants): the anchors' planes alone (beyond any lateral distance), now.
 VARIANTS = (("anchor planes alone", {"GUARD_NEAR_FROM_M": 1e3, "GUARD_NEAR_TO_M": 1e3 + 0.02}),
@@ -30,11 +25,7 @@ VARIANTS = (("anchor planes alone", {"GUARD_NEAR_FROM_M": 1e3, "GUARD_NEAR_TO_M"
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "guard_near.md")
-    args = parser.parse_args()
-    torch.set_num_threads(1)
-    body = default_body()
+    out, body = benchmark_start(__doc__, "guard_near.md")
     rows = []
     for scene, name, model, points in model_variants(body, ("run", "jump"), VARIANTS):
         inside = penetration_stats(points, scene.posed, body.faces, max_frames=len(points))
@@ -42,7 +33,7 @@ def main() -> None:
         rows.append([scene.garment_name, scene.motion_name, name, f"{inside['mean_percent']:.2f}",
                      f"{inside['max_percent']:.2f}", f"{guard_ms:.1f}", mean_error_mm(points, scene.reference)])
         print(rows[-1], flush=True)
-    write_report(args.out, "The contact guard's nearest-vertex planes",
+    write_report(out, "The contact guard's nearest-vertex planes",
                  f"`python benchmarks/guard_near.py` on {platform.processor() or platform.machine()}, one torch "
                  "thread: the shipped model, contact guard and strain limit on, 30 fps. Inside: vertices more than "
                  "2 mm inside the posed body (every frame); guard: its time per frame; error: mean vertex distance "

@@ -428,7 +428,8 @@ def _near_lift(p: torch.Tensor, bp: torch.Tensor, anchors: ContactAnchors, where
     depth as the anchor's lift does; and (S,) how far those planes stand for the body there: 1 where the nearest
     body vertex is at most half as far as the anchor's point (`anchor_distance`), falling linearly to 0 where it
     is as far (a body coarser than the slide, whose vertices are no nearer than the anchor). `body`: what is
-    known of the posed body (`guard_contact`'s: the ring's cross products "cross"): its vertices' normals and k-d trees are added to it."""
+    known of the posed body (`guard_contact`'s, with the ring's cross products "cross"); its vertices' normals
+    and k-d trees are added to it for the guard's later searches."""
     ring = torch.as_tensor(anchors.ring, device=bp.device)
     if "normals" not in body:
         normals = torch.zeros_like(bp)
