@@ -300,7 +300,8 @@ def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does(mo
     """A garment 1 cm above a flat body with a vertex pushed 3 cm through it: the lift, shared with the
     neighbours as four passes of (1 - 0.5) x + 0.5 * mean of the neighbours' do it vertex by vertex, and lifted
     further in a second round; a garment pushed through whole is lifted whole (the spread changes nothing). The
-    top-up round after the spread ones is the guard once more, unspread: it leaves no vertex behind its plane."""
+    top-up round after the spread ones is the guard once more, unspread (GUARD_TOP_UP_SPREAD 0): it leaves no vertex
+    behind its plane; by default its lifts are spread over a quarter of the passes."""
     from core import pushout
 
     monkeypatch.setattr(pushout, "GUARD_TOP_UP", False)
@@ -333,9 +334,16 @@ def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does(mo
     whole, _ = guard_contact(through[None], ground[None], anchors)
     np.testing.assert_allclose(whole[0], through + [0.0, 0.0, 0.02 + GUARD_MARGIN_M], atol=1e-6)
     monkeypatch.setattr(pushout, "GUARD_TOP_UP", True)
+    monkeypatch.setattr(pushout, "GUARD_TOP_UP_SPREAD", 0.0)
     topped, _ = guard_contact(dent[None], ground[None], anchors, passes=4, rounds=2)
     np.testing.assert_allclose(topped, guard_contact(twice, ground[None], anchors, passes=0)[0], atol=1e-6)
     assert twice[0, centre, 2] < GUARD_MARGIN_M - 1e-3 and topped[0, :, 2].min() >= GUARD_MARGIN_M - 1e-6
+    # Spread over a share of the passes (one of four here): the same lifts, shared as one pass shares them.
+    monkeypatch.setattr(pushout, "GUARD_TOP_UP_SPREAD", 0.25)
+    spread_top, _ = guard_contact(dent[None], ground[None], anchors, passes=4, rounds=2)
+    lift = (topped - twice)[0].astype(np.float64)
+    once = np.array([0.5 * lift[v] + 0.5 * np.mean([lift[u] for u in neighbours[v]], axis=0) for v in range(n * n)])
+    np.testing.assert_allclose(spread_top[0], twice[0] + once, atol=1e-6)
 
 
 def test_contact_guard_spread_keeps_cloth_pushed_into_a_corner_whole():
