@@ -680,11 +680,11 @@ def guard_sequence(points: np.ndarray, rest: np.ndarray, faces: np.ndarray, body
 #: had lifted back in (the example jumpsuit's seat showed through at each stride of the run: 154 vertices inside
 #: at frame 5 where the guard alone left 22); the guard's top-up round lifts those out again, the second limit
 #: undoes the stretch that makes. On the example garments' run, jump and held-out walk (`python
-#: benchmarks/guard_limit.py`): the jumpsuit 0.65 -> 0.30 % of vertices inside on the run (worst frame 2.90 ->
-#: 1.68), 0.93 -> 0.58 on the walk; the t-shirt 0.78 -> 0.53 on the run, 2.08 -> 1.51 on the jump; the dress
-#: 0.48 -> 0.40 on the run; the skirt's jump 0.05 -> 0.07 and the trousers' worst frame there 2.22 -> 2.46; no
-#: torn frame, the error against the simulator within 0.04 mm; the 4k dress of benchmarks/throughput.py about 2
-#: ms/frame more (of 18-20).
+#: benchmarks/guard_limit.py`): the jumpsuit 0.65 -> 0.32 % of vertices inside on the run (worst frame 2.90 ->
+#: 1.71), 0.93 -> 0.63 on the walk; the t-shirt 0.78 -> 0.51 on the run, 2.08 -> 1.55 on the jump; the dress
+#: 0.48 -> 0.40 on the run; the skirt's jump 0.05 -> 0.06 and the trousers' worst frame there 2.22 -> 2.31; no
+#: torn frame, the error against the simulator within 0.05 mm; the guard and limit 1-5 ms/frame more on one
+#: thread (the 4k dress of benchmarks/throughput.py about 2 of 18).
 GUARD_LIMIT_ALTERNATIONS = 2
 
 
