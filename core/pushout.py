@@ -651,28 +651,45 @@ def guard_report(moved: list, seconds: float | None, frames: int) -> dict:
 
 def guard_sequence(points: np.ndarray, rest: np.ndarray, faces: np.ndarray, body: Body, poses: np.ndarray,
                    trans: np.ndarray, betas: np.ndarray | None,
-                   anchors: ContactAnchors | None = None, on_frames=None) -> tuple[np.ndarray, dict]:
+                   anchors: ContactAnchors | None = None, on_frames=None, strain=None) -> tuple[np.ndarray, dict]:
     """The contact guard over a deformed sequence (the model's and psd's): each vertex tied to its closest face
     of the body at rest (`body_anchors`), then kept outside it in every frame (`guard_contact`), the body posed
     `guard_chunk_frames` frames at a time.
 
     points: (T, V, 3) the sequence (written in place); rest: (V, 3) the garment at rest on the shaped body, faces
     (F, 3); poses: (T, J, 3) in the body's layout; anchors: `body_anchors(rest, faces, body, betas)` where made;
-    on_frames(n): called after each chunk of n frames (a progress bar). Returns (points, `guard_report`'s entries).
+    on_frames(n): called after each chunk of n frames (a progress bar); strain: a `core.strain.StrainLimit` the
+    guard alternates with, chunk by chunk (`alternate_guard_limit`; chunks no larger than `strain_chunk_frames`).
+    Returns (points, `guard_report`'s entries; with `strain`, the limit's "strain_limit" entry among them, its
+    time not the guard's).
     """
     t0 = time.perf_counter()
     if anchors is None:
         anchors = body_anchors(rest, faces, body, betas)
     ids, anchors = anchored_body(anchors)
-    moved = []
+    moved, over, left, passes, limit_s = [], [], [], 0, 0.0
     chunk = guard_chunk_frames(points.shape[1])
+    if strain is not None:
+        chunk = min(chunk, strain_chunk_frames(points.shape[1]))
     for s in range(0, len(points), chunk):
         fr = slice(s, min(s + chunk, len(points)))
-        points[fr], n = guard_contact(points[fr], body.pose_at(ids, poses[fr], trans[fr], betas), anchors)
+        posed = body.pose_at(ids, poses[fr], trans[fr], betas)
+        if strain is None:
+            points[fr], n = guard_contact(points[fr], posed, anchors)
+        else:
+            points[fr], out = alternate_guard_limit(points[fr], posed, anchors, strain)
+            n = out["moved"]
+            over.append(out["over"])
+            left.append(out["left"])
+            passes, limit_s = max(passes, out["passes"]), limit_s + out["limit_seconds"]
         moved.append(n)
         if on_frames is not None:
             on_frames(fr.stop - fr.start)
-    return points, guard_report(moved, time.perf_counter() - t0, len(points))
+    report = guard_report(moved, time.perf_counter() - t0 - limit_s, len(points))
+    report["contact_guard"]["alternations_with_strain_limit"] = 1 if strain is None else GUARD_LIMIT_ALTERNATIONS
+    if strain is not None:
+        report["strain_limit"] = strain_report(strain, STRAIN_ITERATIONS, over, passes, limit_s, len(points), left)
+    return points, report
 
 
 #: Times the contact guard and then the strain limit run over a sequence where both are on (`guard_and_limit`,
@@ -693,34 +710,17 @@ def guard_and_limit(deformer: Deformer, points: np.ndarray, garment: Garment, re
                     limit: float | None, on_frames=None) -> tuple[np.ndarray, dict]:
     """The contact guard (`guard_sequence` with `anchors`; None: off) and then the strain limit
     (`deformer.limit_strain_of`; `limit` None: off) over a deformed sequence (T, V, 3) written in place; where
-    both are on, GUARD_LIMIT_ALTERNATIONS times over each `guard_chunk_frames` frames (`alternate_guard_limit`;
+    both are on, GUARD_LIMIT_ALTERNATIONS times over each chunk of frames (`guard_sequence` with the strain limit;
     `on_frames(n)` once per chunk). Returns (points, the guard's `guard_report` entries, {} without one); the
     limit's entry goes to the deformer's report."""
     if anchors is None or limit is None:
         guard = {}
         if anchors is not None:
             points, guard = guard_sequence(points, rest, garment.faces, body, poses, trans, betas, anchors, on_frames)
-            guard["contact_guard"]["alternations_with_strain_limit"] = 1
         return deformer.limit_strain_of(points, garment, rest, limit, on_frames), guard
-    t0 = time.perf_counter()
     strain = garment_strain(garment, rest, limit, deformer._strain)
-    ids, anchors = anchored_body(anchors)
-    moved, over, left, passes, limit_s = [], [], [], 0, 0.0
-    chunk = min(guard_chunk_frames(points.shape[1]), strain_chunk_frames(points.shape[1]))
-    for s in range(0, len(points), chunk):
-        fr = slice(s, min(s + chunk, len(points)))
-        posed = body.pose_at(ids, poses[fr], trans[fr], betas)
-        points[fr], out = alternate_guard_limit(points[fr], posed, anchors, strain)
-        moved.append(out["moved"])
-        over.append(out["over"])
-        left.append(out["left"])
-        passes, limit_s = max(passes, out["passes"]), limit_s + out["limit_seconds"]
-        if on_frames is not None:
-            on_frames(fr.stop - fr.start)
-    guard = guard_report(moved, time.perf_counter() - t0 - limit_s, len(points))
-    guard["contact_guard"]["alternations_with_strain_limit"] = GUARD_LIMIT_ALTERNATIONS
-    deformer.report["strain_limit"] = strain_report(strain, STRAIN_ITERATIONS, over, passes, limit_s, len(points),
-                                                    left)
+    points, guard = guard_sequence(points, rest, garment.faces, body, poses, trans, betas, anchors, on_frames, strain)
+    deformer.report["strain_limit"] = guard.pop("strain_limit")
     return points, guard
 
 
