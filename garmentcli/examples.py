@@ -29,7 +29,10 @@ def examples(out_dir, fps, overwrite):
     by that CPU's float rounding; on a Zen 4 EPYC: 78 to 167 vertices, 7-8
     mm, depending on the commit), and the trousers' and jumpsuit's UVs may
     differ (an AVX2 Xeon: one face, and the jumpsuit's layout rescaled by
-    0.5 %); the dress, the skirt and the motions came out bit for bit.
+    0.5 %); any garment may differ in its last written digit (an AMD EPYC:
+    the dress, skirt, trousers and jumpsuit by 1 um). Each change is a new
+    content hash: caches and psd fits made on the shipped files do not
+    carry over.
     """
     from core.body import default_body
     from core.garmentgen import generate_example_garments
