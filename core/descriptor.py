@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from core.geodesic import geodesic_distances_from
+from core.geometry import vertex_areas
 from core.graph import lexicographic_rank
 
 log = logging.getLogger(__name__)
@@ -55,14 +56,6 @@ class StyleDescriptor:
     eigenvalues: np.ndarray
     landmarks: np.ndarray
     nystrom: np.ndarray
-
-
-def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Barycentric vertex areas (V,) float64, m^2: a third of each incident triangle's area."""
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces, dtype=np.int64)
-    area = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
-    return np.bincount(f.reshape(-1), weights=np.repeat(area / 3.0, 3), minlength=len(v))
 
 
 def _start_direction(seed: int) -> np.ndarray:

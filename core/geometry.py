@@ -73,6 +73,17 @@ def scatter_corners(corner_values: np.ndarray, faces: np.ndarray, n_vertices: in
     return out.reshape(n_vertices, B, C).transpose(1, 0, 2).reshape(*lead, n_vertices, C)
 
 
+def vertex_areas(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Barycentric vertex areas, a third of each incident face's area: verts (..., V, 3) metres, faces (F, 3) ->
+    (..., V) float64 m^2."""
+    verts = np.asarray(verts, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    V, lead = verts.shape[-2], verts.shape[:-2]
+    area = 0.5 * np.linalg.norm(face_cross(verts, faces), axis=-1).reshape(-1, len(faces))  # (B, F)
+    at = (faces.reshape(1, -1) + V * np.arange(len(area))[:, None]).reshape(-1)  # each frame's own V slots
+    return np.bincount(at, weights=np.repeat(area.reshape(-1) / 3.0, 3), minlength=len(area) * V).reshape(*lead, V)
+
+
 def face_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Unit face normals, right-handed in the face's vertex order.
 

@@ -25,7 +25,8 @@ import numpy as np
 
 from core.errors import InputError, check_finite_points, frames_text
 from core.garment import boundary_edges, mesh_edges
-from core.geometry import as_float, face_cross, face_normals, normalise, scatter_corners, vertex_normals  # noqa: F401
+from core.geometry import (as_float, face_cross, face_normals, normalise, scatter_corners, vertex_areas,  # noqa: F401
+                           vertex_normals)
 
 log = logging.getLogger(__name__)
 
@@ -122,9 +123,7 @@ def gaussian_curvature(verts: np.ndarray, faces: np.ndarray, area_normalised: bo
     deficit = np.where(used, full - angle_sum, 0.0)
     if not area_normalised:
         return deficit
-    area = 0.5 * np.linalg.norm(face_cross(verts, faces), axis=-1)  # (..., F)
-    corners = np.broadcast_to(area[..., None, None] / 3.0, area.shape + (3, 1))
-    vertex_area = scatter_corners(corners, faces, V)[..., 0]
+    vertex_area = vertex_areas(verts, faces)
     ok = vertex_area > _EPS
     return np.where(ok, deficit / np.where(ok, vertex_area, 1.0), 0.0)
 
@@ -227,13 +226,34 @@ def _warn_zero_edges(count: int) -> None:
         log.warning("%d ground-truth edges of zero length left out of E_edge", count)
 
 
-def e_curv(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray) -> np.ndarray:
+#: A vertex of the prediction with less than this share of the ground truth's area around it (its faces
+#: collapsed) is counted in `e_curv`'s warning: its curvature density, the angle deficit over that area, grows
+#: without bound (a push-out that collapsed a few faces put the t-shirt's E_curv at 7.7e6 against 657).
+COLLAPSED_AREA_SHARE = 0.01
+
+
+def e_curv(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray, collapsed: list | None = None) -> np.ndarray:
     """Eq. 15: mean absolute difference of area-normalised Gaussian curvature per frame.
 
     pred, gt: (T, V, 3) float, metres. faces: (F, 3) int. Returns (T,) float64, 1/m^2
-    (see `gaussian_curvature` for the definition).
+    (see `gaussian_curvature` for the definition). Vertices of `pred` whose faces collapsed
+    (COLLAPSED_AREA_SHARE) are warned about, or their count appended to `collapsed`.
     """
+    pred = np.asarray(pred, dtype=np.float64)
+    gt = np.asarray(gt, dtype=np.float64)
+    gt_area = vertex_areas(gt, faces)
+    count = int(((vertex_areas(pred, faces) < COLLAPSED_AREA_SHARE * gt_area) & (gt_area > _EPS)).sum())
+    if collapsed is not None:
+        collapsed.append(count)
+    else:
+        _warn_collapsed(count)
     return np.abs(gaussian_curvature(pred, faces) - gaussian_curvature(gt, faces)).mean(axis=-1)
+
+
+def _warn_collapsed(count: int) -> None:
+    if count:
+        log.warning("%d vertex-frames of the prediction have under %g %% of the ground truth's area around them "
+                    "(collapsed faces): their curvature density dominates E_curv", count, 100 * COLLAPSED_AREA_SHARE)
 
 
 PER_FRAME_METRICS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = {
@@ -442,11 +462,13 @@ def compute_metrics(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray,
     T, V = p.shape[:2]
     f = _check_faces(faces, V, f"{pred_name} faces")
 
-    zero_edges: list[int] = []  # E_edge's warning once for all parts
-    per_frame = {name: _by_frames(lambda a, b: fn(a, b, f, **({"zero_edges": zero_edges} if fn is e_edge else {})),
+    counts: dict[Callable, list[int]] = {e_edge: [], e_curv: []}  # their warnings once for all parts
+    keyword = {e_edge: "zero_edges", e_curv: "collapsed"}
+    per_frame = {name: _by_frames(lambda a, b: fn(a, b, f, **({keyword[fn]: counts[fn]} if fn in counts else {})),
                                   p, g)
                  for name, fn in PER_FRAME_METRICS.items()}
-    _warn_zero_edges(sum(zero_edges))
+    _warn_zero_edges(sum(counts[e_edge]))
+    _warn_collapsed(sum(counts[e_curv]))
 
     if body_points is not None and body_faces is not None and inside_fn is not None:
         def checked_body(points, faces, name):  # (points, faces), one pose per garment frame

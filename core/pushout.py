@@ -4,7 +4,8 @@ Push-out: any method's output can be pushed out (`bake --push-out`, and the `+pu
 tradeoff`). A vertex inside the posed body (its winding number) or outside closer than `margin` is moved to the
 closest body point plus `margin` outward (the vertex's own side for one outside), or, where that point lies
 inside another part of a body that passes through itself, to the nearest point of its outer surface
-(`push_out`); before that, one below the ground (the lowest
+(`push_out`), except where that tears the cloth (neighbours sent to opposite sides of a crease); before that,
+one below the ground (the lowest
 point the body reaches in the motion, as the simulator's) is lifted straight up to `margin` above it. The
 cloth's own shape is not relaxed afterwards: a pushed region can stretch by up to its depth of penetration.
 It searches the closest body point and tests the winding number of every vertex in every frame (34-127 ms/frame
@@ -125,9 +126,17 @@ def _fade(x: torch.Tensor, bound: float, width: float) -> torch.Tensor:
     return ((bound + width - x) / width).clamp(0.0, 1.0)
 
 
+#: A move to the body's outer surface is taken back (the vertex goes to its closest body point, as one not inside
+#: another part does) where it makes an edge of the garment longer than this many times its length before the
+#: push-out, plus PUSH_OUT_TEAR_SLACK_M: in a crease where two parts overlap (an armpit, between the thighs)
+#: neighbours went to the outer surface on opposite sides (the arm's, the torso's), 2-3 cm apart, and the
+#: example t-shirt tore in every frame of the held-out walk (edges 10x their length, `benchmarks/push_out.py`).
+PUSH_OUT_TEAR_RATIO = 1.5
+PUSH_OUT_TEAR_SLACK_M = 0.002
+
 def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
              margin: float = PUSH_OUT_MARGIN_M, ground_z: float | None = None,
-             report: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+             report: dict | None = None, edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Lift vertices under `ground_z` + `margin` (the ground, world Z metres; None: no ground) straight up to that
     height, then move those inside the body, or outside it closer than `margin` to its surface, to `margin`
     outside (the body wins where both cannot hold: cloth pinched under a foot on the ground stays just below it).
@@ -140,15 +149,19 @@ def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray
     arm's), to the nearest point of the body's outer surface from which `margin` out along its face's normal is
     outside (`_to_outer_surface`). A vertex outside within `margin` of the surface is moved out along its own side
     (never through the face nearest it into another part; to the outer surface where that lands inside one).
+    With the garment's `edges`, a move to the outer surface that tears an edge (`PUSH_OUT_TEAR_RATIO`) is taken
+    back to the closest point's target: that vertex stays inside the other part, within `margin` of a surface
+    (never counted more than 2 mm inside), in the crease where the two parts meet.
 
     points: (T, V, 3) garment; body_points: (T, Vb, 3) posed body (closed, outward-oriented faces);
-    body_faces: (Fb, 3). Returns (pushed points (T, V, 3) float32, moved (T,) vertex counts); `report`, where
-    given, gets how many were moved to the outer surface and how many it left inside (summed over frames).
+    body_faces: (Fb, 3); edges: (E, 2) the garment's, or None. Returns (pushed points (T, V, 3) float32, moved
+    (T,) vertex counts); `report`, where given, gets how many were moved to the outer surface, how many were taken
+    back from it not to tear the cloth and how many it left inside (summed over frames).
     """
     out = np.array(points, dtype=np.float32, copy=True)
     moved = np.zeros(len(out), dtype=np.int64)
     body_faces = np.asarray(body_faces, dtype=np.int64)
-    to_outer = left_inside = 0
+    to_outer = left_inside = kept = 0
     for t in range(len(out)):
         low = np.zeros(out.shape[1], dtype=bool)
         if ground_z is not None:
@@ -169,14 +182,43 @@ def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray
         if len(still):
             still = still[test(new[still])]
         if len(still):
+            fallback = np.where(sel[:, None], new, p)  # every vertex where it goes without the outer surface
             new[still], left = _to_outer_surface(new[still], p[still], test, margin)
-            to_outer += len(still) - left
+            went = still[np.any(new[still] != fallback[still], axis=1)]  # not those it left at `new`
+            back = _tearing(np.where(sel[:, None], new, p), fallback, p, went, edges) if edges is not None \
+                else went[:0]
+            new[back] = fallback[back]
+            to_outer += len(still) - left - len(back)
             left_inside += left
+            kept += len(back)
         out[t, sel] = new[sel].astype(np.float32)
         moved[t] = int((sel | low).sum())
     if report is not None:
-        report.update(vertices_to_outer_surface=int(to_outer), vertices_left_inside=int(left_inside))
+        report.update(vertices_to_outer_surface=int(to_outer), vertices_kept_off_outer_surface=int(kept),
+                      vertices_left_inside=int(left_inside))
     return out, moved
+
+
+def _tearing(new: np.ndarray, fallback: np.ndarray, before: np.ndarray, outer: np.ndarray,
+             edges: np.ndarray) -> np.ndarray:
+    """Of the vertices `outer` (sorted ids) moved to the outer surface in `new` (V, 3), those to take back to
+    `fallback` (V, 3: their closest point's target), sorted: the ends among them of an edge (E, 2) longer than
+    PUSH_OUT_TEAR_RATIO times its length `before` (V, 3) plus PUSH_OUT_TEAR_SLACK_M, round after round until none
+    is (one taken back can tear an edge to a neighbour left out: a patch torn apart goes back whole)."""
+    longest = PUSH_OUT_TEAR_RATIO * np.linalg.norm(before[edges[:, 0]] - before[edges[:, 1]], axis=1) \
+        + PUSH_OUT_TEAR_SLACK_M
+    out_now = np.zeros(len(new), dtype=bool)
+    out_now[outer] = True
+    at = new.copy()
+    while True:  # each round takes back one vertex at least
+        torn = np.linalg.norm(at[edges[:, 0]] - at[edges[:, 1]], axis=1) > longest
+        ends = np.unique(edges[torn].reshape(-1))
+        ends = ends[out_now[ends]]
+        if not len(ends):
+            break
+        out_now[ends] = False
+        at[ends] = fallback[ends]
+    return np.setdiff1d(outer, np.flatnonzero(out_now))
 
 
 #: How far outside a face (metres, along its normal) its centroid and corners are probed to tell whether it is
@@ -766,7 +808,8 @@ class PushOutDeformer(Deformer):
         # The ground, as the simulator's: the lowest point the body reaches (never above a body point).
         ground = float(body_points[..., 2].min())
         outer: dict = {}
-        pushed, moved = push_out(points, body_points, body.faces, self.margin, ground, report=outer)
+        pushed, moved = push_out(points, body_points, body.faces, self.margin, ground, report=outer,
+                                 edges=mesh_edges(garment.faces))
         self.report = {**self.inner.report, "push_out": {"margin_m": self.margin, "ground_z_m": ground,
                                                          "vertices_moved_per_frame_mean": float(moved.mean()),
                                                          "vertices_moved_per_frame_max": int(moved.max(initial=0)),

@@ -369,6 +369,13 @@ def test_metrics_taken_a_few_frames_at_a_time_equal_all_at_once(monkeypatch, cap
     with caplog.at_level("WARNING", logger="core.metrics"):
         compute_metrics(pred, gt, f)
     assert [r.getMessage() for r in caplog.records] == ["2 ground-truth edges of zero length left out of E_edge"]
+    caplog.clear()
+    pred[4] = pred[4, :1]  # the last frame collapsed to a point (in the parts of 2 frames): one warning for all
+    with caplog.at_level("WARNING", logger="core.metrics"):
+        compute_metrics(pred, gt, f)
+    assert [r.getMessage() for r in caplog.records][1:] == [
+        f"{len(v)} vertex-frames of the prediction have under 1 % of the ground truth's area around them (collapsed "
+        "faces): their curvature density dominates E_curv"]
 
 
 # ---------------------------------------------------------------------------

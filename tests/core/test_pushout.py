@@ -66,6 +66,54 @@ def test_push_out_moves_points_inside_a_body_that_passes_through_itself_to_its_o
     np.testing.assert_allclose(np.linalg.norm(out[crease] - pts[crease], axis=1), nearest[-2:], atol=0.045)
 
 
+def test_push_out_takes_back_moves_to_the_outer_surface_that_tear_the_cloth():
+    """A strip of cloth across the lens where two spheres overlap (an armpit): every vertex's closest point pushes
+    it into the other sphere, and the nearest point of the outer surface lies on the crease above the axis for
+    those above it, below for those below, so the two rows beside the axis went 0.3-0.5 m apart (the example
+    t-shirt's armpits tore in every frame of a walk, edges 10x long). With the garment's edges, the moves that
+    make an edge longer than PUSH_OUT_TEAR_RATIO times its length before plus the slack are taken back to the
+    closest point's target (which itself stretches the strip by its projection onto the faceted sphere, 1.4-1.7x) (`margin` out of the nearest face, inside the other sphere), round after round until
+    none is: the strip goes back whole, a patch beside it that goes out whole stays on the outer surface, and the
+    report counts both."""
+    from core.garment import mesh_edges
+    from core.geometry import points_inside_mesh
+    from core.pushout import PUSH_OUT_TEAR_RATIO, PUSH_OUT_TEAR_SLACK_M
+
+    va, fa = icosphere(4, radius=0.3)
+    vb, fb = icosphere(4, radius=0.5, center=(0.6, 0.0, 0.0))
+    v, f = np.concatenate([va, vb]), np.concatenate([fa, fb + len(va)])
+    def strip(ys):  # a grid in the plane z = 0, x from 0.22 to 0.25 m: the small sphere's face nearest
+        xs = np.linspace(0.22, 0.25, 4)
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        i = (np.arange(len(xs) - 1)[:, None] * len(ys) + np.arange(len(ys) - 1)[None, :]).ravel()
+        return (np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=1),
+                np.concatenate([np.stack([i, i + len(ys), i + 1], 1), np.stack([i + 1, i + len(ys), i + len(ys) + 1], 1)]))
+
+    across, across_faces = strip(np.linspace(-0.105, 0.105, 22))  # no row on the axis itself
+    aside, aside_faces = strip(np.linspace(0.12, 0.15, 4))  # all above the axis: to the crease above, whole
+    pts, faces = np.concatenate([across, aside]), np.concatenate([across_faces, aside_faces + len(across)])
+    edges = mesh_edges(faces)
+    before = np.linalg.norm(pts[edges[:, 0]] - pts[edges[:, 1]], axis=1)
+    longest = PUSH_OUT_TEAR_RATIO * before + PUSH_OUT_TEAR_SLACK_M
+    assert points_inside_mesh(pts, va, fa).all() and points_inside_mesh(pts, vb, fb).all()
+    margin = 0.001
+    torn, _ = push_out(pts[None], v[None], f, margin)
+    lengths = lambda p: np.linalg.norm(p[edges[:, 0]] - p[edges[:, 1]], axis=1)  # noqa: E731
+    assert (lengths(torn[0].astype(np.float64)) > longest).sum() > 5  # without the edges: torn
+    report = {}
+    out, moved = push_out(pts[None], v[None], f, margin, report=report, edges=edges)
+    out = out[0].astype(np.float64)
+    assert moved[0] == len(pts)
+    taken_back = points_inside_mesh(out, v, f)
+    assert (lengths(out) <= longest + 1e-6)[~taken_back[edges].all(axis=1)].all()  # no edge to the outer surface torn
+    assert taken_back[:len(across)].all() and not taken_back[len(across):].any()  # the torn strip back whole
+    assert report["vertices_kept_off_outer_surface"] == len(across) and report["vertices_left_inside"] == 0
+    assert report["vertices_to_outer_surface"] == len(aside)
+    # those taken back are at their closest point's target: `margin` out of the small sphere's face nearest them
+    np.testing.assert_allclose(TriangleMesh(va, fa).signed_distance(out[taken_back]), margin, atol=2e-5)
+    np.testing.assert_array_equal(out[~taken_back], torn[0][~taken_back])
+
+
 def test_push_out_lifts_vertices_under_the_ground_straight_up():
     """With a ground, vertices under it (a hem through the floor) end `margin` above it, moved along Z only, away
     from the body; every vertex ends outside the body (which wins under its lowest point)."""
