@@ -700,13 +700,15 @@ class GarmentModel(nn.Module):
         return self.rest_pose(g, body_dist)
 
     def forward_frames(self, fused: torch.Tensor, g: GarmentInputs, rest: torch.Tensor, pose_win: torch.Tensor,
-                       vel_win: torch.Tensor, transforms: torch.Tensor, skip_joints: bool = True) -> ModelOutput:
+                       vel_win: torch.Tensor, transforms: torch.Tensor, skip_joints: bool = True,
+                       shape_rest: torch.Tensor | None = None) -> ModelOutput:
         """Garment vertices for B frames.
 
         skip_joints: leave joints without prior weight on any vertex out of the per-vertex sums (their
         weights are exactly 0, so the result is the same; `bake --no-skip joints` turns it off).
 
-        fused: (V, h) from `encode`. rest: (V, 3) rest garment on the shaped body (metres).
+        fused: (V, h) from `encode`. rest: (V, 3) rest garment on the shaped body (metres); shape_rest: the rest
+        garment on the shape the network is given (shape_input; None: `rest`'s).
         pose_win: (B, m, 3(S-1)+6); vel_win: (B, m, 3S+3) windows ending at each frame.
         transforms: (B, S, 4, 4) skinning transforms of each frame.
         """
@@ -732,7 +734,8 @@ class GarmentModel(nn.Module):
         pre = (self.combine(torch.cat([fused[None].expand(B, -1, -1), per_vertex], dim=-1))
                + self.global_code(h2)[:, None])
         if self.config.shape_input:
-            pre = pre + self.shape_code(SHAPE_INPUT_SCALE * (rest - g.rest).to(pre.dtype))[None]
+            seen = rest if shape_rest is None else shape_rest
+            pre = pre + self.shape_code(SHAPE_INPUT_SCALE * (seen - g.rest).to(pre.dtype))[None]
         x = F.silu(pre)
         cap = torch.clamp(MAX_BLEND_FRACTION * (rest.amax(0) - rest.amin(0)).max(), max=MAX_BLEND_M).detach()
         blend = cap * torch.tanh(self.unet(x, g).float() / cap)  # Eq. 4, bounded

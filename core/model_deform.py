@@ -157,6 +157,8 @@ class _Shaped:
     fused: torch.Tensor
     levels: dict
     anchors: ContactAnchors | None = None
+    #: The rest vertices on the shape the network is given (`network_betas`), where that is not the body's.
+    shape_view: torch.Tensor | None = None
 
 
 class _CopiesBack:
@@ -214,7 +216,8 @@ class ModelDeformer(Deformer):
     def __init__(self, model: GarmentModel, batch_frames: int | None = None, cache_dir=None, model_name: str = "model",
                  precision: str = "float32", coverage=None, contact_guard: bool = True,
                  lead_in_s: float | None = None, device: torch.device | str | None = None,
-                 strain_limit: float | None = STRAIN_LIMIT, trained_body: dict | None = None):
+                 strain_limit: float | None = STRAIN_LIMIT, trained_body: dict | None = None,
+                 trained_betas: tuple[np.ndarray, np.ndarray] | None = None):
         super().__init__()
         if precision not in PRECISIONS:
             raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -242,6 +245,9 @@ class ModelDeformer(Deformer):
         self.lead_in_s = DEFAULT_LEAD_IN_S if lead_in_s is None else float(lead_in_s)
         #: The body the network was trained on, {"name", "sha256"} (`trained_body`); None: not recorded.
         self.trained_body = trained_body
+        #: (least, largest) of each shape coefficient the network was trained on (`trained_betas`): beyond them it
+        #: is given the nearest trained value (`network_betas`); None: the body's shape as it is.
+        self.trained_betas = trained_betas
         self._other_bodies: dict = {}
         if not (np.isfinite(self.lead_in_s) and self.lead_in_s >= 0):
             raise InputError(f"model lead-in: expected a non-negative number of seconds, got {lead_in_s!r}")
@@ -287,13 +293,46 @@ class ModelDeformer(Deformer):
                weights)
         if key not in self._shaped:
             g = tensors_to(self._garments[(garment.content_hash(), id(body))].inputs, device)
+            seen = self.network_betas(betas)
             with torch.inference_mode(), torch.autocast(device.type, dtype=torch.bfloat16,
                                                         enabled=self.precision == "bfloat16"):
-                fused = self.model.encode(g, body_distances(body, betas).to(device))
+                fused = self.model.encode(g, body_distances(body, seen).to(device))
             while len(self._shaped) >= SHAPED_CACHE:
                 self._shaped.pop(next(iter(self._shaped)))
-            self._shaped[key] = _Shaped(g, shaped_rest(g, body, betas), fused, scene_levels(garment, body, motion_betas))
+            view = None if np.array_equal(seen, betas) else shaped_rest(g, body, seen)
+            self._shaped[key] = _Shaped(g, shaped_rest(g, body, betas), fused, scene_levels(garment, body, motion_betas),
+                                        shape_view=view)
         return self._shaped[key]
+
+    def network_betas(self, betas: np.ndarray) -> np.ndarray:
+        """The shape coefficients (n,) the network is given for a body of `betas` (n,): each within the least and
+        largest it was trained on (`trained_betas`; one it never saw varied, 0), the garment still shaped and posed
+        on the body's own. The shipped model, trained on three shapes, tore a jumpsuit's trouser leg off at rest on
+        a tall body (betas[0] = 4: 6.1 % of vertices inside against LBS's 0.9) and ballooned a t-shirt to the chin
+        on a thin one (all -3), where given the nearest trained shape it fits (0.33 % and none)."""
+        if self.trained_betas is None:
+            return betas
+        least, largest = (np.zeros(len(betas)) for _ in range(2))
+        n = min(len(betas), len(self.trained_betas[0]))
+        least[:n], largest[:n] = self.trained_betas[0][:n], self.trained_betas[1][:n]
+        return np.clip(betas, least, largest).astype(betas.dtype)
+
+    def _shape_beyond_training(self, betas: np.ndarray) -> dict | None:
+        """Where the body's shape `betas` lies beyond the network's training (`network_betas`), the report's entry
+        ({"betas", "network_betas", "coefficients"}), warned once per deform; None where it does not."""
+        seen = self.network_betas(betas)
+        beyond = np.flatnonzero(seen != betas)
+        if not len(beyond):
+            return None
+        least, largest = self.network_betas(np.full(len(betas), -np.inf)), self.network_betas(np.full(len(betas), np.inf))
+        listed = [f"betas[{k}] {betas[k]:.3g} (trained {least[k]:.3g} to {largest[k]:.3g})" for k in beyond[:4]]
+        more = f" and {len(beyond) - 4} more" if len(beyond) > 4 else ""
+        log.warning(f"model '{self.model_name}': the body's shape lies beyond the shapes it was trained on, "
+                    f"{', '.join(listed)}{more}: the network is given the nearest trained shape, the garment fitted "
+                    "and posed on the body's own (its accuracy there is not measured)")
+        rounded = lambda b: np.round(np.asarray(b, dtype=np.float64), 6).tolist()  # noqa: E731
+        return {"betas": rounded(betas), "network_betas": rounded(seen),
+                "coefficients": beyond.tolist()}
 
     def training_range(self, garment: Garment, body: Body) -> dict | None:
         """`training_range` of a prepared garment against the model's training garments (None: unknown)."""
@@ -377,7 +416,8 @@ class ModelDeformer(Deformer):
                     win = window_index(frames, self.model.config.window)
                     return self.model.forward_frames(shaped.fused, g, rest, features.pose[win],
                                                      features.velocity[win], features.transforms[frames],
-                                                     skip_joints=scene.enabled("joints")).verts.float()
+                                                     skip_joints=scene.enabled("joints"),
+                                                     shape_rest=shaped.shape_view).verts.float()
 
                 fade = self._lead_fade(network, mf, lead, body, poses, motion, betas, device)
                 for s in range(0, motion.n_frames, batch):
@@ -432,6 +472,9 @@ class ModelDeformer(Deformer):
             self.report["body_view"] = body_view_note(given)
         if self.body_difference(given):
             self.report["trained_body"] = {**self.trained_body, "body": body.name, "body_sha256": body.content_hash()}
+        beyond = self._shape_beyond_training(betas)
+        if beyond:
+            self.report["shape_beyond_training"] = beyond
         if self.precision == "bfloat16":
             self.report["native_bfloat16"] = native_bfloat16()
         self.scene = scene.report
@@ -496,7 +539,40 @@ def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
     model, data = load_model(path)
     kwargs.setdefault("lead_in_s", data["meta"].get("lead_in_s"))
     return ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"),
-                         trained_body=trained_body(data["meta"]), **kwargs)
+                         trained_body=trained_body(data["meta"]), trained_betas=trained_betas(data["meta"]), **kwargs)
+
+
+def trained_shapes(betas: list, before: tuple[np.ndarray, np.ndarray] | None) -> dict:
+    """The "trained_betas" a checkpoint records: {"min", "max"} lists, each shape coefficient's least and largest
+    over the training sequences' `betas` ((n,) arrays) and the range `before` (its --init's, where given)."""
+    rows = [np.asarray(b, dtype=np.float64).reshape(-1) for b in betas]
+    n = max([len(r) for r in rows] + [len(before[0]) if before is not None else 0])
+    padded = [np.pad(r, (0, n - len(r))) for r in rows]  # a coefficient a sequence lacks is 0
+    if before is not None:
+        padded += [np.pad(b, (0, n - len(b))) for b in before]
+    if not padded:
+        return {"min": [], "max": []}
+    stack = np.stack(padded)
+    return {"min": stack.min(axis=0).round(6).tolist(), "max": stack.max(axis=0).round(6).tolist()}
+
+
+#: The body shapes of `garment dataset`'s defaults (`--bodies 3 --betas-range 2 --seed 0`, the embedded body's 10
+#: coefficients): those the shipped model was trained on, and what a checkpoint that records none is taken to
+#: have seen (`trained_betas`).
+DEFAULT_TRAINED_BODIES = 3
+
+
+def trained_betas(meta: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(least, largest) of each shape coefficient a checkpoint's model was trained on (its `meta`'s
+    "trained_betas", which `garment train` records since 2026-12-07; before, those of `garment dataset`'s default
+    bodies: DEFAULT_TRAINED_BODIES)."""
+    record = meta.get("trained_betas")
+    if isinstance(record, dict) and {"min", "max"} <= set(record):
+        return np.asarray(record["min"], dtype=np.float64), np.asarray(record["max"], dtype=np.float64)
+    from core.dataset import DEFAULT_BETAS_RANGE, sample_betas
+
+    shapes = sample_betas(DEFAULT_TRAINED_BODIES, 10, DEFAULT_BETAS_RANGE, seed=0)
+    return shapes.min(axis=0).astype(np.float64), shapes.max(axis=0).astype(np.float64)
 
 
 def trained_body(meta: dict) -> dict | None:

@@ -88,16 +88,20 @@ MODEL_SUFFIXES = (".pt", ".pth", ".ckpt")
 
 def model_info(path: Path) -> dict:
     """A model checkpoint of `garment train` (or its resume state, MODEL.ckpt): what it was trained on."""
-    from core.model_deform import trained_body
+    from core.model_deform import trained_betas, trained_body
     from formats.checkpoint import load_checkpoint
 
     data = load_checkpoint(path)
     meta, cfg = data.get("meta") or {}, data.get("config") or {}
     body = trained_body(meta)
+    least, largest = trained_betas(meta)
     return {"path": str(path), "kind": "model", "resume_state": "train" in data,
             "steps": meta.get("steps", (data.get("train") or {}).get("step")), "phase": meta.get("phase"),
             "body": None if body is None else body["name"], "body_sha256": None if body is None else body["sha256"],
             "garments": meta.get("garments"), "val_verts_mm": meta.get("val_verts_mm"),
+            # the shapes the network is given within (core.model_deform.trained_betas; recorded or the default)
+            "trained_betas": {"min": least.round(6).tolist(), "max": largest.round(6).tolist(),
+                              "recorded": "trained_betas" in meta},
             "levels": cfg.get("levels"), "joints": cfg.get("n_joints"), "notes": []}
 
 

@@ -296,7 +296,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
     of a resumed run), checkpoints, phase snapshots, then MODEL and its card."""
     import os
 
-    from core.model_deform import joint_coverage
+    from core.model_deform import joint_coverage, trained_betas, trained_shapes
     from formats.checkpoint import save_checkpoint
 
     ckpt_path, csv_path, json_path = _side_files(out)
@@ -336,6 +336,10 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
         if init is not None and init.get("meta", {}).get("joint_coverage") is not None:  # it has seen both datasets
             coverage = [max(a, b) for a, b in zip(coverage, init["meta"]["joint_coverage"])]
 
+        # The shapes it has seen: each coefficient's least and largest over the training sequences (and its --init's).
+        shapes = trained_shapes([seq.betas for seq in data.splits.get("train", [])],
+                                None if init is None else trained_betas(init.get("meta", {})))
+
         # The model's lead-in at bake time: the settle blend its training sequences start with (core.model_deform).
         settings = data.manifest.get("settings", {})
         lead_in = (settings["settle"] / settings["fps"]) if {"settle", "fps"} <= set(settings) else None
@@ -345,7 +349,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
                 save_checkpoint(out.with_name(f"{out.stem}.phase{phase}{out.suffix}"), model_cfg,
                                 {k: v.cpu() for k, v in tr.model.state_dict().items()},
                                 meta={"steps": tr.step, "phase": phase, "of": out.name, "joint_coverage": coverage,
-                                      "lead_in_s": lead_in, "body": job.body.name,
+                                      "trained_betas": shapes, "lead_in_s": lead_in, "body": job.body.name,
                                       "body_sha256": job.body.content_hash()})
 
         trainer.progress = progress
@@ -365,7 +369,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
             "val_verts_mm": None if last_val.get("val_verts_mm") in (None, "") else float(last_val["val_verts_mm"]),
             "body": job.body.name,
-            "body_sha256": job.body.content_hash(), "joint_coverage": coverage,
+            "body_sha256": job.body.content_hash(), "joint_coverage": coverage, "trained_betas": shapes,
             "lead_in_s": lead_in,
             "sequences": sequences, "sequences_missing": data.missing, "garments": sorted(data.garments),
             "sequences_per_step": job.sequences_per_step,

@@ -591,3 +591,65 @@ def test_a_bake_does_not_build_the_training_self_collision_neighbourhood(monkeyp
     assert all(g.near is None for g in d._garments.values())
     assert prepare_garment(garment, body, d.model.config, near=False).near is None and calls == []
     assert prepare_garment(garment, body, d.model.config).near.nnz > 0 and calls == [1]
+
+
+def test_the_network_is_given_the_nearest_trained_shape(body, caplog):
+    """Beyond the shape coefficients a model was trained on (`trained_betas`: each one's least and largest; one
+    it has no record of, 0) the network is given the nearest trained shape: its encoded rest pose and its shape
+    input are those of the clipped betas, while the garment is fitted and posed on the body's own (the shipped
+    model tore a jumpsuit's leg off at rest on a tall body). Within them nothing changes, bit for bit; beyond, the
+    bake says so once and reports both shapes."""
+    from core.garment import Garment
+    from core.model import shaped_rest
+    from core.model_deform import ModelDeformer
+    from core.motion import Motion
+
+    model = perturbed_model(TINY_CONFIG, scale=0.3, seed=2)
+    v, f = tube(12, 6)
+    garment = Garment(v, f)
+    poses, trans, _ = sequence(body, v, f, 6, 0, None)
+    bounds = (np.array([-0.5, 0.0, -0.2]), np.array([0.5, 0.2, 0.1]))  # a record of 3 of the body's 4
+    kept = ModelDeformer(model, contact_guard=False, strain_limit=None, trained_betas=bounds)
+    plain = ModelDeformer(model, contact_guard=False, strain_limit=None)
+
+    def bake(d, betas):
+        return d.deform(garment, body, Motion(poses=poses, trans=trans, fps=30.0, betas=np.float32(betas)))
+
+    within = [0.3, 0.1, -0.2, 0.0]
+    np.testing.assert_array_equal(bake(kept, within), bake(plain, within))
+    assert "shape_beyond_training" not in kept.report
+    beyond, nearest = [2.0, -1.0, 0.05, 0.7], np.float32([0.5, 0.0, 0.05, 0.0])
+    np.testing.assert_array_equal(kept.network_betas(np.float32(beyond)), nearest)
+    with caplog.at_level("WARNING", logger="core.model_deform"):
+        out = bake(kept, beyond)
+    assert np.isfinite(out).all() and not np.allclose(out, bake(plain, beyond), atol=1e-4)
+    assert kept.report["shape_beyond_training"] == {"betas": beyond, "network_betas": [0.5, 0.0, 0.05, 0.0],
+                                                   "coefficients": [0, 1, 3]}
+    assert [r.getMessage().split(": ", 1)[1] for r in caplog.records] == [
+        "the body's shape lies beyond the shapes it was trained on, betas[0] 2 (trained -0.5 to 0.5), betas[1] -1 "
+        "(trained 0 to 0.2), betas[3] 0.7 (trained 0 to 0): the network is given the nearest trained shape, the "
+        "garment fitted and posed on the body's own (its accuracy there is not measured)"]
+    device = torch.device("cpu")
+    shaped, seen = kept._shaped_inputs(garment, body, np.float32(beyond), device), \
+        plain._shaped_inputs(garment, body, nearest, device)
+    assert torch.equal(shaped.fused, seen.fused) and torch.equal(shaped.shape_view, seen.rest)
+    assert torch.equal(shaped.rest, shaped_rest(shaped.g, body, np.float32(beyond)))
+    assert not torch.equal(shaped.rest, seen.rest)
+
+
+def test_trained_betas_are_recorded_by_training_and_default_to_the_datasets_bodies():
+    """A checkpoint records each shape coefficient's least and largest over its training sequences and its --init's
+    (`trained_shapes`: a coefficient a sequence lacks is 0); one that records none (the shipped model) is taken
+    to have seen `garment dataset`'s default bodies (3, betas in +-2, seed 0: the mean shape among them)."""
+    from core.dataset import sample_betas
+    from core.model_deform import trained_betas, trained_shapes
+
+    record = trained_shapes([np.float32([0.5, -1.0]), np.float32([-0.25, 0.0, 2.0])], None)
+    assert record == {"min": [-0.25, -1.0, 0.0], "max": [0.5, 0.0, 2.0]}
+    grown = trained_shapes([np.float32([1.0])], trained_betas({"trained_betas": record}))
+    assert grown == {"min": [-0.25, -1.0, 0.0], "max": [1.0, 0.0, 2.0]}
+    least, largest = trained_betas({})
+    shapes = sample_betas(3, 10, 2.0, seed=0)
+    np.testing.assert_array_equal(least, shapes.min(axis=0))
+    np.testing.assert_array_equal(largest, shapes.max(axis=0))
+    assert (least <= 0).all() and (largest >= 0).all() and (largest - least).max() < 4

@@ -6,6 +6,7 @@ import pickle
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tests.formats.test_bvh import _motion
 from tests.formats.test_fbx import rig_fbx
@@ -149,6 +150,10 @@ def test_info_tells_a_model_and_its_resume_state_for_what_they_are_and_a_motion_
                         f"pooling level{'' if TINY_CONFIG.levels == 1 else 's'}, {TINY_CONFIG.n_joints} joints; 30 steps, phase 2, on body 'default' (sha256 "
                         f"{default_body().content_hash()[:12]}), garments skirt, validation E_verts 38.1 mm")
     assert lines[1].startswith(f"{state}: training state of a garment model (`garment train --resume` continues it)")
+    from garmentcli.info import model_info  # the shapes it is taken to have seen: none recorded, the default bodies
+
+    shapes = model_info(model)["trained_betas"]
+    assert not shapes["recorded"] and len(shapes["min"]) == 10 and shapes["max"][0] == pytest.approx(1.263414)
     assert lines[1].endswith("; 12 steps")
     assert lines[2].startswith(f"{tmp_path / 'walk.pt'}: motion, 4 frames at 60 fps")
     # a checkpoint of another version is a model with that wrong (it was a motion "expected a 'poses' array")

@@ -65,6 +65,10 @@ def test_train_writes_model_log_and_resumes(setup):
     assert snap["meta"]["phase"] == 1 and phase_at[snap["meta"]["steps"]] == 1
     # it is a model bake can guard like the final one: it knows its training garments' joints
     assert snap["meta"]["joint_coverage"] == load_checkpoint(full)["meta"]["joint_coverage"]
+    # and the shapes it was trained on: the two training sequences' betas[0] are 0 and 0.5, the rest 0
+    shapes = load_checkpoint(full)["meta"]["trained_betas"]
+    assert snap["meta"]["trained_betas"] == shapes and shapes["max"][0] == 0.5
+    assert shapes["min"] == [0.0] * len(shapes["min"]) and shapes["max"][1:] == [0.0] * (len(shapes["max"]) - 1)
     assert not (root / "full.phase2.pt").exists()
     final = load_checkpoint(full)["model"]
     snap1 = load_checkpoint(root / "full.phase1.pt")["model"]
