@@ -309,7 +309,7 @@ class ModelDeformer(Deformer):
         largest it was trained on (`trained_betas`; one it never saw varied, 0), the garment still shaped and posed
         on the body's own. The shipped model, trained on three shapes, tore a jumpsuit's trouser leg off at rest on
         a tall body (betas[0] = 4: 6.1 % of vertices inside against LBS's 0.9) and ballooned a t-shirt to the chin
-        on a thin one (all -3), where given the nearest trained shape it fits (0.33 % and none)."""
+        on a thin one (all -3), where so given it fits (0.33 % and none)."""
         if self.trained_betas is None:
             return betas
         least, largest = (np.zeros(len(betas)) for _ in range(2))
@@ -328,7 +328,7 @@ class ModelDeformer(Deformer):
         listed = [f"betas[{k}] {betas[k]:.3g} (trained {least[k]:.3g} to {largest[k]:.3g})" for k in beyond[:4]]
         more = f" and {len(beyond) - 4} more" if len(beyond) > 4 else ""
         log.warning(f"model '{self.model_name}': the body's shape lies beyond the shapes it was trained on, "
-                    f"{', '.join(listed)}{more}: the network is given the nearest trained shape, the garment fitted "
+                    f"{', '.join(listed)}{more}: the network is given each within its trained range, the garment fitted "
                     "and posed on the body's own (its accuracy there is not measured)")
         rounded = lambda b: np.round(np.asarray(b, dtype=np.float64), 6).tolist()  # noqa: E731
         return {"betas": rounded(betas), "network_betas": rounded(seen),

@@ -595,7 +595,7 @@ def test_a_bake_does_not_build_the_training_self_collision_neighbourhood(monkeyp
 
 def test_the_network_is_given_the_nearest_trained_shape(body, caplog):
     """Beyond the shape coefficients a model was trained on (`trained_betas`: each one's least and largest; one
-    it has no record of, 0) the network is given the nearest trained shape: its encoded rest pose and its shape
+    it has no record of, 0) the network is given each within its trained range: its encoded rest pose and its shape
     input are those of the clipped betas, while the garment is fitted and posed on the body's own (the shipped
     model tore a jumpsuit's leg off at rest on a tall body). Within them nothing changes, bit for bit; beyond, the
     bake says so once and reports both shapes."""
@@ -627,7 +627,7 @@ def test_the_network_is_given_the_nearest_trained_shape(body, caplog):
                                                    "coefficients": [0, 1, 3]}
     assert [r.getMessage().split(": ", 1)[1] for r in caplog.records] == [
         "the body's shape lies beyond the shapes it was trained on, betas[0] 2 (trained -0.5 to 0.5), betas[1] -1 "
-        "(trained 0 to 0.2), betas[3] 0.7 (trained 0 to 0): the network is given the nearest trained shape, the "
+        "(trained 0 to 0.2), betas[3] 0.7 (trained 0 to 0): the network is given each within its trained range, the "
         "garment fitted and posed on the body's own (its accuracy there is not measured)"]
     device = torch.device("cpu")
     shaped, seen = kept._shaped_inputs(garment, body, np.float32(beyond), device), \
