@@ -8,8 +8,8 @@ inside another part of a body that passes through itself, to the nearest point o
 one below the ground (the lowest
 point the body reaches in the motion, as the simulator's) is lifted straight up to `margin` above it. The
 cloth's own shape is not relaxed afterwards: a pushed region can stretch by up to its depth of penetration.
-It searches the closest body point and tests the winding number of every vertex in every frame (34-127 ms/frame
-on the example garments: `benchmarks/results/push_out.md`).
+It searches the closest body point and tests the winding number of every vertex in every frame (51-169 ms/frame
+on the example garments, measured beside other work: `benchmarks/results/push_out.md`).
 
 Contact guard (`ContactAnchors`, `guard_contact`; on by default for `--method model`): each garment
 vertex is tied once, on the rest pose, to where it is nearest the body (a point and a normal blended over the
@@ -133,6 +133,7 @@ def _fade(x: torch.Tensor, bound: float, width: float) -> torch.Tensor:
 #: example t-shirt tore in every frame of the held-out walk (edges 10x their length, `benchmarks/push_out.py`).
 PUSH_OUT_TEAR_RATIO = 1.5
 PUSH_OUT_TEAR_SLACK_M = 0.002
+
 
 def push_out(points: np.ndarray, body_points: np.ndarray, body_faces: np.ndarray,
              margin: float = PUSH_OUT_MARGIN_M, ground_z: float | None = None,
