@@ -34,6 +34,7 @@ import torch
 from core.body import SMPL_JOINT_NAMES, Body, skin_points
 from core.errors import InputError
 from core.model import GarmentInputs, GarmentModel, body_distances, motion_features, shaped_rest, window_index
+from core.model_deform import within_trained
 from core.motion import Motion, poses_for_body
 
 DEFAULT_STEPS = 50
@@ -77,7 +78,7 @@ class DeformationTarget:
     """f(inputs) for one frame of one garment on one body and motion; see the module docstring."""
 
     def __init__(self, model: GarmentModel, g: GarmentInputs, body: Body, motion: Motion, frame: int,
-                 vertices: np.ndarray | None = None):
+                 vertices: np.ndarray | None = None, trained_betas: tuple[np.ndarray, np.ndarray] | None = None):
         if not 0 <= frame < motion.n_frames:
             raise InputError(f"--frame: expected a frame in 0..{motion.n_frames - 1} of motion '{motion.name}', "
                              f"got {frame}")
@@ -88,9 +89,12 @@ class DeformationTarget:
         mf = motion_features(body, poses, motion.trans, betas, motion.fps)
         win = window_index(torch.tensor([frame]), model.config.window)[0]
         self.rest = shaped_rest(g, body, betas).double()
+        # the shape the network is given, as a bake gives it (`core.model_deform.within_trained`)
+        seen = within_trained(betas, trained_betas)
+        self.shape_rest = None if np.array_equal(seen, betas) else shaped_rest(g, body, seen).double()
         self.transforms = mf.transforms[frame:frame + 1].double()
         self.input = Inputs(pose=mf.pose[win].double(), velocity=mf.velocity[win].double(),
-                            body=body_distances(body, betas).double(), garment=self.g.features.clone())
+                            body=body_distances(body, seen).double(), garment=self.g.features.clone())
         S = model.config.n_joints
         pose0 = self.input.pose.clone()
         pose0[:, : 3 * (S - 1)] = 0.0  # rest pose; the up vector (next 3) kept
@@ -112,7 +116,8 @@ class DeformationTarget:
         """The network's garment (V, 3) at this frame for inputs x (differentiable)."""
         g = replace(self.g, features=x.garment)
         fused = self.model.encode(g, x.body)
-        return self.model.forward_frames(fused, g, self.rest, x.pose[None], x.velocity[None], self.transforms).verts[0]
+        return self.model.forward_frames(fused, g, self.rest, x.pose[None], x.velocity[None], self.transforms,
+                                         shape_rest=self.shape_rest).verts[0]
 
     def per_vertex(self, x: Inputs) -> torch.Tensor:
         """|x_v - x_v^lbs| (V,) for inputs x (differentiable)."""

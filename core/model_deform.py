@@ -310,12 +310,7 @@ class ModelDeformer(Deformer):
         on the body's own. The shipped model, trained on three shapes, tore a jumpsuit's trouser leg off at rest on
         a tall body (betas[0] = 4: 4.35 % of the vertices inside on the example walk, 0.33 so given) and ballooned
         a t-shirt to the chin on a thin one (all -3: 1.72 %, none so given)."""
-        if self.trained_betas is None:
-            return betas
-        least, largest = (np.zeros(len(betas)) for _ in range(2))
-        n = min(len(betas), len(self.trained_betas[0]))
-        least[:n], largest[:n] = self.trained_betas[0][:n], self.trained_betas[1][:n]
-        return np.clip(betas, least, largest).astype(betas.dtype)
+        return within_trained(betas, self.trained_betas)
 
     def _shape_beyond_training(self, betas: np.ndarray) -> dict | None:
         """Where the body's shape `betas` lies beyond the network's training (`network_betas`), the report's entry
@@ -540,6 +535,17 @@ def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
     kwargs.setdefault("lead_in_s", data["meta"].get("lead_in_s"))
     return ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"),
                          trained_body=trained_body(data["meta"]), trained_betas=trained_betas(data["meta"]), **kwargs)
+
+
+def within_trained(betas: np.ndarray, trained: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+    """`betas` (n,) with each coefficient clipped to `trained`'s (least, largest) (`trained_betas`; a coefficient
+    beyond its record to 0); None: `betas` as they are."""
+    if trained is None:
+        return betas
+    least, largest = (np.zeros(len(betas)) for _ in range(2))
+    n = min(len(betas), len(trained[0]))
+    least[:n], largest[:n] = trained[0][:n], trained[1][:n]
+    return np.clip(betas, least, largest).astype(betas.dtype)
 
 
 def trained_shapes(betas: list, before: tuple[np.ndarray, np.ndarray] | None) -> dict:

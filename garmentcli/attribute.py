@@ -96,13 +96,14 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     from core.model_data import prepare_garment
     from core.model_deform import model_body, skeleton_mismatch
     from formats.atomic import atomic_dir, refuse_replacing
+    from core.model_deform import trained_betas
     from formats.checkpoint import load_model
     from formats.obj import read_garment
 
     if not np.isfinite(fps) or fps <= 0:
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
     vertices = _read_vertices(vertices_path) if vertices_path else None
-    model, _ = load_model(model_path)
+    model, data = load_model(model_path)
     garment = read_garment(garment_path)
     body = load_body_option(body_path)
     view = model_body(body, model.config.n_joints)
@@ -117,7 +118,7 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     g = prepare_garment(garment, view, model.config, source=garment_path, near=False).inputs
-    target = DeformationTarget(model, g, view, motion, frame, vertices)
+    target = DeformationTarget(model, g, view, motion, frame, vertices, trained_betas(data["meta"]))
     with click.progressbar(length=1, label=f"attribute ({steps} nodes)") as bar:
         att = integrated_gradients(target, target.input, target.baseline, steps)
         bar.update(1)

@@ -78,3 +78,30 @@ def test_bad_frame_and_vertices_are_refused(target):
         DeformationTarget(target.model, target.g, tiny_body(), Motion(poses=np.zeros((2, 24, 3), np.float32),
                                                                        trans=np.zeros((2, 3), np.float32), fps=30.0),
                           frame=5)
+
+
+def test_the_target_gives_the_network_the_shape_a_bake_gives_it(tmp_path):
+    """Beyond the shapes a model was trained on a bake gives its network each coefficient within the trained range
+    (`core.model_deform.within_trained`); the attribution explains that network: its body input and shape input
+    are the clipped shape's, the garment's rest the body's own; within the range nothing changes."""
+    import torch
+
+    from core.model import body_distances, shaped_rest
+
+    body = tiny_body()
+    v, f = tube(16, 8)
+    model = perturbed_model(TINY_CONFIG, 0.2)
+    g = prepare_garment(Garment(v, f, name="tube"), body, TINY_CONFIG, tmp_path).inputs
+    motion = Motion(poses=np.zeros((6, 24, 3), np.float32), trans=np.zeros((6, 3), np.float32), fps=30.0,
+                    betas=np.float32([0.5, 0.5, 0.5, 0.5]), name="still")
+    trained = (np.array([0.0, 0.0, 0.0, 0.0]), np.array([0.2, 0.5, 0.5, 0.5]))
+    clipped = DeformationTarget(model, g, body, motion, 4, trained_betas=trained)
+    seen = np.float32([0.2, 0.5, 0.5, 0.5])
+    torch.testing.assert_close(clipped.input.body, body_distances(body, seen).double())
+    torch.testing.assert_close(clipped.shape_rest, shaped_rest(g, body, seen).double())
+    torch.testing.assert_close(clipped.rest, shaped_rest(g, body, motion.betas).double())
+    plain = DeformationTarget(model, g, body, motion, 4)
+    assert plain.shape_rest is None and not torch.equal(plain.input.body, clipped.input.body)
+    assert not torch.allclose(plain.verts(plain.input), clipped.verts(clipped.input))
+    inside = DeformationTarget(model, g, body, motion, 4, trained_betas=(trained[0], trained[1] + 1))
+    assert inside.shape_rest is None and torch.equal(inside.verts(inside.input), plain.verts(plain.input))
