@@ -169,8 +169,9 @@ def _golden_sim(material=Material()):
 
 def test_simulator_behaviour_matches_its_declared_version():
     """Stored simulations are keyed on SIMULATOR_VERSION: a change that moves the cloth must bump it. Compared
-    exactly (GOLDEN_SIM_TOLERANCE_M) with the golden of this CPU's kind where there is one, else within
-    OTHER_CPU_TOLERANCE_M of every golden."""
+    exactly (GOLDEN_SIM_TOLERANCE_M) with the golden of this CPU's kind where there is one (an AMD EPYC of family
+    25 model 1 lies 0.34 mm from the AVX2 EPYC's golden on average, up to 5.5 mm: beyond the tolerance between
+    other kinds, so it has its own), else within OTHER_CPU_TOLERANCE_M of every golden."""
     from core.sim import SIMULATOR_VERSION
 
     out = _golden_sim()
@@ -181,13 +182,17 @@ def test_simulator_behaviour_matches_its_declared_version():
     remake = "GARMENT_UPDATE_GOLDENS=1 python -m pytest tests/core/test_sim.py -k declared_version"
     goldens = sorted(GOLDEN_DIR.glob("sim_shell_walk*.npz"))
     assert goldens, f"no golden simulation in {GOLDEN_DIR}: make one ({remake})"
-    for path in goldens:
+    for path in goldens:  # each made with the simulator the code declares
         with np.load(path) as g:
-            golden, version = g["points"], int(g["simulator_version"])
-            made_on = str(g["cpu_kind"]) if "cpu_kind" in g else "unknown"
+            version, made_on = int(g["simulator_version"]), str(g["cpu_kind"]) if "cpu_kind" in g else "unknown"
         assert version == SIMULATOR_VERSION, (
             f"{path.name} was made with SIMULATOR_VERSION {version}, the code declares {SIMULATOR_VERSION}: remake "
             f"it on its CPU kind ({made_on}; {remake}) or delete it")
+    if own.is_file():  # this CPU's kind: exactly; others' rounding may have grown beyond their tolerance here
+        goldens = [own]
+    for path in goldens:
+        with np.load(path) as g:
+            golden, made_on = g["points"], str(g["cpu_kind"]) if "cpu_kind" in g else "unknown"
         dist = np.linalg.norm(out - golden, axis=-1)
         change = (f"if the simulator's behaviour changed on purpose, bump core.sim.SIMULATOR_VERSION and remake the "
                   f"golden ({remake})")

@@ -52,6 +52,10 @@ def fail_first_attempt(module: str, name: str, match: str, marker_dir: str, kill
     setattr(mod, name, patched)
 
 
+#: How far a sequence simulated on a Dask worker may lie from the same simulated in this process (metres).
+SAME_SIMULATION_M = 1e-4
+
+
 def test_dataset_through_scheduler_retries_and_matches_local(scene, cluster):
     address, client = cluster
     a, b = still_motions(scene["dir"])
@@ -71,7 +75,9 @@ def test_dataset_through_scheduler_retries_and_matches_local(scene, cluster):
     assert not list((remote / "sequences").glob(".*"))  # no partial file left
     for x, y in zip(lf, rf):
         sx, sy = read_sequence(x), read_sequence(y)
-        np.testing.assert_allclose(sy.positions, sx.positions, atol=1e-6)
+        # within 0.1 mm: a worker's threads round the inputs' sums otherwise than this process's, and the contacts
+        # grow it (on an AMD EPYC one coordinate of 7,704 differed by 5.7 um; the cloth moves centimetres a frame)
+        np.testing.assert_allclose(sy.positions, sx.positions, atol=SAME_SIMULATION_M)
         assert sx.garment_sha256 == sy.garment_sha256 and sx.body == sy.body and sx.n_settle == sy.n_settle
     ml, mr = (json.loads((d / "manifest.json").read_text()) for d in (local, remote))
     assert ml["plan_key"] == mr["plan_key"] and ml["items"] == mr["items"] and len(mr["item_stats"]) == 4
@@ -79,7 +85,7 @@ def test_dataset_through_scheduler_retries_and_matches_local(scene, cluster):
     rf[2].unlink()
     r = run(*common, "--out", remote, "--scheduler", address)
     assert r.exit_code == 0 and "1 to simulate" in r.output and "(1 simulated now)" in r.output, r.output
-    np.testing.assert_allclose(read_sequence(rf[2]).positions, read_sequence(lf[2]).positions, atol=1e-6)
+    np.testing.assert_allclose(read_sequence(rf[2]).positions, read_sequence(lf[2]).positions, atol=SAME_SIMULATION_M)
 
 
 def test_bake_through_scheduler_survives_a_killed_worker_and_matches_local(scene, cluster):
