@@ -34,7 +34,7 @@ import torch
 from core.body import SMPL_JOINT_NAMES, Body, skin_points
 from core.errors import InputError
 from core.model import GarmentInputs, GarmentModel, body_distances, motion_features, shaped_rest, window_index
-from core.model_deform import within_trained
+from core.model_deform import network_shape
 from core.motion import Motion, poses_for_body
 
 DEFAULT_STEPS = 50
@@ -89,9 +89,9 @@ class DeformationTarget:
         mf = motion_features(body, poses, motion.trans, betas, motion.fps)
         win = window_index(torch.tensor([frame]), model.config.window)[0]
         self.rest = shaped_rest(g, body, betas).double()
-        # the shape the network is given, as a bake gives it (`core.model_deform.within_trained`)
-        seen = within_trained(betas, trained_betas)
-        self.shape_rest = None if np.array_equal(seen, betas) else shaped_rest(g, body, seen).double()
+        # the shape the network is given, as a bake gives it
+        seen, view = network_shape(g, body, betas, trained_betas)
+        self.shape_rest = None if view is None else view.double()
         self.transforms = mf.transforms[frame:frame + 1].double()
         self.input = Inputs(pose=mf.pose[win].double(), velocity=mf.velocity[win].double(),
                             body=body_distances(body, seen).double(), garment=self.g.features.clone())

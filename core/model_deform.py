@@ -293,13 +293,12 @@ class ModelDeformer(Deformer):
                weights)
         if key not in self._shaped:
             g = tensors_to(self._garments[(garment.content_hash(), id(body))].inputs, device)
-            seen = self.network_betas(betas)
+            seen, view = network_shape(g, body, betas, self.trained_betas)
             with torch.inference_mode(), torch.autocast(device.type, dtype=torch.bfloat16,
                                                         enabled=self.precision == "bfloat16"):
                 fused = self.model.encode(g, body_distances(body, seen).to(device))
             while len(self._shaped) >= SHAPED_CACHE:
                 self._shaped.pop(next(iter(self._shaped)))
-            view = None if np.array_equal(seen, betas) else shaped_rest(g, body, seen)
             self._shaped[key] = _Shaped(g, shaped_rest(g, body, betas), fused, scene_levels(garment, body, motion_betas),
                                         shape_view=view)
         return self._shaped[key]
@@ -319,7 +318,7 @@ class ModelDeformer(Deformer):
         beyond = np.flatnonzero(seen != betas)
         if not len(beyond):
             return None
-        least, largest = self.network_betas(np.full(len(betas), -np.inf)), self.network_betas(np.full(len(betas), np.inf))
+        least, largest = trained_bounds(self.trained_betas, len(betas))
         listed = [f"betas[{k}] {betas[k]:.3g} (trained {least[k]:.3g} to {largest[k]:.3g})" for k in beyond[:4]]
         more = f" and {len(beyond) - 4} more" if len(beyond) > 4 else ""
         log.warning(f"model '{self.model_name}': the body's shape lies beyond the shapes it was trained on, "
@@ -537,15 +536,29 @@ def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
                          trained_body=trained_body(data["meta"]), trained_betas=trained_betas(data["meta"]), **kwargs)
 
 
+def trained_bounds(trained: tuple[np.ndarray, np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(least, largest) (n,) of each of a body's `n` shape coefficients in `trained` (`trained_betas`): one beyond
+    its record 0 to 0."""
+    least, largest = np.zeros(n), np.zeros(n)
+    k = min(n, len(trained[0]))
+    least[:k], largest[:k] = trained[0][:k], trained[1][:k]
+    return least, largest
+
+
 def within_trained(betas: np.ndarray, trained: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-    """`betas` (n,) with each coefficient clipped to `trained`'s (least, largest) (`trained_betas`; a coefficient
-    beyond its record to 0); None: `betas` as they are."""
+    """`betas` (n,) with each coefficient clipped to `trained`'s (least, largest) (`trained_bounds`); None: `betas`
+    as they are."""
     if trained is None:
         return betas
-    least, largest = (np.zeros(len(betas)) for _ in range(2))
-    n = min(len(betas), len(trained[0]))
-    least[:n], largest[:n] = trained[0][:n], trained[1][:n]
-    return np.clip(betas, least, largest).astype(betas.dtype)
+    return np.clip(betas, *trained_bounds(trained, len(betas))).astype(betas.dtype)
+
+
+def network_shape(g: GarmentInputs, body: Body, betas: np.ndarray,
+                  trained: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, torch.Tensor | None]:
+    """(the betas the network is given for a body of `betas` (`within_trained`), the garment's rest on that shape
+    for the network's shape input: None where it is the body's own)."""
+    seen = within_trained(betas, trained)
+    return seen, None if np.array_equal(seen, betas) else shaped_rest(g, body, seen)
 
 
 def trained_shapes(betas: list, before: tuple[np.ndarray, np.ndarray] | None) -> dict:
