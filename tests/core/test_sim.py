@@ -171,7 +171,8 @@ def test_simulator_behaviour_matches_its_declared_version():
     """Stored simulations are keyed on SIMULATOR_VERSION: a change that moves the cloth must bump it. Compared
     exactly (GOLDEN_SIM_TOLERANCE_M) with the golden of this CPU's kind where there is one (an AMD EPYC of family
     25 model 1 lies 0.34 mm from the AVX2 EPYC's golden on average, up to 5.5 mm: beyond the tolerance between
-    other kinds, so it has its own), else within OTHER_CPU_TOLERANCE_M of every golden."""
+    other kinds, so it has its own), else within OTHER_CPU_TOLERANCE_M of the nearest golden (a
+    new kind need not lie between kinds that lie apart)."""
     from core.sim import SIMULATOR_VERSION
 
     out = _golden_sim()
@@ -188,23 +189,25 @@ def test_simulator_behaviour_matches_its_declared_version():
         assert version == SIMULATOR_VERSION, (
             f"{path.name} was made with SIMULATOR_VERSION {version}, the code declares {SIMULATOR_VERSION}: remake "
             f"it on its CPU kind ({made_on}; {remake}) or delete it")
+    change = (f"if the simulator's behaviour changed on purpose, bump core.sim.SIMULATOR_VERSION and remake the "
+              f"golden ({remake})")
     if own.is_file():  # this CPU's kind: exactly; others' rounding may have grown beyond their tolerance here
-        goldens = [own]
-    for path in goldens:
-        with np.load(path) as g:
-            golden, made_on = g["points"], str(g["cpu_kind"]) if "cpu_kind" in g else "unknown"
-        dist = np.linalg.norm(out - golden, axis=-1)
-        change = (f"if the simulator's behaviour changed on purpose, bump core.sim.SIMULATOR_VERSION and remake the "
-                  f"golden ({remake})")
-        if made_on == kind:
-            assert dist.max() <= GOLDEN_SIM_TOLERANCE_M, (
-                f"the simulated cloth moved by up to {dist.max() * 1e3:.2f} mm from {path.name}, made on this CPU's "
-                f"kind: {change}")
-        else:
-            mean, most = OTHER_CPU_TOLERANCE_M
-            assert dist.mean() <= mean and dist.max() <= most, (
-                f"the simulated cloth moved by {dist.mean() * 1e3:.3f} mm on average, up to {dist.max() * 1e3:.2f} "
-                f"mm, from {path.name} (made on CPU kind {made_on}; this one is {kind}): {change}")
+        with np.load(own) as g:
+            dist = np.linalg.norm(out - g["points"], axis=-1)
+        assert dist.max() <= GOLDEN_SIM_TOLERANCE_M, (
+            f"the simulated cloth moved by up to {dist.max() * 1e3:.2f} mm from {own.name}, made on this CPU's "
+            f"kind: {change}")
+    else:  # another kind's rounding: near one of the kinds (they lie up to 5.5 mm apart from each other)
+        mean, most = OTHER_CPU_TOLERANCE_M
+        apart = {}
+        for path in goldens:
+            with np.load(path) as g:
+                dist = np.linalg.norm(out - g["points"], axis=-1)
+            apart[path.name] = (float(dist.mean()), float(dist.max()))
+        assert any(m <= mean and x <= most for m, x in apart.values()), (
+            "the simulated cloth moved beyond the tolerance between CPU kinds from every golden ("
+            + "; ".join(f"{name}: {m * 1e3:.3f} mm on average, up to {x * 1e3:.2f} mm" for name, (m, x) in apart.items())
+            + f"; this CPU's kind is {kind}): {change}")
     # The tolerances are far below what a material change does.
     moved = np.linalg.norm(_golden_sim(dataclasses.replace(Material(), friction=0.2)) - out, axis=-1)
     assert moved.max() > 10 * OTHER_CPU_TOLERANCE_M[1] and moved.mean() > 10 * OTHER_CPU_TOLERANCE_M[0]
