@@ -545,12 +545,19 @@ def trained_bounds(trained: tuple[np.ndarray, np.ndarray], n: int) -> tuple[np.n
     return least, largest
 
 
+#: How far beyond its trained range a shape coefficient still counts as within it (`within_trained`): a training
+#: shape's coefficients are recorded to 6 decimals (and a float32 shape lies up to 1e-7 beyond its record), and a
+#: shape typed as the warning prints it (3 digits) up to 0.005 beyond; each warned of and clipped by a hair.
+TRAINED_BETAS_SLACK = 0.01
+
+
 def within_trained(betas: np.ndarray, trained: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-    """`betas` (n,) with each coefficient clipped to `trained`'s (least, largest) (`trained_bounds`); None: `betas`
-    as they are."""
+    """`betas` (n,) with each coefficient clipped to `trained`'s (least, largest) (`trained_bounds`) widened by
+    TRAINED_BETAS_SLACK; None: `betas` as they are."""
     if trained is None:
         return betas
-    return np.clip(betas, *trained_bounds(trained, len(betas))).astype(betas.dtype)
+    least, largest = trained_bounds(trained, len(betas))
+    return np.clip(betas, least - TRAINED_BETAS_SLACK, largest + TRAINED_BETAS_SLACK).astype(betas.dtype)
 
 
 def network_shape(g: GarmentInputs, body: Body, betas: np.ndarray,

@@ -96,7 +96,7 @@ def test_the_target_gives_the_network_the_shape_a_bake_gives_it(tmp_path):
                     betas=np.float32([0.5, 0.5, 0.5, 0.5]), name="still")
     trained = (np.array([0.0, 0.0, 0.0, 0.0]), np.array([0.2, 0.5, 0.5, 0.5]))
     clipped = DeformationTarget(model, g, body, motion, 4, trained_betas=trained)
-    seen = np.float32([0.2, 0.5, 0.5, 0.5])
+    seen = np.float32([0.21, 0.5, 0.5, 0.5])  # within TRAINED_BETAS_SLACK of the range
     torch.testing.assert_close(clipped.input.body, body_distances(body, seen).double())
     torch.testing.assert_close(clipped.shape_rest, shaped_rest(g, body, seen).double())
     torch.testing.assert_close(clipped.rest, shaped_rest(g, body, motion.betas).double())
