@@ -250,6 +250,43 @@ def written(motion: Motion) -> Motion:
     return select_frames(motion, motion.n_lead, None) if motion.n_lead else motion
 
 
+#: A joint faster than this (m/s) between two frames is no human motion: a teleport of the root or a cut in the
+#: capture (a hand in a throw reaches about 20 m/s).
+CUT_SPEED_M_S = 25.0
+#: A joint turning faster than this (rad/s) between two frames is a flip in the capture or its fit (a joint turned
+#: 180 degrees in one frame at 30 fps: 94 rad/s; a dancer's fastest turns stay under 20, a pitcher's shoulder,
+#: about the fastest of any, reaches 120 and is told too).
+CUT_TURN_RAD_S = 60.0
+
+
+def motion_cuts(motion: Motion, body) -> list[tuple[int, str]]:
+    """Where the body of `motion` (its frames after the settle blend) jumps between two frames: (the frame after
+    the jump, what moved: a joint faster than CUT_SPEED_M_S or one turning faster than CUT_TURN_RAD_S), the
+    fastest of each frame. body: the `core.body.Body` it is posed on."""
+    poses = poses_for_body(motion, body.n_joints)
+    first = motion.n_settle
+    if motion.n_frames - first < 2:
+        return []
+    poses, trans = poses[first:], motion.trans[first:]
+    A = body.skinning_transforms(poses, trans, motion.betas)
+    _, rest = body.shaped(motion.betas)
+    joints = np.einsum("tjab,jb->tja", A[:, :, :3, :3], rest) + A[:, :, :3, 3]
+    speed = np.linalg.norm(np.diff(joints, axis=0), axis=-1).max(axis=1) * motion.fps  # (T-1,)
+    q = axis_angle_to_quat(poses.astype(np.float64))  # (T, J, 4)
+    turn = 2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))  # (T-1, J) radians
+    cuts = []
+    for k in np.flatnonzero((speed > CUT_SPEED_M_S) | (turn.max(axis=1) * motion.fps > CUT_TURN_RAD_S)):
+        if speed[k] > CUT_SPEED_M_S:
+            what = f"a joint moves {speed[k] / motion.fps:.2f} m in one frame ({speed[k]:.0f} m/s)"
+        else:
+            j = int(np.argmax(turn[k]))
+            name = body.joint_names[j] if j < len(body.joint_names) else f"joint {j}"
+            what = (f"the {name} turns {np.degrees(turn[k, j]):.0f} degrees in one frame "
+                    f"({turn[k, j] * motion.fps:.0f} rad/s)")
+        cuts.append((first + int(k) + 1, what))
+    return cuts
+
+
 def preroll(motion: Motion, start: int | None, stop: int | None, n_frames: int) -> Motion:
     """Frames [start, stop) as `select_frames`, preceded by up to `n_frames` frames before `start` as lead
     frames (`Motion.n_lead`: deformed, not written); fewer where the motion begins sooner."""

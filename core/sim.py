@@ -51,7 +51,7 @@ from core.errors import InputError
 from core.garment import Garment, boundary_loops, edge_face_counts, mesh_edges
 from core.geodesic import geodesic_graph, geodesic_neighbourhood
 from core.geometry import TriangleMesh, face_cross, outward_faces
-from core.motion import Motion, blend_in, poses_for_body
+from core.motion import CUT_SPEED_M_S, Motion, blend_in, poses_for_body
 from core.provenance import package_version
 from core.scene import SceneAnalysis, analyse_collisions, lbs_preview
 from core.skinning import bind_garment, shaped_garment
@@ -1047,9 +1047,6 @@ def _worse(a: dict, b: dict) -> bool:
     return key(b) < key(a)
 
 
-#: A body vertex faster than this (m/s) between two frames is no human motion: a teleport of the root or a cut
-#: in the capture (a hand in a throw reaches about 20 m/s).
-CUT_SPEED_M_S = 25.0
 #: Frames before a failing one searched for such a cut (the cloth fails a few frames after it).
 CUT_LOOKBACK = 4
 

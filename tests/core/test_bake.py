@@ -71,3 +71,70 @@ def test_bake_item_without_the_body_measures_what_it_measures_with_it():
     assert without.summary["penetration"]["frames_checked"] == with_body.summary["penetration"]["frames_checked"]
     np.testing.assert_allclose(without.summary["penetration"]["percent_per_checked_frame"],
                                with_body.summary["penetration"]["percent_per_checked_frame"], atol=0.05)
+
+
+def _walk(fps: float = 30.0):
+    from core.motiongen import MOTION_LIBRARY
+
+    return MOTION_LIBRARY["walk"](fps=fps)
+
+
+def test_a_jump_in_the_motion_is_found_where_it_is():
+    """`motion_cuts`: a 10 m teleport of the root and a joint flipped 180 degrees between two frames, at the frame
+    after the jump; a walk at 5, 30 or 240 fps has none, nor has a settle blend from the rest pose in one frame."""
+    from dataclasses import replace
+
+    from core.body import default_body
+    from core.motion import CUT_SPEED_M_S, motion_cuts, settle
+
+    body = default_body()
+    for fps in (5.0, 30.0, 240.0):
+        assert motion_cuts(_walk(fps), body) == []
+    walk = _walk()
+    assert motion_cuts(settle(walk, 1), body) == []
+    trans = walk.trans.copy()
+    trans[12:, 0] += 10.0
+    assert motion_cuts(replace(walk, trans=trans), body) == [(12, "a joint moves 10.00 m in one frame (300 m/s)")]
+    trans = walk.trans.copy()
+    trans[12:, 0] += 0.9 * CUT_SPEED_M_S / 30.0  # fast, not impossible
+    assert motion_cuts(replace(walk, trans=trans), body) == []
+    poses = walk.poses.copy()
+    poses[20:, 3] = [0.0, np.pi, 0.0]  # spine1 turned about its own axis, 180 degrees from frame 19 to 20
+    poses[:20, 3] = 0.0
+    assert motion_cuts(replace(walk, poses=poses), body) == [
+        (20, f"the {body.joint_names[3]} turns 180 degrees in one frame (94 rad/s)")]
+    assert [k for k, _ in motion_cuts(settle(replace(walk, poses=poses), 4), body)] == [24]
+
+
+def test_a_bake_warns_of_a_jump_in_the_motion_and_of_a_strain_limit_it_could_not_keep(caplog):
+    """A teleport is warned of once, naming the frame and the remedy (--frames); a strain limit that leaves
+    an edge longer than it by more than STRAIN_LEFT_WARN_M is warned of with its counts, one within it not."""
+    from dataclasses import replace
+
+    from core.body import default_body
+    from core.deform import LBSDeformer
+    from formats.obj import read_obj
+
+    body = default_body()
+    walk = _walk()
+    trans = walk.trans.copy()
+    trans[12:, 0] += 10.0
+    garment = read_obj(Path(__file__).resolve().parents[2] / "examples" / "skirt.obj")
+    with caplog.at_level("WARNING", logger="core.bake"):
+        B.bake_item(garment, body, replace(walk, trans=trans, name="glitch"), LBSDeformer(), check_penetration=False)
+        B.bake_item(garment, body, walk, LBSDeformer(), check_penetration=False)
+    assert [r.getMessage() for r in caplog.records] == [
+        "motion 'glitch': the body jumps at frame 12: a joint moves 10.00 m in one frame (300 m/s), a teleport or a "
+        "cut or flip in the capture? The garment follows it in one frame; bake the parts apart with --frames"]
+    caplog.clear()
+    report = {"strain_limit": {"limit": 1.5, "passes_max": 60, "frames_still_over": 38,
+                               "edges_still_over_per_frame_max": 495, "excess_left_max_mm": 5.6}}
+    with caplog.at_level("WARNING", logger="core.bake"):
+        B._warn_strain_left(report, "model", 61)
+        B._warn_strain_left({"strain_limit": {**report["strain_limit"], "excess_left_max_mm": 1.9}}, "model", 61)
+        B._warn_strain_left({"strain_limit": {**report["strain_limit"], "frames_still_over": 0}}, "model", 61)
+        B._warn_strain_left({}, "lbs", 61)
+    assert [r.getMessage() for r in caplog.records] == [
+        "method 'model': the strain limit (1.5x an edge's rest length) left edges longer than it in 38 of 61 frames "
+        "deformed (up to 495 a frame, 5.6 mm beyond it) after its 60 passes: the pose stretches the cloth further "
+        "than the limit undoes"]
