@@ -40,7 +40,8 @@ N_BETAS = 10
 
 def shapes() -> dict[str, tuple[str, np.ndarray]]:
     """{label: (kind, betas (10,))}: the shipped model's three training bodies (`garment dataset`'s defaults), two
-    points between them, two unseen draws in the dataset's +-2 (another seed) and all coefficients +-3."""
+    points between them, two unseen draws in the dataset's +-2 (another seed), all coefficients +-3 and the
+    first +4 (a tall body: the shipped model tore the jumpsuit's leg off there before the clip)."""
     trained = sample_betas(DEFAULT_TRAINED_BODIES, N_BETAS, 2.0, seed=0).astype(np.float64)
     unseen = sample_betas(3, N_BETAS, 2.0, seed=7).astype(np.float64)
     return {
@@ -53,6 +54,7 @@ def shapes() -> dict[str, tuple[str, np.ndarray]]:
         "unseen draw 2 (+-2)": ("unseen", unseen[2]),
         "all +3": ("beyond", np.full(N_BETAS, 3.0)),
         "all -3": ("beyond", np.full(N_BETAS, -3.0)),
+        "betas[0] +4": ("beyond", np.eye(N_BETAS)[0] * 4.0),
     }
 
 
@@ -104,7 +106,7 @@ def main(argv=None) -> None:
             "default (10 substeps, no self-contact); E_verts: mean vertex distance to it; inside: % of vertices more "
             "than 2 mm inside the body (winding number). Kinds: the three bodies the shipped model was trained on "
             "(`garment dataset`'s defaults: `sample_betas(3, 10, 2.0, seed=0)`), points between them, unseen draws "
-            "within the dataset's +-2 (seed 7) and all coefficients +-3; betas clipped: coefficients beyond the "
+            "within the dataset's +-2 (seed 7), all coefficients +-3 and the first +4; betas clipped: coefficients beyond the "
             "trained range that a bake clips for the network (`within_trained`); the unclipped model is the bake "
             "before 2026-12-07.\n\n" + markdown_table(header, rows) + "\n")
     args.out.parent.mkdir(parents=True, exist_ok=True)

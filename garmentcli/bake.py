@@ -621,8 +621,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     person=person, take=take, threads=threads or 0, threads_fixed=threads is not None,
                     point_caches=tuple(dict.fromkeys(point_caches)))
     _fix_threads(deformer, spec.threads_fixed)
-    if method == "sim":
-        _note_rest_start(frames, preroll_frames, [(mo, path) for (mo, _), path, _ in motions])
+    if method in ("sim", "model"):
+        _note_rest_start(frames, preroll_frames, [(mo, path) for (mo, _), path, _ in motions], method)
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()
@@ -723,9 +723,12 @@ def _refuse_beyond_memory(garment, body, path, n_frames: int, source_fps: float,
 START_SPEED_NOTE_M_S = 0.5
 
 
-def _note_rest_start(frames: str | None, preroll_frames: int, motions: list) -> None:
-    """sim: say where the cloth starts at rest on a moving body (a --frames range after the motion's start without
-    --preroll, or a motion already moving in its first frame) and how to leave that start out of the output."""
+def _note_rest_start(frames: str | None, preroll_frames: int, motions: list, method: str = "sim") -> None:
+    """sim, model: say where the cloth starts at rest on a moving body (a --frames range after the motion's start
+    without --preroll, or a motion already moving in its first frame) and how to leave that start out of the
+    output. The model learned its start from the simulator's: the dress on the example walk moves more than 30 mm
+    against the body in 567 of its 3,240 vertices from frame 0 to 1, against 15-257 a frame after frame 4."""
+    cloth = "the simulated cloth" if method == "sim" else "the model's cloth (as the simulator's it learned from)"
     if frames and not preroll_frames and (parse_frame_range(frames)[0] or 0) > 0:
         click.echo(f"note: --frames {frames}: the cloth starts at rest on the body at START; --preroll N simulates "
                    "N frames before it (not written) so that it arrives there moving", err=True)
@@ -740,9 +743,9 @@ def _note_rest_start(frames: str | None, preroll_frames: int, motions: list) -> 
     if moving:
         speed, path = max(moving)
         others = f" (and {len(moving) - 1} more motions)" if len(moving) > 1 else ""
-        click.echo(f"note: motion '{path}'{others} moves at {speed:.1f} m/s from its first frame: the simulated cloth "
-                   "starts at rest and trails the body for a few frames; `--frames K: --preroll K` leaves the first K "
-                   "source frames out of the output", err=True)
+        click.echo(f"note: motion '{path}'{others} moves at {speed:.1f} m/s from its first frame: {cloth} starts "
+                   "at rest and trails the body for a few frames; `--frames K: --preroll K` leaves the first K source "
+                   "frames out of the output", err=True)
 
 
 def _echo_throughput(frames: int, motions: int, seconds: float) -> None:
