@@ -259,31 +259,31 @@ CUT_SPEED_M_S = 25.0
 CUT_TURN_RAD_S = 60.0
 
 
-def motion_cuts(motion: Motion, body) -> list[tuple[int, str]]:
+def motion_cuts(motion: Motion, body, chunk: int = 4096) -> list[tuple[int, str]]:
     """Where the body of `motion` (its frames after the settle blend) jumps between two frames: (the frame after
     the jump, what moved: a joint faster than CUT_SPEED_M_S or one turning faster than CUT_TURN_RAD_S), the
-    fastest of each frame. body: the `core.body.Body` it is posed on."""
+    fastest of each frame. body: the `core.body.Body` it is posed on; `chunk` frames posed at a time (a 50,000-frame
+    motion's joints at once held 180 MB)."""
     poses = poses_for_body(motion, body.n_joints)
     first = motion.n_settle
-    if motion.n_frames - first < 2:
-        return []
-    poses, trans = poses[first:], motion.trans[first:]
-    A = body.skinning_transforms(poses, trans, motion.betas)
     _, rest = body.shaped(motion.betas)
-    joints = np.einsum("tjab,jb->tja", A[:, :, :3, :3], rest) + A[:, :, :3, 3]
-    speed = np.linalg.norm(np.diff(joints, axis=0), axis=-1).max(axis=1) * motion.fps  # (T-1,)
-    q = axis_angle_to_quat(poses.astype(np.float64))  # (T, J, 4)
-    turn = 2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))  # (T-1, J) radians
     cuts = []
-    for k in np.flatnonzero((speed > CUT_SPEED_M_S) | (turn.max(axis=1) * motion.fps > CUT_TURN_RAD_S)):
-        if speed[k] > CUT_SPEED_M_S:
-            what = f"a joint moves {speed[k] / motion.fps:.2f} m in one frame ({speed[k]:.0f} m/s)"
-        else:
-            j = int(np.argmax(turn[k]))
-            name = body.joint_names[j] if j < len(body.joint_names) else f"joint {j}"
-            what = (f"the {name} turns {np.degrees(turn[k, j]):.0f} degrees in one frame "
-                    f"({turn[k, j] * motion.fps:.0f} rad/s)")
-        cuts.append((first + int(k) + 1, what))
+    for s in range(first, motion.n_frames - 1, chunk):
+        at = slice(s, min(s + chunk + 1, motion.n_frames))  # one frame shared with the next chunk
+        A = body.skinning_transforms(poses[at], motion.trans[at], motion.betas)
+        joints = np.einsum("tjab,jb->tja", A[:, :, :3, :3], rest) + A[:, :, :3, 3]
+        speed = np.linalg.norm(np.diff(joints, axis=0), axis=-1).max(axis=1) * motion.fps  # (t-1,)
+        q = axis_angle_to_quat(poses[at].astype(np.float64))  # (t, J, 4)
+        turn = 2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))  # (t-1, J) radians
+        for k in np.flatnonzero((speed > CUT_SPEED_M_S) | (turn.max(axis=1) * motion.fps > CUT_TURN_RAD_S)):
+            if speed[k] > CUT_SPEED_M_S:
+                what = f"a joint moves {speed[k] / motion.fps:.2f} m in one frame ({speed[k]:.0f} m/s)"
+            else:
+                j = int(np.argmax(turn[k]))
+                name = body.joint_names[j] if j < len(body.joint_names) else f"joint {j}"
+                what = (f"the {name} turns {np.degrees(turn[k, j]):.0f} degrees in one frame "
+                        f"({turn[k, j] * motion.fps:.0f} rad/s)")
+            cuts.append((s + int(k) + 1, what))
     return cuts
 
 

@@ -138,3 +138,22 @@ def test_a_bake_warns_of_a_jump_in_the_motion_and_of_a_strain_limit_it_could_not
         "method 'model': the strain limit (1.5x an edge's rest length) left edges longer than it in 38 of 61 frames "
         "deformed (up to 495 a frame, 5.6 mm beyond it) after its 60 passes: the pose stretches the cloth further "
         "than the limit undoes"]
+
+
+def test_a_long_motion_is_searched_for_jumps_in_chunks_alike():
+    """`motion_cuts` poses a long motion `chunk` frames at a time: a jump at a chunk's edge is found once."""
+    from dataclasses import replace
+
+    from core.body import default_body
+    from core.motion import motion_cuts
+
+    body = default_body()
+    walk = _walk()
+    trans = walk.trans.copy()
+    trans[8:, 0] += 10.0
+    trans[17:, 1] += 10.0
+    glitch = replace(walk, trans=trans)
+    whole = motion_cuts(glitch, body)
+    assert [k for k, _ in whole] == [8, 17]
+    for chunk in (1, 7, 8, 9, 16):
+        assert motion_cuts(glitch, body, chunk=chunk) == whole
