@@ -730,7 +730,8 @@ def _note_rest_start(frames: str | None, preroll_frames: int, motions: list, met
     against the body in 567 of its 3,240 vertices from frame 0 to 1, against 15-257 a frame after frame 4."""
     cloth = "the simulated cloth" if method == "sim" else "the model's cloth (as the simulator's it learned from)"
     if frames and not preroll_frames and (parse_frame_range(frames)[0] or 0) > 0:
-        click.echo(f"note: --frames {frames}: the cloth starts at rest on the body at START; --preroll N simulates "
+        verb = "simulates" if method == "sim" else "deforms"
+        click.echo(f"note: --frames {frames}: the cloth starts at rest on the body at START; --preroll N {verb} "
                    "N frames before it (not written) so that it arrives there moving", err=True)
         return
     moving = []
