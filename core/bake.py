@@ -87,8 +87,9 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
     if cuts:
         frame, what = cuts[0]
         more = f" (and at {len(cuts) - 1} more frames)" if len(cuts) > 1 else ""
-        log.warning(f"motion '{motion.name}': the body jumps at frame {frame}{more}: {what}, a teleport or a cut or "
-                    "flip in the capture? The garment follows it in one frame; bake the parts apart with --frames")
+        log.warning(f"motion '{motion.name}': the body jumps at written frame {frame}{more}: {what}, a teleport or "
+                    "a cut or flip in the capture? The garment follows it in one frame; bake the parts apart with "
+                    "--frames (`garment info` names the jump's source frame)")
     t0 = time.perf_counter()
     points = deformer.deform(garment, body, motion)
     t_deform = time.perf_counter() - t0

@@ -151,11 +151,14 @@ def _kind_of(path: Path) -> str:
 
 
 def motion_info(path: str, person: str | None = None, take: str | None = None,
-                source_fps: float | None = None) -> dict:
+                source_fps: float | None = None, body=None) -> dict:
     """A motion file as `garment bake` reads it (with --person, --take, --source-fps; --motion-up left out): its
     frames, rate,
-    joints, betas, the world axis read as up, the root's path, the tracked people or animations it holds
+    joints, betas, the world axis read as up, the root's path, where the body jumps between two frames on `body`
+    (`core.motion.motion_cuts`; the embedded body where None), the tracked people or animations it holds
     (frames of each) and the part read, and what reading it said."""
+    from core.body import default_body
+    from core.motion import motion_cuts
     from formats.motion import load_motion, motion_takes, tracked_people
 
     with collected_notes() as notes:
@@ -172,6 +175,7 @@ def motion_info(path: str, person: str | None = None, take: str | None = None,
             "person": motion.person, "people": tracked_people(path), "take": motion.take, "takes": takes,
             "root_travel_m": round(float(speed.sum() / motion.fps), 3),
             "root_speed_m_s_p99": round(float(np.percentile(speed, 99)), 3) if speed.size else 0.0,
+            "jumps": [{"frame": k, "what": what} for k, what in motion_cuts(motion, body or default_body())],
             "notes": notes}
 
 
@@ -235,6 +239,10 @@ def _text(record: dict, body_name: str) -> str:
             line += _parts("take", record["take"], record["takes"], "--take")
         line += (f"; the root travels {record['root_travel_m']:.1f} m, up to {record['root_speed_m_s_p99']:.1f} "
                  f"m/s")
+        if record["jumps"]:
+            first, more = record["jumps"][0], len(record["jumps"]) - 1
+            line += (f"; the body jumps at frame {first['frame']}{f' (and at {more} more)' if more else ''}: "
+                     f"{first['what']}")
     own = (f"motion '{record['path']}': ", f"garment mesh '{record['path']}': ")
     notes = [next((note[len(o):] for o in own if note.startswith(o)), note) for note in record["notes"]]
     return "\n".join([line, *(f"  - {note}" for note in notes)])
@@ -273,7 +281,7 @@ def info(paths, body_path, person, take, source_fps, fmt):
         for path in found:
             try:
                 records.append(readers[kind](path) if kind != "motion"
-                               else motion_info(path, person, take, source_fps))
+                               else motion_info(path, person, take, source_fps, body))
             except InputError as exc:
                 records.append({"path": str(path), "error": str(exc)})
     if fmt == "json":

@@ -124,8 +124,9 @@ def test_a_bake_warns_of_a_jump_in_the_motion_and_of_a_strain_limit_it_could_not
         B.bake_item(garment, body, replace(walk, trans=trans, name="glitch"), LBSDeformer(), check_penetration=False)
         B.bake_item(garment, body, walk, LBSDeformer(), check_penetration=False)
     assert [r.getMessage() for r in caplog.records] == [
-        "motion 'glitch': the body jumps at frame 12: a joint moves 10.00 m in one frame (300 m/s), a teleport or a "
-        "cut or flip in the capture? The garment follows it in one frame; bake the parts apart with --frames"]
+        "motion 'glitch': the body jumps at written frame 12: a joint moves 10.00 m in one frame (300 m/s), a "
+        "teleport or a cut or flip in the capture? The garment follows it in one frame; bake the parts apart with "
+        "--frames (`garment info` names the jump's source frame)"]
     caplog.clear()
     report = {"strain_limit": {"limit": 1.5, "passes_max": 60, "frames_still_over": 38,
                                "edges_still_over_per_frame_max": 495, "excess_left_max_mm": 5.6}}

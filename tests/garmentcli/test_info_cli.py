@@ -38,6 +38,14 @@ def test_info_tells_a_garments_rest_on_the_body_and_a_motions_frames(scene):
     with np.load(WALK) as m:
         assert walk["frames"] == len(m["poses"]) and walk["fps"] == float(m["mocap_framerate"])
     assert walk["up"] == "z" and walk["people"] == {} and walk["takes"] == {} and walk["person"] is None
+    assert walk["jumps"] == []
+    # a teleport in the capture: the source frame after it, as --frames takes it
+    with np.load(WALK) as m:
+        trans = m["trans"].copy()
+        trans[100:, 0] += 10.0
+        np.savez(scene["dir"] / "glitch.npz", **{**dict(m), "trans": trans})
+    r = invoke(["info", scene["dir"] / "glitch.npz"])
+    assert "; the body jumps at frame 100: a joint moves 10.01 m in one frame (600 m/s)" in r.output, r.output  # and walks
     lifted = scene["dir"] / "lifted.obj"
     from formats.obj import read_obj, write_obj
 
