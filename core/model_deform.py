@@ -308,7 +308,9 @@ class ModelDeformer(Deformer):
         largest it was trained on (`trained_betas`; one it never saw varied, 0), the garment still shaped and posed
         on the body's own. The shipped model, trained on three shapes, tore a jumpsuit's trouser leg off at rest on
         a tall body (betas[0] = 4: 4.35 % of the vertices inside on the example walk, 0.33 so given) and ballooned
-        a t-shirt to the chin on a thin one (all -3: 1.72 %, none so given)."""
+        a t-shirt to the chin on a thin one (all -3: 1.72 %, none so given). Against the simulator it costs
+        accuracy wherever it clips (the jumpsuit at betas[0] = 4: 45.6 -> 74.5 mm, the dress and trousers 0.3-9.5
+        mm: `benchmarks/shape_range.py`)."""
         return within_trained(betas, self.trained_betas)
 
     def _shape_beyond_training(self, betas: np.ndarray) -> dict | None:
