@@ -3,6 +3,7 @@ shapes within the dataset's range and beyond it (where a bake clips the shape th
 `core.model_deform.within_trained`), each against the simulator on the same body, beside LBS.
 
     python benchmarks/shape_range.py [--garments dress trousers] [--frames 30] [--motion data/heldout/walk_brisk.npz]
+        [--shapes LABEL ...] [--sims data/shape_range]
 
 Per garment and body shape: the simulator as `garment dataset` runs it by default (10 substeps, no self-contact:
 what the model learned from) is the reference; LBS and the model (float32, its default post-processes) are
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import platform
+import re
 import sys
 import time
 from pathlib import Path
@@ -30,7 +32,8 @@ import torch  # noqa: E402
 from core.body import default_body  # noqa: E402
 from core.dataset import sample_betas  # noqa: E402
 from core.model_deform import DEFAULT_TRAINED_BODIES, within_trained  # noqa: E402
-from core.tradeoff import Config, compare, measure  # noqa: E402
+from core.tradeoff import (Config, compare, load_simulation, measure, save_simulation, simulation_key,  # noqa: E402
+                           simulation_scene)
 from formats.obj import read_garment  # noqa: E402
 from formats.report import markdown_table  # noqa: E402
 from garmentcli.common import prepare_motion  # noqa: E402
@@ -65,6 +68,8 @@ def main(argv=None) -> None:
     p.add_argument("--frames", type=int, default=30)
     p.add_argument("--shapes", nargs="+", default=None, help="labels of `shapes()` to run (default: all)")
     p.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "shape_range.md")
+    p.add_argument("--sims", type=Path, default=ROOT / "data" / "shape_range",
+                   help="where the simulations are kept and reused (keyed on their scene)")
     args = p.parse_args(argv)
     torch.set_num_threads(1)
     body = default_body()
@@ -80,7 +85,8 @@ def main(argv=None) -> None:
             motion, _ = prepare_motion(str(args.motion), 30.0, f"0:{args.frames}", 0,
                                        ",".join(f"{b:.6f}" for b in betas), body=body)
             seen = within_trained(betas, _shipped_range())
-            results = [measure(c, garment, body, motion, repeats=1) for c in (reference, lbs, model)]
+            results = [_simulated(reference, garment, body, motion, args.sims / f"{name}_{re.sub('[^A-Za-z0-9+-]+', '_', label)}.npz")]
+            results += [measure(c, garment, body, motion, repeats=1) for c in (lbs, model)]
             if not np.array_equal(seen, betas):
                 m = _measure_unclipped(unclipped, garment, body, motion)
                 results.append(m)
@@ -112,6 +118,18 @@ def main(argv=None) -> None:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)
     print(text)
+
+
+def _simulated(config: Config, garment, body, motion, path: Path):
+    """The reference row, from `path` where it holds this scene's simulation, else simulated and kept there."""
+    key = simulation_key(config, simulation_scene(garment, body, motion))
+    kept = load_simulation(path, config, key)
+    if kept is not None:
+        return kept
+    m = measure(config, garment, body, motion, repeats=1)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save_simulation(path, m, key, garment.faces, motion.fps)
+    return m
 
 
 def _shipped_range():
