@@ -79,13 +79,15 @@ def main(argv=None) -> None:
     lbs = Config("lbs", "lbs")
     rows, start = [], time.perf_counter()
     chosen = {k: v for k, v in shapes().items() if args.shapes is None or k in args.shapes}
+    trained = _shipped_range()
     for name in args.garments:
         garment = read_garment(ROOT / "examples" / f"{name}.obj")
         for label, (kind, betas) in chosen.items():
             motion, _ = prepare_motion(str(args.motion), 30.0, f"0:{args.frames}", 0,
                                        ",".join(f"{b:.6f}" for b in betas), body=body)
-            seen = within_trained(betas, _shipped_range())
-            results = [_simulated(reference, garment, body, motion, args.sims / f"{name}_{re.sub('[^A-Za-z0-9+-]+', '_', label)}.npz")]
+            seen = within_trained(betas, trained)
+            kept = args.sims / f"{name}_{re.sub('[^A-Za-z0-9+-]+', '_', label)}.npz"
+            results = [_simulated(reference, garment, body, motion, kept)]
             results += [measure(c, garment, body, motion, repeats=1) for c in (lbs, model)]
             if not np.array_equal(seen, betas):
                 m = _measure_unclipped(unclipped, garment, body, motion)
