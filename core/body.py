@@ -186,6 +186,15 @@ class Body:
             A[:, :, :3, 3] += np.asarray(trans, dtype=np.float32)[:, None, :]
         return A
 
+    def posed_joints(self, poses: np.ndarray, trans: np.ndarray | None = None,
+                     betas: np.ndarray | None = None) -> np.ndarray:
+        """The joints (T, J, 3) of the body posed by `poses` (T, J, 3) axis-angle, `trans` (T, 3) or None and
+        `betas`, from the skinning transforms alone (no vertex posed): each rest joint of the shaped body moved by
+        its own transform."""
+        _, joints_rest = self.shaped(betas)
+        A = self.skinning_transforms(poses, trans, betas)
+        return np.einsum("tjrc,jc->tjr", A[:, :, :3, :3], joints_rest) + A[:, :, :3, 3]
+
     def smpl_view(self) -> Body | None:
         """This SMPL+H or SMPL-X body on SMPL's 24 joints, for a model of SMPL's skeleton; None for another layout.
 

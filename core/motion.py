@@ -266,12 +266,10 @@ def motion_cuts(motion: Motion, body, chunk: int = 4096) -> list[tuple[int, str]
     motion's joints at once held 180 MB)."""
     poses = poses_for_body(motion, body.n_joints)
     first = motion.n_settle
-    _, rest = body.shaped(motion.betas)
     cuts = []
     for s in range(first, motion.n_frames - 1, chunk):
         at = slice(s, min(s + chunk + 1, motion.n_frames))  # one frame shared with the next chunk
-        A = body.skinning_transforms(poses[at], motion.trans[at], motion.betas)
-        joints = np.einsum("tjab,jb->tja", A[:, :, :3, :3], rest) + A[:, :, :3, 3]
+        joints = body.posed_joints(poses[at], motion.trans[at], motion.betas)
         speed = np.linalg.norm(np.diff(joints, axis=0), axis=-1).max(axis=1) * motion.fps  # (t-1,)
         q = axis_angle_to_quat(poses[at].astype(np.float64))  # (t, J, 4)
         turn = 2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))  # (t-1, J) radians

@@ -82,9 +82,7 @@ def scene_features(garment: Garment, body: Body, motion: Motion) -> dict:
 
 def joint_speed(body: Body, motion: Motion) -> float:
     """The 95th percentile over frames and joints of the joints' speed (m/s) of `body` posed by `motion`."""
-    _, joints_rest = body.shaped(motion.betas)
-    A = body.skinning_transforms(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
-    joints = np.einsum("tjrc,jc->tjr", A[:, :, :3, :3], joints_rest) + A[:, :, :3, 3]
+    joints = body.posed_joints(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
     if len(joints) < 2:
         return 0.0
     return float(np.percentile(np.linalg.norm(np.diff(joints, axis=0), axis=-1) * motion.fps, 95))
