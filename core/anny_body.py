@@ -203,7 +203,8 @@ def build_default_body_arrays(n_samples: int = 400, n_betas: int = 10, seed: int
         import anny
         from anny.shape_distribution import SimpleShapeDistribution
     except ImportError as exc:  # pragma: no cover - depends on the optional extra
-        raise RuntimeError("building the default body needs anny: pip install -e \".[body]\"") from exc
+        raise RuntimeError("building the default body needs anny: pip install 'garment[body]' (in a checkout: "
+                           "pip install -e \".[body]\")") from exc
 
     model = anny.Anny(topology=ANNY_TOPOLOGY)
     labels = list(model.bone_labels)

@@ -25,7 +25,7 @@ pairs per vertex and per edge, and drops any beyond them; a step whose detection
 its start with larger buffers (`ContactBuffers`), so no pair in reach is left out below a memory cap.
 
 Warp compiles its kernels on first use (about a minute on a CPU) into
-`WARP_CACHE_PATH` (default here: ~/.cache/garment/warp).
+`WARP_CACHE_PATH` (default here: warp/ in the garment cache, `formats.cache.default_cache_dir`).
 """
 
 from __future__ import annotations
@@ -487,7 +487,9 @@ def require_simulator(what: str) -> None:
 
 
 def _warp():
-    os.environ.setdefault("WARP_CACHE_PATH", str(Path.home() / ".cache" / "garment" / "warp"))
+    from formats.cache import default_cache_dir
+
+    os.environ.setdefault("WARP_CACHE_PATH", str(default_cache_dir() / "warp"))
     import warp as wp
 
     # warp 1.19 logs every kernel module load at INFO; users should see warnings only.

@@ -29,9 +29,12 @@ CACHE_ENV = "GARMENT_CACHE_DIR"
 
 
 def default_cache_dir() -> Path:
-    """$GARMENT_CACHE_DIR if set, else ~/.cache/garment."""
+    """$GARMENT_CACHE_DIR if set, else garment/ in $XDG_CACHE_HOME if set, else ~/.cache/garment."""
     env = os.environ.get(CACHE_ENV)
-    return Path(env).expanduser() if env else Path.home() / ".cache" / "garment"
+    if env:
+        return Path(env).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg).expanduser() if xdg else Path.home() / ".cache") / "garment"
 
 
 def cache_path(cache_dir: str | os.PathLike, kind: str, key: str) -> Path:

@@ -173,7 +173,7 @@ def _method_deformer(method, lbs_smooth, material_path, self_contact, substeps, 
         from core.model_deform import load_model_deformer
         from formats.cache import default_cache_dir
 
-        # Garment preprocessing is cached ($GARMENT_CACHE_DIR or ~/.cache/garment), as `garment preprocess` does.
+        # Garment preprocessing is cached (`default_cache_dir`), as `garment preprocess` does.
         return load_model_deformer(model_path, cache_dir=default_cache_dir(), precision=precision or "float32",
                                    contact_guard=contact_guard, device=parse_device(device, auto=True),
                                    strain_limit=strain_limit)

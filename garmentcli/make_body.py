@@ -1,12 +1,12 @@
 """`garment make-body`: rebuild the embedded default body from the open anny human.
 
-Needs the optional extra (`pip install -e ".[body]"`); normal runs only read
-the packaged `core/assets/default_body.npz`.
+Needs the optional extra (`pip install 'garment[body]'`; in a checkout `pip install -e ".[body]"`); normal runs
+only read the packaged `core/assets/default_body.npz`, which `garment make-body --out core/assets/default_body.npz
+--overwrite` rebuilds in a checkout.
 """
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
 
 import click
@@ -17,23 +17,20 @@ from garmentcli.common import SEED_RANGE, OutputPath
 from formats.atomic import atomic_file
 
 
-def _default_out() -> Path:
-    return Path(str(resources.files("core.assets").joinpath(DEFAULT_BODY_RESOURCE)))
-
-
 @click.command(name="make-body")
-@click.option("--out", "out", type=OutputPath(dir_okay=False, path_type=Path), default=None,
-              help="Output .npz (default: the package's core/assets/default_body.npz).")
+@click.option("--out", "out", type=OutputPath(dir_okay=False, path_type=Path), default=DEFAULT_BODY_RESOURCE,
+              show_default=True, help="Output .npz (the shipped body: core/assets/default_body.npz in a checkout; "
+              "an installed package is never written).")
 @click.option("--samples", type=click.IntRange(min=20), default=400, show_default=True,
               help="Adult phenotype samples for the shape PCA.")
 @click.option("--seed", type=SEED_RANGE, default=0, show_default=True, help="Random seed of the phenotype sampler.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
-def make_body(out: Path | None, samples: int, seed: int, overwrite: bool) -> None:
+def make_body(out: Path, samples: int, seed: int, overwrite: bool) -> None:
     """Build the default SMPL-format body (24 joints, 10 betas) from anny and save it.
 
     anny builds a model cache of about 800 MB on its first use (a few minutes; ANNY_CACHE_DIR sets where).
     """
-    out = out or _default_out()
+    out = Path(out)
     if out.suffix != ".npz":
         raise click.BadParameter(f"expected a path ending in .npz, got '{out}'", param_hint="--out")
     if out.exists() and not overwrite:

