@@ -637,7 +637,54 @@ class InsideTest:
         self.windings = RayWindings(verts, faces)
         self.mesh = TriangleMesh(verts, faces)
         n_edges, face_edge = _face_edge_index(self.mesh.faces)
-        self.holes = bool((np.bincount(face_edge, minlength=n_edges) == 1).any())
+        self.face_edge = face_edge.reshape(-1, 3)
+        self.rim = np.bincount(face_edge, minlength=n_edges) == 1  # (E,) the holes' edges
+        self.holes = bool(self.rim.any())
+        if self.holes:
+            self._holes(np.asarray(verts, dtype=np.float64))
+
+    def _holes(self, verts: np.ndarray) -> None:
+        """Each hole's rim (a loop of edges each of one face): which hole each rim edge and vertex is on
+        ("hole_of_edge" (E,), "hole_of_vertex" (V,), -1 where none), and the plane of the cap that would close it
+        (its rim's mean point, "cap_point" (H, 3), and its vector area facing out of the mesh, "cap_normal" (H, 3):
+        the sum over the rim's edges, each as the cap would run it, against its face's direction)."""
+        from scipy.sparse.csgraph import connected_components
+
+        faces = self.mesh.faces
+        f, c = np.nonzero(self.rim[self.face_edge])  # the rim edges, as corners opposite them
+        a, b = faces[f, (c + 1) % 3], faces[f, (c + 2) % 3]  # each in its face's direction
+        n = len(verts)
+        graph = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
+        _, label = connected_components(graph, directed=False)
+        holes, hole = np.unique(label[a], return_inverse=True)
+        self.hole_of_edge = np.full(len(self.rim), -1)
+        self.hole_of_edge[self.face_edge[f, c]] = hole
+        self.hole_of_vertex = np.full(n, -1)
+        self.hole_of_vertex[a] = hole
+        self.hole_of_vertex[b] = hole
+        self.cap_normal = np.zeros((len(holes), 3))
+        np.add.at(self.cap_normal, hole, 0.5 * np.cross(verts[b], verts[a]))
+        count = np.bincount(hole, minlength=len(holes))[:, None]
+        self.cap_point = np.zeros((len(holes), 3))
+        np.add.at(self.cap_point, hole, verts[a])
+        self.cap_point /= np.maximum(count, 1)
+
+    def _beyond_a_hole(self, points: np.ndarray, res: ClosestPoints) -> np.ndarray:
+        """(N,) bool: the points whose closest point `res` is on a hole's rim and which lie outside the plane of
+        the cap that would close that hole: in front of the opening (past a body's cut wrist), where the nearest
+        face's sign says nothing (the rim's faces turn their backs to it)."""
+        b, face = res.barycentric, res.face_index
+        zero = b < 1e-9
+        n_zero = zero.sum(axis=1)
+        hole = np.full(len(points), -1)
+        on_edge = n_zero == 1
+        hole[on_edge] = self.hole_of_edge[self.face_edge[face[on_edge], np.argmax(zero[on_edge], axis=1)]]
+        on_vertex = n_zero >= 2
+        hole[on_vertex] = self.hole_of_vertex[self.mesh.faces[face[on_vertex], np.argmax(b[on_vertex], axis=1)]]
+        rim = hole >= 0
+        out = np.zeros(len(points), dtype=bool)
+        out[rim] = np.einsum("ij,ij->i", points[rim] - self.cap_point[hole[rim]], self.cap_normal[hole[rim]]) > 0
+        return out
 
     def __call__(self, points: np.ndarray, depth: float = 0.0) -> np.ndarray:
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -649,7 +696,10 @@ class InsideTest:
             return np.zeros(len(p), dtype=bool)
         mesh = self.mesh
         res = mesh.closest(p[todo], exact=False)  # one pass: never nearer than the surface
-        inside[todo] |= ask[todo] & (res.distance * mesh._sign(p[todo], res) < 0)
+        signed_in = ask[todo] & (res.distance * mesh._sign(p[todo], res) < 0)
+        if self.holes:
+            signed_in &= ~self._beyond_a_hole(p[todo], res)
+        inside[todo] |= signed_in
         deep = inside[todo] & (res.distance > depth)
         todo = todo[deep]
         out = np.zeros(len(p), dtype=bool)

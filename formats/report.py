@@ -198,10 +198,13 @@ def batch_rows(results: dict[str, MetricsResult]) -> tuple[list[str], list[str],
 
 
 def write_batch_report(results: dict[str, MetricsResult], directory: str | os.PathLike,
-                       formats: Sequence[str] = REPORT_FORMATS, metadata: dict | None = None) -> list[Path]:
+                       formats: Sequence[str] = REPORT_FORMATS, metadata: dict | None = None,
+                       failed: Sequence[str] = ()) -> list[Path]:
     """Write the batch table (`batch_rows`) into `directory` as BATCH_REPORT_NAMES, all files together (as
-    `write_report`); returns the paths."""
+    `write_report`); the bakes `failed` (not compared) are rows of their own in the CSV and Markdown tables, after
+    the mean over the others; returns the paths."""
     names, titles, rows = batch_rows(results)
+    table = rows + [[name, "not compared"] + [""] * len(names) for name in failed]
     texts = {}
     for f in dict.fromkeys(formats):
         path = Path(directory) / BATCH_REPORT_NAMES[f]
@@ -210,11 +213,11 @@ def write_batch_report(results: dict[str, MetricsResult], directory: str | os.Pa
                 "metadata": dict(metadata or {}), "units": {n: METRICS.get(n, (n, ""))[1] for n in names},
                 "bakes": {row[0]: {"frames": row[1], **dict(zip(names, map(float, row[2:])))} for row in rows}})
         elif f == "csv":
-            texts[path] = _csv_text(["bake", "frames"] + names, rows)
+            texts[path] = _csv_text(["bake", "frames"] + names, table)
         else:
             texts[path] = ("# Garment metrics, bake by bake\n\n"
                            + "".join(f"- {k}: `{v}`\n" for k, v in (metadata or {}).items())
-                           + "\n" + markdown_table(titles, rows))
+                           + "\n" + markdown_table(titles, table))
     _atomic_write_texts(texts)
     return list(texts)
 

@@ -65,6 +65,39 @@ def _read_sequence(path: Path, up: str | None = None):
                     source=str(path))
 
 
+def _baked_from(path: Path) -> str | None:
+    """What a bake's summary.json says its frames are ("frames 4:14 of 'walk.npz' at 30 fps"), for a bake's folder,
+    its obj/ folder or a file in it; None where no summary.json is there or it does not say."""
+    import json
+
+    path = Path(path)
+    for folder in ([path] if path.is_dir() else []) + [path.parent]:
+        summary = folder / "summary.json"
+        if summary.is_file():
+            try:
+                record = json.loads(summary.read_text())
+                motion, options = Path(record["inputs"]["motion"]).name, record["options"]
+                fps = f" at {options['fps']:g} fps" if isinstance(options.get("fps"), (int, float)) else ""
+                return f"frames {options.get('frames') or 'all'} of '{motion}'{fps}"
+            except (OSError, ValueError, KeyError, TypeError):
+                return None
+    return None
+
+
+def alignment_hints(p_seq, g_seq, pred: Path, gt: Path) -> list[str]:
+    """What says PRED's and GT's frames may not be the same moments, though compared frame by frame: their bakes'
+    summary.json records other source frames (`_baked_from`), or their frames are numbered from other numbers."""
+    hints = []
+    p_from, g_from = _baked_from(pred), _baked_from(gt)
+    if p_from and g_from and p_from != g_from:
+        hints.append(f"'{pred}' was baked from {p_from}, '{gt}' from {g_from}: compared frame by frame as they are")
+    if p_seq.first_frame != g_seq.first_frame:
+        hints.append(f"'{pred}' numbers its frames from {p_seq.first_frame}, '{gt}' from {g_seq.first_frame}: "
+                     f"compared in order (PRED's frame {p_seq.first_frame} against GT's {g_seq.first_frame}; the "
+                     "reports number the frames from 0)")
+    return hints
+
+
 def _borrow_faces(p_seq, g_seq, pred: Path, gt: Path):
     """(p_seq, g_seq), a point cache (no faces) given the other side's mesh; InputError where both are caches."""
     from dataclasses import replace
@@ -91,7 +124,8 @@ _UNITS = (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254))
 _FIXES = ((("is Y-up", Y_UP_TO_Z_UP_MATRIX.T),)
           + tuple((f"is in {unit}", np.eye(3) * scale) for unit, scale in _UNITS)
           + tuple((f"is Y-up and in {unit}", Y_UP_TO_Z_UP_MATRIX.T * scale) for unit, scale in _UNITS)
-          + (("was turned from Y-up to Z-up but was Z-up already (does its file declare Y-up wrongly?)",
+          + (("was turned from Y-up to Z-up but was Z-up already (OBJ frames without a sequence.json are read "
+              "Y-up: --up z reads them as they are; or its file declares Y-up wrongly)",
               Y_UP_TO_Z_UP_MATRIX),))
 
 #: A garment's plausible size (largest extent of a frame, metres), and how far below the floor (z = 0) it may reach.
@@ -314,7 +348,7 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
             meta = {"pred": str(pred), "gt": str(gt)}
             if failed:
                 meta["not compared"] = ", ".join(failed)
-            for path in write_batch_report(results, out_dir, formats, meta):
+            for path in write_batch_report(results, out_dir, formats, meta, failed=list(failed)):
                 click.echo(f"wrote {path}", err=True)
     if failed:
         for name, message in failed.items():
@@ -398,6 +432,10 @@ def _compare(pred: Path, gt: Path, out_dir: Path | None, formats, depth_mm: floa
 
     if not quiet:
         click.echo(overall_markdown(result), nl=False)
+    if aligned := alignment_hints(p_seq, g_seq, pred, gt):
+        for line in aligned:
+            click.echo(f"warning: {line}", err=True)
+        result.metadata["alignment_hint"] = "; ".join(aligned)
     side, hint = frame_hint(p_seq.points[0], g_seq.points[0])
     if hint:
         click.echo(f"warning: '{pred if side == 'PRED' else gt}' {hint}", err=True)

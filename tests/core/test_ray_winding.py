@@ -7,7 +7,7 @@ import pytest
 
 from core import geometry as G
 from core import ray_winding as W
-from core.geometry import TriangleMesh, points_inside_mesh
+from core.geometry import TriangleMesh, outward_faces, points_inside_mesh
 from tests.meshes import icosphere, points_around
 
 
@@ -111,6 +111,41 @@ def test_points_inside_an_open_mesh_fall_back_to_the_nearest_faces_sign():
     assert ((plus > 0) != (minus > 0)).any()  # some rays went through the hole
     got = points_inside_mesh(pts, v, open_f, depth=0.002)
     np.testing.assert_array_equal(got[clear], (r < 1)[clear])
+
+
+def _tube(radius=0.05, length=0.3, around=24, along=12):
+    """A tube along +x from 0 to `length`, closed by a fan at x = 0 and open at x = `length` (a forearm cut at the
+    wrist): (vertices, faces wound outward)."""
+    t = np.linspace(0.0, 2 * np.pi, around, endpoint=False)
+    rings = [np.stack([np.full(around, x), radius * np.cos(t), radius * np.sin(t)], axis=1)
+             for x in np.linspace(0.0, length, along + 1)]
+    v = np.concatenate(rings + [[[0.0, 0.0, 0.0]]])
+    f = []
+    for i in range(along):
+        for j in range(around):
+            a, b = i * around + j, i * around + (j + 1) % around
+            f += [[a, a + around, b], [b, a + around, b + around]]
+    centre = len(v) - 1
+    f += [[centre, j, (j + 1) % around] for j in range(around)]
+    return v, outward_faces(v, np.array(f))
+
+
+def test_points_in_front_of_a_hole_are_outside_and_those_behind_it_inside():
+    """Past the open end of a tube (a body cut at the wrist), in line with the opening, the nearest feature is the
+    hole's rim, whose faces turn their backs to the point: it was called inside at any distance (a garment 5-25 cm
+    past a forearm's cut 45 % inside). In front of the plane that would close the hole a point whose closest point
+    is on the rim is outside; inside the tube, near the opening or not, inside."""
+    v, f = _tube()
+    beyond = np.array([[0.3 + d, y, 0.0] for d in (0.01, 0.05, 0.25) for y in (0.0, 0.02, -0.03)])
+    within = np.array([[0.3 - d, y, 0.0] for d in (0.01, 0.1, 0.25) for y in (0.0, 0.02, -0.03)])
+    beside = np.array([[0.15, 0.08, 0.0], [0.15, 0.0, -0.06], [-0.05, 0.0, 0.0]])
+    got = points_inside_mesh(np.concatenate([beyond, within, beside]), v, f, depth=0.002)
+    np.testing.assert_array_equal(got, [False] * 9 + [True] * 9 + [False] * 3)
+    # The sphere without its top cap: under the hole inside, above it outside (the cap's plane at z = 0.95).
+    v, f = icosphere(3, radius=1.0)
+    open_f = f[v[f].mean(axis=1)[:, 2] < 0.95]
+    pts = np.array([[0.0, 0.0, 0.9], [0.05, 0.0, 0.85], [0.0, 0.0, 1.05], [0.0, 0.1, 1.5]])
+    np.testing.assert_array_equal(points_inside_mesh(pts, v, open_f, depth=0.002), [True, True, False, False])
 
 
 def test_depth_is_the_exact_distance_on_a_mesh_of_uneven_faces():

@@ -157,6 +157,16 @@ def test_nan_in_input(tmp_path, seq):
     a = save_seq(tmp_path / "a.npz", bad, f)
     b = save_seq(tmp_path / "b.npz", pts, f)
     assert_clean_failure(run([a, b]), "a.npz")
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    from formats.obj import write_obj
+
+    for t, p in enumerate(bad):
+        write_obj(frames / f"frame_{1001 + t:04d}.obj", p, f)
+    line = assert_clean_failure(run([frames, b]), "frame_1002.obj")
+    lines = (frames / "frame_1002.obj").read_text().splitlines()
+    at = next(n for n, text in enumerate(lines, 1) if text.split()[:1] == ["v"] and "nan" in text.lower())
+    assert line.endswith(f"expected finite coordinates, got NaN at vertex 5 on line {at}"), line
 
 
 def test_bad_format(tmp_path, seq):
@@ -462,6 +472,9 @@ def test_a_mismatched_pair_in_a_batch_does_not_stop_the_others(tmp_path, seq):
     assert list(doc["bakes"]) == ["shirt_walk", "all (mean over every frame)"]
     assert doc["metadata"]["not compared"] == "shirt_run"
     assert not (tmp_path / "m" / "shirt_run").exists()
+    r = run([tmp_path / "pred", tmp_path / "gt", "--out", tmp_path / "c", "--format", "csv"])
+    rows = (tmp_path / "c" / "metrics_batch.csv").read_text().splitlines()
+    assert rows[-1].startswith("shirt_run,not compared,") and rows[-2].startswith("all (mean over every frame),")
 
 
 @pytest.mark.parametrize("value", ["nan", "inf", "1e300"])
@@ -518,3 +531,47 @@ def test_obj_frames_without_a_record_are_read_y_up_unless_up_says_z(tmp_path, se
     r = run([frames, gt, "--out", tmp_path / "y", "--format", "json"])
     assert r.exit_code == 0, r.output
     assert json.loads((tmp_path / "y" / "metrics.json").read_text())["overall"]["e_verts"] > 10.0
+
+
+def test_z_up_obj_frames_read_y_up_are_told_to_pass_up_z(tmp_path):
+    from formats.obj import write_obj
+
+    v, f = grid(6, 6, size=0.5)
+    v = v - v.mean(axis=0)  # about the body's axis, as a garment is
+    pts = np.stack([v + [0.0, 0.0, 1.0 + 0.01 * t] for t in range(3)])  # a metre up, Z-up
+    gt = save_seq(tmp_path / "gt.npz", pts, f)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for t, p in enumerate(pts):
+        write_obj(frames / f"frame_{t:04d}.obj", p, f)
+    r = run([frames, gt])
+    assert r.exit_code == 0, r.output
+    assert "OBJ frames without a sequence.json are read Y-up: --up z reads them as they are" in r.output
+
+
+def test_frames_of_other_moments_are_pointed_out(tmp_path, seq):
+    """Two bakes of other source frames (their summary.json), and frames numbered from other numbers, are compared
+    frame by frame with a warning each (recorded in metrics.json)."""
+    from formats.obj import write_obj
+
+    pts, f = seq
+    pred, gt = _bake_dir(tmp_path / "p", "shirt_walk", pts, f), _bake_dir(tmp_path / "g", "shirt_walk", pts, f)
+    for d, frames in ((pred, "4:14"), (gt, None)):
+        (d / "summary.json").write_text(json.dumps({"inputs": {"motion": "/x/walk.npz"},
+                                                    "options": {"frames": frames, "fps": 30.0}}))
+    r = run([pred, gt, "--out", tmp_path / "m", "--format", "json"])
+    assert r.exit_code == 0, r.output
+    told = (f"warning: '{pred}' was baked from frames 4:14 of 'walk.npz' at 30 fps, '{gt}' from frames all of "
+            "'walk.npz' at 30 fps: compared frame by frame as they are")
+    assert told in r.output
+    meta = json.loads((tmp_path / "m" / "metrics.json").read_text())["metadata"]
+    assert "baked from frames 4:14" in meta["alignment_hint"]
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for t, p in enumerate(pts):
+        write_obj(frames / f"frame_{1001 + t:04d}.obj", p, f)
+    r = run([frames, save_seq(tmp_path / "gt.npz", pts, f), "--up", "z"])
+    assert r.exit_code == 0, r.output
+    assert "numbers its frames from 1001" in r.output and "PRED's frame 1001 against GT's 0" in r.output
+    r = run([pred, pred])
+    assert r.exit_code == 0 and "warning" not in r.output
