@@ -5,6 +5,7 @@ lifted alone or the lifts spread over the garment.
                                        [--data DIR ...]
     python benchmarks/contact_guard.py --timing     # the guard's own time, each vertex lifted alone and spread
     python benchmarks/contact_guard.py --figure     # the t-shirt's armpits: network, lone lifts, spread (PNG)
+    python benchmarks/contact_guard.py --depth-bands  # the depth band before 2026-12-07 and now (Markdown)
 
 The shipped model (float32) on every example garment and the four test motions of the dataset (30 fps, the
 first FRAMES frames), and on every sequence of the simulated datasets given with --data (against the
@@ -248,6 +249,94 @@ def figure(args) -> None:
     print(f"wrote {out}")
 
 
+#: `--depth-bands`' scenes: (garment, motion file under the repository, --frames).
+DEPTH_SCENES = [("dress", "examples/crouch.npz", "0:"), ("trousers", "examples/crouch.npz", "0:"),
+                ("dress", "examples/run.npz", "0:40"), ("tshirt", "examples/run.npz", "0:40"),
+                ("jumpsuit", "examples/jump.npz", "0:40"), ("skirt", "examples/jump.npz", "0:40"),
+                ("dress", "data/heldout/walk_brisk.npz", "0:30")]
+
+
+class _EveryRound(dict):
+    """A guard's state that never holds its depth share: each round decides it anew, as before 2026-12-07."""
+
+    def __contains__(self, key):
+        return key != "depth_share" and super().__contains__(key)
+
+
+def _before_depth_share(behind, depth, fade):
+    """The depth share before 2026-12-07: its weight linear over a 3 cm band (the lift up to 3.7x as fast)."""
+    return pushout._fade(behind, depth, 0.03)
+
+
+def depth_bands(args) -> None:
+    """The guard's depth band before 2026-12-07 and now, in the default model bake (contact guard alternating with
+    the strain limit) on DEPTH_SCENES: E_verts against the simulator (10 substeps, no self-contact; kept in
+    --sims), % of vertices more than 2 mm inside, and the vertex-frames the guard accelerates (second difference,
+    mm/frame^2) more than 10 and 20 mm beyond the network's own output with the limit alone:
+    benchmarks/results/contact_guard_depth.md."""
+    import re
+
+    import torch
+
+    from benchmarks.shape_range import _simulated
+    from core.tradeoff import Config, compare, measure
+    from formats.obj import read_garment
+    from garmentcli.common import prepare_motion
+
+    torch.set_num_threads(1)
+    body = default_body()
+    reference = Config("sim 10 substeps", "sim", {"substeps": 10, "self_contact": False}, reference=True)
+    model = Config("model", "model", {"path": None, "precision": "float32", "push_out": False})
+    share, guard = pushout._depth_share, pushout.guard_contact
+
+    def before(*a, state=None, **k):
+        every = _EveryRound() if state is None else _EveryRound(state)
+        try:
+            return guard(*a, state=every, **k)
+        finally:
+            if state is not None:  # what the guard kept for the next guard of these frames
+                state.clear()
+                state.update(every)
+
+    rows = []
+    for name, motion_path, frames in DEPTH_SCENES:
+        garment = read_garment(ROOT / "examples" / f"{name}.obj")
+        motion, _ = prepare_motion(str(ROOT / motion_path), 30.0, frames, 0, body=body)
+        kept = args.sims / f"{name}_{re.sub('[^A-Za-z0-9]+', '_', Path(motion_path).stem + '_' + frames)}.npz"
+        ref = _simulated(reference, garment, body, motion, kept)
+        unguarded = model_deform.load_model_deformer()
+        unguarded.contact_guard = False
+        network = unguarded.deform(garment, body, motion).astype(np.float64)
+        steady = np.linalg.norm(np.diff(network, 2, axis=0), axis=2) * 1e3
+        for label in ("before", "now"):
+            if label == "before":
+                pushout._depth_share, pushout.guard_contact = _before_depth_share, before
+            try:
+                m = measure(model, garment, body, motion, repeats=1)
+            finally:
+                pushout._depth_share, pushout.guard_contact = share, guard
+            compare([ref, m], garment, body, motion)
+            added = np.linalg.norm(np.diff(m.points.astype(np.float64), 2, axis=0), axis=2) * 1e3 - steady
+            rows.append([name, f"{Path(motion_path).stem} {frames}", label, f"{m.metrics['e_verts']:.2f}",
+                         f"{m.metrics['penetration_pct']:.3f}", int((added > 10).sum()), int((added > 20).sum()),
+                         f"{added.max():.1f}"])
+            print(" | ".join(map(str, rows[-1])), flush=True)
+    header = ["garment", "motion", "depth band", "E_verts mm", "inside %", "accelerated > 10 mm", "> 20 mm",
+              "largest mm"]
+    text = ("# The contact guard's depth band, before 2026-12-07 and now\n\n"
+            f"`python benchmarks/contact_guard.py --depth-bands` on {platform.processor() or platform.machine()}, "
+            "one torch thread: the default model bake (contact guard alternating with the strain limit), 30 fps. "
+            "Before: the lift's weight falling linearly over 3 cm beyond the 5 cm depth, decided anew in every "
+            "round; now: the lift falling linearly over 5 cm, its share decided on the network's output. E_verts "
+            "against the simulator (10 substeps, no self-contact); inside: % of vertices more than 2 mm inside the "
+            "body; accelerated: vertex-frames whose second difference is more than 10 (20) mm/frame^2 larger than "
+            "the unguarded bake's (the network and the strain limit), and the largest such excess.\n\n"
+            + markdown_table(header, rows) + "\n")
+    out = ROOT / "benchmarks" / "results" / "contact_guard_depth.md"
+    out.write_text(text)
+    print(f"wrote {out}")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     scene_arguments(ap, frames=90)
@@ -255,6 +344,10 @@ def main(argv=None) -> None:
                     help="a bare name goes to benchmarks/results/ (as the results' own command lines name it)")
     ap.add_argument("--timing", action="store_true", help="time the guard alone (contact_guard_timing.md)")
     ap.add_argument("--figure", action="store_true", help="the t-shirt's armpits (contact_guard_armpit.png)")
+    ap.add_argument("--depth-bands", action="store_true",
+                    help="the depth band before 2026-12-07 and now (contact_guard_depth.md)")
+    ap.add_argument("--sims", type=Path, default=ROOT / "data" / "guard_sims",
+                    help="--depth-bands: where the simulations are kept and reused")
     args = ap.parse_args(argv)
     if args.out.parent == Path("."):
         args.out = ROOT / "benchmarks" / "results" / args.out
@@ -262,6 +355,8 @@ def main(argv=None) -> None:
         return timing(args)
     if args.figure:
         return figure(args)
+    if args.depth_bands:
+        return depth_bands(args)
     body = default_body()
     deformer = model_deform.load_model_deformer(strain_limit=None)  # the guard alone (core/strain.py after it)
     rows = []

@@ -5,7 +5,8 @@ import numpy as np
 import torch
 
 from core.geometry import TriangleMesh, closest_point_on_triangles, face_cross, normalise, outward_faces, outward_offsets
-from core.pushout import GUARD_MARGIN_M, GUARD_MOVED_M, PushOutDeformer, contact_anchors, guard_contact, push_out
+from core.pushout import (GUARD_DEPTH_FADE_M, GUARD_DEPTH_M, GUARD_MARGIN_M, GUARD_MOVED_M, PushOutDeformer,
+                          contact_anchors, guard_contact, push_out)
 from tests.meshes import icosphere, points_around, tiny_body
 
 
@@ -165,6 +166,14 @@ def _naive_weight(x, bound, fade):
     return 0.0 if x >= bound + fade else 1.0 - (x - bound) / fade
 
 
+def _naive_lift(behind, depth, fade):
+    """All of `behind` up to the depth, then a straight line from the depth down to 0 at depth + fade (a cut-off at
+    the depth when fade is 0)."""
+    if behind <= depth:
+        return behind
+    return 0.0 if behind >= depth + fade else depth * (depth + fade - behind) / fade
+
+
 def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach, depth, reach_fade, depth_fade):
     """Vertex by vertex: every rest body face's closest point (exhaustive), those within the blend's margin of
     the nearest weighted down to 0 at it, their points and area-weighted vertex normals blended; in each posed
@@ -225,13 +234,13 @@ def _naive_guard(points, body_points, body_faces, rest, rest_body, margin, reach
             lateral = np.linalg.norm(x - q - along * n)
             within = _naive_weight(lateral, reach, reach_fade)
             behind = max(floor - along, 0.0)
-            lift = behind * _naive_weight(behind, depth, depth_fade) * within * n
+            lift = _naive_lift(behind, depth, depth_fade) * within * n
             w = min(max((lateral - GUARD_NEAR_FROM_M) / (GUARD_NEAR_TO_M - GUARD_NEAR_FROM_M), 0.0), 1.0) * within
             if w > 0:
                 qn, nn, nearest = nearest_plane(verts, x)
                 w *= min(max(2.0 - 2.0 * nearest / np.linalg.norm(x - q), 0.0), 1.0)  # its vertices nearer
                 behind_n = max(floor - np.dot(x - qn, nn), 0.0)
-                lift = (1.0 - w) * lift + w * behind_n * _naive_weight(behind_n, depth, depth_fade) * nn
+                lift = (1.0 - w) * lift + w * _naive_lift(behind_n, depth, depth_fade) * nn
             out[t, i] += lift
     return out
 
@@ -310,8 +319,8 @@ def test_contact_guard_lift_is_continuous_across_its_bounds():
     for name, pts in sweeps.items():
         got, _ = guard_contact(pts[:, None], np.repeat(rest_body[None], len(pts), 0), anchors, **bounds)
         lifts[name] = np.linalg.norm(got[:, 0] - pts, axis=1)
-        # Slope at most 1 + depth / depth_fade (depth sweep) or 2 cm / reach_fade (lateral): no jump.
-        assert np.abs(np.diff(lifts[name])).max() < step * (1 + 0.05 / 0.03) + 1e-5, name
+        # Slope at most depth / depth_fade (depth sweep) or 2 cm / reach_fade (lateral): no jump.
+        assert np.abs(np.diff(lifts[name])).max() < step * 0.05 / 0.03 + 1e-5, name
         assert lifts[name].max() <= 0.05 + 1e-5 and lifts[name][-1] < 1e-6, name  # none beyond the fade
     np.testing.assert_allclose(lifts["depth"][behind < 0.05], behind[behind < 0.05], atol=1e-5)
     from core.pushout import GUARD_NEAR_FROM_M  # beyond, the body's nearest vertices' planes blend in
@@ -392,6 +401,39 @@ def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does(mo
     lift = (topped - twice)[0].astype(np.float64)
     once = np.array([0.5 * lift[v] + 0.5 * np.mean([lift[u] for u in neighbours[v]], axis=0) for v in range(n * n)])
     np.testing.assert_allclose(spread_top[0], twice[0] + once, atol=1e-6)
+
+
+def test_the_guard_lifts_by_the_depth_share_decided_on_the_networks_output(monkeypatch):
+    """A vertex the network left too deep behind its plane to lift (11 cm: beyond the depth and its fade) among
+    neighbours 3 cm deep: the first round's spread drags it up into the fade band, where a round deciding the share
+    anew lifted it by its plane (the dress's hem at the knee jumped 28 mm in a frame on the example crouch); the
+    later rounds, and a later guard of the same frames given the first's state, lift it by the share decided
+    first (none): only the spread moves it."""
+    from core import pushout
+
+    monkeypatch.setattr(pushout, "GUARD_TOP_UP", False)
+    n = 9
+    verts, faces = _grid(n, 0.01)
+    ground = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    ground_faces = np.array([[0, 1, 3], [0, 3, 2]])  # normal +z
+    rest = verts + [0.0, 0.0, 0.01]
+    anchors = contact_anchors(rest, ground, ground_faces, garment_faces=faces)
+    centre = (n // 2) * n + n // 2
+    patch = [centre + di * n + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)]
+    dent = rest.astype(np.float32)
+    dent[patch, 2] = -0.03
+    dent[centre, 2] = -0.106  # behind its plane (the floor at the 4 mm margin): 11 cm
+    first, _ = guard_contact(dent[None], ground[None], anchors, passes=1, rounds=1)
+    assert GUARD_DEPTH_M < GUARD_MARGIN_M - first[0, centre, 2] < GUARD_DEPTH_M + GUARD_DEPTH_FADE_M  # in the band
+    decided, _ = guard_contact(dent[None], ground[None], anchors, passes=1, rounds=2)
+    anew, _ = guard_contact(first, ground[None], anchors, passes=1, rounds=1)  # its share decided on `first`
+    assert decided[0, centre, 2] < anew[0, centre, 2] - 0.003
+    alone, _ = guard_contact(first, ground[None], anchors, passes=0)
+    assert alone[0, centre, 2] > first[0, centre, 2] + 0.003  # what a round deciding anew lifts it by its plane
+    state = {}
+    once, _ = guard_contact(dent[None], ground[None], anchors, passes=1, rounds=1, state=state)
+    again, _ = guard_contact(once, ground[None], anchors, passes=1, rounds=1, state=state)
+    np.testing.assert_allclose(again, decided, atol=1e-6)
 
 
 def test_contact_guard_spread_keeps_cloth_pushed_into_a_corner_whole():
