@@ -373,6 +373,17 @@ def _check_faces(faces: np.ndarray, n_vertices: int, name: str) -> np.ndarray:
     return faces.astype(np.int64)
 
 
+def _unique_faces(faces: np.ndarray, name: str) -> np.ndarray:
+    """`faces` without those on the same three vertices as an earlier one, warned of: a duplicate counted twice in
+    the normals and the angle sums and made its border edges inner ones (E_curv 27.5 -> 28.0 for one of 50)."""
+    _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
+    if len(first) == len(faces):
+        return faces
+    log.warning(f"'{name}': {len(faces) - len(first)} duplicate faces (on the same vertices as an earlier face) "
+                "left out of the metrics")
+    return faces[np.sort(first)]
+
+
 def frames_inside(points_inside_mesh: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]) -> InsideFn:
     """Lift a one-frame inside test to the (T, ...) `inside_fn` that `compute_metrics` takes.
 
@@ -460,7 +471,7 @@ def compute_metrics(pred: np.ndarray, gt: np.ndarray, faces: np.ndarray,
     p = _check_points(pred, pred_name)
     g = _check_points(gt, gt_name)
     T, V = p.shape[:2]
-    f = _check_faces(faces, V, f"{pred_name} faces")
+    f = _unique_faces(_check_faces(faces, V, f"{pred_name} faces"), pred_name)
 
     counts: dict[Callable, list[int]] = {e_edge: [], e_curv: []}  # their warnings once for all parts
     keyword = {e_edge: "zero_edges", e_curv: "collapsed"}

@@ -169,6 +169,20 @@ def test_nan_in_input(tmp_path, seq):
     assert line.endswith(f"expected finite coordinates, got NaN at vertex 5 on line {at}"), line
 
 
+def test_duplicate_faces_are_left_out_with_a_warning(tmp_path, seq, caplog):
+    pts, f = seq
+    bumpy = pts + np.random.default_rng(0).normal(0.0, 0.003, pts.shape)
+    once = [run([save_seq(tmp_path / "p.npz", bumpy, f), save_seq(tmp_path / "g.npz", pts, f), "--out",
+                 tmp_path / "once", "--format", "json"])]
+    twice_f = np.concatenate([f, f[:1, ::-1]])  # the first face again, wound the other way
+    once.append(run([save_seq(tmp_path / "p2.npz", bumpy, twice_f), save_seq(tmp_path / "g2.npz", pts, twice_f),
+                     "--out", tmp_path / "twice", "--format", "json"]))
+    assert all(r.exit_code == 0 for r in once), once[1].output
+    assert "1 duplicate faces (on the same vertices as an earlier face) left out of the metrics" in caplog.text
+    a, b = (json.loads((tmp_path / d / "metrics.json").read_text())["overall"] for d in ("once", "twice"))
+    assert a == pytest.approx(b, rel=1e-9)
+
+
 def test_bad_format(tmp_path, seq):
     pts, f = seq
     a = save_seq(tmp_path / "a.npz", pts, f)
