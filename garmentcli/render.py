@@ -38,6 +38,8 @@ def _frame_slice(frames: str | None, every: int) -> slice:
             raise InputError(f"--frames ...:{step} and --every {every}: expected one step, got both")
         step = max(step, every)
     start, stop = parse_frame_range(frames) if frames else (None, None)
+    if start is not None and stop is not None and (start < 0) == (stop < 0) and stop <= start:
+        raise InputError(f"--frames: expected STOP after START (STOP exclusive), got {start}:{stop}")
     return slice(start, stop, step)
 
 
@@ -105,9 +107,12 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
                                 scene_from_sequence)
     from formats.sequence import read_sequence
 
-    width, height = parse_size(size)
+    try:  # their errors before any work, as click's (exit 2)
+        width, height = parse_size(size)
+    except InputError as exc:
+        raise click.BadParameter(str(exc).removeprefix("--size: "), param_hint="--size") from None
     try:
-        frame_slice = _frame_slice(frames, every)  # its errors before any work, as click's (exit 2)
+        frame_slice = _frame_slice(frames, every)
     except InputError as exc:
         raise click.BadParameter(str(exc).removeprefix("--frames: "), param_hint="--frames") from None
     if color == "error" and gt_path is None:
@@ -159,6 +164,6 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
             written = render_outputs(scene, tmp, options, png_frames=not no_png, mp4=not no_mp4, sheet=not no_sheet,
                                      progress=bar.update)
     n_png = len(written["png"])
-    click.echo(f"{out_dir}: {scene.n_frames} frames x {len(options.cameras)} camera(s) at {width}x{height}"
+    click.echo(f"{out_dir}: {scene.n_frames} frame{'' if scene.n_frames == 1 else 's'} x {len(options.cameras)} camera(s) at {width}x{height}"
                + (f", {n_png} PNG" if n_png else "") + (f", {len(written['mp4'])} MP4" if written["mp4"] else "")
                + (", contact_sheet.png" if written["sheet"] else ""))

@@ -174,6 +174,10 @@ def test_penetration_is_red_and_error_has_a_colour_bar():
     img = R.render_image(scene, 0, "front", R.RenderOptions(**SMALL, show_body=False, ground=False))
     px = img.reshape(-1, 3).astype(int)
     assert ((px[:, 0] > 150) & (px[:, 1] < 80) & (px[:, 2] < 80)).mean() > 0.05
+    # With the body drawn (the default) it is see-through: the red inside it still shows (opaque, none showed).
+    shown = R.render_image(scene, 0, "front", R.RenderOptions(**SMALL, ground=False)).reshape(-1, 3).astype(int)
+    red = lambda p: (p[:, 0] > p[:, 2] + 60).mean()  # noqa: E731
+    assert red(shown) > 0.03
     gt = Sequence(points=seq.points * np.float32(1.1), faces=seq.faces, fps=30.0)
     heat = R.render_image(R.scene_from_sequence(seq, color="error", gt=gt), 0, "front",
                           R.RenderOptions(width=320, height=240, labels=False))
@@ -295,6 +299,25 @@ def test_follow_framing_keeps_a_fast_traveller_in_view_and_leaves_ordinary_trave
     lo, hi = walk.points.min(1).astype(float), walk.points.max(1).astype(float)
     focal = R.camera_track(lo, hi, "front", opts, fps=30.0)[1]
     np.testing.assert_allclose(focal, R._smooth((lo + hi) / 2, 15))
+
+
+def test_the_follow_cameras_smoothing_keeps_a_steady_traveller_where_it_is():
+    """A root moving at a steady speed is its own smoothed track, to the first and last frame (the ends padded by
+    repeating them dragged the camera behind a run at its start and end), however short the track."""
+    for frames in (4, 12, 90):
+        track = np.arange(frames, dtype=float)[:, None] * [0.27, -0.05, 0.01] + [1.0, 2.0, 0.9]
+        np.testing.assert_allclose(R._smooth(track, 15), track, atol=1e-12)
+    wobble = np.zeros((30, 3))
+    wobble[::2, 0] = 0.02
+    assert np.abs(np.diff(R._smooth(wobble, 15)[:, 0])).max() < 0.002  # a jitter of 2 cm a frame smoothed out
+
+
+def test_the_error_colours_range_over_every_frame_whatever_frames_are_drawn():
+    seq = two_spheres(n_frames=4)
+    gt = Sequence(points=seq.points * np.linspace(1.0, 1.3, 4, dtype=np.float32)[:, None, None], faces=seq.faces,
+                  fps=30.0)
+    whole = R.scene_from_sequence(seq, color="error", gt=gt).value_range
+    assert R.scene_from_sequence(seq, color="error", gt=gt, frames=slice(1, 2)).value_range == whole
 
 
 def replace_framing(opts, framing):

@@ -67,13 +67,18 @@ def test_render_colour_modes(seqs, tmp_path):
 @pytest.mark.parametrize("args, needle", [
     (["--color", "error"], "--gt"),
     (["--color", "scalar"], "--scalars"),
-    (["--size", "huge"], "--size: expected WIDTHxHEIGHT"),
+    (["--size", "huge"], "Invalid value for --size: expected WIDTHxHEIGHT"),
+    (["--size", "0x0"], "Invalid value for --size: expected 16..8192 pixels a side"),
     (["--frames", "5:9"], "--frames"),
+    (["--frames", "5:1"], "Invalid value for --frames: expected STOP after START (STOP exclusive), got 5:1"),
     (["--scalars", "missing.npz"], "--scalars: file 'missing.npz': file not found"),
 ])
 def test_render_bad_input(seqs, args, needle):
-    assert needle in error_line(run("render", seqs["pred"], "--out", seqs["dir"] / "bad", *args))
+    res = run("render", seqs["pred"], "--out", seqs["dir"] / "bad", *args)
+    assert needle in error_line(res)
     assert not (seqs["dir"] / "bad").exists()
+    if "Invalid value" in needle:  # a usage error, before any work (exit 1 was the size's)
+        assert res.exit_code == 2
 
 
 def test_render_scalars_of_another_kind_of_file_are_named_for_what_they_are(seqs):
