@@ -67,14 +67,15 @@ def _at_rates(seq, gt, fps: float | None):
 @click.option("--camera", "cameras", type=click.Choice(CAMERA_CHOICES), multiple=True,
               help="Camera preset, repeatable [default: front]. 'orbit' turns once around over the frames.")
 @click.option("--color", type=click.Choice(COLORS), default="plain", show_default=True,
-              help="plain; error: distance to --gt per vertex (mm); penetration: vertices inside the body in red; "
+              help="plain; error: distance to --gt per vertex (mm); penetration: vertices inside the body in red, the "
+                   "body see-through; "
                    "scalar: the per-vertex array of --scalars.")
 @click.option("--gt", "gt_path", type=click.Path(exists=True, path_type=Path), default=None,
               help="Ground-truth sequence for --color error (same mesh and frame count as INPUT).")
 @click.option("--scalars", "scalars_spec", metavar="FILE.npz[:KEY]", default=None,
               help="Per-vertex values (V,) or (T, V) for --color scalar.")
 @click.option("--range", "value_range", type=(float, float), default=None, metavar="LO HI", callback=checked_by(check_value_range),
-              help="Colour-bar range for error/scalar [default: 0 to the 99th percentile].")
+              help="Colour-bar range for error/scalar [default: 0 to the 99th percentile over every frame].")
 @click.option("--frames", default=None, metavar="START:STOP[:STEP]",
               help="Frames to render (Python slice, STOP exclusive; ::2 is every 2nd frame).")
 @click.option("--every", type=click.IntRange(min=1), default=1, show_default=True, help="Render every N-th frame.")
