@@ -353,6 +353,16 @@ def _longest_edge(points: np.ndarray, neighbours: list[set]) -> float:
     return max(float(np.linalg.norm(points[u] - points[v])) for u in range(len(points)) for v in neighbours[u])
 
 
+def _cloth_over_ground(n: int):
+    """An n x n grid of 1 cm cells 1 cm above a flat body (the ground, normal +z), tied to it: (faces, the ground's
+    vertices, the grid's rest vertices, its contact anchors)."""
+    verts, faces = _grid(n, 0.01)
+    ground = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    ground_faces = np.array([[0, 1, 3], [0, 3, 2]])  # normal +z
+    rest = verts + [0.0, 0.0, 0.01]
+    return faces, ground, rest, contact_anchors(rest, ground, ground_faces, garment_faces=faces)
+
+
 def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does(monkeypatch):
     """A garment 1 cm above a flat body with a vertex pushed 3 cm through it: the lift, shared with the
     neighbours as four passes of (1 - 0.5) x + 0.5 * mean of the neighbours' do it vertex by vertex, and lifted
@@ -363,11 +373,7 @@ def test_contact_guard_spreads_its_lifts_as_a_vertex_by_vertex_reference_does(mo
 
     monkeypatch.setattr(pushout, "GUARD_TOP_UP", False)
     n = 9
-    verts, faces = _grid(n, 0.01)
-    ground = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
-    ground_faces = np.array([[0, 1, 3], [0, 3, 2]])  # normal +z
-    rest = verts + [0.0, 0.0, 0.01]
-    anchors = contact_anchors(rest, ground, ground_faces, garment_faces=faces)
+    faces, ground, rest, anchors = _cloth_over_ground(n)
     dent = rest.astype(np.float32)
     centre = (n // 2) * n + n // 2
     dent[centre, 2] = -0.03
@@ -413,11 +419,7 @@ def test_the_guard_lifts_by_the_depth_share_decided_on_the_networks_output(monke
 
     monkeypatch.setattr(pushout, "GUARD_TOP_UP", False)
     n = 9
-    verts, faces = _grid(n, 0.01)
-    ground = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
-    ground_faces = np.array([[0, 1, 3], [0, 3, 2]])  # normal +z
-    rest = verts + [0.0, 0.0, 0.01]
-    anchors = contact_anchors(rest, ground, ground_faces, garment_faces=faces)
+    faces, ground, rest, anchors = _cloth_over_ground(n)
     centre = (n // 2) * n + n // 2
     patch = [centre + di * n + dj for di in (-1, 0, 1) for dj in (-1, 0, 1)]
     dent = rest.astype(np.float32)
