@@ -86,12 +86,15 @@ def _baked_from(path: Path) -> str | None:
 
 def alignment_hints(p_seq, g_seq, pred: Path, gt: Path) -> list[str]:
     """What says PRED's and GT's frames may not be the same moments, though compared frame by frame: their bakes'
-    summary.json records other source frames (`_baked_from`), or their frames are numbered from other numbers."""
+    summary.json records other source frames (`_baked_from`), or, where either side has no such record, their
+    frames are numbered from other numbers (two bakes of the same frames numbered by `--start-frame` are alike)."""
     hints = []
     p_from, g_from = _baked_from(pred), _baked_from(gt)
-    if p_from and g_from and p_from != g_from:
-        hints.append(f"'{pred}' was baked from {p_from}, '{gt}' from {g_from}: compared frame by frame as they are")
-    if p_seq.first_frame != g_seq.first_frame:
+    if p_from and g_from:
+        if p_from != g_from:
+            hints.append(f"'{pred}' was baked from {p_from}, '{gt}' from {g_from}: compared frame by frame as they "
+                         "are")
+    elif p_seq.first_frame != g_seq.first_frame:
         hints.append(f"'{pred}' numbers its frames from {p_seq.first_frame}, '{gt}' from {g_seq.first_frame}: "
                      f"compared in order (PRED's frame {p_seq.first_frame} against GT's {g_seq.first_frame}; the "
                      "reports number the frames from 0)")
