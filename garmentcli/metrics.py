@@ -78,8 +78,10 @@ def _baked_from(path: Path) -> str | None:
                 record = json.loads(summary.read_text())
                 motion, options = Path(record["inputs"]["motion"]).name, record["options"]
                 fps = f" at {options['fps']:g} fps" if isinstance(options.get("fps"), (int, float)) else ""
-                return f"frames {options.get('frames') or 'all'} of '{motion}'{fps}"
-            except (OSError, ValueError, KeyError, TypeError):
+                start, stop = parse_frame_range(options["frames"]) if options.get("frames") else (None, None)
+                start, stop = start or 0, "" if stop is None else stop  # "0:" is every frame, as none given
+                return f"frames {f'{start}:{stop}' if (start, stop) != (0, '') else 'all'} of '{motion}'{fps}"
+            except (OSError, ValueError, KeyError, TypeError, InputError):
                 return None
     return None
 

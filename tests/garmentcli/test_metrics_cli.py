@@ -589,3 +589,8 @@ def test_frames_of_other_moments_are_pointed_out(tmp_path, seq):
     assert "numbers its frames from 1001" in r.output and "PRED's frame 1001 against GT's 0" in r.output
     r = run([pred, pred])
     assert r.exit_code == 0 and "warning" not in r.output
+    for d, frames in ((pred, "0:"), (gt, None)):  # every frame either way
+        (d / "summary.json").write_text(json.dumps({"inputs": {"motion": "/x/walk.npz"},
+                                                    "options": {"frames": frames, "fps": 30.0}}))
+    r = run([pred, gt])
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
