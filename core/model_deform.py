@@ -112,6 +112,27 @@ DEFAULT_LEAD_IN_S = 0.2
 LEAD_FADE_FRAMES = 3
 
 
+#: A body whose joints all move slower than this (m/s) over its first STILL_START_FRAMES frames starts still: the
+#: network's window is given a body that stood still before it, not the lead-in blend from the rest pose, whose
+#: transient, faded out, slid a still body's dress 61 mm over its first eight frames (15 mm a frame at frames 4-8,
+#: then a dead stop; now 0.2-0.3 mm a frame, the frames from the ninth on the same). Against the simulator, whose
+#: cloth falls from its rest shape at the start (33 mm a frame), the dress on the example arms_raise's first 7
+#: frames: 26.28 mm with the lead-in, 26.63 without. A standing capture's joints jitter well under this; a walk's
+#: move about 1 m/s.
+STILL_START_M_S = 0.1
+STILL_START_FRAMES = 3
+
+
+def starts_still(body: Body, poses: np.ndarray, trans: np.ndarray, betas, fps: float) -> bool:
+    """Whether the body posed by `poses` (T, J, 3) and `trans` (T, 3) starts still: every joint slower than
+    STILL_START_M_S between its first STILL_START_FRAMES frames (a single frame: still)."""
+    n = min(STILL_START_FRAMES, len(poses))
+    if n < 2:
+        return True
+    joints = body.posed_joints(poses[:n], trans[:n], betas)
+    return float(np.linalg.norm(np.diff(joints, axis=0), axis=-1).max()) * fps < STILL_START_M_S
+
+
 def default_batch_frames(device: torch.device | str, n_vertices: int = 4096) -> int:
     """Frames per forward pass of an `n_vertices` garment on `device` where ModelDeformer is not told."""
     kind = torch.device(device).type
@@ -368,8 +389,9 @@ class ModelDeformer(Deformer):
         device = next(self.model.parameters()).device
         betas = body.fit_betas(motion.betas)
         poses = poses_for_body(motion, body.n_joints)
-        # A settle blend of its own is one already.
-        lead = int(round(self.lead_in_s * motion.fps)) if motion.n_settle == 0 else 0
+        # A settle blend of its own is one already; a body that starts still stood still before it.
+        still_start = starts_still(body, poses, motion.trans, betas, motion.fps)
+        lead = int(round(self.lead_in_s * motion.fps)) if motion.n_settle == 0 and not still_start else 0
         window_poses, window_trans = prepend_blend(poses, motion.trans, lead)
         t0 = time.perf_counter()
         shaped = self._shaped_inputs(garment, body, motion.betas, device)
@@ -459,6 +481,7 @@ class ModelDeformer(Deformer):
         self.report = {"method": self.name, "model": self.model_name, "device": str(device), "batch_frames": batch,
                        "precision": self.precision, "training_range": self.training_range(garment, body),
                        "lead_in_frames": lead, "lead_in_fade_frames": 0 if fade is None else int((fade[0] > 0).sum()),
+                       "starts_still": still_start,
                        "prepare_seconds": t1 - t0,
                        "preprocess_cache": self._garments[(garment.content_hash(), id(body))].preprocess_cache,
                        "seconds_per_frame_network": (t2 - t1) / max(motion.n_frames, 1)}

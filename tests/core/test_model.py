@@ -272,6 +272,31 @@ def test_model_deformer_reports_progress_through_each_pass_over_the_frames(body,
     assert ticks[:3] == [pytest.approx(4 / sweeps)] * 3 and len(ticks) >= 3 + (sweeps - 1)
 
 
+def test_a_body_that_starts_still_gets_no_lead_in(body):
+    """A motion whose first frames stand still (a pose held, as a standing capture starts) is given no lead-in: the
+    blend's transient slid a still dress 61 mm over its first eight frames; held, the cloth stands still."""
+    from core.garment import Garment
+    from core.model_deform import STILL_START_M_S, ModelDeformer, starts_still
+    from core.motion import Motion
+
+    model = perturbed_model(TINY_CONFIG, scale=0.3, seed=1)
+    v, f = tube(12, 6)
+    poses, trans, _ = sequence(body, v, f, 9, 0, None)
+    held = np.repeat(poses[4:5], 9, axis=0)
+    still = Motion(poses=held, trans=np.repeat(trans[4:5], 9, axis=0), fps=30.0)
+    led = ModelDeformer(model, lead_in_s=4 / 30, contact_guard=False, strain_limit=None)
+    out = led.deform(Garment(v, f), body, still)
+    assert led.report["starts_still"] and led.report["lead_in_frames"] == 0
+    np.testing.assert_allclose(out, np.repeat(out[:1], 9, axis=0), atol=1e-5)
+    led.deform(Garment(v, f), body, Motion(poses=poses, trans=trans, fps=30.0))
+    assert not led.report["starts_still"] and led.report["lead_in_frames"] == 4
+    # a root gliding just under and just over the threshold
+    for speed, want in ((0.9 * STILL_START_M_S, True), (1.1 * STILL_START_M_S, False)):
+        glide = np.repeat(trans[4:5], 3, axis=0) + np.arange(3)[:, None] * [speed / 30.0, 0.0, 0.0]
+        assert starts_still(body, held[:3], glide.astype(np.float32), None, 30.0) is want
+    assert starts_still(body, held[:1], trans[:1], None, 30.0)  # one frame
+
+
 def test_model_lead_in_is_the_settle_blend_the_window_sees(body, tmp_path):
     """A motion without settle frames starts, in the network's window only, with the blend from the rest pose
     its training sequences start with: the same frames as baking the motion with that settle blend and
