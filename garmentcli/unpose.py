@@ -237,10 +237,10 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     # in-memory figure was 1.8 mm where bake's was 4.5 (an A-posed t-shirt's quads split the other way at rest).
     from core.unpose import baked_back_error
 
-    with collected_notes():  # what reading GARMENT said was said
+    with collected_notes():  # what reading GARMENT and binding its rest said was said, naming the input
         written_back = read_garment(out)
-    if written_back.n_vertices == rest.n_vertices:
-        report["reposed_max_error_m"] = baked_back_error(written_back, body, pose, betas, garment.vertices)
+        if written_back.n_vertices == rest.n_vertices:
+            report["reposed_max_error_m"] = baked_back_error(written_back, body, pose, betas, garment.vertices)
     target = "the rest pose" + (" and mean shape" if betas is not None else "")
     moved = f"moved to {target} from {what}" if pose_spec != "tpose" or betas is not None else moved_by
     written = rest.n_vertices if garment.source is None else len(garment.source.vertex_of)  # the file's, unwelded
