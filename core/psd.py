@@ -69,6 +69,17 @@ def _smallest_corner_first(faces: np.ndarray) -> np.ndarray:
     return np.take_along_axis(faces, (turn + np.arange(3)) % 3, axis=1)
 
 
+def same_mesh(vertices: np.ndarray, faces: np.ndarray, other_vertices: np.ndarray, other_faces: np.ndarray) -> bool:
+    """Whether two meshes are one garment: the same faces, each maybe starting at another corner, and vertices
+    within FIT_SAME_GARMENT_M (a unit round trip or an export moves them by float rounding, and a corner's turn
+    changes no triangle)."""
+    v, f = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
+    ov, of = np.asarray(other_vertices, np.float64), np.asarray(other_faces, np.int64)
+    return (v.shape == ov.shape and f.shape == of.shape
+            and np.array_equal(_smallest_corner_first(f), _smallest_corner_first(of))
+            and float(np.abs(v - ov).max(initial=0.0)) <= FIT_SAME_GARMENT_M)
+
+
 def ridge_solve(X: np.ndarray, Y: np.ndarray, lam: float) -> np.ndarray:
     """argmin_W |X W - Y|^2 + lam |W|^2: (F, D)."""
     return np.linalg.solve(X.T @ X + lam * np.eye(X.shape[1]), X.T @ Y)
@@ -101,17 +112,13 @@ class PSDFit:
     garment_faces: np.ndarray | None = None
 
     def fits_garment(self, garment: Garment) -> bool:
-        """Whether `garment` is the one fitted to: the same bytes (`garment_sha256`), or the same faces (each
-        maybe starting at another corner) and vertices within FIT_SAME_GARMENT_M (a unit round trip or an export
-        moves them by float rounding, and a corner's turn changes no triangle)."""
+        """Whether `garment` is the one fitted to: the same bytes (`garment_sha256`), or the same mesh
+        (`same_mesh`)."""
         if garment.content_hash() == self.garment_sha256:
             return True
         if self.garment_vertices is None or self.garment_faces is None:
             return False
-        v, f = np.asarray(garment.vertices, np.float64), np.asarray(garment.faces, np.int64)
-        return (v.shape == self.garment_vertices.shape and f.shape == self.garment_faces.shape
-                and np.array_equal(_smallest_corner_first(f), _smallest_corner_first(self.garment_faces))
-                and float(np.abs(v - self.garment_vertices).max(initial=0.0)) <= FIT_SAME_GARMENT_M)
+        return same_mesh(garment.vertices, garment.faces, self.garment_vertices, self.garment_faces)
 
     @property
     def rank(self) -> int:

@@ -18,6 +18,15 @@ from garmentcli.common import (
 )
 
 
+def _is(template, garment) -> bool:
+    """Whether a dataset's garment `template` is `garment`: the same bytes, or the same mesh through a unit round
+    trip, an export or faces starting at another corner (`core.psd.same_mesh`, as `bake --method psd` takes a fit)."""
+    from core.psd import same_mesh
+
+    return template.content_hash() == garment.content_hash() or same_mesh(template.vertices, template.faces,
+                                                                           garment.vertices, garment.faces)
+
+
 @click.command(name="fit")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
 @click.option("--data", "data_dir", required=True, type=click.Path(file_okay=False),
@@ -59,7 +68,7 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     body = load_body_option(body_path)
     check_dataset_body(data, manifest, body_path)
     templates = sorted((data / "garments").glob("*.obj"))
-    names = [t.stem for t in templates if read_obj(t).content_hash() == garment.content_hash()]
+    names = [t.stem for t in templates if _is(read_obj(t), garment)]
     if not names:
         raise click.BadParameter(f"'{data}' did not simulate '{source.name}' (its garments: "
                                  f"{', '.join(t.stem for t in templates) or 'none'}; the mesh must be the same)",

@@ -131,6 +131,24 @@ def test_fit_and_psd_bad_inputs(setup, fitted, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_fit_takes_the_garment_through_a_round_trip_as_bake_takes_its_fit(setup, tmp_path):
+    """The simulated garment with each face starting at another corner and its vertices moved by 3 um (an export,
+    a unit round trip): `bake --method psd` took it with the garment's fit, `fit` refused it as not simulated."""
+    from formats.obj import read_obj
+
+    root, data, body, garment = setup
+    g = read_obj(garment)
+    same = tmp_path / "same.obj"
+    write_obj(same, g.vertices + 3e-6, np.roll(g.faces, 1, axis=1))
+    r = invoke(["fit", same, "--data", data, "--body", body, "--rank", "4", "--out", tmp_path / "s.npz"])
+    assert r.exit_code == 0, r.output
+    assert "4 blend shapes of 'same.obj' fitted to 2 sequences" in r.output
+    moved = tmp_path / "moved.obj"
+    write_obj(moved, g.vertices + 1e-4, g.faces)  # 0.1 mm: another garment
+    r = invoke(["fit", moved, "--data", data, "--body", body, "--out", tmp_path / "m.npz"])
+    assert r.exit_code != 0 and "did not simulate 'moved.obj'" in r.output
+
+
 @pytest.mark.parametrize("args, option, word", [(["--ridge", "nan"], "--ridge", "finite"),
                                                 (["--ridge", "inf"], "--ridge", "finite"),
                                                 (["--out", "fit5.obj"], "--out", ".npz")])
