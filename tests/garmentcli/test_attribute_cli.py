@@ -45,6 +45,30 @@ def test_attribute_writes_table_arrays_and_heatmaps(scene, model_path, monkeypat
             "--body", scene["body"], "--vertices", tmp_path / "v.txt", "--out", out, "--overwrite")
     assert r.exit_code == 0, r.output
     assert "over 10 vertices" in (out / "attributions.md").read_text()
+    assert "f(input) = " in r.output and "completeness error" in r.output  # the check is shown, not only written
+    # An index given again counts once (it weighed the mean: "0 0 0 1" is vertices 0 and 1).
+    (tmp_path / "twice.txt").write_text("0 0 0 1")
+    r = run("attribute", model_path, scene["garment"], scene["motion"], "--frame", 3, "--steps", 2, "--no-render",
+            "--body", scene["body"], "--vertices", tmp_path / "twice.txt", "--out", out, "--overwrite")
+    assert r.exit_code == 0 and "over 2 vertices" in (out / "attributions.md").read_text()
+
+
+def test_attribute_warns_where_the_attributions_do_not_add_up(scene, model_path, monkeypatch, caplog):
+    import garmentcli.attribute as A
+
+    out = scene["out"] / "few"
+    base = ["attribute", model_path, scene["garment"], scene["motion"], "--frame", 3, "--steps", 2, "--no-render",
+            "--body", scene["body"], "--out", out, "--overwrite"]
+    summary = lambda: json.loads((out / "summary.json").read_text())  # noqa: E731
+    assert run(*base).exit_code == 0
+    s = summary()
+    gap = s["f_input_m"] - s["f_baseline_m"]
+    assert ("the attributions sum to" in caplog.text) == (abs(s["completeness_error_m"]) > 0.05 * abs(gap) + 1e-5)
+    monkeypatch.setattr(A, "COMPLETENESS_WARN_M", 0.0)
+    monkeypatch.setattr(A, "COMPLETENESS_WARN_SHARE", 0.0)  # any error at all
+    caplog.clear()
+    assert run(*base).exit_code == 0
+    assert "the attributions sum to" in caplog.text and "pass more --steps (now 2)" in caplog.text
 
 
 def test_attribute_takes_betas_as_bake_does(scene, model_path, monkeypatch, tmp_path):
@@ -108,7 +132,10 @@ def test_attribute_bad_inputs(scene, model_path, tmp_path):
     assert r.exit_code == 2 and "--steps" in r.output and not (tmp_path / "a").exists()
     (tmp_path / "far.txt").write_text("5000")
     r = run("attribute", *base, "--frame", 1, "--vertices", tmp_path / "far.txt", "--out", tmp_path / "a")
-    assert r.exit_code != 0 and "0..641" in r.output
+    assert r.exit_code != 0 and "0..641" in r.output and "far.txt" in r.output
+    (tmp_path / "none.txt").write_text(" \n")
+    r = run("attribute", *base, "--frame", 1, "--vertices", tmp_path / "none.txt", "--out", tmp_path / "a")
+    assert r.exit_code != 0 and "none.txt': expected vertex indices, got none" in r.output
     (tmp_path / "notamodel.pt").write_text("hello")
     r = run("attribute", tmp_path / "notamodel.pt", *base[1:], "--frame", 1, "--out", tmp_path / "a")
     assert r.exit_code != 0 and "notamodel.pt" in r.output
