@@ -584,9 +584,12 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                         "such a motion measures them", ", ".join(f"'{m}'" for m in pick["outside_paths"]))
         explicit = False
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
-    if preroll_frames and method in ("lbs", "psd"):  # each frame deformed on its own: the frames before START unused
+    # LBS deforms each frame on its own: the frames before START unused. (psd's blend shapes read the joints' rates
+    # and the root's acceleration, taken from the frames around each: a pre-roll of 2 gives START's frames as the
+    # whole motion's; the note said it changed nothing while the first frame moved 33 mm with it.)
+    if preroll_frames and method == "lbs":
         click.echo(f"note: --preroll {preroll_frames}: {method} deforms each frame on its own, so the frames before "
-                   "START change nothing (it is for sim and model, whose cloth carries the motion on)", err=True)
+                   "START change nothing (it is for sim, model and psd, whose cloth carries the motion on)", err=True)
     _check_memory(garment, body, [(mo, src_fps, m) for (mo, src_fps), m, _ in motions], method,
                   workers if not scheduler else 1, settle_frames, not no_body)
     if method == "psd":
