@@ -210,13 +210,14 @@ def _without_comment(words: list[str]) -> str:
 
 
 def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
-              like: ObjPolygons | None = None) -> ObjPolygons:
+              like: ObjPolygons | None = None, finite: bool = False) -> ObjPolygons:
     """Read an OBJ's vertices, texture coordinates and triangle/quad faces as written (larger polygons split).
 
     Nothing is cleaned or validated beyond syntax and index ranges. `label` starts
     every error message ("garment mesh 'dress.obj': ..."). `like`: a previously
     parsed file (e.g. frame 0 of a sequence); when this file's face lines are the
-    same, its polygon arrays are reused instead of parsed again.
+    same, its polygon arrays are reused instead of parsed again. `finite`: a NaN or Inf vertex is refused here,
+    naming its vertex and line (a garment's is `validate_garment`'s to report; a sequence frame's is not validated).
     Raises InputError for a missing file, a directory, an unparseable number or
     index, an index out of range, a face with fewer than 3 or more than
     MAX_POLYGON_VERTICES vertices or one that `ear_clip` cannot split, no vertices, or no faces.
@@ -269,6 +270,10 @@ def parse_obj(path: str | os.PathLike, label: str = "garment mesh",
     vertices = _floats(v_rows, v_lines, 3, "vertex", label, path)
     uvs = _floats(vt_rows, vt_lines, 2, "texture coordinate", label, path)
     _refuse_beyond_float32(vertices, v_lines, "vertex", label, path)
+    if finite and not np.isfinite(vertices).all():
+        k = int(np.argmax(~np.isfinite(vertices).all(axis=1)))
+        raise InputError(f"{label} '{path}': expected finite coordinates, got {_nonfinite_text(vertices[k])} at "
+                         f"vertex {k + 1} on line {v_lines[k]}")
     if vertices.shape[0] == 0:
         raise InputError(f"{label} '{path}': expected vertices ('v' lines), got none")
     if not f_lines:

@@ -291,50 +291,24 @@ def _read_obj_directory(directory: Path, up: str | None = None) -> Sequence:
     if meta is not None:
         _check_recorded_frames(meta_path, meta, files)
 
-    first = parse_obj(files[0], label="garment sequence frame")
-    _refuse_non_finite_frame(files[0], first.vertices)
+    first = parse_obj(files[0], label="garment sequence frame", finite=True)
     # Quads are split along frame 0's shorter diagonal in every frame, so all frames share faces.
     faces, _, _ = triangulate(first.vertices, first.polygons)
     points = np.empty((len(files),) + first.vertices.shape, dtype=np.float32)
     points[0] = first.vertices
     for t, path in enumerate(files[1:], 1):
-        frame = parse_obj(path, label="garment sequence frame", like=first)
+        frame = parse_obj(path, label="garment sequence frame", like=first, finite=True)
         same = frame.vertices.shape == first.vertices.shape and (
             frame.polygons is first.polygons or np.array_equal(frame.polygons, first.polygons))
         if not same:
             raise InputError(f"{where}: expected every frame to share the topology of {files[0].name} "
                              f"({first.vertices.shape[0]} vertices, {len(first.polygons)} faces), got "
                              f"{frame.vertices.shape[0]} vertices, {len(frame.polygons)} faces in {path.name}")
-        _refuse_non_finite_frame(path, frame.vertices)
         points[t] = frame.vertices
     points = _turned_to_z_up(points, _obj_up(meta, up, meta_path))
     number = re.search(r"(\d+)$", files[0].stem)
     return Sequence(points=points, faces=faces, fps=fps, source=str(directory),
                     first_frame=int(number.group(1)) if number else 0)
-
-
-def _refuse_non_finite_frame(path: Path, vertices: np.ndarray) -> None:
-    """InputError naming the OBJ frame `path`, its first vertex of `vertices` (V, 3) not finite (OBJ's numbering
-    from 1) and that vertex's line."""
-    bad = np.flatnonzero(~np.isfinite(vertices).all(axis=1))
-    if not len(bad):
-        return
-    k, kind = int(bad[0]), "NaN" if np.isnan(vertices[bad[0]]).any() else "Inf"
-    line = next((n for n, index in enumerate(_vertex_lines(path), 1) if index == k), None)
-    raise InputError(f"garment sequence frame '{path}': expected finite coordinates, got {kind} at vertex {k + 1}"
-                     + (f" on line {line}" if line else ""))
-
-
-def _vertex_lines(path: Path):
-    """For each line of the OBJ at `path`, the 0-based index of the vertex it defines, else -1."""
-    k = -1
-    with open(path, errors="replace") as fh:
-        for text in fh:
-            if text.split(None, 1)[:1] == ["v"]:
-                k += 1
-                yield k
-            else:
-                yield -1
 
 
 def _frame_number_of(stem: str, meta: dict | None) -> str:
