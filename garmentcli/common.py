@@ -285,6 +285,13 @@ def collected_warnings():
         root.removeHandler(handler)
 
 
+def bake_summary_path(path: Path) -> Path | None:
+    """The `summary.json` of the bake that `path` is (its folder) or is in (its USD stage, its obj/ folder, one of
+    its OBJ frames), or None."""
+    folder = path if path.is_dir() else path.parent
+    return next((d / "summary.json" for d in (folder, folder.parent) if (d / "summary.json").is_file()), None)
+
+
 @contextmanager
 def collected_notes():
     """Within the block, the messages of every INFO (and worse) log record, in a list, and none printed (the

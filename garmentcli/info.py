@@ -12,6 +12,7 @@ import numpy as np
 
 from core.errors import InputError
 from garmentcli.common import (
+    bake_summary_path,
     body_option,
     collected_notes,
     input_errors_as_click,
@@ -55,8 +56,7 @@ def bake_info(path: Path) -> dict:
     from formats.sequence import read_sequence
 
     seq = read_sequence(path)
-    folder = path if path.is_dir() else path.parent
-    summary_path = next((d / "summary.json" for d in (folder, folder.parent) if (d / "summary.json").is_file()), None)
+    summary_path = bake_summary_path(path)
     summary = json.loads(summary_path.read_text()) if summary_path is not None else {}
     return {"path": str(path), "kind": "bake", "frames": seq.n_frames, "fps": seq.fps,
             "vertices": int(seq.points.shape[1]), "first_frame": seq.first_frame,

@@ -15,6 +15,7 @@ from core.motion import parse_frame_range
 from garmentcli.common import (
     FiniteFloatRange,
     OutputPath,
+    bake_summary_path,
     betas_option,
     checked_by,
     input_errors_as_click,
@@ -70,20 +71,18 @@ def _baked_from(path: Path) -> str | None:
     its obj/ folder or a file in it; None where no summary.json is there or it does not say."""
     import json
 
-    path = Path(path)
-    for folder in ([path] if path.is_dir() else []) + [path.parent]:
-        summary = folder / "summary.json"
-        if summary.is_file():
-            try:
-                record = json.loads(summary.read_text())
-                motion, options = Path(record["inputs"]["motion"]).name, record["options"]
-                fps = f" at {options['fps']:g} fps" if isinstance(options.get("fps"), (int, float)) else ""
-                start, stop = parse_frame_range(options["frames"]) if options.get("frames") else (None, None)
-                start, stop = start or 0, "" if stop is None else stop  # "0:" is every frame, as none given
-                return f"frames {f'{start}:{stop}' if (start, stop) != (0, '') else 'all'} of '{motion}'{fps}"
-            except (OSError, ValueError, KeyError, TypeError, InputError):
-                return None
-    return None
+    summary = bake_summary_path(Path(path))
+    if summary is None:
+        return None
+    try:
+        record = json.loads(summary.read_text())
+        motion, options = Path(record["inputs"]["motion"]).name, record["options"]
+        fps = f" at {options['fps']:g} fps" if isinstance(options.get("fps"), (int, float)) else ""
+        start, stop = parse_frame_range(options["frames"]) if options.get("frames") else (None, None)
+        start, stop = start or 0, "" if stop is None else stop  # "0:" is every frame, as none given
+        return f"frames {f'{start}:{stop}' if (start, stop) != (0, '') else 'all'} of '{motion}'{fps}"
+    except (OSError, ValueError, KeyError, TypeError, InputError):
+        return None
 
 
 def alignment_hints(p_seq, g_seq, pred: Path, gt: Path) -> list[str]:
