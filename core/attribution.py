@@ -75,10 +75,12 @@ class Attribution:
 
 
 class DeformationTarget:
-    """f(inputs) for one frame of one garment on one body and motion; see the module docstring."""
+    """f(inputs) for one frame of one garment on one body and motion; see the module docstring. `vertices_from`:
+    how an error names where `vertices` came from (`--vertices 'region.txt'`)."""
 
     def __init__(self, model: GarmentModel, g: GarmentInputs, body: Body, motion: Motion, frame: int,
-                 vertices: np.ndarray | None = None, trained_betas: tuple[np.ndarray, np.ndarray] | None = None):
+                 vertices: np.ndarray | None = None, trained_betas: tuple[np.ndarray, np.ndarray] | None = None,
+                 vertices_from: str = "--vertices"):
         if not 0 <= frame < motion.n_frames:
             raise InputError(f"--frame: expected a frame in 0..{motion.n_frames - 1} of motion '{motion.name}', "
                              f"got {frame}")
@@ -108,7 +110,7 @@ class DeformationTarget:
         n = g.n_vertices
         self.vertices = np.arange(n) if vertices is None else np.asarray(vertices, dtype=np.int64)
         if self.vertices.size == 0 or self.vertices.min() < 0 or self.vertices.max() >= n:
-            raise InputError(f"--vertices: expected vertex indices in 0..{n - 1}, got "
+            raise InputError(f"{vertices_from}: expected vertex indices in 0..{n - 1}, got "
                              f"{self.vertices.size} indices" + (f" from {self.vertices.min()} to {self.vertices.max()}"
                                                                  if self.vertices.size else ""))
 

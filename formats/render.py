@@ -328,10 +328,10 @@ def scene_from_sequence(seq, color: str = "plain", gt=None, scalars: np.ndarray 
         if seq.fps is not None and gt.fps is not None and not np.isclose(seq.fps, gt.fps, rtol=1e-6):
             raise InputError(f"--gt: '{gt.source}' is at {gt.fps:g} fps, '{seq.source}' at {seq.fps:g} fps: expected "
                              "the same frame rate (resample one of them to match)")  # as `garment metrics` refuses
-        values = vertex_error_mm(seq.points[idx], gt.points[idx])
+        values = vertex_error_mm(seq.points, gt.points)
         # the range over every frame, not only those drawn: a frame is coloured alike whatever --frames says
-        kwargs = dict(vertex_values=values, value_label="error (mm)",
-                      value_range=value_range or robust_range(vertex_error_mm(seq.points, gt.points)))
+        kwargs = dict(vertex_values=values[idx], value_label="error (mm)",
+                      value_range=value_range or robust_range(values))
     elif color == "penetration":
         if body_points is None or seq.body_faces is None:
             raise InputError(f"--color penetration: '{seq.source}' carries no body mesh "

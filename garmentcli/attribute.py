@@ -127,12 +127,8 @@ def attribute(model_path, garment_path, motion_path, frame, steps, vertices_path
     if out.exists() and not overwrite:
         raise click.ClickException(f"output '{out}' exists: pass --overwrite to replace it")
     g = prepare_garment(garment, view, model.config, source=garment_path, near=False).inputs
-    try:
-        target = DeformationTarget(model, g, view, motion, frame, vertices, trained_betas(data["meta"]))
-    except InputError as exc:  # the indices' range, named with their file
-        if vertices_path and str(exc).startswith("--vertices:"):
-            raise InputError(f"--vertices '{vertices_path}':" + str(exc).removeprefix("--vertices:")) from None
-        raise
+    target = DeformationTarget(model, g, view, motion, frame, vertices, trained_betas(data["meta"]),
+                               vertices_from=f"--vertices '{vertices_path}'")
     with click.progressbar(length=1, label=f"attribute ({steps} nodes)") as bar:
         att = integrated_gradients(target, target.input, target.baseline, steps)
         bar.update(1)
