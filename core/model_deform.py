@@ -30,7 +30,7 @@ from core.model import (
     window_index,
 )
 from core.model_data import prepare_garment
-from core.motion import Motion, poses_for_body, prepend_blend
+from core.motion import Motion, joint_speeds, poses_for_body, prepend_blend
 from core.pushout import (ContactAnchors, alternate_guard_limit, anchored_body, body_anchors, guard_and_limit,
                           guard_contact, guard_report)
 from core.scene import SceneAnalysis, scene_levels
@@ -129,8 +129,7 @@ def starts_still(body: Body, poses: np.ndarray, trans: np.ndarray, betas, fps: f
     n = min(STILL_START_FRAMES, len(poses))
     if n < 2:
         return True
-    joints = body.posed_joints(poses[:n], trans[:n], betas)
-    return float(np.linalg.norm(np.diff(joints, axis=0), axis=-1).max()) * fps < STILL_START_M_S
+    return float(joint_speeds(body, poses[:n], trans[:n], betas, fps).max()) < STILL_START_M_S
 
 
 def default_batch_frames(device: torch.device | str, n_vertices: int = 4096) -> int:

@@ -259,6 +259,12 @@ CUT_SPEED_M_S = 25.0
 CUT_TURN_RAD_S = 60.0
 
 
+def joint_speeds(body, poses: np.ndarray, trans: np.ndarray, betas, fps: float) -> np.ndarray:
+    """(T - 1, J) metres a second: each joint's speed between consecutive frames of `body` posed by `poses`
+    (T, J, 3), `trans` (T, 3) and `betas` (`Body.posed_joints`)."""
+    return np.linalg.norm(np.diff(body.posed_joints(poses, trans, betas), axis=0), axis=-1) * fps
+
+
 def motion_cuts(motion: Motion, body, chunk: int = 4096) -> list[tuple[int, str]]:
     """Where the body of `motion` (its frames after the settle blend) jumps between two frames: (the frame after
     the jump, what moved: a joint faster than CUT_SPEED_M_S or one turning faster than CUT_TURN_RAD_S), the
@@ -269,8 +275,7 @@ def motion_cuts(motion: Motion, body, chunk: int = 4096) -> list[tuple[int, str]
     cuts = []
     for s in range(first, motion.n_frames - 1, chunk):
         at = slice(s, min(s + chunk + 1, motion.n_frames))  # one frame shared with the next chunk
-        joints = body.posed_joints(poses[at], motion.trans[at], motion.betas)
-        speed = np.linalg.norm(np.diff(joints, axis=0), axis=-1).max(axis=1) * motion.fps  # (t-1,)
+        speed = joint_speeds(body, poses[at], motion.trans[at], motion.betas, motion.fps).max(axis=1)  # (t-1,)
         q = axis_angle_to_quat(poses[at].astype(np.float64))  # (t, J, 4)
         turn = 2.0 * np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0))  # (t-1, J) radians
         for k in np.flatnonzero((speed > CUT_SPEED_M_S) | (turn.max(axis=1) * motion.fps > CUT_TURN_RAD_S)):

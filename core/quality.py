@@ -38,7 +38,7 @@ import numpy as np
 from core.body import Body
 from core.errors import InputError
 from core.garment import Garment
-from core.motion import Motion, poses_for_body
+from core.motion import Motion, joint_speeds, poses_for_body
 
 #: Default error budget of `--quality auto` (E_verts against the simulator, mm).
 DEFAULT_BUDGET_MM = 40.0
@@ -82,10 +82,8 @@ def scene_features(garment: Garment, body: Body, motion: Motion) -> dict:
 
 def joint_speed(body: Body, motion: Motion) -> float:
     """The 95th percentile over frames and joints of the joints' speed (m/s) of `body` posed by `motion`."""
-    joints = body.posed_joints(poses_for_body(motion, body.n_joints), motion.trans, motion.betas)
-    if len(joints) < 2:
-        return 0.0
-    return float(np.percentile(np.linalg.norm(np.diff(joints, axis=0), axis=-1) * motion.fps, 95))
+    speeds = joint_speeds(body, poses_for_body(motion, body.n_joints), motion.trans, motion.betas, motion.fps)
+    return float(np.percentile(speeds, 95)) if speeds.size else 0.0
 
 
 def _point(looseness: float, speed: float) -> np.ndarray:
