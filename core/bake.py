@@ -80,7 +80,7 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
     """Deform `garment` on `body` over `motion` and measure it.
 
     Returns the garment sequence (T, V, 3), the posed body (T, Vb, 3) when `with_body` (else None; both without
-    the motion's lead frames, `Motion.n_lead`, which are deformed and dropped), and a summary dict: method, frames, fps,
+    the motion's lead and tail frames, `Motion.n_lead` and `n_tail`, which are deformed and dropped), and a summary dict: method, frames, fps,
     seconds per frame of the deformation, penetration statistics, the deformer's report.
     """
     shown = written(motion)
@@ -94,7 +94,7 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
     t0 = time.perf_counter()
     points = deformer.deform(garment, body, motion)
     t_deform = time.perf_counter() - t0
-    points = points[motion.n_lead:]  # a pre-roll is deformed, not kept
+    points = points[motion.n_lead:motion.n_lead + shown.n_frames]  # a pre-roll and a tail are deformed, not kept
     body_points = None
     if with_body:
         body_points, _ = body.pose(poses_for_body(shown, body.n_joints), shown.trans, shown.betas)
@@ -107,6 +107,7 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
         "fps": float(motion.fps),
         "settle_frames": int(motion.n_settle),
         "preroll_frames": int(motion.n_lead),
+        "tail_frames": int(motion.n_tail),
         "garment": {"name": garment.name, "vertices": garment.n_vertices, "faces": garment.n_faces,
                     "sha256": garment.content_hash(),
                     # The outputs are written in the file's own mesh where it differs from the one deformed.

@@ -71,6 +71,8 @@ class Motion:
     n_settle: leading frames added by `settle` (blend from the rest pose).
     n_lead: leading frames deformed but not written (`preroll`: the motion before the frames asked for, so a
       simulated or learned garment arrives at the first written frame moving with the body, not at rest).
+    n_tail: trailing frames deformed but not written (`preroll`'s context after the frames asked for: the psd
+      blend shapes read each frame's rates from the frames around it).
     up: the world axis the file's body stood along as read, "z", or "y" / "-y" turned to Z-up (`y_up_to_z_up`).
     rest_up: the world axis the file's own rest skeleton stands along (a BVH's or FBX's: "z", "y", "-y"), or None
       where the file tells none; --motion-up left out or auto takes it (`garmentcli.common.resolved_up`).
@@ -86,6 +88,7 @@ class Motion:
     name: str = "motion"
     n_settle: int = 0
     n_lead: int = 0
+    n_tail: int = 0
     up: str = "z"
     rest_up: str | None = None
     person: str | None = None
@@ -108,8 +111,8 @@ class Motion:
 
     @property
     def n_written(self) -> int:
-        """Frames after the lead (`n_lead`): those a bake writes."""
-        return self.n_frames - self.n_lead
+        """Frames between the lead (`n_lead`) and the tail (`n_tail`): those a bake writes."""
+        return self.n_frames - self.n_lead - self.n_tail
 
     @property
     def layout(self) -> str:
@@ -156,12 +159,13 @@ def resample(motion: Motion, fps: float) -> Motion:
 
     Output frame k lies at time k/fps, for every k with k/fps <= the clip's duration; with lead frames
     (`n_lead`), the grid is shifted so that an output frame lies on the first frame after them (the first
-    written one), and the lead becomes the output frames before it.
+    written one), and the lead becomes the output frames before it; with tail frames (`n_tail`), the output frames
+    after the last written source frame's time are the tail.
     """
     grid = _resample_grid(motion, fps)
     if grid is None:
         return replace(motion, fps=float(fps))
-    n_lead, t0, n_out = grid
+    n_lead, t0, n_out, n_tail = grid
     try:
         t_src = t0 * motion.fps + np.arange(n_out) * (motion.fps / fps)  # output times in source-frame units
         i0 = np.clip(np.floor(t_src).astype(np.int64), 0, motion.n_frames - 1)
@@ -172,7 +176,8 @@ def resample(motion: Motion, fps: float) -> Motion:
                          f"{motion.fps:g} fps) to {n_out} frames needs more memory than is free: lower --fps") from None
     # Settle frames keep their share of the clip's time.
     n_settle = min(n_out, int(np.ceil(motion.n_settle * fps / motion.fps - 1e-9)))
-    return replace(motion, poses=poses, trans=trans, fps=float(fps), n_settle=n_settle, n_lead=n_lead)
+    return replace(motion, poses=poses, trans=trans, fps=float(fps), n_settle=n_settle, n_lead=n_lead,
+                   n_tail=n_tail)
 
 
 def interpolate_frames(poses: np.ndarray, trans: np.ndarray, i0: np.ndarray, i1: np.ndarray,
@@ -206,8 +211,9 @@ def resampled_frame_count(motion: Motion, fps: float) -> int:
 RESAMPLE_SLACK_FRAMES = 1e-3
 
 
-def _resample_grid(motion: Motion, fps: float) -> tuple[int, float, int] | None:
-    """(lead frames, time of output frame 0 in s, output frames) of `resample`; None where the frames stay."""
+def _resample_grid(motion: Motion, fps: float) -> tuple[int, float, int, int] | None:
+    """(lead frames, time of output frame 0 in s, output frames, tail frames) of `resample`; None where the frames
+    stay."""
     if not (np.isfinite(fps) and fps > 0):
         raise InputError(f"--fps: expected a positive number, got {fps}")
     if abs(fps - motion.fps) < 1e-9 or motion.n_frames == 1:
@@ -218,7 +224,9 @@ def _resample_grid(motion: Motion, fps: float) -> tuple[int, float, int] | None:
     n_lead = int(np.floor(t_first * fps + RESAMPLE_SLACK_FRAMES))
     t0 = max(t_first - n_lead / fps, 0.0)
     n_out = int(np.floor((motion.duration_s - t0) * fps + RESAMPLE_SLACK_FRAMES)) + 1
-    return n_lead, t0, n_out
+    t_last = (motion.n_frames - 1 - motion.n_tail) / motion.fps  # seconds: the last frame to write
+    n_tail = n_out - 1 - int(np.floor((t_last - t0) * fps + RESAMPLE_SLACK_FRAMES))
+    return n_lead, t0, n_out, n_tail
 
 
 def parse_frame_range(text: str) -> tuple[int | None, int | None]:
@@ -241,13 +249,18 @@ def select_frames(motion: Motion, start: int | None, stop: int | None) -> Motion
     if len(idx) == 0:
         raise InputError(f"--frames {'' if start is None else start}:{'' if stop is None else stop}: "
                          f"selects no frame of motion '{motion.name}' ({motion.n_frames} frames)")
+    tail = motion.n_frames - motion.n_tail
     return replace(motion, poses=motion.poses[sl].copy(), trans=motion.trans[sl].copy(),
-                   n_settle=sum(1 for i in idx if i < motion.n_settle), n_lead=sum(1 for i in idx if i < motion.n_lead))
+                   n_settle=sum(1 for i in idx if i < motion.n_settle), n_lead=sum(1 for i in idx if i < motion.n_lead),
+                   n_tail=sum(1 for i in idx if i >= tail))
 
 
 def written(motion: Motion) -> Motion:
-    """The motion without its lead frames (`Motion.n_lead`): the frames a bake writes and is measured on."""
-    return select_frames(motion, motion.n_lead, None) if motion.n_lead else motion
+    """The motion without its lead and tail frames (`Motion.n_lead`, `n_tail`): the frames a bake writes and is
+    measured on."""
+    if not (motion.n_lead or motion.n_tail):
+        return motion
+    return select_frames(motion, motion.n_lead, motion.n_frames - motion.n_tail)
 
 
 #: A joint faster than this (m/s) between two frames is no human motion: a teleport of the root or a cut in the
@@ -290,9 +303,13 @@ def motion_cuts(motion: Motion, body, chunk: int = 4096) -> list[tuple[int, str]
     return cuts
 
 
-def preroll(motion: Motion, start: int | None, stop: int | None, n_frames: int) -> Motion:
+def preroll(motion: Motion, start: int | None, stop: int | None, n_frames: int, context: tuple[int, int] = (0, 0)
+            ) -> Motion:
     """Frames [start, stop) as `select_frames`, preceded by up to `n_frames` frames before `start` as lead
-    frames (`Motion.n_lead`: deformed, not written); fewer where the motion begins sooner."""
+    frames (`Motion.n_lead`: deformed, not written); fewer where the motion begins sooner.
+
+    context: (before, after): at least `before` lead frames and up to `after` frames after STOP as tail frames
+    (`Motion.n_tail`), where the motion has them, without a word (a method's own need: psd's rates)."""
     if n_frames < 0:
         raise InputError(f"--preroll: expected a non-negative number of frames, got {n_frames}")
     first = select_frames(motion, start, stop)  # refuses an empty selection, naming it
@@ -303,9 +320,12 @@ def preroll(motion: Motion, start: int | None, stop: int | None, n_frames: int) 
         log.warning("--preroll %d: motion '%s' has %s before --frames START (frame %d): %s", n_frames, motion.name,
                     f"only {begin} frame{'' if begin == 1 else 's'}" if begin else "no frame", begin,
                     f"deformed {lead} before it" if lead else "the cloth starts at rest there")
-    if lead == 0:
+    lead = max(lead, min(context[0], begin))
+    end = begin + first.n_frames
+    tail = min(context[1], motion.n_frames - end)
+    if lead == 0 and tail == 0:
         return first
-    return replace(select_frames(motion, begin - lead, begin + first.n_frames), n_lead=lead)
+    return replace(select_frames(motion, begin - lead, end + tail), n_lead=lead, n_tail=tail)
 
 
 def _warn_beyond(motion: Motion, start: int | None, stop: int | None) -> None:

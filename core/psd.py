@@ -37,6 +37,13 @@ DEFAULT_RANK = 64
 DEFAULT_RIDGE = 10.0
 
 
+#: Frames either side of a frame that its features read (`pose_features`: the rates' central differences, the root's
+#: acceleration the differences of its velocity's): a bake of a --frames range deforms as many beyond it where the
+#: motion has them (`core.motion.preroll`'s context), so its frames are the whole motion's (one-sided differences
+#: at a range's ends moved them by up to 3 cm, and a motion baked in parts jumped at each seam).
+FEATURE_CONTEXT_FRAMES = 2
+
+
 def pose_features(poses: np.ndarray, trans: np.ndarray, betas: np.ndarray, fps: float) -> np.ndarray:
     """(T, F) float64 per-frame regressors: per joint R - I (9 numbers), its rate per second (x0.1), the root's
     velocity and acceleration in the root's frame (x0.3), the betas (x0.3), and 1.

@@ -181,7 +181,8 @@ class Measurement:
 def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeats: int = 3,
             cache_dir=None, device=None) -> Measurement:
     """Warm-up (preparation timed apart) and `repeats` timed runs (1 for the simulator: minutes per run). The
-    motion's lead frames (`Motion.n_lead`, a pre-roll) are deformed and timed, and left out of the points kept.
+    motion's lead and tail frames (`Motion.n_lead`, a pre-roll; `n_tail`) are deformed and timed, and left out of
+    the points kept.
     device: the model rows' (`make_deformer`)."""
     deformer = make_deformer(config, cache_dir, device)
     t0 = time.perf_counter()
@@ -199,7 +200,7 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
             t = time.perf_counter()
             points = deformer.deform(garment, body, motion)
             times.append(time.perf_counter() - t)
-    return Measurement(config, points[motion.n_lead:], statistics.median(times) / motion.n_frames, prep, mem.peak_mb,
+    return Measurement(config, points[motion.n_lead:motion.n_lead + motion.n_written], statistics.median(times) / motion.n_frames, prep, mem.peak_mb,
                        runs, gpu_peak_memory_mb=gpu.peak_mb, retries=list(deformer.report.get("retries", [])))
 
 

@@ -19,6 +19,7 @@ from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
 from core.motion import parse_frame_range
 from core.provenance import file_sha256, software_versions
+from core.psd import FEATURE_CONTEXT_FRAMES
 from core.quality import DEFAULT_BUDGET_MM
 from core.threads import torch_threads
 from core.scene import SKIP_METHODS, SKIPS, parse_no_skip
@@ -26,6 +27,7 @@ from core.strain import STRAIN_LIMIT
 from formats.atomic import atomic_dir
 from formats.pointcache import POINT_CACHE_FORMATS
 from garmentcli.common import (
+    counted,
     FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,
@@ -355,7 +357,7 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
         hint = " (--push-out moves them outside)"
     device = summary.get("deformer", {}).get("device", "cpu")
     where = method if device == "cpu" else f"{method} on {device}"
-    click.echo(f"{target}: {summary['frames']} frames at {fps:g} fps, "
+    click.echo(f"{target}: {counted(summary['frames'], 'frame')} at {fps:g} fps, "
                f"{summary['seconds_per_frame'] * 1e3:.2f} ms/frame ({where}), "
                f"penetration mean {mean:.2f}% max {pen.get('max_percent', float('nan')):.2f}%{hint}")
 
@@ -531,8 +533,10 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         return lambda n, src_fps: _refuse_beyond_memory(garment, body, path, n, src_fps, fps,
                                                         min(BAKE_COPIES.values()), 1, settle_frames, not no_body)
 
+    context = FEATURE_CONTEXT_FRAMES if method == "psd" else 0  # (--quality auto chooses after: none there)
     motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames, body=body,
-                               check_frames=check_frames(m), motion_up=motion_up, **part), m, target)
+                               check_frames=check_frames(m), motion_up=motion_up, context_frames=context, **part),
+                m, target)
                for m, target, part in targets]
     choice, fallback = "", ""
     if quality == "auto":
@@ -585,8 +589,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         explicit = False
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
     # LBS deforms each frame on its own: the frames before START unused. (psd's blend shapes read the joints' rates
-    # and the root's acceleration, taken from the frames around each: a pre-roll of 2 gives START's frames as the
-    # whole motion's; the note said it changed nothing while the first frame moved 33 mm with it.)
+    # and the root's acceleration, taken from the frames around each: its context frames, FEATURE_CONTEXT_FRAMES.)
     if preroll_frames and method == "lbs":
         click.echo(f"note: --preroll {preroll_frames}: {method} deforms each frame on its own, so the frames before "
                    "START change nothing (it is for sim, model and psd, whose cloth carries the motion on)", err=True)

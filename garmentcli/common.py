@@ -285,6 +285,11 @@ def collected_warnings():
         root.removeHandler(handler)
 
 
+def counted(n: int, noun: str) -> str:
+    """'1 frame', '2 frames', '1,000 frames': `n` with `noun`, plural but for one."""
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
+
+
 def bake_summary_path(path: Path) -> Path | None:
     """The `summary.json` of the bake that `path` is (its folder) or is in (its USD stage, its obj/ folder, one of
     its OBJ frames), or None."""
@@ -360,13 +365,15 @@ def foreign_betas(what: str, then: str) -> str:
 def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int, betas: str | None = None,
                    source_fps: float | None = None, preroll_frames: int = 0, body: Body | None = None,
                    check_frames=None, motion_up: str | None = "z", person: str | None = None,
-                   take: str | None = None):
+                   take: str | None = None, context_frames: int = 0):
     """Read a motion file (at --source-fps when given, else the file's frame rate) and apply --betas,
     --motion-up y, -y, auto or left out (None) (`resolved_up`; the motion turned from its Y-up (-Y-up) world to
     Z-up about the pelvis of `body`, the embedded one when None, at the motion's betas), --frames (source frames)
     with --preroll (source frames before them, deformed and not written: `Motion.n_lead`), --fps and --settle, in
     that order. person: --person, the track read of a file of several tracked people; take: --take, the animation
-    read of an FBX or glTF of several (`load_motion`).
+    read of an FBX or glTF of several (`load_motion`). context_frames: source frames either side of --frames
+    deformed and not written where the motion has them (`core.motion.preroll`'s context; none before a --settle
+    blend), counted at --fps: the method's own (psd's rates, `core.psd.FEATURE_CONTEXT_FRAMES`).
 
     body: where given, the betas are fitted to it here (`Body.fit_betas`), so a count it lacks is warned about
     once, naming the motion. check_frames(n_frames, source_fps): called with the frame count of the prepared
@@ -402,7 +409,9 @@ def prepare_motion(path: str, fps: float, frames: str | None, settle_frames: int
         motion = turned_z_up(motion, body, path, motion_up, given)
     source_fps = motion.fps
     if frames:
-        motion = preroll(motion, *parse_frame_range(frames), preroll_frames)
+        # the context is counted in output frames: as many source frames as span them at --fps
+        k = int(np.ceil(context_frames * max(source_fps / fps, 1.0) - 1e-9)) if np.isfinite(fps) and fps > 0 else 0
+        motion = preroll(motion, *parse_frame_range(frames), preroll_frames, context=(0 if settle_frames else k, k))
     n_frames = resampled_frame_count(motion, fps) + settle_frames
     if check_frames is not None:
         check_frames(n_frames, source_fps)

@@ -12,6 +12,7 @@ import numpy as np
 
 from core.errors import InputError
 from garmentcli.common import (
+    counted,
     bake_summary_path,
     body_option,
     collected_notes,
@@ -179,12 +180,8 @@ def motion_info(path: str, person: str | None = None, take: str | None = None,
             "notes": notes}
 
 
-def _frames(n: int) -> str:
-    return f"{n:,} frame{'' if n == 1 else 's'}"
-
-
 def _parts(word: str, chosen, parts: dict, option: str) -> str:
-    listed = ", ".join(f"'{k}' {_frames(n)}" for k, n in list(parts.items())[:6]) + (", ..." if len(parts) > 6
+    listed = ", ".join(f"'{k}' {counted(n, 'frame')}" for k, n in list(parts.items())[:6]) + (", ..." if len(parts) > 6
                                                                                       else "")
     return f"; {word} '{chosen}' of {len(parts)} ({listed}: {option})"
 
@@ -199,7 +196,7 @@ def _text(record: dict, body_name: str) -> str:
         of = f" of '{Path(inputs['garment']).name}' on '{Path(inputs['motion']).name}'" if {"garment", "motion"} <= \
             set(inputs) else ""
         rate = f" at {record['fps']:g} fps" if record["fps"] else ""
-        line = (f"{record['path']}: a baked garment sequence{of}{made}, {_frames(record['frames'])}{rate} from frame "
+        line = (f"{record['path']}: a baked garment sequence{of}{made}, {counted(record['frames'], 'frame')}{rate} from frame "
                 f"{record['first_frame']}, {record['vertices']:,} vertices (garment metrics and render read it; "
                 "not a garment to bake)")
     elif record["kind"] == "body":
@@ -229,7 +226,7 @@ def _text(record: dict, body_name: str) -> str:
                 f"{x:.2f} x {y:.2f} x {z:.2f} m; on {body_name}: {record['median_distance_mm']:.0f} mm from it "
                 f"(median), {record['inside_percent']:.1f} % inside: {verdict}")
     else:
-        line = (f"{record['path']}: motion, {_frames(record['frames'])} at {record['fps']:g} fps "
+        line = (f"{record['path']}: motion, {counted(record['frames'], 'frame')} at {record['fps']:g} fps "
                 f"({record['seconds']:.1f} s), {record['joints']} joints, read {record['up']}-up")
         if record["betas"]:
             line += f", {record['betas']} betas"

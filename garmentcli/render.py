@@ -12,7 +12,7 @@ from tqdm import tqdm
 from core.errors import InputError, require_input
 from formats.atomic import atomic_dir, refuse_replacing
 from formats.render import check_azimuth, check_value_range
-from garmentcli.common import (MAX_FPS, FiniteFloatRange, OutputPath, checked_by, input_errors_as_click, obj_up_option,
+from garmentcli.common import (MAX_FPS, counted, FiniteFloatRange, OutputPath, checked_by, input_errors_as_click, obj_up_option,
                                warn_up_unused)
 
 log = logging.getLogger(__name__)
@@ -165,6 +165,6 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
             written = render_outputs(scene, tmp, options, png_frames=not no_png, mp4=not no_mp4, sheet=not no_sheet,
                                      progress=bar.update)
     n_png = len(written["png"])
-    click.echo(f"{out_dir}: {scene.n_frames} frame{'' if scene.n_frames == 1 else 's'} x {len(options.cameras)} camera(s) at {width}x{height}"
+    click.echo(f"{out_dir}: {counted(scene.n_frames, 'frame')} x {len(options.cameras)} camera(s) at {width}x{height}"
                + (f", {n_png} PNG" if n_png else "") + (f", {len(written['mp4'])} MP4" if written["mp4"] else "")
                + (", contact_sheet.png" if written["sheet"] else ""))

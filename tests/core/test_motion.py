@@ -259,6 +259,33 @@ def test_preroll_leads_into_the_frames_asked_for_on_their_own_time_grid(src_fps,
     np.testing.assert_allclose(led.trans[n - 1], plain.trans[0] - np.array([1.2, -0.3, 0.0]) / dst_fps, atol=2e-6)
 
 
+@pytest.mark.parametrize("src_fps, dst_fps, start, stop, context", [(60.0, 30.0, 31, 91, 4), (30.0, 60.0, 20, 50, 2),
+                                                                    (59.94, 30.0, 50, 110, 2), (30.0, 30.0, 12, 40, 2),
+                                                                    (120.0, 24.0, 100, 220, 5)])
+def test_context_frames_either_side_leave_the_written_frames_those_of_the_range(src_fps, dst_fps, start, stop,
+                                                                                 context):
+    """A method's context (psd's rates) deforms source frames before and after --frames START:STOP, not written:
+    after --fps the written frames are those of the range alone (same times, same poses), the lead and tail the
+    output frames before and after them (`written` drops both); none before a motion's first frame or after its
+    last, and no word said of them."""
+    from core.motion import preroll, written
+
+    m = _spinning_motion(src_fps, int(round(4 * src_fps)))
+    plain = resample(select_frames(m, start, stop), dst_fps)
+    ctx = resample(preroll(m, start, stop, 0, context=(context, context)), dst_fps)
+    assert ctx.n_lead == int(np.floor(context / src_fps * dst_fps + 1e-6)) and ctx.n_tail >= 1
+    assert ctx.n_written == plain.n_frames == ctx.n_frames - ctx.n_lead - ctx.n_tail
+    shown = written(ctx)
+    assert (shown.n_lead, shown.n_tail, shown.n_frames) == (0, 0, plain.n_frames)
+    np.testing.assert_allclose(shown.trans, plain.trans, atol=2e-6)
+    np.testing.assert_allclose(axis_angle_to_matrix(shown.poses[:, 1]), axis_angle_to_matrix(plain.poses[:, 1]),
+                               atol=2e-6)
+    at_ends = preroll(m, 0, None, 0, context=(context, context))
+    assert (at_ends.n_lead, at_ends.n_tail, at_ends.n_frames) == (0, 0, m.n_frames)
+    assert preroll(m, 3, 20, 4, context=(2, 2)).n_lead == 3  # the --preroll asked for, if longer (and clipped)
+    assert preroll(m, 1, -1, 0, context=(2, 2)).n_tail == 1  # clipped at the last frame
+
+
 def test_preroll_is_clipped_at_the_motion_start_and_excludes_settle():
     from core.motion import preroll
 

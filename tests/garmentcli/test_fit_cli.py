@@ -183,3 +183,45 @@ def test_fit_with_no_ridge_on_too_few_frames_is_one_line(setup, tmp_path):
     assert r.exit_code != 0 and "Traceback" not in r.output and not isinstance(r.exception, np.linalg.LinAlgError)
     assert "--ridge" in r.output and "24 training frames" in r.output
     assert not (tmp_path / "r0.npz").exists()
+
+
+def test_psd_frames_of_a_range_and_of_parts_are_the_whole_motions(setup, fitted):
+    """psd's blend shapes read each frame's joint rates and root acceleration from the frames around it: a
+    --frames range deforms FEATURE_CONTEXT_FRAMES source frames either side (not written), so its frames are the
+    whole motion's (at the range's ends they were one-sided differences, up to 3 cm off), and a motion baked in
+    two parts has no seam; where the range reaches the motion's ends there is nothing to add. The context is
+    counted in output frames: at --fps 30 from 60, twice as many source frames."""
+    from core.psd import FEATURE_CONTEXT_FRAMES
+    from formats.sequence import read_sequence
+
+    root, data, body, garment = setup
+    _, fit_path = fitted
+    write_motion(root / "parts.npz", n_frames=32, fps=60.0, seed=3)  # 16 frames at --fps 30
+    common = [garment, root / "parts.npz", "--method", "psd", "--fit", fit_path, "--body", body, "--fps", "30"]
+
+    def bake(name, *extra):
+        r = invoke(["bake", *common, *extra, "--out", root / "parts" / name])
+        assert r.exit_code == 0, r.output
+        summary = json.loads((root / "parts" / name / "a_parts" / "summary.json").read_text())
+        summary["said"] = r.output
+        return read_sequence(root / "parts" / name / "a_parts" / "a_parts.usd").points, summary
+
+    whole, _ = bake("whole")
+    first, s_first = bake("first", "--frames", "0:14")
+    second, s_second = bake("second", "--frames", "14:")
+    middle, s_middle = bake("middle", "--frames", "10:18")
+    np.testing.assert_allclose(np.concatenate([first, second]), whole, atol=1e-5)
+    np.testing.assert_allclose(middle, whole[5:9], atol=1e-5)
+    single, s_single = bake("single", "--frames", "10:12")
+    np.testing.assert_allclose(single, whole[5:6], atol=1e-5)
+    assert "a_parts: 1 frame at 30 fps" in s_single["said"]  # (was "1 frames")
+    assert (s_first["preroll_frames"], s_first["tail_frames"]) == (0, FEATURE_CONTEXT_FRAMES)  # output frames
+    assert (s_second["preroll_frames"], s_second["tail_frames"]) == (FEATURE_CONTEXT_FRAMES, 0)
+    assert s_middle["frames"] == 4 and s_middle["tail_frames"] == FEATURE_CONTEXT_FRAMES
+    # the context is what makes them agree: the one-sided ends of a range without it moved the cloth
+    from core.motion import preroll
+    from formats.motion import load_motion
+
+    motion = load_motion(str(root / "parts.npz"))
+    bare, ctx = preroll(motion, 5, 9, 0), preroll(motion, 5, 9, 0, context=(2, 2))
+    assert (bare.n_frames, ctx.n_frames, ctx.n_lead, ctx.n_tail, ctx.n_written) == (4, 8, 2, 2, 4)
