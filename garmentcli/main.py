@@ -2,25 +2,30 @@
 
 from __future__ import annotations
 
+import importlib
 import logging
 
 import click
 
-from garmentcli import (
-    attribute,
-    bake,
-    dataset,
-    examples,
-    fit,
-    info,
-    make_body,
-    metrics,
-    preprocess,
-    render,
-    tradeoff,
-    unpose,
-)
-from garmentcli import train as train_cmd
+#: The subcommands: name -> (their module under garmentcli, the line `garment --help` lists them by). A command's
+#: module is imported when the command is run or asked for its help: each pulls in torch, and importing all of
+#: them made `garment --help` and `--version` take 3.6-4.8 s. This is where the lines are written (given to each
+#: command as its short help once loaded).
+COMMANDS = {
+    "attribute": ("attribute", "Attribute the model's deformation at a frame to its inputs."),
+    "bake": ("bake", "Bake a garment over motions: USD, OBJ frames, summary.json."),
+    "dataset": ("dataset", "Simulate garments on motions and body shapes: a dataset."),
+    "examples": ("examples", "Write the example garments and motions."),
+    "fit": ("fit", "Fit a garment's own blend shapes (for bake --method psd)."),
+    "info": ("info", "Tell what bake reads in a file or folder, before any bake."),
+    "make-body": ("make_body", "Build the default SMPL-format body from anny."),
+    "metrics": ("metrics", "Compare predicted garment sequences with ground truth."),
+    "preprocess": ("preprocess", "Preprocess garments for the learned model (cached)."),
+    "render": ("render", "Render a baked sequence off-screen: PNG frames and MP4."),
+    "tradeoff": ("tradeoff", "Measure every method's speed against accuracy on a scene."),
+    "train": ("train", "Train the garment model on a simulator dataset."),
+    "unpose": ("unpose", "Move a garment authored in another pose to the rest pose."),
+}
 
 
 #: An error line's word (a value between spaces) longer than this is shortened to its ends: no file path of a
@@ -65,7 +70,7 @@ class _Group(click.Group):
                                                                    and a.endswith("="))), None)
         if empty is not None and not ctx.resilient_parsing:  # (shell completion parses what is typed so far)
             after = f" of '{args[empty][:-1]}'" if args[empty] else f" after '{args[empty - 1]}'" if empty else ""
-            command = f"{ctx.command_path} {args[0]}" if args and args[0] in self.commands else ctx.command_path
+            command = f"{ctx.command_path} {args[0]}" if args and args[0] in COMMANDS else ctx.command_path
             raise _OneLineUsageError(f"an empty argument{after}: expected a path or a value, got '' (see "
                                      f"'{command} --help')", None)
         try:
@@ -74,6 +79,23 @@ class _Group(click.Group):
             if isinstance(exc, getattr(click.exceptions, "NoArgsIsHelpError", ())):  # `garment` alone: its help
                 raise
             raise _OneLineUsageError(shortened(exc.format_message()), exc.ctx) from None
+
+    def list_commands(self, ctx) -> list[str]:
+        return sorted(set(COMMANDS) | set(self.commands))
+
+    def get_command(self, ctx, cmd_name: str):
+        """The command `cmd_name`, its module imported on first use (`COMMANDS`)."""
+        if cmd_name not in self.commands and cmd_name in COMMANDS:
+            module, line = COMMANDS[cmd_name]
+            command = getattr(importlib.import_module(f"garmentcli.{module}"), module)
+            command.short_help = line
+            self.add_command(command, cmd_name)
+        return self.commands.get(cmd_name)
+
+    def format_commands(self, ctx, formatter) -> None:
+        """The commands listed by their lines (`COMMANDS`), none imported."""
+        with formatter.section("Commands"):
+            formatter.write_dl([(name, COMMANDS[name][1]) for name in sorted(COMMANDS)])
 
     def invoke(self, ctx):
         try:
@@ -103,19 +125,9 @@ def cli(verbose: bool) -> None:
                         format="garment: %(levelname)s: %(message)s")
 
 
-cli.add_command(bake.bake)
-cli.add_command(dataset.dataset)
-cli.add_command(metrics.metrics)
-cli.add_command(render.render)
-cli.add_command(examples.examples)
-cli.add_command(make_body.make_body)
-cli.add_command(preprocess.preprocess)
-cli.add_command(train_cmd.train)
-cli.add_command(attribute.attribute)
-cli.add_command(tradeoff.tradeoff)
-cli.add_command(unpose.unpose)
-cli.add_command(fit.fit)
-cli.add_command(info.info)
+def all_commands() -> dict:
+    """Every subcommand by name, each module imported (tests, documentation)."""
+    return {name: cli.get_command(None, name) for name in cli.list_commands(None)}
 
 
 def main() -> None:
