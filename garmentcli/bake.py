@@ -533,11 +533,13 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         return lambda n, src_fps: _refuse_beyond_memory(garment, body, path, n, src_fps, fps,
                                                         min(BAKE_COPIES.values()), 1, settle_frames, not no_body)
 
-    context = FEATURE_CONTEXT_FRAMES if method == "psd" else 0  # (--quality auto chooses after: none there)
-    motions = [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames, body=body,
-                               check_frames=check_frames(m), motion_up=motion_up, context_frames=context, **part),
-                m, target)
-               for m, target, part in targets]
+    def prepared(context: int) -> list:  # context: the method's frames either side of --frames (psd's)
+        return [(prepare_motion(m, fps, frames, settle_frames, betas, source_fps, preroll_frames, body=body,
+                                check_frames=check_frames(m), motion_up=motion_up, context_frames=context, **part),
+                 m, target)
+                for m, target, part in targets]
+
+    motions = prepared(FEATURE_CONTEXT_FRAMES if method == "psd" else 0)
     choice, fallback = "", ""
     if quality == "auto":
         pick = _choose_quality(garment, body, [(mo, m) for (mo, _), m, _ in motions], model_path, calibration_path,
@@ -587,6 +589,12 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                         "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "
                         "such a motion measures them", ", ".join(f"'{m}'" for m in pick["outside_paths"]))
         explicit = False
+        if method == "psd" and frames:  # read again with psd's context frames, its warnings said once already
+            logging.disable(logging.WARNING)
+            try:
+                motions = prepared(FEATURE_CONTEXT_FRAMES)
+            finally:
+                logging.disable(logging.NOTSET)
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
     # LBS deforms each frame on its own: the frames before START unused. (psd's blend shapes read the joints' rates
     # and the root's acceleration, taken from the frames around each: its context frames, FEATURE_CONTEXT_FRAMES.)

@@ -1,6 +1,7 @@
 """`bake --quality auto`: LBS for a tight garment on a slow motion, the model for a loose one on a fast motion."""
 
 import json
+import logging
 
 import numpy as np
 import pytest
@@ -173,7 +174,7 @@ def test_budget_without_auto_and_model_without_calibration(auto_scene):
     assert "calibration" not in r.output and not s["out"].exists()
 
 
-def test_auto_with_a_fit_picks_it_where_it_is_expected_within_the_budget(auto_scene):
+def test_auto_with_a_fit_picks_it_where_it_is_expected_within_the_budget(auto_scene, caplog):
     """--fit makes the garment's blend shapes a candidate, expected at LBS's expected error times the share the
     fit kept on its held-out motions, at about LBS's cost: on the loose garment's fast motion (LBS over the
     budget) a fit that kept 30 % is chosen before the model; one that kept 95 % is not; another garment's fit
@@ -199,6 +200,15 @@ def test_auto_with_a_fit_picks_it_where_it_is_expected_within_the_budget(auto_sc
     lbs = next(c for c in summary["quality"]["candidates"] if c["config"] == "lbs")
     assert summary["quality"]["expected_mm"] == pytest.approx(0.3 * lbs["expected_mm"]) and lbs["expected_mm"] > 250
     assert summary["deformer"]["fit"]["rank"] == 2
+    # psd chosen for a --frames range: its context frames either side (`core.psd.FEATURE_CONTEXT_FRAMES`) as with
+    # --method psd, the motion read again for them without saying its warnings twice
+    with caplog.at_level(logging.WARNING):
+        r = _auto(s, "loose.obj", "fast.npz", "--budget-mm", 250, "--fit", s["dir"] / "good.psd.npz", "--frames",
+                  "2:5", "--betas", "6", "--overwrite")
+    assert r.exit_code == 0, r.output
+    assert sum("beta 0 is 6, beyond the" in m for m in caplog.messages) == 1, caplog.messages
+    summary = json.loads((s["out"] / "loose_fast" / "summary.json").read_text())
+    assert (summary["method"], summary["frames"], summary["preroll_frames"], summary["tail_frames"]) == ("psd", 3, 2, 2)
     r = _auto(s, "loose.obj", "fast.npz", "--budget-mm", 250, "--fit", s["dir"] / "poor.psd.npz", "--overwrite")
     assert r.exit_code == 0, r.output
     assert json.loads((s["out"] / "loose_fast" / "summary.json").read_text())["method"] == "model"
