@@ -28,6 +28,7 @@ from formats.atomic import atomic_dir
 from formats.pointcache import POINT_CACHE_FORMATS
 from garmentcli.common import (
     counted,
+    warned_already,
     FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,
@@ -589,12 +590,9 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                         "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "
                         "such a motion measures them", ", ".join(f"'{m}'" for m in pick["outside_paths"]))
         explicit = False
-        if method == "psd" and frames:  # read again with psd's context frames, its warnings said once already
-            logging.disable(logging.WARNING)
-            try:
+        if method == "psd" and frames:  # read again with psd's context frames
+            with warned_already():
                 motions = prepared(FEATURE_CONTEXT_FRAMES)
-            finally:
-                logging.disable(logging.NOTSET)
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
     # LBS deforms each frame on its own: the frames before START unused. (psd's blend shapes read the joints' rates
     # and the root's acceleration, taken from the frames around each: its context frames, FEATURE_CONTEXT_FRAMES.)

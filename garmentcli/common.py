@@ -285,6 +285,16 @@ def collected_warnings():
         root.removeHandler(handler)
 
 
+@contextmanager
+def warned_already():
+    """Warnings off within: inputs read again (and warned about when first read) say them once."""
+    logging.disable(logging.WARNING)
+    try:
+        yield
+    finally:
+        logging.disable(logging.NOTSET)
+
+
 def counted(n: int, noun: str) -> str:
     """'1 frame', '2 frames', '1,000 frames': `n` with `noun`, plural but for one."""
     return f"{n:,} {noun}{'' if n == 1 else 's'}"

@@ -51,6 +51,7 @@ from garmentcli.common import (
     option_file,
     FiniteFloatRange,
     MAX_FPS,
+    warned_already,
 )
 
 COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "seconds_prepare", "peak_memory_mb",
@@ -211,10 +212,19 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     body = load_body_option(body_path)
     models = _models_for_body(models, body)
     rows = configurations(models, spread=spread, fits=fits)
-    motion, _ = prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body,
-                               check_frames=lambda n, src_fps: _refuse_beyond_memory(len(rows), garment, body, n,
-                                                                                     src_fps, fps, motion_path),
-                               motion_up=motion_up, person=person, take=take)
+    def prepared(context: int = 0):
+        return prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body,
+                              check_frames=lambda n, src_fps: _refuse_beyond_memory(len(rows), garment, body, n,
+                                                                                    src_fps, fps, motion_path),
+                              motion_up=motion_up, person=person, take=take, context_frames=context)[0]
+
+    motion = prepared()
+    psd_motion = motion  # the psd rows' (their context frames either side of --frames, as bake's)
+    if fits and frames:
+        from core.psd import FEATURE_CONTEXT_FRAMES
+
+        with warned_already():
+            psd_motion = prepared(FEATURE_CONTEXT_FRAMES)
     from formats.cache import default_cache_dir
 
     scene = simulation_scene(garment, body, motion)
@@ -230,8 +240,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
                 reused.append(config.name)
                 continue
         try:
-            results.append(measure(config, garment, body, motion, repeats, cache_dir=default_cache_dir(),
-                                   device=device))
+            results.append(measure(config, garment, body, psd_motion if config.method == "psd" else motion, repeats,
+                                   cache_dir=default_cache_dir(), device=device))
             if key is not None:
                 staged.mkdir(parents=True, exist_ok=True)
                 save_simulation(staged / sim_file_name(config), results[-1], key, garment.faces, motion.fps)

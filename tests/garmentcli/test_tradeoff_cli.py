@@ -191,7 +191,8 @@ def _fake_measure(fail, error=None):
     def measure(config, garment, body, motion, repeats=3, cache_dir=None, device=None):
         if fail(config):
             raise error or SimulationError(f"sim: frame 3 of motion '{motion.name}' failed after 3 tries")
-        pts = LBSDeformer().deform(garment, body, motion)[motion.n_lead:] + (0.0 if config.reference else 0.01)
+        pts = LBSDeformer().deform(garment, body, motion)[motion.n_lead:motion.n_lead + motion.n_written]
+        pts = pts + (0.0 if config.reference else 0.01)
         retries = [{"frame": 1, "tries": 2, "kept_substeps": 20}] if config.name == "sim 10 substeps" else []
         return Measurement(config, pts, 1.0 if config.method == "sim" else 0.01, 0.0, 0.0, 1, retries=retries)
 
@@ -378,10 +379,22 @@ def test_a_fit_is_a_psd_row_left_out_of_the_calibration(scene, monkeypatch, tmp_
     psd = make_deformer(Config("psd mine", "psd", {"path": str(fit)}))
     np.testing.assert_allclose(psd.deform(garment, body, motion), LBSDeformer().deform(garment, body, motion),
                                atol=1e-5)
-    monkeypatch.setattr(garmentcli.tradeoff, "measure", _fake_measure(lambda c: False))
+    fake, given = _fake_measure(lambda c: False), {}
+
+    def measure(config, garment, body, motion, *args, **kwargs):  # the motion each row deforms
+        given[config.method] = motion
+        return fake(config, garment, body, motion, *args, **kwargs)
+
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", measure)
     base = ["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--frames", "0:4"]
     r = invoke([*base, "--fit", f"mine={fit}", "--out", scene["out"], "--calibrate", tmp_path / "cal.json"])
     assert r.exit_code == 0, r.output
+    # the psd row's motion has its context frames after --frames (psd's rates, as bake's), the others' none; at
+    # --fps 30 from 60 fps, 2 output frames of 4 source frames
+    from core.psd import FEATURE_CONTEXT_FRAMES
+
+    assert (given["psd"].n_tail, given["psd"].n_written) == (FEATURE_CONTEXT_FRAMES, given["lbs"].n_written)
+    assert given["lbs"].n_tail == given["model"].n_tail == given["sim"].n_tail == 0
     rows = [row["config"] for row in csv.DictReader(open(scene["out"] / "shell_walk" / "tradeoff.csv"))]
     assert rows[:3] == ["lbs", "lbs +strain-limit 1.5", "psd mine"]
     cal = json.loads((tmp_path / "cal.json").read_text())
