@@ -12,6 +12,7 @@ from garmentcli.common import (
     OutputPath,
     body_option,
     check_dataset_body,
+    counted,
     input_errors_as_click,
     load_body_option,
     require_file,
@@ -95,16 +96,39 @@ def fit(garment_path, data_dir, out_path, rank, ridge, body_path, overwrite):
     psd, lbs = PSDDeformer(result), LBSDeformer()  # each binds the garment once, for every split
     for split in ("val", "test"):
         if splits[split]:
-            e = [[float(np.linalg.norm(d.deform(garment, body, motion) - gt, axis=-1).mean() * 1e3)
-                  for d in (psd, lbs)] for motion, gt in splits[split]]
-            errors[split] = {"sequences": len(e), "psd_mm": float(np.mean([a for a, _ in e])),
-                             "lbs_mm": float(np.mean([b for _, b in e]))}
-    result.meta.update({"data": str(data), "garment": names[0], "errors": errors})
+            e = {motion.name: [float(np.linalg.norm(d.deform(garment, body, motion) - gt, axis=-1).mean() * 1e3)
+                               for d in (psd, lbs)] for motion, gt in splits[split]}
+            errors[split] = {"sequences": len(e), "psd_mm": float(np.mean([a for a, _ in e.values()])),
+                             "lbs_mm": float(np.mean([b for _, b in e.values()])),
+                             # the motions the fit does not carry over to (a split's mean can hide them)
+                             "worse_than_lbs": {k: {"psd_mm": a, "lbs_mm": b} for k, (a, b) in e.items() if a > b}}
+    result.meta.update({"data": str(data.resolve()), "garment": names[0], "errors": errors})
     save_fit(out, result)
-    measured = "; ".join(f"{split} ({v['sequences']} sequences): {v['psd_mm']:.1f} mm from the simulator, LBS "
-                         f"{v['lbs_mm']:.1f} mm" + (" (worse than LBS: the fit does not carry over to these motions; "
-                                                   "fit on more of them, or a larger --ridge)"
-                                                   if v["psd_mm"] > v["lbs_mm"] else "")
+    measured = "; ".join(f"{split} ({counted(v['sequences'], 'sequence')}): {v['psd_mm']:.1f} mm from the "
+                         f"simulator, LBS {v['lbs_mm']:.1f} mm" + _worse(v, ridge)
                          for split, v in errors.items()) or "no validation sequences yet"
-    click.echo(f"{out}: {result.rank} blend shapes of '{source.name}' fitted to {result.meta['sequences']} "
-               f"sequences ({result.meta['frames']} frames) of '{data}'; {measured}")
+    asked = rank or DEFAULT_RANK
+    cut = (f" (--rank {asked} asked: at most one fewer than the {result.meta['frames']} training frames)"
+           if result.rank < asked else "")
+    click.echo(f"{out}: {counted(result.rank, 'blend shape')}{cut} of '{source.name}' fitted to "
+               f"{counted(result.meta['sequences'], 'sequence')} ({result.meta['frames']} frames) of '{data}'; "
+               f"{measured}")
+
+
+#: `fit` advises a larger --ridge where the fit came out worse than LBS only below this (at 1e12 the fit is the
+#: mean offset alone, and a larger one was still advised).
+RIDGE_ADVICE_MAX = 1e6
+
+
+def _worse(errors: dict, ridge: float) -> str:
+    """What `fit` says of a split's motions worse than LBS (`errors`: a split's record) fitted at --ridge `ridge`,
+    or ''."""
+    worse = errors["worse_than_lbs"]
+    if not worse:
+        return ""
+    # a ridge far above the frames' own weight leaves the mean offset alone: a larger one changes nothing
+    advice = "fit on more of them" + (", or a larger --ridge" if ridge < RIDGE_ADVICE_MAX else "")
+    listed = ", ".join(f"'{k}' {v['psd_mm']:.1f} against {v['lbs_mm']:.1f} mm" for k, v in list(worse.items())[:3])
+    more = f" and {len(worse) - 3} more" if len(worse) > 3 else ""
+    return (f" (worse than LBS on {counted(len(worse), 'motion')}: {listed}{more}: the fit does not carry "
+            f"over to these motions; {advice})")

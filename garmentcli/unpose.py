@@ -241,7 +241,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         written_back = read_garment(out)
         if written_back.n_vertices == rest.n_vertices:
             report["reposed_max_error_m"] = baked_back_error(written_back, body, pose, betas, garment.vertices)
-    target = "the rest pose" + (" and mean shape" if betas is not None else "")
+    shaped = betas is not None and bool(np.any(np.asarray(betas) != 0))  # (a pose file's zero betas take none off)
+    target = "the rest pose" + (" and mean shape" if shaped else "")
     moved = f"moved to {target} from {what}" if pose_spec != "tpose" or betas is not None else moved_by
     written = rest.n_vertices if garment.source is None else len(garment.source.vertex_of)  # the file's, unwelded
     click.echo(f"{out}: {written} vertices {moved} (largest move "

@@ -225,3 +225,26 @@ def test_psd_frames_of_a_range_and_of_parts_are_the_whole_motions(setup, fitted)
     motion = load_motion(str(root / "parts.npz"))
     bare, ctx = preroll(motion, 5, 9, 0), preroll(motion, 5, 9, 0, context=(2, 2))
     assert (bare.n_frames, ctx.n_frames, ctx.n_lead, ctx.n_tail, ctx.n_written) == (4, 8, 2, 2, 4)
+
+
+def test_fit_says_a_rank_it_cut_records_its_data_absolute_and_names_motions_worse_than_lbs(setup, tmp_path,
+                                                                                            monkeypatch):
+    """--rank above the training frames is cut, said (it was cut without a word); the fit records its data
+    folder resolved (a relative one meant nothing in a bake's summary.json elsewhere); the motions of a split worse
+    than LBS are named, even where the split's mean is better (the mean hid them); a larger --ridge is advised
+    only where it could change the fit."""
+    from garmentcli.fit import RIDGE_ADVICE_MAX, _worse
+
+    root, data, body, garment = setup
+    monkeypatch.chdir(data.parent)
+    r = invoke(["fit", garment, "--data", data.name, "--body", body, "--rank", "100", "--out", tmp_path / "f.npz"])
+    assert r.exit_code == 0, r.output
+    assert "23 blend shapes (--rank 100 asked: at most one fewer than the 24 training frames)" in r.output
+    assert load_fit(tmp_path / "f.npz").meta["data"] == str(data.resolve())
+    split = {"sequences": 3, "psd_mm": 10.0, "lbs_mm": 12.0,
+             "worse_than_lbs": {"kick": {"psd_mm": 15.04, "lbs_mm": 14.0}}}
+    said = (" (worse than LBS on 1 motion: 'kick' 15.0 against 14.0 mm: the fit does not carry over to these "
+            "motions; fit on more of them")
+    assert _worse(split, RIDGE_ADVICE_MAX * 10) == said + ")"  # at 1e12 a larger ridge was advised
+    assert _worse(split, 10.0) == said + ", or a larger --ridge)"
+    assert _worse({**split, "worse_than_lbs": {}}, 10.0) == ""

@@ -412,9 +412,12 @@ def test_a_pose_files_betas_are_not_taken_as_the_embedded_bodys_own(tmp_path):
                     tmp_path / f"{name}.obj"])
         assert r.exit_code == 0, r.output
         assert ("its betas were fitted to another body model" in r.output) == (name == "fitted")
+        # no shape taken off either way (zero betas were said to be: "and mean shape")
+        assert "moved to the rest pose from frame 0" in r.output and "mean shape from" not in r.output, r.output
         outs[name] = read_obj(tmp_path / f"{name}.obj").vertices
     np.testing.assert_array_equal(outs["fitted"], outs["plain"])
     r = invoke(["unpose", EXAMPLES / "skirt.obj", "--pose", tmp_path / "fitted.npz", "--betas", "2,1.5", "--out",
                 tmp_path / "given.obj"])
     assert r.exit_code == 0 and "fitted to another body model" not in r.output, r.output
+    assert "moved to the rest pose and mean shape from frame 0" in r.output
     assert np.abs(read_obj(tmp_path / "given.obj").vertices - outs["plain"]).max() > 1e-3
