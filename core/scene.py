@@ -8,13 +8,17 @@ show the work is useless), reported in `summary.json` under "scene", and can be 
   skinning sums (LBS: weights below `JOINT_WEIGHT_EPS` on every vertex, renormalised; the model:
   joints without transferred prior weight, whose learned weights are exactly zero by construction).
 - ``body-faces``: the simulator's body collider keeps only the body faces that come within
-  `BODY_REACH_M` of the garment's LBS preview in some frame (the cloth deviates from LBS by far less
-  than that); the rest of the body (the head, the far arm...) is never queried.
+  `BODY_REACH_M` of the garment's LBS preview in some frame, widened at each garment point by how far
+  the cloth there can hang or swing away from its LBS position (`swing_reach`: twice its distance along
+  the garment from the part that rests on the body); the rest of the body (the head, the far arm...)
+  is never queried. Only where that leaves out at least half the body (`BODY_FACES_MAX_SHARE`: a sleeve,
+  a cap, a belt).
 - ``self-contact``: cloth-cloth contact, when asked for, is switched off where no two garment points
   more than 10 cm apart along the rest surface (paper Eq. 6) come within `SELF_REACH_M` of each
   other in any frame of the LBS preview.
 - ``floor``: the simulator's ground (a plane at the lowest point the body reaches over the motion) is left
-  out where the garment's LBS preview stays more than `FLOOR_REACH_M` above it in every frame.
+  out where the garment's LBS preview, lowered at each point by its swing, stays more than `FLOOR_REACH_M`
+  above it in every frame.
 - ``levels``: the pooling levels a garment's size and looseness call for (`suggested_levels`);
   reported next to the levels of the model in use (a checkpoint's levels are fixed by its training:
   pass `--model` with a checkpoint of the suggested levels, see `garment tradeoff`).
@@ -39,8 +43,23 @@ SKIPS = ("joints", "body-faces", "self-contact", "floor")
 SKIP_METHODS = {"joints": ("lbs", "model"), "body-faces": ("sim",), "self-contact": ("sim",), "floor": ("sim",)}
 #: A joint whose LBS weight stays below this on every garment vertex is left out of its skinning.
 JOINT_WEIGHT_EPS = 1e-4
-#: Body faces further than this from the garment's LBS preview in every frame are left out of the collider.
+#: Body faces further than this from the garment's LBS preview in every frame (plus its swing, `swing_reach`)
+#: are left out of the collider.
 BODY_REACH_M = 0.15
+#: A garment vertex within this of the body (its nearest vertex) in the preview's first frame rests on the body:
+#: the simulated cloth there moves with it (`swing_reach`).
+ANCHOR_M = 0.03
+#: The cloth at a point can lie up to this many times its distance along the garment from the nearest resting
+#: vertex (`ANCHOR_M`) away from its LBS position: the simulated point within that distance of the anchor (the
+#: cloth hardly stretches), the LBS point within it again. BODY_REACH_M alone assumed far less: the audit of
+#: 2026-12-07 measured the simulated dress 18.8 cm from its LBS preview on the crouch (the collider had left out
+#: faces of the inner knee 4.9 mm from the cloth) and 38 cm on a high kick, a long skirt 72 cm on a deep bend.
+SWING_FACTOR = 2.0
+#: The collider is cut only where it keeps at most this share of the body's faces: a cut collider is open, which
+#: changes how Newton tells inside from outside for every contact (the audit's skirt walk moved 0.99 mm with
+#: the skip, 0.000 without it run twice), and keeping 40-60 % of the faces saved no time measured (0.82-1.02x,
+#: `benchmarks/results/scene_skips.md`): a sleeve, a cap or a belt keeps a fifth to a third.
+BODY_FACES_MAX_SHARE = 0.5
 #: Self-contact is needed when geodesically distant garment points come this close in the LBS preview.
 SELF_REACH_M = 0.05
 #: The ground is simulated where the garment's LBS preview comes within this of it in some frame (plus how far
@@ -112,28 +131,56 @@ def interpolation_slack_per_point(points: np.ndarray, frames: np.ndarray) -> np.
     return 0.5 * np.maximum(gaps[:-1], gaps[1:])
 
 
+#: Groups of garment points queried apart by `faces_in_reach` (each at its group's largest reach).
+REACH_GROUPS = 8
+
+
 def faces_in_reach(body_points: np.ndarray, body_faces: np.ndarray, garment_points: np.ndarray,
-                   reach=BODY_REACH_M) -> np.ndarray:
+                   reach=BODY_REACH_M, point_reach: np.ndarray | None = None) -> np.ndarray:
     """Indices of the body faces within `reach` of the garment in some frame.
 
     body_points: (T, Vb, 3); body_faces: (Fb, 3); garment_points: (T, V, 3), same frames, metres;
-    reach: metres, one for all, (T,) per frame or (T, Fb) per frame and face. A face counts when its centroid lies within
-    reach + its extent (the largest corner-to-centroid distance) of a garment point: conservative for
-    every point of the face.
+    reach: metres, one for all, (T,) per frame or (T, Fb) per frame and face; point_reach: (V,) metres more at
+    each garment point (finite), or None. A face counts when its centroid lies within reach + its extent (the
+    largest corner-to-centroid distance) of a garment point (+ that point's own reach): conservative for every
+    point of the face. The points are queried in up to REACH_GROUPS groups of similar reach, each at its largest.
     """
     keep = np.zeros(len(body_faces), dtype=bool)
     reach = np.asarray(reach, dtype=np.float64)
     reach = np.broadcast_to(reach[:, None] if reach.ndim == 1 else reach, (len(body_points), len(body_faces)))
+    if point_reach is None:
+        groups = [(np.arange(garment_points.shape[1]), 0.0)]
+    else:
+        edges = np.unique(np.quantile(point_reach, np.linspace(0.0, 1.0, REACH_GROUPS + 1)[1:]))
+        group = np.searchsorted(edges, point_reach)  # the first edge at or above each point's reach
+        groups = [(np.flatnonzero(group == k), float(edge)) for k, edge in enumerate(edges) if np.any(group == k)]
     for b, g, r in zip(body_points, garment_points, reach):
-        todo = np.flatnonzero(~keep)
-        if len(todo) == 0:
-            break
-        corners = b[body_faces[todo]]  # (F, 3, 3)
-        centroid = corners.mean(axis=1)
-        bound = r[todo] + np.linalg.norm(corners - centroid[:, None], axis=2).max(axis=1)
-        d, _ = cKDTree(g).query(centroid, distance_upper_bound=float(bound.max()))
-        keep[todo] = d <= bound
+        for points, more in groups:
+            todo = np.flatnonzero(~keep)
+            if len(todo) == 0:
+                return np.flatnonzero(keep)
+            corners = b[body_faces[todo]]  # (F, 3, 3)
+            centroid = corners.mean(axis=1)
+            bound = r[todo] + more + np.linalg.norm(corners - centroid[:, None], axis=2).max(axis=1)
+            d, _ = cKDTree(g[points]).query(centroid, distance_upper_bound=float(bound.max()))
+            keep[todo] = d <= bound
     return np.flatnonzero(keep)
+
+
+def swing_reach(garment: Garment, garment_points: np.ndarray, body_points: np.ndarray) -> np.ndarray:
+    """(V,) metres: how far the simulated cloth at each garment vertex can lie from its LBS position, taken as
+    SWING_FACTOR times its distance along the garment (`core.geodesic.geodesic_graph`) from the nearest vertex
+    that rests on the body (within ANCHOR_M of a body vertex in `garment_points` (V, 3) against `body_points`
+    (Vb, 3), one frame); inf where no part of the garment rests on the body (it can fall anywhere)."""
+    from scipy.sparse import csgraph
+
+    from core.geodesic import geodesic_graph
+
+    resting = np.flatnonzero(cKDTree(body_points).query(garment_points)[0] <= ANCHOR_M)
+    if len(resting) == 0:
+        return np.full(garment.n_vertices, np.inf)
+    along = csgraph.dijkstra(geodesic_graph(garment.vertices, garment.faces), indices=resting, min_only=True)
+    return SWING_FACTOR * np.asarray(along, dtype=np.float64)
 
 
 def distant_parts_meet(garment: Garment, garment_points: np.ndarray, reach=SELF_REACH_M) -> dict:
@@ -211,11 +258,19 @@ def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: n
     slack_v = interpolation_slack_per_point(body_points, frames)  # (F, Vb)
     slack_g = interpolation_slack_per_point(preview, np.arange(len(frames))).max(axis=1)  # (F,)
     faces = None
-    kept = faces_in_reach(body_points[frames], body_faces, preview,
-                          BODY_REACH_M + slack_g[:, None] + slack_v[:, body_faces].max(axis=2))
-    applied = len(kept) < len(body_faces)
-    analysis.record("body-faces", applied, reach_m=BODY_REACH_M, kept_faces=len(kept), body_faces=len(body_faces),
-                    frames_examined=len(frames))
+    swing = swing_reach(garment, preview[0], body_points[frames[0]])  # (V,) inf where nothing rests on the body
+    if np.all(np.isfinite(swing)):
+        kept = faces_in_reach(body_points[frames], body_faces, preview,
+                              BODY_REACH_M + slack_g[:, None] + slack_v[:, body_faces].max(axis=2), swing)
+        applied = len(kept) <= BODY_FACES_MAX_SHARE * len(body_faces)
+        more = {} if applied else {"reason": f"keeps over {BODY_FACES_MAX_SHARE:.0%} of the body's faces: the "
+                                             "collider whole (a cut one saved no time there)"}
+        analysis.record("body-faces", applied, reach_m=BODY_REACH_M, swing_max_m=round(float(swing.max()), 4),
+                        kept_faces=len(kept), body_faces=len(body_faces), frames_examined=len(frames), **more)
+    else:
+        applied = False
+        analysis.record("body-faces", False, reason=f"no part of the garment rests within {ANCHOR_M * 100:g} cm of "
+                        "the body: its cloth can fall anywhere")
     if applied and analysis.enabled("body-faces"):
         faces = kept
     contact = self_contact
@@ -224,8 +279,10 @@ def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: n
         # widens by the garment's slack.
         reach = SELF_REACH_M + (slack_g if len(frames) < len(body_points) else 0.0)
         meet = distant_parts_meet(garment, preview, reach)
+        # where they first meet, counted as the motion's frames (a negative one: in the simulator's lead-in)
         analysis.record("self-contact", not meet["meet"], reach_m=SELF_REACH_M,
-                        first_frame=None if meet["frame"] is None else int(frames[meet["frame"]]), pairs=meet["pairs"])
+                        first_frame=None if meet["frame"] is None else int(frames[meet["frame"]]) - motion_from,
+                        pairs=meet["pairs"])
         if not meet["meet"] and analysis.enabled("self-contact"):
             contact = False
     else:
@@ -233,8 +290,8 @@ def analyse_collisions(analysis: SceneAnalysis, garment: Garment, body_points: n
     lowest_body = body_points[..., 2].min(axis=1)  # (T,)
     ground = float(lowest_body[motion_from:].min())
     floor_z = np.minimum(lowest_body, ground)
-    if floor:
-        lowest = float((preview[..., 2].min(axis=1) - slack_g - floor_z[frames]).min())
+    if floor:  # the preview lowered by each point's swing (inf: the ground kept)
+        lowest = float(((preview[..., 2] - swing).min(axis=1) - slack_g - floor_z[frames]).min())
         not_reached = lowest > FLOOR_REACH_M
         analysis.record("floor", not_reached, reach_m=FLOOR_REACH_M, ground_z_m=ground,
                         lowered_in_lead_in_m=float(ground - floor_z.min()), garment_lowest_above_ground_m=lowest)

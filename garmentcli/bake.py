@@ -320,7 +320,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared, on
                     "take": spec.take, "take_read": motion.take,
                     "threads": spec.threads if spec.threads_fixed else "auto",
                     "strain_limit": strain_limit_of(spec.method, spec.strain),
-                    "point_caches": list(spec.point_caches)},
+                    "point_caches": list(spec.point_caches), "no_skip": sorted(spec.no_skip)},
         "software": software_versions("garment", "numpy", "scipy", "torch", "usd-core",
                                       *(("newton", "warp-lang") if spec.method == "sim" else ())),
         "warnings": [*dict(spec.warnings).get(str(motion_path), ()), *warned],

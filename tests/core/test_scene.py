@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import torch
+from scipy.spatial import cKDTree
 
 from core.deform import LBSDeformer
 from core.garment import Garment
@@ -18,6 +19,7 @@ from core.scene import (
     parse_no_skip,
     restrict_weights,
     suggested_levels,
+    swing_reach,
 )
 from tests.core.model_fixtures import tube
 from tests.meshes import grid, icosphere, tiny_body
@@ -99,6 +101,42 @@ def test_faces_in_reach_contains_every_face_within_reach_naive():
         assert np.linalg.norm(cen[:, None] - garment[t][None], axis=2).min() > reach
 
 
+def test_faces_in_reach_widened_per_garment_point_naive():
+    """A reach per garment point (the swing): a face is kept where it lies within the common reach plus that
+    point's own of some garment point (naive: every face against every point); the grouping by similar reach only
+    keeps more."""
+    bv, bf = icosphere(2, radius=0.3)
+    rng = np.random.default_rng(2)
+    garment = (bv[:60] * 1.3 + rng.normal(size=(60, 3)) * 0.01)[None]
+    more = rng.uniform(0.0, 0.2, 60)
+    kept = set(faces_in_reach(bv[None], bf, garment, 0.02, more).tolist())
+    a, b, c = (bv[bf[:, k]] for k in range(3))
+    exact = set()
+    for p, r in zip(garment[0], more):
+        closest = closest_point_on_triangles(np.broadcast_to(p, a.shape), a, b, c)[0]
+        exact |= set(np.flatnonzero(np.linalg.norm(closest - p, axis=1) <= 0.02 + r).tolist())
+    assert exact <= kept and len(kept) < len(bf)
+    plain = set(faces_in_reach(bv[None], bf, garment, 0.02).tolist())
+    assert plain < kept  # the swing kept faces the common reach alone left out
+
+
+def test_swing_reach_is_twice_the_distance_along_the_garment_from_where_it_rests_on_the_body():
+    """A 1 m strip whose first 20 cm lie 1 cm off a body: those rest (ANCHOR_M), the rest can swing SWING_FACTOR
+    times its distance along the strip from them; a strip resting nowhere can fall anywhere (inf)."""
+    from core.scene import ANCHOR_M, SWING_FACTOR
+
+    v, f = grid(20, 2, 1.0)  # vertices every 5 cm along x
+    v[:, 1] *= 0.1
+    strip = Garment(v.astype(np.float32), f)
+    xs, ys = np.meshgrid(np.linspace(0.0, 0.2, 41), [0.0, 0.05, 0.1])
+    body = np.stack([xs.ravel(), ys.ravel(), np.full(xs.size, -0.01)], axis=1)
+    got = swing_reach(strip, v, body)
+    resting = cKDTree(body).query(v)[0] <= ANCHOR_M
+    assert np.all(v[resting, 0] <= 0.2 + 1e-9) and np.all(got[resting] == 0.0)
+    np.testing.assert_allclose(got[~resting], SWING_FACTOR * (v[~resting, 0] - 0.2), atol=1e-9)
+    assert np.all(np.isinf(swing_reach(strip, v + [0.0, 0.0, 0.5], body)))
+
+
 def test_distant_parts_meet_on_a_folded_strip_only():
     v, f = grid(20, 2, 1.0)  # a 1 m x 0.1 m strip along x
     v[:, 1] *= 0.1
@@ -118,10 +156,12 @@ def test_distant_parts_meet_on_a_folded_strip_only():
     assert not distant_parts_meet(sub, folded[near_fold][None].astype(np.float32), 0.05)["meet"]
 
 
-def test_the_ground_is_the_motions_lowest_body_point_lowered_under_the_lead_in():
+def test_the_ground_is_the_motions_lowest_body_point_lowered_under_the_lead_in(monkeypatch):
     """analyse_collisions' ground: the lowest body point over the motion's frames (motion_from on); in a lead-in
-    frame whose body reaches lower, that frame's lowest point; kept where the garment's LBS preview comes within
-    FLOOR_REACH_M of it, skipped above, and left out with floor=False."""
+    frame whose body reaches lower, that frame's lowest point; kept where the garment's LBS preview, lowered by
+    its swing, comes within FLOOR_REACH_M of it, skipped above, and left out with floor=False. A garment that
+    rests nowhere on the body keeps the ground and every body face (its cloth can fall anywhere)."""
+    import core.scene
     from core.scene import FLOOR_REACH_M, analyse_collisions
 
     body = tiny_body()
@@ -138,7 +178,27 @@ def test_the_ground_is_the_motions_lowest_body_point_lowered_under_the_lead_in()
         transforms[t, :, 2, 3] = dz
     weights = np.full((len(v), body.n_joints), 1.0 / body.n_joints, np.float32)
     lowest_body = rest[:, 2].min() + lift
-    for gap, kept in ((0.5 * FLOOR_REACH_M, True), (2.0 * FLOOR_REACH_M, False)):
+    # A small ball floating inside the body: nothing of it rests on the body (5 cm from it at least)
+    ball = (v * 0.05 + [0.0, 0.0, lowest_body[lead_in:].min() + 0.05 + 0.05]).astype(np.float32)
+    loose = SceneAnalysis()
+    got = analyse_collisions(loose, Garment(ball, f), body_points, body_faces, ball, weights, transforms, False,
+                             motion_from=lead_in)
+    assert got.floor_z is not None and got.body_faces is None and not loose.report["body-faces"]["skipped_work"]
+    assert "rests within 3 cm" in loose.report["body-faces"]["reason"]
+    for swing in (0.0, FLOOR_REACH_M):  # a swing of 10 cm lowers the ball's reach by it
+        monkeypatch.setattr(core.scene, "swing_reach", lambda g, p, b: np.full(g.n_vertices, swing))
+        _ground_at_each_gap(FLOOR_REACH_M, swing, v, f, lowest_body, lead_in, body_points, body_faces, weights,
+                            transforms)
+    off = SceneAnalysis()
+    assert analyse_collisions(off, Garment(ball, f), body_points, body_faces, ball, weights, transforms, False,
+                              floor=False, motion_from=lead_in).floor_z is None
+    assert off.report["floor"] == {"skipped_work": False, "overridden": False, "reason": "floor none"}
+
+
+def _ground_at_each_gap(reach, swing, v, f, lowest_body, lead_in, body_points, body_faces, weights, transforms):
+    from core.scene import analyse_collisions
+
+    for gap, kept in ((swing + 0.5 * reach, True), (swing + 2.0 * reach, False)):
         # A small ball whose lowest point is `gap` above the ground in the motion's lowest frame.
         ball = (v * 0.05 + [0.0, 0.0, lowest_body[lead_in:].min() + 0.05 + gap]).astype(np.float32)
         garment = Garment(ball, f)
@@ -156,11 +216,7 @@ def test_the_ground_is_the_motions_lowest_body_point_lowered_under_the_lead_in()
             assert got.floor_z is None
         # The ball rides with the body, `gap` above the ground in every frame (the lead-in's lowered one too),
         # less the slack of half a 1 cm step.
-        assert rec["garment_lowest_above_ground_m"] == pytest.approx(gap - 0.005, abs=1e-4)
-    off = SceneAnalysis()
-    assert analyse_collisions(off, garment, body_points, body_faces, ball, weights, transforms, False,
-                              floor=False, motion_from=lead_in).floor_z is None
-    assert off.report["floor"] == {"skipped_work": False, "overridden": False, "reason": "floor none"}
+        assert rec["garment_lowest_above_ground_m"] == pytest.approx(gap - swing - 0.005, abs=1e-4)
 
 
 def _faces_within(f, keep):
@@ -196,3 +252,25 @@ def test_model_joint_skip_is_exact():
         b = model.forward_frames(*args, skip_joints=False).verts
     assert int((g.prior_weights > 0).any(0).sum()) < 24  # something is skipped
     assert torch.allclose(a, b, atol=1e-6)
+
+
+def test_self_contact_first_frame_is_counted_in_the_motions_frames():
+    """Where distant parts first meet is recorded as the motion's frame (it counted the simulator's lead-in frames
+    before it: 11 meant the motion's frame 0), negative within the lead-in."""
+    from core.scene import analyse_collisions
+
+    v, f = grid(20, 2, 1.0)  # a 1 m x 0.1 m strip along x
+    v[:, 1] *= 0.1
+    strip = Garment(v.astype(np.float32), f)
+    weights = np.zeros((len(v), 24), np.float32)
+    right = v[:, 0] > 0.5
+    weights[~right, 0], weights[right, 1] = 1.0, 1.0
+    body = tiny_body()
+    for lead_in, fold_at in ((3, 5), (3, 1)):
+        T = 8
+        transforms = np.tile(np.eye(4, dtype=np.float32), (T, 24, 1, 1))
+        transforms[fold_at:, 1, :3, 3] = [-0.5, 0.0, 0.03]  # the right half over the left, 3 cm above it
+        body_points = np.repeat((body.v_template + [0.0, 0.0, -5.0])[None], T, axis=0).astype(np.float32)
+        analysis = SceneAnalysis()
+        analyse_collisions(analysis, strip, body_points, body.faces, v, weights, transforms, True, motion_from=lead_in)
+        assert analysis.report["self-contact"]["first_frame"] == fold_at - lead_in

@@ -20,7 +20,7 @@ import pytest
 
 from core.errors import InputError
 from core.garment import Garment
-from core.motion import Motion
+from core.motion import Motion, select_frames
 from core.sim import (
     ClothSim,
     Material,
@@ -381,20 +381,28 @@ def test_scene_skips_leave_the_simulation_unchanged_and_are_reported():
     from tests.core.model_fixtures import tube
 
     body = tiny_body()
-    v, f = tube(16, 6, radius=(0.3, 0.3), y=(-0.35, 0.05))
+    v, f = tube(16, 6, radius=(0.27, 0.17), y=(-0.1, 0.1))  # 2 cm off the body's middle: it rests there
     garment = Garment(v.astype(np.float32), f, name="tube")
     _, _, motion = _shell_scene()
     options = SimOptions(settle_s=0.05, pin="none")
     d = SimDeformer(options=options)
     skipped = d.deform(garment, body, motion)
     faces = d.scene["body-faces"]
-    assert faces["skipped_work"] and 0 < faces["kept_faces"] < faces["body_faces"] == len(body.faces)
+    assert faces["skipped_work"] and 0 < faces["kept_faces"] <= 0.5 * faces["body_faces"] == 0.5 * len(body.faces)
     assert d.scene["self-contact"] == {"skipped_work": False, "overridden": False, "reason": "self-contact not requested"}
     d.skips = parse_no_skip(["all"])
     full = d.deform(garment, body, motion)
     assert d.scene["body-faces"]["overridden"] and not d.scene["body-faces"]["skipped_work"]
     assert np.abs(skipped - full).max() < 1e-4
-    # Self-contact asked for: the tube's sides are 60 cm apart and never meet, so contact is switched off.
+    # A longer tube, its cloth free to swing 48 cm from where it rests: the collider would keep over half the body,
+    # and stays whole; one 5 cm off the body everywhere rests nowhere: whole too
+    for radius, y, reason in (((0.27, 0.17), (-0.35, 0.05), "keeps over 50% of the body's faces"),
+                              ((0.3, 0.3), (-0.35, 0.05), "no part of the garment rests within 3 cm")):
+        v, f = tube(16, 6, radius=radius, y=y)
+        d = SimDeformer(options=options)
+        d.deform(Garment(v.astype(np.float32), f, name="tube"), body, select_frames(motion, 0, 2))
+        assert not d.scene["body-faces"]["skipped_work"] and reason in d.scene["body-faces"]["reason"]
+    # Self-contact asked for: the tube's sides are 34-54 cm apart and never meet, so contact is switched off.
     d = SimDeformer(options=dataclasses.replace(options, self_contact=True))
     d.deform(garment, body, motion)
     assert d.scene["self-contact"]["skipped_work"] and d.scene["self-contact"]["pairs"] == 0

@@ -267,8 +267,9 @@ def test_bake_reports_scene_skips_and_no_skip_overrides_them(scene):
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--no-obj",
              "--overwrite", "--no-skip", "joints"])
     assert r.exit_code == 0, r.output
-    joints = json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())["scene"]["joints"]
-    assert joints["overridden"] and not joints["skipped_work"]
+    summary = json.loads((scene["out"] / "shell_walk" / "summary.json").read_text())
+    assert summary["scene"]["joints"]["overridden"] and not summary["scene"]["joints"]["skipped_work"]
+    assert summary["options"]["no_skip"] == ["joints"]  # as asked, beside what it changed
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"],
              "--no-skip", "faces"])
     assert_one_line_error(r, "--no-skip", "faces")
