@@ -3,10 +3,9 @@
 `run_items(task, calls, names, ...)` calls `task(*args)` once per item and yields
 `(name, result)` as items finish, whichever engine runs them:
 
-- locally in this process (`workers=1`; the first exception propagates, as a
-  plain loop would), or in `workers` processes
-  (`concurrent.futures.ProcessPoolExecutor`; an item that raises is logged at
-  once and the others go on, as on a cluster);
+- locally in this process (`workers=1`), or in `workers` processes
+  (`concurrent.futures.ProcessPoolExecutor`, no more than the items); an item
+  that raises is logged at once and the others go on, as on a cluster;
 - on an existing `dask.distributed` cluster (`scheduler='tcp://host:port'`):
   one Dask task per item, resubmitted up to `retries` times when it raises
   (`Client.submit(..., retries=N)`); a worker process that dies is handled by the
@@ -44,7 +43,7 @@ class ItemsFailed(Exception):
     def __init__(self, failures: list[tuple[str, BaseException]], total: int):
         self.failures, self.total = failures, total
         name, exc = failures[0]
-        first = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
+        first = str(exc).splitlines()[0][:1000] if str(exc) else type(exc).__name__  # (its cause at the end kept)
         super().__init__(f"{len(failures)} of {total} items failed; first: '{name}': {type(exc).__name__}: {first}")
 
 
@@ -117,7 +116,9 @@ def _run_local(task, calls, names, workers: int):
         return
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(max_workers=workers, mp_context=pool_context(), initializer=_worker_unwinds) as pool:
+    # no more processes than items: a pool starts all of its processes at the first submit (forked: --workers
+    # 100000 forked thousands of copies of the command, for two motions)
+    with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=pool_context(), initializer=_worker_unwinds) as pool:
         try:  # from the first submit: a worker can start (and a SIGTERM come) before the last is made
             futures = {pool.submit(_unwound, task, *args): name for name, args in zip(names, calls)}
             for fut in as_completed(futures):
@@ -225,8 +226,12 @@ def _run_dask(client, task, calls, names, retries: int):
                 yield name, fut.result()
             fut.release()
     finally:
-        for _, f in futures.values():
-            if f.status == "pending":
-                f.cancel()
+        pending = [f for _, f in futures.values() if f.status == "pending"]
+        for f in pending:
+            f.cancel()
+        if pending:  # stopped (Ctrl-C, SIGTERM, the caller's error): a task a worker runs is not stopped by cancel
+            log.warning("%d of %d tasks unfinished on the cluster at the stop: those its workers had started go on "
+                        "and can still write their outputs (whole) after this run; wait for them before rerunning "
+                        "with --overwrite", len(pending), len(futures))
     if failures:
         raise ItemsFailed(failures, len(calls))

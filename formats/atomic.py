@@ -91,12 +91,16 @@ def _written(path: Path):
         raise out_of_room(path, exc) from None
 
 
+class OutOfRoom(InputError):
+    """A write that ran out of room (`out_of_room`): a batch stops at it (the next outputs would not fit either)."""
+
+
 def out_of_room(path, exc: OSError) -> InputError:
     """The one line of a write to `path` (None: unknown) that ran out of room, with the space left there."""
     free = None if path is None else free_space(path)
     left = "" if free is None else f"; {size_text(free)} free on its file system"
     what = "the outputs" if path is None else f"output '{path}'"
-    return InputError(f"{what}: could not be written ({exc.strerror or exc}{left})")
+    return OutOfRoom(f"{what}: could not be written ({exc.strerror or exc}{left})")
 
 
 def _host() -> str:
@@ -106,6 +110,28 @@ def _host() -> str:
 def _owner() -> str:
     """This process as the temporary names it writes say it ('host@pid'), for `_sweep`."""
     return f"{_host()}@{os.getpid()}"
+
+
+def _temporary_extra() -> int:
+    """Characters of a temporary name beside an output's own (`atomic_dir`'s ".NAME.HOST@PID.XXXXXXXX.partial" and
+    `_swap_in`'s ".NAME.HOST@PID.XXXXXXXX.partial.old"), taken at a pid of 10 digits."""
+    return len(f"..{_host()}@{'9' * 10}.{'x' * 8}.partial.old")
+
+
+def check_name_fits(final: str | os.PathLike) -> None:
+    """InputError where the output `final`, or the hidden temporary name it is written under first, is longer than
+    its file system takes (NAME_MAX, 255 on most): said before any work (a motion's 225-character name failed with
+    'File name too long' after it had been baked)."""
+    final = Path(os.path.abspath(final))
+    try:
+        limit = os.pathconf(nearest_existing(final.parent), "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    most = limit - _temporary_extra()
+    if len(final.name.encode()) > most:
+        raise InputError(f"output '{final}': its name is {len(final.name.encode())} bytes long, at most {most} fit "
+                         f"there (its file system takes names of {limit}, and the output is written under a longer "
+                         "hidden name first): shorten the file names it is made of, or rename the input")
 
 
 def _sweep(folder: Path, name: str) -> None:
@@ -210,6 +236,7 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool, inputs=()):
     if final.exists() and not overwrite:
         raise InputError(f"output '{final}' exists: pass --overwrite to replace it")
     refuse_replacing(final, inputs)
+    check_name_fits(final)
     with _writing(final):
         final.parent.mkdir(parents=True, exist_ok=True)
         _sweep(final.parent, final.name)

@@ -17,6 +17,7 @@ from tqdm import tqdm
 from core.bake import bake_item
 from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
+from core.errors import InputError
 from core.motion import parse_frame_range
 from core.provenance import file_sha256, software_versions
 from core.psd import FEATURE_CONTEXT_FRAMES
@@ -62,6 +63,7 @@ from garmentcli.common import (
     option_file,
     option_given,
     MAX_FPS,
+    MAX_WORKERS,
     MAX_SOLVER_STEPS,
     MAX_START_FRAME,
 )
@@ -448,9 +450,9 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
 @click.option("--overwrite", is_flag=True, help="Replace existing output directories.")
 @click.option("--skip-existing", is_flag=True,
               help="Leave motions whose output directory exists and bake the others (resume a batch).")
-@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Local processes baking motions side by side (each prepares the garment and loads the method "
-                   "once; the cores are shared out among them).")
+@click.option("--workers", type=click.IntRange(1, MAX_WORKERS), default=1, show_default=True,
+              help="Local processes baking motions side by side, 1 to 256, no more started than there are motions "
+                   "(each prepares the garment and loads the method once; the cores are shared out among them).")
 @click.option("--threads", default=None, metavar="N|auto",
               help="CPU threads of torch's work in each process (the model's network) [default: auto: chosen while "
                    "the model bakes, from a thread per core, or the cores shared out among --workers]. N: that many "
@@ -474,7 +476,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
 
     Writes OUT/<garment>_<motion>/ with <garment>_<motion>.usd (garment and body,
     time-sampled, Z-up, metres), obj/frame_NNNN.obj and summary.json. Motions of one file name in different
-    folders are told apart by their folders' names (<garment>_<folder>_<motion>).
+    folders are told apart by their folders' names (<garment>_<folder>_<motion>), files of one stem in one folder
+    by their suffixes (`motion_names`).
     """
     from formats.obj import read_garment
 
@@ -507,6 +510,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     targets = [(m, out_dir / f"{Path(garment_path).stem}_{name}{suffix}", part)
                for m, name in zip(motion_paths, motion_names(motion_paths))
                for part, suffix in motion_parts(m, person, take)]
+    _refuse_shared_targets(targets)
     if overwrite and skip_existing:
         raise click.UsageError("--overwrite and --skip-existing exclude each other")
     check_retries(scheduler)
@@ -516,6 +520,14 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             raise click.ClickException(f"output '{other}' exists and is no finished bake (no summary.json in it): "
                                        f"remove it, or pass --overwrite instead of --skip-existing")
         done = [t for _, t, _ in targets if t.exists()]
+        asked = {"method": f"--quality {quality}" if quality else f"--method {method}", "fps": fps, "frames": frames,
+                 "preroll": preroll_frames, "settle": settle_frames, "betas": betas, "start_frame": start_frame,
+                 "garment": garment.content_hash()}
+        for t in done:
+            otherwise = _baked_otherwise(t, asked)
+            if otherwise:
+                raise click.ClickException(f"output '{t}' was baked with {otherwise}: pass --overwrite to bake "
+                                           "it again, or that bake's options to resume it")
         targets = [item for item in targets if not item[1].exists()]
         click.echo(f"{out_dir}: {len(done)} of {len(done) + len(targets)} motions already baked, skipped")
         if not targets:
@@ -586,9 +598,11 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             click.echo(f"quality auto: {', '.join(replaced)} replaced by the configuration chosen ({pick['config']}; "
                        "--method sim keeps yours)", err=True)
         if pick["outside_motions"]:
-            log.warning("--quality auto: motion %s beyond the calibration's scenes: expected errors there are "
+            outside = pick["outside_paths"]
+            log.warning("--quality auto: %s %s beyond the calibration's scenes: expected errors there are "
                         "extrapolated (the learned methods taken as no better than lbs); `garment tradeoff` on "
-                        "such a motion measures them", ", ".join(f"'{m}'" for m in pick["outside_paths"]))
+                        "such a motion measures them", "motion" if len(outside) == 1 else "motions",
+                        ", ".join(f"'{m}'" for m in outside) + (" is" if len(outside) == 1 else " are"))
         explicit = False
         if method == "psd" and frames:  # read again with psd's context frames
             with warned_already():
@@ -638,7 +652,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     deformer.prepare(garment, body, source=garment_path)  # once for all motions; validates the pair
     spec = replace(spec, warnings=_warnings_of(warned, [m for _, m, _ in motions]))
     t_start = time.perf_counter()
-    total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)
+    total_frames = sum(mo.n_frames for (mo, _), _, _ in motions)  # deformed (the bar's)
+    written_frames = sum(mo.n_written for (mo, _), _, _ in motions)  # without --preroll's and psd's context
     if workers > 1 and len(motions) == 1 and not scheduler:
         click.echo(f"note: --workers {workers}: one motion, baked in this process (the workers share out motions)",
                    err=True)
@@ -646,7 +661,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         if not scheduler and not spec.threads_fixed:
             spec = replace(spec, threads=max(1, (os.cpu_count() or 1) // min(workers, len(motions))))
         _bake_in_workers(spec, motions, scheduler, retries, workers)
-        _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
+        _echo_throughput(written_frames, len(motions), time.perf_counter() - t_start)
         return
     _CONTEXT.clear()
     _CONTEXT[spec] = (garment, body, deformer)
@@ -667,7 +682,54 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         finally:
             _CONTEXT.clear()
             deformer.on_frames = None
-    _echo_throughput(total_frames, len(motions), time.perf_counter() - t_start)
+    _echo_throughput(written_frames, len(motions), time.perf_counter() - t_start)
+
+
+def _refuse_shared_targets(targets) -> None:
+    """Refuse, before any work, two motions (or two parts of one: --person all, --take all) that would be written
+    to one output (`motion_names` tells files apart; a part's suffix can meet another file's name), and an output
+    whose name its file system cannot take (`formats.atomic.check_name_fits`). targets: [(motion path, output,
+    part)]."""
+    from formats.atomic import check_name_fits
+
+    seen: dict = {}
+    for motion, target, part in targets:
+        check_name_fits(target)
+        first = seen.setdefault(target, (motion, part))
+        if first != (motion, part):
+            raise click.ClickException(f"motions '{first[0]}' and '{motion}' would both be written to '{target}': "
+                                       "rename one of them, or bake them into other --out folders")
+
+
+#: summary.json's record of each setting `--skip-existing` compares (`_baked_otherwise`): options' keys.
+_RESUMED_OPTIONS = {"fps": "--fps", "frames": "--frames", "preroll": "--preroll", "settle": "--settle",
+                    "betas": "--betas", "start_frame": "--start-frame"}
+
+
+def _baked_otherwise(target: Path, asked: dict) -> str:
+    """What the finished bake in `target` was made with other than `asked` (method: '--method M' or '--quality auto',
+    the options of `_RESUMED_OPTIONS`, garment: its content's sha256), as "--fps 30 (this run: 24)"; '' where the
+    same. A setting its summary.json does not record (a bake of an earlier version) is not compared."""
+    try:
+        summary = json.loads((target / "summary.json").read_text())
+        options = summary.get("options", {})
+        method = summary.get("method_fallback", {}).get("from") or summary["method"]  # what was asked
+        baked = {"method": "--quality auto" if "quality" in summary else f"--method {method}",
+                 "garment": summary.get("garment", {}).get("sha256"),
+                 **{k: options[k] for k in _RESUMED_OPTIONS if k in options}}
+    except (OSError, ValueError, KeyError, AttributeError, TypeError) as exc:
+        return f"a summary.json that cannot be read ({type(exc).__name__})"
+    for key, now in asked.items():
+        then = baked.get(key)
+        if key not in baked or then == now or then is None and key == "garment":
+            continue
+        if key == "method":
+            return f"{then} (this run: {now})"
+        if key == "garment":
+            return "a garment of other content (this run's garment file changed since)"
+        shown = lambda v: "left out" if v is None else f"{v:g}" if isinstance(v, float) else v  # noqa: E731
+        return f"{_RESUMED_OPTIONS[key]} {shown(then)} (this run: {shown(now)})"
+    return ""
 
 
 def _fix_threads(deformer, fixed: bool) -> None:
@@ -755,7 +817,7 @@ def _note_rest_start(frames: str | None, preroll_frames: int, motions: list, met
                 moving.append((speed, path))
     if moving:
         speed, path = max(moving)
-        others = f" (and {len(moving) - 1} more motions)" if len(moving) > 1 else ""
+        others = f" (and {counted(len(moving) - 1, 'more motion')})" if len(moving) > 1 else ""
         click.echo(f"note: motion '{path}'{others} moves at {speed:.1f} m/s from its first frame: {cloth} starts "
                    "at rest and trails the body for a few frames; `--frames K: --preroll K` leaves the first K source "
                    "frames out of the output", err=True)
@@ -907,16 +969,51 @@ def _choose_quality(garment, body, motions, model_path, calibration_path, budget
 
 
 def _bake_locally(spec: BakeSpec, motions, bar, ticked, method: str, fps: float) -> None:
+    """Each motion in turn in this process; one that fails is said at once and the others go on, as on workers
+    (`_failed`); a write out of room stops the batch."""
+    from formats.atomic import OutOfRoom
+
+    failures = []
     for prepared, motion_path, target in motions:
         ticked[0] = 0
         try:
             with _writing_bar(prepared[0].n_frames if spec.write_obj else 0) as on_written:
                 summary = bake_task(spec, motion_path, target, prepared, on_written)
-        except FloatingPointError as exc:
-            raise click.ClickException(f"bake of '{motion_path}': {exc}") from None
-        bar.update(prepared[0].n_frames - ticked[0])
-        if summary is not None:
+        except OutOfRoom:
+            raise
+        except (InputError, FloatingPointError) as exc:
+            if len(motions) == 1:
+                if isinstance(exc, InputError):
+                    raise
+                raise click.ClickException(_failed([(motion_path, exc)], 1)) from None
+            click.echo(f"error: bake of '{motion_path}': {_cause(exc)}", err=True)
+            failures.append((motion_path, exc))
+            continue
+        finally:
+            bar.update(prepared[0].n_frames - ticked[0])
+        if summary is None:  # its output was checked not to be there before the batch
+            click.echo(f"{target}: written by another run while this one worked, left as it is", err=True)
+        else:
             _echo_done(target, summary, method, fps)
+    if failures:
+        raise click.ClickException(_failed(failures, len(motions)))
+
+
+def _cause(exc: BaseException) -> str:
+    """An exception's first line, its type named where it is none of ours (a worker's OSError, a bug's)."""
+    line = str(exc).splitlines()[0] if str(exc) else ""
+    ours = isinstance(exc, (InputError, FloatingPointError))  # (the simulator's divergence: a sentence)
+    return line if ours and line else f"{type(exc).__name__}: {line}".rstrip(": ")
+
+
+def _failed(failures: list, total: int) -> str:
+    """The error line of a batch whose motions `failures` [(motion path, exception)] failed, of `total`."""
+    path, exc = failures[0]
+    if total == 1:
+        return f"bake of '{path}': {_cause(exc)}"
+    more = f" (and {counted(len(failures) - 1, 'other')})" if len(failures) > 1 else ""
+    return (f"bake: {len(failures)} of {total} motions failed, the others are written; '{path}'{more}: "
+            f"{_cause(exc)}; rerun with --skip-existing to bake what failed")
 
 
 @contextmanager
@@ -959,7 +1056,9 @@ def _bake_in_workers(spec: BakeSpec, motions, scheduler: str | None, retries: in
                 if summary is not None:
                     _echo_done(target_of[name], summary, spec.method, spec.fps)
     except ItemsFailed as exc:
-        raise click.ClickException(f"bake: {exc}; rerun with --skip-existing to resume") from None
+        motion_of = {target.name: m for _, m, target in motions}
+        raise click.ClickException(_failed([(motion_of.get(name, name), e) for name, e in exc.failures],
+                                           exc.total)) from None
     finally:
         if client is not None:
             client.close()

@@ -206,16 +206,29 @@ def _holds_poses(path: Path) -> bool:
 
 
 def motion_names(paths) -> list[str]:
-    """A distinct name per motion file, for output directories and dataset items: its stem, and for files that
-    share one, the stem after as many of their folders' names as tell them apart
-    (a/walk.npz, b/walk.npz -> a_walk, b_walk)."""
-    parts = [Path(p).resolve().with_suffix("").parts for p in paths]
-    names = [Path(p).stem for p in paths]
-    for depth in range(2, max((len(q) for q in parts), default=0) + 1):
-        clashing = {n for n in names if names.count(n) > 1}
-        if not clashing:
+    """A distinct name per motion file (paths of distinct files), for output directories and dataset items: its
+    stem; for files of one stem in one folder, the stem and the suffix (walk.npz, walk.bvh -> walk_npz, walk_bvh);
+    for files of one name in different folders, the name after as many of their folders' names as tell them apart
+    (a/walk.npz, b/walk.npz -> a_walk, b_walk). A name that still meets another's (a/walk.npz's a_walk and a file
+    a_walk.npz) is numbered: a_walk_2."""
+    resolved = [Path(p).resolve() for p in paths]
+    bare = [r.with_suffix("") for r in resolved]
+    own = [r.stem + (f"_{r.suffix.lstrip('.')}" if bare.count(b) > 1 else "") for r, b in zip(resolved, bare)]
+    folders = [r.parent.parts[1:] for r in resolved]  # (the root left out)
+    names = list(own)
+    for depth in range(1, max((len(f) for f in folders), default=0) + 1):
+        clashing = [own.count(o) > 1 and names.count(n) > 1 for n, o in zip(names, own)]  # (files of one name)
+        if not any(clashing):
             break
-        names = ["_".join(q[-depth:]).lstrip("/") if n in clashing else n for n, q in zip(names, parts)]
+        names = ["_".join((*f[-depth:], o)) if c else n for n, o, f, c in zip(names, own, folders, clashing)]
+    taken: set[str] = set()
+    for i, name in enumerate(names):
+        k, unique = 1, name
+        while unique in taken:
+            k += 1
+            unique = f"{name}_{k}"
+        taken.add(unique)
+        names[i] = unique
     return names
 
 
@@ -724,6 +737,10 @@ def check_preroll(preroll_frames: int, frames: str | None, settle_frames: int = 
 #: Most --threads: far beyond any machine's cores (100000 killed the process as torch made them; 2**31
 #: overflowed torch's int).
 MAX_THREADS = 1024
+#: Most --workers (processes, each with torch and the garment loaded: far beyond any machine's memory for more;
+#: a pool of 100000 forked thousands of processes before its first item). The pool itself is never larger than
+#: the items it has (`core.distributed.run_items`).
+MAX_WORKERS = 256
 
 
 def thread_count(text: str | None) -> int | None:

@@ -13,6 +13,7 @@ from core.provenance import file_sha256, software_versions
 from garmentcli.common import (
     FLOOR_CHOICES,
     MAX_FPS,
+    MAX_WORKERS,
     FiniteFloatRange,
     OutputPath,
     FLOOR_HELP,
@@ -189,8 +190,9 @@ MAX_BODIES = 10000
 @body_option
 @click.option("--out", "out_dir", type=OutputPath(file_okay=False), default="garment_dataset", show_default=True,
               help="Dataset directory: garments/, sequences/ and manifest.json; a rerun resumes it.")
-@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Local processes simulating items side by side (the cores are shared out among them).")
+@click.option("--workers", type=click.IntRange(1, MAX_WORKERS), default=1, show_default=True,
+              help="Local processes simulating items side by side, 1 to 256, no more started than there are items "
+                   "(the cores are shared out among them).")
 @click.option("--fps", type=FiniteFloatRange(min=1.0, max=MAX_FPS), default=30.0, show_default=True,
               help="Frame rate of the simulated sequences (1 to 1000).")
 @source_fps_option

@@ -73,6 +73,62 @@ def test_local_processes_keep_going_past_a_failed_item(caplog, workers):
     assert "item 'i1' failed: ValueError: one is broken" in caplog.text
 
 
+def test_local_processes_are_no_more_than_the_items(monkeypatch):
+    """A pool starts all of its processes at the first submit: `bake --workers 100000` of two motions forked
+    thousands of copies of the command."""
+    import concurrent.futures
+
+    made = []
+    real = concurrent.futures.ProcessPoolExecutor
+
+    def recording(max_workers=None, **kw):
+        made.append(max_workers)
+        return real(max_workers=max_workers, **kw)
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", recording)
+    got = dict(run_items(_square_but_not_one, [(2,), (3,)], ["a", "b"], workers=64))
+    assert got == {"a": 4, "b": 9} and made == [2]
+
+
+class _Pending:
+    """A Dask future that never finishes (a task a worker runs)."""
+
+    def __init__(self, key):
+        self.key, self.status, self.cancelled = key, "pending", False
+
+    def cancel(self):
+        self.cancelled = True
+
+
+def test_a_stopped_cluster_run_cancels_its_tasks_and_says_those_started_may_still_write(monkeypatch, caplog):
+    """Ctrl-C while a cluster runs the items: Dask's cancel does not stop a task a worker has started, whose
+    output appeared seconds after the command had exited and removed --out; the run cancels every unfinished
+    task and says so (a rerun with --overwrite would race them)."""
+    import distributed as dist
+
+    from core.distributed import _run_dask
+
+    futures = []
+
+    class Client:
+        scheduler = type("S", (), {"address": "tcp://x:1"})()
+
+        def submit(self, task, *args, key, **kw):
+            futures.append(_Pending(key))
+            return futures[-1]
+
+    def interrupted(fs):
+        raise KeyboardInterrupt
+        yield
+
+    monkeypatch.setattr(dist, "as_completed", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        list(_run_dask(Client(), abs, [(1,), (2,), (3,)], ["a", "b", "c"], 0))
+    assert [f.cancelled for f in futures] == [True] * 3
+    assert "3 of 3 tasks unfinished on the cluster at the stop" in caplog.text
+    assert "can still write their outputs" in caplog.text
+
+
 #: "imported" as this module is loaded; the spawn test sets it in its own process: a forked child inherits that, a
 #: spawned one imports the module afresh.
 _MARK = "imported"

@@ -298,10 +298,45 @@ def test_bake_workers_equal_one_process_and_report_throughput(scene):
         np.testing.assert_allclose(outs[2][name], outs[1][name], atol=1e-6)
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--workers", 0])
     assert_one_line_error(r, "--workers")
+    r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--workers",
+             257])  # (processes, each with torch loaded)
+    assert_one_line_error(r, "Invalid value for '--workers': 257 is not in the range 1<=x<=256.")
     # one motion: baked here, said (the option was quietly ignored)
     r = run(["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"] / "one",
              "--workers", 2, "--no-body", "--no-obj"])
     assert r.exit_code == 0 and "note: --workers 2: one motion, baked in this process" in r.output, r.output
+
+
+def test_one_process_goes_on_past_a_failed_motion_and_counts_the_frames_written(scene, monkeypatch):
+    """A motion that fails while baked stopped a one-process batch there (the later motions never tried), where
+    --workers and a cluster go on: now each engine bakes the others and ends with one line naming the first that
+    failed. The throughput line counts the frames written (it counted --preroll's)."""
+    import garmentcli.bake as bake_cli
+    from core.errors import InputError
+
+    real = bake_cli.bake_item
+
+    def failing(garment, body, motion, *args, **kw):
+        if motion.name == "walk":
+            raise InputError("the simulator diverged (injected)")
+        return real(garment, body, motion, *args, **kw)
+
+    monkeypatch.setattr(bake_cli, "bake_item", failing)
+    out = scene["out"] / "f"
+    args = ["bake", scene["garment"], scene["motion"], scene["motion2"], "--body", scene["body"], "--no-obj",
+            "--frames", "3:", "--preroll", "3"]
+    r = run([*args, "--out", out])
+    assert_one_line_error(r, f"bake: 1 of 2 motions failed, the others are written; '{scene['motion']}': the "
+                             "simulator diverged (injected); rerun with --skip-existing")
+    assert f"error: bake of '{scene['motion']}': the simulator diverged (injected)" in r.output
+    assert sorted(p.name for p in out.iterdir()) == ["shell_jump"]  # the motion after it baked
+    monkeypatch.setattr(bake_cli, "bake_item", real)
+    r = run([*args, "--out", out, "--skip-existing"])
+    assert r.exit_code == 0, r.output
+    written = sum(json.loads((out / d / "summary.json").read_text())["frames"] for d in ("shell_walk", "shell_jump"))
+    assert f"baked {written} frames of 1 motions" not in r.output  # (one motion left: no batch line)
+    r = run([*args, "--out", scene["out"] / "g"])
+    assert r.exit_code == 0 and f"baked {written} frames of 2 motions in" in r.output, r.output
 
 
 def test_bake_suggests_push_out_where_much_of_the_garment_is_inside_the_body(scene):
@@ -430,8 +465,14 @@ def test_skip_existing_with_every_motion_baked_does_nothing(scene):
     before = summary.stat().st_mtime_ns
     r = run([*args, "--skip-existing"])
     assert r.exit_code == 0 and "1 of 1 motions already baked, skipped" in r.output, r.output
-    r = run([*args, "--skip-existing", "--quality", "auto"])  # nothing left to choose a quality for
-    assert r.exit_code == 0 and "quality auto" not in r.output, r.output
+    assert summary.stat().st_mtime_ns == before
+    # a bake of other settings is not this run's to skip (it said "already baked" of a bake at another --fps)
+    for extra, said in ((["--frames", "0:3"], "--frames left out (this run: 0:3)"),
+                        (["--fps", "24"], "--fps 30 (this run: 24)"),
+                        (["--method", "model"], "--method lbs (this run: --method model)"),
+                        (["--quality", "auto"], "--method lbs (this run: --quality auto)")):
+        r = run([*args, "--skip-existing", *extra])
+        assert_one_line_error(r, f"output '{scene['out'] / 'shell_walk'}' was baked with {said}: pass --overwrite")
     assert summary.stat().st_mtime_ns == before
     other = scene["dir"] / "other"
     (other / "shell_walk").mkdir(parents=True)  # an empty folder (or a file) by the bake's name: no finished bake
@@ -614,6 +655,45 @@ def test_motion_names_tell_files_of_one_name_apart():
     assert motion_names(["/m/a/walk.npz", "/m/b/run.npz"]) == ["walk", "run"]
     assert motion_names(["/m/a/walk.npz", "/m/b/walk.npz", "/m/run.npz"]) == ["a_walk", "b_walk", "run"]
     assert motion_names(["/x/s/walk.npz", "/y/s/walk.npz"]) == ["x_s_walk", "y_s_walk"]
+    # files of one stem in one folder by their suffixes (they went to one output, the second silently not baked)
+    assert motion_names(["/m/walk.npz", "/m/walk.bvh", "/n/walk.npz"]) == ["walk_npz", "walk_bvh", "walk"]
+    assert motion_names(["/m/a/walk.npz", "/m/a/walk.NPZ"]) == ["walk_npz", "walk_NPZ"]
+    # a name widened by its folder meets another file's stem: widened further, the other file as it is
+    assert motion_names(["/t/lib/a/walk.npz", "/t/lib/a_walk.npz", "/t/lib/b/walk.npz"]) == \
+        ["lib_a_walk", "a_walk", "b_walk"]
+    # no folder tells them apart (a/b_walk.npz and a_b/walk.npz): numbered
+    assert motion_names(["/m/a/b_walk.npz", "/m/a_b/walk.npz", "/n/a_b/walk.npz"]) == \
+        ["b_walk", "m_a_b_walk", "n_a_b_walk"]
+    names = motion_names(["/m/a/b_walk.npz", "/m/x/a_b_walk.npz", "/m/a/b/walk.npz", "/m/c/b/walk.npz"])
+    assert len(set(names)) == 4, names
+
+
+def test_a_batch_refuses_two_motions_for_one_output_and_a_name_too_long_before_any_work(scene):
+    """Two files of one stem in one folder were written to one output: with one process the second was skipped
+    without a word (exit 0); a name longer than the file system takes beside the hidden temporary one failed with
+    'File name too long' only after its motion had been baked."""
+    import click
+
+    from garmentcli.bake import _refuse_shared_targets
+
+    lib = scene["dir"] / "lib"
+    lib.mkdir()
+    motion = Path(scene["motion"]).read_bytes()
+    for name in ("walk.npz", "walk.NPZ"):
+        (lib / name).write_bytes(motion)
+    out = scene["out"] / "lib"
+    r = run(["bake", scene["garment"], lib, "--body", scene["body"], "--out", out, "--no-obj", "--no-body"])
+    assert r.exit_code == 0 and "of 2 motions" in r.output, r.output
+    assert sorted(p.name for p in out.iterdir()) == ["shell_walk_NPZ", "shell_walk_npz"]
+    t = out / "shell_walk"
+    with pytest.raises(click.ClickException, match="motions 'a.npz' and 'b.npz' would both be written to"):
+        _refuse_shared_targets([("a.npz", t, {}), ("b.npz", t, {})])
+    _refuse_shared_targets([("a.npz", t, {}), ("b.npz", out / "other", {})])
+    long = scene["dir"] / ("w" * 230 + ".npz")
+    long.write_bytes(motion)
+    r = run(["bake", scene["garment"], scene["motion"], long, "--body", scene["body"], "--out", scene["out"] / "l"])
+    assert_one_line_error(r, "written under a longer hidden name first): shorten the file names")
+    assert not (scene["out"] / "l").exists()
 
 
 def test_start_frame_numbers_the_usd_time_codes_and_obj_frames(scene):
