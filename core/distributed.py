@@ -27,6 +27,7 @@ import os
 import signal
 import uuid
 from collections.abc import Callable, Iterator, Sequence
+from contextvars import ContextVar
 from typing import Any
 
 from core.errors import InputError
@@ -35,6 +36,36 @@ log = logging.getLogger(__name__)
 
 #: Default number of re-runs of a Dask task that raised.
 DEFAULT_RETRIES = 2
+
+
+class Stopped(Exception):
+    """A cluster task's output not written: its run was stopped (`raise_if_stopped`)."""
+
+
+#: The check of the run a cluster task belongs to (`_stoppable`): true once that run was stopped. Per thread and
+#: task (a Dask worker runs its tasks in threads); None outside a cluster's task.
+_stop_check: ContextVar = ContextVar("garment_stop_check", default=None)
+
+
+def raise_if_stopped(what) -> None:
+    """Raise `Stopped` where this is a cluster's task whose run has been stopped (Ctrl-C, SIGTERM: Dask's cancel
+    leaves a task a worker runs running). `formats.atomic` calls it before an output takes its place, so a stopped
+    run's tasks write nothing more (their outputs appeared seconds after the command had exited and removed --out)."""
+    check = _stop_check.get()
+    if check is not None and check():
+        raise Stopped(f"'{what}' not written: its run was stopped")
+
+
+def _stoppable(event_name: str, task, *args):
+    """`task(*args)` on a cluster's worker, its outputs written only while the Dask Event `event_name` is unset."""
+    from distributed import Event
+
+    event = Event(event_name)
+    token = _stop_check.set(event.is_set)
+    try:
+        return task(*args)
+    finally:
+        _stop_check.reset(token)
 
 
 class ItemsFailed(Exception):
@@ -209,9 +240,10 @@ def _run_dask(client, task, calls, names, retries: int):
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]  # keys unique to this run: a shared scheduler may hold another run's results
+    stop = f"garment-stop-{token}"  # a Dask Event: set, the run's tasks write nothing more (`raise_if_stopped`)
     futures = {}
     for name, args in zip(names, calls):
-        fut = client.submit(task, *args, key=f"{name}-{token}", retries=retries, pure=False)
+        fut = client.submit(_stoppable, stop, task, *args, key=f"{name}-{token}", retries=retries, pure=False)
         futures[fut.key] = (name, fut)
     log.info("submitted %d tasks to %s (retries %d)", len(futures), client.scheduler.address, retries)
     failures = []
@@ -227,11 +259,17 @@ def _run_dask(client, task, calls, names, retries: int):
             fut.release()
     finally:
         pending = [f for _, f in futures.values() if f.status == "pending"]
-        for f in pending:
-            f.cancel()
         if pending:  # stopped (Ctrl-C, SIGTERM, the caller's error): a task a worker runs is not stopped by cancel
-            log.warning("%d of %d tasks unfinished on the cluster at the stop: those its workers had started go on "
-                        "and can still write their outputs (whole) after this run; wait for them before rerunning "
-                        "with --overwrite", len(pending), len(futures))
+            said = "those its workers had started go on but write nothing"
+            try:
+                from distributed import Event
+
+                Event(stop, client=client).set()
+            except Exception as exc:  # the scheduler gone: they may still write
+                said = (f"those its workers had started go on and can still write their outputs (whole), the stop "
+                        f"not said to them ({type(exc).__name__}); wait for them before rerunning with --overwrite")
+            for f in pending:
+                f.cancel()
+            log.warning("%d of %d tasks unfinished on the cluster at the stop: %s", len(pending), len(futures), said)
     if failures:
         raise ItemsFailed(failures, len(calls))

@@ -21,6 +21,7 @@ import uuid
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
+from core.distributed import raise_if_stopped
 from core.errors import InputError, special_kind
 
 log = logging.getLogger(__name__)
@@ -179,6 +180,7 @@ def atomic_file(path: str | os.PathLike):
     try:
         with _written(path):
             yield tmp
+        raise_if_stopped(path)
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     finally:
@@ -248,6 +250,7 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool, inputs=()):
                 yield tmp
         except InputError as exc:  # a writer's message names what it wrote by its final path, not the hidden one
             raise InputError(str(exc).replace(str(tmp), str(final))) from None
+        raise_if_stopped(final)  # a cluster's task whose run was stopped meanwhile
         _swap_in(tmp, final, overwrite)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)  # gone already where it became `final`

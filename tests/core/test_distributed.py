@@ -100,15 +100,25 @@ class _Pending:
         self.cancelled = True
 
 
-def test_a_stopped_cluster_run_cancels_its_tasks_and_says_those_started_may_still_write(monkeypatch, caplog):
+def test_a_stopped_cluster_run_cancels_its_tasks_and_stops_those_started_writing(monkeypatch, caplog):
     """Ctrl-C while a cluster runs the items: Dask's cancel does not stop a task a worker has started, whose
-    output appeared seconds after the command had exited and removed --out; the run cancels every unfinished
-    task and says so (a rerun with --overwrite would race them)."""
+    output appeared seconds after the command had exited and removed --out; the run sets its stop Event (the
+    tasks check it before an output takes its place: the cluster test below), cancels every unfinished task and
+    says so, and where the Event cannot be set, that the tasks started can still write."""
     import distributed as dist
 
     from core.distributed import _run_dask
 
-    futures = []
+    futures, events = [], []
+
+    class Event:
+        def __init__(self, name, client=None):
+            self.name = name
+
+        def set(self):
+            if fail:
+                raise OSError("scheduler gone")
+            events.append(self.name)
 
     class Client:
         scheduler = type("S", (), {"address": "tcp://x:1"})()
@@ -122,11 +132,48 @@ def test_a_stopped_cluster_run_cancels_its_tasks_and_says_those_started_may_stil
         yield
 
     monkeypatch.setattr(dist, "as_completed", interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        list(_run_dask(Client(), abs, [(1,), (2,), (3,)], ["a", "b", "c"], 0))
-    assert [f.cancelled for f in futures] == [True] * 3
-    assert "3 of 3 tasks unfinished on the cluster at the stop" in caplog.text
-    assert "can still write their outputs" in caplog.text
+    monkeypatch.setattr(dist, "Event", Event)
+    for fail in (False, True):
+        futures.clear()
+        caplog.clear()
+        with pytest.raises(KeyboardInterrupt):
+            list(_run_dask(Client(), abs, [(1,), (2,), (3,)], ["a", "b", "c"], 0))
+        assert [f.cancelled for f in futures] == [True] * 3
+        assert "3 of 3 tasks unfinished on the cluster at the stop" in caplog.text
+        assert ("can still write their outputs" in caplog.text) == fail
+        assert ("go on but write nothing" in caplog.text) == (not fail)
+    assert len(events) == 1 and events[0].startswith("garment-stop-")
+
+
+def test_a_task_started_before_its_cluster_run_stopped_writes_nothing(client, tmp_path):
+    """The run stops (its generator closed, as Ctrl-C unwinds the command) while a worker runs item 'slow': the
+    task goes on (Dask cannot stop it) but its atomic write is not put in place; the finished item's stays."""
+    import time
+
+    work = str(tmp_path)
+
+    def task(x):
+        from formats.atomic import atomic_file
+
+        if x == 1:
+            (Path(work) / "slow.started").touch()
+            time.sleep(4.0)
+        with atomic_file(Path(work) / f"{x}.out") as tmp:
+            tmp.write_text(str(x))
+        (Path(work) / f"{x}.reached").touch()  # (not reached where the write raised)
+        return x
+
+    run = run_items(task, [(0,), (1,)], ["fast", "slow"], client=client, retries=0)
+    assert next(run) == ("fast", 0)
+    deadline = time.time() + 30
+    while not (tmp_path / "slow.started").exists() and time.time() < deadline:
+        time.sleep(0.1)
+    assert (tmp_path / "slow.started").exists()
+    run.close()  # the run stopped while 'slow' runs
+    time.sleep(6.0)
+    assert (tmp_path / "0.out").read_text() == "0"
+    assert not (tmp_path / "1.out").exists() and not (tmp_path / "1.reached").exists()
+    assert not list(tmp_path.glob(".*partial*"))
 
 
 #: "imported" as this module is loaded; the spawn test sets it in its own process: a forked child inherits that, a
