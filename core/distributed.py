@@ -56,14 +56,25 @@ def raise_if_stopped(what) -> None:
         raise Stopped(f"'{what}' not written: its run was stopped")
 
 
+class _InputFailed:
+    """A cluster task's InputError, returned rather than raised: the input's own fault, the same on every retry
+    (Dask re-ran a motion whose output name its file system refused --retries times)."""
+
+    def __init__(self, exc: InputError):
+        self.exc = exc
+
+
 def _stoppable(event_name: str, task, *args):
-    """`task(*args)` on a cluster's worker, its outputs written only while the Dask Event `event_name` is unset."""
+    """`task(*args)` on a cluster's worker, its outputs written only while the Dask Event `event_name` is unset;
+    an InputError returned as `_InputFailed` (not retried)."""
     from distributed import Event
 
     event = Event(event_name)
     token = _stop_check.set(event.is_set)
     try:
         return task(*args)
+    except InputError as exc:
+        return _InputFailed(exc)
     finally:
         _stop_check.reset(token)
 
@@ -254,8 +265,11 @@ def _run_dask(client, task, calls, names, retries: int):
                 exc = fut.exception()
                 log.warning("item '%s' failed after %d retries: %s", name, retries, exc)
                 failures.append((name, exc))
+            elif isinstance(result := fut.result(), _InputFailed):
+                log.warning("item '%s' failed: %s", name, result.exc)
+                failures.append((name, result.exc))
             else:
-                yield name, fut.result()
+                yield name, result
             fut.release()
     finally:
         pending = [f for _, f in futures.values() if f.status == "pending"]

@@ -243,6 +243,23 @@ def test_cluster_reports_items_that_keep_failing(client, tmp_path):
     assert sorted(got) == ["a", "c"] and info.value.total == 3  # the others finished
 
 
+def test_cluster_does_not_retry_an_input_error(client, tmp_path):
+    """An InputError is the input's own fault: the same on every retry (a motion whose output name the file system
+    refused was baked three times), so it is a failure at once, said as the InputError it is."""
+    from core.errors import InputError
+
+    runs = tmp_path / "runs"
+
+    def task(x):
+        with open(runs, "a") as fh:
+            fh.write(".")
+        raise InputError(f"motion '{x}.npz': expected poses, got none")
+
+    with pytest.raises(ItemsFailed, match="1 of 1 items failed; first: 'a': InputError: motion '0.npz': expected"):
+        list(run_items(task, [(0,)], ["a"], client=client, retries=2))
+    assert runs.read_text() == "."
+
+
 def test_bad_scheduler_address_is_one_line():
     from core.distributed import connect
     from core.errors import InputError
