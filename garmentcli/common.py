@@ -663,7 +663,8 @@ def scheduler_options(task: str, note: str = ""):
 
     def decorate(command):
         command = click.option("--retries", type=click.IntRange(min=0), default=2, show_default=True,
-                               help=f"--scheduler: re-runs of each {task} that failed.")(command)
+                               help=f"--scheduler: re-runs of each {task} that failed (not of one whose input is at "
+                                    "fault: a bad file, an output name too long).")(command)
         return click.option("--scheduler", default=None, metavar="ADDRESS",
                             help=f"Run on a Dask distributed cluster (tcp://host:port), one task per {task}; the "
                                  f"inputs and the output must be on a path every worker sees.{note}")(command)
