@@ -80,8 +80,9 @@ def bake_item(garment: Garment, body: Body, motion: Motion, deformer: Deformer, 
     """Deform `garment` on `body` over `motion` and measure it.
 
     Returns the garment sequence (T, V, 3), the posed body (T, Vb, 3) when `with_body` (else None; both without
-    the motion's lead and tail frames, `Motion.n_lead` and `n_tail`, which are deformed and dropped), and a summary dict: method, frames, fps,
-    seconds per frame of the deformation, penetration statistics, the deformer's report.
+    the motion's lead and tail frames, `Motion.n_lead` and `n_tail`, which are deformed and dropped), and a
+    summary dict: method, frames, fps, seconds per frame of the deformation, penetration statistics, the deformer's
+    report.
     """
     shown = written(motion)
     cuts = motion_cuts(shown, body)

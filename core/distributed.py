@@ -160,7 +160,8 @@ def _run_local(task, calls, names, workers: int):
 
     # no more processes than items: a pool starts all of its processes at the first submit (forked: --workers
     # 100000 forked thousands of copies of the command, for two motions)
-    with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=pool_context(), initializer=_worker_unwinds) as pool:
+    with ProcessPoolExecutor(max_workers=min(workers, len(calls)), mp_context=pool_context(),
+                             initializer=_worker_unwinds) as pool:
         try:  # from the first submit: a worker can start (and a SIGTERM come) before the last is made
             futures = {pool.submit(_unwound, task, *args): name for name, args in zip(names, calls)}
             for fut in as_completed(futures):

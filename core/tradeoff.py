@@ -200,8 +200,9 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
             t = time.perf_counter()
             points = deformer.deform(garment, body, motion)
             times.append(time.perf_counter() - t)
-    return Measurement(config, points[motion.n_lead:motion.n_lead + motion.n_written], statistics.median(times) / motion.n_frames, prep, mem.peak_mb,
-                       runs, gpu_peak_memory_mb=gpu.peak_mb, retries=list(deformer.report.get("retries", [])))
+    kept = points[motion.n_lead:motion.n_lead + motion.n_written]
+    return Measurement(config, kept, statistics.median(times) / motion.n_frames, prep, mem.peak_mb, runs,
+                       gpu_peak_memory_mb=gpu.peak_mb, retries=list(deformer.report.get("retries", [])))
 
 
 def simulation_scene(garment: Garment, body: Body, motion: Motion):

@@ -28,8 +28,6 @@ from core.strain import STRAIN_LIMIT
 from formats.atomic import atomic_dir
 from formats.pointcache import POINT_CACHE_FORMATS
 from garmentcli.common import (
-    counted,
-    warned_already,
     FLOOR_CHOICES,
     FLOOR_HELP,
     PIN_CHOICES,
@@ -43,6 +41,7 @@ from garmentcli.common import (
     check_preroll,
     check_retries,
     collected_warnings,
+    counted,
     frames_option,
     input_errors_as_click,
     load_body_option,
@@ -59,6 +58,7 @@ from garmentcli.common import (
     scheduler_options,
     source_fps_option,
     thread_count,
+    warned_already,
     with_collected_warnings,
     option_file,
     option_given,

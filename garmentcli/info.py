@@ -12,10 +12,10 @@ import numpy as np
 
 from core.errors import InputError
 from garmentcli.common import (
-    counted,
     bake_summary_path,
     body_option,
     collected_notes,
+    counted,
     input_errors_as_click,
     load_body_option,
     motion_files,
@@ -181,8 +181,8 @@ def motion_info(path: str, person: str | None = None, take: str | None = None,
 
 
 def _parts(word: str, chosen, parts: dict, option: str) -> str:
-    listed = ", ".join(f"'{k}' {counted(n, 'frame')}" for k, n in list(parts.items())[:6]) + (", ..." if len(parts) > 6
-                                                                                      else "")
+    listed = ", ".join(f"'{k}' {counted(n, 'frame')}" for k, n in list(parts.items())[:6])
+    listed += ", ..." if len(parts) > 6 else ""
     return f"; {word} '{chosen}' of {len(parts)} ({listed}: {option})"
 
 
@@ -196,9 +196,9 @@ def _text(record: dict, body_name: str) -> str:
         of = f" of '{Path(inputs['garment']).name}' on '{Path(inputs['motion']).name}'" if {"garment", "motion"} <= \
             set(inputs) else ""
         rate = f" at {record['fps']:g} fps" if record["fps"] else ""
-        line = (f"{record['path']}: a baked garment sequence{of}{made}, {counted(record['frames'], 'frame')}{rate} from frame "
-                f"{record['first_frame']}, {record['vertices']:,} vertices (garment metrics and render read it; "
-                "not a garment to bake)")
+        line = (f"{record['path']}: a baked garment sequence{of}{made}, {counted(record['frames'], 'frame')}{rate} "
+                f"from frame {record['first_frame']}, {record['vertices']:,} vertices (garment metrics and render read "
+                "it; not a garment to bake)")
     elif record["kind"] == "body":
         line = (f"{record['path']}: body ({record['layout']}), {record['vertices']:,} vertices, {record['joints']} "
                 f"joints, {record['betas']} betas, sha256 {record['sha256'][:12]} (give it to bake with --body)")

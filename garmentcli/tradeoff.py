@@ -212,7 +212,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     body = load_body_option(body_path)
     models = _models_for_body(models, body)
     rows = configurations(models, spread=spread, fits=fits)
-    def prepared(context: int = 0):
+
+    def prepared(context: int = 0):  # the motion, with `context` frames either side of --frames (psd's)
         return prepare_motion(motion_path, fps, frames, 0, betas, source_fps, preroll_frames, body=body,
                               check_frames=lambda n, src_fps: _refuse_beyond_memory(len(rows), garment, body, n,
                                                                                     src_fps, fps, motion_path),
