@@ -239,6 +239,7 @@ def atomic_dir(final: str | os.PathLike, overwrite: bool, inputs=()):
         raise InputError(f"output '{final}' exists: pass --overwrite to replace it")
     refuse_replacing(final, inputs)
     check_name_fits(final)
+    raise_if_stopped(final)  # (a stopped run's task made its --out again, empty, where it began writing)
     with _writing(final):
         final.parent.mkdir(parents=True, exist_ok=True)
         _sweep(final.parent, final.name)

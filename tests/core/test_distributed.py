@@ -153,11 +153,13 @@ def test_a_task_started_before_its_cluster_run_stopped_writes_nothing(client, tm
     work = str(tmp_path)
 
     def task(x):
-        from formats.atomic import atomic_file
+        from formats.atomic import atomic_dir, atomic_file
 
         if x == 1:
             (Path(work) / "slow.started").touch()
             time.sleep(4.0)
+        with atomic_dir(Path(work) / f"out{x}" / "bake", False) as tmp:  # as a bake writes into its --out
+            (tmp / "summary.json").write_text("{}")
         with atomic_file(Path(work) / f"{x}.out") as tmp:
             tmp.write_text(str(x))
         (Path(work) / f"{x}.reached").touch()  # (not reached where the write raised)
@@ -173,6 +175,7 @@ def test_a_task_started_before_its_cluster_run_stopped_writes_nothing(client, tm
     time.sleep(6.0)
     assert (tmp_path / "0.out").read_text() == "0"
     assert not (tmp_path / "1.out").exists() and not (tmp_path / "1.reached").exists()
+    assert (tmp_path / "out0" / "bake" / "summary.json").exists() and not (tmp_path / "out1").exists()
     assert not list(tmp_path.glob(".*partial*"))
 
 
