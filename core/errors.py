@@ -65,8 +65,13 @@ class _Held(logging.Filter):
 
 
 def frames_text(n: int) -> str:
-    """"1 frame", "5 frames": a frame count for messages."""
+    """"1 frame", "5 frames": a frame count for messages (as `counted`, without its thousands' commas)."""
     return f"{n} frame" if n == 1 else f"{n} frames"
+
+
+def counted(n: int, noun: str) -> str:
+    """'1 frame', '2 frames', '1,000 frames': `n` with `noun`, plural but for one (the commands' lines)."""
+    return f"{n:,} {noun}{'' if n == 1 else 's'}"
 
 
 def check_finite_points(points, where: str, vertex: str = "vertex") -> None:

@@ -17,7 +17,7 @@ from tqdm import tqdm
 from core.bake import bake_item
 from core.body import Body
 from core.deform import DEFORMERS, LBSDeformer, LBSOptions
-from core.errors import InputError
+from core.errors import InputError, counted
 from core.motion import parse_frame_range
 from core.provenance import file_sha256, software_versions
 from core.psd import FEATURE_CONTEXT_FRAMES
@@ -41,7 +41,6 @@ from garmentcli.common import (
     check_preroll,
     check_retries,
     collected_warnings,
-    counted,
     frames_option,
     input_errors_as_click,
     load_body_option,

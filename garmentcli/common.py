@@ -312,11 +312,6 @@ def warned_already():
         logging.disable(logging.NOTSET)
 
 
-def counted(n: int, noun: str) -> str:
-    """'1 frame', '2 frames', '1,000 frames': `n` with `noun`, plural but for one."""
-    return f"{n:,} {noun}{'' if n == 1 else 's'}"
-
-
 def bake_summary_path(path: Path) -> Path | None:
     """The `summary.json` of the bake that `path` is (its folder) or is in (its USD stage, its obj/ folder, one of
     its OBJ frames), or None."""

@@ -7,12 +7,12 @@ from pathlib import Path
 import click
 import numpy as np
 
+from core.errors import counted
 from garmentcli.common import (
     FiniteFloatRange,
     OutputPath,
     body_option,
     check_dataset_body,
-    counted,
     input_errors_as_click,
     load_body_option,
     require_file,

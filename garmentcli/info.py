@@ -10,12 +10,11 @@ from pathlib import Path
 import click
 import numpy as np
 
-from core.errors import InputError
+from core.errors import InputError, counted
 from garmentcli.common import (
     bake_summary_path,
     body_option,
     collected_notes,
-    counted,
     input_errors_as_click,
     load_body_option,
     motion_files,

@@ -9,11 +9,11 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
-from core.errors import InputError, require_input
+from core.errors import InputError, counted, require_input
 from formats.atomic import atomic_dir, refuse_replacing
 from formats.render import check_azimuth, check_value_range
-from garmentcli.common import (MAX_FPS, FiniteFloatRange, OutputPath, checked_by, counted, input_errors_as_click,
-                               obj_up_option, warn_up_unused)
+from garmentcli.common import (MAX_FPS, FiniteFloatRange, OutputPath, checked_by, input_errors_as_click, obj_up_option,
+                               warn_up_unused)
 
 log = logging.getLogger(__name__)
 
