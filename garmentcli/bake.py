@@ -40,6 +40,7 @@ from garmentcli.common import (
     body_option,
     check_preroll,
     check_retries,
+    collected_notes,
     collected_warnings,
     frames_option,
     input_errors_as_click,
@@ -57,7 +58,6 @@ from garmentcli.common import (
     scheduler_options,
     source_fps_option,
     thread_count,
-    warned_already,
     with_collected_warnings,
     option_file,
     option_given,
@@ -604,7 +604,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                         ", ".join(f"'{m}'" for m in outside) + (" is" if len(outside) == 1 else " are"))
         explicit = False
         if method == "psd" and frames:  # read again with psd's context frames
-            with warned_already():
+            with collected_notes():  # (said when first read)
                 motions = prepared(FEATURE_CONTEXT_FRAMES)
     # The method is known (--quality auto has chosen), no deformer has prepared anything yet.
     # LBS deforms each frame on its own: the frames before START unused. (psd's blend shapes read the joints' rates

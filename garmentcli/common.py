@@ -302,16 +302,6 @@ def collected_warnings():
         root.removeHandler(handler)
 
 
-@contextmanager
-def warned_already():
-    """Warnings off within: inputs read again (and warned about when first read) say them once."""
-    logging.disable(logging.WARNING)
-    try:
-        yield
-    finally:
-        logging.disable(logging.NOTSET)
-
-
 def bake_summary_path(path: Path) -> Path | None:
     """The `summary.json` of the bake that `path` is (its folder) or is in (its USD stage, its obj/ folder, one of
     its OBJ frames), or None."""
@@ -322,7 +312,8 @@ def bake_summary_path(path: Path) -> Path | None:
 @contextmanager
 def collected_notes():
     """Within the block, the messages of every INFO (and worse) log record, in a list, and none printed (the
-    logging handlers already there silenced): what reading a file says, for `garment info`."""
+    logging handlers already there silenced): what reading a file says, for `garment info`; an input read again
+    (its warnings said once, when it was first read)."""
     root = logging.getLogger()
     handler = _WarningList(logging.INFO)
     saved = root.level, [(h, h.level) for h in root.handlers]

@@ -37,6 +37,7 @@ from garmentcli.common import (
     beyond_memory,
     body_option,
     check_preroll,
+    collected_notes,
     frames_option,
     input_errors_as_click,
     load_body_option,
@@ -51,7 +52,6 @@ from garmentcli.common import (
     option_file,
     FiniteFloatRange,
     MAX_FPS,
-    warned_already,
 )
 
 COLUMNS = ("config", "method", "seconds_per_frame", "frames_per_second", "seconds_prepare", "peak_memory_mb",
@@ -224,7 +224,7 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     if fits and frames:
         from core.psd import FEATURE_CONTEXT_FRAMES
 
-        with warned_already():
+        with collected_notes():  # (said when first read)
             psd_motion = prepared(FEATURE_CONTEXT_FRAMES)
     from formats.cache import default_cache_dir
 
