@@ -93,7 +93,8 @@ def main(argv=None) -> None:
         sim = SimDeformer(options=SimOptions())
         sim.prepare(garment, body)
         s_on, e, s_off, f = timed_ab(sim, garment, body, short, 1)
-        kept = sim.scene["body-faces"]["kept_faces"]
+        faces = sim.scene["body-faces"]  # its kept_faces are the reach's, the collider whole where not applied
+        kept = faces["kept_faces"] if faces["skipped_work"] else len(body.faces)
         face_rows.append([path.stem, garment.n_vertices, f"{kept:,} / {len(body.faces):,}", f"{s_on:.2f}",
                           f"{s_off:.2f}", f"{s_off / s_on:.2f}x", f"{np.abs(e - f).max() * 1e3:.2f}",
                           f"{np.linalg.norm(e - f, axis=-1).mean() * 1e3:.2f}"])
