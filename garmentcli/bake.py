@@ -267,6 +267,7 @@ class BakeSpec:
     device: str | None = None  # model: --device as given (None: auto, resolved where the deformer is made)
     #: ((motion path, (warning, ...)), ...): what reading the inputs warned about, per motion (`_warnings_of`)
     warnings: tuple = ()
+    settings: str = ""  # JSON of `_bake_settings`, recorded in summary.json (what --skip-existing compares)
 
 
 # Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
@@ -332,6 +333,8 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared, on
         result.summary["method_fallback"] = json.loads(spec.fallback)
     if spec.push_out:
         result.summary["push_out"] = True
+    if spec.settings:
+        result.summary["settings"] = json.loads(spec.settings)
     with atomic_dir(target, spec.overwrite) as tmp:
         write_bake_outputs(tmp, target.name, result, garment, body, write_obj=spec.write_obj,
                            start_frame=spec.start_frame, point_caches=spec.point_caches, on_written=on_written)
@@ -448,7 +451,9 @@ def _echo_done(target, summary: dict, method: str, fps: float) -> None:
               help="Also render render/front.mp4, render/side.mp4 and render/contact_sheet.png (off-screen).")
 @click.option("--overwrite", is_flag=True, help="Replace existing output directories.")
 @click.option("--skip-existing", is_flag=True,
-              help="Leave motions whose output directory exists and bake the others (resume a batch).")
+              help="Leave motions whose output directory exists and bake the others (resume a batch); a bake "
+                   "made with other options (but --workers, --scheduler, --retries, --threads, --device) is "
+                   "refused.")
 @click.option("--workers", type=click.IntRange(1, MAX_WORKERS), default=1, show_default=True,
               help="Local processes baking motions side by side, 1 to 256, no more started than there are motions "
                    "(each prepares the garment and loads the method once; the cores are shared out among them).")
@@ -512,6 +517,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     _refuse_shared_targets(targets)
     if overwrite and skip_existing:
         raise click.UsageError("--overwrite and --skip-existing exclude each other")
+    settings = _bake_settings(method, quality, garment)
     check_retries(scheduler)
     if skip_existing:
         other = next((t for _, t, _ in targets if t.exists() and not (t / "summary.json").is_file()), None)
@@ -519,11 +525,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
             raise click.ClickException(f"output '{other}' exists and is no finished bake (no summary.json in it): "
                                        f"remove it, or pass --overwrite instead of --skip-existing")
         done = [t for _, t, _ in targets if t.exists()]
-        asked = {"method": f"--quality {quality}" if quality else f"--method {method}", "fps": fps, "frames": frames,
-                 "preroll": preroll_frames, "settle": settle_frames, "betas": betas, "start_frame": start_frame,
-                 "garment": garment.content_hash()}
         for t in done:
-            otherwise = _baked_otherwise(t, asked)
+            otherwise = _baked_otherwise(t, settings)
             if otherwise:
                 raise click.ClickException(f"output '{t}' was baked with {otherwise}: pass --overwrite to bake "
                                            "it again, or that bake's options to resume it")
@@ -644,7 +647,7 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
                     contact_guard=not no_contact_guard, strain=strain, betas=betas, floor=floor, start_frame=start_frame,
                     fit_path=fit_path, preroll_frames=preroll_frames, device=device, motion_up=motion_up,
                     person=person, take=take, threads=threads or 0, threads_fixed=threads is not None,
-                    point_caches=tuple(dict.fromkeys(point_caches)))
+                    point_caches=tuple(dict.fromkeys(point_caches)), settings=json.dumps(settings))
     _fix_threads(deformer, spec.threads_fixed)
     if method in ("sim", "model"):
         _note_rest_start(frames, preroll_frames, [(mo, path) for (mo, _), path, _ in motions], method)
@@ -700,25 +703,54 @@ def _refuse_shared_targets(targets) -> None:
                                        "rename one of them, or bake them into other --out folders")
 
 
-#: summary.json's record of each setting `--skip-existing` compares (`_baked_otherwise`): options' keys.
-_RESUMED_OPTIONS = {"fps": "--fps", "frames": "--frames", "preroll": "--preroll", "settle": "--settle",
-                    "betas": "--betas", "start_frame": "--start-frame"}
+#: bake's parameters that change nothing it writes (--threads and --device: float rounding at most) or where it
+#: writes, and those `_bake_settings` records otherwise (the method; the garment by its mesh's content).
+_NOT_SETTINGS = {"garment_path", "motion_paths", "out_dir", "overwrite", "skip_existing", "workers", "scheduler",
+                 "retries", "threads", "device", "method", "quality"}
+#: bake's parameters naming a file: recorded by its content's sha256 (a model retrained in place is another).
+_FILE_SETTINGS = {"body_path", "material_path", "model_path", "calibration_path", "fit_path"}
+#: What summary.json recorded before its "settings" (`_baked_otherwise` compares those of an earlier version's
+#: bake): options' keys -> bake's parameters.
+_RECORDED_OPTIONS = {"fps": "fps", "frames": "frames", "preroll": "preroll_frames", "settle": "settle_frames",
+                     "betas": "betas", "start_frame": "start_frame"}
 
 
-def _baked_otherwise(target: Path, asked: dict) -> str:
-    """What the finished bake in `target` was made with other than `asked` (method: '--method M' or '--quality auto',
-    the options of `_RESUMED_OPTIONS`, garment: its content's sha256), as "--fps 30 (this run: 24)"; '' where the
-    same. A setting its summary.json does not record (a bake of an earlier version) is not compared."""
+def _bake_settings(method: str | None, quality: str | None, garment) -> dict:
+    """What this bake's outputs are made with, as summary.json's "settings" records it and `--skip-existing`
+    compares (`_baked_otherwise`): the method asked for ('--method M', '--quality auto'), the garment's mesh
+    (sha256 of its content), every option given or defaulted but those of `_NOT_SETTINGS`, a file by its bytes'
+    sha256 (`_FILE_SETTINGS`). As JSON reads it back (lists for tuples)."""
+    from core.provenance import file_sha256
+
+    settings = {"method": f"--quality {quality}" if quality else f"--method {method}",
+                "garment": garment.content_hash()}
+    for name, value in click.get_current_context().params.items():
+        if name in _FILE_SETTINGS and value is not None and Path(value).is_file():
+            value = f"sha256:{file_sha256(value)}"
+        if name not in _NOT_SETTINGS:
+            settings[name] = value
+    return json.loads(json.dumps(settings))
+
+
+def _baked_otherwise(target: Path, settings: dict) -> str:
+    """What the finished bake in `target` was made with other than this run's `settings` (`_bake_settings`), as
+    "--fps 30 (this run: 24)"; '' where the same. A bake of an earlier version, whose summary.json records no
+    "settings", is compared by what it records (the method, garment and `_RECORDED_OPTIONS`)."""
     try:
         summary = json.loads((target / "summary.json").read_text())
-        options = summary.get("options", {})
-        method = summary.get("method_fallback", {}).get("from") or summary["method"]  # what was asked
-        baked = {"method": "--quality auto" if "quality" in summary else f"--method {method}",
-                 "garment": summary.get("garment", {}).get("sha256"),
-                 **{k: options[k] for k in _RESUMED_OPTIONS if k in options}}
+        baked = summary.get("settings")
+        if baked is None:
+            options = summary.get("options", {})
+            method = summary.get("method_fallback", {}).get("from") or summary["method"]  # what was asked
+            baked = {"method": "--quality auto" if "quality" in summary else f"--method {method}",
+                     "garment": summary.get("garment", {}).get("sha256"),
+                     **{name: options[k] for k, name in _RECORDED_OPTIONS.items() if k in options}}
+        if not isinstance(baked, dict):
+            raise TypeError("settings")
     except (OSError, ValueError, KeyError, AttributeError, TypeError) as exc:
         return f"a summary.json that cannot be read ({type(exc).__name__})"
-    for key, now in asked.items():
+    flags = {p.name: max(p.opts, key=len) for p in click.get_current_context().command.params}
+    for key, now in settings.items():
         then = baked.get(key)
         if key not in baked or then == now or then is None and key == "garment":
             continue
@@ -726,9 +758,21 @@ def _baked_otherwise(target: Path, asked: dict) -> str:
             return f"{then} (this run: {now})"
         if key == "garment":
             return "a garment of other content (this run's garment file changed since)"
-        shown = lambda v: "left out" if v is None else f"{v:g}" if isinstance(v, float) else v  # noqa: E731
-        return f"{_RESUMED_OPTIONS[key]} {shown(then)} (this run: {shown(now)})"
+        return f"{flags.get(key, key)} {_setting_text(key, then)} (this run: {_setting_text(key, now)})"
     return ""
+
+
+def _setting_text(name: str, value) -> str:
+    """An option's value as `_baked_otherwise` says it."""
+    if value is None or value == []:
+        return "left out"
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if name in _FILE_SETTINGS and str(value).startswith("sha256:"):
+        return f"a file of sha256 {value[7:19]}"
+    if isinstance(value, list):
+        return " ".join(map(str, value))
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def _fix_threads(deformer, fixed: bool) -> None:

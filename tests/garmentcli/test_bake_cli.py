@@ -470,10 +470,29 @@ def test_skip_existing_with_every_motion_baked_does_nothing(scene):
     for extra, said in ((["--frames", "0:3"], "--frames left out (this run: 0:3)"),
                         (["--fps", "24"], "--fps 30 (this run: 24)"),
                         (["--method", "model"], "--method lbs (this run: --method model)"),
-                        (["--quality", "auto"], "--method lbs (this run: --quality auto)")):
+                        (["--quality", "auto"], "--method lbs (this run: --quality auto)"),
+                        # the method's own options and the outputs asked for (it took them for the bake's)
+                        (["--push-out"], "--push-out off (this run: on)"),
+                        (["--lbs-smooth", "0"], "--lbs-smooth auto (this run: 0)"),
+                        (["--strain-limit", "off"], "--strain-limit left out (this run: off)"),
+                        (["--point-cache", "pc2"], "--point-cache left out (this run: pc2)")):
         r = run([*args, "--skip-existing", *extra])
         assert_one_line_error(r, f"output '{scene['out'] / 'shell_walk'}' was baked with {said}: pass --overwrite")
+    r = run([*args[:-1], "--skip-existing"])
+    assert_one_line_error(r, "was baked with --no-obj on (this run: off)")
+    # an input file of other content by the same name (a body, a model or a fit remade in place)
+    with np.load(scene["body"]) as z:
+        arrays = dict(z)
+    np.savez(scene["body"], **{**arrays, "v_template": arrays["v_template"] * 1.01})
+    r = run([*args, "--skip-existing"])
+    assert_one_line_error(r, "was baked with --body a file of sha256 ", " (this run: a file of sha256 ")
     assert summary.stat().st_mtime_ns == before
+    # an earlier version's bake, no "settings" recorded: compared by what its summary records
+    record = json.loads(summary.read_text())
+    del record["settings"]
+    summary.write_text(json.dumps(record))
+    assert_one_line_error(run([*args, "--skip-existing", "--fps", "24"]), "was baked with --fps 30 (this run: 24)")
+    assert "1 of 1 motions already baked" in run([*args, "--skip-existing", "--push-out"]).output
     other = scene["dir"] / "other"
     (other / "shell_walk").mkdir(parents=True)  # an empty folder (or a file) by the bake's name: no finished bake
     r = run([*args[:-3], "--out", other, "--skip-existing"])
