@@ -697,7 +697,7 @@ def _refuse_shared_targets(targets) -> None:
     seen: dict = {}
     for motion, target, part in targets:
         check_name_fits(target)
-        first = seen.setdefault(target, (motion, part))
+        first = seen.setdefault(str(target).casefold(), (motion, part))  # (as a case-insensitive file system)
         if first != (motion, part):
             raise click.ClickException(f"motions '{first[0]}' and '{motion}' would both be written to '{target}': "
                                        "rename one of them, or bake them into other --out folders")

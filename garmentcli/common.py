@@ -210,28 +210,39 @@ def motion_names(paths) -> list[str]:
     stem; for files of one stem in one folder, the stem and the suffix (walk.npz, walk.bvh -> walk_npz, walk_bvh);
     for files of one name in different folders, the name after as many of their folders' names as tell them apart
     (a/walk.npz, b/walk.npz -> a_walk, b_walk). A name that still meets another's (a/walk.npz's a_walk and a file
-    a_walk.npz) is numbered: a_walk_2."""
+    a_walk.npz) is numbered: a_walk_2. Names are told apart regardless of case, as a case-insensitive file system
+    (macOS's, Windows', a share of theirs) takes them: Walk.npz and walk.npz in two folders give a_Walk and b_walk,
+    in one folder (or walk.npz and walk.NPZ) walk and walk_2."""
     from collections import Counter
 
     resolved = [Path(p).resolve() for p in paths]
-    bare = Counter(str(r.with_suffix("")) for r in resolved)
-    own = [r.stem + (f"_{r.suffix.lstrip('.')}" if bare[str(r.with_suffix(""))] > 1 else "") for r in resolved]
-    shared = Counter(own)  # (counted once: a list's count() in the loop made a 3,000-motion library take 1.5 s)
+    suffixes: dict[str, set] = {}  # per file path without its suffix
+    for r in resolved:
+        suffixes.setdefault(str(r.with_suffix("")).casefold(), set()).add(r.suffix.casefold())
+    own = [r.stem + (f"_{r.suffix.lstrip('.')}" if len(suffixes[str(r.with_suffix("")).casefold()]) > 1 else "")
+           for r in resolved]
+    in_folder: Counter = Counter()  # names of one folder that differ in case only: no folder tells them apart
+    for i, r in enumerate(resolved):
+        key = (str(r.parent).casefold(), own[i].casefold())
+        in_folder[key] += 1
+        if in_folder[key] > 1:
+            own[i] = f"{own[i]}_{in_folder[key]}"
+    shared = Counter(o.casefold() for o in own)  # (counted once: list.count() in the loop was quadratic)
     folders = [r.parent.parts[1:] for r in resolved]  # (the root left out)
     names = list(own)
     for depth in range(1, max((len(f) for f in folders), default=0) + 1):
-        now = Counter(names)
-        clashing = [shared[o] > 1 and now[n] > 1 for n, o in zip(names, own)]  # (files of one name)
+        now = Counter(n.casefold() for n in names)
+        clashing = [shared[o.casefold()] > 1 and now[n.casefold()] > 1 for n, o in zip(names, own)]  # (one name)
         if not any(clashing):
             break
         names = ["_".join((*f[-depth:], o)) if c else n for n, o, f, c in zip(names, own, folders, clashing)]
     taken: set[str] = set()
     for i, name in enumerate(names):
         k, unique = 1, name
-        while unique in taken:
+        while unique.casefold() in taken:
             k += 1
             unique = f"{name}_{k}"
-        taken.add(unique)
+        taken.add(unique.casefold())
         names[i] = unique
     return names
 

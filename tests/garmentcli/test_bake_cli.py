@@ -676,7 +676,12 @@ def test_motion_names_tell_files_of_one_name_apart():
     assert motion_names(["/x/s/walk.npz", "/y/s/walk.npz"]) == ["x_s_walk", "y_s_walk"]
     # files of one stem in one folder by their suffixes (they went to one output, the second silently not baked)
     assert motion_names(["/m/walk.npz", "/m/walk.bvh", "/n/walk.npz"]) == ["walk_npz", "walk_bvh", "walk"]
-    assert motion_names(["/m/a/walk.npz", "/m/a/walk.NPZ"]) == ["walk_npz", "walk_NPZ"]
+    # names that differ in case only meet on a case-insensitive file system (macOS, Windows, a share of theirs)
+    assert motion_names(["/m/a/walk.npz", "/m/a/walk.NPZ"]) == ["walk", "walk_2"]
+    assert motion_names(["/m/a/Walk.npz", "/m/a/walk.npz", "/m/run.npz"]) == ["Walk", "walk_2", "run"]
+    assert motion_names(["/m/a/walk.npz", "/m/a/walk.NPZ", "/m/a/walk.bvh"]) == ["walk_npz", "walk_NPZ_2", "walk_bvh"]
+    assert motion_names(["/m/a/Walk.npz", "/m/b/walk.npz"]) == ["a_Walk", "b_walk"]
+    assert motion_names(["/m/A/walk.npz", "/m/a/walk.npz"]) == ["walk", "walk_2"]
     # a name widened by its folder meets another file's stem: widened further, the other file as it is
     assert motion_names(["/t/lib/a/walk.npz", "/t/lib/a_walk.npz", "/t/lib/b/walk.npz"]) == \
         ["lib_a_walk", "a_walk", "b_walk"]
@@ -703,10 +708,11 @@ def test_a_batch_refuses_two_motions_for_one_output_and_a_name_too_long_before_a
     out = scene["out"] / "lib"
     r = run(["bake", scene["garment"], lib, "--body", scene["body"], "--out", out, "--no-obj", "--no-body"])
     assert r.exit_code == 0 and "of 2 motions" in r.output, r.output
-    assert sorted(p.name for p in out.iterdir()) == ["shell_walk_NPZ", "shell_walk_npz"]
+    assert sorted(p.name for p in out.iterdir()) == ["shell_walk", "shell_walk_2"]  # (not of one name but case)
     t = out / "shell_walk"
-    with pytest.raises(click.ClickException, match="motions 'a.npz' and 'b.npz' would both be written to"):
-        _refuse_shared_targets([("a.npz", t, {}), ("b.npz", t, {})])
+    for other in (t, out / "Shell_Walk"):
+        with pytest.raises(click.ClickException, match="motions 'a.npz' and 'b.npz' would both be written to"):
+            _refuse_shared_targets([("a.npz", t, {}), ("b.npz", other, {})])
     _refuse_shared_targets([("a.npz", t, {}), ("b.npz", out / "other", {})])
     long = scene["dir"] / ("w" * 230 + ".npz")
     long.write_bytes(motion)
