@@ -10,6 +10,7 @@ a temporary file renamed into place, so readers never see half an entry.
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import os
@@ -29,12 +30,30 @@ CACHE_ENV = "GARMENT_CACHE_DIR"
 
 
 def default_cache_dir() -> Path:
-    """$GARMENT_CACHE_DIR if set, else garment/ in $XDG_CACHE_HOME if set, else ~/.cache/garment."""
+    """$GARMENT_CACHE_DIR if set, else garment/ in $XDG_CACHE_HOME if set, else ~/.cache/garment; where the home
+    directory does not exist (a container's HOME=/nonexistent, a service account's), garment-cache-<uid> in the
+    temporary directory, said once (it was created, home and all, where the user could: as root)."""
     env = os.environ.get(CACHE_ENV)
     if env:
         return Path(env).expanduser()
     xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg).expanduser() if xdg else Path.home() / ".cache") / "garment"
+    if xdg:
+        return Path(xdg).expanduser() / "garment"
+    try:
+        home = Path.home()
+    except RuntimeError:  # no HOME and no password entry
+        home = None
+    return home / ".cache" / "garment" if home is not None and home.is_dir() else _homeless_cache_dir(str(home))
+
+
+@functools.lru_cache(maxsize=None)
+def _homeless_cache_dir(home: str) -> Path:
+    import tempfile
+
+    path = Path(tempfile.gettempdir()) / f"garment-cache-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+    log.warning("home directory '%s' does not exist: caches in '%s' (set %s to keep them elsewhere)", home, path,
+                CACHE_ENV)
+    return path
 
 
 def cache_path(cache_dir: str | os.PathLike, kind: str, key: str) -> Path:

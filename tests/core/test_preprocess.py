@@ -132,7 +132,26 @@ def test_default_cache_dir_honours_the_environment(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert default_cache_dir() == tmp_path / "xdg" / "garment"
     monkeypatch.delenv("XDG_CACHE_HOME")
-    assert default_cache_dir().parts[-2:] == (".cache", "garment")
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert default_cache_dir() == tmp_path / ".cache" / "garment"
+
+
+def test_a_home_that_does_not_exist_is_not_made_for_the_cache(tmp_path, monkeypatch, caplog):
+    """HOME=/nonexistent (a container's, a service account's): the cache went there, the home made anew as root."""
+    import tempfile
+    from pathlib import Path
+
+    monkeypatch.delenv(CACHE_ENV, raising=False)
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "nonexistent"))
+    with caplog.at_level("WARNING"):
+        path = default_cache_dir()
+        assert default_cache_dir() == path
+    assert path.parent == Path(tempfile.gettempdir()) and path.name.startswith("garment-cache-")
+    said = [r.getMessage() for r in caplog.records if "does not exist" in r.getMessage()]
+    assert said == [f"home directory '{tmp_path / 'nonexistent'}' does not exist: caches in '{path}' "
+                    "(set GARMENT_CACHE_DIR to keep them elsewhere)"]
+    assert not (tmp_path / "nonexistent").exists()
 
 
 def test_round_trip_without_collision_set(body, shell):
