@@ -7,7 +7,7 @@ import logging
 import os
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import click
@@ -270,6 +270,17 @@ class BakeSpec:
     settings: str = ""  # JSON of `_bake_settings`, recorded in summary.json (what --skip-existing compares)
 
 
+def _model_input(spec: BakeSpec) -> dict:
+    """summary.json's inputs of the model's checkpoint where the model bakes: its path (absolute) and sha256 (a
+    bake traced to its checkpoint, the shipped one's too)."""
+    if spec.method != "model":
+        return {}
+    from core.model_deform import DEFAULT_MODEL
+
+    path = Path(spec.model_path or DEFAULT_MODEL).resolve()
+    return {"model": str(path), "model_sha256": file_sha256(path)}
+
+
 # Per process: (garment, body, prepared deformer) of the last spec, so a worker prepares once for many motions.
 _CONTEXT: dict = {}
 
@@ -314,7 +325,7 @@ def bake_task(spec: BakeSpec, motion_path: str, target: str | Path, prepared, on
         "inputs": {"garment": str(Path(spec.garment_path).resolve()), "motion": str(Path(motion_path).resolve()),
                    "body": str(Path(spec.body_path).resolve()) if spec.body_path else "embedded default (anny)",
                    **({"fit": str(Path(spec.fit_path).resolve()), "fit_sha256": file_sha256(spec.fit_path)}
-                      if spec.fit_path else {})},
+                      if spec.fit_path else {}), **_model_input(spec)},
         "source_fps": source_fps,
         "options": {"fps": spec.fps, "frames": spec.frames, "preroll": spec.preroll_frames, "settle": spec.settle_frames,
                     "betas": spec.betas, "start_frame": spec.start_frame, "motion_up": spec.motion_up,
@@ -720,8 +731,6 @@ def _bake_settings(method: str | None, quality: str | None, garment) -> dict:
     compares (`_baked_otherwise`): the method asked for ('--method M', '--quality auto'), the garment's mesh
     (sha256 of its content), every option given or defaulted but those of `_NOT_SETTINGS`, a file by its bytes'
     sha256 (`_FILE_SETTINGS`). As JSON reads it back (lists for tuples)."""
-    from core.provenance import file_sha256
-
     settings = {"method": f"--quality {quality}" if quality else f"--method {method}",
                 "garment": garment.content_hash()}
     for name, value in click.get_current_context().params.items():
@@ -1084,8 +1093,9 @@ def _bake_in_workers(spec: BakeSpec, motions, scheduler: str | None, retries: in
     from core.distributed import ItemsFailed, connect, run_items
 
     absolute = lambda p: str(Path(p).resolve()) if p else None  # noqa: E731 - workers run elsewhere
-    spec = replace(spec, garment_path=absolute(spec.garment_path), body_path=absolute(spec.body_path),
-                   material_path=absolute(spec.material_path), model_path=absolute(spec.model_path),
+    # Every input file (a field `*_path`) named absolutely: a worker opened the --fit it was given relative to its
+    # own folder (a cluster's: "file not found", or silently another fit of that name there).
+    spec = replace(spec, **{f.name: absolute(getattr(spec, f.name)) for f in fields(spec) if f.name.endswith("_path")},
                    warnings=tuple((absolute(m), w) for m, w in spec.warnings))
     client = connect(scheduler) if scheduler else None
     # m: read here (`prepared`), named to the workers as the client's path

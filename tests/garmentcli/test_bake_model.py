@@ -47,8 +47,13 @@ def _restricted_model(tmp_path, joints=("shoulder", "elbow", "wrist", "hand", "c
 def test_model_on_every_example_garment_within_its_training_range(garment, tmp_path):
     assert len(EXAMPLES) == 5
     default, summary, out = _bake(garment, tmp_path / "default")
-    lbs, _, _ = _bake(garment, tmp_path / "lbs", "--method", "lbs")
+    lbs, lbs_summary, _ = _bake(garment, tmp_path / "lbs", "--method", "lbs")
     assert summary["method"] == "model" and Path(summary["deformer"]["model"]) == DEFAULT_MODEL
+    from core.provenance import file_sha256  # the checkpoint an input, by path and content (it was the path given)
+
+    assert (summary["inputs"]["model"], summary["inputs"]["model_sha256"]) == (str(DEFAULT_MODEL),
+                                                                               file_sha256(DEFAULT_MODEL))
+    assert "model" not in lbs_summary["inputs"]
     assert "method_fallback" not in summary and summary["deformer"]["training_range"]["within"]
     assert default.shape == lbs.shape and np.isfinite(default).all()
     gap = np.linalg.norm(default - lbs, axis=-1)

@@ -248,3 +248,34 @@ def test_fit_says_a_rank_it_cut_records_its_data_absolute_and_names_motions_wors
     assert _worse(split, RIDGE_ADVICE_MAX * 10) == said + ")"  # at 1e12 a larger ridge was advised
     assert _worse(split, 10.0) == said + ", or a larger --ridge)"
     assert _worse({**split, "worse_than_lbs": {}}, 10.0) == ""
+
+
+def test_workers_are_given_every_input_file_by_its_absolute_path(setup, fitted, monkeypatch):
+    """A cluster's worker runs in its own folder: it opened a relative --fit there ("file not found", or another
+    fit of that name, silently). Every input path of the task's spec is absolute, whatever the command was given."""
+    import dataclasses
+
+    import core.distributed
+
+    root, data, body, garment = setup
+    assert fitted[0].exit_code == 0, fitted[0].output
+    write_motion(root / "walk.npz", n_frames=6, fps=30.0)
+    write_motion(root / "jump.npz", n_frames=5, fps=30.0, seed=1)
+    seen = []
+
+    def run_items(task, calls, names, **kwargs):
+        seen.extend(calls)
+        return iter(())
+
+    monkeypatch.setattr(core.distributed, "run_items", run_items)  # imported by the command when it runs
+    monkeypatch.chdir(root)
+    r = invoke(["bake", "a.obj", "walk.npz", "jump.npz", "--method", "psd", "--fit", "a.psd.npz", "--body",
+                "tiny_body.npz", "--out", "rel", "--workers", 2])
+    assert r.exit_code == 0, r.output
+    spec = seen[0][0]
+    paths = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec) if f.name.endswith("_path")}
+    assert {"garment_path", "body_path", "fit_path", "model_path", "material_path"} <= set(paths)
+    assert (paths["garment_path"], paths["body_path"], paths["fit_path"]) == \
+        (str(root / "a.obj"), str(root / "tiny_body.npz"), str(root / "a.psd.npz"))
+    assert all(p is None or Path(p).is_absolute() for p in paths.values()), paths
+    assert [c[1] for c in seen] == [str(root / "walk.npz"), str(root / "jump.npz")]
