@@ -170,10 +170,27 @@ def plan_items(garment_names: list[str], motion_frames: dict[str, int], n_bodies
                                              start_frame=start, n_frames=stop - start, body=b, split=split,
                                              preroll=min(preroll, start)))
     items.sort(key=lambda it: it.id)
+    _refuse_shared_ids(items)
     splits = {"motions": {s: sorted(m for m, v in motion_split.items() if v == s) for s in ("train", "val", "test")},
               "garments": {s: sorted({it.garment for it in items if it.split == s}) for s in ("train", "val", "test")},
               "held_out_garments": held}
     return items, splits
+
+
+def _refuse_shared_ids(items: list[DatasetItem]) -> None:
+    """InputError where two items would be named alike (their sequence files one file): a garment's or motion's
+    name holding '__', the names' separator (garment a__b on motion c and garment a on motion b__c), or names
+    that differ in case only (one file on a case-insensitive file system)."""
+    first: dict[str, DatasetItem] = {}
+    for it in items:
+        other = first.setdefault(it.id.casefold(), it)
+        if other is not it:
+            why = ("so that no name holds '__'" if other.id == it.id else
+                   f"(with '{other.id}': names that differ in case only are one file on macOS's or Windows' file "
+                   "systems)")
+            raise InputError(f"items of garment '{other.garment}' on motion '{other.motion}' and of garment "
+                             f"'{it.garment}' on motion '{it.motion}' would both be named '{it.id}' (one sequence "
+                             f"file): rename a garment or motion file {why}")
 
 
 def manifest_motion_splits(manifest: dict) -> dict[str, str]:

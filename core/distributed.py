@@ -25,12 +25,13 @@ from __future__ import annotations
 import logging
 import os
 import signal
+import time
 import uuid
 from collections.abc import Callable, Iterator, Sequence
 from contextvars import ContextVar
 from typing import Any
 
-from core.errors import InputError
+from core.errors import InputError, counted
 
 log = logging.getLogger(__name__)
 
@@ -56,25 +57,27 @@ def raise_if_stopped(what) -> None:
         raise Stopped(f"'{what}' not written: its run was stopped")
 
 
-class _InputFailed:
-    """A cluster task's InputError, returned rather than raised: the input's own fault, the same on every retry
-    (Dask re-ran a motion whose output name its file system refused --retries times)."""
+class _FailedForGood:
+    """A cluster task's error that every retry would raise again, returned rather than raised: the input's own
+    fault (InputError: Dask re-ran a motion whose output name its file system refused --retries times) or a
+    method's failure on it (FloatingPointError: the simulator's, already retried with more substeps within the
+    task, and the model's non-finite output are deterministic: a failed simulation ran three times)."""
 
-    def __init__(self, exc: InputError):
+    def __init__(self, exc: Exception):
         self.exc = exc
 
 
 def _stoppable(event_name: str, task, *args):
     """`task(*args)` on a cluster's worker, its outputs written only while the Dask Event `event_name` is unset;
-    an InputError returned as `_InputFailed` (not retried)."""
+    an error a retry would repeat returned as `_FailedForGood` (not retried)."""
     from distributed import Event
 
     event = Event(event_name)
     token = _stop_check.set(event.is_set)
     try:
         return task(*args)
-    except InputError as exc:
-        return _InputFailed(exc)
+    except (InputError, FloatingPointError) as exc:
+        return _FailedForGood(exc)
     finally:
         _stop_check.reset(token)
 
@@ -249,8 +252,6 @@ def pool_context():
 
 
 def _run_dask(client, task, calls, names, retries: int):
-    from distributed import as_completed
-
     token = uuid.uuid4().hex[:8]  # keys unique to this run: a shared scheduler may hold another run's results
     stop = f"garment-stop-{token}"  # a Dask Event: set, the run's tasks write nothing more (`raise_if_stopped`)
     futures = {}
@@ -260,13 +261,18 @@ def _run_dask(client, task, calls, names, retries: int):
     log.info("submitted %d tasks to %s (retries %d)", len(futures), client.scheduler.address, retries)
     failures = []
     try:
-        for fut in as_completed([f for _, f in futures.values()]):
+        for fut in _completed(client, [f for _, f in futures.values()]):
             name = futures[fut.key][0]
             if fut.status == "error":
                 exc = fut.exception()
-                log.warning("item '%s' failed after %d retries: %s", name, retries, exc)
+                if type(exc).__name__ == "KilledWorker":  # (the scheduler's allowed-failures, not --retries)
+                    exc = RuntimeError("the workers running it died (killed? out of memory?) as often as the "
+                                       "scheduler allows (distributed.scheduler.allowed-failures): given up")
+                    log.warning("item '%s' failed: %s", name, exc)
+                else:
+                    log.warning("item '%s' failed after %d retries: %s", name, retries, exc)
                 failures.append((name, exc))
-            elif isinstance(result := fut.result(), _InputFailed):
+            elif isinstance(result := fut.result(), _FailedForGood):
                 log.warning("item '%s' failed: %s", name, result.exc)
                 failures.append((name, result.exc))
             else:
@@ -288,3 +294,39 @@ def _run_dask(client, task, calls, names, retries: int):
             log.warning("%d of %d tasks unfinished on the cluster at the stop: %s", len(pending), len(futures), said)
     if failures:
         raise ItemsFailed(failures, len(calls))
+
+
+#: Seconds between looks at a cluster while none of its tasks finishes (`_completed`).
+IDLE_CHECK_S = 30.0
+
+
+def _completed(client, futures, idle_check_s: float | None = None):
+    """The futures as they complete (`distributed.as_completed`, looked at as its own iterator does, every 0.1 s),
+    saying where the cluster has no worker while some wait (every worker killed or gone, or none started: the run
+    waited without a word, for ever) and when workers are back; the run goes on once workers join."""
+    from distributed import as_completed
+
+    idle_check_s = IDLE_CHECK_S if idle_check_s is None else idle_check_s
+    waiting, idle, looked = as_completed(futures), False, time.monotonic()
+    while not waiting.is_empty():
+        batch = waiting.next_batch(block=False)
+        if batch:
+            yield from batch
+            continue
+        if time.monotonic() - looked < idle_check_s:
+            time.sleep(0.1)
+            continue
+        looked = time.monotonic()
+        workers = len(client.nthreads())
+        if workers == 0 and not idle:
+            log.warning("the cluster at %s has no workers: %s waiting until workers join (start them, or stop "
+                        "this run: the finished outputs are kept)", client.scheduler.address,
+                        counted(waiting.count(), "task"))
+        elif workers and idle:
+            log.warning("the cluster at %s has %s again", client.scheduler.address, counted(workers, "worker"))
+        idle = workers == 0
+
+
+def cluster_threads(client) -> int:
+    """The tasks a cluster runs at once (its workers' threads), at least 1."""
+    return max(1, sum(client.nthreads().values()))

@@ -166,10 +166,13 @@ def atomic_file(path: str | os.PathLike):
     """Yield a temporary path beside `path` (same suffix); on success it replaces `path`.
 
     The parent directory is created. On an exception the temporary file is removed. A device, pipe or socket at
-    `path` is refused (InputError).
+    `path`, or a folder (the rename failed after the work with IsADirectoryError, naming the temporary file), is
+    refused (InputError).
     """
     path = Path(path)
     _refuse_special(path)
+    if path.is_dir():
+        raise InputError(f"output '{path}' is a folder: expected a file to write (or nothing there)")
     with _writing(path):
         path.parent.mkdir(parents=True, exist_ok=True)
         _sweep(path.parent, path.stem)

@@ -664,8 +664,9 @@ def scheduler_options(task: str, note: str = ""):
 
     def decorate(command):
         command = click.option("--retries", type=click.IntRange(min=0), default=2, show_default=True,
-                               help=f"--scheduler: re-runs of each {task} that failed (not of one whose input is at "
-                                    "fault: a bad file, an output name too long).")(command)
+                               help=f"--scheduler: re-runs of each {task} that failed (not of one that would fail again: "
+                                    "its input at fault, a bad file or an output name too long, or the method on "
+                                    "it, a simulation that failed).")(command)
         return click.option("--scheduler", default=None, metavar="ADDRESS",
                             help=f"Run on a Dask distributed cluster (tcp://host:port), one task per {task}; the "
                                  f"inputs and the output must be on a path every worker sees.{note}")(command)

@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 from tqdm import tqdm
 
+from core.errors import counted
 from core.provenance import file_sha256, software_versions
 from garmentcli.common import (
     FLOOR_CHOICES,
@@ -359,8 +360,12 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                        f"left out of the manifest ({n} {'sequence' if n == 1 else 'sequences'} simulated for "
                        f"{'them' if len(gone) > 1 else 'it'} {'stays' if n == 1 else 'stay'} in {out / 'sequences'})",
                        err=True)
-    from core.distributed import ItemsFailed, connect, run_items
+    from core.distributed import ItemsFailed, cluster_threads, connect, run_items
 
+    taken = next((path for path in (sequence_path(out, it.id) for it in items) if path.is_dir()), None)
+    if taken is not None:  # (simulated, then refused by the write, and on a cluster simulated --retries times more)
+        raise click.ClickException(f"output '{taken}' is a folder: expected the item's sequence file or nothing "
+                                   "there; remove it")
     client = connect(scheduler) if scheduler else None  # before writing anything: an unreachable cluster fails fast
     for name, p in zip((Path(p).stem for p in garment_paths), garment_paths):
         copy_garment_template(out, p, name)
@@ -388,6 +393,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
     calls = [(init, it, betas[it.body], settle_frames, task_out, body_id) for it in todo]
     frames_of = {it.id: item_frames(it, settings) for it in todo}
     failed, finished = None, 0
+    at_once = cluster_threads(client) if client is not None else max(workers, 1)  # (--workers: ignored on a cluster)
     total_frames, frames_done, t_start = sum(frames_of.values()), 0, time.perf_counter()
     with tqdm(total=total_frames, unit="frame", desc="dataset", disable=None) as bar:
         try:
@@ -403,7 +409,7 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                     rate = f", {stats[iid]['seconds_per_frame']:.2f} s/frame" if iid in stats else ""
                     # The other workers' items in flight taken as half done (counted as nothing, the first lines
                     # said about --workers times too long)
-                    busy = min(max(workers, 1) - 1, len(todo) - finished)
+                    busy = min(at_once - 1, len(todo) - finished)
                     done = frames_done + 0.5 * busy * frames_done / finished
                     left = time_left((time.perf_counter() - t_start) * max(total_frames - done, 0.0) / done)
                     click.echo(f"dataset: {finished}/{len(todo)} {iid}{rate}"
@@ -418,4 +424,4 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                 write_manifest(out, manifest)
     if failed is not None:
         raise click.ClickException(f"{out}: {failed}; rerun the same command to resume")
-    click.echo(f"{out}: {len(items)} sequences ready ({len(stats)} simulated now)")
+    click.echo(f"{out}: {counted(len(items), 'sequence')} ready ({len(stats)} simulated now)")

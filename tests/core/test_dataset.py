@@ -195,3 +195,16 @@ def test_preroll_leads_into_every_clip_that_does_not_start_its_motion():
     r = simulate_item(None, tiny_body(), m, Echo(), preroll=items[1].preroll)
     assert r["n_settle"] == 4 + 12  # the settle blend and the pre-roll: neither is the clip's data
     np.testing.assert_array_equal(r["positions"][r["n_settle"]:, 0], motion.trans[30:60])
+
+
+def test_items_that_would_share_a_name_are_refused():
+    """Garment a__b on motion c and garment a on motion b__c were both named a__b__c__c00__b00: simulated into one
+    sequence file, one item lost, the manifest's train item pointing at the other garment's cloth."""
+    with pytest.raises(InputError, match=r"items of garment 'a__b' on motion 'c' and of garment 'a' on motion 'b__c' "
+                                         r"would both be named 'a__b__c__c00__b00' \(one sequence file\): rename a "
+                                         r"garment or motion file so that no name holds '__'"):
+        plan_items(["a", "a__b"], {"c": 10, "b__c": 10}, 1, held_out=False)
+    with pytest.raises(InputError, match="names that differ in case only"):
+        plan_items(["dress", "Dress"], {"walk": 10}, 1, held_out=False)
+    items, _ = plan_items(["a", "a__b"], {"c": 10, "d": 10}, 1, held_out=False)  # '__' alone is no clash
+    assert len({it.id for it in items}) == len(items) == 4

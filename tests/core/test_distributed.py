@@ -127,11 +127,13 @@ def test_a_stopped_cluster_run_cancels_its_tasks_and_stops_those_started_writing
             futures.append(_Pending(key))
             return futures[-1]
 
-    def interrupted(fs):
+    def interrupted(client, fs):
         raise KeyboardInterrupt
         yield
 
-    monkeypatch.setattr(dist, "as_completed", interrupted)
+    import core.distributed
+
+    monkeypatch.setattr(core.distributed, "_completed", interrupted)
     monkeypatch.setattr(dist, "Event", Event)
     for fail in (False, True):
         futures.clear()
@@ -246,21 +248,78 @@ def test_cluster_reports_items_that_keep_failing(client, tmp_path):
     assert sorted(got) == ["a", "c"] and info.value.total == 3  # the others finished
 
 
-def test_cluster_does_not_retry_an_input_error(client, tmp_path):
-    """An InputError is the input's own fault: the same on every retry (a motion whose output name the file system
-    refused was baked three times), so it is a failure at once, said as the InputError it is."""
+@pytest.mark.parametrize("error", ["InputError", "SimulationError"])
+def test_cluster_does_not_retry_an_error_a_retry_repeats(client, tmp_path, error):
+    """An InputError is the input's own fault, a FloatingPointError (the simulator's SimulationError, retried with
+    more substeps within the task; the model's non-finite output) the method's on it: the same on every retry (a
+    motion whose output name the file system refused was baked three times; a failed simulation ran three times),
+    so it is a failure at once, said as what it is."""
     from core.errors import InputError
+    from core.sim import SimulationError
 
     runs = tmp_path / "runs"
+    kind = {"InputError": InputError, "SimulationError": SimulationError}[error]
 
     def task(x):
         with open(runs, "a") as fh:
             fh.write(".")
-        raise InputError(f"motion '{x}.npz': expected poses, got none")
+        raise kind(f"motion '{x}.npz': expected poses, got none")
 
-    with pytest.raises(ItemsFailed, match="1 of 1 items failed; first: 'a': InputError: motion '0.npz': expected"):
+    with pytest.raises(ItemsFailed, match=f"1 of 1 items failed; first: 'a': {error}: motion '0.npz': expected"):
         list(run_items(task, [(0,)], ["a"], client=client, retries=2))
     assert runs.read_text() == "."
+
+
+def test_a_cluster_without_workers_is_said_and_a_task_its_workers_died_on_is_said_so(monkeypatch, caplog):
+    """A cluster whose workers were all gone (killed, or none started) left the run waiting without a word, for
+    ever; a task whose workers died as often as the scheduler allows was said to have failed 'after 2 retries'
+    (--retries played no part)."""
+    import threading
+    import time
+
+    import dask
+    from distributed import Client, LocalCluster
+
+    import core.distributed
+
+    monkeypatch.setattr(core.distributed, "IDLE_CHECK_S", 0.3)
+
+    def dies(x):
+        os._exit(1)
+
+    outcome = []
+
+    def run(client):
+        try:
+            outcome.append(list(run_items(dies, [(0,)], ["a"], client=client, retries=2)))
+        except ItemsFailed as exc:
+            outcome.append(exc)
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            LocalCluster(n_workers=0, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client, caplog.at_level("WARNING", logger="core.distributed"):
+        thread = threading.Thread(target=run, args=(client,))
+        thread.start()
+        deadline = time.monotonic() + 30
+        while "has no workers" not in caplog.text and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert f"the cluster at {cluster.scheduler_address} has no workers: 1 task waiting until workers join" \
+            in caplog.text
+        assert thread.is_alive() and not outcome
+        cluster.scale(1)
+        thread.join(120)
+    assert not thread.is_alive()
+    assert "has 1 worker again" in caplog.text or isinstance(outcome[0], ItemsFailed)
+    failed = outcome[0]
+    assert isinstance(failed, ItemsFailed) and "the workers running it died" in str(failed), failed
+    assert "after 2 retries" not in caplog.text
+
+
+def test_cluster_threads_count_what_a_cluster_runs_at_once(client):
+    """`dataset --scheduler`'s time left counted one task at a time (--workers, ignored there): 3 min said, 1 left."""
+    from core.distributed import cluster_threads
+
+    assert cluster_threads(client) == 2  # tests.cluster: two single-thread workers
 
 
 def test_bad_scheduler_address_is_one_line():

@@ -102,6 +102,17 @@ def test_a_device_or_pipe_is_never_renamed_over(tmp_path):
                 pass
 
 
+def test_a_folder_where_a_file_is_written_is_refused_before_the_work(tmp_path):
+    """The rename failed after the work (a dataset's simulation) with IsADirectoryError naming the hidden temporary
+    file; now the writer refuses it at once, an InputError (not retried on a cluster), naming the output."""
+    taken = tmp_path / "seq.npz"
+    (taken / "inner").mkdir(parents=True)
+    with pytest.raises(InputError, match=f"output '{taken}' is a folder: expected a file to write"):
+        with atomic_file(taken):
+            raise AssertionError("the work was done")
+    assert (taken / "inner").is_dir() and sorted(p.name for p in tmp_path.iterdir()) == ["seq.npz"]
+
+
 def _disk_full(*args, **kwargs):
     raise OSError(28, "No space left on device")
 

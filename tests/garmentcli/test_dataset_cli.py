@@ -58,6 +58,15 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene, monkeypatch):
     assert r.exit_code == 0 and "0 to simulate" in r.output and files[0].stat().st_mtime_ns == mtime
     # A deleted item is redone.
     files[1].unlink()
+    files[1].mkdir()  # a folder at an item's sequence path: refused before any work (it was simulated, then the
+    (files[1] / "x").touch()  # rename failed naming the hidden temporary file; on a cluster three times)
+    manifest = (out / "manifest.json").read_bytes()
+    r = run(*args)
+    assert r.exit_code == 1 and r.output.strip().splitlines()[-1] == \
+        f"Error: output '{files[1]}' is a folder: expected the item's sequence file or nothing there; remove it"
+    assert (out / "manifest.json").read_bytes() == manifest and sorted(files[1].iterdir()) == [files[1] / "x"]
+    (files[1] / "x").unlink()
+    files[1].rmdir()
     r = run(*args)
     assert r.exit_code == 0 and "1 to simulate" in r.output and files[1].is_file()
     # What `garment dataset` wrote is what `garment train` reads (the split is a field of each item).
