@@ -120,6 +120,16 @@ def train_config_from_dict(values: dict, source: str = "train config") -> TrainC
     return cfg
 
 
+class TrainingDiverged(InputError):
+    """The training loss or validation error is not finite: the run stops there, its model not written (it trained
+    on NaN to the end, then wrote a NaN model and called it finished)."""
+
+
+#: What makes a loss not finite, said with `TrainingDiverged`.
+DIVERGED_CAUSES = ("a sequence far off or broken (its positions), weights not finite (--init), or too high a learning "
+                   "rate ('lr' in --config)")
+
+
 @dataclass
 class PhaseState:
     """phase: current phase; best: best watched value in this phase; bad: validations without improvement."""
@@ -214,6 +224,12 @@ class Trainer:
         frozen = phase >= 2
         terms = frame_losses(self.model, self.data, seq, frames, phase, frozen)
         loss = total_loss(terms, phase, self.config.loss_scale)
+        if not torch.isfinite(loss):  # before the step: the model keeps its last finite weights
+            bad = ", ".join(f"{k} {float(terms[k].detach()):g}" for k in LOSS_COLUMNS
+                            if k in terms and not math.isfinite(float(terms[k].detach())))
+            raise TrainingDiverged(f"training diverged at step {self.step + 1}: the loss is {float(loss.detach()):g} "
+                                   f"({bad or 'its sum'}) on item '{seq.item_id}'; stopped, the model not written: "
+                                   f"{DIVERGED_CAUSES}")
         self.apply_gradients(loss, frozen)
         return self.log_step(phase, seq.item_id, float(loss.detach()),
                              {k: float(terms[k].detach()) for k in LOSS_COLUMNS if k in terms})
@@ -263,6 +279,10 @@ class Trainer:
 
     def validate_and_switch(self) -> dict:
         v = self.validate()
+        if not all(math.isfinite(x) for x in v.values()):
+            raise TrainingDiverged(f"training diverged at step {self.step}: the validation error is not finite "
+                                   f"({', '.join(f'{k} {x:g}' for k, x in v.items())}); stopped, the model not "
+                                   f"written: {DIVERGED_CAUSES}")
         ps = self.phase
         watched = v["val_verts_mm"] if ps.phase == 1 else v.get("val_collision", math.inf)
         improved = (not math.isfinite(ps.best)) or watched < ps.best * (1.0 - self.config.tolerance)

@@ -55,6 +55,16 @@ def load_checkpoint(path: str | os.PathLike) -> dict:
     for key in ("config", "model"):
         if key not in data:
             raise InputError(f"model '{path}': checkpoint lacks '{key}'")
+    data.setdefault("meta", {})  # (save_checkpoint writes one; a checkpoint of another writer may lack it)
+    for key in ("config", "model", "meta"):  # (a list or None made tracebacks in bake, info, attribute, train)
+        if not isinstance(data[key], dict):
+            raise InputError(f"model '{path}': expected the checkpoint's '{key}' a dict, got "
+                             f"{type(data[key]).__name__}")
+    bad = next((name for name, w in data["model"].items()
+                if isinstance(w, torch.Tensor) and w.is_floating_point() and not torch.isfinite(w).all()), None)
+    if bad is not None:  # (every command took it: bake blamed the motion, info printed NaN, attribute a NaN table)
+        raise InputError(f"model '{path}': expected finite weights, got NaN or Inf in '{bad}' (a training that "
+                         "diverged?)")
     return data
 
 
@@ -65,8 +75,13 @@ def load_model(path: str | os.PathLike):
     data = load_checkpoint(path)
     model = GarmentModel(config_from_dict(data["config"], source=f"model '{path}'"))
     try:
-        model.load_state_dict(data["model"])
-    except RuntimeError as exc:
-        raise InputError(f"model '{path}': weights do not match its config ({str(exc).splitlines()[0]})") from None
+        loaded = model.load_state_dict(data["model"], strict=False)
+    except RuntimeError as exc:  # weights of other sizes: torch's first line names none of them
+        said = "; ".join(line.strip() for line in str(exc).splitlines()[1:] if line.strip())
+        raise InputError(f"model '{path}': weights do not match its config ({said[:400] or 'other sizes'})") from None
+    if loaded.missing_keys or loaded.unexpected_keys:
+        said = ", ".join(f"{what} {keys[:3]}{' ...' if len(keys) > 3 else ''}" for what, keys in
+                         (("missing", loaded.missing_keys), ("unexpected", loaded.unexpected_keys)) if keys)
+        raise InputError(f"model '{path}': weights do not match its config ({said})")
     model.eval()
     return model, data

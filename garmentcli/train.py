@@ -297,6 +297,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
     import os
 
     from core.model_deform import joint_coverage, trained_betas, trained_shapes
+    from core.train import TrainingDiverged
     from formats.checkpoint import save_checkpoint
 
     ckpt_path, csv_path, json_path = _side_files(out)
@@ -354,7 +355,12 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
 
         trainer.progress = progress
         trainer.on_switch = snapshot
-        trainer.run(checkpoint=checkpoint, should_stop=_time_limit(job.time_limit, world, device, interrupted))
+        try:
+            trainer.run(checkpoint=checkpoint, should_stop=_time_limit(job.time_limit, world, device, interrupted))
+        except TrainingDiverged as exc:  # (the card of the model not written is removed by the caller)
+            bar.close()
+            kept = f"; the checkpoint '{ckpt_path}' of an earlier step is kept" if ckpt_path.exists() else ""
+            raise TrainingDiverged(f"{exc}{kept}") from None
         bar.close()
         checkpoint(trainer)
     # This process's steps, then those a --resume read back from the CSV: the last validation of the whole run.

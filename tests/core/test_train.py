@@ -195,6 +195,40 @@ def test_checkpoint_rejects_other_version(tmp_path):
         load_checkpoint(tmp_path / "junk.pt")
 
 
+def test_a_checkpoint_of_nan_weights_or_broken_parts_is_refused_naming_it(tmp_path):
+    """A model of NaN weights (a training that diverged) was taken by every command (bake blamed the motion, info
+    printed NaN, attribute a NaN table); a 'meta' of None, a 'config' list or a 'model' None made tracebacks; a
+    weight missing was said as torch's empty first line."""
+    from core.model import GarmentModel
+    from formats.checkpoint import load_model
+
+    weights = GarmentModel(TINY_CONFIG).state_dict()
+    path = save_checkpoint(tmp_path / "m.pt", TINY_CONFIG, weights)
+    assert load_model(path)[1]["meta"] == {}
+    name = next(k for k, w in weights.items() if w.is_floating_point())
+
+    def edited(edit):
+        ck = torch.load(path, weights_only=True)
+        edit(ck)
+        torch.save(ck, tmp_path / "e.pt")
+        return tmp_path / "e.pt"
+
+    nan = edited(lambda ck: ck["model"][name].fill_(float("nan")))
+    with pytest.raises(InputError, match=f"model '{nan}': expected finite weights, got NaN or Inf in '{name}'"):
+        load_checkpoint(nan)
+    for key, value, kind in (("meta", None, "NoneType"), ("config", [1, 2], "list"), ("model", None, "NoneType")):
+        broken = edited(lambda ck: ck.__setitem__(key, value))
+        with pytest.raises(InputError, match=f"expected the checkpoint's '{key}' a dict, got {kind}"):
+            load_checkpoint(broken)
+    assert load_checkpoint(edited(lambda ck: ck.pop("meta")))["meta"] == {}  # absent: none recorded
+    missing = edited(lambda ck: ck["model"].pop(name))
+    with pytest.raises(InputError, match=rf"weights do not match its config \(missing \['{name}'\]\)"):
+        load_model(missing)
+    other = edited(lambda ck: ck["model"].__setitem__(name, torch.zeros(3, 1)))
+    with pytest.raises(InputError, match=f"weights do not match its config \\(size mismatch for {name}"):
+        load_model(other)
+
+
 def _edited_copy(src, dst, edit=None, ids=None):
     """A copy of dataset `src` at `dst` whose manifest `edit` changed in place; `ids` renames its items."""
     import json

@@ -632,3 +632,31 @@ def test_a_manifest_that_is_no_object_or_a_sequence_with_a_nan_is_one_line_for_t
             assert r.exit_code != 0 and len(lines) == 1 and expected in lines[0], (case, command, r.output)
         assert not (tmp_path / f"{case}.pt").exists() and not (tmp_path / f"{case}.npz").exists()
 
+
+
+@pytest.mark.parametrize("where", ["train", "val"])
+def test_training_that_diverges_stops_writing_no_model(setup, tmp_path, where):
+    """A sequence finite but absurd (a vertex 1e30 m away) trained on NaN to the last step, then wrote a model of
+    NaN weights, exited 0 and printed 'validation E_verts nan mm'. Now the first loss (or validation error) that
+    is not finite stops the run in one line naming the step and item; no model, nor its card."""
+    import shutil
+
+    from formats.dataset import sequence_path
+
+    root, data, body, cfg = setup
+    copy = tmp_path / "far"
+    shutil.copytree(data, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    for item in (it for it in manifest["items"] if it["split"] == where):
+        path = sequence_path(copy, item["id"])
+        arrays = dict(np.load(path))
+        arrays["positions"][:, 3, 0] = 1e30
+        np.savez(path, **arrays)
+    out = tmp_path / "m.pt"
+    r = _train(root, copy, body, cfg, out, "--steps", "4")
+    lines = [line for line in r.output.splitlines() if line.startswith("Error")]
+    said = "training diverged at step 1: the loss is inf" if where == "train" else \
+        "training diverged at step 2: the validation error is not finite (val_verts_mm inf"
+    assert r.exit_code == 1 and len(lines) == 1 and said in lines[0], r.output
+    assert "the model not written" in lines[0] and "Traceback" not in r.output
+    assert not out.exists() and not out.with_name("m.pt.json").exists()
