@@ -134,6 +134,10 @@ class ModelConfig:
         for name in ("encoder_layers", "level_layers", "bottom_layers", "levels"):
             if int(getattr(self, name)) < 0:
                 raise InputError(f"{source}: expected {name} >= 0, got {getattr(self, name)!r}")
+        from core.preprocess import MAX_LEVELS
+
+        if self.levels > MAX_LEVELS:  # (the garment's preprocessing refused it later, naming no config)
+            raise InputError(f"{source}: expected levels from 0 to {MAX_LEVELS}, got {self.levels!r}")
         for name in ("shape_input", "pose_codes"):
             if getattr(self, name) not in (0, 1):
                 raise InputError(f"{source}: expected {name} 0 or 1, got {getattr(self, name)!r}")

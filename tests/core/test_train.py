@@ -1,5 +1,6 @@
 """The hybrid trainer end to end on a tiny synthetic dataset: learns, switches phase, resumes exactly."""
 
+import dataclasses
 import itertools
 import math
 
@@ -181,6 +182,23 @@ def test_train_config_rejects_unknown_key_and_bad_phases():
         train_config_from_dict({"lrate": 1.0})
     with pytest.raises(InputError, match="phases"):
         train_config_from_dict({"phases": [2, 3]})
+
+
+@pytest.mark.parametrize("values, said", [
+    ({"checkpoint_every": -5}, "expected checkpoint_every >= 0, got -5"),  # (one shared line named none of them)
+    ({"lr": 0}, "expected lr > 0, got 0"),
+    ({"grad_clip": -1.0}, "expected grad_clip >= 0, got -1.0"),
+    ({"seed": -1}, "expected seed from 0 to 4294967295, got -1"),  # (numpy's traceback)
+    ({"seed": 2**40}, "expected seed from 0 to 4294967295, got 1099511627776"),  # (taken; --seed refuses it)
+    ({"frames_per_step": 1000}, "expected frames_per_step at most 256"),  # (24 GB, killed)
+])
+def test_train_config_names_the_value_it_refuses(values, said):
+    with pytest.raises(InputError, match=f"cfg.json: {said}"):
+        train_config_from_dict(values, source="cfg.json")
+    from core.model import ModelConfig, config_from_dict
+
+    with pytest.raises(InputError, match="cfg.json: expected levels from 0 to 8, got 9"):  # (no config named)
+        config_from_dict({**dataclasses.asdict(ModelConfig()), "levels": 9}, source="cfg.json")
 
 
 def test_checkpoint_rejects_other_version(tmp_path):
