@@ -176,6 +176,9 @@ class Measurement:
     gpu_peak_memory_mb: float | None = None
     #: The simulator's frames run again with more substeps ({"frame", "tries", "kept_substeps"}: `core.sim`).
     retries: list = field(default_factory=list)
+    #: A self-contact row that the scene analysis ran without it (no two distant parts of the garment come near on
+    #: the motion: `core.scene`), so measured as the row without it.
+    self_contact_skipped: bool = False
 
 
 def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeats: int = 3,
@@ -201,8 +204,10 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
             points = deformer.deform(garment, body, motion)
             times.append(time.perf_counter() - t)
     kept = points[motion.n_lead:motion.n_lead + motion.n_written]
+    skipped = bool(config.options.get("self_contact")) and deformer.report.get("self_contact") is None
     return Measurement(config, kept, statistics.median(times) / motion.n_frames, prep, mem.peak_mb, runs,
-                       gpu_peak_memory_mb=gpu.peak_mb, retries=list(deformer.report.get("retries", [])))
+                       gpu_peak_memory_mb=gpu.peak_mb, retries=list(deformer.report.get("retries", [])),
+                       self_contact_skipped=skipped)
 
 
 def simulation_scene(garment: Garment, body: Body, motion: Motion):
@@ -246,7 +251,7 @@ def save_simulation(path, m: Measurement, key: str, faces: np.ndarray, fps: floa
     np.savez_compressed(path, points=m.points.astype(np.float32), faces=np.asarray(faces, dtype=np.int64),
                         fps=float(fps), key=key, seconds_per_frame=m.seconds_per_frame,
                         seconds_prepare=m.seconds_prepare, peak_memory_mb=m.peak_memory_mb, runs=m.runs,
-                        retries=json.dumps(m.retries))
+                        retries=json.dumps(m.retries), self_contact_skipped=m.self_contact_skipped)
 
 
 def load_simulation(path, config: Config, key: str) -> Measurement | None:
@@ -260,7 +265,9 @@ def load_simulation(path, config: Config, key: str) -> Measurement | None:
             return None
         return Measurement(config, np.array(d["points"]), float(d["seconds_per_frame"]),
                            float(d["seconds_prepare"]), float(d["peak_memory_mb"]), int(d["runs"]),
-                           retries=json.loads(str(d["retries"])) if "retries" in d else [])
+                           retries=json.loads(str(d["retries"])) if "retries" in d else [],
+                           self_contact_skipped=bool(d["self_contact_skipped"]) if "self_contact_skipped" in d
+                           else False)
 
 
 def memory_needed(n_rows: int, garment: Garment, body: Body, n_frames: int) -> int:

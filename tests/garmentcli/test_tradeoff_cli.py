@@ -58,6 +58,13 @@ def test_the_simulator_rows_warm_up_on_two_frames_before_they_are_timed(monkeypa
     runs.clear()
     measure(Config("lbs", "lbs"), None, None, motion, repeats=3)
     assert runs == [7, 7, 7, 7]
+    assert not m.self_contact_skipped  # (no self-contact asked)
+    # a self-contact row the scene analysis ran without it (its report: no self-contact) is said to be one
+    contact = Config("sim +self-contact", "sim", {"substeps": 10, "self_contact": True})
+    Recording.report = {"self_contact": None}
+    assert measure(contact, None, None, motion).self_contact_skipped
+    Recording.report = {"self_contact": {"detection_gap_m": 0.005}}
+    assert not measure(contact, None, None, motion).self_contact_skipped
 
 
 def test_pareto_front_naive():
@@ -194,7 +201,8 @@ def _fake_measure(fail, error=None):
         pts = LBSDeformer().deform(garment, body, motion)[motion.n_lead:motion.n_lead + motion.n_written]
         pts = pts + (0.0 if config.reference else 0.01)
         retries = [{"frame": 1, "tries": 2, "kept_substeps": 20}] if config.name == "sim 10 substeps" else []
-        return Measurement(config, pts, 1.0 if config.method == "sim" else 0.01, 0.0, 0.0, 1, retries=retries)
+        return Measurement(config, pts, 1.0 if config.method == "sim" else 0.01, 0.0, 0.0, 1, retries=retries,
+                           self_contact_skipped=config.name == "sim 10 substeps +self-contact")
 
     return measure
 
@@ -287,6 +295,12 @@ def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkey
     retried = "`sim 10 substeps`: frame 1 run again at 20 substeps (try 2)"
     assert retried in (d / "tradeoff.md").read_text()
     assert first["sim 10 substeps"]["retries"] == "frame 1 run again at 20 substeps (try 2)"
+    # a self-contact row run without it (the scene analysis) is said so: it was the row without it, unsaid
+    skipped = "`sim 10 substeps +self-contact`: self-contact skipped by the scene analysis"
+    assert skipped in (d / "tradeoff.md").read_text()
+    rows = {r["config"]: r for r in json.loads((d / "tradeoff.json").read_text())["rows"]}
+    assert rows["sim 10 substeps +self-contact"]["self_contact_skipped"] and \
+        not rows["sim 20 substeps +self-contact"]["self_contact_skipped"]
     meta = json.loads((d / "tradeoff.json").read_text())
     assert meta["options"]["frames"] == "0:4" and meta["options"]["repeats"] == 3 and meta["simulator_version"] >= 1
     assert "torch" in meta["software"]
@@ -299,7 +313,7 @@ def test_reuse_sim_takes_the_simulator_rows_of_the_same_scene_only(scene, monkey
     assert "tradeoff: 1/10 lbs: " in r.output and "tradeoff: 7/10 sim" not in r.output
     assert measured and not any(name.startswith("sim") for name in measured)
     again = {row["config"]: row for row in csv.DictReader(open(d / "tradeoff.csv"))}
-    assert retried in (d / "tradeoff.md").read_text()  # kept with the stored row
+    assert retried in (d / "tradeoff.md").read_text() and skipped in (d / "tradeoff.md").read_text()  # stored too
     for name in ("sim 10 substeps", "lbs"):
         assert float(again[name]["e_verts"]) == pytest.approx(float(first[name]["e_verts"]), abs=1e-6)
     assert again["sim 10 substeps"]["seconds_per_frame"] == first["sim 10 substeps"]["seconds_per_frame"]
