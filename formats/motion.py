@@ -885,6 +885,7 @@ def _read_gender(raw) -> str | None:
     return str(v).strip() or None
 
 
-def _short(exc: BaseException) -> str:
+def _short(exc: BaseException, limit: int = 120) -> str:
+    """An exception's first line, cut at a word before `limit` characters ('...'; it ended mid-word: 'If yo')."""
     text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-    return text[:120]
+    return text if len(text) <= limit else text[:limit].rsplit(" ", 1)[0].rstrip(".,;:") + " ..."

@@ -381,3 +381,14 @@ def test_a_pickle_or_torch_file_of_text_or_nothing_is_named_for_what_it_is(tmp_p
         with pytest.raises(InputError) as info:
             load_motion(tmp_path / name)
         _assert_one_line(info, f"motion '{tmp_path / name}': {needle}")
+
+
+def test_a_long_cause_is_cut_at_a_word():
+    """A damaged file's cause was cut at 120 characters mid-word ('... If yo')."""
+    from formats.motion import _short
+
+    long = RuntimeError("PytorchStreamReader failed reading zip archive: failed finding central directory. This is "
+                        "an internal miniz error. If you are seeing this, please report it")
+    assert _short(long) == ("PytorchStreamReader failed reading zip archive: failed finding central directory. This "
+                            "is an internal miniz error. If ...")
+    assert _short(RuntimeError("short one\nsecond line")) == "short one"
