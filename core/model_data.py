@@ -204,6 +204,7 @@ def _merged_manifests(roots: list[Path]) -> tuple[dict, dict, dict]:
             gpath = root / "garments" / f"{gname}.obj"
             if not gpath.is_file():
                 continue
+            _refuse_edited_template(gpath, manifest.get("inputs", {}).get("garments", {}).get(gname))
             if gname not in templates:
                 templates[gname] = gpath
             elif read_obj(gpath).content_hash() != read_obj(templates[gname]).content_hash():
@@ -223,6 +224,21 @@ def _merged_manifests(roots: list[Path]) -> tuple[dict, dict, dict]:
                     continue  # the same item: kept once, from wherever it is simulated
             items[item_id] = {**rec, _ROOT: root}
     return first, items, templates
+
+
+def _refuse_edited_template(path: Path, recorded) -> None:
+    """InputError where a dataset's garment template (a byte copy of the OBJ it was simulated with) is no longer
+    that file: its sequences were simulated on another mesh (one vertex moved 1 cm was trained on unnoticed; only
+    another vertex count was caught). recorded: the manifest's `inputs.garments[name]` ({"path", "sha256"}); a
+    garment read from USD (its template written anew) or not recorded is not compared."""
+    from core.provenance import file_sha256
+
+    if not isinstance(recorded, dict) or not str(recorded.get("path", "")).lower().endswith(".obj"):
+        return
+    if recorded.get("sha256") not in (None, file_sha256(path)):
+        raise InputError(f"dataset garment '{path}': expected the file its sequences were simulated with "
+                         f"('{recorded['path']}', sha256 {str(recorded['sha256'])[:12]}), got a file edited since: "
+                         "restore it, or simulate the dataset again")
 
 
 class ModelDataset:

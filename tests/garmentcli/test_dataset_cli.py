@@ -75,6 +75,20 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene, monkeypatch):
     assert r.exit_code == 0, r.output
     rows = (scene["dir"] / "models" / "m.pt.csv").read_text().splitlines()  # its folder made on the way
     assert len(rows) == 3  # header + 2 steps
+    # A template edited since (a vertex moved 1 cm): its sequences are of another mesh, refused (trained on before)
+    template = out / "garments" / "shell.obj"
+    original = template.read_bytes()
+    lines = original.decode().splitlines()
+    first = next(k for k, line in enumerate(lines) if line.startswith("v "))
+    x, y, z = map(float, lines[first].split()[1:4])
+    lines[first] = f"v {x + 0.01:.6f} {y:.6f} {z:.6f}"
+    template.write_text("\n".join(lines) + "\n")
+    r = run("train", "--data", out, "--out", scene["dir"] / "edited.pt", "--steps", 1, "--body", scene["body"],
+            "--config", _tiny_config(scene["dir"]), "--cache-dir", scene["dir"] / "cache")
+    assert r.exit_code == 1 and f"dataset garment '{template}': expected the file its sequences were simulated " \
+        "with" in r.output.splitlines()[-1], r.output
+    assert not (scene["dir"] / "edited.pt").exists()
+    template.write_bytes(original)
     # A sequence missing (an unfinished dataset run) is refused by training with one line.
     files[1].unlink()
     r = run("train", "--data", out, "--out", scene["dir"] / "m2.pt", "--steps", 1, "--body", scene["body"])
