@@ -192,6 +192,9 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
     train_cfg: TrainConfig = train_config_from_dict(train_values, source=f"--config '{config_path}'")
     if not resume and ckpt_path.exists():
         raise click.ClickException(f"checkpoint '{ckpt_path}' exists: pass --resume to continue it, or remove it")
+    if resume and not ckpt_path.exists():  # (it was "model '<MODEL>.ckpt': expected a checkpoint file, found none")
+        raise click.ClickException(f"--resume: expected the resume state '{ckpt_path}' of an earlier run to "
+                                   "--out, found none (a run writes it at its checkpoints and when stopped)")
     if not resume and out.exists():  # another file of that name (a garment, the shipped model) is not replaced
         raise click.ClickException(f"output '{out}' exists: remove it, or choose another --out")
 

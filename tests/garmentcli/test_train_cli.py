@@ -303,6 +303,11 @@ def test_train_bad_inputs(setup):
     bad.write_text(json.dumps({"train": {"speed": 3}}))
     r = _train(root, data, body, bad, root / "z.pt")
     assert r.exit_code != 0 and "unknown key 'speed'" in r.output and "Traceback" not in r.output
+    r = _train(root, data, body, cfg, root / "never.pt", "--resume")  # (it named the resume state a model)
+    assert r.exit_code == 1 and r.output.strip().splitlines()[-1] == (
+        f"Error: --resume: expected the resume state '{root / 'never.pt.ckpt'}' of an earlier run to --out, found "
+        "none (a run writes it at its checkpoints and when stopped)")
+    assert not list(root.glob("never.pt*"))
     junk = root / "junk.pt"
     junk.write_bytes(b"junk")
     r = CliRunner().invoke(cli, ["bake", str(root / "g.obj"), str(root / "walk.npz"), "--method", "model", "--model",
