@@ -82,12 +82,14 @@ def _models_for_body(models: dict, body) -> dict:
     """The models that run on `body`: a --model of another skeleton is refused, the shipped one's rows left out
     with a line saying why (`core.model_deform.model_body`)."""
     from core.model_deform import DEFAULT_MODEL, skeleton_mismatch
-    from formats.checkpoint import load_checkpoint
+    from formats.checkpoint import load_model
 
     kept = {}
     for name, path in models.items():
-        what = skeleton_mismatch(str(path or DEFAULT_MODEL), load_checkpoint(path or DEFAULT_MODEL)["config"]["n_joints"],
-                                 body)
+        # the network built and its weights loaded, before any row: a model that cannot be (weights not finite,
+        # or not of its config) failed row by row while the simulator rows ran on (hours)
+        config = load_model(path or DEFAULT_MODEL)[1]["config"]
+        what = skeleton_mismatch(str(path or DEFAULT_MODEL), config["n_joints"], body)
         if not what:
             kept[name] = path
         elif path is not None:

@@ -183,6 +183,27 @@ def test_tradeoff_bad_options(scene, extra, needle):
     assert not scene["out"].exists()
 
 
+def test_a_model_that_cannot_be_loaded_is_refused_before_any_row(scene, model_file, monkeypatch):
+    """A checkpoint read fine by its header but whose weights are not its config's failed row by row, and the
+    simulator rows ran on (hours): the network is loaded before the first row."""
+    import torch
+
+    import garmentcli.tradeoff
+
+    ck = torch.load(model_file, weights_only=True)
+    name = next(iter(ck["model"]))
+    del ck["model"][name]
+    broken = scene["dir"] / "broken.pt"
+    torch.save(ck, broken)
+    measured = []
+    monkeypatch.setattr(garmentcli.tradeoff, "measure", _counting_measure(measured))
+    r = invoke(["tradeoff", scene["garment"], scene["motion"], "--body", scene["body"], "--model", f"b={broken}",
+                "--frames", "0:4", "--out", scene["out"]])
+    assert r.exit_code == 1 and f"model '{broken}': weights do not match its config (missing ['{name}'])" in \
+        r.output.strip().splitlines()[-1], r.output
+    assert measured == [] and not scene["out"].exists()
+
+
 def test_tradeoff_missing_garment(scene):
     r = invoke(["tradeoff", scene["dir"] / "gone.obj", scene["motion"], "--out", scene["out"]])
     assert r.exit_code != 0 and "gone.obj" in r.output and not scene["out"].exists()
