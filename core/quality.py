@@ -236,16 +236,21 @@ def describe_outside(o: dict) -> str:
 
 def add_scene(calibration: Calibration, features: dict, rows: list[dict]) -> None:
     """Append one tradeoff run (rows: config, method, seconds_per_frame, e_verts, options, and for a model its
-    file's model_sha256) to `calibration`."""
+    file's model_sha256; self_contact_skipped: its error counted, not its cost) to `calibration`."""
     kvert = max(features["vertices"], 1) / 1000.0
     for r in rows:
         c = calibration.configs.setdefault(r["config"], {"method": r["method"], "options": r.get("options", {}),
                                                          "ms_per_frame_per_kvert": 0.0, "points": [], "scenes": 0,
                                                          "reference": bool(r.get("reference", False))})
-        n = c.get("scenes", 0)
+        n = c.get("costed_scenes", c.get("scenes", 0))  # the scenes its cost is the average of
         cost = r["seconds_per_frame"] * 1e3 / kvert
-        c["ms_per_frame_per_kvert"] = (c["ms_per_frame_per_kvert"] * n + cost) / (n + 1)
-        c["scenes"] = n + 1
+        if not r.get("self_contact_skipped"):
+            c["ms_per_frame_per_kvert"] = (c["ms_per_frame_per_kvert"] * n + cost) / (n + 1)
+            c["costed_scenes"] = n + 1
+        elif n == 0:  # a row the scene analysis ran without self-contact measured the row without it: its error
+            # holds, its cost stands in (under the configuration's) only until a scene measures it with
+            c["ms_per_frame_per_kvert"], c["costed_scenes"] = max(c["ms_per_frame_per_kvert"], cost), 0
+        c["scenes"] = c.get("scenes", 0) + 1
         c["points"].append([features["looseness_m"], features["speed_m_s"], float(r["e_verts"])])
         if r.get("model_sha256"):  # which model's errors these are (`Calibration.models`)
             models = c.setdefault("models", {})

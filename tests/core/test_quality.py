@@ -134,3 +134,25 @@ def test_a_scene_beyond_the_calibration_expects_the_learned_methods_no_better_th
     pick = choose(cal, still, budget_mm=15.0)
     assert pick["config"] == "model float32" and pick["outside_calibration"]
     assert "no better than lbs" not in pick["reason"]
+
+
+def test_a_self_contact_row_the_scene_analysis_skipped_gives_its_error_not_its_cost():
+    """A tradeoff row '+self-contact' that the simulator ran without it (no distant parts meet) measured the plain
+    row: its error is the configuration's on that scene, its cost is not (the calibration priced self-contact at
+    the cost without it)."""
+    cal = Calibration({})
+
+    def row(seconds, skipped):
+        return {"config": "sim +self-contact", "method": "sim", "seconds_per_frame": seconds, "e_verts": 5.0,
+                "options": {"substeps": 10, "self_contact": True}, "self_contact_skipped": skipped}
+
+    scene = {"looseness_m": 0.02, "speed_m_s": 1.0, "vertices": 1000}
+    add_scene(cal, scene, [row(1.0, True)])  # none measured with it yet: the row's cost stands in
+    c = cal.configs["sim +self-contact"]
+    assert c["ms_per_frame_per_kvert"] == pytest.approx(1000.0) and c["costed_scenes"] == 0 and c["scenes"] == 1
+    add_scene(cal, scene, [row(4.0, False)])  # measured with it: its cost replaces the stand-in
+    assert c["ms_per_frame_per_kvert"] == pytest.approx(4000.0) and c["costed_scenes"] == 1
+    add_scene(cal, scene, [row(1.0, True)])  # skipped again: its error counted, its cost not
+    assert c["ms_per_frame_per_kvert"] == pytest.approx(4000.0) and c["scenes"] == 3 and len(c["points"]) == 3
+    add_scene(cal, scene, [row(2.0, False)])
+    assert c["ms_per_frame_per_kvert"] == pytest.approx(3000.0) and c["costed_scenes"] == 2
