@@ -139,10 +139,37 @@ def sequence_from_arrays(item_id: str, garment_name: str, arrays: dict, body: Bo
     if not 0 <= n_settle < T:
         raise InputError(f"dataset sequence '{source}': expected n_settle in [0, {T}) (settle frames before the "
                          f"motion's {T} frames end), got {n_settle}")
+    _refuse_far_off(pos, body, poses, trans, betas, garment.inputs.rest.numpy(), source)
     return Sequence(item_id=item_id, garment_name=garment_name, positions=torch.from_numpy(pos), poses=poses,
                     trans=trans, betas=betas, fps=fps, motion=motion_features(body, poses, trans, betas, fps),
                     rest=shaped_rest(garment.inputs, body, betas), body_dist=body_distances(body, betas),
                     n_settle=n_settle)
+
+
+#: How far (in the garment's own sizes, the diagonal of its rest box) a training sequence's cloth may lie beyond
+#: its body (the box of its posed joints widened by the body's own reach from them): further is a broken sequence.
+FAR_OFF_SIZES = 2.0
+
+
+def _refuse_far_off(pos: np.ndarray, body: Body, poses: np.ndarray, trans: np.ndarray, betas: np.ndarray,
+                    rest: np.ndarray, source: str) -> None:
+    """InputError where a frame's cloth `pos` (T, V, 3) lies further from the body than FAR_OFF_SIZES of the
+    garment's own size: a simulation that blew up but stayed finite (a vertex 100 m off trained on with a finite
+    loss, one 1e30 m off diverged at its first step). Measured from the box of the posed joints, widened by the
+    furthest any vertex of the shaped body lies from its nearest joint (a bound of the body's surface)."""
+    verts, joints_rest = body.shaped(betas)
+    reach = float(np.sqrt(((verts[:, None, :] - joints_rest[None]) ** 2).sum(-1).min(1)).max())
+    size = float(np.linalg.norm(rest.max(0) - rest.min(0)))
+    joints = body.posed_joints(poses, trans, betas)  # (T, J, 3)
+    lo, hi = joints.min(1, keepdims=True) - reach, joints.max(1, keepdims=True) + reach
+    out = np.maximum(lo - pos, 0.0) + np.maximum(pos - hi, 0.0)  # (T, V, 3) each axis's distance beyond
+    beyond = np.hypot(np.hypot(out[..., 0], out[..., 1]), out[..., 2])  # (T, V) metres (1e30 m: no overflow)
+    t, v = np.unravel_index(int(beyond.argmax()), beyond.shape)
+    if beyond[t, v] > FAR_OFF_SIZES * size:
+        raise InputError(f"dataset sequence '{source}': expected its cloth within {FAR_OFF_SIZES:g} times the "
+                         f"garment's size ({FAR_OFF_SIZES * size:.2f} m) of the body, got vertex {v} "
+                         f"{beyond[t, v]:.4g} m from it at frame {t}: a simulation that blew up? simulate it "
+                         "again, or leave the item out of the manifest")
 
 
 def manifest_items(manifest: dict, source: str) -> dict:

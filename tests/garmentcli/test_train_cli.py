@@ -640,10 +640,40 @@ def test_a_manifest_that_is_no_object_or_a_sequence_with_a_nan_is_one_line_for_t
 
 
 @pytest.mark.parametrize("where", ["train", "val"])
-def test_training_that_diverges_stops_writing_no_model(setup, tmp_path, where):
-    """A sequence finite but absurd (a vertex 1e30 m away) trained on NaN to the last step, then wrote a model of
-    NaN weights, exited 0 and printed 'validation E_verts nan mm'. Now the first loss (or validation error) that
-    is not finite stops the run in one line naming the step and item; no model, nor its card."""
+def test_training_that_diverges_stops_writing_no_model(setup, tmp_path, monkeypatch, where):
+    """Training that went non-finite (a sequence 1e30 m off, before such a sequence was refused at load) trained on
+    NaN to the last step, then wrote a model of NaN weights, exited 0 and printed 'validation E_verts nan mm'. Now
+    the first loss (or validation error) that is not finite stops the run in one line naming the step (and the
+    item); no model, nor its card. The loss (from the second step) or the validation error is made infinite here."""
+    import core.train
+
+    root, data, body, cfg = setup
+    if where == "train":
+        total_loss, calls = core.train.total_loss, []
+
+        def diverging(*args):  # finite at the first step, inf from the second
+            calls.append(1)
+            return total_loss(*args) * (float("inf") if len(calls) > 1 else 1.0)
+
+        monkeypatch.setattr(core.train, "total_loss", diverging)
+    else:
+        monkeypatch.setattr(core.train.Trainer, "validate", lambda self: {"val_verts_mm": float("inf")})
+    out = tmp_path / "m.pt"
+    r = _train(root, data, body, cfg, out, "--steps", "4")
+    lines = [line for line in r.output.splitlines() if line.startswith("Error")]
+    said = "training diverged at step 2: the loss is inf (its sum) on item 's" if where == "train" else \
+        "training diverged at step 2: the validation error is not finite (val_verts_mm inf"
+    assert r.exit_code == 1 and len(lines) == 1 and said in lines[0], r.output
+    assert "the model not written" in lines[0] and "Traceback" not in r.output
+    assert not out.exists() and not out.with_name("m.pt.json").exists()
+
+
+@pytest.mark.parametrize("where", ["train", "val"])
+@pytest.mark.parametrize("off_m", [1e30, 100.0])
+def test_a_sequence_far_off_is_refused_before_training(setup, tmp_path, where, off_m):
+    """A sequence finite but far off (a simulation that blew up and stayed finite): 1e30 m trained on NaN (then
+    stopped by its loss), 100 m gave a finite loss and was trained on. Now the dataset's load refuses it, naming the
+    sequence, the vertex, the frame and how far; nothing written."""
     import shutil
 
     from formats.dataset import sequence_path
@@ -652,16 +682,19 @@ def test_training_that_diverges_stops_writing_no_model(setup, tmp_path, where):
     copy = tmp_path / "far"
     shutil.copytree(data, copy)
     manifest = json.loads((copy / "manifest.json").read_text())
-    for item in (it for it in manifest["items"] if it["split"] == where):
-        path = sequence_path(copy, item["id"])
-        arrays = dict(np.load(path))
-        arrays["positions"][:, 3, 0] = 1e30
-        np.savez(path, **arrays)
+    item = next(it for it in manifest["items"] if it["split"] == where)
+    path = sequence_path(copy, item["id"])
+    arrays = dict(np.load(path))
+    arrays["positions"][5, 3, 0] += off_m
+    np.savez(path, **arrays)
     out = tmp_path / "m.pt"
     r = _train(root, copy, body, cfg, out, "--steps", "4")
     lines = [line for line in r.output.splitlines() if line.startswith("Error")]
-    said = "training diverged at step 1: the loss is inf" if where == "train" else \
-        "training diverged at step 2: the validation error is not finite (val_verts_mm inf"
-    assert r.exit_code == 1 and len(lines) == 1 and said in lines[0], r.output
-    assert "the model not written" in lines[0] and "Traceback" not in r.output
+    assert r.exit_code == 1 and len(lines) == 1 and "Traceback" not in r.output, r.output
+    assert f"dataset sequence '{path}': expected its cloth within 2 times the garment's size" in lines[0], lines
+    assert f"got vertex 3 {off_m:.4g} m from it at frame 5" in lines[0] or \
+        (off_m == 100 and "got vertex 3 99." in lines[0] and "m from it at frame 5" in lines[0]), lines
     assert not out.exists() and not out.with_name("m.pt.json").exists()
+    # the sequence as simulated (its cloth within the bound) trains
+    np.savez(path, **dict(np.load(sequence_path(data, item["id"]))))
+    assert _train(root, copy, body, cfg, out, "--steps", "2").exit_code == 0
