@@ -107,7 +107,8 @@ def model_info(path: Path) -> dict:
 
 def _kind_of(path: Path) -> str:
     """What `info` reads `path` as: "bake" (a bake's folder, stage or OBJ frames), "bakes" (a `bake --out` folder
-    of several), "body", "fit", "model", "garment" or "motion"."""
+    of several), "body", "fit", "model", "garment", "motion" or "model or motion" (a `.pt` that PyTorch cannot
+    load: read as a motion, its error naming both)."""
     from formats.obj import USD_SUFFIXES
     from formats.sequence import SEQUENCE_JSON, bake_batch, bake_directory_sequence, recorded_frame
     from formats.usdskel import holds_skeleton
@@ -130,10 +131,12 @@ def _kind_of(path: Path) -> str:
 
         from formats.checkpoint import FORMAT
 
+        from formats.motion import TORCH_SUFFIXES
+
         try:  # a checkpoint by its format field, whatever its version (`model_info` says what is wrong with it)
             data = torch.load(path, map_location="cpu", weights_only=True)
-        except Exception:  # a motion of PyTorch's format, or no torch file (the motion reader says what it is)
-            return "motion"
+        except Exception:  # damaged, or no torch file: a `.ckpt` is a model's; a `.pt` may be either (both told)
+            return "model or motion" if suffix in TORCH_SUFFIXES else "model"
         return "model" if isinstance(data, dict) and data.get("format") == FORMAT else "motion"
     if suffix == ".npz" and path.is_file():
         try:
@@ -276,10 +279,13 @@ def info(paths, body_path, person, take, source_fps, fmt):
             found = [Path(arg)] if kind != "motion" else motion_files([arg], hint="PATH")
         for path in found:
             try:
-                records.append(readers[kind](path) if kind != "motion"
+                records.append(readers[kind](path) if kind not in ("motion", "model or motion")
                                else motion_info(path, person, take, source_fps, body))
             except InputError as exc:
-                records.append({"path": str(path), "error": str(exc)})
+                said = str(exc) if kind != "model or motion" else (
+                    f"'{path}': expected a model checkpoint of `garment train` or a motion of PyTorch's format, "
+                    f"could read it as neither ({exc})")
+                records.append({"path": str(path), "error": said})
     if fmt == "json":
         click.echo(json.dumps(records, indent=2))
     else:

@@ -168,3 +168,15 @@ def test_info_tells_a_model_and_its_resume_state_for_what_they_are_and_a_motion_
     torch.save({"format": "garment-model", "version": 9, "config": {}, "model": {}}, tmp_path / "v9.pt")
     r = invoke(["info", tmp_path / "v9.pt"])
     assert r.exit_code == 1 and r.output.strip().endswith("expected checkpoint format version 1, got version 9")
+    # a damaged one (cut short in a copy): a `.ckpt` is a model's (it was "motion ...: expected an AMASS-style .npz
+    # archive"); a `.pt` may be a model or a motion, so both are named
+    for name in ("cut.pt", "cut.ckpt"):
+        (tmp_path / name).write_bytes(Path(model).read_bytes()[:300])
+    r = invoke(["info", tmp_path / "cut.pt", tmp_path / "cut.ckpt"])
+    lines = r.output.splitlines()
+    assert r.exit_code == 1 and len(lines) == 2, r.output
+    assert lines[0].startswith(f"{tmp_path / 'cut.pt'}: error: '{tmp_path / 'cut.pt'}': expected a model checkpoint "
+                               f"of `garment train` or a motion of PyTorch's format, could read it as neither (motion "
+                               f"'{tmp_path / 'cut.pt'}': cannot read it as a PyTorch file"), lines[0]
+    assert lines[1].startswith(f"{tmp_path / 'cut.ckpt'}: error: model '{tmp_path / 'cut.ckpt'}': expected a garment "
+                               "model checkpoint, could not read it"), lines[1]
