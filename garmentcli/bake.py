@@ -738,7 +738,23 @@ def _bake_settings(method: str | None, quality: str | None, garment) -> dict:
             value = f"sha256:{file_sha256(value)}"
         if name not in _NOT_SETTINGS:
             settings[name] = value
-    return json.loads(json.dumps(settings))
+    return _spelled_out(json.loads(json.dumps(settings)))
+
+
+def _spelled_out(settings: dict) -> dict:
+    """`settings` (`_bake_settings`, or an earlier run's record of them) with the defaults that the model's options
+    stand for written out: no --model is the shipped model's file (by sha256), no --precision float32 with --method
+    model; so a bake made with either spelling resumes under the other (`--model` naming the shipped checkpoint was
+    refused as another file)."""
+    out = dict(settings)
+    if out.get("method") in ("--method model", "--quality auto") and "model_path" in out \
+            and out["model_path"] is None:
+        from core.model_deform import DEFAULT_MODEL
+
+        out["model_path"] = f"sha256:{file_sha256(DEFAULT_MODEL)}" if Path(DEFAULT_MODEL).is_file() else None
+    if out.get("method") == "--method model" and "precision" in out and out["precision"] is None:
+        out["precision"] = "float32"
+    return out
 
 
 def _baked_otherwise(target: Path, settings: dict) -> str:
@@ -756,6 +772,7 @@ def _baked_otherwise(target: Path, settings: dict) -> str:
                      **{name: options[k] for k, name in _RECORDED_OPTIONS.items() if k in options}}
         if not isinstance(baked, dict):
             raise TypeError("settings")
+        baked = _spelled_out(baked)
     except (OSError, ValueError, KeyError, AttributeError, TypeError) as exc:
         return f"a summary.json that cannot be read ({type(exc).__name__})"
     flags = {p.name: max(p.opts, key=len) for p in click.get_current_context().command.params}

@@ -441,3 +441,24 @@ def test_summary_says_whether_the_preprocessing_came_from_the_cache(tmp_path, mo
     _, first, _ = _bake(skirt, tmp_path / "first")
     _, again, _ = _bake(skirt, tmp_path / "again")
     assert (first["deformer"]["preprocess_cache"], again["deformer"]["preprocess_cache"]) == ("miss", "hit")
+
+
+def test_skip_existing_takes_the_model_defaults_spelled_out(tmp_path):
+    """`--model` naming the shipped checkpoint and `--precision float32` are what a model bake without them uses:
+    `--skip-existing` took them for other settings ("was baked with --model left out (this run: a file of sha256
+    ...)"); a bake recorded before they were spelled out (its settings None) resumes too; another precision not."""
+    args = ["bake", ROOT / "examples" / "skirt.obj", ROOT / "examples" / "walk.npz", "--method", "model",
+            "--frames", "0:2", "--out", tmp_path, "--no-obj", "--no-body"]
+    assert invoke_default(args).exit_code == 0
+    summary = tmp_path / "skirt_walk" / "summary.json"
+    record = json.loads(summary.read_text())
+    assert record["settings"]["precision"] == "float32" and record["settings"]["model_path"].startswith("sha256:")
+    r = invoke_default([*args, "--skip-existing", "--model", DEFAULT_MODEL, "--precision", "float32"])
+    assert r.exit_code == 0 and "1 of 1 motions already baked, skipped" in r.output, r.output
+    record["settings"].update(model_path=None, precision=None)  # as the previous version recorded them
+    summary.write_text(json.dumps(record))
+    r = invoke_default([*args, "--skip-existing", "--model", DEFAULT_MODEL])
+    assert r.exit_code == 0 and "1 of 1 motions already baked, skipped" in r.output, r.output
+    r = invoke_default([*args, "--skip-existing", "--precision", "bfloat16"])
+    assert r.exit_code != 0 and "was baked with --precision float32 (this run: bfloat16)" in r.output, r.output
+    assert json.loads(summary.read_text()) == record  # neither the skips nor the refusal rewrote it
