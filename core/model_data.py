@@ -254,18 +254,26 @@ def _merged_manifests(roots: list[Path]) -> tuple[dict, dict, dict]:
 
 
 def _refuse_edited_template(path: Path, recorded) -> None:
-    """InputError where a dataset's garment template (a byte copy of the OBJ it was simulated with) is no longer
-    that file: its sequences were simulated on another mesh (one vertex moved 1 cm was trained on unnoticed; only
-    another vertex count was caught). recorded: the manifest's `inputs.garments[name]` ({"path", "sha256"}); a
-    garment read from USD (its template written anew) or not recorded is not compared."""
+    """InputError where a dataset's garment template is no longer the garment its sequences were simulated with
+    (one vertex moved 1 cm was trained on unnoticed; only another vertex count was caught). recorded: the
+    manifest's `inputs.garments[name]` ({"path", "sha256", "mesh_sha256"}): a garment read from an OBJ is a byte
+    copy of it (compared by the file's sha256); one read from USD is written anew as the OBJ of its mesh
+    (compared by the mesh's content, `Garment.content_hash`); one not recorded is not compared."""
     from core.provenance import file_sha256
+    from formats.obj import read_obj
 
-    if not isinstance(recorded, dict) or not str(recorded.get("path", "")).lower().endswith(".obj"):
+    if not isinstance(recorded, dict):
         return
-    if recorded.get("sha256") not in (None, file_sha256(path)):
+    if str(recorded.get("path", "")).lower().endswith(".obj"):
+        edited = recorded.get("sha256") not in (None, file_sha256(path))
+        was = f"sha256 {str(recorded.get('sha256'))[:12]}"
+    else:
+        edited = recorded.get("mesh_sha256") not in (None, read_obj(path).content_hash())
+        was = f"its mesh of sha256 {str(recorded.get('mesh_sha256'))[:12]}"
+    if edited:
         raise InputError(f"dataset garment '{path}': expected the file its sequences were simulated with "
-                         f"('{recorded['path']}', sha256 {str(recorded['sha256'])[:12]}), got a file edited since: "
-                         "restore it, or simulate the dataset again")
+                         f"('{recorded.get('path')}', {was}), got a file edited since: restore it, or simulate the "
+                         "dataset again")
 
 
 class ModelDataset:

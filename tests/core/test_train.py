@@ -337,3 +337,37 @@ def test_a_thread_tuner_times_the_steps_by_vertex_frames_and_not_the_validations
     costs = [c for c in tr.tuner.calls if c != "before"]
     assert tr.tuner.calls.count("before") == 6 and len(costs) == 4  # steps 3 and 6 validated
     assert costs == [4 * n_vertices[r["item"]] for r in tr.rows if "val_verts_mm" not in r]
+
+
+def test_a_usd_garments_template_edited_since_is_refused(tmp_path):
+    """A garment read from USD is written into the dataset anew as the OBJ of its mesh: it was not compared, so an
+    edited template was trained on unnoticed (an OBJ's byte copy was); now compared by the mesh's content."""
+    from pxr import Usd, UsdGeom, Vt, Gf
+
+    from core.model_data import _refuse_edited_template
+    from core.provenance import file_sha256
+    from formats.dataset import copy_garment_template
+    from formats.obj import read_garment, write_obj
+
+    usd = tmp_path / "cloth.usda"
+    stage = Usd.Stage.CreateNew(str(usd))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)  # centimetres, Z-up: read as metres, Y-up
+    mesh = UsdGeom.Mesh.Define(stage, "/cloth")
+    points = [(0.0, 0.0, 100.0), (31.4159, 0.0, 100.0), (0.0, 27.1828, 110.0), (31.4159, 27.1828, 90.0)]
+    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in points]))
+    mesh.CreateFaceVertexCountsAttr([3, 3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 1, 3, 2])
+    stage.GetRootLayer().Save()
+    garment = read_garment(usd)
+    recorded = {"path": str(usd), "sha256": file_sha256(usd), "mesh_sha256": garment.content_hash()}
+    template = copy_garment_template(tmp_path / "ds", usd, "cloth")
+    _refuse_edited_template(template, recorded)  # as written: the same mesh
+    moved = garment.vertices.copy()
+    moved[0, 0] += 0.01
+    write_obj(template, moved, garment.faces)
+    with pytest.raises(InputError, match=r"cloth.obj': expected the file its sequences were simulated with "
+                                         r"\('.*cloth.usda', its mesh of sha256 [0-9a-f]{12}\), got a file edited "
+                                         r"since"):
+        _refuse_edited_template(template, recorded)
+    _refuse_edited_template(template, {"path": str(usd), "sha256": recorded["sha256"]})  # no mesh recorded: kept
