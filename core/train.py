@@ -42,6 +42,36 @@ MAX_FRAMES_PER_STEP = 256
 #: The seed's largest (numpy's and `garment train --seed`'s range).
 MAX_SEED = 2**32 - 1
 
+#: A training step's memory (bytes) per frame of a garment of V vertices, at the network's `hidden` width 32 (the
+#: shipped model's; it grows in proportion to the width): STEP_BYTES_V * V + STEP_BYTES_V2 * V**2, plus
+#: STEP_BASE_BYTES for the process. Fitted on the largest steps (phase 3) of the shipped configuration on the example
+#: skirt (2,016 vertices: 0.80, 1.88 and 3.11 GB at 8, 32 and 64 frames) and t-shirt (6,698: 2.35, 7.77, 15.0 GB);
+#: the dress (3,240) and jumpsuit (6,552) at 32 frames measured 2.70 and 7.76 GB (estimated 2.96 and 7.5), the
+#: dress at width 64 4.92 GB (`garment train`'s peak resident memory on this machine).
+STEP_BYTES_V = 14_600
+STEP_BYTES_V2 = 2.86
+STEP_BASE_BYTES = 0.5e9
+
+
+def step_memory(n_vertices: int, frames: int, hidden: int) -> float:
+    """About the largest memory (bytes) one training step of `frames` frames of a garment of `n_vertices` takes
+    on the CPU, with a network of width `hidden` (see STEP_BYTES_V)."""
+    per_frame = (STEP_BYTES_V * n_vertices + STEP_BYTES_V2 * n_vertices ** 2) * max(hidden, 1) / 32
+    return STEP_BASE_BYTES + frames * per_frame
+
+
+def frames_beyond_memory(garments: dict, frames: int, hidden: int, free: float) -> tuple[str, float, int] | None:
+    """Where a step of `frames` frames of the largest of `garments` (name -> vertex count) would not fit in `free`
+    bytes: (its name, the bytes it needs, the most frames that fit, 0 where none); None where it fits."""
+    if not garments:
+        return None
+    name = max(garments, key=garments.get)
+    need = step_memory(garments[name], frames, hidden)
+    if need <= free:
+        return None
+    fit = int((free - STEP_BASE_BYTES) // max(step_memory(garments[name], 1, hidden) - STEP_BASE_BYTES, 1))
+    return name, need, max(fit, 0)
+
 
 @dataclass(frozen=True)
 class TrainConfig:

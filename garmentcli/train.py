@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import os
 from pathlib import Path
 
 import click
@@ -199,6 +200,9 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         raise click.ClickException(f"output '{out}' exists: remove it, or choose another --out")
 
     data = ModelDataset(data_dir, body, model_cfg, cache_dir=cache_dir, partial=partial, garments=garments or None)
+    if device.type == "cpu":  # (ranks on this machine: torchrun's LOCAL_WORLD_SIZE, else every rank)
+        _check_step_memory(data, model_cfg, train_cfg, sequences_per_step if parallel_trainer else 1,
+                           int(os.environ.get("LOCAL_WORLD_SIZE") or world))
     if parallel_trainer is None:
         trainer = Trainer(data, model_cfg, train_cfg, device=device)
     else:
@@ -259,6 +263,37 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
         restore_sigint()
     if interrupted["hit"] and trainer.step < train_cfg.steps:  # stopped early: the shell's code for the signal
         raise click.exceptions.Exit(130 if interrupted["hit"] == "Ctrl-C" else 143)
+
+
+def _check_step_memory(data, model_cfg: ModelConfig, train_cfg: TrainConfig, sequences: int, processes: int) -> None:
+    """A step of frames_per_step frames of the largest training garment (of each of `sequences` sequences a
+    process's step holds: --sequences-per-step) that would not fit in this machine's memory (`processes` training
+    beside each other, each holding one) is refused, naming the frames that fit; one that would not fit in the
+    memory free now is warned of (a t-shirt's 64 frames take 15 GB: the kernel killed the run at its first step,
+    without a word)."""
+    import psutil
+
+    from core.train import frames_beyond_memory
+
+    garments = {name: int(g.inputs.n_vertices) for name, g in data.garments.items()
+                if any(s.garment_name == name for s in data.splits.get("train", []))}
+    memory = psutil.virtual_memory()
+    for free, refused in ((memory.total / processes, True), (memory.available / processes, False)):
+        beyond = frames_beyond_memory(garments, train_cfg.frames_per_step * sequences, model_cfg.hidden, free)
+        if beyond is None:
+            continue
+        name, need, fit = beyond
+        said = (f"frames_per_step {train_cfg.frames_per_step}: a training step of garment '{name}' "
+                f"({garments[name]:,} vertices{f', {sequences} sequences' if sequences > 1 else ''}) holds about "
+                f"{need / 1e9:.3g} GB"
+                + (f" in each of {processes} processes" if processes > 1 else "")
+                + f", this machine has {free * processes / 1e9:.3g} GB {'in all' if refused else 'free'}: "
+                + (f"at most {fit // sequences} frames fit (set frames_per_step in --config)" if fit >= sequences else
+                   "no step of it fits (a smaller network, or a machine with more memory)"))
+        if refused:
+            raise click.ClickException(said)
+        click.echo(f"warning: {said}; the run may be killed", err=True)
+        return
 
 
 def _parse_threads(text: str | None, device, launched: bool) -> tuple[bool, int | None]:

@@ -698,3 +698,46 @@ def test_a_sequence_far_off_is_refused_before_training(setup, tmp_path, where, o
     # the sequence as simulated (its cloth within the bound) trains
     np.savez(path, **dict(np.load(sequence_path(data, item["id"]))))
     assert _train(root, copy, body, cfg, out, "--steps", "2").exit_code == 0
+
+
+def test_a_step_beyond_the_machines_memory_is_refused_and_beyond_the_free_memory_warned_of(setup, tmp_path,
+                                                                                           monkeypatch):
+    """A step's frames are held at once: 64 frames of the example t-shirt took 15 GB, and a step beyond the
+    machine's memory was killed by the kernel at once, without a word. Now refused before the first step, naming
+    the frames that fit; one beyond the memory free now is warned of and runs."""
+    import psutil
+
+    from core.train import step_memory
+
+    root, data, body, cfg = setup
+    largest = 72  # garment 'a' (12 x 6 vertices) of the train split; 'b' (50) is the validation's
+    need = step_memory(largest, 2, 8)  # frames_per_step 2 (setup's config), TINY_CONFIG's width 8
+    one = step_memory(largest, 1, 8)
+    memory = type("Memory", (), {})
+    for total, available in ((one + 1.0, one + 1.0), (need + 1.0, one + 1.0)):
+        memory.total, memory.available = total, available
+        monkeypatch.setattr(psutil, "virtual_memory", lambda: memory)
+        out = tmp_path / f"m{total}.pt"
+        r = _train(root, data, body, cfg, out, "--steps", "2")
+        said = (f"frames_per_step 2: a training step of garment 'a' (72 vertices) holds about {need / 1e9:.3g} GB, "
+                f"this machine has {one / 1e9 + 1e-9:.3g} GB ")
+        if total < need:
+            assert r.exit_code == 1 and r.output.splitlines()[-1] == f"Error: {said}in all: at most 1 frames fit (set " \
+                "frames_per_step in --config)", r.output
+            assert not out.exists()
+        else:
+            assert r.exit_code == 0 and f"warning: {said}free: at most 1 frames fit (set frames_per_step in --config)" \
+                "; the run may be killed" in r.output, r.output
+
+
+def test_step_memory_grows_with_frames_vertices_and_width():
+    from core.train import STEP_BASE_BYTES, frames_beyond_memory, step_memory
+
+    # the fit's points: the t-shirt's 64 frames about 15 GB, the skirt's 8 about 0.8
+    assert 14e9 < step_memory(6698, 64, 32) < 16e9 and 0.7e9 < step_memory(2016, 8, 32) < 0.9e9
+    assert step_memory(3240, 32, 64) - STEP_BASE_BYTES == pytest.approx(2 * (step_memory(3240, 32, 32) - STEP_BASE_BYTES))
+    assert frames_beyond_memory({"skirt": 2016, "tshirt": 6698}, 64, 32, 20e9) is None
+    name, need, fit = frames_beyond_memory({"skirt": 2016, "tshirt": 6698}, 64, 32, 8e9)
+    assert name == "tshirt" and need == step_memory(6698, 64, 32) and step_memory(6698, fit, 32) <= 8e9 < \
+        step_memory(6698, fit + 1, 32)
+    assert frames_beyond_memory({"huge": 10**6}, 1, 32, 24e9)[2] == 0
