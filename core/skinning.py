@@ -22,7 +22,7 @@ from core.body import Body
 from core.errors import InputError
 from core.garment import UNIT_GUESSES, Garment, mesh_edges
 from core.geodesic import edge_lengths
-from core.geometry import Y_UP_TO_Z_UP_MATRIX, ClosestPoints, TriangleMesh
+from core.geometry import Y_UP_TO_Z_UP_MATRIX, ClosestPoints, TriangleMesh, face_normals
 from core.graph import adjacency
 
 log = logging.getLogger(__name__)
@@ -252,7 +252,8 @@ def unpose_command(name: str, fix: Placement, placed: Placement | None = None) -
     return f"`garment unpose {name}{whole.pose}{whole.options()}{whole.body}`"
 
 
-def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | None = None) -> sp.csr_matrix:
+def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | None = None,
+                  normals: np.ndarray | None = None, reach: float = 0.0) -> sp.csr_matrix:
     """(N, V) float64 sparse, rows summing to 1: where each of `points` (N, 3) takes values of the mesh's V vertices.
 
     Every face whose closest point lies within the margin (`BLEND_SHARE` of the nearest distance, clipped to
@@ -260,20 +261,38 @@ def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | N
     weighted by 1 - (its distance - the nearest) / margin: the rows are continuous in the points and the mesh
     (a point equally near two parts takes both halves; the nearest point alone jumps from one to the other).
     hit: `mesh.closest(points)`, where the caller has it (nothing else: the result is cached by the points and the
-    mesh, `_LAST_BLEND`; each call gets a copy of it)."""
+    mesh, `_LAST_BLEND`; each call gets a copy of it).
+    normals: the points' own outward directions (N, 3), or None: a point takes only the faces facing its way
+    (normals at a positive angle's cosine) wherever one lies within `reach` (metres) beyond its nearest face, the
+    nearest of those standing for the nearest (the underside of a sleeve on an arm hanging by the torso faces the
+    arm's side, not the torso's, though the torso is nearer: `core.unpose`)."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    parts = (mesh.verts + 0.0, np.sort(mesh.faces, axis=1), points + 0.0)  # + 0.0: -0.0 as 0.0
+    parts = (mesh.verts + 0.0, np.sort(mesh.faces, axis=1), points + 0.0,
+             np.zeros(0) if normals is None else np.asarray(normals, dtype=np.float64) + 0.0)  # + 0.0: -0.0 as 0.0
     key = hashlib.blake2b(b"".join([np.ascontiguousarray(a).tobytes() for a in parts] + [repr(
-        ([a.shape for a in parts], BLEND_SHARE, BLEND_MIN_M, BLEND_MAX_M)).encode()])).digest()
+        ([a.shape for a in parts], BLEND_SHARE, BLEND_MIN_M, BLEND_MAX_M, reach)).encode()])).digest()
     if _LAST_BLEND[0] == key:  # a model's or psd's bake blends the same points twice: weights, then contact anchors
         return _LAST_BLEND[1].copy()
     if not len(points) or not len(mesh.faces):
         return sp.csr_matrix((len(points), len(mesh.verts)))
     hit = mesh.closest(points) if hit is None else hit
-    margin = np.clip(BLEND_SHARE * hit.distance, BLEND_MIN_M, BLEND_MAX_M)
+    nearest, facing = hit.distance, np.zeros(len(points), dtype=bool)
+    if normals is not None:
+        normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        fn = face_normals(mesh.verts, mesh.faces)
+        best = np.full(len(points), np.inf)
+        for pi, fi, _, dist in mesh.faces_within(points, hit.distance + reach):
+            ok = np.einsum("pc,pc->p", fn[fi], normals[pi]) > 0.0
+            np.minimum.at(best, pi[ok], dist[ok])
+        facing = np.isfinite(best)
+        nearest = np.where(facing, best, hit.distance)
+    margin = np.clip(BLEND_SHARE * nearest, BLEND_MIN_M, BLEND_MAX_M)
     rows, cols, values = [], [], []
-    for pi, fi, bary, dist in mesh.faces_within(points, hit.distance + margin):
-        w = np.clip(1.0 - (dist - hit.distance[pi]) / margin[pi], 0.0, 1.0)
+    for pi, fi, bary, dist in mesh.faces_within(points, nearest + margin):
+        if facing.any():  # a point of a facing face: the faces facing away from it left out
+            keep = ~facing[pi] | (np.einsum("pc,pc->p", fn[fi], normals[pi]) > 0.0)
+            pi, fi, bary, dist = pi[keep], fi[keep], bary[keep], dist[keep]
+        w = np.clip(1.0 - (dist - nearest[pi]) / margin[pi], 0.0, 1.0)
         rows.append(np.repeat(pi.astype(np.int32), 3))
         cols.append(mesh.faces[fi].reshape(-1).astype(np.int32))
         values.append((w[:, None] * bary).reshape(-1))

@@ -245,6 +245,14 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     target = "the rest pose" + (" and mean shape" if shaped else "")
     moved = f"moved to {target} from {what}" if pose_spec != "tpose" or betas is not None else moved_by
     written = rest.n_vertices if garment.source is None else len(garment.source.vertex_of)  # the file's, unwelded
+    if report["edges_torn"]:
+        from core.unpose import UNPOSE_TEAR_RATIO, UNPOSE_TEAR_SLACK_M
+
+        click.echo(f"warning: garment '{source}': {report['edges_torn']} of its edges came out over "
+                   f"{UNPOSE_TEAR_RATIO:g}x their length as authored, plus {UNPOSE_TEAR_SLACK_M * 100:g} cm (the "
+                   f"worst {report['max_edge_stretch']:.3g}x, at vertex {report['torn_at_vertex']}): that part took the weights of a body part it does not lie "
+                   f"on (cloth pressed against another part in the pose?); look at it before baking it (garment "
+                   f"render {out})", err=True)
     click.echo(f"{out}: {written} vertices {moved} (largest move "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "
                f"mm from the input at most; on the posed body: median distance "

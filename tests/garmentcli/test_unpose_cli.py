@@ -421,3 +421,31 @@ def test_a_pose_files_betas_are_not_taken_as_the_embedded_bodys_own(tmp_path):
     assert r.exit_code == 0 and "fitted to another body model" not in r.output, r.output
     assert "moved to the rest pose and mean shape from frame 0" in r.output
     assert np.abs(read_obj(tmp_path / "given.obj").vertices - outs["plain"]).max() > 1e-3
+
+
+def test_a_torn_result_is_warned_of(tmp_path, monkeypatch):
+    """The t-shirt on arms lowered 75 degrees unposed as before its vertices took the faces facing their way (the
+    nearest face alone): its sleeves tore from the arms (edges to 8.5x their length) and the command said only
+    that it went well. Such a result is warned of, naming the worst edge and how to look at it; the file is
+    written (the user decides)."""
+    from tests.core.test_unpose import _posed
+
+    import core.unpose
+    from core.body import default_body
+    from core.unpose import a_pose
+
+    body = default_body()
+    g = read_obj(EXAMPLES / "tshirt.obj")
+    posed = _posed(g, body, a_pose(body, 75.0))
+    path = tmp_path / "shirt75.obj"
+    write_obj(path, posed.vertices, posed.faces, posed.uvs, posed.face_uvs)
+    args = ["unpose", path, "--pose", "apose", "--arm-angle", "75", "--out"]
+    r = invoke([*args, tmp_path / "now.obj"])
+    assert r.exit_code == 0 and "warning" not in r.output and "tore" not in r.output, r.output
+    monkeypatch.setattr(core.unpose, "UNPOSE_FACING_REACH_M", 0.0)
+    r = invoke([*args, tmp_path / "nearest.obj"])
+    warned = [line for line in r.output.splitlines() if line.startswith("warning")]
+    assert r.exit_code == 0 and len(warned) == 1 and (tmp_path / "nearest.obj").is_file(), r.output
+    assert warned[0].startswith(f"warning: garment '{path}': ") and " of its edges came out over 3x their length " \
+        "as authored, plus 1 cm (the worst 8." in warned[0] and warned[0].endswith(
+            f"look at it before baking it (garment render {tmp_path / 'nearest.obj'})"), warned[0]
