@@ -124,6 +124,12 @@ def _frame_files(directory: Path, files: list[Path], recorded_prefix: str | None
                          f"{', '.join(p.name for p in files[:4])}{', ...' if len(files) > 4 else ''}")
     # the key write_obj_sequence's names get (a recorded prefix ending in digits, f1 of f10000, groups as f)
     recorded = None if recorded_prefix is None else _FRAME_NAME.match(f"{recorded_prefix}0000").group(1).lower()
+    several = sorted((k for k in groups if len(groups[k]) > 1), key=lambda k: -len(groups[k]))
+    if recorded not in groups and len(several) > 1:  # (Houdini's and Maya's folders: body.0001, cloth.0001, ...)
+        named = ", ".join(f"{min(groups[k])[1].name} ({len(groups[k])} files)" for k in several[:4])
+        raise InputError(f"{where}: expected the frames of one garment, got {len(several)} numbered sequences: "
+                         f"{named}{', ...' if len(several) > 4 else ''}: give a folder holding one (or a "
+                         f"{SEQUENCE_JSON} naming its 'prefix')")
     prefix = max(groups, key=lambda k: (k == recorded, len(groups[k]), k == "frame_"))
     frames = sorted(groups.pop(prefix), key=lambda nf: nf[0])
     stray += [p for group in groups.values() for _, p in group]
@@ -250,9 +256,11 @@ def _recorded_meta(meta_path: Path) -> dict | None:
 
 
 def _recorded_up(meta: dict, meta_path: Path) -> str:
-    """The up axis a `sequence.json` records ("z" where it records none: `garment bake` wrote Z-up frames before
-    2026-12-06, and a sequence.json of `fps` alone was read so); InputError naming it for another value."""
-    recorded = meta.get("up", "z")
+    """The up axis a `sequence.json` records; where it records none, "z" for one `garment bake` wrote (its frames
+    Z-up before 2026-12-06; it always recorded their `prefix` and count, `frames`), else "y" (another tool's of
+    `fps` alone, beside frames written as Blender, Maya and Houdini write them: they were read Z-up, on their
+    backs); InputError naming it for another value."""
+    recorded = meta.get("up", "z" if "prefix" in meta or "frames" in meta else "y")
     if recorded not in UP_AXES:
         raise InputError(f"garment sequence '{meta_path}': expected 'up' as \"y\" (frames written Y-up) or \"z\", "
                          f"got {recorded!r}")
@@ -262,10 +270,25 @@ def _recorded_up(meta: dict, meta_path: Path) -> str:
 def _obj_up(meta: dict | None, up: str | None, meta_path: Path) -> str:
     """The up axis OBJ frames are read in: `up` where given; else what their `sequence.json` records
     (`_recorded_up`); else, with no sequence.json (frames from Blender, Maya, Houdini), "y", the frame OBJ files
-    are written in."""
+    are written in. An `up` other than one the sequence.json records is warned of (it is taken)."""
+    recorded = None if meta is None else _recorded_up(meta, meta_path)
     if up is not None:
+        if meta is not None and "up" in meta and up != recorded:
+            log.warning("--up %s: garment sequence '%s' records its frames written %s-up (%s): read %s-up", up,
+                        meta_path.parent, recorded.upper(), SEQUENCE_JSON, up.upper())
         return up
-    return "y" if meta is None else _recorded_up(meta, meta_path)
+    return "y" if meta is None else recorded
+
+
+def _faces_differ(faces: np.ndarray, first: np.ndarray) -> str:
+    """How a frame's polygons (P, K, -1 padded) differ from the first frame's: their count, else the first face of
+    other corners (1-based, as the file writes them)."""
+    if faces.shape != first.shape:
+        return (f"{len(faces)} faces of up to {faces.shape[1]} corners, the first frame's {len(first)} of up to "
+                f"{first.shape[1]}")
+    k = int(np.flatnonzero((faces != first).any(axis=1))[0])
+    here, there = (" ".join(str(int(i) + 1) for i in f[k] if i >= 0) for f in (faces, first))
+    return f"face {k + 1} is {here}, the first frame's {there}"
 
 
 def _turned_to_z_up(points: np.ndarray, up: str) -> np.ndarray:
@@ -296,15 +319,21 @@ def _read_obj_directory(directory: Path, up: str | None = None) -> Sequence:
     faces, _, _ = triangulate(first.vertices, first.polygons)
     points = np.empty((len(files),) + first.vertices.shape, dtype=np.float32)
     points[0] = first.vertices
+    other_faces = []  # (frame file, how its faces differ from the first's)
     for t, path in enumerate(files[1:], 1):
         frame = parse_obj(path, label="garment sequence frame", like=first, finite=True)
-        same = frame.vertices.shape == first.vertices.shape and (
-            frame.polygons is first.polygons or np.array_equal(frame.polygons, first.polygons))
-        if not same:
-            raise InputError(f"{where}: expected every frame to share the topology of {files[0].name} "
+        if frame.vertices.shape != first.vertices.shape:
+            raise InputError(f"{where}: expected every frame to share the vertices of {files[0].name} "
                              f"({first.vertices.shape[0]} vertices, {len(first.polygons)} faces), got "
                              f"{frame.vertices.shape[0]} vertices, {len(frame.polygons)} faces in {path.name}")
+        if frame.polygons is not first.polygons and not np.array_equal(frame.polygons, first.polygons):
+            other_faces.append((path, _faces_differ(frame.polygons, first.polygons)))
         points[t] = frame.vertices
+    if other_faces:  # the points correspond vertex by vertex; the first frame's faces are taken for all
+        path, how = other_faces[0]
+        log.warning("%s: %s of its frames have other faces than %s (%s: %s): read with %s's faces (triangulated "
+                    "again in each frame? export the polygons, or triangulate once before the animation)", where,
+                    len(other_faces), files[0].name, path.name, how, files[0].name)
     points = _turned_to_z_up(points, _obj_up(meta, up, meta_path))
     number = re.search(r"(\d+)$", files[0].stem)
     return Sequence(points=points, faces=faces, fps=fps, source=str(directory),

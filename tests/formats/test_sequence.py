@@ -101,8 +101,8 @@ def test_single_obj_is_one_frame(tmp_path):
 def test_obj_frames_without_a_record_are_read_y_up_and_a_bake_frame_alone_as_its_folder_records(tmp_path):
     """OBJ frames with no sequence.json (Blender's, Maya's, Houdini's exports) and a single OBJ (a garment, a frame
     exported alone) were read as Z-up, so `render` drew them lying on their backs: they are read Y-up, as OBJ files
-    are written, unless --up says otherwise; a sequence.json of fps alone reads as before (Z-up: the bakes before
-    2026-12-06); one frame of a bake's folder is read as the folder records it (Y-up, its number and rate)."""
+    are written, unless --up says otherwise; a sequence.json of fps alone too (another tool's: it was read Z-up,
+    as the bakes before 2026-12-06 are, which record their prefix and count); one frame of a bake's folder is read as the folder records it (Y-up, its number and rate)."""
     from core.geometry import Y_UP_TO_Z_UP_MATRIX
 
     points, faces = _animated(n_frames=3)
@@ -114,10 +114,10 @@ def test_obj_frames_without_a_record_are_read_y_up_and_a_bake_frame_alone_as_its
     np.testing.assert_allclose(read_sequence(exported).points, points, atol=1e-6)
     np.testing.assert_allclose(read_sequence(exported, up="z").points, y_up, atol=1e-6)
     np.testing.assert_allclose(read_sequence(exported / "cloth_0002.obj").points, points[1:2], atol=1e-6)
-    (exported / "sequence.json").write_text('{"fps": 24}')  # a record of the rate alone: Z-up, as before
-    np.testing.assert_allclose(read_sequence(exported).points, y_up, atol=1e-6)
+    (exported / "sequence.json").write_text('{"fps": 24}')  # a record of the rate alone: another tool's, Y-up
+    np.testing.assert_allclose(read_sequence(exported).points, points, atol=1e-6)
     one = read_sequence(exported / "cloth_0002.obj")  # one of its frames read alone: as the folder is read
-    np.testing.assert_allclose(one.points, y_up[1:2], atol=1e-6)
+    np.testing.assert_allclose(one.points, points[1:2], atol=1e-6)
     assert one.fps == 24 and one.first_frame == 2
     (exported / "sequence.json").write_text('{"fps": 24, "up": "x"}')
     with pytest.raises(InputError, match="expected 'up' as"):
@@ -228,13 +228,13 @@ def test_bad_paths(tmp_path):
         read_sequence(empty)
 
 
-def test_obj_frames_with_differing_topology(tmp_path):
+def test_obj_frames_with_differing_topology(tmp_path, caplog):
     points, faces = _animated(n_frames=4)
     write_obj_sequence(tmp_path, points, faces)
-    write_obj(tmp_path / "frame_0002.obj", points[2], faces[::-1])
-    with pytest.raises(InputError, match=r"share the topology of frame_0000.obj \(16 vertices, 18 faces\), "
-                                         r"got 16 vertices, 18 faces in frame_0002.obj"):
-        read_sequence(tmp_path)
+    write_obj(tmp_path / "frame_0002.obj", points[2], faces[::-1])  # its faces in another order: frame 0's taken
+    with caplog.at_level("WARNING"):
+        np.testing.assert_array_equal(read_sequence(tmp_path).faces, faces)
+    assert "1 of its frames have other faces than frame_0000.obj (frame_0002.obj: face 1 is" in caplog.text
     write_obj(tmp_path / "frame_0002.obj", points[2, :-1], faces[faces.max(axis=1) < 15])
     with pytest.raises(InputError, match=r"got 15 vertices, 16 faces in frame_0002.obj"):
         read_sequence(tmp_path)
@@ -446,7 +446,7 @@ def test_obj_frames_that_agree_with_sequence_json_or_meet_one_without_prefix_and
     for name, pts in zip(names, points):
         write_obj(tmp_path / f"{name}.obj", pts, faces)
     (tmp_path / "sequence.json").write_text(json.dumps(meta))
-    seq = read_sequence(tmp_path)
+    seq = read_sequence(tmp_path, up="z")  # (the frames' names and numbers tested here; another tool's: Y-up)
     np.testing.assert_allclose(seq.points, points, atol=1e-6)
     assert seq.fps == 24
     write_obj_sequence(tmp_path / "from_1001", points, faces, fps=30, start=1001, prefix="take2_")
@@ -502,3 +502,75 @@ def test_a_boolean_fps_is_refused(tmp_path):
     (tmp_path / "seq" / "sequence.json").write_text(json.dumps({"fps": True}))
     with pytest.raises(InputError, match="expected fps as one positive number, got True"):
         read_sequence(tmp_path / "seq")
+
+
+def test_a_folder_of_two_numbered_sequences_is_refused_naming_both(tmp_path):
+    """Houdini's and Maya's export folders hold the body's frames beside the cloth's (body.0001.obj, cloth.0001.obj):
+    the first by name was read (the body) with a warning calling the cloth's frames "not numbered like the
+    frames". Refused, naming both; a sequence.json's prefix picks one."""
+    points, faces = _animated(n_frames=3)
+    for t in range(3):
+        write_obj(tmp_path / f"body.{t + 1:04d}.obj", points[t] + 1, faces)
+        write_obj(tmp_path / f"cloth.{t + 1:04d}.obj", points[t], faces)
+    with pytest.raises(InputError) as e:
+        read_sequence(tmp_path)
+    assert str(e.value) == (f"garment sequence '{tmp_path}': expected the frames of one garment, got 2 numbered "
+                            "sequences: body.0001.obj (3 files), cloth.0001.obj (3 files): give a folder holding one "
+                            "(or a sequence.json naming its 'prefix')")
+    (tmp_path / "sequence.json").write_text(json.dumps({"prefix": "cloth.", "start": 1, "up": "z"}))
+    np.testing.assert_allclose(read_sequence(tmp_path).points, points, atol=1e-6)
+
+
+def test_a_sequence_json_of_fps_alone_reads_other_tools_frames_y_up(tmp_path, caplog):
+    """Another tool's folder given a sequence.json of its rate alone ({"fps": 24}, as the render help suggests
+    recording one) was read Z-up, on its back; a bake's of before 2026-12-06 (its prefix and count recorded, no
+    up) stays Z-up. An --up against the one recorded is warned of, and taken."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+
+    points, faces = _animated(n_frames=2)
+    y_up = points @ Y_UP_TO_Z_UP_MATRIX  # as Blender writes this tool's Z-up points
+    for t in range(2):
+        write_obj(tmp_path / f"shirt_{t + 1:06d}.obj", y_up[t], faces)
+    (tmp_path / "sequence.json").write_text(json.dumps({"fps": 24}))
+    seq = read_sequence(tmp_path)
+    np.testing.assert_allclose(seq.points, points, atol=1e-5)
+    assert seq.fps == 24
+    old = tmp_path / "old_bake"
+    write_obj_sequence(old, points, faces, fps=30, up="z")
+    meta = json.loads((old / "sequence.json").read_text())
+    del meta["up"]
+    (old / "sequence.json").write_text(json.dumps(meta))
+    np.testing.assert_allclose(read_sequence(old).points, points, atol=1e-6)
+    new = tmp_path / "bake"
+    write_obj_sequence(new, points, faces, fps=30, up="y")
+    with caplog.at_level("WARNING"):
+        np.testing.assert_allclose(read_sequence(new, up="y").points, points, atol=1e-5)
+        assert not caplog.records  # as recorded: nothing to say
+        np.testing.assert_allclose(read_sequence(new, up="z").points, y_up, atol=1e-5)
+    assert [r.getMessage() for r in caplog.records] == [
+        f"--up z: garment sequence '{new}' records its frames written Y-up (sequence.json): read Z-up"]
+
+
+def test_frames_triangulated_again_take_the_first_frames_faces_with_a_warning(tmp_path, caplog):
+    """Blender's Triangulate (Beauty) and Houdini's Divide split a deforming quad mesh along other diagonals from
+    frame to frame: refused with "expected ... (16 vertices, 18 faces), got 16 vertices, 18 faces". The points
+    correspond vertex by vertex: read with the first frame's faces, the first difference named."""
+    points, faces = _animated(n_frames=3)
+    other = faces.copy()
+    other[0] = [faces[0][0], faces[0][1], faces[9][2]]  # the first quad split along its other diagonal
+    other[9] = [faces[0][1], faces[9][1], faces[9][2]]
+    for t in range(3):
+        write_obj(tmp_path / f"cloth_{t:04d}.obj", points[t], faces if t != 1 else other)
+    with caplog.at_level("WARNING"):
+        seq = read_sequence(tmp_path, up="z")
+    np.testing.assert_allclose(seq.points, points, atol=1e-6)
+    np.testing.assert_array_equal(seq.faces, faces)
+    a, b = " ".join(str(i + 1) for i in other[0]), " ".join(str(i + 1) for i in faces[0])
+    assert [r.getMessage() for r in caplog.records] == [
+        f"garment sequence '{tmp_path}': 1 of its frames have other faces than cloth_0000.obj (cloth_0001.obj: face 1 "
+        f"is {a}, the first frame's {b}): read with cloth_0000.obj's faces (triangulated again in each frame? export "
+        "the polygons, or triangulate once before the animation)"]
+    write_obj(tmp_path / "cloth_0002.obj", np.vstack([points[2], [[9, 9, 9]]]), faces)  # a vertex more: refused
+    with pytest.raises(InputError, match=r"expected every frame to share the vertices of cloth_0000.obj \(16 "
+                                         r"vertices, 18 faces\), got 17 vertices, 18 faces in cloth_0002.obj"):
+        read_sequence(tmp_path)
