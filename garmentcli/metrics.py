@@ -123,14 +123,20 @@ def _inside_fn(depth_m: float):
 
 #: (unit, metres per unit): the units other tools write garments in.
 _UNITS = (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254))
-#: (what to tell, matrix applied to one side's points as row vectors): frame and unit mix-ups of another tool's
-#: output, one change before two; the last undoes a Y-up to Z-up turn made by a file that declared Y-up wrongly.
-_FIXES = ((("is Y-up", Y_UP_TO_Z_UP_MATRIX.T),)
-          + tuple((f"is in {unit}", np.eye(3) * scale) for unit, scale in _UNITS)
-          + tuple((f"is Y-up and in {unit}", Y_UP_TO_Z_UP_MATRIX.T * scale) for unit, scale in _UNITS)
-          + (("was turned from Y-up to Z-up but was Z-up already (OBJ frames without a sequence.json are read "
-              "Y-up: --up z reads them as they are; or its file declares Y-up wrongly)",
-              Y_UP_TO_Z_UP_MATRIX),))
+#: What turns a Y-up side to this tool's world, whatever kind of file it is (OBJ frames and point caches are read
+#: Y-up already, unless a sequence.json or --up says otherwise: telling them to be rewritten Z-up broke them).
+_TURN = ("read it Y-up (OBJ frames: --up y, or 'up': 'y' in their sequence.json; a USD: its upAxis Y) or turn "
+         "it to Z-up")
+#: (what to tell, matrix applied to one side's points as row vectors, what to do): frame and unit mix-ups of
+#: another tool's output, one change before two; the last undoes a Y-up to Z-up turn made by a file that declared
+#: Y-up wrongly.
+_FIXES = ((("is Y-up", Y_UP_TO_Z_UP_MATRIX.T, _TURN),)
+          + tuple((f"is in {unit}", np.eye(3) * scale, f"scale it to metres (x {scale:g})") for unit, scale in _UNITS)
+          + tuple((f"is Y-up and in {unit}", Y_UP_TO_Z_UP_MATRIX.T * scale, f"scale it to metres (x {scale:g}) and "
+                   + _TURN) for unit, scale in _UNITS)
+          + (("was turned from Y-up to Z-up but was Z-up already", Y_UP_TO_Z_UP_MATRIX,
+              "read it as it is (OBJ frames without a sequence.json are read Y-up: --up z reads them as they are; "
+              "or its file declares Y-up wrongly)"),))
 
 #: A garment's plausible size (largest extent of a frame, metres), and how far below the floor (z = 0) it may reach.
 _GARMENT_SIZE_M = (0.1, 3.0)
@@ -150,7 +156,7 @@ def _plausible(points: np.ndarray) -> bool:
 def frame_hint(pred: np.ndarray, gt: np.ndarray) -> tuple[str, str]:
     """("", "") or, when one of `_FIXES` applied to one side's first frame brings it 10x closer to the other's and
     within 5 cm (mean vertex distance), (the side out of line, "PRED" or "GT"; what it looks like: "looks as if it
-    is Y-up: so converted, its first frame would be 3.1 mm from PRED's, not 1,204 mm ...: convert it ..."). When either
+    is Y-up: so converted, its first frame would be 3.1 mm from PRED's, not 1,204 mm ...: read it Y-up ..."). When either
     side works (a turn undone on one is the turn done on the other), the side whose frame is not a plausible garment
     (`_plausible`) is named, else GT. Nothing is said when a side is degenerate (all its points equal)."""
     pred, gt = np.asarray(pred, dtype=np.float64), np.asarray(gt, dtype=np.float64)
@@ -159,12 +165,12 @@ def frame_hint(pred: np.ndarray, gt: np.ndarray) -> tuple[str, str]:
     now = float(np.linalg.norm(pred - gt, axis=1).mean())
     found = []
     for side, moved, other, other_side in (("GT", gt, pred, "PRED"), ("PRED", pred, gt, "GT")):
-        for what, m in _FIXES:
+        for what, m, advice in _FIXES:
             fixed = float(np.linalg.norm(other - moved @ m, axis=1).mean())
             if fixed < 0.05 and fixed * 10 < now:
                 found.append((side, f"looks as if it {what}: so converted, its first frame would be "
                                     f"{fixed * 1e3:.1f} mm from {other_side}'s, not {now * 1e3:,.0f} mm (the metrics "
-                                    "compare it as it is): convert it to this tool's world (metres, Z-up)"))
+                                    f"compare it as it is): {advice}"))
                 break
     if not found:
         return "", ""
@@ -188,8 +194,7 @@ def size_hint(pred: np.ndarray, gt: np.ndarray) -> str:
                 "penetration against a body in metres means nothing")
     side, other = odd[0], "GT" if odd[0] == "PRED" else "PRED"
     ratio = sizes[side] / sizes[other]
-    return (f"{side} is {sizes[side]:,.3g} m across, {ratio:,.3g} times {other} ({expected}): convert it to this "
-            "tool's world (metres, Z-up)")
+    return (f"{side} is {sizes[side]:,.3g} m across, {ratio:,.3g} times {other} ({expected}): scale it to metres")
 
 
 def _posed_body_sequence(body_file, motion_file, fps, frames, settle_frames, n_frames, betas="auto",

@@ -69,7 +69,8 @@ def _at_rates(seq, gt, fps: float | None):
 @click.option("--color", type=click.Choice(COLORS), default="plain", show_default=True,
               help="plain; error: distance to --gt per vertex (mm); penetration: vertices inside the body in red, the "
                    "body see-through; "
-                   "scalar: the per-vertex array of --scalars.")
+                   "scalar: the per-vertex array of --scalars. --gt alone colours the error, --scalars alone the "
+                   "scalar.")
 @click.option("--gt", "gt_path", type=click.Path(exists=True, path_type=Path), default=None,
               help="Ground-truth sequence for --color error (same mesh and frame count as INPUT).")
 @click.option("--scalars", "scalars_spec", metavar="FILE.npz[:KEY]", default=None,

@@ -1,4 +1,4 @@
-"""`garment unpose GARMENT --pose tpose|apose|POSE.npz [--betas B0,...] [--scale S] [--turn T] [--move DX,DY,DZ]`:
+"""`garment unpose GARMENT --pose tpose|apose|MOTION [--betas B0,...] [--scale S] [--turn T] [--move DX,DY,DZ]`:
 move a garment authored on a posed, shaped or otherwise placed body, or written in other units, to the rest pose
 and mean shape."""
 
@@ -102,14 +102,15 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
 
 @click.command(name="unpose")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
-@click.option("--pose", "pose_spec", required=True, metavar="tpose|apose|POSE.npz",
+@click.option("--pose", "pose_spec", required=True, metavar="tpose|apose|MOTION",
               help="The pose the garment was authored in: 'tpose' (the rest pose: only --betas is taken off), "
-                   "'apose' (the arms lowered by --arm-angle), or an AMASS-style motion file (its --frame's joint "
-                   "rotations and betas; its root and trans are ignored: the garment is in the body's frame).")
+                   "'apose' (the arms lowered by --arm-angle), or a motion file of any format bake reads (AMASS-style "
+                   ".npz, BVH, FBX, glTF, USD, ...: its --frame's joint rotations and betas; its root and trans are "
+                   "ignored: the garment is in the body's frame).")
 @click.option("--betas", "betas_text", default=None, callback=_check_shape, metavar="B0,B1,...",
               help="The body shape the garment was authored on (coefficients of the body's own basis, missing ones "
                    "0), taken off as well: the result fits the mean shape that bake shapes to each motion's "
-                   "betas [default: a POSE.npz's betas on a --body, else the mean shape: a motion's betas belong to the "
+                   "betas [default: a motion file's betas on a --body, else the mean shape: a motion's betas belong to the "
                    "body model it was fitted to].")
 @click.option("--scale", type=float, default=None, callback=_check_scale, metavar="S",
               help="Metres per unit of GARMENT, multiplied in first, about the origin: 0.01 for a file in "
@@ -123,7 +124,7 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
                    "body whose origin stands elsewhere (bake names the move).")
 @click.option("--arm-angle", type=FiniteFloatRange(min=-90.0, max=90.0), default=None,
               help=f"apose: degrees each arm is lowered from the T-pose, -90 to 90 [default: {A_POSE_ARM_DEGREES:g}].")
-@click.option("--frame", type=click.IntRange(min=0), default=None, help="POSE.npz: the frame to use [default: 0].")
+@click.option("--frame", type=click.IntRange(min=0), default=None, help="--pose MOTION: the frame to use [default: 0].")
 @body_option
 @click.option("--out", "out_path", type=OutputPath(dir_okay=False), default=None,
               help="Output OBJ, or USD (.usd/.usda/.usdc: one static mesh, Y-up metres, its materials as "
@@ -160,7 +161,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         raise click.UsageError(f"--arm-angle applies to --pose apose only (got --pose {pose_spec})")
     if pose_spec == "tpose":
         if frame is not None:
-            raise click.UsageError("--frame applies to a POSE.npz file only (got --pose tpose)")
+            raise click.UsageError("--frame applies to a motion file only (got --pose tpose)")
         if betas_text is None and move is None and not turns and scale is None:
             raise click.UsageError("--pose tpose takes off the body shape, place, frame and units only: give them "
                                    "with --betas B0,B1,..., --move DX,DY,DZ, --turn or --scale")
@@ -168,7 +169,7 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
         what = "the rest pose"
     elif pose_spec == "apose":
         if frame is not None:
-            raise click.UsageError("--frame applies to a POSE.npz file only (got --pose apose)")
+            raise click.UsageError("--frame applies to a motion file only (got --pose apose)")
         pose = a_pose(body, A_POSE_ARM_DEGREES if arm_angle is None else arm_angle)
         what = f"A-pose, arms lowered {A_POSE_ARM_DEGREES if arm_angle is None else arm_angle:g} degrees"
     elif pose_spec.lower().endswith(MOTION_SUFFIXES):  # POSE.NPZ too, as every other command reads a motion

@@ -220,15 +220,21 @@ def test_a_ground_truth_in_another_frame_is_pointed_out(tmp_path, seq):
     pts = pts + [0.0, 0.0, 1.0]  # a garment at waist height
     a = save_seq(tmp_path / "a.npz", pts, f)
     to_y_up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=np.float64)  # (x, y, z) -> (x, z, -y)
-    for name, gt, needle in (("yup.npz", pts @ to_y_up, "looks as if it is Y-up"),
-                             ("cm.npz", pts * 100, "looks as if it is in centimetres"),
-                             ("mm.npz", pts * 1000, "looks as if it is in millimetres"),
-                             ("inch.npz", pts / 0.0254, "looks as if it is in inches"),
-                             ("yup_mm.npz", pts @ to_y_up * 1000, "looks as if it is Y-up and in millimetres")):
+    # what to do fits the mix-up (it told every one "convert it to this tool's world (metres, Z-up)": OBJ frames
+    # and point caches, read Y-up, were broken so rewritten)
+    for name, gt, needle, advice in (
+            ("yup.npz", pts @ to_y_up, "looks as if it is Y-up", "read it Y-up (OBJ frames: --up y, or 'up': 'y' "
+             "in their sequence.json; a USD: its upAxis Y) or turn it to Z-up"),
+            ("cm.npz", pts * 100, "looks as if it is in centimetres", "scale it to metres (x 0.01)"),
+            ("mm.npz", pts * 1000, "looks as if it is in millimetres", "scale it to metres (x 0.001)"),
+            ("inch.npz", pts / 0.0254, "looks as if it is in inches", "scale it to metres (x 0.0254)"),
+            ("yup_mm.npz", pts @ to_y_up * 1000, "looks as if it is Y-up and in millimetres",
+             "scale it to metres (x 0.001) and read it Y-up")):
         b = save_seq(tmp_path / name, gt + 0.001, f)
         r = run([a, b, "--out", tmp_path / name.replace(".npz", "")])
         assert r.exit_code == 0 and "E_verts" in r.output
-        assert f"warning: '{b}' {needle}" in r.output and "convert it" in r.output
+        assert f"warning: '{b}' {needle}" in r.output and f"(the metrics compare it as it is): {advice}" in \
+            " ".join(r.output.split()), r.output
         meta = json.loads((tmp_path / name.replace(".npz", "") / "metrics.json").read_text())["metadata"]
         assert needle in meta["frame_hint"]
     r = run([a, save_seq(tmp_path / "same.npz", pts + 0.001, f)])
@@ -245,7 +251,7 @@ def test_sides_of_no_garment_size_that_no_fix_explains_are_pointed_out(tmp_path,
     for name, pred, gt, needle in (
             ("mm", pts * 1000, pts * 1000 + 1.0, "warning: PRED and GT are "),
             ("huge", pts, pts * 1e30, "warning: GT is 5e+29 m across, 1e+30 times PRED (expected a garment 0.1-3 m "
-                                      "across in metres): convert it")):
+                                      "across in metres): scale it to metres")):
         p, g = save_seq(tmp_path / f"{name}_p.npz", pred, f), save_seq(tmp_path / f"{name}_g.npz", gt, f)
         r = run([p, g, "--out", tmp_path / name])
         assert r.exit_code == 0 and "E_verts" in r.output, r.output

@@ -317,11 +317,11 @@ def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
     (["--pose", "tpose", "--betas", "1,x"], "expected comma-separated numbers, got '1,x'"),
     (["--pose", "tpose", "--betas", "50"], "--betas: expected betas within +-20"),  # wrote it 27 % inside the body
     (["--pose", "tpose", "--betas", "1e30"], "--betas: expected betas within +-20"),  # numpy overflow warnings
-    (["--pose", "tpose", "--betas", "1", "--frame", 1], "--frame applies to a POSE.npz file only"),
+    (["--pose", "tpose", "--betas", "1", "--frame", 1], "--frame applies to a motion file only"),
     (["--pose", "tpose", "--betas", "1", "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", "nope.npz"], "'nope.npz': no such file"),
     (["--pose", "NOPE.NPZ"], "'NOPE.NPZ': no such file"),  # a pose file, whatever the case of its suffix
-    (["--pose", "apose", "--frame", 2], "--frame applies to a POSE.npz file only"),
+    (["--pose", "apose", "--frame", 2], "--frame applies to a motion file only"),
     (["--pose", "apose", "--arm-angle", 200], "--arm-angle': 200.0 is not in the range -90.0<=x<=90.0"),
     (["--pose", str(EXAMPLES / "walk.npz"), "--arm-angle", 30], "--arm-angle applies to --pose apose only"),
     (["--pose", str(EXAMPLES / "walk.npz"), "--frame", 9999], "expected a frame in 0..180"),
@@ -400,7 +400,7 @@ def test_turn_given_twice_turns_twice(tmp_path):
 
 
 def test_a_pose_files_betas_are_not_taken_as_the_embedded_bodys_own(tmp_path):
-    """A POSE.npz's betas were fitted to SMPL's shape basis (AMASS's are): taken off the embedded body they shaped
+    """A motion file's betas were fitted to SMPL's shape basis (AMASS's are): taken off the embedded body they shaped
     it as nobody in particular, without a word, where bake bakes such a motion on the mean shape, warned. Now the
     mean shape, warned, as a pose file without betas; --betas still takes off the coefficients given."""
     walk = dict(np.load(EXAMPLES / "walk.npz"))
