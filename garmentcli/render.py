@@ -169,3 +169,7 @@ def render(input_path, out_dir, cameras, color, gt_path, scalars_spec, value_ran
     click.echo(f"{out_dir}: {counted(scene.n_frames, 'frame')} x {len(options.cameras)} camera(s) at {width}x{height}"
                + (f", {n_png} PNG" if n_png else "") + (f", {len(written['mp4'])} MP4" if written["mp4"] else "")
                + (", contact_sheet.png" if written["sheet"] else ""))
+    if written["mp4"] and (width % 2 or height % 2):  # H.264's 4:2:0 colour takes even sizes only
+        click.echo(f"note: the MP4 is {width + width % 2}x{height + height % 2} (H.264 needs even sizes: the last "
+                   f"{'column' if width % 2 else 'row'}{' and row' if width % 2 and height % 2 else ''} repeated); "
+                   "an even --size gives it the PNGs' size", err=True)

@@ -313,3 +313,19 @@ def test_render_gt_or_scalars_with_another_colour_is_refused(seqs, tmp_path):
     res = run("render", seqs["pred"], "--gt", seqs["gt"], "--out", tmp_path / "c", "--size", "64x64", "--no-mp4",
               "--no-sheet")
     assert res.exit_code == 0, res.output
+
+
+def test_an_odd_size_says_the_mp4_is_a_pixel_larger(seqs, tmp_path):
+    """H.264 takes even sizes: the MP4 of --size 65x33 is 66x34, which was said nowhere; now noted (an even size
+    gets no note). The PNGs keep the size asked for."""
+    import imageio.v2 as iio
+
+    res = run("render", seqs["pred"], "--out", tmp_path / "odd", "--size", "65x33", "--camera", "front",
+              "--no-sheet")
+    assert res.exit_code == 0 and "note: the MP4 is 66x34 (H.264 needs even sizes: the last column and row " \
+        "repeated); an even --size gives it the PNGs' size" in res.output, res.output
+    assert read_png(tmp_path / "odd" / "frames" / "front" / "frame_0000.png").shape == (33, 65, 3)
+    assert iio.get_reader(tmp_path / "odd" / "front.mp4").get_data(0).shape == (34, 66, 3)
+    res = run("render", seqs["pred"], "--out", tmp_path / "even", "--size", "64x32", "--camera", "front",
+              "--no-sheet", "--no-png")
+    assert res.exit_code == 0 and "note" not in res.output
