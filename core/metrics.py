@@ -299,8 +299,14 @@ def check_comparable(pred_points: np.ndarray, pred_faces: np.ndarray, gt_points:
             raise InputError(f"'{name}': expected points of shape (T, V, 3), got {tuple(np.shape(pts))}")
     Vp, Vg = np.shape(pred_points)[1], np.shape(gt_points)[1]
     if Vp != Vg:
+        name, more = (pred_name, pred_points) if Vp > Vg else (gt_name, gt_points)
+        first = np.asarray(more[0], dtype=np.float64) if len(more) else np.zeros((0, 3))
+        shared = len(first) - len(np.unique(np.round(first, 6), axis=0))  # vertices at another's position (1 um)
+        hint = (f": {shared} of '{name}''s vertices lie where others do (the mesh split at its UV or panel seams, as "
+                "some exporters write it?): export it welded, or as the other side is" if shared >= abs(Vp - Vg)
+                else "")
         raise InputError(f"'{pred_name}' has {Vp} vertices, '{gt_name}' has {Vg}: "
-                         "expected the same garment mesh (same vertices and faces)")
+                         f"expected the same garment mesh (same vertices and faces){hint}")
     pf, gf = np.asarray(pred_faces), np.asarray(gt_faces)
     if pf.shape != gf.shape or not (np.array_equal(pf, gf) or same_surface(pf, gf, Vp)):
         detail = (f"{pf.shape[0]} vs {gf.shape[0]} faces" if pf.shape != gf.shape

@@ -388,8 +388,15 @@ def test_bad_inputs_raise_one_line_input_errors():
     with pytest.raises(InputError, match=r"'p.npz' has 3 frames, 'g.npz' has 2") as e:
         compute_metrics(seq, seq[:2], f, pred_name="p.npz", gt_name="g.npz")
     assert "\n" not in str(e.value)
-    with pytest.raises(InputError, match=r"'p.npz' has 36 vertices, 'g.npz' has 35"):
+    with pytest.raises(InputError, match=r"'p.npz' has 36 vertices, 'g.npz' has 35: expected the same garment "
+                                         r"mesh \(same vertices and faces\)$"):
         compute_metrics(seq, seq[:, :-1], f, pred_name="p.npz", gt_name="g.npz")
+    # a side split at its seams (one vertex per UV corner, as some exporters write it): its doubles named
+    split = np.concatenate([seq, seq[:, [3, 4, 5]]], axis=1)
+    with pytest.raises(InputError, match=r"'p.npz' has 36 vertices, 'g.npz' has 39: expected the same garment mesh "
+                                         r"\(same vertices and faces\): 3 of 'g.npz''s vertices lie where others do "
+                                         r"\(the mesh split at its UV or panel seams"):
+        compute_metrics(seq, split, f, pred_name="p.npz", gt_name="g.npz")
     bad = seq.copy()
     bad[1, 7, 0] = np.nan
     with pytest.raises(InputError, match=r"'g.npz'.*got NaN at frame 1, vertex 7"):
