@@ -227,6 +227,8 @@ class Placement:
         elif one is not None:
             turns = (one,)
         move = fix.scale * fix.rotation @ np.asarray(self.move, dtype=np.float64) + np.asarray(fix.move)
+        if np.any(self.move):  # a move found (in 1 cm steps) undoing the one given leaves that step at most: none
+            move = np.where(np.abs(move) <= MOVE_SEARCH_STEP_M + 1e-9, 0.0, move)
         return Placement(self.scale * fix.scale, turns, tuple(float(m) for m in np.round(move, 2)), self.pose,
                          self.body)
 
@@ -236,6 +238,10 @@ class Placement:
         return "".join(((f" --scale {self.scale:.6g}" if abs(self.scale - 1.0) > 1e-9 else ""),
                         "".join(f" --turn {turn}" for turn in self.turns),
                         (f" --move {_move_option(np.array(self.move))}" if np.any(np.round(self.move, 2)) else "")))
+
+
+#: The finest step (metres) of the search for a move that places a garment (`_shift_fix`).
+MOVE_SEARCH_STEP_M = 0.01
 
 
 def _turn_name(rotation) -> str | None:
@@ -697,7 +703,7 @@ def _shift_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str,
         here = _shift_score(mesh, v + still)[0]  # this axis left alone
         coarse = np.arange(low, high + 1e-9, 0.02)
         d = min(tried(np.concatenate([-coarse[::-1], coarse])))[3]
-        found = min(tried(np.round(d + np.arange(-0.03, 0.03 + 1e-9, 0.01), 2)),
+        found = min(tried(np.round(d + np.arange(-0.03, 0.03 + 1e-9, MOVE_SEARCH_STEP_M), 2)),
                     key=lambda t: (round(t[2] * 200), t[0]))
         move[axis] = found[3] if found[0] * SHIFT_AXIS_GAIN <= here else 0.0
     best = _shift_score(mesh, v + move)

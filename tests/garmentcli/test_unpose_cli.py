@@ -298,6 +298,12 @@ def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
     r = invoke(["unpose", up, "--pose", "tpose", "--move", command[1]])
     assert r.exit_code == 0, r.output
     assert np.abs(read_obj(tmp_path / "up_rest.obj").vertices - g.vertices).max() <= 0.0201
+    # a file placed right, given a move it did not need: the move that undoes it leaves none (it named
+    # `--move 0,-0.01,0`, the search's step, left over)
+    r = invoke(["unpose", EXAMPLES / "tshirt.obj", "--pose", "tpose", "--move", "0,0.3,0", "--out",
+                tmp_path / "x.obj"])
+    assert r.exit_code != 0 and r.output.strip().endswith(
+        f"bake the file as it is (`garment bake {EXAMPLES / 'tshirt.obj'} ...`), without `garment unpose`"), r.output
 
 
 @pytest.mark.parametrize("args, needle", [
