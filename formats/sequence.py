@@ -163,15 +163,17 @@ def bake_directory_sequence(directory: Path) -> Path | None:
     return None
 
 
-def bake_batch(directory: Path) -> dict[str, Path] | None:
+def bake_batch(directory: Path, frame_folders: bool = False) -> dict[str, Path] | None:
     """The bakes of a `garment bake --out` directory: {name: path} of its subdirectories that are bake outputs
-    (`bake_directory_sequence`), in name order; None when `directory` is not a directory, is a sequence itself
-    (OBJ frames, or one bake's output) or holds no bake."""
+    (`bake_directory_sequence`), in name order; with `frame_folders`, also those holding OBJ frames themselves (two
+    or more: another tool's export of each motion into a folder of its name); None when `directory` is not a
+    directory, is a sequence itself (OBJ frames, or one bake's output) or holds no bake."""
     directory = Path(directory)
     if not directory.is_dir() or _obj_files(directory) or bake_directory_sequence(directory) is not None:
         return None
     bakes = {d.name: d for d in sorted(directory.iterdir())
-             if d.is_dir() and d.name != "obj" and bake_directory_sequence(d) is not None}
+             if d.is_dir() and d.name != "obj" and (bake_directory_sequence(d) is not None
+                                                   or frame_folders and len(_obj_files(d)) > 1)}
     return bakes or None
 
 

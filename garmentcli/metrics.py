@@ -366,6 +366,12 @@ def metrics(pred: Path, gt: Path, out_dir: Path | None, fmt: str, body_file: Pat
                          f"compared: {', '.join(failed)} (see the lines above)")
 
 
+def _names(bakes: dict) -> str:
+    """The first four of `bakes`' names, "..." after them where there are more."""
+    names = sorted(bakes)
+    return ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+
+
 def _bake_pairs(pred: Path, gt: Path) -> dict | None:
     """{bake name: (PRED's, GT's)} when PRED and GT are `garment bake --out` directories (each holding bake
     directories `<garment>_<motion>/`), the bakes both hold; None when they are sequences. Bakes in one only are
@@ -375,15 +381,18 @@ def _bake_pairs(pred: Path, gt: Path) -> dict | None:
     batches = {path: bake_batch(path) for path in (pred, gt)}
     if all(b is None for b in batches.values()):
         return None
+    # the other side may be another tool's export of each motion into a folder of its name (OBJ frames)
+    batches = {path: batch or bake_batch(path, frame_folders=True) for path, batch in batches.items()}
     for path, other in ((pred, gt), (gt, pred)):
         if batches[path] is None:
-            raise InputError(f"'{other}' holds bakes ({', '.join(sorted(batches[other])[:4])}...) but '{path}' is "
-                             f"one sequence: give both as bake output directories, or one bake each")
+            raise InputError(f"'{other}' holds bakes ({_names(batches[other])}) but '{path}' is one sequence: give "
+                             f"both as bake output directories (or folders of OBJ frames named as the bakes), or one "
+                             f"bake each")
     p, g = batches[pred], batches[gt]
     common = sorted(set(p) & set(g))
     if not common:
-        raise InputError(f"'{pred}' and '{gt}' hold no bake of the same name: PRED has {', '.join(sorted(p)[:4])}, "
-                         f"GT has {', '.join(sorted(g)[:4])}")
+        raise InputError(f"'{pred}' and '{gt}' hold no bake of the same name: PRED has {_names(p)}, GT has "
+                         f"{_names(g)}")
     for name in sorted(set(p) ^ set(g)):
         click.echo(f"warning: '{name}' is in {'PRED' if name in p else 'GT'} only: left out", err=True)
     return {name: (p[name], g[name]) for name in common}

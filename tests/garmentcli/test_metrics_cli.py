@@ -354,6 +354,25 @@ def test_two_bake_output_directories_are_compared_bake_by_bake(tmp_path, seq):
     assert r.exit_code != 0 and "metrics_batch.json' exists; pass --overwrite" in error_line(r)
 
 
+def test_bakes_against_another_tools_folders_of_obj_frames_named_as_them(tmp_path, seq):
+    """GT exported by another tool, each motion into a folder of OBJ frames of the bake's name (Blender's
+    shirt_000001.obj, Y-up): it was "one sequence", refused; compared bake by bake."""
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
+    from formats.obj import write_obj
+
+    pts, f = seq
+    for name, shift in (("shirt_walk", 1.0), ("shirt_run", 2.0)):
+        _bake_dir(tmp_path / "pred", name, pts + [0, 0, shift * 1e-3], f)
+        (tmp_path / "gt" / name).mkdir(parents=True)
+        for t, frame in enumerate(pts @ Y_UP_TO_Z_UP_MATRIX):
+            write_obj(tmp_path / "gt" / name / f"shirt_{t + 1:06d}.obj", frame, f)
+    r = run([tmp_path / "pred", tmp_path / "gt", "--out", tmp_path / "m", "--format", "json"])
+    assert r.exit_code == 0, r.output
+    bakes = json.loads((tmp_path / "m" / "metrics_batch.json").read_text())["bakes"]
+    assert bakes["shirt_walk"]["e_verts"] == pytest.approx(1.0, abs=1e-3)
+    assert bakes["shirt_run"]["e_verts"] == pytest.approx(2.0, abs=1e-3)
+
+
 def test_bake_directories_bad_pairs(tmp_path, seq):
     pts, f = seq
     _bake_dir(tmp_path / "pred", "shirt_walk", pts, f)
@@ -361,7 +380,7 @@ def test_bake_directories_bad_pairs(tmp_path, seq):
     assert "hold no bake of the same name: PRED has shirt_walk, GT has shirt_run" in error_line(
         run([tmp_path / "pred", tmp_path / "gt"]))
     one = save_seq(tmp_path / "one.npz", pts, f)
-    assert "holds bakes (shirt_walk...) but" in error_line(run([tmp_path / "pred", one]))
+    assert "holds bakes (shirt_walk) but" in error_line(run([tmp_path / "pred", one]))
     # One bake's own directory against a sequence: read as its stage.
     r = run([tmp_path / "pred" / "shirt_walk", one])
     assert r.exit_code == 0, r.output
