@@ -27,7 +27,9 @@ class SourceMesh:
     file's vertices, K >= 4 the most corners of a face, -1 after each face's last corner (triangles, quads
     and n-gons as the file has them). uvs: (U, 2) float32 or None; polygon_uvs: (P, K) int64 into uvs, or None.
     materials: (P,) str, each polygon's material (an OBJ's `usemtl`, "" for none), or None. libraries: the
-    material library files (.mtl, absolute paths) that define them, as the OBJ's `mtllib` names them.
+    material library files (.mtl, absolute paths) that define them, as the OBJ's `mtllib` names them. looks:
+    {material: `formats.mtl.MtlMaterial`} of a file with no libraries whose materials carry their looks (a USD
+    stage's preview surfaces), or None.
     """
 
     vertex_of: np.ndarray
@@ -36,6 +38,7 @@ class SourceMesh:
     polygon_uvs: np.ndarray | None = None
     materials: np.ndarray | None = None
     libraries: tuple[str, ...] = ()
+    looks: dict | None = None
 
     def material_groups(self) -> dict[str, np.ndarray] | None:
         """{material: its polygons' indices (sorted)} in order of first use, or None without materials."""

@@ -120,6 +120,41 @@ def copy_material_libraries(libraries, directory: str | os.PathLike) -> list[str
     return names
 
 
+def write_mtl(target: str | os.PathLike, looks: dict[str, MtlMaterial]) -> None:
+    """A library at `target` of `looks` (name -> MtlMaterial, as `formats.usd` reads a stage's preview materials):
+    each one's diffuse colour, opacity and diffuse texture (by a path relative to `target`'s folder where it
+    exists, else as it is)."""
+    target = Path(target)
+    out = []
+    for name, look in looks.items():
+        out.append(f"newmtl {name}")
+        if look.diffuse is not None:
+            out.append("Kd " + " ".join(f"{float(c):.6g}" for c in look.diffuse))
+        if look.opacity is not None:
+            out.append(f"d {float(look.opacity):.6g}")
+        if look.diffuse_texture is not None:
+            texture = Path(look.diffuse_texture)
+            out.append("map_Kd " + (os.path.relpath(texture.resolve(), target.parent.resolve()).replace(os.sep, "/")
+                                    if texture.is_file() else str(texture)))
+        out.append("")
+    with atomic_file(target) as tmp:
+        Path(tmp).write_text("\n".join(out), encoding="utf-8")
+
+
+def output_libraries(source, directory: str | os.PathLike, stem: str) -> list[str]:
+    """The material libraries of an output written into `directory`, as its `mtllib` names them: the garment
+    file's own (`source.libraries`, copied: `copy_material_libraries`), else, for a garment read from USD whose
+    materials carry preview looks (`source.looks`), `<stem>.mtl` written of them; none without either."""
+    if source is None:
+        return []
+    if source.libraries:
+        return copy_material_libraries(source.libraries, directory)
+    if source.looks:
+        write_mtl(Path(directory) / f"{stem}.mtl", source.looks)
+        return [f"{stem}.mtl"]
+    return []
+
+
 def read_libraries(libraries) -> dict[str, MtlMaterial]:
     """{name: MtlMaterial} over several libraries (`read_mtl`; the first definition of a name wins)."""
     looks: dict[str, MtlMaterial] = {}

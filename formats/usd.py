@@ -134,7 +134,8 @@ def garment_track(garment, written: tuple, name: str = "garment", color=(0.80, 0
     source = garment.source
     return MeshTrack(name, points, faces, uvs=face_uv, color=color,
                      groups=None if source is None else source.material_groups(),
-                     looks=read_libraries(() if source is None else source.libraries))
+                     looks=read_libraries(() if source is None else source.libraries)
+                     or (None if source is None else source.looks))
 
 
 def write_usd_stage(path: str | os.PathLike, meshes: list[MeshTrack], fps: float, start_frame: int = 0,
@@ -508,14 +509,43 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
         else:
             ngons.append((k, corners, corner_uvs))
     # The faces as written (n-gons whole) with their materials: what the outputs keep.
-    written = file_polygons(polygons, polygon_uvs, ngons, _face_materials(mesh, len(counts)))
+    materials, bound = _face_materials(mesh, len(counts))
+    written = file_polygons(polygons, polygon_uvs, ngons, materials)
     if uvs is None:
         written = replace(written, polygon_uvs=None)
     if ngons:
         polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons, lambda k: f"(face {k})",
                                             label, path)
-    return garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path,
-                                 written=written, scale=scale)
+    garment = garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path,
+                                    written=written, scale=scale)
+    looks = {name: look for name, material in bound.items() if (look := _preview_look(material, name, path))}
+    if looks and garment.source is not None:  # their colours and textures, for the outputs' materials
+        garment = replace(garment, source=replace(garment.source, looks=looks))
+    return garment
+
+
+def _preview_look(material: UsdShade.Material, name: str, path: Path):
+    """The `formats.mtl.MtlMaterial` of a material whose surface is a UsdPreviewSurface (its diffuse colour, or
+    the file of the UsdUVTexture feeding it, and its opacity, where given as a value), as `_preview_material`
+    writes one; None for another kind of surface (a renderer's own: only its name is kept)."""
+    from formats.mtl import MtlMaterial
+
+    shader = material.ComputeSurfaceSource()[0]
+    if not shader or shader.GetIdAttr().Get() != "UsdPreviewSurface":
+        return None
+    diffuse, opacity, texture = None, None, None
+    colour = shader.GetInput("diffuseColor")
+    if colour and colour.HasConnectedSource():
+        source = UsdShade.Shader(colour.GetConnectedSource()[0].GetPrim())
+        asset = source.GetInput("file").Get() if source and source.GetInput("file") else None
+        if asset is not None and asset.path:
+            texture = Path(asset.resolvedPath) if asset.resolvedPath else (path.parent / asset.path).resolve()
+    elif colour and colour.Get() is not None:
+        diffuse = tuple(float(np.clip(c, 0.0, 1.0)) for c in colour.Get())
+    alpha = shader.GetInput("opacity")
+    if alpha and not alpha.HasConnectedSource() and alpha.Get() is not None:
+        opacity = float(np.clip(alpha.Get(), 0.0, 1.0))
+    return MtlMaterial(name, diffuse, opacity, texture)
 
 
 #: Texture-coordinate primvars other tools name (Blender's, Maya's), read where a mesh has no `st`.
@@ -541,15 +571,17 @@ def _uv_primvar(mesh: UsdGeom.Mesh, where: str):
     return pick
 
 
-def _face_materials(mesh: UsdGeom.Mesh, n_faces: int) -> np.ndarray | None:
-    """(P,) each face's material: the bound material's name of the face subset holding it (family materialBind,
+def _face_materials(mesh: UsdGeom.Mesh, n_faces: int) -> tuple[np.ndarray | None, dict]:
+    """((P,) each face's material: the bound material's name of the face subset holding it (family materialBind,
     or any face subset with a material bound; the subset's own name where none is bound), else the material bound
     to the mesh itself (its faces in no such subset: all of them where it has none, as USD binds), "" for a face of
-    neither; None for a mesh of neither."""
+    neither; None for a mesh of neither. {name: the bound UsdShade.Material} of the faces' materials.)"""
     materials = np.full(n_faces, "", dtype=object)
+    found = {}
     whole = UsdShade.MaterialBindingAPI(mesh.GetPrim()).GetDirectBinding().GetMaterial()
     if whole:
         materials[:] = whole.GetPrim().GetName()
+        found[whole.GetPrim().GetName()] = whole
     named = bool(whole)
     for subset in UsdGeom.Subset.GetGeomSubsets(mesh, UsdGeom.Tokens.face):
         bound = UsdShade.MaterialBindingAPI(subset.GetPrim()).GetDirectBinding().GetMaterial()
@@ -558,8 +590,11 @@ def _face_materials(mesh: UsdGeom.Mesh, n_faces: int) -> np.ndarray | None:
         faces = np.asarray(subset.GetIndicesAttr().Get() or [], dtype=np.int64)
         faces = faces[(faces >= 0) & (faces < n_faces)]
         materials[faces] = bound.GetPrim().GetName() if bound else subset.GetPrim().GetName()
+        if bound:
+            found.setdefault(bound.GetPrim().GetName(), bound)
         named = named or len(faces) > 0
-    return materials if named else None
+    used = set(materials.tolist()) if named else set()
+    return (materials if named else None), {k: m for k, m in found.items() if k in used}
 
 
 def read_usd(path: str | os.PathLike) -> UsdSequence:

@@ -199,14 +199,13 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
     into `directory`. The garment is written as its file has it (`garment.source`: its point numbering, quads and
     UV seams), where that differs from the mesh deformed. on_written(n): n OBJ frames written (0 as the writing
     starts: a progress bar)."""
-    from formats.mtl import copy_material_libraries
+    from formats.mtl import output_libraries
     from formats.sequence import write_obj_sequence
     from formats.usd import MeshTrack, garment_track, write_usd_stage
 
     if on_written is not None:
         on_written(0)
     fps = result.summary["fps"]
-    libraries = () if garment.source is None else garment.source.libraries
     written = garment.written(result.garment_points)  # the points in the file's numbering: made once
     tracks = [garment_track(garment, written)]
     if result.body_points is not None:
@@ -216,7 +215,7 @@ def write_bake_outputs(directory: Path, stem: str, result, garment, body: Body, 
     if write_obj:  # the material libraries copied beside the frames, their textures' paths leading to them
         points, faces, uvs, face_uvs, materials = written
         write_obj_sequence(directory / "obj", points, faces, uvs, face_uvs, fps=fps, materials=materials,
-                           libraries=copy_material_libraries(libraries, directory / "obj"), start=start_frame, up="y",
+                           libraries=output_libraries(garment.source, directory / "obj", stem), start=start_frame, up="y",
                            on_frame=on_written)
     for kind in point_caches:  # in the garment file's own frame (Y-up): Blender keeps an imported OBJ's points so
         from core.geometry import Y_UP_TO_Z_UP_MATRIX

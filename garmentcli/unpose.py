@@ -84,18 +84,24 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
     """`garment` at `rest_points` as its file has it (its points in order, its quads, UVs and materials), as bake
     writes its outputs; its material libraries beside it (where it is written elsewhere than GARMENT's folder)."""
     from formats.atomic import atomic_file
-    from formats.mtl import copy_material_libraries
+    from formats.mtl import copy_material_libraries, write_mtl
     from formats.obj import write_obj
 
     *mesh, materials = garment.written(rest_points)
     libraries = () if garment.source is None else garment.source.libraries
+    looks = None if garment.source is None or libraries else garment.source.looks  # a USD's preview materials
     copies = [lib for lib in libraries if (out.parent / Path(lib).name).resolve() != Path(lib).resolve()]
     taken = [out.parent / Path(lib).name for lib in copies if (out.parent / Path(lib).name).exists()]
+    if looks and out.with_suffix(".mtl").exists():
+        taken.append(out.with_suffix(".mtl"))
     if taken and not overwrite:
         raise click.ClickException(f"output '{taken[0]}' (GARMENT's material library, written beside the result) "
                                    f"exists: pass --overwrite to replace it")
     names = [Path(lib).name for lib in libraries if lib not in copies]
     names += copy_material_libraries(copies, out.parent)
+    if looks:
+        write_mtl(out.with_suffix(".mtl"), looks)
+        names.append(out.with_suffix(".mtl").name)
     with atomic_file(out) as tmp:
         write_obj(tmp, *mesh, header=header, materials=materials, libraries=names)
 

@@ -563,6 +563,22 @@ def test_outputs_carry_the_files_material_library(scene):
     reader = UsdShade.Shader(texture.GetInput("st").GetConnectedSources()[0][0].source.GetPrim())
     assert reader.GetInput("varname").Get() == "st"
     assert usd_problems(d / "panels_walk.usd") == []  # as usdchecker sees it
+    # That stage as the garment (a USD garment with preview materials): its looks kept, the OBJ frames naming a
+    # library written of them (they were named by `usemtl` alone, their colours lost), the stage binding them again
+    r = run(["bake", str(d / "panels_walk.usd"), scene["motion"], "--body", scene["body"], "--out",
+             scene["out"] / "again"])
+    assert r.exit_code == 0, r.output
+    again = scene["out"] / "again" / "panels_walk_walk"
+    assert (again / "obj" / "frame_0000.obj").read_text().splitlines()[1] == "mtllib panels_walk_walk.mtl"
+    from formats.mtl import read_mtl
+
+    written = read_mtl(again / "obj" / "panels_walk_walk.mtl")
+    assert written["back"].diffuse == (1.0, 0.0, 0.0) and written["back"].opacity == 0.5
+    assert written["front"].diffuse is None and written["front"].diffuse_texture == (asset / "tex" / "weave.png").resolve()
+    stage = Usd.Stage.Open(str(again / "panels_walk_walk.usd"))
+    material = UsdShade.MaterialBindingAPI(stage.GetPrimAtPath("/Root/garment/back")).GetDirectBinding().GetMaterial()
+    assert tuple(UsdShade.Shader(stage.GetPrimAtPath(f"{material.GetPath()}/PreviewSurface")).GetInput(
+        "diffuseColor").Get()) == (1, 0, 0)
 
 
 def test_outputs_keep_the_files_ngons(scene):

@@ -118,6 +118,17 @@ def test_unpose_writes_usd_that_reads_back_as_its_obj_and_bakes(a_posed, tmp_pat
     assert np.array_equal(b.faces, a.faces) and np.allclose(b.uvs[b.face_uvs], a.uvs[a.face_uvs], atol=1e-6)
     r = invoke(["bake", usd, EXAMPLES / "walk.npz", "--frames", "0:2", "--method", "lbs", "--out", tmp_path / "b"])
     assert r.exit_code == 0, r.output
+    # that USD unposed (as it is) to an OBJ: its material's colour in a library beside it (it wrote `usemtl cotton`
+    # alone: the colour lost); an existing library of that name is not replaced without --overwrite
+    back = tmp_path / "back.obj"
+    r = invoke(["unpose", usd, "--pose", "tpose", "--betas", "0", "--out", back])
+    assert r.exit_code == 0, r.output
+    assert back.read_text().splitlines()[1] == "mtllib back.mtl"
+    assert (tmp_path / "back.mtl").read_text() == "newmtl cotton\nKd 0.2 0.4 0.6\n"
+    back.unlink()
+    r = invoke(["unpose", usd, "--pose", "tpose", "--betas", "0", "--out", back])
+    assert r.exit_code != 0 and f"output '{tmp_path / 'back.mtl'}' (GARMENT's material library, written beside " \
+        "the result) exists: pass --overwrite" in r.output and not back.exists()
 
 
 def test_unpose_writes_the_files_own_points(a_posed, tmp_path):
