@@ -36,12 +36,14 @@ MIN_SINGULAR_VALUE = 0.05
 #: nearest the torso, whose weights tore the sleeve from the arm on unposing (the example t-shirt skinned to arms
 #: lowered 75 degrees: back to its rest shape within 179 mm, 8.7 mm mean).
 UNPOSE_FACING_REACH_M = 0.05
-#: An edge of the unposed garment longer than this many times its length as authored, plus UNPOSE_TEAR_SLACK_M, is
-#: torn (`unpose_garment`'s report, warned of by `garment unpose`): unposing undoes the pose's stretch and
-#: squash (armpit edges of a few millimetres squashed 13x by the A-pose come back whole), a part that took
-#: another body part's weights stretches by centimetres (to 8-11x before UNPOSE_FACING_REACH_M).
+#: An edge of the unposed garment longer than this many times its length as authored, plus UNPOSE_TEAR_SLACK_M,
+#: and than UNPOSE_TEAR_MEDIANS times the unposed garment's median edge, is torn (`unpose_garment`'s report, warned
+#: of by `garment unpose`): unposing undoes the pose's stretch and squash (armpit edges squashed 13-16x by the
+#: A-pose come back whole, as long as the garment's other edges: the jumpsuit's 1 mm to 16.5 at 60 degrees), a
+#: part that took another body part's weights stretches by centimetres (to 8-11x before UNPOSE_FACING_REACH_M).
 UNPOSE_TEAR_RATIO = 3.0
 UNPOSE_TEAR_SLACK_M = 0.01
+UNPOSE_TEAR_MEDIANS = 4.0
 
 
 def a_pose(body: Body, arm_degrees: float = A_POSE_ARM_DEGREES) -> np.ndarray:
@@ -70,8 +72,8 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     (the root's rotation is ignored: the garment is in the body's frame); betas: (S',) or None.
     Returns (the garment on the rest pose, same faces and UVs; a report: the posed body's fit, the largest
     vertex move, the largest distance between the input and the result skinned back into `pose`, the edges torn:
-    longer than UNPOSE_TEAR_RATIO times their authored length plus UNPOSE_TEAR_SLACK_M, the worst's ratio and a
-    vertex of it, None where none is). Raises
+    longer than UNPOSE_TEAR_RATIO times their authored length plus UNPOSE_TEAR_SLACK_M and than
+    UNPOSE_TEAR_MEDIANS times the median edge, the worst's ratio and a vertex of it, None where none is). Raises
     InputError naming `source` when a vertex's blended transform cannot be inverted.
     """
     name = source or garment.name
@@ -112,8 +114,8 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     now = np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)
     authored = np.linalg.norm(target[edges[:, 0]] - target[edges[:, 1]], axis=1)
     excess = now - UNPOSE_TEAR_RATIO * authored
-    worst = int(np.argmax(excess)) if len(edges) else 0
-    torn = excess > UNPOSE_TEAR_SLACK_M
+    torn = (excess > UNPOSE_TEAR_SLACK_M) & (now > UNPOSE_TEAR_MEDIANS * np.median(now) if len(now) else False)
+    worst = int(np.argmax(np.where(torn, excess, -np.inf))) if torn.any() else 0
     report = {"edges_torn": int(torn.sum()),
               "max_edge_stretch": float(now[worst] / max(authored[worst], 1e-9)) if torn.any() else None,
               "torn_at_vertex": int(edges[worst, 0]) if torn.any() else None,
