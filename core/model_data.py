@@ -162,13 +162,18 @@ def _refuse_far_off(pos: np.ndarray, body: Body, poses: np.ndarray, trans: np.nd
     size = float(np.linalg.norm(rest.max(0) - rest.min(0)))
     joints = body.posed_joints(poses, trans, betas)  # (T, J, 3)
     lo, hi = joints.min(1, keepdims=True) - reach, joints.max(1, keepdims=True) + reach
-    out = np.maximum(lo - pos, 0.0) + np.maximum(pos - hi, 0.0)  # (T, V, 3) each axis's distance beyond
-    beyond = np.hypot(np.hypot(out[..., 0], out[..., 1]), out[..., 2])  # (T, V) metres (1e30 m: no overflow)
-    t, v = np.unravel_index(int(beyond.argmax()), beyond.shape)
-    if beyond[t, v] > FAR_OFF_SIZES * size:
+    far, t, v = -1.0, 0, 0
+    step = max(1, 2_000_000 // max(pos.shape[1], 1))  # frames at once: a few temporaries of 2M points each
+    for s in range(0, len(pos), step):
+        out = np.maximum(lo[s:s + step] - pos[s:s + step], 0.0) + np.maximum(pos[s:s + step] - hi[s:s + step], 0.0)
+        beyond = np.hypot(np.hypot(out[..., 0], out[..., 1]), out[..., 2])  # (t, V) metres (1e30 m: no overflow)
+        k = int(beyond.argmax())
+        if beyond.flat[k] > far:
+            far, t, v = float(beyond.flat[k]), s + k // beyond.shape[1], k % beyond.shape[1]
+    if far > FAR_OFF_SIZES * size:
         raise InputError(f"dataset sequence '{source}': expected its cloth within {FAR_OFF_SIZES:g} times the "
                          f"garment's size ({FAR_OFF_SIZES * size:.2f} m) of the body, got vertex {v} "
-                         f"{beyond[t, v]:.4g} m from it at frame {t}: a simulation that blew up? simulate it "
+                         f"{far:.4g} m from it at frame {t}: a simulation that blew up? simulate it "
                          "again, or leave the item out of the manifest")
 
 
@@ -256,20 +261,17 @@ def _merged_manifests(roots: list[Path]) -> tuple[dict, dict, dict]:
 def _refuse_edited_template(path: Path, recorded) -> None:
     """InputError where a dataset's garment template is no longer the garment its sequences were simulated with
     (one vertex moved 1 cm was trained on unnoticed; only another vertex count was caught). recorded: the
-    manifest's `inputs.garments[name]` ({"path", "sha256", "mesh_sha256"}): a garment read from an OBJ is a byte
-    copy of it (compared by the file's sha256); one read from USD is written anew as the OBJ of its mesh
-    (compared by the mesh's content, `Garment.content_hash`); one not recorded is not compared."""
+    manifest's `inputs.garments[name]` ({"path", "sha256", "template_sha256"}): a garment read from an OBJ is a
+    byte copy of it (compared by the file's sha256); one read from USD is written anew as the OBJ of its mesh
+    (compared by that file's sha256, `template_sha256`, recorded since 2026-12-07: its 6 decimals are not the
+    USD's floats, so the mesh's own hash cannot be); one not recorded is not compared."""
     from core.provenance import file_sha256
-    from formats.obj import read_obj
 
     if not isinstance(recorded, dict):
         return
-    if str(recorded.get("path", "")).lower().endswith(".obj"):
-        edited = recorded.get("sha256") not in (None, file_sha256(path))
-        was = f"sha256 {str(recorded.get('sha256'))[:12]}"
-    else:
-        edited = recorded.get("mesh_sha256") not in (None, read_obj(path).content_hash())
-        was = f"its mesh of sha256 {str(recorded.get('mesh_sha256'))[:12]}"
+    key = "sha256" if str(recorded.get("path", "")).lower().endswith(".obj") else "template_sha256"
+    edited = recorded.get(key) not in (None, file_sha256(path))
+    was = f"sha256 {str(recorded.get(key))[:12]}"
     if edited:
         raise InputError(f"dataset garment '{path}': expected the file its sequences were simulated with "
                          f"('{recorded.get('path')}', {was}), got a file edited since: restore it, or simulate the "

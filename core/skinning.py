@@ -228,7 +228,7 @@ class Placement:
             turns = (one,)
         move = fix.scale * fix.rotation @ np.asarray(self.move, dtype=np.float64) + np.asarray(fix.move)
         if np.any(self.move):  # a move found (in 1 cm steps) undoing the one given leaves that step at most: none
-            move = np.where(np.abs(move) <= MOVE_SEARCH_STEP_M + 1e-9, 0.0, move)
+            move = np.where((np.abs(move) <= MOVE_SEARCH_STEP_M + 1e-9) & (np.asarray(fix.move) != 0), 0.0, move)
         return Placement(self.scale * fix.scale, turns, tuple(float(m) for m in np.round(move, 2)), self.pose,
                          self.body)
 
@@ -286,10 +286,12 @@ def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | N
     if normals is not None:
         normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         fn = face_normals(mesh.verts, mesh.faces)
-        best = np.full(len(points), np.inf)
-        for pi, fi, _, dist in mesh.faces_within(points, hit.distance + reach):
-            ok = np.einsum("pc,pc->p", fn[fi], normals[pi]) > 0.0
-            np.minimum.at(best, pi[ok], dist[ok])
+        # a point whose nearest face faces its way has it for the nearest facing one; the others look further
+        best = np.where(np.einsum("pc,pc->p", fn[hit.face_index], normals) > 0.0, hit.distance, np.inf)
+        away = np.flatnonzero(~np.isfinite(best))
+        for pi, fi, _, dist in mesh.faces_within(points[away], hit.distance[away] + reach):
+            ok = np.einsum("pc,pc->p", fn[fi], normals[away[pi]]) > 0.0
+            np.minimum.at(best, away[pi[ok]], dist[ok])
         facing = np.isfinite(best)
         nearest = np.where(facing, best, hit.distance)
     margin = np.clip(BLEND_SHARE * nearest, BLEND_MIN_M, BLEND_MAX_M)

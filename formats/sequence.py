@@ -124,9 +124,11 @@ def _frame_files(directory: Path, files: list[Path], recorded_prefix: str | None
                          f"{', '.join(p.name for p in files[:4])}{', ...' if len(files) > 4 else ''}")
     # the key write_obj_sequence's names get (a recorded prefix ending in digits, f1 of f10000, groups as f)
     recorded = None if recorded_prefix is None else _FRAME_NAME.match(f"{recorded_prefix}0000").group(1).lower()
-    several = sorted((k for k in groups if len(groups[k]) > 1), key=lambda k: -len(groups[k]))
-    if recorded not in groups and len(several) > 1:  # (Houdini's and Maya's folders: body.0001, cloth.0001, ...)
-        named = ", ".join(f"{min(groups[k])[1].name} ({len(groups[k])} files)" for k in several[:4])
+    most = max(len(g) for g in groups.values())
+    several = sorted(k for k in groups if len(groups[k]) == most)
+    if recorded not in groups and most > 1 and len(several) > 1:  # (Houdini's and Maya's folders: body.0001,
+        # cloth.0001, ... as many of each; fewer others, such as backup1.obj and backup2.obj, are left out, warned)
+        named = ", ".join(f"{min(groups[k])[1].name} ({most} files)" for k in several[:4])
         raise InputError(f"{where}: expected the frames of one garment, got {len(several)} numbered sequences: "
                          f"{named}{', ...' if len(several) > 4 else ''}: give a folder holding one (or a "
                          f"{SEQUENCE_JSON} naming its 'prefix')")
@@ -316,6 +318,8 @@ def _read_obj_directory(directory: Path, up: str | None = None) -> Sequence:
     if meta is not None:
         _check_recorded_frames(meta_path, meta, files)
 
+    from core.metrics import same_surface
+
     first = parse_obj(files[0], label="garment sequence frame", finite=True)
     # Quads are split along frame 0's shorter diagonal in every frame, so all frames share faces.
     faces, _, _ = triangulate(first.vertices, first.polygons)
@@ -329,13 +333,18 @@ def _read_obj_directory(directory: Path, up: str | None = None) -> Sequence:
                              f"({first.vertices.shape[0]} vertices, {len(first.polygons)} faces), got "
                              f"{frame.vertices.shape[0]} vertices, {len(frame.polygons)} faces in {path.name}")
         if frame.polygons is not first.polygons and not np.array_equal(frame.polygons, first.polygons):
-            other_faces.append((path, _faces_differ(frame.polygons, first.polygons)))
+            how = _faces_differ(frame.polygons, first.polygons)
+            if not same_surface(triangulate(frame.vertices, frame.polygons)[0], faces, len(first.vertices)):
+                raise InputError(f"{where}: expected every frame to share the faces of {files[0].name} (or to split "
+                                 f"its polygons otherwise), got other faces in {path.name} ({how}): its vertices "
+                                 "numbered otherwise? export every frame of one mesh")
+            other_faces.append((path, how))
         points[t] = frame.vertices
-    if other_faces:  # the points correspond vertex by vertex; the first frame's faces are taken for all
+    if other_faces:  # one surface split otherwise (`same_surface`): the first frame's faces are taken for all
         path, how = other_faces[0]
-        log.warning("%s: %s of its frames have other faces than %s (%s: %s): read with %s's faces (triangulated "
-                    "again in each frame? export the polygons, or triangulate once before the animation)", where,
-                    len(other_faces), files[0].name, path.name, how, files[0].name)
+        log.warning("%s: %s of its frames split their polygons otherwise than %s (%s: %s): read with %s's faces "
+                    "(triangulated again in each frame? export the polygons, or triangulate once before the "
+                    "animation)", where, len(other_faces), files[0].name, path.name, how, files[0].name)
     points = _turned_to_z_up(points, _obj_up(meta, up, meta_path))
     number = re.search(r"(\d+)$", files[0].stem)
     return Sequence(points=points, faces=faces, fps=fps, source=str(directory),
@@ -459,7 +468,7 @@ def read_sequence(path: str | os.PathLike, track: str = "garment", up: str | Non
     (`.usd/.usda/.usdc`: the mesh named `track`, else the only mesh, plus a
     mesh named "body" as the body), or one `.obj` (a single frame).
     OBJ frames are turned from the up axis `up` ("y" or "z") to this tool's Z-up world; None: as their
-    `sequence.json` records (Z-up where it records none), Y-up without one (`_obj_up`).
+    `sequence.json` records (Z-up where a bake's records none, Y-up where another tool's does), Y-up without one (`_obj_up`).
     Returns a `Sequence` (points float32 metres, faces int64).
     Raises InputError naming the path for a missing path, an unknown suffix, an
     empty directory, OBJ frames with a gap in their numbers or differing topology,

@@ -534,16 +534,18 @@ def _preview_look(material: UsdShade.Material, name: str, path: Path):
     if not shader or shader.GetIdAttr().Get() != "UsdPreviewSurface":
         return None
     diffuse, opacity, texture = None, None, None
-    colour = shader.GetInput("diffuseColor")
+    colour, alpha = shader.GetInput("diffuseColor"), shader.GetInput("opacity")
     if colour and colour.HasConnectedSource():
         source = UsdShade.Shader(colour.GetConnectedSource()[0].GetPrim())
         asset = source.GetInput("file").Get() if source and source.GetInput("file") else None
-        if asset is not None and asset.path:
+        if isinstance(asset, Sdf.AssetPath) and asset.path:
             texture = Path(asset.resolvedPath) if asset.resolvedPath else (path.parent / asset.path).resolve()
-    elif colour and colour.Get() is not None:
-        diffuse = tuple(float(np.clip(c, 0.0, 1.0)) for c in colour.Get())
-    alpha = shader.GetInput("opacity")
-    if alpha and not alpha.HasConnectedSource() and alpha.Get() is not None:
+    elif colour:  # a colour of other tools' types: color3f, a float grey, a color4f's first three
+        value = np.asarray(colour.Get() if colour.Get() is not None else [], dtype=object).reshape(-1)
+        if len(value) in (1, 3, 4) and all(isinstance(v, (int, float)) for v in value.tolist()):
+            diffuse = tuple(float(np.clip(v, 0.0, 1.0)) for v in (value.tolist() * 3)[:3]) if len(value) == 1 \
+                else tuple(float(np.clip(v, 0.0, 1.0)) for v in value.tolist()[:3])
+    if alpha and not alpha.HasConnectedSource() and isinstance(alpha.Get(), (int, float)):
         opacity = float(np.clip(alpha.Get(), 0.0, 1.0))
     return MtlMaterial(name, diffuse, opacity, texture)
 

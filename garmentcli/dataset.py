@@ -368,7 +368,8 @@ def dataset(garment_paths, motion_paths, library, n_bodies, betas_range, body_pa
                                    "there; remove it")
     client = connect(scheduler) if scheduler else None  # before writing anything: an unreachable cluster fails fast
     for name, p in zip((Path(p).stem for p in garment_paths), garment_paths):
-        copy_garment_template(out, p, name)
+        template = copy_garment_template(out, p, name)  # what training compares it with (a USD's written anew)
+        manifest["inputs"]["garments"][name]["template_sha256"] = file_sha256(template)
     write_manifest(out, manifest)
     rank = {g: k for k, g in enumerate(first)}
     todo = sorted((it for it in items if not sequence_path(out, it.id).is_file()),

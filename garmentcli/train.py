@@ -267,10 +267,11 @@ def _train(data_dir, out_path, phases, steps, seed, resume, checkpoint_every, co
 
 def _check_step_memory(data, model_cfg: ModelConfig, train_cfg: TrainConfig, sequences: int, processes: int) -> None:
     """A step of frames_per_step frames of the largest training garment (of each of `sequences` sequences a
-    process's step holds: --sequences-per-step) that would not fit in this machine's memory (`processes` training
-    beside each other, each holding one) is refused, naming the frames that fit; one that would not fit in the
-    memory free now is warned of (a t-shirt's 64 frames take 15 GB: the kernel killed the run at its first step,
-    without a word)."""
+    process's step holds: --sequences-per-step) that would not fit in the memory free now (`processes` training
+    beside each other, each holding one; a container's limit counts) is warned of, naming the frames that fit by
+    the estimate (`core.train.step_memory`: an estimate fitted on this machine's runs of the shipped
+    configuration, so a warning, not a refusal): a t-shirt's 64 frames take 15 GB, and the kernel killed such a
+    run at its first step without a word."""
     import psutil
 
     from core.train import frames_beyond_memory
@@ -278,22 +279,34 @@ def _check_step_memory(data, model_cfg: ModelConfig, train_cfg: TrainConfig, seq
     garments = {name: int(g.inputs.n_vertices) for name, g in data.garments.items()
                 if any(s.garment_name == name for s in data.splits.get("train", []))}
     memory = psutil.virtual_memory()
-    for free, refused in ((memory.total / processes, True), (memory.available / processes, False)):
-        beyond = frames_beyond_memory(garments, train_cfg.frames_per_step * sequences, model_cfg.hidden, free)
-        if beyond is None:
-            continue
-        name, need, fit = beyond
-        said = (f"frames_per_step {train_cfg.frames_per_step}: a training step of garment '{name}' "
-                f"({garments[name]:,} vertices{f', {sequences} sequences' if sequences > 1 else ''}) holds about "
-                f"{need / 1e9:.3g} GB"
-                + (f" in each of {processes} processes" if processes > 1 else "")
-                + f", this machine has {free * processes / 1e9:.3g} GB {'in all' if refused else 'free'}: "
-                + (f"at most {fit // sequences} frames fit (set frames_per_step in --config)" if fit >= sequences else
-                   "no step of it fits (a smaller network, or a machine with more memory)"))
-        if refused:
-            raise click.ClickException(said)
-        click.echo(f"warning: {said}; the run may be killed", err=True)
+    total, free = memory.total, memory.available
+    limit = _container_memory_limit()
+    if limit is not None and limit < total:  # (the kernel kills at the container's limit, not the machine's)
+        total, free = limit, min(free, limit)
+    beyond = frames_beyond_memory(garments, train_cfg.frames_per_step * sequences, model_cfg.hidden,
+                                  free / processes)
+    if beyond is None:
         return
+    name, need, fit = beyond
+    click.echo(f"warning: frames_per_step {train_cfg.frames_per_step}: a training step of garment '{name}' "
+               f"({garments[name]:,} vertices{f', {sequences} sequences' if sequences > 1 else ''}) holds about "
+               f"{need / 1e9:.3g} GB" + (f" in each of {processes} processes" if processes > 1 else "")
+               + f", {free / 1e9:.3g} GB is free ({total / 1e9:.3g} GB in all): the run may be killed; "
+               + (f"at most {fit // sequences} frames fit by the estimate (set frames_per_step in --config)"
+                  if fit >= sequences else "no step of it fits by the estimate (a smaller network, or more memory)"),
+               err=True)
+
+
+def _container_memory_limit() -> float | None:
+    """The memory limit (bytes) of this process's cgroup (a Docker or Kubernetes container's), or None."""
+    for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
+        try:
+            text = Path(path).read_text().strip()
+        except OSError:
+            continue
+        if text.isdigit() and int(text) < 2**60:  # "max", or cgroup v1's unlimited (a huge number)
+            return float(text)
+    return None
 
 
 def _parse_threads(text: str | None, device, launched: bool) -> tuple[bool, int | None]:

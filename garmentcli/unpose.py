@@ -255,6 +255,9 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
     if report["edges_torn"]:
         from core.unpose import UNPOSE_TEAR_RATIO, UNPOSE_TEAR_SLACK_M
 
+        if garment.source is not None:  # the file's numbering (its seams welded in the garment's)
+            report["torn_at_vertex"] = int(np.flatnonzero(garment.source.vertex_of == report["torn_at_vertex"])[0])
+
         click.echo(f"warning: garment '{source}': {report['edges_torn']} of its edges came out over "
                    f"{UNPOSE_TEAR_RATIO:g}x their length as authored, plus {UNPOSE_TEAR_SLACK_M * 100:g} cm (the "
                    f"worst {report['max_edge_stretch']:.3g}x, at vertex {report['torn_at_vertex']}): that part took the weights of a body part it does not lie "

@@ -234,7 +234,14 @@ def test_obj_frames_with_differing_topology(tmp_path, caplog):
     write_obj(tmp_path / "frame_0002.obj", points[2], faces[::-1])  # its faces in another order: frame 0's taken
     with caplog.at_level("WARNING"):
         np.testing.assert_array_equal(read_sequence(tmp_path).faces, faces)
-    assert "1 of its frames have other faces than frame_0000.obj (frame_0002.obj: face 1 is" in caplog.text
+    assert "1 of its frames split their polygons otherwise than frame_0000.obj (frame_0002.obj: face 1 is" in \
+        caplog.text
+    renumbered = np.roll(np.arange(16), 1)  # the same mesh, its vertices numbered otherwise: refused, not read
+    write_obj(tmp_path / "frame_0002.obj", points[2][np.argsort(renumbered)], renumbered[faces])
+    with pytest.raises(InputError, match=r"expected every frame to share the faces of frame_0000.obj \(or to split "
+                                         r"its polygons otherwise\), got other faces in frame_0002.obj \(face 1 is "
+                                         r".*\): its vertices numbered otherwise\?"):
+        read_sequence(tmp_path)
     write_obj(tmp_path / "frame_0002.obj", points[2, :-1], faces[faces.max(axis=1) < 15])
     with pytest.raises(InputError, match=r"got 15 vertices, 16 faces in frame_0002.obj"):
         read_sequence(tmp_path)
@@ -519,6 +526,13 @@ def test_a_folder_of_two_numbered_sequences_is_refused_naming_both(tmp_path):
                             "(or a sequence.json naming its 'prefix')")
     (tmp_path / "sequence.json").write_text(json.dumps({"prefix": "cloth.", "start": 1, "up": "z"}))
     np.testing.assert_allclose(read_sequence(tmp_path).points, points, atol=1e-6)
+    # fewer numbered files of another name beside the frames (backup1.obj, backup2.obj): left out, warned
+    (tmp_path / "sequence.json").unlink()
+    for t in range(3):
+        (tmp_path / f"body.{t + 1:04d}.obj").unlink()
+    for k in (1, 2):
+        write_obj(tmp_path / f"backup{k}.obj", points[0] + 1, faces)
+    np.testing.assert_allclose(read_sequence(tmp_path, up="z").points, points, atol=1e-6)
 
 
 def test_a_sequence_json_of_fps_alone_reads_other_tools_frames_y_up(tmp_path, caplog):
@@ -567,9 +581,9 @@ def test_frames_triangulated_again_take_the_first_frames_faces_with_a_warning(tm
     np.testing.assert_array_equal(seq.faces, faces)
     a, b = " ".join(str(i + 1) for i in other[0]), " ".join(str(i + 1) for i in faces[0])
     assert [r.getMessage() for r in caplog.records] == [
-        f"garment sequence '{tmp_path}': 1 of its frames have other faces than cloth_0000.obj (cloth_0001.obj: face 1 "
-        f"is {a}, the first frame's {b}): read with cloth_0000.obj's faces (triangulated again in each frame? export "
-        "the polygons, or triangulate once before the animation)"]
+        f"garment sequence '{tmp_path}': 1 of its frames split their polygons otherwise than cloth_0000.obj "
+        f"(cloth_0001.obj: face 1 is {a}, the first frame's {b}): read with cloth_0000.obj's faces (triangulated "
+        "again in each frame? export the polygons, or triangulate once before the animation)"]
     write_obj(tmp_path / "cloth_0002.obj", np.vstack([points[2], [[9, 9, 9]]]), faces)  # a vertex more: refused
     with pytest.raises(InputError, match=r"expected every frame to share the vertices of cloth_0000.obj \(16 "
                                          r"vertices, 18 faces\), got 17 vertices, 18 faces in cloth_0002.obj"):

@@ -41,6 +41,10 @@ def test_dataset_builds_resumes_and_refuses_other_settings(scene, monkeypatch):
     train, test = set(m["splits"]["motions"]["train"]), set(m["splits"]["motions"]["test"])
     assert train and test and not train & test
     assert (out / "garments" / "shell.obj").read_bytes() == Path(scene["garment"]).read_bytes()
+    import hashlib  # the template as written, which training compares (a USD garment's is written anew)
+
+    assert m["inputs"]["garments"]["shell"]["template_sha256"] == hashlib.sha256(
+        (out / "garments" / "shell.obj").read_bytes()).hexdigest()
     files = sorted((out / "sequences").glob("*.npz"))
     assert len(files) == 4
     s = read_sequence(files[0])
