@@ -265,6 +265,7 @@ def _recorded_up(meta: dict, meta_path: Path) -> str:
     `fps` alone, beside frames written as Blender, Maya and Houdini write them: they were read Z-up, on their
     backs); InputError naming it for another value."""
     recorded = meta.get("up", "z" if "prefix" in meta or "frames" in meta else "y")
+    recorded = recorded.lower() if isinstance(recorded, str) else recorded  # ("Y", as another tool may write it)
     if recorded not in UP_AXES:
         raise InputError(f"garment sequence '{meta_path}': expected 'up' as \"y\" (frames written Y-up) or \"z\", "
                          f"got {recorded!r}")

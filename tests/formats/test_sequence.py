@@ -549,6 +549,8 @@ def test_a_sequence_json_of_fps_alone_reads_other_tools_frames_y_up(tmp_path, ca
     seq = read_sequence(tmp_path)
     np.testing.assert_allclose(seq.points, points, atol=1e-5)
     assert seq.fps == 24
+    (tmp_path / "sequence.json").write_text(json.dumps({"fps": 24, "up": "Y"}))  # in capitals: the same
+    np.testing.assert_allclose(read_sequence(tmp_path).points, points, atol=1e-5)
     old = tmp_path / "old_bake"
     write_obj_sequence(old, points, faces, fps=30, up="z")
     meta = json.loads((old / "sequence.json").read_text())
