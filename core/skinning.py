@@ -286,11 +286,15 @@ def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | N
     if normals is not None:
         normals = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         fn = face_normals(mesh.verts, mesh.faces)
+
+        def its_way(fi, pi):  # faces `fi` facing the way of points `pi`'s normals
+            return np.einsum("pc,pc->p", fn[fi], normals[pi]) > 0.0
+
         # a point whose nearest face faces its way has it for the nearest facing one; the others look further
-        best = np.where(np.einsum("pc,pc->p", fn[hit.face_index], normals) > 0.0, hit.distance, np.inf)
+        best = np.where(its_way(hit.face_index, slice(None)), hit.distance, np.inf)
         away = np.flatnonzero(~np.isfinite(best))
         for pi, fi, _, dist in mesh.faces_within(points[away], hit.distance[away] + reach):
-            ok = np.einsum("pc,pc->p", fn[fi], normals[away[pi]]) > 0.0
+            ok = its_way(fi, away[pi])
             np.minimum.at(best, away[pi[ok]], dist[ok])
         facing = np.isfinite(best)
         nearest = np.where(facing, best, hit.distance)
@@ -298,7 +302,7 @@ def surface_blend(mesh: TriangleMesh, points: np.ndarray, hit: ClosestPoints | N
     rows, cols, values = [], [], []
     for pi, fi, bary, dist in mesh.faces_within(points, nearest + margin):
         if facing.any():  # a point of a facing face: the faces facing away from it left out
-            keep = ~facing[pi] | (np.einsum("pc,pc->p", fn[fi], normals[pi]) > 0.0)
+            keep = ~facing[pi] | its_way(fi, pi)
             pi, fi, bary, dist = pi[keep], fi[keep], bary[keep], dist[keep]
         w = np.clip(1.0 - (dist - nearest[pi]) / margin[pi], 0.0, 1.0)
         rows.append(np.repeat(pi.astype(np.int32), 3))
@@ -820,34 +824,43 @@ def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str
 LAYERED_SHARE = 0.25
 
 
+def wound_outward(vertices: np.ndarray, faces: np.ndarray, body: TriangleMesh) -> tuple[np.ndarray, tuple]:
+    """`faces` wound alike across shared edges (`core.garment.consistent_winding`) and each connected piece turned
+    to face away from the `body` surface (the faces' area, signed by whether their normal points away from the
+    closest body point, sums positive): (those faces, (faces wound against their neighbours, the pieces turned,
+    the count of pieces, (F,) faces of closed layered pieces, (F,) faces turned))."""
+    from core.garment import consistent_winding
+
+    wound, piece = consistent_winding(faces)
+    rewound = int(np.count_nonzero((wound != faces).any(axis=1)))
+    tri = np.asarray(vertices, dtype=np.float64)[wound]
+    centroid = tri.mean(axis=1)
+    area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    away = centroid - body.closest(centroid, exact=False).closest
+    vote = np.sign(np.einsum("ij,ij->i", area, away)) * np.linalg.norm(area, axis=1)
+    # A closed piece (no edge of one face) whose faces face the body over a quarter of its area or more however it
+    # is wound is cloth given thickness (two layers joined at the rims): each of its faces is turned away from the
+    # body on its own, so both layers read as cloth facing out (its inner layer, read facing the body, was pushed
+    # out through the outer one). A closed shell about the body faces one way and turns as a piece.
+    sealed = closed_pieces(wound, piece)
+    facing = np.bincount(piece, weights=np.maximum(vote, 0.0))
+    against = np.bincount(piece, weights=np.maximum(-vote, 0.0))
+    layered = sealed[np.minimum(facing, against)[sealed] >= LAYERED_SHARE * (facing + against)[sealed]]
+    inward = np.setdiff1d(np.flatnonzero(np.bincount(piece, weights=vote) < 0), layered)
+    closed = np.isin(piece, layered)
+    turned = np.where(closed, vote < 0, np.isin(piece, inward))
+    wound[turned] = wound[turned][:, [0, 2, 1]]
+    return wound, (rewound, inward, int(piece.max()) + 1 if len(piece) else 0, closed, turned)
+
+
 def oriented_outward(garment: Garment, body: Body, source: str | None = None) -> Garment:
     """`garment` with its faces wound alike across shared edges (`core.garment.consistent_winding`) and each
     connected piece facing away from the rest body (the faces' area, signed by whether their normal points away
     from the closest body point, sums positive), as the example garments all do; `garment` itself where nothing
     changes, else warned about. The model reads the rest normals: a dress written facing the body baked 48 mm
     (mean) from itself written facing out. face_uvs follow their faces; the file's own mesh (`source`) is kept."""
-    from core.garment import consistent_winding
-
-    faces, piece = consistent_winding(garment.faces)
-    rewound = int(np.count_nonzero((faces != garment.faces).any(axis=1)))
-    tri = garment.vertices.astype(np.float64)[faces]
-    centroid = tri.mean(axis=1)
-    area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    away = centroid - TriangleMesh(body.v_template, body.faces).closest(centroid, exact=False).closest
-    vote = np.sign(np.einsum("ij,ij->i", area, away)) * np.linalg.norm(area, axis=1)
-    # A closed piece (no edge of one face) whose faces face the body over a quarter of its area or more however it
-    # is wound is cloth given thickness (two layers joined at the rims): each of its faces is turned away from the
-    # body on its own, so both layers read as cloth facing out (its inner layer, read facing the body, was pushed
-    # out through the outer one). A closed shell about the body faces one way and turns as a piece.
-    sealed = closed_pieces(faces, piece)
-    facing = np.bincount(piece, weights=np.maximum(vote, 0.0))
-    against = np.bincount(piece, weights=np.maximum(-vote, 0.0))
-    layered = sealed[np.minimum(facing, against)[sealed] >= LAYERED_SHARE * (facing + against)[sealed]]
-    inward = np.setdiff1d(np.flatnonzero(np.bincount(piece, weights=vote) < 0), layered)
-    turned = np.isin(piece, inward)
-    closed = np.isin(piece, layered)
-    turned = np.where(closed, vote < 0, turned)
-    faces[turned] = faces[turned][:, [0, 2, 1]]
+    faces, (rewound, inward, n_pieces, closed, turned) = wound_outward(
+        garment.vertices, garment.faces, TriangleMesh(body.v_template, body.faces))
     changed = (faces != garment.faces).any(axis=1)
     if not changed.any():
         return garment
@@ -855,7 +868,7 @@ def oriented_outward(garment: Garment, body: Body, source: str | None = None) ->
                 "it is", source or garment.name, f"{int(changed.sum()):,}", f"{len(faces):,}",
                 "; ".join(what for what, n in (
                     (f"{rewound:,} wound against their neighbours", rewound),
-                    (f"{len(inward)} of its {int(piece.max()) + 1} pieces faced the body", len(inward)),
+                    (f"{len(inward)} of its {n_pieces} pieces faced the body", len(inward)),
                     (f"{int((closed & turned).sum()):,} of closed pieces of two layers (cloth given thickness?) "
                      f"faced the body",
                      int((closed & turned).sum()))) if n))

@@ -16,9 +16,10 @@ import numpy as np
 
 from core.body import Body
 from core.errors import InputError
-from core.garment import Garment, consistent_winding, mesh_edges
+from core.garment import Garment, mesh_edges
 from core.geometry import TriangleMesh, vertex_normals
-from core.skinning import REST_INSIDE_DEPTH_M, surface_blend, transfer_shapedirs, transfer_weights
+from core.skinning import (REST_INSIDE_DEPTH_M, surface_blend, transfer_shapedirs, transfer_weights,
+                           wound_outward)
 
 #: The A-pose's default: each upper arm lowered this far from the T-pose (degrees, about the body's forward axis).
 A_POSE_ARM_DEGREES = 45.0
@@ -87,8 +88,9 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
     shaped, _ = body.shaped(betas)
     posed_mesh = TriangleMesh(posed[0], body.faces)
     hit, signed = posed_mesh.signed_closest(target)
-    blend = surface_blend(posed_mesh, target, hit, normals=_outward_normals(target, garment.faces, posed_mesh),
-                          reach=UNPOSE_FACING_REACH_M)
+    # the garment's normals facing away from the posed body, as the bind turns them from the rest body
+    normals = vertex_normals(target, wound_outward(target, garment.faces, posed_mesh)[0])
+    blend = surface_blend(posed_mesh, target, hit, normals=normals, reach=UNPOSE_FACING_REACH_M)
     rest_mesh = TriangleMesh(shaped, body.faces)
 
     def blended(at) -> np.ndarray:  # (V, 3, 4): each vertex's blend of the joints' transforms, weights from `at`
@@ -124,21 +126,6 @@ def unpose_garment(garment: Garment, body: Body, pose: np.ndarray, betas: np.nda
               "max_move_m": float(moved.max(initial=0.0)), "moved_over_1cm": int(np.sum(moved > 0.01)),
               "reposed_max_error_m": float(np.linalg.norm(reposed - target, axis=1).max(initial=0.0))}
     return replace(garment, vertices=rest.astype(np.float32)), report
-
-
-def _outward_normals(vertices: np.ndarray, faces: np.ndarray, body: TriangleMesh) -> np.ndarray:
-    """(V, 3) unit vertex normals of the garment (`vertices` (V, 3), `faces`), its faces wound alike per piece and
-    each piece turned to face away from `body` (the faces' area, signed by whether their normal points away from the
-    closest body point, summing positive), as `core.skinning.oriented_outward` turns a garment on the rest body."""
-    wound, piece = consistent_winding(faces)
-    tri = vertices[wound]
-    area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    centroid = tri.mean(axis=1)
-    away = centroid - body.closest(centroid, exact=False).closest
-    vote = np.bincount(piece, weights=np.einsum("ij,ij->i", area, away) / np.maximum(
-        np.linalg.norm(away, axis=1), 1e-12))
-    wound = np.where((vote[piece] < 0)[:, None], wound[:, [0, 2, 1]], wound)
-    return vertex_normals(vertices, wound)
 
 
 def baked_back_error(rest: Garment, body: Body, pose: np.ndarray, betas: np.ndarray | None,

@@ -540,11 +540,10 @@ def _preview_look(material: UsdShade.Material, name: str, path: Path):
         asset = source.GetInput("file").Get() if source and source.GetInput("file") else None
         if isinstance(asset, Sdf.AssetPath) and asset.path:
             texture = Path(asset.resolvedPath) if asset.resolvedPath else (path.parent / asset.path).resolve()
-    elif colour:  # a colour of other tools' types: color3f, a float grey, a color4f's first three
-        value = np.asarray(colour.Get() if colour.Get() is not None else [], dtype=object).reshape(-1)
-        if len(value) in (1, 3, 4) and all(isinstance(v, (int, float)) for v in value.tolist()):
-            diffuse = tuple(float(np.clip(v, 0.0, 1.0)) for v in (value.tolist() * 3)[:3]) if len(value) == 1 \
-                else tuple(float(np.clip(v, 0.0, 1.0)) for v in value.tolist()[:3])
+    elif colour and colour.Get() is not None:  # of other tools' types: color3f, a float grey, a color4f's first three
+        value = np.asarray(colour.Get(), dtype=object).reshape(-1).tolist()
+        if len(value) in (1, 3, 4) and all(isinstance(v, (int, float)) for v in value):
+            diffuse = tuple(float(np.clip(v, 0.0, 1.0)) for v in (value * 3 if len(value) == 1 else value)[:3])
     if alpha and not alpha.HasConnectedSource() and isinstance(alpha.Get(), (int, float)):
         opacity = float(np.clip(alpha.Get(), 0.0, 1.0))
     return MtlMaterial(name, diffuse, opacity, texture)

@@ -130,7 +130,6 @@ def _kind_of(path: Path) -> str:
         import torch
 
         from formats.checkpoint import FORMAT
-
         from formats.motion import TORCH_SUFFIXES
 
         try:  # a checkpoint by its format field, whatever its version (`model_info` says what is wrong with it)

@@ -393,3 +393,37 @@ def test_a_left_handed_or_mirrored_garment_reads_with_the_faces_of_its_right_han
         np.testing.assert_allclose(g.uvs[g.face_uvs], twin.uvs[twin.face_uvs], atol=1e-6)
     both = write("both.usda", points * [-1, 1, 1], clockwise, UsdGeom.Tokens.leftHanded, mirror=True)
     np.testing.assert_allclose(facing(both), -facing(twin), atol=1e-6)  # its front is the other side
+
+
+def test_a_usd_garments_preview_materials_of_loose_types_are_read_or_left_out(tmp_path):
+    """Other tools type a UsdPreviewSurface's inputs loosely: a float grey for diffuseColor, a color4f, a color3f
+    opacity, a string texture file. Each is read where it means a colour (its first three), else left out; none
+    stops the garment's reading (they raised TypeError and AttributeError)."""
+    from formats.obj import read_garment
+
+    path = tmp_path / "loose.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/garment")
+    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in
+                                         [(0, 1, 0), (0.3, 1, 0), (0, 1.3, 0), (0.3, 1.3, 0), (0.6, 1, 0), (0.6, 1.3, 0)]]))
+    mesh.CreateFaceVertexCountsAttr([3, 3, 3, 3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 1, 3, 2, 1, 4, 3, 4, 5, 3])
+    inputs = {"grey": [("diffuseColor", Sdf.ValueTypeNames.Float, 0.5)],
+              "rgba": [("diffuseColor", Sdf.ValueTypeNames.Color4f, Gf.Vec4f(0.1, 0.2, 0.3, 1.0)),
+                       ("opacity", Sdf.ValueTypeNames.Color3f, Gf.Vec3f(1, 1, 1))],
+              "text": [("diffuseColor", Sdf.ValueTypeNames.String, "red")]}
+    for k, (name, values) in enumerate(inputs.items()):
+        material = UsdShade.Material.Define(stage, f"/Looks/{name}")
+        shader = UsdShade.Shader.Define(stage, f"/Looks/{name}/surface")
+        shader.CreateIdAttr("UsdPreviewSurface")
+        for input_name, kind, value in values:
+            shader.CreateInput(input_name, kind).Set(value)
+        material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+        subset = UsdGeom.Subset.CreateGeomSubset(mesh, name, UsdGeom.Tokens.face, Vt.IntArray([k]),
+                                                 UsdShade.Tokens.materialBind)
+        UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(material)
+    stage.GetRootLayer().Save()
+    looks = read_garment(path).source.looks
+    assert looks["grey"].diffuse == (0.5, 0.5, 0.5)
+    assert looks["rgba"].diffuse == pytest.approx((0.1, 0.2, 0.3)) and looks["rgba"].opacity is None
+    assert looks["text"].diffuse is None
