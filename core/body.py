@@ -554,6 +554,14 @@ def default_body() -> Body:
     return cache["body"]
 
 
+def default_body_sha256() -> str:
+    """sha256 of the embedded default body's file (`default_body`), as `--body` naming it is recorded."""
+    from core.provenance import file_sha256
+
+    with resources.as_file(resources.files("core.assets").joinpath(DEFAULT_BODY_RESOURCE)) as path:
+        return file_sha256(path)
+
+
 def dense_from_sparse(arrays: dict, key: str) -> np.ndarray:
     """Rebuild a dense matrix saved as `{key}_indices (nnz, 2)`, `{key}_values (nnz,)`, `{key}_shape (2,)`."""
     idx = arrays.pop(f"{key}_indices")

@@ -741,11 +741,18 @@ def _bake_settings(method: str | None, quality: str | None, garment) -> dict:
 
 
 def _spelled_out(settings: dict) -> dict:
-    """`settings` (`_bake_settings`, or an earlier run's record of them) with the defaults that the model's options
-    stand for written out: no --model is the shipped model's file (by sha256), no --precision float32 with --method
-    model; so a bake made with either spelling resumes under the other (`--model` naming the shipped checkpoint was
-    refused as another file)."""
+    """`settings` (`_bake_settings`, or an earlier run's record of them) with the defaults that options stand for
+    written out: no --model is the shipped model's file (by sha256), no --precision float32 with --method model, no
+    --body the embedded body's file, and --frames in one spelling ('0:', ':' and none alike, ':5' as '0:5'); so a
+    bake made with either spelling resumes under the other (`--model` naming the shipped checkpoint was refused as
+    another file)."""
     out = dict(settings)
+    if "body_path" in out and out["body_path"] is None:
+        from core.body import default_body_sha256
+
+        out["body_path"] = f"sha256:{default_body_sha256()}"
+    if isinstance(out.get("frames"), str):
+        out["frames"] = _frames_spelled(out["frames"])
     if out.get("method") in ("--method model", "--quality auto") and "model_path" in out \
             and out["model_path"] is None:
         from core.model_deform import DEFAULT_MODEL
@@ -754,6 +761,18 @@ def _spelled_out(settings: dict) -> dict:
     if out.get("method") == "--method model" and "precision" in out and out["precision"] is None:
         out["precision"] = "float32"
     return out
+
+
+def _frames_spelled(text: str) -> str | None:
+    """A --frames range in one spelling: None for the whole motion ('0:', ':'), 'START:STOP' otherwise; as it is
+    where it does not parse (refused before it is compared)."""
+    try:
+        start, stop = parse_frame_range(text)
+    except InputError:
+        return text
+    if not start and stop is None:
+        return None
+    return f"{start or 0}:{'' if stop is None else stop}"
 
 
 def _baked_otherwise(target: Path, settings: dict) -> str:

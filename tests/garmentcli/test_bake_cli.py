@@ -458,6 +458,20 @@ def test_a_bake_too_big_for_the_free_memory_is_refused_before_any_work(scene, mo
     assert r.exit_code == 0, r.output
 
 
+def test_skip_existing_takes_the_embedded_body_named(scene, tmp_path):
+    """`--body` naming the embedded default body's file is what a bake without --body uses: --skip-existing took it
+    for another body; `--frames 00:2` is `--frames 0:2`."""
+    from importlib import resources
+
+    args = ["bake", scene["garment"], scene["motion"], "--out", tmp_path, "--no-obj", "--frames", "0:2"]
+    assert run(args).exit_code == 0
+    with resources.as_file(resources.files("core.assets").joinpath("default_body.npz")) as embedded:
+        r = run([*args[:-1], "00:2", "--skip-existing", "--body", embedded])
+    assert r.exit_code == 0 and "1 of 1 motions already baked, skipped" in r.output, r.output
+    r = run([*args, "--skip-existing", "--body", scene["body"]])
+    assert_one_line_error(r, "was baked with --body a file of sha256 ")
+
+
 def test_skip_existing_with_every_motion_baked_does_nothing(scene):
     args = ["bake", scene["garment"], scene["motion"], "--body", scene["body"], "--out", scene["out"], "--no-obj"]
     assert run(args).exit_code == 0
@@ -480,6 +494,8 @@ def test_skip_existing_with_every_motion_baked_does_nothing(scene):
         assert_one_line_error(r, f"output '{scene['out'] / 'shell_walk'}' was baked with {said}: pass --overwrite")
     r = run([*args[:-1], "--skip-existing"])
     assert_one_line_error(r, "was baked with --no-obj on (this run: off)")
+    for same in (["--frames", "0:"], ["--frames", ":"]):  # the whole motion spelled otherwise
+        assert "1 of 1 motions already baked" in run([*args, "--skip-existing", *same]).output
     # an input file of other content by the same name (a body, a model or a fit remade in place)
     with np.load(scene["body"]) as z:
         arrays = dict(z)
