@@ -4,7 +4,7 @@ motions exported to BVH are: smpl2bvh, SMPL's Blender add-on), of any other huma
 
 An SMPL skeleton's joints are matched by name, in its naming variants ('Left_hip', 'L_Hip', 'left_hip',
 'm_avg_L_Hip'; 'L_Palm' or 'L_Hand' for the hands), in SMPL's hierarchy and resting in SMPL's T-pose (within
-REST_MAX_DEGREES): their rotations are SMPL's, the unit is told by the legs (metres, centimetres, inches or
+REST_MAX_DEGREES, the arms and legs within LIMB_REST_MAX_DEGREES): their rotations are SMPL's, the unit is told by the legs (metres, centimetres, inches or
 millimetres) and the root's position less its OFFSET (the rest pelvis SMPL exporters write there) is the
 translation. A skeleton that is not (other names, joints, bone lengths or rest pose) is retargeted. Rotation
 channels compose in the order listed (Zrotation Yrotation Xrotation: R = Rz Ry Rx); the root's position channels
@@ -36,8 +36,15 @@ REST_UP_KEY = "rest_up"
 TAKE_KEY = "garment_take"
 #: Other names of SMPL's joints after `core.retarget.canonical` (the hands as palms).
 _ALIASES = {"lpalm": "lhand", "rpalm": "rhand"}
-#: A rest bone further than this from SMPL's T-pose bone (degrees) is another rest pose: refused.
+#: A rest bone further than this from SMPL's T-pose bone (degrees) is another rest pose: the skeleton is retargeted
+#: (`core.retarget`), not read as SMPL's. The spine's, neck's, head's and collars' bones: SMPL's own lie up to 20
+#: degrees off the axes of `_SMPL_BONES` (the embedded body's with betas of +-3 up to 22).
 REST_MAX_DEGREES = 30.0
+#: The same for the arms' and legs' bones, where a rig's rest pose shows (an A-pose lowers the arms 25-45 degrees):
+#: SMPL's arms rest within a few degrees of the horizontal and its legs within 12 degrees of the vertical (the
+#: embedded body's with betas of +-3: arms 0, knees to 11.4), while an SMPL-named rig resting 25 degrees lower
+#: (an avatar's A-pose) was read as if in the T-pose: every frame's arms 25 degrees too high.
+LIMB_REST_MAX_DEGREES = {"elbow": 10.0, "wrist": 10.0, "knee": 15.0, "ankle": 15.0}
 #: SMPL's T-pose bone directions (Y-up, +X the body's left), joint -> unit vector from its parent; limbs and spine.
 _SMPL_BONES = {
     "left_knee": (0, -1, 0), "right_knee": (0, -1, 0), "left_ankle": (0, -1, 0), "right_ankle": (0, -1, 0),
@@ -258,8 +265,8 @@ def _hierarchy(tokens: list[str], src: str):
 
 def _smpl_skeleton(names: list[str], parents: list[int], offsets: np.ndarray, src: str) -> dict[int, int] | None:
     """{BVH joint: SMPL joint} where the skeleton is SMPL's: its 22 body joints by SMPL's names, in SMPL's hierarchy,
-    resting in SMPL's T-pose (limbs and spine within REST_MAX_DEGREES); None for any other (retargeted). Joints SMPL
-    lacks (fingers, a jaw) are left out, with a warning."""
+    resting in SMPL's T-pose (the spine within REST_MAX_DEGREES, arms and legs LIMB_REST_MAX_DEGREES); None for any
+    other (retargeted). Joints SMPL lacks (fingers, a jaw) are left out, with a warning."""
     smpl = {}
     for j, name in enumerate(names):
         k = _SMPL_INDEX.get(_canonical(name))
@@ -273,7 +280,8 @@ def _smpl_skeleton(names: list[str], parents: list[int], offsets: np.ndarray, sr
     for joint, direction in _SMPL_BONES.items():
         bone = offsets[back[SMPL_JOINT_NAMES.index(joint)]]
         norm = np.linalg.norm(bone)
-        if norm and np.degrees(np.arccos(np.clip(bone @ np.array(direction) / norm, -1, 1))) > REST_MAX_DEGREES:
+        limit = LIMB_REST_MAX_DEGREES.get(joint.split("_")[-1], REST_MAX_DEGREES)
+        if norm and np.degrees(np.arccos(np.clip(bone @ np.array(direction) / norm, -1, 1))) > limit:
             return None
     others = [n for j, n in enumerate(names) if j not in smpl]
     if others:

@@ -237,6 +237,33 @@ def test_a_mixamo_rig_in_an_a_pose_of_other_bone_lengths_reads_as_the_smpl_motio
     np.testing.assert_allclose(m.trans, trans, atol=1e-4)
 
 
+#: SMPL's own skeleton as smpl2bvh names it, as a `rig_bvh` rig.
+SMPL_RIG = _rig([(n, SMPL2BVH_NAMES[SMPL_PARENTS[k]] if k else None, k) for k, n in enumerate(SMPL2BVH_NAMES)])
+
+
+@pytest.mark.parametrize("a_pose", [15.0, 25.0, 29.0])
+def test_an_smpl_named_rig_resting_in_an_a_pose_reads_as_the_motion_it_moves_as(tmp_path, a_pose):
+    """SMPL's skeleton and names with the arms resting lowered (an avatar's A-pose): its rotations are from that
+    rest, not SMPL's T-pose; it was read as SMPL's as it is up to 30 degrees (every frame's arms `a_pose` degrees
+    too high), and is retargeted as any other rig."""
+    poses, trans = _motion(6, seed=5)
+    m = load_motion(rig_bvh(tmp_path / "avatar.bvh", poses, trans, SMPL_RIG, unit=0.01, a_pose=a_pose),
+                    world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-4)
+
+
+@pytest.mark.parametrize("betas", [(3.0,), (-3.0,), (0.0, 3.0), (0.0, 0.0, -3.0, 3.0)])
+def test_an_smpl_skeleton_of_another_shape_reads_as_it_is(tmp_path, betas):
+    """The rest joints of a shaped SMPL body (its legs up to 11 degrees off the vertical) stay within the T-pose's
+    bounds: read as they are (exactly), not retargeted."""
+    poses, trans = _motion(4, seed=6)
+    rest = default_body().shaped(np.array(betas))[1][:24].astype(np.float64)
+    m = load_motion(write_bvh(tmp_path / "shaped.bvh", poses, trans, 30, rest=rest), world_checks=False)
+    np.testing.assert_allclose(m.poses, poses, atol=1e-5)
+    np.testing.assert_allclose(m.trans, trans, atol=1e-5)
+
+
 @pytest.mark.parametrize("names, sides", [
     (("pelvis", "spine_01", "head", "upperarm_{}", "lowerarm_{}", "hand_{}", "thigh_{}", "calf_{}", "foot_{}"), "lr"),
     (("Bip01 Pelvis", "Bip01 Spine", "Bip01 Head", "Bip01 {} UpperArm", "Bip01 {} Forearm", "Bip01 {} Hand",
