@@ -4,13 +4,14 @@ motion), read as the skeleton and motion `core.retarget` turns into SMPL's, as a
 An MVNX holds, per frame, every segment's orientation (a unit quaternion, w first, from the segment's frame to the
 world's) and position (metres, the world Z-up) of Xsens' body model: 23 segments (Pelvis, L5, L3, T12, T8, Neck,
 Head, each side's Shoulder, UpperArm, ForeArm, Hand, UpperLeg, LowerLeg, Foot, Toe) whose hierarchy is the
-model's own (`XSENS_PARENTS`, by label). Its frames of type "normal" are the motion, at the subject's frameRate;
+model's own (`XSENS_PARENTS`, by label; a glove's finger segments, listed apart, are left out). Its frames of type "normal" are the motion, at the subject's frameRate;
 its "tpose" frame (else its "identity" frame, else its first) is the rest. The file is read as a stream
 (`xml.etree.ElementTree.iterparse`), its frames' text parsed in bulk.
 """
 
 from __future__ import annotations
 
+import logging
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -20,6 +21,8 @@ from core.errors import InputError
 from core.rotations import quat_to_matrix
 from formats.bvh import Skeleton
 from formats.fbx import MAX_FRAMES, skeleton_of
+
+log = logging.getLogger(__name__)
 
 #: Each segment of Xsens' body model by label, and the segment it hangs from (None: the root).
 XSENS_PARENTS = {"Pelvis": None, "L5": "Pelvis", "L3": "L5", "T12": "L3", "T8": "T12", "Neck": "T8", "Head": "Neck",
@@ -31,6 +34,11 @@ XSENS_PARENTS = {"Pelvis": None, "L5": "Pelvis", "L3": "L5", "T12": "L3", "T8": 
                                             ("Foot", "LowerLeg", None), ("Toe", "Foot", None))}}
 
 
+#: The element listing a glove's finger segments (MVN's finger tracking: fingerTrackingSegmentsLeft, ...Right),
+#: whose data each frame holds apart from the body's (orientationFingersLeft, ...).
+FINGER_SEGMENTS = "fingerTrackingSegments"
+
+
 def _tag(element) -> str:
     return element.tag.rsplit("}", 1)[-1]  # the namespace ('{http://www.xsens.com/mvn/mvnx}frame') left out
 
@@ -39,6 +47,8 @@ def read_mvnx(path: Path, src: str) -> Skeleton:
     """The skeleton and motion of the MVNX `path` (module docstring); InputError naming `src` for a file that is
     no MVNX, a damaged one, or one whose segments are not Xsens' body model's."""
     labels: list[str] = []
+    pending: list[str] = []  # the segments of the list being read
+    fingers = 0
     rate = None
     rest: dict[str, tuple[str, str]] = {}
     orientations: list[str] = []
@@ -47,7 +57,13 @@ def read_mvnx(path: Path, src: str) -> Skeleton:
         for _, element in ET.iterparse(path, events=("end",)):
             tag = _tag(element)
             if tag == "segment" and element.get("label"):
-                labels.append(element.get("label"))
+                pending.append(element.get("label"))
+            elif tag == "segments":  # the body's; a glove's fingers are listed apart (`FINGER_SEGMENTS`)
+                labels += pending
+                pending = []
+            elif tag.startswith(FINGER_SEGMENTS):
+                fingers += len(pending)
+                pending = []
             elif tag == "subject":
                 rate = element.get("frameRate")
             elif tag == "frame":
@@ -67,8 +83,12 @@ def read_mvnx(path: Path, src: str) -> Skeleton:
         raise InputError(f"{src}: its MVNX (XML) is damaged ({exc})") from None
     except OSError as exc:
         raise InputError(f"{src}: cannot read it ({exc.strerror or exc})") from None
+    labels = labels or pending  # segments outside a <segments> list
     if not labels:
         raise InputError(f"{src}: expected an Xsens MVNX (segments and frames), found no segments")
+    if fingers:
+        log.warning("%s: its %d finger segments (finger tracking) left out: the body's hands are read, its fingers "
+                    "rest", src, fingers)
     missing = [s for s in XSENS_PARENTS if s not in labels]
     if missing:
         raise InputError(f"{src}: expected the segments of Xsens' body model, found none named "

@@ -2,6 +2,8 @@
 first, and position, Z-up metres; identity and T-pose frames before the motion), written here from an SMPL motion
 on Xsens' body model, read back as that motion."""
 
+import logging
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -73,6 +75,29 @@ def test_an_mvnx_reads_as_the_smpl_motion_its_segments_move_as(tmp_path, namespa
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses), want, atol=1e-4)
     pelvis = default_body().shaped(None)[1][0]
     np.testing.assert_allclose(m.trans, (pelvis + trans) @ Y_UP_TO_Z_UP_MATRIX.T - pelvis, atol=1e-4 + 5 * jitter)
+
+
+def test_an_mvnx_with_finger_tracking_reads_its_body_and_leaves_the_fingers_out(tmp_path, caplog):
+    """MVN's export with gloves lists 20 finger segments a hand after the body's (fingerTrackingSegmentsLeft/Right)
+    and their data apart in each frame: it was refused ("expected 252 orientation values in each of its 6 frames,
+    got 552 in all")."""
+    poses, trans = _motion(6, seed=13)
+    plain = load_motion(write_mvnx(tmp_path / "plain.mvnx", poses, trans), world_checks=False)
+    text = (tmp_path / "plain.mvnx").read_text()
+    lists = "".join(f"<fingerTrackingSegments{side}>"
+                    + "".join(f'<segment label="{side}Finger{k}" id="{k + 1}"><points/></segment>' for k in range(20))
+                    + f"</fingerTrackingSegments{side}>" for side in ("Left", "Right"))
+    data = "".join(f"<orientationFingers{side}>{' '.join(['1 0 0 0'] * 20)}</orientationFingers{side}>"
+                   f"<positionFingers{side}>{' '.join(['0 0 0'] * 20)}</positionFingers{side}>"
+                   for side in ("Left", "Right"))
+    text = text.replace("</segments>", "</segments>" + lists).replace("</position></frame>", "</position>" + data
+                                                                      + "</frame>")
+    (tmp_path / "gloves.mvnx").write_text(text)
+    with caplog.at_level(logging.WARNING):
+        gloves = load_motion(tmp_path / "gloves.mvnx", world_checks=False)
+    np.testing.assert_array_equal(gloves.poses, plain.poses)
+    np.testing.assert_array_equal(gloves.trans, plain.trans)
+    assert "its 40 finger segments (finger tracking) left out" in caplog.text
 
 
 def test_an_mvnx_of_other_segments_damaged_or_without_motion_is_one_line(tmp_path):
