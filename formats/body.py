@@ -47,7 +47,7 @@ def load_body(path: str | Path) -> Body:
     label = f"body file '{path}'"
     require_input(path, label)
     suffix = path.suffix.lower()
-    readers = {".npz": _read_npz, ".pkl": _read_pkl}
+    readers = {".npz": _read_npz, ".pkl": read_pkl}
     if suffix not in readers:
         raise InputError(f"{label}: expected a .npz or .pkl SMPL-format file, got suffix '{path.suffix}'")
     if suffix == ".pkl" and _starts_with(path, b"PK\x03\x04"):  # an .npz saved under a pickle's name (a zip)
@@ -153,7 +153,8 @@ def _read_npz(path: Path, label: str) -> dict:
     return arrays
 
 
-def _read_pkl(path: Path, label: str) -> dict:
+def read_pkl(path: Path, label: str) -> dict:
+    """The arrays of an SMPL-format pickle (chumpy arrays as numpy's); InputError naming `label` where it is none."""
     try:
         with open(path, "rb") as fh:
             data = FastRestrictedUnpickler(fh, label, "an SMPL-format file").load()

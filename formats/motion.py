@@ -718,6 +718,9 @@ def _read_poses(arrays: dict, src: str, files: list[str]) -> np.ndarray:
         return _split_poses(arrays, src)
     if "global_orient" in arrays and "body_pose" in arrays:
         return _smplx_arg_poses(arrays, src)
+    if "v_template" in files:
+        raise InputError(f"{src}: an SMPL-format body file (v_template, shapedirs, ...), not a motion: give it with "
+                         "--body")
     raise InputError(f"{src}: expected a 'poses' array, SMPL-X 'root_orient' + 'pose_body' or the smplx arguments "
                      f"'global_orient' + 'body_pose', found keys {sorted(files)}")
 

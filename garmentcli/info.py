@@ -149,6 +149,13 @@ def _kind_of(path: Path) -> str:
             return "fit"
         if {"points", "faces"} <= keys:
             return "bake"
+    if suffix in (".pkl", ".pickle") and path.is_file():  # SMPL's own bodies are pickles of chumpy arrays
+        from formats.body import read_pkl
+
+        try:
+            return "body" if "v_template" in read_pkl(path, str(path)) else "motion"
+        except Exception:  # noqa: BLE001 - no body's pickle: the motion reader says what it is
+            return "motion"
     return "motion"
 
 

@@ -136,6 +136,29 @@ def test_info_tells_a_bake_a_body_and_a_fit_for_what_they_are(tmp_path):
                              "bake with --method psd --fit)")
 
 
+def test_an_smpl_pickle_body_is_a_body_and_a_body_given_as_the_motion_is_told(tmp_path):
+    """SMPL's own bodies are pickles of chumpy arrays: `info` called one a damaged motion ("expected a 'poses'
+    array, ..."), as `bake` did a body file (pickle or .npz) given where the motion goes."""
+    from core.body import default_body
+    from tests.formats.test_body import write_pkl
+
+    b = default_body()
+    arrays = dict(v_template=b.v_template, shapedirs=b.shapedirs, posedirs=np.zeros((*b.v_template.shape, 207), np.float32),
+                  J_regressor=b.J_regressor, weights=b.weights, f=b.faces,
+                  kintree_table=np.stack([np.r_[2**32 - 1, b.parents[1:]], np.arange(24)]).astype(np.int64))
+    write_pkl(tmp_path / "SMPL_NEUTRAL.pkl", arrays)
+    r = invoke(["info", tmp_path / "SMPL_NEUTRAL.pkl"])
+    assert r.exit_code == 0 and "SMPL_NEUTRAL.pkl: body (smpl), 13,348 vertices, 24 joints, 10 betas" in r.output, \
+        r.output
+    np.savez(tmp_path / "body.npz", **arrays)
+    for body in ("SMPL_NEUTRAL.pkl", "body.npz"):
+        r = invoke(["bake", ROOT / "examples" / "skirt.obj", tmp_path / body, "--out", tmp_path / "out"])
+        assert r.exit_code != 0 and r.output.strip().splitlines()[-1] == (
+            f"Error: motion '{tmp_path / body}': an SMPL-format body file (v_template, shapedirs, ...), not a motion: "
+            "give it with --body"), r.output
+    assert not (tmp_path / "out").exists()
+
+
 def test_info_tells_a_model_and_its_resume_state_for_what_they_are_and_a_motion_pt_still_as_a_motion(tmp_path):
     """`garment info MODEL.pt` read a trained model as a motion ("expected a 'poses' array"); a checkpoint now tells
     its training (steps, body, garments, validation), a resume state says so, and a PyTorch motion file is still
