@@ -5,6 +5,7 @@ people, animations) and what reading it said (a rig retargeted, a world turned).
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -178,13 +179,18 @@ def motion_info(path: str, person: str | None = None, take: str | None = None,
         with collected_notes():
             takes[name] = load_motion(path, fps=source_fps, world_checks=False, take=name).n_frames
     speed = np.linalg.norm(np.diff(motion.trans.astype(np.float64), axis=0), axis=1) * motion.fps
+    # posed as `bake` poses it: on the embedded body at its mean shape (a motion's betas are another model's), on
+    # another at the motion's betas fitted to it (warned of by bake; a count the body lacks was warned of here, twice)
+    body = body or default_body()
+    shaped = replace(motion, betas=None if body is default_body() or motion.betas is None else
+                     body.fit_betas(motion.betas, warn=False))
     return {"path": str(path), "kind": "motion", "frames": motion.n_frames, "fps": motion.fps,
             "seconds": round(motion.duration_s, 3), "joints": int(motion.poses.shape[1]),
             "betas": None if motion.betas is None else int(motion.betas.size), "gender": motion.gender, "up": up,
             "person": motion.person, "people": tracked_people(path), "take": motion.take, "takes": takes,
             "root_travel_m": round(float(speed.sum() / motion.fps), 3),
             "root_speed_m_s_p99": round(float(np.percentile(speed, 99)), 3) if speed.size else 0.0,
-            "jumps": [{"frame": k, "what": what} for k, what in motion_cuts(motion, body or default_body())],
+            "jumps": [{"frame": k, "what": what} for k, what in motion_cuts(shaped, body)],
             "notes": notes}
 
 

@@ -2,6 +2,7 @@
 holds), as text or JSON; files that cannot be read or garments that would be refused told, the exit code 1."""
 
 import json
+import logging
 import pickle
 from pathlib import Path
 
@@ -134,6 +135,19 @@ def test_info_tells_a_bake_a_body_and_a_fit_for_what_they_are(tmp_path):
                              f"{b.content_hash()[:12]} (give it to bake with --body)")
     assert lines[6].endswith("skirt.psd.npz: psd fit of a 2-vertex garment on body 'default', 1 shape (give it to "
                              "bake with --method psd --fit)")
+
+
+def test_an_amass_motions_16_betas_are_not_fitted_to_the_embedded_body(tmp_path, caplog):
+    """AMASS's SMPL+H motions carry 16 betas: `info` posed them on the embedded body to find jumps, warning twice
+    (without the file's name) "16 betas given, body 'default' has 10 ...", though bake poses such a motion at the
+    mean shape."""
+    poses, trans = _motion(8, seed=2)
+    np.savez(tmp_path / "amass.npz", poses=np.concatenate([poses.reshape(8, 72), np.zeros((8, 84))], 1), trans=trans,
+             betas=np.full(16, 0.5), mocap_framerate=60.0, gender=np.array("female"))
+    with caplog.at_level(logging.WARNING):
+        r = invoke(["info", tmp_path / "amass.npz"])
+    assert r.exit_code == 0 and "16 betas" in r.output, r.output
+    assert "betas given" not in caplog.text
 
 
 def test_an_smpl_pickle_body_is_a_body_and_a_body_given_as_the_motion_is_told(tmp_path):
