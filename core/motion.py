@@ -50,7 +50,11 @@ def check_frame_rate(fps: float, where: str, advice: str = "") -> None:
 
 #: Frame rates a rate read from seconds (a glTF's key times, a BVH's Frame Time) is snapped to within
 #: COMMON_RATE_TOLERANCE: a file stores seconds to a few digits, not the rate.
-COMMON_RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 23.976, 29.97, 59.94)
+#: Film and video's, and motion capture systems' (Vicon's, OptiTrack's, Xsens', Qualisys': 90 to 480): a BVH
+#: of 240 fps written 'Frame Time: 0.0041666' was read and recorded as 240.004 fps.
+COMMON_RATES = (12.0, 15.0, 24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 72.0, 90.0, 96.0, 100.0, 120.0, 144.0, 180.0,
+                200.0, 240.0, 250.0, 300.0, 360.0, 400.0, 480.0, 500.0, 600.0, 960.0, 1000.0, 23.976, 29.97, 59.94,
+                119.88)
 COMMON_RATE_TOLERANCE = 0.005
 
 

@@ -223,6 +223,11 @@ def key_rate(inputs: list[np.ndarray]) -> float:
     return near if near is not None else round(fps, 3) if fps >= 1.0 else fps  # keys seconds apart: not 0
 
 
+#: The highest common rate `cubic_rate` samples sparse cubic curves at (capture systems' rates beyond it are
+#: no keyframe animation's).
+CUBIC_MAX_FPS = 120.0
+
+
 def cubic_rate(fps: float) -> float:
     """The rate to sample cubic curves keyed at `fps` at: their own from MIN_CUBIC_FPS up, else the first of
     DEFAULT_FPS and the common rates over it of which their keys' rate divides a whole number (a hand-keyed
@@ -231,7 +236,7 @@ def cubic_rate(fps: float) -> float:
     degrees off its own curves)."""
     if fps >= MIN_CUBIC_FPS:
         return fps
-    for rate in (DEFAULT_FPS, *sorted(COMMON_RATES)):
+    for rate in (DEFAULT_FPS, *sorted(r for r in COMMON_RATES if r <= CUBIC_MAX_FPS)):
         ratio = rate / fps
         if rate >= MIN_CUBIC_FPS and abs(ratio - round(ratio)) < 1e-3 * ratio:
             return rate

@@ -540,7 +540,8 @@ def test_a_frame_time_of_a_few_digits_is_its_common_rate_and_no_frame_is_lost(tm
     # was snapped (a minute's last frame 0.3 s off); 0.033367 (6 digits) is 29.97's.
     for frame_time, fps, frames_at_30 in (("0.033333", 30.0, 40), ("0.0083333", 120.0, 10), ("0.0345", 1 / 0.0345,
                                                                                                41),
-                                          ("0.03353438", 1 / 0.03353438, 40), ("0.033367", 29.97, 40)):
+                                          ("0.03353438", 1 / 0.03353438, 40), ("0.033367", 29.97, 40),
+                                          ("0.0041666", 240.0, 5), ("0.011111", 90.0, 14)):  # capture systems'
         (tmp_path / "walk.bvh").write_text(text.replace("Frame Time: 0.03333333", f"Frame Time: {frame_time}"))
         m = load_motion(tmp_path / "walk.bvh", world_checks=False)
         assert m.fps == pytest.approx(fps, rel=1e-12) and resample(m, 30.0).n_frames == frames_at_30
