@@ -4,8 +4,9 @@ motion), read as the skeleton and motion `core.retarget` turns into SMPL's, as a
 An MVNX holds, per frame, every segment's orientation (a unit quaternion, w first, from the segment's frame to the
 world's) and position (metres, the world Z-up) of Xsens' body model: 23 segments (Pelvis, L5, L3, T12, T8, Neck,
 Head, each side's Shoulder, UpperArm, ForeArm, Hand, UpperLeg, LowerLeg, Foot, Toe) whose hierarchy is the
-model's own (`XSENS_PARENTS`, by label; a glove's finger segments, listed apart, are left out). Its frames of type "normal" are the motion, at the subject's frameRate;
-its "tpose" frame (else its "identity" frame, else its first) is the rest. The file is read as a stream
+model's own (`XSENS_PARENTS`, by label; a glove's finger segments, listed apart, are left out). Its frames of
+type "normal" are the motion, at the subject's frameRate; its "tpose" frame (else its "identity" frame, else its
+first) is the rest. The file is read as a stream
 (`xml.etree.ElementTree.iterparse`), its frames' text parsed in bulk.
 """
 
