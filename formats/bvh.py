@@ -5,10 +5,10 @@ motions exported to BVH are: smpl2bvh, SMPL's Blender add-on), of any other huma
 An SMPL skeleton's joints are matched by name, in its naming variants ('Left_hip', 'L_Hip', 'left_hip',
 'm_avg_L_Hip'; 'L_Palm' or 'L_Hand' for the hands), in SMPL's hierarchy and resting in SMPL's T-pose (within
 REST_MAX_DEGREES, the arms and legs within LIMB_REST_MAX_DEGREES): their rotations are SMPL's, the unit is told by
-the legs (metres, centimetres, inches or millimetres) and the root's position less its OFFSET (the rest pelvis SMPL exporters write there) is the
-translation. A skeleton that is not (other names, joints, bone lengths or rest pose) is retargeted. Rotation
-channels compose in the order listed (Zrotation Yrotation Xrotation: R = Rz Ry Rx); the root's position channels
-are its position. Its world is the one its rest skeleton stands in (REST_UP_KEY: Y-up as most tools write it),
+the legs (metres, centimetres, inches or millimetres) and the root's position less its OFFSET (the rest pelvis
+SMPL exporters write there) is the translation. A skeleton that is not (other names, joints, bone lengths or rest
+pose) is retargeted. Rotation channels compose in the order listed (Zrotation Yrotation Xrotation: R = Rz Ry Rx);
+the root's position channels are its position. Its world is the one its rest skeleton stands in (REST_UP_KEY: Y-up as most tools write it),
 which `garmentcli.common.resolved_up` takes where --motion-up is left out.
 """
 
