@@ -62,16 +62,33 @@ def _chosen_skeleton(stage: Usd.Stage, src: str):
     return max(skels, key=lambda s: (role_names(_joint_names(s)), len(s.GetJointsAttr().Get())))
 
 
-def _animations(stage: Usd.Stage, skel) -> list:
-    """The stage's SkelAnimations, the one `skel` binds (on itself or a prim above it) first."""
-    found = [UsdSkel.Animation(p) for p in stage.Traverse() if p.IsA(UsdSkel.Animation)]
-    bound = None
+def _bound_animation(skel):
+    """The path of the SkelAnimation `skel` binds (on itself or a prim above it), else None."""
     prim = skel.GetPrim()
-    while prim and prim.IsValid() and bound is None:
+    while prim and prim.IsValid():
         targets = UsdSkel.BindingAPI(prim).GetAnimationSourceRel().GetTargets()
-        bound = targets[0] if targets else None
+        if targets:
+            return targets[0]
         prim = prim.GetParent()
-    return sorted(found, key=lambda a: a.GetPath() != bound)
+    return None
+
+
+def _animations(stage: Usd.Stage, skel) -> list:
+    """The SkelAnimations of `skel`, the one it binds first: of the others, those no other skeleton binds and most
+    of whose joints are its (a cape's or a prop's animation beside it was offered as a take of the human, who
+    stood at rest through it)."""
+    found = [UsdSkel.Animation(p) for p in stage.Traverse() if p.IsA(UsdSkel.Animation)]
+    bound = _bound_animation(skel)
+    others = {_bound_animation(s) for s in _skeletons(stage) if s.GetPrim() != skel.GetPrim()} - {None, bound}
+    tokens = [str(j) for j in (skel.GetJointsAttr().Get() or [])]
+    names = set(tokens) | {t.rsplit("/", 1)[-1] for t in tokens}
+
+    def its(animation) -> bool:
+        joints = [str(j) for j in (animation.GetJointsAttr().Get() or [])]
+        return 2 * sum(j in names for j in joints) > len(joints)
+
+    kept = [a for a in found if a.GetPath() == bound or (a.GetPath() not in others and its(a))]
+    return sorted(kept, key=lambda a: a.GetPath() != bound)
 
 
 def animation_names(path: Path) -> list[str]:
@@ -106,6 +123,7 @@ def read_usdskel(path: Path, src: str, take: str | None = None) -> Skeleton:
     if rest_local is None and bind is None:
         raise InputError(f"{src}: its skeleton '{skel.GetPath()}' has neither invertible bindTransforms nor "
                          f"restTransforms for its {J} joints")
+    given_rest = rest_local is not None
     if rest_local is None:  # the bind pose, joint by joint from its parent
         rest_local = np.array([bind[j] if p < 0 else np.linalg.inv(bind[p]) @ bind[j] for j, p in enumerate(parents)])
     animations = _animations(stage, skel)
@@ -123,12 +141,53 @@ def read_usdskel(path: Path, src: str, take: str | None = None) -> Skeleton:
     imageable = UsdGeom.Imageable(skel.GetPrim())
     place = np.array([np.asarray(imageable.ComputeLocalToWorldTransform(Usd.TimeCode(t))).T for t in times])
     world = {j: place @ skel_space[:, j] for j in range(J)}
-    resting = bind if bind is not None else _composed(rest_local[None], parents)[0]
-    rest = {j: place[0] @ resting[j] for j in range(J)}
+    if bind is None:
+        resting = place[0] @ _composed(rest_local[None], parents)[0]
+    elif _bind_in_world(bind, place[0], _composed(rest_local[None], parents)[0] if given_rest else skel_space[0],
+                        parents, exact=given_rest):
+        resting = bind  # the spec's world space (maya-usd's), the skeleton's parents' transforms in it
+    else:
+        resting = place[0] @ bind  # the skeleton's own space (Blender's)
+    rest = {j: resting[j] for j in range(J)}
     names = {j: t.rsplit("/", 1)[-1] for j, t in enumerate(tokens)}
     skeleton = skeleton_of(list(range(J)), names, {j: p for j, p in enumerate(parents) if p >= 0}, list(range(J)),
                            world, rest, 1.0 / fps)
     return skeleton._replace(take=animation.GetPrim().GetName()) if len(animations) > 1 else skeleton
+
+
+def _bind_in_world(bind: np.ndarray, place: np.ndarray, skel_space: np.ndarray, parents: list[int],
+                   exact: bool) -> bool:
+    """Whether a Skeleton's bindTransforms (J, 4, 4) are in world space, the skeleton's place in the world
+    (`place`, (4, 4): its parents' transforms) in them, as USD's schema defines them and maya-usd writes them,
+    rather than in the skeleton's own space as Blender writes them (a skeleton under a group scaled 0.01 walked
+    100 times too far, under one turned 90 degrees lay on its back). Told by the joints of `skel_space` (J, 4, 4),
+    the skeleton's space: where `exact` (its restTransforms composed, the bind pose as maya-usd writes them), the
+    bind's joints lie where those do in one space; else (Blender's restTransforms are its first frame's pose, and
+    a skeleton without them has its animation's first frame) its bones are as long as they are in one space (a
+    place that turns only: the skeleton's space)."""
+    if np.allclose(place, np.eye(4), atol=1e-9):
+        return False
+    world = place @ skel_space
+    if exact:
+        size = max(float(np.ptp(world[:, :3, 3], axis=0).max()), 1e-12)
+        near_world = np.abs(bind[:, :3, 3] - world[:, :3, 3]).max() <= 1e-4 * size
+        near_own = np.abs(bind[:, :3, 3] - skel_space[:, :3, 3]).max() <= 1e-4 * size
+        if near_world != near_own:
+            return near_world
+    bones = [j for j, p in enumerate(parents) if p >= 0]
+    if not bones:
+        return False
+
+    def lengths(m):
+        return np.linalg.norm(m[bones, :3, 3] - m[[parents[j] for j in bones], :3, 3], axis=1)
+
+    own = lengths(skel_space)
+    kept = own > 1e-9 * max(float(own.max()), 1e-300)
+    if not kept.any():
+        return False
+    ratio = float(np.median(lengths(bind)[kept] / own[kept]))
+    scale = float(np.cbrt(abs(np.linalg.det(place[:3, :3]))))
+    return abs(np.log(max(ratio, 1e-300) / scale)) < abs(np.log(max(ratio, 1e-300)))
 
 
 def _composed(local: np.ndarray, parents: list[int]) -> np.ndarray:
@@ -199,7 +258,11 @@ def _animate(local: np.ndarray, animation, tokens: list[str], times: np.ndarray,
     for t in times:  # USD's values at each frame (interpolated between its samples), then all frames at once
         code = Usd.TimeCode(float(t))
         move, turn, scale = (a.Get(code) if on else None for a, on in zip(attrs, authored))
-        ok = [v is not None and len(v) == len(anim_joints) for v in (move, turn, scale)]
+        for what, v in zip(("translations", "rotations", "scales"), (move, turn, scale)):
+            if v is not None and len(v) != len(anim_joints):  # a damaged sample: not the rest (it was, silently)
+                raise InputError(f"{src}: its animation '{animation.GetPath()}' has {len(v)} {what} at time "
+                                 f"{float(t):g} for its {len(anim_joints)} joints")
+        ok = [v is not None for v in (move, turn, scale)]
         moves.append(np.asarray(move, float)[keep] if ok[0] else rest_local[into, :3, 3])
         quats.append(np.asarray(turn, float)[keep] if ok[1] else np.broadcast_to([0.0, 0.0, 0.0, 1.0], (len(into), 4)))
         unturned.append(not ok[1])  # a frame without rotations: its rest's, below (a NaN in one stays one)

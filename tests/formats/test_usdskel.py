@@ -22,7 +22,8 @@ def _matrix(M: np.ndarray) -> Gf.Matrix4d:
     return Gf.Matrix4d(np.asarray(M, dtype=np.float64).T.tolist())
 
 
-def rig_usd(path, takes, rig=MIXAMO, fps=30, seed=1, armature=True, bound=0, drop=None, scales=True):
+def rig_usd(path, takes, rig=MIXAMO, fps=30, seed=1, armature=True, bound=0, drop=None, scales=True,
+            bind_world=False, rest_pose="first"):
     """A USD stage of `rig_motion`'s rig (centimetres, an A-pose, 15 % larger): a Skeleton of joints named as
     Blender writes them ('mixamorig_Hips', paths from the root), each with a random rest rotation, its
     bindTransforms the rest and its restTransforms the first frame's pose; a SkelAnimation per take
@@ -31,7 +32,9 @@ def rig_usd(path, takes, rig=MIXAMO, fps=30, seed=1, armature=True, bound=0, dro
     turning Y-up to Z-up and scaling centimetres to metres in a Z-up stage in metres (Blender's); else the
     Skeleton at the root of a Y-up stage in centimetres. drop: a joint (index) the animations leave out (its rest
     kept); scales: False leaves the scales unauthored. The animations list their joints in reverse order. No
-    takes: the skeleton alone (its bindTransforms)."""
+    takes: the skeleton alone (its bindTransforms). bind_world: the bindTransforms in world space, the Armature's
+    transform in them (USD's schema's, maya-usd's: Blender's are in the skeleton's space); rest_pose: the
+    restTransforms of "first" the first frame's pose (Blender's), "bind" the bind pose (maya-usd's), None: none."""
     moving = {name: rig_motion(*m, rig, unit=0.01, scale=1.15, a_pose=40.0) for name, m in takes.items()}
     names, parents, offsets, _, root = next(iter(moving.values()), None) or rig_motion(*_motion(1), rig, unit=0.01,
                                                                                       scale=1.15, a_pose=40.0)
@@ -64,7 +67,15 @@ def rig_usd(path, takes, rig=MIXAMO, fps=30, seed=1, armature=True, bound=0, dro
         skel_path = "/Skel"
     skel = UsdSkel.Skeleton.Define(stage, skel_path)
     skel.GetJointsAttr().Set(Vt.TokenArray(tokens))
-    skel.GetBindTransformsAttr().Set(Vt.Matrix4dArray([_matrix(b) for b in bind]))
+    if bind_world:
+        world = np.asarray(UsdGeom.Imageable(skel.GetPrim()).ComputeLocalToWorldTransform(Usd.TimeCode.Default())).T
+        skel.GetBindTransformsAttr().Set(Vt.Matrix4dArray([_matrix(world @ b) for b in bind]))
+    else:
+        skel.GetBindTransformsAttr().Set(Vt.Matrix4dArray([_matrix(b) for b in bind]))
+    if rest_pose == "bind":
+        rest = np.tile(np.eye(4), (J, 1, 1))
+        rest[:, :3, :3], rest[:, :3, 3] = pre, steps
+        skel.GetRestTransformsAttr().Set(Vt.Matrix4dArray([_matrix(r) for r in rest]))
     order = [j for j in reversed(range(J)) if j != drop]
     anim_paths = []
     for k, (take, (*_, rotations, take_root)) in enumerate(moving.items()):
@@ -77,7 +88,7 @@ def rig_usd(path, takes, rig=MIXAMO, fps=30, seed=1, armature=True, bound=0, dro
                 local[j] = parent_frame.T @ rotations[t, j] @ parent_frame @ pre[j]
             moves = np.array(steps)
             moves[0] = take_root[t]
-            if k == 0 and t == 0:  # restTransforms: the pose of the first frame, as Blender writes them
+            if k == 0 and t == 0 and rest_pose == "first":  # the pose of the first frame, as Blender writes them
                 rest = np.tile(np.eye(4), (J, 1, 1))
                 rest[:, :3, :3], rest[:, :3, 3] = local, moves
                 skel.GetRestTransformsAttr().Set(Vt.Matrix4dArray([_matrix(r) for r in rest]))
@@ -94,15 +105,20 @@ def rig_usd(path, takes, rig=MIXAMO, fps=30, seed=1, armature=True, bound=0, dro
     return path
 
 
-@pytest.mark.parametrize("suffix, armature", [(".usda", True), (".usdc", False), (".usdz", True)])
-def test_a_usd_skeletal_animation_reads_as_the_smpl_motion_it_moves_as(tmp_path, suffix, armature):
+@pytest.mark.parametrize("suffix, armature, bind_world, rest_pose", [
+    (".usda", True, False, "first"), (".usdc", False, False, "first"), (".usdz", True, False, "first"),
+    # maya-usd's: the bind in world space, the group's turn and scale in it (read in the skeleton's space, the
+    # body lay on its back and walked 100 times too far), restTransforms the bind pose or none
+    (".usda", True, True, "bind"), (".usda", True, True, None), (".usda", False, True, "bind")])
+def test_a_usd_skeletal_animation_reads_as_the_smpl_motion_it_moves_as(tmp_path, suffix, armature, bind_world,
+                                                                        rest_pose):
     """Blender's UsdSkel (an Armature Xform turning a Y-up skeleton in centimetres into a Z-up stage; the bind
     pose the rest, restTransforms posed) and a Y-up stage in centimetres read back the SMPL motion, in each's world;
-    as text, crate and a .usdz package."""
+    as text, crate and a .usdz package; and maya-usd's (bindTransforms in world space) alike."""
     poses, trans = _motion(5, seed=31)
     poses[:, 22:] = 0
     written = rig_usd(tmp_path / ("walk.usda" if suffix == ".usdz" else f"walk{suffix}"), {"Walk": (poses, trans)},
-                      armature=armature)
+                      armature=armature, bind_world=bind_world, rest_pose=rest_pose)
     if suffix == ".usdz":
         assert UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(written)), str(tmp_path / "walk.usdz"))
         written = tmp_path / "walk.usdz"
@@ -165,6 +181,33 @@ def test_an_animation_naming_joints_by_their_last_part_or_with_a_nan_on_its_firs
     rotations.Set(Vt.QuatfArray(values), code)
     stage.Save()
     assert_each_refused(path, [(path.read_bytes(), "contains NaN or Inf (first at frame 2)")])
+    rotations.Set(Vt.QuatfArray(values[1:]), code)  # a sample short of a joint: its frame was the rest, silently
+    stage.Save()
+    assert_each_refused(path, [(path.read_bytes(), "its animation '/Skel/Walk' has 26 rotations at time 3 for its 27 "
+                                                   "joints")])
+
+
+def test_another_skeletons_animation_is_no_take_of_the_human(tmp_path, caplog):
+    """A cape's skeleton bound to its own animation beside the human's: its animation was offered as a take of the
+    human ("holds 2 animations ('Walk', 'CapeFlap')"), who stood at rest through it under --take CapeFlap."""
+    poses, trans = _motion(4, seed=32)
+    poses[:, 22:] = 0
+    path = rig_usd(tmp_path / "cape.usda", {"Walk": (poses, trans)}, armature=False)
+    stage = Usd.Stage.Open(str(path))
+    cape = UsdSkel.Skeleton.Define(stage, "/Cape")
+    cape.GetJointsAttr().Set(Vt.TokenArray(["cape", "cape/cape1"]))
+    cape.GetBindTransformsAttr().Set(Vt.Matrix4dArray([Gf.Matrix4d(1.0)] * 2))
+    flap = UsdSkel.Animation.Define(stage, "/Cape/CapeFlap")
+    flap.GetJointsAttr().Set(Vt.TokenArray(["cape", "cape/cape1"]))
+    for t in range(30):
+        flap.GetRotationsAttr().Set(Vt.QuatfArray([Gf.Quatf(1, 0, 0, 0)] * 2), Usd.TimeCode(t + 1))
+    UsdSkel.BindingAPI.Apply(cape.GetPrim()).CreateAnimationSourceRel().SetTargets([flap.GetPath()])
+    stage.Save()
+    assert motion_takes(path) == []
+    with caplog.at_level(logging.WARNING):
+        m = load_motion(path, world_checks=False)
+    assert m.n_frames == 4 and m.take is None and "animations" not in caplog.text
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses), axis_angle_to_matrix(poses), atol=1e-4)
 
 
 def test_a_usd_of_several_animations_reads_the_bound_one_or_the_one_named(tmp_path, caplog):
