@@ -424,12 +424,29 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
             closer = None if far or inside > REST_INSIDE_FRAME_SHARE else (median, near)
             fix = _frame_fix(garment.vertices, body, mesh, closer_than=closer, name=name, placed=placed)
     lift = None if fix else _lifted_by_floor(garment, body, mesh, name, placed)
+    expected = "expected a garment authored on the body's rest pose (Y-up, T-pose, metres"
+    if not (far or fix or lift) and inside > A_POSE_CHECK_SHARE:
+        key = (_content_key(garment.vertices, garment.faces, body.v_template, body.faces), body.name, name, placed)
+        if key not in _SEARCHED:  # a second binding of the same garment (lbs after the model) searches no more
+            unposed = _unposed_angle(garment, body, mesh, inside, median)
+            _SEARCHED[key] = (unposed, (None, None) if unposed is not None or inside <= REST_INSIDE_WARN_SHARE
+                              else _shift_fix(garment.vertices, body, mesh, name, placed))
+            while len(_SEARCHED) > 8:
+                _SEARCHED.pop(next(iter(_SEARCHED)))
+        unposed = _SEARCHED[key][0]
+        if unposed is not None:  # its sleeves or arms lowered: baked so, every frame's arms were as far off
+            from core.unpose import A_POSE_ARM_DEGREES
+
+            angle = "" if unposed == A_POSE_ARM_DEGREES else f" --arm-angle {unposed:g}"
+            raise InputError(f"garment mesh '{name}': {expected}), got {inside:.1%} of its vertices more than "
+                             f"{REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body; it fits when unposed from an A-pose "
+                             f"(arms lowered {unposed:g} degrees): `garment unpose {name} --pose apose{angle}"
+                             f"{placed.body}`")
     if not (far or fix or lift) and inside <= REST_INSIDE_WARN_SHARE:
         if maybe:  # 2.5 times too large, or loose: told, not refused
             log.warning("garment mesh '%s': it rests on the body nowhere (its closest 5 %% %.0f cm or more from it); "
                         "%s: in other units? (a loose garment fits closer shrunk too)", name, near * 100, maybe)
         return
-    expected = "expected a garment authored on the body's rest pose (Y-up, T-pose, metres"
     if lift and not far and inside <= REST_INSIDE_FRAME_SHARE:
         above = float(garment.vertices[:, 1].max() - body.v_template[:, 1].max())
         raise InputError(f"garment mesh '{name}': {expected}, resting on it), got its top {above:.2f} m above the "
@@ -447,19 +464,11 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     if fix:
         raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
                          f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body{hint}")
-    key = (_content_key(garment.vertices, garment.faces, body.v_template, body.faces), body.name, name, placed)
-    if key not in _SEARCHED:  # a second binding of the same garment (lbs after the model) searches no more
-        unposed = _fits_unposed(garment, body, mesh, inside, float(np.median(np.abs(signed))))
-        _SEARCHED[key] = (unposed, (None, None) if unposed else _shift_fix(garment.vertices, body, mesh, name,
-                                                                                         placed))
-        while len(_SEARCHED) > 8:
-            _SEARCHED.pop(next(iter(_SEARCHED)))
-    unposed, (shift, nearer) = _SEARCHED[key]
+    _, (shift, nearer) = _SEARCHED[key]  # searched above (over A_POSE_CHECK_SHARE inside): no A-pose
     if shift:
         raise InputError(f"garment mesh '{name}': {expected}, outside it), got {inside:.0%} of its vertices more "
                          f"than {REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body; {shift}")
-    cause = (f"it fits when unposed from an A-pose: `garment unpose {name} --pose apose`" if unposed else
-             "authored on another body shape? pass that body with --body; in another pose? `garment unpose`"
+    cause = ("authored on another body shape? pass that body with --body; in another pose? `garment unpose`"
              + (f"; {nearer}" if nearer else ""))
     log.warning("garment mesh '%s': %.1f %% of its vertices lie more than %.0f mm inside the body's rest surface "
                 "(%s); expect them inside the body (--push-out moves them out)", name, inside * 100,
@@ -503,22 +512,34 @@ def _content_key(*arrays: np.ndarray) -> str:
     return h.hexdigest()
 
 
-def _fits_unposed(garment: Garment, body: Body, mesh: TriangleMesh, inside: float, median: float) -> bool:
-    """Whether unposing the garment from the default A-pose (`core.unpose`) puts it on the rest body: at most
-    REST_INSIDE_WARN_SHARE and under half of `inside` left inside, its median distance not 5 mm further out.
-    (The example t-shirt skinned into an A-pose: 4.3 % inside, 0 % unposed; shrunk by 5 % instead: 2.3 %,
-    10.4 % unposed.)"""
+#: A garment more than this share inside the rest body is tried unposed from A-poses (`_unposed_angle`; the example
+#: garments: none inside; the example jumpsuit skinned into the 45-degree A-pose: 1.2 %, the t-shirt at 30: 2.3 %).
+A_POSE_CHECK_SHARE = 0.005
+#: The arm angles (degrees lowered from the T-pose) a garment is tried unposed from: avatars' A-poses.
+A_POSE_CHECK_DEGREES = (30.0, 45.0, 60.0)
+
+
+def _unposed_angle(garment: Garment, body: Body, mesh: TriangleMesh, inside: float, median: float) -> float | None:
+    """The arm angle of `A_POSE_CHECK_DEGREES` from whose A-pose unposing the garment (`core.unpose`) puts it on
+    the rest body best, or None where none does: at most REST_INSIDE_WARN_SHARE and under half of `inside` left
+    inside, its median distance not 5 mm further out (`median`, metres, as it is). (The example t-shirt skinned
+    into an A-pose: 4.3 % inside, 0 % unposed; shrunk by 5 % instead: 2.3 %, 10.4 % unposed; a garment in the
+    T-pose unposed from an A-pose takes its sleeves above the arms: further out.)"""
     from core.unpose import a_pose, unpose_garment
 
     if body.layout is None:
-        return False
-    try:
-        rest, _ = unpose_garment(garment, body, a_pose(body))
-    except InputError:
-        return False
-    signed = mesh.signed_distance(rest.vertices, exact=False)
-    left = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
-    return left <= min(REST_INSIDE_WARN_SHARE, inside / 2) and float(np.median(np.abs(signed))) <= median + 0.005
+        return None
+    found = []
+    for degrees in A_POSE_CHECK_DEGREES:
+        try:
+            rest, _ = unpose_garment(garment, body, a_pose(body, degrees))
+        except InputError:
+            continue
+        signed = mesh.signed_distance(rest.vertices, exact=False)
+        left, out = float(np.mean(signed < -REST_INSIDE_DEPTH_M)), float(np.median(np.abs(signed)))
+        if left <= min(REST_INSIDE_WARN_SHARE, inside / 2) and out <= median + 0.005:
+            found.append((_fit_score(signed), degrees))
+    return min(found)[1] if found else None
 
 
 def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,

@@ -571,6 +571,80 @@ def _weld(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path) -> tu
     return root[faces], n
 
 
+#: Open-edge vertices of two pieces of a garment (connected components) that are each other's nearest within this
+#: (metres; and half the median edge) are one seam's, welded (`_weld_seams`): Marvelous Designer's and CLO's panels
+#: exported unwelded keep their sewn seams' vertices 1-3 mm apart, baked as separate pieces whose seams gape (the
+#: example skirt cut into 4 panels 1.5-2.8 mm apart: 232 mm on the walk with LBS, 100 with the model, unwarned).
+SEAM_WELD_M = 0.005
+#: Two pieces are layers (a cloth given thickness), not panels to sew, where more than this share of the smaller
+#: one's inner vertices lie within SEAM_WELD_M plus a median edge of the other's; a piece pair of fewer than
+#: SEAM_MIN_PAIRS pairs is no seam (an outfit's shirt hem crossing the trousers' waistband).
+SEAM_LAYER_SHARE = 0.5
+SEAM_MIN_PAIRS = 4
+
+
+def _weld_seams(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path
+                ) -> tuple[np.ndarray, np.ndarray, int]:
+    """(vertices, faces, how many were welded) with each seam pair (`SEAM_WELD_M`) of open-edge vertices of two
+    pieces made one vertex, at their midpoint (faces renumbered to the earlier; the other is left unused for
+    `_clean` to drop); warns naming how many and how far apart."""
+    from scipy.spatial import cKDTree
+
+    from core.garment import edge_face_counts
+    from core.graph import connected_components
+
+    if not len(faces):
+        return vertices, faces, 0
+    edges, counts = edge_face_counts(faces)
+    n_pieces, labels = connected_components(edges, len(vertices))
+    rim = np.unique(edges[counts == 1])
+    rim = rim[np.isfinite(vertices[rim]).all(axis=1)]
+    if len(np.unique(labels[np.unique(faces)])) < 2 or len(rim) < 2:
+        return vertices, faces, 0
+    lengths = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
+    median = float(np.median(lengths[np.isfinite(lengths)]))
+    reach = min(SEAM_WELD_M, 0.5 * median)
+    tree = cKDTree(vertices[rim])
+    dist, near = tree.query(vertices[rim], k=min(8, len(rim)), distance_upper_bound=reach)
+    other = np.full(len(rim), -1, dtype=np.int64)  # each rim vertex's nearest rim vertex of another piece
+    for k in range(dist.shape[1]):
+        found = near[:, k] < len(rim)
+        idx = np.where(found, near[:, k], 0)
+        take = found & (other < 0) & (labels[rim[idx]] != labels[rim])
+        other[take] = idx[take]
+    a = np.flatnonzero(other >= 0)
+    a = a[other[other[a]] == a]  # mutual nearest
+    a = a[a < other[a]]
+    if not len(a):
+        return vertices, faces, 0
+    pairs = np.stack([rim[a], rim[other[a]]], axis=1)
+    pieces = np.sort(labels[pairs], axis=1)
+    keys, inverse, sizes = np.unique(pieces, axis=0, return_inverse=True, return_counts=True)
+    inner = np.setdiff1d(np.unique(faces), rim)
+    keep = sizes >= SEAM_MIN_PAIRS
+    for k, (p, q) in enumerate(keys):
+        if not keep[k]:
+            continue
+        small, large = (p, q) if np.sum(labels[inner] == p) <= np.sum(labels[inner] == q) else (q, p)
+        mine, theirs = inner[labels[inner] == small], np.flatnonzero(labels == large)
+        if len(mine) and len(theirs):
+            d, _ = cKDTree(vertices[theirs]).query(vertices[mine], distance_upper_bound=reach + median)
+            keep[k] = np.mean(np.isfinite(d)) <= SEAM_LAYER_SHARE  # a layer over the other: no seam
+    pairs = pairs[keep[inverse.ravel()]]
+    if not len(pairs):
+        return vertices, faces, 0
+    gap = np.linalg.norm(vertices[pairs[:, 0]] - vertices[pairs[:, 1]], axis=1)
+    vertices = np.array(vertices, dtype=np.float64)
+    vertices[pairs[:, 0]] = (vertices[pairs[:, 0]] + vertices[pairs[:, 1]]) / 2.0
+    root = np.arange(len(vertices))
+    root[pairs[:, 1]] = pairs[:, 0]
+    joined = len(np.unique(np.sort(labels[pairs], axis=1), axis=0))
+    log.warning("%s '%s': welded %d seam vertices of separate pieces lying %.2g-%.2g mm apart, each pair at its "
+                "midpoint (%d seams: panels exported unwelded, whose seams would open when baked)", label, path,
+                len(pairs), gap.min() * 1e3, gap.max() * 1e3, joined)
+    return vertices, root[faces], len(pairs)
+
+
 #: Open-edge vertices of a garment closer than this (metres; and a quarter of its median edge) to another, not welded
 #: and not its neighbour along an edge, are warned about (`_warn_open_seams`): panels exported apart, just beyond
 #: the weld, are baked as separate pieces, and their seam opens (the example skirt's centre seam split 1e-5 m apart
@@ -768,7 +842,8 @@ def garment_from_polygons(vertices: np.ndarray, polygons: np.ndarray, uvs: np.nd
     with np.errstate(invalid="ignore", over="ignore"):  # Inf coordinates: validate_garment names the vertex
         faces, face_uvs, _ = triangulate(vertices, polygons, polygon_uvs)
         faces, welded = _weld(vertices, faces, label, path)
-        vertices, faces, face_uvs = _clean(vertices, faces, face_uvs, label, path, welded)
+        vertices, faces, seams = _weld_seams(vertices, faces, label, path)
+        vertices, faces, face_uvs = _clean(vertices, faces, face_uvs, label, path, welded + seams)
         _warn_open_seams(vertices, faces, label, path)
     garment_uvs = None
     if face_uvs is not None and len(faces):

@@ -467,19 +467,43 @@ def test_panels_exported_separately_are_welded_at_their_seams(tmp_path, caplog):
     np.testing.assert_allclose(np.sort(g.vertices, axis=0), np.sort(skirt.vertices, axis=0), atol=1e-6)
 
 
-def test_vertices_apart_by_more_than_the_weld_distance_stay_apart_and_a_near_miss_is_warned_about(tmp_path, caplog):
-    """Panels 0.1 mm apart (10x the weld distance) stay apart; so near, their seam is named: baked apart it opens
-    (a seam just beyond the weld gaped 19 cm on the walk, without a word). Panels 5 mm apart: no seam to name."""
-    path, skirt = _panels(tmp_path, gap=1e-4)
+@pytest.mark.parametrize("gap", [1e-4, 1.5e-3])
+def test_panels_exported_apart_are_welded_at_their_seams_at_the_midpoints(tmp_path, caplog, gap):
+    """Panels 0.1 mm or 2 mm apart (Marvelous Designer's and CLO's unwelded exports keep sewn seams 1-3 mm apart)
+    were baked as 4 loose panels whose seams gaped (232 mm on the walk with LBS; at 0.1 mm with a warning only):
+    each seam pair of open-edge vertices of two pieces is one vertex, at its midpoint."""
+    from core.garment import mesh_edges
+    from core.graph import connected_components
+
+    path, skirt = _panels(tmp_path, gap=gap)
     with caplog.at_level(logging.WARNING):
         g = read_obj(path)
-    assert "welded 112" not in caplog.text and g.n_vertices == skirt.n_vertices + 112
-    assert "112 pairs of open-edge vertices lie 0.1-0.3 mm apart, not welded (the weld takes 0.01 mm)" in caplog.text
-    caplog.clear()
-    path, _ = _panels(tmp_path, gap=5e-3, name="apart.obj")
+    assert f"welded 112 seam vertices of separate pieces lying {gap * 1e3:.2g}-" in caplog.text
+    assert "open-edge" not in caplog.text and "unused" not in caplog.text
+    assert g.n_vertices == skirt.n_vertices and g.n_faces == skirt.n_faces
+    assert connected_components(mesh_edges(g.faces), g.n_vertices)[0] == 1
+    # every vertex where the skirt has one, as its panel was moved (panel 3 by 3 gaps; a seam at its midpoint)
+    d = np.linalg.norm(g.vertices[:, None] - skirt.vertices[None], axis=2).min(axis=1)
+    assert d.max() <= 3 * gap + 1e-6
+
+
+def test_pieces_far_apart_or_layers_of_a_thick_cloth_are_not_welded(tmp_path, caplog):
+    """Panels 3 cm apart are pieces of their own (no seam to name); a cloth given thickness (two shells 2.5 mm
+    apart, their rims side by side) is two layers, not panels to sew."""
+    path, skirt = _panels(tmp_path, gap=0.03, name="apart.obj")
     with caplog.at_level(logging.WARNING):
-        read_obj(path)
-    assert "open-edge" not in caplog.text
+        g = read_obj(path)
+    assert g.n_vertices == skirt.n_vertices + 112 and "welded" not in caplog.text and "open-edge" not in caplog.text
+    from core.geometry import vertex_normals
+
+    normals = vertex_normals(skirt.vertices.astype(np.float64), skirt.faces)
+    outer = skirt.vertices + 0.0025 * normals
+    write_obj(tmp_path / "shells.obj", np.concatenate([skirt.vertices, outer]),
+              np.concatenate([skirt.faces, skirt.faces + skirt.n_vertices]))
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        g = read_obj(tmp_path / "shells.obj")
+    assert g.n_vertices == 2 * skirt.n_vertices and "seam vertices" not in caplog.text
 
 
 def test_welding_keeps_uv_seams():
