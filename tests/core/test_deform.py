@@ -363,8 +363,15 @@ def test_a_garment_file_holding_the_body_itself_is_refused(trousers_on_body):
         bind_garment(Garment(v, f, name="with_avatar.obj"), body)
     assert f"expected the garment alone, got piece 2 of 2 ({body.n_vertices:,} vertices, 100% of them on the " \
            "body's skin): the avatar exported with the garment?" in str(err.value)
+    # the body 3 mm off its skin (remeshed, pushed out, another shape's): it baked as 13,348 vertices of cloth
+    from core.geometry import vertex_normals
+
+    off = body.v_template + 0.003 * vertex_normals(body.v_template.astype(np.float64), body.faces)
+    with pytest.raises(InputError, match=r"got piece 2 of 2 \(13,348 vertices spanning the body from head to soles "
+                                         r"and fingertip to fingertip, 3 mm from its skin \(median\)\): the avatar"):
+        bind_garment(Garment(np.concatenate([g.vertices, off.astype(np.float32)]), f, name="off.obj"), body)
     centre = body.v_template.mean(axis=0)
-    shrunk = (centre + (body.v_template - centre) * 0.9).astype(np.float32)
+    shrunk = (centre + (body.v_template - centre) * 0.8).astype(np.float32)
     bind_garment(Garment(np.concatenate([g.vertices, shrunk]), f, name="inner.obj"), body)  # warned as inside
 
 
