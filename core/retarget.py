@@ -156,8 +156,14 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     itself = {k: k for k in range(24)}  # SMPL's rest joints as a rig matched to itself
     chunks = [slice(s, s + CHUNK_FRAMES) for s in range(0, len(rotations), CHUNK_FRAMES)]
 
+    carriers = _segment_carriers(match, parents)
+
     def posed(c: slice) -> tuple[np.ndarray, np.ndarray]:
-        return rig_pose(parents, offsets, rotations[c], root_positions[c], None if moving is None else moving[c])
+        world, position = rig_pose(parents, offsets, rotations[c], root_positions[c],
+                                   None if moving is None else moving[c])
+        for j, t in carriers.items():  # a limb split into segments turns as its last one
+            world[:, j] = world[:, t]
+        return world, position
 
     by_bone = leaning_up = None
     body_m = _body_frame(smpl_rest, itself)
@@ -214,6 +220,23 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
             f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}")
     return Retargeted(poses, trans, up, said)
+
+
+def _segment_carriers(match: dict[int, int], parents: list[int]) -> dict[int, int]:
+    """{matched rig joint: the joint its limb's next matched joint hangs from}, where that is another below it: a
+    limb split into segments in its chain (Daz's lShldrBend > lShldrTwist > lForearmBend, Rigify's DEF-upper_arm.L >
+    DEF-upper_arm.L.001, Meta's WristTwist), whose last segment turns as the whole bone with its twist. SMPL's joint
+    took the first segment's rotation: the twist the others hold went to the next joint (a Daz shoulder 17 degrees
+    off on a walk, an elbow 84 on a bent, rolled arm). The spine's own extra joints are matched otherwise."""
+    carriers = {}
+    for k, j in match.items():
+        c = chain_end(k, match)
+        if k in _TRUNK or c is None:
+            continue
+        t = parents[match[c]]
+        if t != j and _descends(parents, t, j):
+            carriers[j] = t
+    return carriers
 
 
 def rig_pose(parents: list[int], offsets: np.ndarray, rotations: np.ndarray, root_positions: np.ndarray,

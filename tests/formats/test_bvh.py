@@ -575,3 +575,60 @@ def test_a_rig_is_retargeted_chunk_by_chunk_as_at_once(tmp_path, monkeypatch):
         chunked = load_motion(p, world_checks=False)
         np.testing.assert_array_equal(chunked.poses, m.poses)
         np.testing.assert_array_equal(chunked.trans, m.trans)
+
+
+def _swing_twist(R: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 3, 3) rotations as (swing (T, 3, 3), twist angle (T,) radians about the unit `axis`): R = swing @ twist."""
+    q = Rotation.from_matrix(R).as_quat()  # x y z w
+    q = np.where(q[:, 3:] < 0, -q, q)
+    angle = 2 * np.arctan2(q[:, :3] @ axis, q[:, 3])
+    return R @ np.swapaxes(Rotation.from_rotvec(angle[:, None] * axis).as_matrix(), 1, 2), angle
+
+
+def test_a_limb_split_into_twist_segments_in_its_chain_turns_as_its_last_segment(tmp_path):
+    """Rigify's deform bones (DEF-upper_arm.L > DEF-upper_arm.L.001 > DEF-forearm.L > ...; Daz's lShldrBend >
+    lShldrTwist, Meta's WristTwist alike): the first segment carries the bone's swing and half its twist, the
+    second the whole. SMPL's shoulder, elbow, hip and knee took the first segment's rotation, half the twist going
+    to the next joint (8 degrees on a walk, 41 on a bent, rolled arm): now exact."""
+    poses, trans = _motion(6, seed=17)
+    poses[:, 22:] = 0
+    poses[:, [10, 11]] = 0  # the toes: the rig's toe has no bone beyond
+    joints = default_body().shaped(None)[1][:24].astype(np.float64)
+    smpl = _smpl_world(poses)
+    local = axis_angle_to_matrix(poses.astype(np.float64))
+    entries = [("DEF-spine", None, 0), ("DEF-spine.001", "DEF-spine", 3), ("DEF-spine.002", "DEF-spine.001", 6),
+               ("DEF-spine.003", "DEF-spine.002", 9), ("DEF-spine.004", "DEF-spine.003", 12),
+               ("DEF-spine.006", "DEF-spine.004", 15)]
+    for side, o in (("L", 0), ("R", 1)):
+        entries += [(f"DEF-shoulder.{side}", "DEF-spine.003", 13 + o)]
+        for first, second, parent, k, end in (("upper_arm", "forearm", f"DEF-shoulder.{side}", 16 + o, 18 + o),
+                                              ("forearm", "hand", f"DEF-upper_arm.{side}.001", 18 + o, 20 + o),
+                                              ("thigh", "shin", "DEF-spine", 1 + o, 4 + o),
+                                              ("shin", "foot", f"DEF-thigh.{side}.001", 4 + o, 7 + o)):
+            entries += [(f"DEF-{first}.{side}", parent, ("half", k, end)),
+                        (f"DEF-{first}.{side}.001", f"DEF-{first}.{side}", ("whole", k, end))]
+        entries += [(f"DEF-hand.{side}", f"DEF-forearm.{side}.001", 20 + o),
+                    (f"DEF-foot.{side}", f"DEF-shin.{side}.001", 7 + o), (f"DEF-toe.{side}", f"DEF-foot.{side}", 10 + o)]
+    names = [e[0] for e in entries]
+    parents = [names.index(e[1]) if e[1] else -1 for e in entries]
+    rest, world = [], np.empty((len(poses), len(entries), 3, 3))
+    for j, (_, _, how) in enumerate(entries):
+        if isinstance(how, int):
+            rest.append(joints[how])
+            world[:, j] = smpl[:, how]
+            continue
+        part, k, end = how
+        rest.append(joints[k] if part == "half" else (joints[k] + joints[end]) / 2)
+        axis = (joints[end] - joints[k]) / np.linalg.norm(joints[end] - joints[k])
+        swing, angle = _swing_twist(local[:, k], axis)
+        twist = Rotation.from_rotvec(((0.5 if part == "half" else 1.0) * angle)[:, None] * axis).as_matrix()
+        world[:, j] = smpl[:, SMPL_PARENTS[k]] @ swing @ twist
+    rest = np.array(rest)
+    rotations = world.copy()
+    for j, p in enumerate(parents):
+        if p >= 0:
+            rotations[:, j] = np.swapaxes(world[:, p], 1, 2) @ world[:, j]
+    offsets = np.array([rest[j] - rest[p] if p >= 0 else rest[j] for j, p in enumerate(parents)]) / 0.01
+    path = write_skeleton(tmp_path / "rigify.bvh", names, parents, offsets, rotations, (joints[0] + trans) / 0.01, 30)
+    m = load_motion(path, world_checks=False)
+    np.testing.assert_allclose(axis_angle_to_matrix(m.poses)[:, :22], axis_angle_to_matrix(poses)[:, :22], atol=1e-4)
