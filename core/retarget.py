@@ -116,13 +116,15 @@ def canonical(name: str) -> str:
     dropped)."""
     n = re.sub(r"^m(?=[A-Z])", "", name.rsplit(":", 1)[-1].strip()).lower()  # Second Life's 'mHipLeft
     n = _SUFFIXES.sub("", _PREFIXES.sub("", n))
-    side = re.search(r"[ _.\-](l|r|left|right|m|c)$", n)  # a side, or the middle (AdvancedSkeleton's 'Head_M')
+    # a side, or the middle (AdvancedSkeleton's 'Head_M', Auto-Rig Pro's 'head.x')
+    side = re.search(r"[ _.\-](l|r|left|right|m|c|x)$", n)
     if side:
-        n = side.group(1)[0].replace("m", "").replace("c", "") + n[:side.start()]
+        n = side.group(1)[0].replace("m", "").replace("c", "").replace("x", "") + n[:side.start()]
     elif not re.match(r"(left|right)", n):  # the side a word at its end (Kinect's 'KneeLeft')
         side = re.search(r"(?<=[a-z0-9])(left|right)$", n)
         if side:
             n = side.group(1) + n[:side.start()]
+    n = re.sub(r"(?<=[a-z0-9])[ _.\-]stretch$", "", n)  # Auto-Rig Pro's deforming 'arm_stretch.l'
     n = re.sub(r"[^a-z0-9]", "", n)
     return re.sub(r"^(left|right)", lambda m: m.group(1)[0], n)
 
@@ -315,7 +317,15 @@ def match_joints(names: list[str], parents: list[int], src: str, trees: tuple = 
         for key, role in _NUMBERED_SPINE.items():
             if key in by_name:
                 by_name.setdefault(role, by_name[key])
+    if "head" not in by_name:  # ValveBiped's 'Bip01_Head1'
+        numbered = next((j for j, key in enumerate(keys) if re.fullmatch(r"head\d+", key)), None)
+        if numbered is not None:
+            by_name["head"] = numbered
     sides = {side: _sides(by_name, side) for side in ("l", "r")}
+    for roles in sides.values():  # a 'wrist' the hand does not hang from is a helper (ValveBiped's L_Wrist)
+        if roles["wrist"] is not None and roles["hand"] is not None and not _descends(parents, roles["hand"],
+                                                                                      roles["wrist"]):
+            roles["wrist"], roles["hand"] = roles["hand"], None
     for role, example in _REQUIRED.items():
         for side, word in (("l", "left"), ("r", "right")):
             if sides[side][role] is None:

@@ -632,3 +632,39 @@ def test_a_limb_split_into_twist_segments_in_its_chain_turns_as_its_last_segment
     path = write_skeleton(tmp_path / "rigify.bvh", names, parents, offsets, rotations, (joints[0] + trans) / 0.01, 30)
     m = load_motion(path, world_checks=False)
     np.testing.assert_allclose(axis_angle_to_matrix(m.poses)[:, :22], axis_angle_to_matrix(poses)[:, :22], atol=1e-4)
+
+
+def _named_rig(spine, side_names, helpers=()):
+    """A `_rig` of a pelvis-spine-neck-head chain `spine` [(name, SMPL joint or where)] and each side's limbs
+    `side_names` (format strings of the side's letter: collar, upper arm, forearm, hand, thigh, shin, foot, toe),
+    `helpers` [(format name, parent's format name, where)] leaves beside them."""
+    entries = [(n, spine[i - 1][0] if i else None, k) for i, (n, k) in enumerate(spine)]
+    chest, pelvis = spine[-3][0], spine[0][0]
+    for side, o in (("L", 0), ("R", 1)):
+        collar, arm, forearm, hand, thigh, shin, foot, toe = (n.format(side) for n in side_names)
+        entries += [(collar, chest, 13 + o), (arm, collar, 16 + o), (forearm, arm, 18 + o), (hand, forearm, 20 + o),
+                    (thigh, pelvis, 1 + o), (shin, thigh, 4 + o), (foot, shin, 7 + o), (toe, foot, 10 + o)]
+        entries += [(n.format(side), p.format(side), (a + o, b + o, f)) for n, p, (a, b, f) in helpers]
+    return _rig(entries)
+
+
+@pytest.mark.parametrize("rig", [
+    # Source engine's ValveBiped, its head 'Head1', a helper 'L_Wrist' beside the hand (refused: "no 'Head'", then
+    # the hand "expected under 'L_Wrist'")
+    _named_rig([("ValveBiped.Bip01_Pelvis", 0), ("ValveBiped.Bip01_Spine", 3), ("ValveBiped.Bip01_Spine1", 6),
+                ("ValveBiped.Bip01_Spine2", 9), ("ValveBiped.Bip01_Neck1", 12), ("ValveBiped.Bip01_Head1", 15)],
+               [f"ValveBiped.Bip01_{{}}_{n}" for n in ("Clavicle", "UpperArm", "Forearm", "Hand", "Thigh", "Calf",
+                                                      "Foot", "Toe0")],
+               [("ValveBiped.Bip01_{}_Wrist", "ValveBiped.Bip01_{}_Forearm", (18, 20, 0.9))]),
+    # Blender Auto-Rig Pro's export: the middle '.x', the deforming limbs '_stretch' (refused: "no left hip")
+    _named_rig([("root.x", 0), ("spine_01.x", 3), ("spine_02.x", 6), ("spine_03.x", 9), ("neck.x", 12),
+                ("head.x", 15)],
+               [f"{n}.{{}}" for n in ("shoulder", "arm_stretch", "forearm_stretch", "hand", "thigh_stretch",
+                                     "leg_stretch", "foot", "toes_01")]),
+])
+def test_rigs_named_as_game_and_blender_tools_name_them_read_as_their_motion(tmp_path, rig):
+    poses, trans = _motion(5, seed=23)
+    poses[:, 22:] = 0
+    m = load_motion(rig_bvh(tmp_path / "rig.bvh", poses, trans, rig), world_checks=False)
+    limbs = [1, 2, 4, 5, 7, 8, 13, 14, 16, 17, 18, 19, 20, 21]
+    np.testing.assert_allclose(_smpl_world(m.poses)[:, limbs], _smpl_world(poses)[:, limbs], atol=1e-4)
