@@ -64,6 +64,11 @@ GARMENT_MAX_SPAN_M = 3.0
 #: Two such fixes whose scores are within this factor leave the choice open: neither is named (a t-shirt of
 #: GarmentTransfer's, turned about X either way: 1.2).
 FRAME_FIX_TIE = 1.25
+#: Of the fixes that put a garment on the body, the earliest (one change before two) whose `_fit_score` is within
+#: this factor of the best is told: a skirt turned -90 degrees about X fits upside down too (its score 7 % worse:
+#: it was told the first fix that fitted, `--turn z-up`, leaving it upside down); a symmetric skirt lifted by
+#: the floor fits as well turned round (0.2 %).
+FRAME_FIX_PREFER = 1.02
 #: After such a fix the garment is climbed (`_shift_climb`) at most this far on each axis (metres: x, y, z).
 FRAME_FIX_CLIMB_M = np.array([0.1, 0.35, 0.1])
 #: A garment whose top lies more than ABOVE_HEAD_M above the rest body's head with none of it more than
@@ -558,7 +563,7 @@ def _unposed_angle(garment: Garment, body: Body, mesh: TriangleMesh, inside: flo
 def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
                closer_than: tuple[float, float] | None = None, name: str = "GARMENT",
                placed: Placement | None = None) -> str | None:
-    """The first of `FRAME_FIXES` that puts the garment on the body (median distance at most
+    """The one of `FRAME_FIXES` that puts the garment on the body best (median distance at most
     FRAME_FIX_MEDIAN_M, at most REST_INSIDE_WARN_SHARE of it inside, or, without `closer_than`, its `_fit_score`
     FRAME_FIX_SCORE_GAIN times smaller), as "it fits when ..." (`_fix_text`), or None.
     closer_than: (median, closest 5 %) distances of the garment as it is (metres): the fix must also make both
@@ -567,6 +572,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     soles = -float(body.v_template[:, 1].min())  # how far the body's soles are below its origin
     base = _fit_score(mesh.signed_distance(v, exact=False)) if closer_than is None else None
     scored = []  # (score, what, rotation, drop, moved vertices) of the fixes putting it near the body, partly inside
+    fitting = []  # (score, what, rotation, drop, share inside) of those that fit
     for what, rotation, on_floor in FRAME_FIXES:
         if on_floor and soles <= 0.0:
             continue  # a body standing on y = 0 itself: no floor to take off
@@ -582,7 +588,11 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
         elif not fits and median <= FRAME_FIX_MEDIAN_M:
             scored.append((_fit_score(signed), what.format(drop=drop), rotation, drop, moved))
         if fits:
-            return _fix_text(what.format(drop=drop), rotation, np.array([0.0, -drop, 0.0]), inside, name, placed)
+            fitting.append((_fit_score(signed), what.format(drop=drop), rotation, drop, inside))
+    if fitting:  # the best of those that fit, an earlier (fewer changes) where about as good
+        best = min(f[0] for f in fitting)
+        _, what, rotation, drop, inside = next(f for f in fitting if f[0] <= FRAME_FIX_PREFER * best)
+        return _fix_text(what, rotation, np.array([0.0, -drop, 0.0]), inside, name, placed)
     # None fits outright (in order): the one that fits best, FRAME_FIX_SCORE_GAIN times better than as it is, unless
     # another fits nearly as well (within FRAME_FIX_TIE): then neither is told. Authored on another body, it may sit
     # higher or lower on this one (a mannequin's shirt, dropped to this body's soles, reached the chin; a Z-up

@@ -437,6 +437,20 @@ def test_garment_moved_three_ways_that_no_axis_alone_puts_right_is_refused_namin
     assert np.abs(np.array([float(x) for x in found[1].split(",")]) - [-0.2, 0.1, -0.1]).max() <= 0.0201
 
 
+@pytest.mark.parametrize("turn", ["x+90", "z-up"])
+def test_a_tube_that_fits_upside_down_too_is_told_the_turn_that_fits_best(turn):
+    """The example skirt turned -90 degrees about X fits the body turned +90 (right) and -90 (upside down, a tube
+    over the hips): it was told the first that fitted, `--turn z-up`, which left it upside down."""
+    from core.body import default_body
+    from core.skinning import TURNS
+    from formats.obj import read_garment
+
+    skirt = read_garment(Path(__file__).resolve().parents[2] / "examples" / "skirt.obj")
+    v = skirt.vertices.astype(np.float64) @ TURNS[turn]  # the turn undone
+    with pytest.raises(InputError, match=re.escape(f"`garment unpose skirt.obj --pose tpose --turn {turn}`") + "$"):
+        bind_garment(Garment(v.astype(np.float32), skirt.faces, name="skirt.obj"), default_body())
+
+
 @pytest.mark.parametrize("frame", ["on the floor", "Z-up"])
 def test_a_garment_of_another_body_in_another_frame_is_refused_naming_the_fix_and_what_it_leaves_inside(
         trousers_on_body, frame):
