@@ -702,3 +702,19 @@ def test_betas_count_mismatch_warns(caplog):
     with caplog.at_level(logging.WARNING):
         out = body.fit_betas(np.ones(16))
     assert out.tolist() == [1, 1, 1, 1] and "ignored" in caplog.text
+
+
+def test_a_file_of_several_garments_is_told_apart_from_a_cloths_two_layers():
+    """A t-shirt and a skirt in one OBJ: the model read them as one garment (the skirt 51 mm from its own bake,
+    mean), without a word; two layers of one cloth are not several garments."""
+    from core.model_deform import garments_in_one
+    from formats.obj import read_garment
+
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    shirt, skirt = (read_garment(examples / f"{name}.obj") for name in ("tshirt", "skirt"))
+    outfit = Garment(np.concatenate([shirt.vertices, skirt.vertices]),
+                     np.concatenate([shirt.faces, skirt.faces + shirt.n_vertices]), name="outfit.obj")
+    assert garments_in_one(outfit).startswith("2 pieces of 6,698 and 2,016 vertices, at y ")
+    layers = Garment(np.concatenate([skirt.vertices, skirt.vertices * 1.01]),
+                     np.concatenate([skirt.faces, skirt.faces + skirt.n_vertices]), name="layers.obj")
+    assert garments_in_one(layers) == "" and garments_in_one(skirt) == ""
