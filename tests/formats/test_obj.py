@@ -487,6 +487,18 @@ def test_panels_exported_apart_are_welded_at_their_seams_at_the_midpoints(tmp_pa
     assert d.max() <= 3 * gap + 1e-6
 
 
+def test_a_cloth_written_twice_is_welded_and_told_for_what_it_is(tmp_path, caplog):
+    """A two-sided export of zero thickness (every vertex and face twice) was told "the seams of separately exported
+    panels"."""
+    path, skirt = _panels(tmp_path)
+    write_obj(tmp_path / "twice.obj", np.concatenate([skirt.vertices, skirt.vertices]),
+              np.concatenate([skirt.faces, skirt.faces[:, ::-1] + skirt.n_vertices]))
+    with caplog.at_level(logging.WARNING):
+        g = read_obj(tmp_path / "twice.obj")
+    assert g.n_vertices == skirt.n_vertices and "(within 0.01 mm; the cloth written twice: a two-sided export?)" in \
+        caplog.text
+
+
 def test_pieces_far_apart_or_layers_of_a_thick_cloth_are_not_welded(tmp_path, caplog):
     """Panels 3 cm apart are pieces of their own (no seam to name); a cloth given thickness (two shells 2.5 mm
     apart, their rims side by side) is two layers, not panels to sew."""
