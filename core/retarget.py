@@ -219,9 +219,24 @@ def retarget(names: list[str], parents: list[int], offsets: np.ndarray, rotation
     up = next((axis for axis, v in _UP_AXES.items() if body_s[:, 1] @ v > _UP_COSINE), None)
     if up is None and by_bone is not None:  # a body leaning throughout (a sad walk): the axis it leans nearest to
         up = leaning_up
-    said = (f"{len(match)} of SMPL's 24 joints matched ({', '.join(names[match[k]] for k in (0, 1, 16))}, ...); "
+    roles = (("pelvis", (0,)), ("hips", (1, 2)), ("knees", (4, 5)), ("ankles", (7, 8)), ("spine", (3, 6, 9)),
+             ("shoulders", (16, 17)), ("elbows", (18, 19)), ("wrists", (20, 21)))
+
+    def named(k: int) -> str:  # (a wrong elbow, or a twist joint passed over, is seen)
+        if k not in match:
+            return "-"
+        j = match[k]
+        return names[j] + (f" (turning as {names[carriers[j]]})" if j in carriers else "")
+
+    listed = "; ".join(f"{role} " + ", ".join(named(k) for k in ks) for role, ks in roles)
+    said = (f"{len(match)} of SMPL's 24 joints matched ({listed}); "
             f"legs of {legs_s:.4g} units, SMPL's {legs_m:.2f} m, its path scaled by {legs_m / legs_s:.4g}")
     return Retargeted(poses, trans, up, said)
+
+
+#: SMPL's joints whose bone a rig may split into twist segments: the hips, knees, shoulders and elbows (not the
+#: ankles: a foot's metatarsal joint bends the forefoot, which the heel does not follow).
+_TWISTING = (1, 2, 4, 5, 16, 17, 18, 19)
 
 
 def _segment_carriers(match: dict[int, int], parents: list[int]) -> dict[int, int]:
@@ -229,11 +244,12 @@ def _segment_carriers(match: dict[int, int], parents: list[int]) -> dict[int, in
     limb split into segments in its chain (Daz's lShldrBend > lShldrTwist > lForearmBend, Rigify's DEF-upper_arm.L >
     DEF-upper_arm.L.001, Meta's WristTwist), whose last segment turns as the whole bone with its twist. SMPL's joint
     took the first segment's rotation: the twist the others hold went to the next joint (a Daz shoulder 17 degrees
-    off on a walk, an elbow 84 on a bent, rolled arm). The spine's own extra joints are matched otherwise."""
+    off on a walk, an elbow 84 on a bent, rolled arm). Only the limbs of `_TWISTING`: the spine's own extra joints
+    are matched otherwise."""
     carriers = {}
     for k, j in match.items():
         c = chain_end(k, match)
-        if k in _TRUNK or c is None:
+        if k not in _TWISTING or c is None:
             continue
         t = parents[match[c]]
         if t != j and _descends(parents, t, j):

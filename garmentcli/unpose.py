@@ -263,7 +263,8 @@ def unpose(garment_path, pose_spec, arm_angle, frame, body_path, out_path, overw
                    f"worst {report['max_edge_stretch']:.3g}x, at vertex {report['torn_at_vertex']}): that part took the weights of a body part it does not lie "
                    f"on (cloth pressed against another part in the pose?); look at it before baking it (garment "
                    f"render {out})", err=True)
-    click.echo(f"{out}: {written} vertices {moved} (largest move "
+    after = " after the scale" if given.scale != 1.0 else ""  # (a file in millimetres shrinks 1000 times: no move)
+    click.echo(f"{out}: {written} vertices {moved} (largest move{after} "
                f"{report['max_move_m'] * 100:.1f} cm; skinned back into the pose, {report['reposed_max_error_m'] * 1e3:.1f} "
                f"mm from the input at most; on the posed body: median distance "
                f"{report['posed_median_distance_m'] * 100:.1f} cm, {report['posed_inside_share']:.1%} inside)")
