@@ -32,7 +32,7 @@ import core.model_deform as model_deform  # noqa: E402
 from core.body import default_body  # noqa: E402
 from core.deform import LBSDeformer  # noqa: E402
 from formats.obj import read_garment  # noqa: E402
-from formats.report import markdown_table  # noqa: E402
+from formats.report import markdown_table, write_markdown  # noqa: E402
 from garmentcli.common import prepare_motion  # noqa: E402
 
 CACHE = ROOT / "data" / "residual_smoothing"
@@ -96,17 +96,14 @@ def main() -> None:
                          "-" if err is None else f"{np.percentile(err, 99):.1f}"])
             print(rows[-1], flush=True)
     header = ["scene", "output", "vertex-frames > 10 mm/frame^2", "> 30", "largest", "error mm", "p99 mm"]
-    text = ("# Smoothing the model's residual in time\n\n"
-            f"`python benchmarks/residual_smoothing.py` on {platform.processor() or platform.machine()}, one torch "
-            "thread: the shipped model (float32, contact guard and strain limit on), its residual over LBS under a "
-            "Gaussian of sigma frames before the guard; accelerations beyond LBS's (mm/frame^2, vertex-frames); error "
-            "against the simulator's reference (20 substeps, self-contact) where one is made. Not shipped: the "
-            "simulator's cloth accelerates beyond the body more than the model's, and every sigma moves the model "
-            "away from it.\n\n"
-            + markdown_table(header, rows) + "\n")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
+    write_markdown(args.out, ["# Smoothing the model's residual in time", "",
+                              f"`python benchmarks/residual_smoothing.py` on {platform.processor() or platform.machine()}"
+                              ", one torch thread: the shipped model (float32, contact guard and strain limit on), its "
+                              "residual over LBS under a Gaussian of sigma frames before the guard; accelerations "
+                              "beyond LBS's (mm/frame^2, vertex-frames); error against the simulator's reference (20 "
+                              "substeps, self-contact) where one is made. Not shipped: the simulator's cloth "
+                              "accelerates beyond the body more than the model's, and every sigma moves the model "
+                              "away from it.", "", markdown_table(header, rows)], show=True)
 
 
 if __name__ == "__main__":
