@@ -249,6 +249,7 @@ class ModelDeformer(Deformer):
         #: Per joint, the largest share of a training garment's weight on it (None: not recorded).
         self.coverage = coverage
         self._garments: dict = {}
+        self._trims: dict = {}  # garment content hash -> its `Trims` (or None), found once
         self._shaped: dict = {}
         #: Keep vertices outside the body faces they rest on (`core.pushout.guard_contact`).
         self.contact_guard = contact_guard
@@ -303,6 +304,7 @@ class ModelDeformer(Deformer):
         if key not in self._garments:
             self._garments[key] = prepare_garment(garment, body, self.model.config, self.cache_dir, source,
                                                      near=False)
+            self._trims[garment.content_hash()] = trims_of(garment)
             outfit = garments_in_one(garment)
             if outfit:
                 log.warning("garment mesh '%s': %s (an outfit of several garments?): the model reads them as one "
@@ -517,7 +519,7 @@ class ModelDeformer(Deformer):
         self.report.update(guard)
         if "strain_limit" in self.report:
             self.report["strain_limit"]["device"] = str(device) if limit is not None else "cpu"
-        trims = trims_of(garment)
+        trims = self._trims[garment.content_hash()]  # (found by `prepare`, once per garment: not per motion)
         if trims is not None:
             out = carry_trims(out, garment, trims)
             self.report["trims_carried"] = trims.pieces

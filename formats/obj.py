@@ -598,7 +598,7 @@ def _weld_seams(vertices: np.ndarray, faces: np.ndarray, label: str, path: Path
     if not len(faces):
         return vertices, faces, 0
     edges, counts = edge_face_counts(faces)
-    n_pieces, labels = connected_components(edges, len(vertices))
+    _, labels = connected_components(edges, len(vertices))
     rim = np.unique(edges[counts == 1])
     rim = rim[np.isfinite(vertices[rim]).all(axis=1)]
     if len(np.unique(labels[np.unique(faces)])) < 2 or len(rim) < 2:
