@@ -22,7 +22,7 @@ from core.body import Body
 from core.errors import InputError
 from core.garment import UNIT_GUESSES, Garment, mesh_edges
 from core.geodesic import edge_lengths
-from core.geometry import Y_UP_TO_Z_UP_MATRIX, ClosestPoints, TriangleMesh, face_normals
+from core.geometry import ClosestPoints, TriangleMesh, face_normals
 from core.graph import adjacency
 
 log = logging.getLogger(__name__)
@@ -44,6 +44,9 @@ REST_INSIDE_FRAME_SHARE = 0.05
 #: garments: 1.6-5 cm; the wrong fixes of the examples turned or lifted: 17 cm or more) and at most
 #: REST_INSIDE_WARN_SHARE of it is inside.
 FRAME_FIX_MEDIAN_M = 0.10
+#: A fix whose median distance on an even sample of the garment (`SHIFT_SAMPLE` vertices) is over FRAME_FIX_SCREEN
+#: times FRAME_FIX_MEDIAN_M is not tried on the whole garment (most of the 47 fixes put it far from the body).
+FRAME_FIX_SCREEN = 1.5
 #: A garment that rests near the body (not far, at most REST_INSIDE_FRAME_SHARE inside) but with a median distance
 #: over FRAME_FIX_SUSPECT_MEDIAN_M (the example garments: 1.6-5 cm) is tried with `FRAME_FIXES` too, and refused
 #: when one puts it on the body with its median distance and that of its closest 5 % both FRAME_FIX_GAIN times
@@ -158,20 +161,69 @@ def bind_garment(garment: Garment, body: Body, smooth_iterations: int = 0, smoot
     return GarmentBinding(weights=weights, shapedirs=shapedirs, body_distance=hit.distance.astype(np.float32))
 
 
-#: The turns `garment unpose --turn` makes, by name: the rotations of `_TURNS`.
-TURNS = {"z-up": Y_UP_TO_Z_UP_MATRIX.T, "x+90": Y_UP_TO_Z_UP_MATRIX,
-         "backwards": np.array([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])}
-_TURNS = (("rotated -90 degrees about X (Z-up to Y-up)", TURNS["z-up"]),
-          ("rotated +90 degrees about X", TURNS["x+90"]),
-          ("turned 180 degrees about Y (it faces backwards)", TURNS["backwards"]))
+def _axis_turn(axis: int, degrees: int) -> np.ndarray:
+    """(3, 3) the rotation by `degrees` (a multiple of 90) about axis `axis` (0: X, 1: Y, 2: Z), right-handed."""
+    c, s = (round(float(f(np.radians(degrees)))) for f in (np.cos, np.sin))
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    rotation = np.eye(3)
+    rotation[[i, i, j, j], [i, j, i, j]] = (c, -s, s, c)
+    return rotation
+
+
+#: The turns `garment unpose --turn` makes, by name, each a quarter or half turn about an axis (right-handed, on the
+#: file's vertices); z-up and backwards are x-90 and y+180, under the names their files come with.
+TURNS = {"z-up": _axis_turn(0, -90), "x+90": _axis_turn(0, 90), "backwards": _axis_turn(1, 180),
+         "x+180": _axis_turn(0, 180), "y+90": _axis_turn(1, 90), "y-90": _axis_turn(1, -90),
+         "z+90": _axis_turn(2, 90), "z-90": _axis_turn(2, -90), "z+180": _axis_turn(2, 180)}
+_TURN_WORDS = {"z-up": "rotated -90 degrees about X (Z-up to Y-up)", "x+90": "rotated +90 degrees about X",
+               "backwards": "turned 180 degrees about Y (it faces backwards)"}
+
+
+def _turn_words(turn: str) -> str:
+    """How the fix `turn` (a name in `TURNS`) is told: "rotated +90 degrees about Y"."""
+    return _TURN_WORDS.get(turn) or f"rotated {turn[1:]} degrees about {turn[0].upper()}"
+
+
+def _turns_rotation(turns: tuple[str, ...]) -> np.ndarray:
+    """(3, 3) the `TURNS` named, one after the other."""
+    rotation = np.eye(3)
+    for turn in turns:
+        rotation = TURNS[turn] @ rotation
+    return rotation
+
+
+def _rotation_key(rotation) -> bytes:
+    return np.asarray(rotation, dtype=np.float64).round().astype(np.int8).tobytes()
+
+
+def _fewest_turns() -> dict[bytes, tuple[str, ...]]:
+    """The 24 axis-aligned turns (the cube's rotations; `_rotation_key`), each as its fewest `TURNS`, one turn
+    before two (every one is at most two), in `TURNS`' order; none as ()."""
+    found = {_rotation_key(np.eye(3)): ()}
+    for turns in [(t,) for t in TURNS] + [(a, b) for a in TURNS for b in TURNS]:
+        found.setdefault(_rotation_key(_turns_rotation(turns)), turns)
+    return found
+
+
+_FEWEST_TURNS = _fewest_turns()
+
+
 _DROP = "moved down by {drop:.2f} m (authored on a body standing at y = 0)"
+#: The turns a garment file can come in, tried in this order: the three common ones (Blender's and Maya's Z-up,
+#: upside down, facing backwards) before the others (Unreal's Z-up facing +Y or +X, Y-up facing +X: `_all_turns`).
+_TURNS = tuple((", then ".join(_turn_words(t) for t in turns), turns) for turns in
+               sorted(filter(None, _FEWEST_TURNS.values()), key=lambda turns: (len(turns), not set(turns) <= set(_TURN_WORDS))))
 #: Frame mix-ups a garment file can come with, tried in this order (one change before two, so that a symmetric
 #: skirt lifted by the floor is told to move down, not to turn and move down): (the fix, as told to the user;
-#: rotation applied to the file's vertices; whether the body it was authored on stood on the floor, soles at
-#: y = 0, so the fix lowers it to this body's soles).
-FRAME_FIXES = (tuple((what, rotation, False) for what, rotation in _TURNS)
-               + ((_DROP, ((1, 0, 0), (0, 1, 0), (0, 0, 1)), True),)
-               + tuple((f"{what}, then {_DROP}", rotation, True) for what, rotation in _TURNS))
+#: the turns applied to the file's vertices, names in `TURNS`; whether the body it was authored on stood on the
+#: floor, soles at y = 0, so the fix lowers it to this body's soles).
+FRAME_FIXES = (tuple((what, turns, False) for what, turns in _TURNS if len(turns) == 1)
+               + ((_DROP, (), True),)
+               + tuple((what, turns, False) for what, turns in _TURNS if len(turns) == 2)
+               + tuple((f"{what}, then {_DROP}", turns, True) for what, turns in _TURNS))
+#: The fixes `_best_place` tries with each scale mix-up (a unit and a frame mix-up at once; each fix costs a
+#: search of heights): the common turns' (`_TURN_WORDS`).
+_COMMON_FIXES = tuple(f for f in FRAME_FIXES if set(f[1]) <= set(_TURN_WORDS))
 
 #: A garment scaled to metres by the wrong unit (written in inches, scaled by 0.01 as centimetres: a doll's dress
 #: 0.39 times its size) is scaled back by the two units' ratio (`_scale_fix`). The units mixed up are those
@@ -212,10 +264,7 @@ class Placement:
     @property
     def rotation(self) -> np.ndarray:
         """(3, 3) the turns, one after the other."""
-        rotation = np.eye(3)
-        for turn in self.turns:
-            rotation = TURNS[turn] @ rotation
-        return rotation
+        return _turns_rotation(self.turns)
 
     def apply(self, vertices: np.ndarray) -> np.ndarray:
         """(V, 3) float64: `vertices` scaled, turned and moved (the pose is not taken off)."""
@@ -226,11 +275,7 @@ class Placement:
         A fix found on a garment unposed from another pose is made before the pose is taken off: a unit or frame
         mix-up is the file's (the command's result is checked again)."""
         rotation = fix.rotation @ self.rotation
-        turns, one = self.turns + fix.turns, _turn_name(rotation)
-        if np.allclose(rotation, np.eye(3)):
-            turns = ()  # a turn and its undoing
-        elif one is not None:
-            turns = (one,)
+        turns = _FEWEST_TURNS[_rotation_key(rotation)]  # a turn and its undoing: none
         move = fix.scale * fix.rotation @ np.asarray(self.move, dtype=np.float64) + np.asarray(fix.move)
         if np.any(self.move):  # a move found (in 1 cm steps) undoing the one given leaves that step at most: none
             move = np.where((np.abs(move) <= MOVE_SEARCH_STEP_M + 1e-9) & (np.asarray(fix.move) != 0), 0.0, move)
@@ -247,11 +292,6 @@ class Placement:
 
 #: The finest step (metres) of the search for a move that places a garment (`_shift_fix`).
 MOVE_SEARCH_STEP_M = 0.01
-
-
-def _turn_name(rotation) -> str | None:
-    """The name in `TURNS` of `rotation` (3, 3), or None (the identity, or no turn of theirs)."""
-    return next((t for t, r in TURNS.items() if np.allclose(r, rotation)), None)
 
 
 def unpose_command(name: str, fix: Placement, placed: Placement | None = None) -> str:
@@ -433,7 +473,7 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     if not (far or fix or lift) and inside > A_POSE_CHECK_SHARE:
         key = (_content_key(garment.vertices, garment.faces, body.v_template, body.faces), body.name, name, placed)
         if key not in _SEARCHED:  # a second binding of the same garment (lbs after the model) searches no more
-            unposed = _unposed_angle(garment, body, mesh, inside, median)
+            unposed = _unposed_angle(garment, body, mesh, signed, median)
             _SEARCHED[key] = (unposed, (None, None) if unposed is not None or inside <= REST_INSIDE_WARN_SHARE
                               else _shift_fix(garment.vertices, body, mesh, name, placed))
             while len(_SEARCHED) > 8:
@@ -540,18 +580,35 @@ A_POSE_CHECK_SHARE = 0.005
 #: 45: 2.3 -> 1.4 %; garments moved off the body: as much or more; each try about 1.5-5 s on the t-shirt).
 A_POSE_CHECK_DEGREES = (45.0, 30.0, 60.0)
 A_POSE_TRY_SHARE = 0.75
+#: Only a garment whose vertices inside the rest body lie by its upper arms is tried: their nearest body vertices'
+#: weights on the collars, shoulders and elbows (SMPL's joints 13, 14, 16-19) at least A_POSE_ARM_WEIGHT on average
+#: (the example t-shirt and jumpsuit skinned into A-poses of 30-75 degrees: 0.36-1.0, their cloth inside at the
+#: shoulders; the examples moved 0.1-0.27 m: 0.23 at most, the dress 0.44; a suit around the whole body, inside at
+#: the hands, feet and head: 0, whose three unposes took 266 s at 50,000 vertices).
+A_POSE_ARM_JOINTS = (13, 14, 16, 17, 18, 19)
+A_POSE_ARM_WEIGHT = 0.3
 
 
-def _unposed_angle(garment: Garment, body: Body, mesh: TriangleMesh, inside: float, median: float) -> float | None:
+def _unposed_angle(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.ndarray,
+                   median: float) -> float | None:
     """The arm angle of `A_POSE_CHECK_DEGREES` from whose A-pose unposing the garment (`core.unpose`) puts it on
-    the rest body best, or None where none does: at most REST_INSIDE_WARN_SHARE and under half of `inside` left
-    inside, its median distance not 5 mm further out (`median`, metres, as it is). (The example t-shirt skinned
-    into an A-pose: 4.3 % inside, 0 % unposed; shrunk by 5 % instead: 2.3 %, 10.4 % unposed; a garment in the
-    T-pose unposed from an A-pose takes its sleeves above the arms: further out.)"""
+    the rest body best, or None where none does: at most REST_INSIDE_WARN_SHARE and under half of what was inside
+    left inside, its median distance not 5 mm further out (`median`, metres, as it is; `signed`: its vertices'
+    signed distances to the rest body `mesh`, metres). (The example t-shirt skinned into an A-pose: 4.3 % inside,
+    0 % unposed; shrunk by 5 % instead: 2.3 %, 10.4 % unposed; a garment in the T-pose unposed from an A-pose takes
+    its sleeves above the arms: further out.) Not tried where the cloth inside is not by the arms
+    (`A_POSE_ARM_WEIGHT`)."""
+    from scipy.spatial import cKDTree
+
     from core.unpose import a_pose, unpose_garment
 
-    if body.layout is None:
+    inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
+    if body.layout is None or not inside:
         return None
+    _, nearest = cKDTree(body.v_template).query(garment.vertices[signed < -REST_INSIDE_DEPTH_M])
+    arms = [j for j in A_POSE_ARM_JOINTS if j < body.n_joints]
+    if float(np.asarray(body.weights)[nearest][:, arms].sum(axis=1).mean()) < A_POSE_ARM_WEIGHT:
+        return None  # not by the arms: no sleeves lowered (the cloth of a garment moved or shrunk)
     found = []
     for degrees in A_POSE_CHECK_DEGREES:
         try:
@@ -578,28 +635,38 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     v = np.asarray(vertices, dtype=np.float64)
     soles = -float(body.v_template[:, 1].min())  # how far the body's soles are below its origin
     base = _fit_score(mesh.signed_distance(v, exact=False)) if closer_than is None else None
+    sample = _shift_sample(v)
     scored = []  # (score, what, rotation, drop, moved vertices) of the fixes putting it near the body, partly inside
-    fitting = []  # (score, what, rotation, drop, share inside) of those that fit
-    for what, rotation, on_floor in FRAME_FIXES:
+    fitting = []  # (score, what, turns, drop, share inside) of those that fit
+    nearest = np.inf  # the least `_fit_score` of a fix putting it within FRAME_FIX_MEDIAN_M (median)
+    for what, turns, on_floor in FRAME_FIXES:
         if on_floor and soles <= 0.0:
             continue  # a body standing on y = 0 itself: no floor to take off
-        moved = v @ np.asarray(rotation, dtype=np.float64).T
-        drop = soles if on_floor else 0.0
-        moved[:, 1] -= drop
+        rotation, drop = _turns_rotation(turns), soles if on_floor else 0.0
+        if np.median(np.abs(mesh.signed_distance(sample @ rotation.T - [0.0, drop, 0.0], exact=False))) > \
+                FRAME_FIX_SCREEN * FRAME_FIX_MEDIAN_M:
+            continue  # far from the body (most turns): the whole garment is not looked at
+        moved = v @ rotation.T - [0.0, drop, 0.0]
         signed = mesh.signed_distance(moved, exact=False)
         median, near = np.percentile(np.abs(signed), [50, 5])
         inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
         fits = median <= FRAME_FIX_MEDIAN_M and inside <= REST_INSIDE_WARN_SHARE
+        if median <= FRAME_FIX_MEDIAN_M:
+            nearest = min(nearest, _fit_score(signed))
         if closer_than is not None:
             fits = fits and median * FRAME_FIX_GAIN <= closer_than[0] and near * FRAME_FIX_GAIN <= closer_than[1]
         elif not fits and median <= FRAME_FIX_MEDIAN_M:
-            scored.append((_fit_score(signed), what.format(drop=drop), rotation, drop, moved))
+            scored.append((_fit_score(signed), what.format(drop=drop), turns, drop, moved))
         if fits:
-            fitting.append((_fit_score(signed), what.format(drop=drop), rotation, drop, inside))
+            fitting.append((_fit_score(signed), what.format(drop=drop), turns, drop, inside))
+    # One that fits but sits FRAME_FIX_SCORE_GAIN times worse than another that leaves some of it inside is by
+    # chance (trousers slimmed for another body, on the floor: upside down and turned sideways fitted, 9.7 cm from
+    # the body, median, 5.6 times worse than the drop, which leaves 3.8 % inside)
+    fitting = [f for f in fitting if f[0] <= FRAME_FIX_SCORE_GAIN * nearest]
     if fitting:  # the best of those that fit, an earlier (fewer changes) where about as good
         best = min(f[0] for f in fitting)
-        _, what, rotation, drop, inside = next(f for f in fitting if f[0] <= FRAME_FIX_PREFER * best)
-        return _fix_text(what, rotation, np.array([0.0, -drop, 0.0]), inside, name, placed)
+        _, what, turns, drop, inside = next(f for f in fitting if f[0] <= FRAME_FIX_PREFER * best)
+        return _fix_text(what, turns, np.array([0.0, -drop, 0.0]), inside, name, placed)
     # None fits outright (in order): the one that fits best, FRAME_FIX_SCORE_GAIN times better than as it is, unless
     # another fits nearly as well (within FRAME_FIX_TIE): then neither is told. Authored on another body, it may sit
     # higher or lower on this one (a mannequin's shirt, dropped to this body's soles, reached the chin; a Z-up
@@ -608,7 +675,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     if (not scored or base is None or scored[0][0] * FRAME_FIX_SCORE_GAIN > base
             or (len(scored) > 1 and scored[1][0] <= FRAME_FIX_TIE * scored[0][0])):
         return None
-    _, what, rotation, drop, moved = scored[0]
+    _, what, turns, drop, moved = scored[0]
     sample = _shift_sample(moved)
     start = _shift_score(mesh, sample)
     ups = np.round(np.arange(-FRAME_FIX_CLIMB_M[1], FRAME_FIX_CLIMB_M[1] + 1e-9, 0.02), 2)
@@ -620,7 +687,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     if shift.any():
         what += f", then moved {_move_words(shift)}"
     inside = float(np.mean(mesh.signed_distance(moved + shift, exact=False) < -REST_INSIDE_DEPTH_M))
-    return _fix_text(what, rotation, shift - [0.0, drop, 0.0], inside, name, placed)
+    return _fix_text(what, turns, shift - [0.0, drop, 0.0], inside, name, placed)
 
 
 def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, near: float, inside: float,
@@ -648,19 +715,19 @@ def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, 
     own = _best_place(mesh, v, body)[0] / span if tried else 0.0
     maybe = None
     for ratio, mixup in tried:
-        score, what, rotation, drop, dy = _best_place(mesh, ratio * v, body)
+        score, what, turns, drop, dy = _best_place(mesh, ratio * v, body)
         gain = SCALE_TENFOLD_GAIN if abs(np.log10(ratio)) > 0.5 else SCALE_GAIN if ratio > 1.0 else SCALE_SHRINK_GAIN
         if score / (ratio * span) * SCALE_GAIN > own or abs(dy) >= SHIFT_RANGE_M[1] - 0.005:
             continue
         move = np.array([0.0, dy - drop, 0.0])
-        moved = ratio * np.asarray(vertices, dtype=np.float64) @ np.asarray(rotation, dtype=np.float64).T + move
+        moved = ratio * np.asarray(vertices, dtype=np.float64) @ _turns_rotation(turns).T + move
         signed = mesh.signed_distance(moved, exact=False)
         if np.median(np.abs(signed)) > FRAME_FIX_MEDIAN_M:
             continue
         told = ", then ".join(w for w in (f"scaled by {ratio:.4g} ({mixup}?)", what) if w)
         if dy:
             told += f", then moved {_move_words(np.array([0.0, dy, 0.0]))}"
-        text = _fix_text(told, rotation, move, float(np.mean(signed < -REST_INSIDE_DEPTH_M)), name, placed,
+        text = _fix_text(told, turns, move, float(np.mean(signed < -REST_INSIDE_DEPTH_M)), name, placed,
                          scale=ratio)
         if score / (ratio * span) * gain <= own:
             return text, None
@@ -669,12 +736,12 @@ def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, 
     return None, maybe
 
 
-def _best_place(mesh: TriangleMesh, v: np.ndarray, body: Body) -> tuple[float, str, np.ndarray, float, float]:
-    """Where points `v` (N, 3) sit best on the body's rest surface `mesh`: as they are or with one of `FRAME_FIXES`
+def _best_place(mesh: TriangleMesh, v: np.ndarray, body: Body) -> tuple[float, str, tuple[str, ...], float, float]:
+    """Where points `v` (N, 3) sit best on the body's rest surface `mesh`: as they are or with one of `_COMMON_FIXES`
     (the first within FRAME_FIX_TIE of the best: a symmetric skirt is not turned), then moved up or down by up
     to SHIFT_RANGE_M's end (SCALE_HEIGHT_STEP_M steps, then whole centimetres about the best: the least share
     inside, then the least score; none unless that makes the score SHIFT_AXIS_GAIN times smaller): (`_fit_score`
-    there, the fix as told ("" for none), its rotation, its drop to the body's soles and the height then, metres:
+    there, the fix as told ("" for none), its turns, its drop to the body's soles and the height then, metres:
     the whole move up is height - drop)."""
     soles = -float(body.v_template[:, 1].min())
     heights = np.arange(-SHIFT_RANGE_M[1], SHIFT_RANGE_M[1] + 1e-9, SCALE_HEIGHT_STEP_M)
@@ -683,32 +750,31 @@ def _best_place(mesh: TriangleMesh, v: np.ndarray, body: Body) -> tuple[float, s
         signed = mesh.signed_distance(points + [0.0, dy, 0.0], exact=False)
         return _fit_score(signed), float(np.mean(signed < -REST_INSIDE_DEPTH_M))
 
-    found = []  # (score, what, rotation, drop, height)
-    for what, rotation, on_floor in (("", np.eye(3), False), *FRAME_FIXES):
+    found = []  # (score, what, turns, drop, height)
+    for what, turns, on_floor in (("", (), False), *_COMMON_FIXES):
         if on_floor and soles <= 0.0:
             continue
         drop = soles if on_floor else 0.0
-        turned = v @ np.asarray(rotation, dtype=np.float64).T - [0.0, drop, 0.0]
-        found.append(min((at(turned, dy)[0], what.format(drop=drop), rotation, drop, dy) for dy in heights))
+        turned = v @ _turns_rotation(turns).T - [0.0, drop, 0.0]
+        found.append(min((at(turned, dy)[0], what.format(drop=drop), turns, drop, dy) for dy in heights))
     best = min(t[0] for t in found)
-    _, what, rotation, drop, dy = next(t for t in found if t[0] <= FRAME_FIX_TIE * best)
-    turned = v @ np.asarray(rotation, dtype=np.float64).T - [0.0, drop, 0.0]
+    _, what, turns, drop, dy = next(t for t in found if t[0] <= FRAME_FIX_TIE * best)
+    turned = v @ _turns_rotation(turns).T - [0.0, drop, 0.0]
     near = np.round(dy + np.arange(-SCALE_HEIGHT_STEP_M, SCALE_HEIGHT_STEP_M + 1e-9, 0.01), 2)
     near = near[np.abs(near) <= SHIFT_RANGE_M[1] + 1e-9]
     (score, _), dy = min(((at(turned, h), h) for h in near), key=lambda t: (round(t[0][1] * 200), t[0][0]))
     unmoved = at(turned, 0.0)[0]
     if score * SHIFT_AXIS_GAIN > unmoved:  # no move unless it helps (a garment where it belongs stays there)
-        return unmoved, what, rotation, drop, 0.0
-    return score, what, rotation, drop, float(dy)
+        return unmoved, what, turns, drop, 0.0
+    return score, what, turns, drop, float(dy)
 
 
-def _fix_text(what: str, rotation, move: np.ndarray, inside: float, name: str,
+def _fix_text(what: str, turns: tuple[str, ...], move: np.ndarray, inside: float, name: str,
               placed: Placement | None = None, scale: float = 1.0) -> str:
-    """ "it fits when <what>", naming the `garment unpose` that makes the fix (`scale`, then `rotation`: one of
-    `TURNS` or the identity, then `move`, metres; after `placed`: `unpose_command`), and how much of the garment
-    the fix still leaves inside the body (share `inside`) where that is over REST_INSIDE_WARN_SHARE."""
-    turn = _turn_name(rotation)
-    fix = Placement(scale, () if turn is None else (turn,), tuple(float(m) for m in np.round(move, 2)))
+    """ "it fits when <what>", naming the `garment unpose` that makes the fix (`scale`, then `turns`: names in
+    `TURNS`, then `move`, metres; after `placed`: `unpose_command`), and how much of the garment the fix still
+    leaves inside the body (share `inside`) where that is over REST_INSIDE_WARN_SHARE."""
+    fix = Placement(scale, turns, tuple(float(m) for m in np.round(move, 2)))
     still = (f" ({inside:.0%} of it then still inside the body: authored on another body shape too? pass it with "
              f"--body)" if inside > REST_INSIDE_WARN_SHARE else "")
     return f"it fits when {what}{still}: {unpose_command(name, fix, placed)}"
@@ -867,7 +933,7 @@ def _lifted_by_floor(garment: Garment, body: Body, mesh: TriangleMesh, name: str
     if (inside > REST_INSIDE_WARN_SHARE and _fit_score(signed) * FRAME_FIX_SCORE_GAIN
             > _fit_score(mesh.signed_distance(garment.vertices.astype(np.float64), exact=False))):
         return None
-    return _fix_text(_DROP.format(drop=soles), np.eye(3), np.array([0.0, -soles, 0.0]), inside, name, placed)
+    return _fix_text(_DROP.format(drop=soles), (), np.array([0.0, -soles, 0.0]), inside, name, placed)
 
 
 #: A closed piece whose faces face the body over this share of its area or more, wound alike, is cloth of two

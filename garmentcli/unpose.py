@@ -121,10 +121,12 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
 @click.option("--scale", type=float, default=None, callback=_check_scale, metavar="S",
               help="Metres per unit of GARMENT, multiplied in first, about the origin: 0.01 for a file in "
                    "centimetres, 0.001 millimetres, 0.0254 inches (bake names it for a garment in other units).")
-@click.option("--turn", "turns", type=click.Choice(["z-up", "x+90", "backwards"]), multiple=True,
+@click.option("--turn", "turns", type=click.Choice(["z-up", "x+90", "backwards", "x+180", "y+90", "y-90", "z+90",
+                                                   "z-90", "z+180"]), multiple=True,
               help="Turn the garment first (after --scale), as bake names it for a garment written in another frame: "
                    "z-up (-90 degrees about X: authored Z-up), x+90 (+90 degrees about X), backwards (180 degrees "
-                   "about Y); given several times, each in turn.")
+                   "about Y), or another quarter or half turn about an axis (y-90: -90 degrees about Y, right-handed); "
+                   "given several times, each in turn (Unreal's Z-up facing +Y: --turn z-up --turn backwards).")
 @click.option("--move", "move", default=None, callback=_check_move, metavar="DX,DY,DZ",
               help="Metres to move the garment by first, in the body's frame (Y up): for a garment authored on a "
                    "body whose origin stands elsewhere (bake names the move).")

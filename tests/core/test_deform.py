@@ -276,26 +276,27 @@ def test_example_garment_on_its_rest_body_binds_without_a_warning(trousers_on_bo
     assert "inside the body" not in caplog.text
 
 
-@pytest.mark.parametrize("fix", range(7))
-def test_garment_in_another_frame_is_refused_naming_the_fix(trousers_on_body, fix):
-    """The trousers written in each frame mix-up of FRAME_FIXES (Z-up, backwards, standing on y = 0, ...) are
-    refused, and the error names the fix that puts them back, not another."""
-    from core.skinning import FRAME_FIXES
+@pytest.mark.parametrize("turns, on_floor", [
+    (("z-up",), False), (("x+90",), False), (("backwards",), False), ((), True), (("z-up",), True), (("x+90",), True),
+    (("backwards",), True), (("z-up", "backwards"), False), (("y-90",), False), (("z-up", "y-90"), False),
+    (("y+90",), True), (("x+180",), False), (("z+90",), False)])
+def test_garment_in_another_frame_is_refused_naming_the_fix(trousers_on_body, turns, on_floor):
+    """The trousers written in frame mix-ups of FRAME_FIXES (Z-up, backwards, standing on y = 0, Unreal's Z-up facing
+    +Y or +X, Y-up facing +X, upside down, on their side, ...) are refused, and the error names the fix that puts
+    them back, not another."""
+    from core.skinning import FRAME_FIXES, _turns_rotation
 
     g, body = trousers_on_body
-    what, rotation, on_floor = FRAME_FIXES[fix]
+    what = next(w for w, t, floor in FRAME_FIXES if t == turns and floor == on_floor)
     drop = -float(body.v_template[:, 1].min()) if on_floor else 0.0
-    v = (g.vertices.astype(np.float64) + [0.0, drop, 0.0]) @ np.asarray(rotation, dtype=np.float64)  # undo the fix
+    v = (g.vertices.astype(np.float64) + [0.0, drop, 0.0]) @ _turns_rotation(turns)  # undo the fix
     moved = Garment(v.astype(np.float32), g.faces, name="moved.obj")
     with pytest.raises(InputError, match="moved.obj") as err:
         bind_garment(moved, body)
-    from core.skinning import TURNS
-
-    turn = next((f" --turn {t}" for t, r in TURNS.items() if np.allclose(r, rotation)), "")
+    turn = "".join(f" --turn {t}" for t in turns)
     move = f" --move 0,-{drop:.2f}".rstrip("0").rstrip(".") + ",0" if on_floor else ""  # as the file is told
     assert str(err.value).endswith(f"it fits when {what.format(drop=drop)}: `garment unpose moved.obj --pose tpose"
                                    f"{turn}{move}`")
-    assert turn or move
     assert ("0.90 m" in str(err.value)) == on_floor  # the default body's soles are 0.90 m below its origin
     assert "still inside the body" not in str(err.value)  # the trousers fit this body
 
@@ -459,7 +460,7 @@ def test_a_garment_of_another_body_in_another_frame_is_refused_naming_the_fix_an
     only, or refused as far without a fix: the fix left them partly inside this body, so it was not named. The
     trousers slimmed by 10 % stand in for them: the fix that makes their fit over twice better is named, with the
     share it leaves inside, and the command that makes it, with the move that puts it best from there."""
-    from core.skinning import Y_UP_TO_Z_UP_MATRIX
+    from core.geometry import Y_UP_TO_Z_UP_MATRIX
 
     g, body = trousers_on_body
     centre = g.vertices.mean(axis=0)
@@ -647,7 +648,8 @@ def test_placements_compose_as_applied_one_after_the_other():
             assert np.allclose(whole.apply(v), fix.apply(first.apply(v)), atol=6e-3)  # moves told to the cm
             turns[t1 + t2] = whole.turns
     assert turns[("z-up", "x+90")] == turns[("backwards", "backwards")] == ()  # undone
-    assert turns[("z-up",)] == ("z-up",) and turns[("z-up", "z-up")] == ("z-up", "z-up")  # 180 about X: two
+    assert turns[("z-up",)] == ("z-up",) and turns[("z-up", "z-up")] == ("x+180",)  # 180 about X: one turn
+    assert turns[("y+90", "y+90")] == ("backwards",) and turns[("z-up", "backwards")] == ("z-up", "backwards")
     assert Placement(0.01, ("z-up",), (0.0, -0.9, 0.0)).options() == " --scale 0.01 --turn z-up --move 0,-0.9,0"
     assert unpose_command("g.obj", Placement(move=(0.0, -0.21, 0.0)), Placement(move=(0.0, -0.1, 0.0))) == \
         "`garment unpose g.obj --pose tpose --move 0,-0.31,0`"

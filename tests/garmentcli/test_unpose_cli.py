@@ -232,34 +232,48 @@ def test_a_garment_authored_lower_is_refused_by_bake_and_moved_back_by_the_comma
     assert not [rec for rec in caplog.records if rec.levelno >= logging.WARNING], caplog.text
 
 
-@pytest.mark.parametrize("turn", ["z-up", "x+90", "backwards"])
-def test_a_garment_in_another_frame_is_turned_back_by_the_command_bake_names(tmp_path, turn):
-    """The example trousers written Z-up, turned the other way about X, or facing backwards (and lifted onto a
-    floor, for the Z-up ones): bake refuses them naming `garment unpose ... --turn T [--move ...]`; that command,
-    run as named, writes the trousers back (within the drop's rounding) and bake takes them."""
+@pytest.mark.parametrize("turns", [("z-up",), ("x+90",), ("backwards",), ("z-up", "backwards"), ("y-90",)],
+                         ids=["z-up", "x+90", "backwards", "unreal-z-up-facing-y", "y-up-facing-x"])
+def test_a_garment_in_another_frame_is_turned_back_by_the_command_bake_names(tmp_path, turns):
+    """The example trousers written Z-up, turned the other way about X, facing backwards, in Unreal's Z-up facing
+    +Y or Y-up facing +X (and lifted onto a floor, for the Z-up one): bake refuses them naming `garment unpose ...
+    --turn T [--turn T2] [--move ...]`; that command, run as named, writes the trousers back (within the drop's
+    rounding) and bake takes them."""
     import re
 
-    from core.skinning import TURNS
+    from core.skinning import _turns_rotation
 
-    assert set(TURNS) == {"z-up", "x+90", "backwards"}  # --turn's choices
     g = read_obj(EXAMPLES / "trousers.obj")
-    lift = 0.9 if turn == "z-up" else 0.0
+    lift = 0.9 if turns == ("z-up",) else 0.0
     off = tmp_path / "off.obj"
-    write_obj(off, ((g.vertices.astype(np.float64) + [0.0, lift, 0.0]) @ TURNS[turn]).astype(np.float32), g.faces,
-              g.uvs, g.face_uvs)
+    write_obj(off, ((g.vertices.astype(np.float64) + [0.0, lift, 0.0]) @ _turns_rotation(turns)).astype(np.float32),
+              g.faces, g.uvs, g.face_uvs)
     r = invoke(["bake", off, EXAMPLES / "walk.npz", "--frames", "0:2", "--out", tmp_path / "bake"])
     assert r.exit_code != 0 and "Traceback" not in r.output and not (tmp_path / "bake").exists()
-    command = re.search(r"`garment unpose (\S+) --pose tpose --turn (\S+)( --move \S+)?`$", r.output.strip())
-    assert command and command[1] == str(off) and command[2] == turn, r.output
+    command = re.search(r"`garment unpose (\S+) --pose tpose((?: --turn \S+)+)( --move \S+)?`$", r.output.strip())
+    assert command and command[1] == str(off) and command[2].split()[1::2] == list(turns), r.output
     assert bool(command[3]) == bool(lift)
-    r = invoke(["unpose", off, "--pose", "tpose", "--turn", turn, *(command[3].split() if command[3] else [])])
+    r = invoke(["unpose", off, "--pose", "tpose", *command[2].split(), *(command[3].split() if command[3] else [])])
     assert r.exit_code == 0, r.output
-    assert f"turned {turn}" in r.output
+    assert ", ".join(f"turned {turn}" for turn in turns) in r.output
     back = read_obj(tmp_path / "off_rest.obj")
     assert np.abs(back.vertices - g.vertices).max() < 0.0051
     r = invoke(["bake", tmp_path / "off_rest.obj", EXAMPLES / "walk.npz", "--frames", "0:2", "--out",
                 tmp_path / "bake", "--method", "lbs"])
     assert r.exit_code == 0, r.output
+
+
+def test_the_turns_unpose_takes_are_those_bake_names():
+    """`unpose --turn`'s choices are `core.skinning.TURNS`, and every one of the 24 axis-aligned turns (the cube's)
+    is made by at most two of them, as bake names it: each of the 23 fixes tried once, none the identity."""
+    from core.skinning import _TURNS, TURNS, _turns_rotation
+    from garmentcli.unpose import unpose
+
+    choices = next(p.type.choices for p in unpose.params if p.name == "turns")
+    assert list(choices) == list(TURNS)
+    rotations = {_turns_rotation(t).round().astype(int).tobytes() for _, t in _TURNS}
+    assert len(_TURNS) == len(rotations) == 23 and np.eye(3, dtype=int).tobytes() not in rotations
+    assert all(1 <= len(t) <= 2 for _, t in _TURNS)
 
 
 def test_a_garment_in_other_units_is_scaled_back_by_the_command_bake_names(tmp_path):
