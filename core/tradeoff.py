@@ -80,8 +80,9 @@ def configurations(models: dict, with_sim: bool = True, spread: bool = False, fi
     return rows
 
 
-def make_deformer(config: Config, cache_dir=None, device=None) -> Deformer:
-    """The Deformer of a configuration; a model's network on `device` (None: where its checkpoint loads, the CPU)."""
+def make_deformer(config: Config, cache_dir=None, device=None, warm_up: bool = False) -> Deformer:
+    """The Deformer of a configuration; a model's network on `device` (None: where its checkpoint loads, the CPU).
+    warm_up: the simulator's without its settling and blending in (`measure`'s warm-up: its kernels compile)."""
     if config.method == "lbs":
         return LBSDeformer(LBSOptions(strain_limit=config.options.get("strain_limit")))
     if config.method == "psd":
@@ -101,8 +102,9 @@ def make_deformer(config: Config, cache_dir=None, device=None) -> Deformer:
     if config.method == "sim":
         from core.sim import Material, SimDeformer, SimOptions
 
+        lead = {"settle_s": 0.0, "blend_frames": 0} if warm_up else {}
         return SimDeformer(Material(), SimOptions(substeps=config.options["substeps"],
-                                                  self_contact=config.options["self_contact"]),
+                                                  self_contact=config.options["self_contact"], **lead),
                            jitter_m=config.options.get("jitter_m", 0.0))
     raise ValueError(f"unknown method {config.method!r}")
 
@@ -194,9 +196,18 @@ def measure(config: Config, garment: Garment, body: Body, motion: Motion, repeat
     runs = 1 if config.method == "sim" else max(1, repeats)
     # warm-up (caches, allocator, first-call costs); the simulator's on the first SIM_WARM_UP_FRAMES frames only
     # (minutes a run), which compile its kernels: on a fresh install their compilation (about 45 s) was timed
-    # in its first row (59.5 s a frame against 13.6 warm on a 4-frame scene)
-    deformer.deform(garment, body, motion if config.method != "sim" else
-                    select_frames(motion, 0, min(motion.n_frames, SIM_WARM_UP_FRAMES)))
+    # in its first row (59.5 s a frame against 13.6 warm on a 4-frame scene); without its settling and blending
+    # in (25 frames more at 30 fps, half the time of a short scene's row)
+    if config.method != "sim":
+        deformer.deform(garment, body, motion)
+    else:
+        from core.sim import SimulationError
+
+        try:
+            make_deformer(config, warm_up=True).deform(garment, body,
+                                                       select_frames(motion, 0, min(motion.n_frames, SIM_WARM_UP_FRAMES)))
+        except SimulationError:
+            pass  # started on the motion's first frame unsettled: its kernels compiled all the same
     times = []
     with PeakMemory() as mem, GpuPeakMemory(device if config.method == "model" else None) as gpu:
         for _ in range(runs):

@@ -562,13 +562,13 @@ def test_the_spread_operator_is_made_for_a_device_once_per_anchors():
 
 
 def test_a_large_garment_is_guarded_in_fewer_frames_at_once():
-    """`guard_chunk_frames`: 16 frames at once for a garment up to 4k vertices, powers of two down to 4 beyond (the
-    time and peak memory measured on 3k-203k vertices: core/pushout.py)."""
+    """`guard_chunk_frames`: 16 frames at once for a garment of 2k-4k vertices, powers of two down to 4 beyond (the
+    time and peak memory measured on 3k-203k vertices: core/pushout.py), up to 128 below (a chunk's fixed work)."""
     from core.garment import frames_at_once
     from core.pushout import guard_chunk_frames
 
-    got = [guard_chunk_frames(v) for v in (1, 2016, 3240, 4001, 6698, 8001, 12816, 203328)]
-    assert got == [16, 16, 16, 8, 8, 4, 4, 4]
+    got = [guard_chunk_frames(v) for v in (1, 384, 1000, 2016, 3240, 4001, 6698, 8001, 12816, 203328)]
+    assert got == [128, 128, 64, 16, 16, 8, 8, 4, 4, 4]
     assert frames_at_once(1000, 64_000, 4, 16) == 16 and frames_at_once(3000, 64_000, 1, 64) == 16
 
 

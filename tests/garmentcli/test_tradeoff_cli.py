@@ -51,10 +51,18 @@ def test_the_simulator_rows_warm_up_on_two_frames_before_they_are_timed(monkeypa
             runs.append(motion.n_frames)
             return np.zeros((motion.n_frames, 3, 3), dtype=np.float32)
 
-    monkeypatch.setattr(core.tradeoff, "make_deformer", lambda *a, **k: Recording())
+    warm = []  # make_deformer's warm_up of each deformer made
+    monkeypatch.setattr(core.tradeoff, "make_deformer", lambda *a, warm_up=False, **k: warm.append(warm_up) or Recording())
     motion = Motion(np.zeros((7, 24, 3), np.float32), np.zeros((7, 3), np.float32), 30.0)
-    m = measure(Config("sim", "sim", {"substeps": 10, "self_contact": False}), None, None, motion, repeats=3)
+    sim = Config("sim", "sim", {"substeps": 10, "self_contact": False, "jitter_m": 1e-6})
+    m = measure(sim, None, None, motion, repeats=3)
     assert runs == [2, 7] and m.runs == 1 and m.points.shape == (7, 3, 3)
+    assert warm == [False, True]  # the warm-up's own simulator: without settling and blending in (25 frames)
+    monkeypatch.undo()
+    warmed = core.tradeoff.make_deformer(sim, warm_up=True)
+    assert (warmed.options.settle_s, warmed.options.blend_frames, warmed.options.substeps) == (0.0, 0, 10)
+    assert warmed.jitter_m == 1e-6 and core.tradeoff.make_deformer(sim).options.settle_s > 0
+    monkeypatch.setattr(core.tradeoff, "make_deformer", lambda *a, **k: Recording())
     runs.clear()
     measure(Config("lbs", "lbs"), None, None, motion, repeats=3)
     assert runs == [7, 7, 7, 7]
