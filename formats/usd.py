@@ -440,14 +440,15 @@ def _stage_to(stage: Usd.Stage, up: str) -> np.ndarray:
 
 
 def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
-    """A garment from a USD stage: its one mesh (or its mesh named 'garment', as a bake's stage has), at the
-    static value or else the first time sample, placed by its transforms, in the body's rest frame (metres,
+    """A garment from a USD stage: its mesh named 'garment' (as a bake's stage has), else all its meshes as one
+    (the panels Marvelous Designer's "unweld" export writes each as a mesh: a warning names them), each at its
+    static value or else its first time sample, placed by its transforms, in the body's rest frame (metres,
     Y-up: a stage that authors Z-up is turned, other units scaled; then times `scale`). Quads and larger polygons
     split, seams welded and the result cleaned as `formats.obj.read_obj` does; `st` (face-varying or per vertex)
-    kept.
+    kept where every mesh has it.
     Raises InputError naming the file.
     """
-    from formats.obj import MAX_POLYGON_VERTICES, file_polygons, garment_from_polygons, split_ngons
+    from formats.obj import file_polygons, garment_from_polygons, split_ngons
 
     path = Path(path)
     label = "garment mesh"
@@ -455,12 +456,49 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
     stage = open_stage(path, where)
     meshes = [UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
     named = [m for m in meshes if m.GetPrim().GetName() == "garment"]
-    if len(meshes) != 1 and len(named) != 1:
-        names = ", ".join(str(m.GetPath()) for m in meshes[:6]) or "none"
-        fix = ": join its pieces into one mesh (Blender's Join, Houdini's Merge) or name the garment's mesh " \
-              "'garment', or give it as an OBJ (its objects are merged, their seams welded)" if meshes else ""
-        raise InputError(f"{where}: expected one mesh (or one named 'garment'), got {len(meshes)}: {names}{fix}")
-    mesh = meshes[0] if len(meshes) == 1 else named[0]
+    if not meshes:
+        raise InputError(f"{where}: expected a mesh (or one named 'garment'), got none")
+    if len(named) == 1:
+        meshes = named
+    elif len(meshes) > 1:
+        names = ", ".join(str(m.GetPath()) for m in meshes[:6]) + (", ..." if len(meshes) > 6 else "")
+        log.warning("%s: %d meshes (%s), none named 'garment': read as one garment, their seams welded where they "
+                    "meet (name the garment's mesh 'garment' to read it alone)", where, len(meshes), names)
+    parts = [_garment_part(mesh, stage, where if len(meshes) == 1 else f"{where} (mesh '{mesh.GetPath()}')")
+             for mesh in meshes]
+    vertices, counts, indices, uvs, uv_index, materials, bound = _joined_parts(parts, where)
+    starts = _polygon_starts(counts)
+    polygons = np.full((len(counts), 4), -1, dtype=np.int64)
+    polygon_uvs = np.full((len(counts), 4), -1, dtype=np.int64)
+    ngons = []
+    for k, (start, n) in enumerate(zip(starts.tolist(), counts.tolist())):
+        corners = indices[start:start + n]
+        corner_uvs = uv_index[start:start + n] if uv_index is not None else np.full(n, -1, dtype=np.int64)
+        if n <= 4:
+            polygons[k, :n], polygon_uvs[k, :n] = corners, corner_uvs
+        else:
+            ngons.append((k, corners, corner_uvs))
+    # The faces as written (n-gons whole) with their materials: what the outputs keep.
+    written = file_polygons(polygons, polygon_uvs, ngons, materials)
+    if uvs is None:
+        written = replace(written, polygon_uvs=None)
+    if ngons:
+        polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons, lambda k: f"(face {k})",
+                                            label, path)
+    garment = garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path,
+                                    written=written, scale=scale)
+    looks = {name: look for name, material in bound.items() if (look := _preview_look(material, name, path))}
+    if looks and garment.source is not None:  # their colours and textures, for the outputs' materials
+        garment = replace(garment, source=replace(garment.source, looks=looks))
+    return garment
+
+
+def _garment_part(mesh: UsdGeom.Mesh, stage: Usd.Stage, where: str) -> dict:
+    """One mesh of a garment stage (`read_usd_garment`): its points placed in the body's rest frame ("vertices"),
+    "counts" and "indices" of its faces (counter-clockwise), "uvs" and their "uv_index" per face corner (None
+    where it has no `st` that fits), each face's "materials" (None: none bound) and the "bound" materials."""
+    from formats.obj import MAX_POLYGON_VERTICES
+
     points_attr = mesh.GetPointsAttr()
     times = points_attr.GetTimeSamples()
     code = Usd.TimeCode.Default() if points_attr.Get(Usd.TimeCode.Default()) is not None or not times \
@@ -497,31 +535,36 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
             log.warning("%s: its UVs '%s' (%s, %d values for %d points and %d face corners) fit neither its points "
                         "nor its face corners: left out of the outputs", where, st.GetPrimvarName(),
                         st.GetInterpolation(), 0 if flat is None else len(flat), len(vertices), len(indices))
-    starts = _polygon_starts(counts)
-    polygons = np.full((len(counts), 4), -1, dtype=np.int64)
-    polygon_uvs = np.full((len(counts), 4), -1, dtype=np.int64)
-    ngons = []
-    for k, (start, n) in enumerate(zip(starts.tolist(), counts.tolist())):
-        corners = indices[start:start + n]
-        corner_uvs = uv_index[start:start + n] if uv_index is not None else np.full(n, -1, dtype=np.int64)
-        if n <= 4:
-            polygons[k, :n], polygon_uvs[k, :n] = corners, corner_uvs
-        else:
-            ngons.append((k, corners, corner_uvs))
-    # The faces as written (n-gons whole) with their materials: what the outputs keep.
     materials, bound = _face_materials(mesh, len(counts))
-    written = file_polygons(polygons, polygon_uvs, ngons, materials)
-    if uvs is None:
-        written = replace(written, polygon_uvs=None)
-    if ngons:
-        polygons, polygon_uvs = split_ngons(vertices, polygons, polygon_uvs, ngons, lambda k: f"(face {k})",
-                                            label, path)
-    garment = garment_from_polygons(vertices, polygons, uvs, polygon_uvs if uvs is not None else None, label, path,
-                                    written=written, scale=scale)
-    looks = {name: look for name, material in bound.items() if (look := _preview_look(material, name, path))}
-    if looks and garment.source is not None:  # their colours and textures, for the outputs' materials
-        garment = replace(garment, source=replace(garment.source, looks=looks))
-    return garment
+    return {"vertices": vertices, "counts": counts, "indices": indices, "uvs": uvs, "uv_index": uv_index,
+            "materials": materials, "bound": bound, "path": str(mesh.GetPath())}
+
+
+def _joined_parts(parts: list[dict], where: str) -> tuple:
+    """The `_garment_part`s of a stage as one mesh: (vertices, counts, indices, uvs, uv_index, materials, bound),
+    each part's indices after the points before it; UVs only where every part has them (else left out, with a
+    warning naming a part without), materials "" on a part of none."""
+    if len(parts) == 1:
+        p = parts[0]
+        return p["vertices"], p["counts"], p["indices"], p["uvs"], p["uv_index"], p["materials"], p["bound"]
+    offsets = np.cumsum([0] + [len(p["vertices"]) for p in parts])
+    indices = np.concatenate([p["indices"] + o for p, o in zip(parts, offsets)])
+    uvs = uv_index = None
+    bare = [p["path"] for p in parts if p["uvs"] is None]
+    if not bare:
+        uv_offsets = np.cumsum([0] + [len(p["uvs"]) for p in parts])
+        uvs = np.concatenate([p["uvs"] for p in parts])
+        uv_index = np.concatenate([p["uv_index"] + o for p, o in zip(parts, uv_offsets)])
+    elif len(bare) < len(parts):
+        log.warning("%s: mesh '%s' has no UVs that fit: the garment's UVs (its other meshes') are left out of the "
+                    "outputs", where, bare[0])
+    materials = None
+    if any(p["materials"] is not None for p in parts):
+        materials = np.concatenate([p["materials"] if p["materials"] is not None
+                                    else np.full(len(p["counts"]), "", dtype=object) for p in parts])
+    bound = {k: m for p in parts for k, m in p["bound"].items()}
+    return (np.concatenate([p["vertices"] for p in parts]), np.concatenate([p["counts"] for p in parts]), indices,
+            uvs, uv_index, materials, bound)
 
 
 def _preview_look(material: UsdShade.Material, name: str, path: Path):

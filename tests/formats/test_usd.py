@@ -1,5 +1,8 @@
 """Tests for formats/usd.py: round trips, the stage as pxr sees it, bad input."""
 
+import logging
+from pathlib import Path
+
 import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
@@ -252,20 +255,78 @@ def test_a_usd_garment_reads_as_its_obj(tmp_path):
     assert r.exit_code == 0 and (tmp_path / "out" / "skirt_walk" / "summary.json").is_file(), r.output
 
 
-def test_a_usd_garment_with_several_meshes_is_refused_unless_one_is_the_garment(tmp_path):
+def test_a_usd_garment_of_several_meshes_is_read_as_one_its_seams_welded(tmp_path, caplog):
+    """Marvelous Designer's "unweld" USD export writes each panel as a mesh: it was refused ("expected one mesh")
+    where the same panels as OBJ objects were welded. The example skirt's 4 panels, 1.5 mm apart, each a mesh of
+    its own (two with UVs, two without; one under a transform): read as one skirt, its 112 seam pairs welded, a
+    warning naming the meshes and the UVs left out; a mesh named 'garment' is still read alone."""
+    from core.garment import mesh_edges
+    from core.graph import connected_components
     from formats.obj import read_garment
+    from tests.formats.test_obj import _panels
 
-    path = tmp_path / "scene.usda"
+    panels_obj, skirt = _panels(tmp_path, gap=1.5e-3)
+    v, f = _obj_pieces(panels_obj)
+    path = tmp_path / "unwelded.usda"
     stage = Usd.Stage.CreateNew(str(path))
-    for name in ("avatar", "shirt"):
-        mesh = UsdGeom.Mesh.Define(stage, f"/{name}")
-        mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0)])
-        mesh.CreateFaceVertexCountsAttr([3])
-        mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    for k, (pv, pf) in enumerate(zip(v, f)):
+        xform = UsdGeom.Xform.Define(stage, f"/panels/p{k}")
+        shift = np.array([0.0, 0.5, 0.0]) if k == 3 else np.zeros(3)
+        if k == 3:
+            xform.AddTranslateOp().Set(Gf.Vec3d(*shift))
+        mesh = UsdGeom.Mesh.Define(stage, f"/panels/p{k}/cloth")
+        mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in (pv - shift).tolist()]))
+        mesh.CreateFaceVertexCountsAttr([3] * len(pf))
+        mesh.CreateFaceVertexIndicesAttr(pf.ravel().tolist())
+        if k < 2:
+            st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                          UsdGeom.Tokens.vertex)
+            st.Set(Vt.Vec2fArray([Gf.Vec2f(*uv) for uv in pv[:, [0, 1]].tolist()]))
     stage.GetRootLayer().Save()
-    with pytest.raises(InputError, match=r"scene.usda': expected one mesh \(or one named 'garment'\), got 2: /avatar, "
-                                         r"/shirt: join its pieces into one mesh .* or give it as an OBJ"):
-        read_garment(path)
+    with caplog.at_level(logging.WARNING):
+        g = read_garment(path)
+    assert "4 meshes (/panels/p0/cloth, /panels/p1/cloth, /panels/p2/cloth, /panels/p3/cloth), none named " \
+           "'garment': read as one garment" in caplog.text
+    assert "welded 112 seam vertices of separate pieces" in caplog.text
+    assert "mesh '/panels/p2/cloth' has no UVs that fit: the garment's UVs (its other meshes') are left out" \
+        in caplog.text and g.uvs is None
+    assert g.n_vertices == skirt.n_vertices and g.n_faces == skirt.n_faces
+    assert connected_components(mesh_edges(g.faces), g.n_vertices)[0] == 1
+    d = np.linalg.norm(g.vertices[:, None] - skirt.vertices[None], axis=2).min(axis=1)
+    assert d.max() <= 3 * 1.5e-3 + 1e-5
+    assert len(v) == 4 and sum(map(len, v)) > skirt.n_vertices  # the panels as written: seams repeated
+    # one of them named 'garment': that one alone, as a bake's stage (garment and body) is read
+    named = tmp_path / "named.usda"
+    stage2 = Usd.Stage.CreateNew(str(named))
+    for name, (pv, pf) in (("garment", (v[0], f[0])), ("body", (v[1], f[1]))):
+        mesh = UsdGeom.Mesh.Define(stage2, f"/Root/{name}")
+        mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in pv.tolist()]))
+        mesh.CreateFaceVertexCountsAttr([3] * len(pf))
+        mesh.CreateFaceVertexIndicesAttr(pf.ravel().tolist())
+    stage2.GetRootLayer().Save()
+    assert read_garment(named).n_vertices == len(v[0])
+
+
+def _obj_pieces(path):
+    """The connected pieces of an OBJ as written (vertices (N, 3), faces (F, 3) of each), unwelded."""
+    from core.garment import mesh_edges
+    from core.graph import connected_components
+
+    lines = Path(path).read_text().splitlines()
+    verts = np.array([[float(x) for x in ln.split()[1:4]] for ln in lines if ln.startswith("v ")])
+    faces = np.array([[int(t.split("/")[0]) - 1 for t in ln.split()[1:4]] for ln in lines if ln.startswith("f ")])
+    n, labels = connected_components(mesh_edges(faces), len(verts))
+    out_v, out_f = [], []
+    for k in range(n):
+        used = np.flatnonzero(labels == k)
+        remap = np.full(len(verts), -1)
+        remap[used] = np.arange(len(used))
+        rows = faces[(labels[faces] == k).all(axis=1)]
+        out_v.append(verts[used])
+        out_f.append(remap[rows])
+    return out_v, out_f
 
 
 def test_read_a_concave_polygon_split_inside_it(tmp_path):
