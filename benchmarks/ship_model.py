@@ -52,9 +52,13 @@ def training_coverage(data: Path) -> list[float]:
     from formats.obj import read_obj
 
     body = default_body()
-    names = sorted({it["garment"] for it in read_manifest(data)["items"] if it["split"] in ("train", "val")})
     return joint_coverage([bind_garment(read_obj(data / "garments" / f"{n}.obj"), body, PRIOR_SMOOTH_ITERATIONS,
-                                        0.5).weights.clip(min=0) for n in names])
+                                        0.5).weights.clip(min=0) for n in training_garments(data)])
+
+
+def training_garments(data: Path) -> list[str]:
+    """The names of a dataset's training and validation garments."""
+    return sorted({it["garment"] for it in read_manifest(data)["items"] if it["split"] in ("train", "val")})
 
 
 def main(argv=None) -> None:
@@ -88,6 +92,12 @@ def main(argv=None) -> None:
         "metrics": metrics,
     }
     meta = {**ck["meta"], "card": DEFAULT_MODEL.with_suffix(".json").name}
+    if "garment_edge_m" not in meta:  # models trained before it was recorded: their datasets' garments
+        from core.model_deform import garment_edge_range
+        from formats.obj import read_obj
+
+        meta["garment_edge_m"] = garment_edge_range([read_obj(d / "garments" / f"{n}.obj") for d in args.data
+                                                     for n in training_garments(d)])
     if "joint_coverage" not in meta:
         meta["joint_coverage"] = [max(c) for c in zip(*(training_coverage(d) for d in args.data))]  # models trained before it was recorded
     card["training_joint_coverage"] = dict(zip(SMPL_JOINT_NAMES, meta["joint_coverage"]))

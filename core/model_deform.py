@@ -152,6 +152,40 @@ def joint_coverage(garment_weights) -> list[float]:
     return np.max([joint_shares(w) for w in garment_weights], axis=0).round(6).tolist()
 
 
+#: A garment whose median edge lies more than EDGE_RANGE_FACTOR times beyond the training garments' (checkpoint
+#: meta "garment_edge_m": the least and largest of their median edges, metres) is warned of: the network's messages
+#: pass along the mesh's edges, trained at those lengths (the shipped model's garments: 11.0-18.5 mm; the example
+#: skirt subdivided twice, 4.4 mm: 5.2 mm from its own bake on the walk, mean, 82 max; cut to 120 vertices, 99 mm:
+#: 29 mm, LBS 12).
+EDGE_RANGE_FACTOR = 2.0
+
+
+def median_edge_m(garment: Garment) -> float:
+    """The median length of a garment's rest edges, metres."""
+    from core.garment import mesh_edges
+
+    edges = mesh_edges(garment.faces)
+    v = np.asarray(garment.vertices, dtype=np.float64)
+    return float(np.median(np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1))) if len(edges) else 0.0
+
+
+def garment_edge_range(garments, before: list | None = None) -> list[float]:
+    """Checkpoint meta "garment_edge_m": [least, largest] `median_edge_m` of the training garments (and of the
+    model's --init's range `before`, where it has one), metres."""
+    found = [median_edge_m(g) for g in garments] + list(before or [])
+    return [round(min(found), 6), round(max(found), 6)]
+
+
+def edge_range_report(garment: Garment, trained: list | None) -> dict | None:
+    """{"median_edge_m", "trained_edge_m": the training garments' range, "within": the median edge within
+    EDGE_RANGE_FACTOR of it} of a garment, or None where the model records no range."""
+    if not trained:
+        return None
+    edge = median_edge_m(garment)
+    within = trained[0] / EDGE_RANGE_FACTOR <= edge <= trained[1] * EDGE_RANGE_FACTOR
+    return {"median_edge_m": round(edge, 6), "trained_edge_m": list(trained), "within": bool(within)}
+
+
 def training_range(weights, coverage, joint_names=None) -> dict:
     """How far a garment (prior weights (V, S)) lies outside the training garments' joints.
 
@@ -248,6 +282,8 @@ class ModelDeformer(Deformer):
         self.model_name = model_name
         #: Per joint, the largest share of a training garment's weight on it (None: not recorded).
         self.coverage = coverage
+        #: The training garments' median edges (checkpoint meta "garment_edge_m"; None: not recorded).
+        self.edge_range: list | None = None
         self._garments: dict = {}
         self._trims: dict = {}  # garment content hash -> its `Trims` (or None), found once
         self._shaped: dict = {}
@@ -359,12 +395,15 @@ class ModelDeformer(Deformer):
                 "coefficients": beyond.tolist()}
 
     def training_range(self, garment: Garment, body: Body) -> dict | None:
-        """`training_range` of a prepared garment against the model's training garments (None: unknown)."""
+        """`training_range` of a prepared garment against the model's training garments (None: unknown), with its
+        edges' `edge_range_report` ("edges", where the model records its garments' range)."""
         if self.coverage is None:
             return None
         body = self._body(body)
         g = self._garments[(garment.content_hash(), id(body))].inputs
-        return training_range(g.prior_weights.numpy(), self.coverage, body.joint_names)
+        found = training_range(g.prior_weights.numpy(), self.coverage, body.joint_names)
+        edges = edge_range_report(garment, self.edge_range)
+        return found if edges is None else {**found, "edges": edges}
 
     def _lead_fade(self, network, mf, lead: int, body: Body, poses: np.ndarray, motion: Motion, betas,
                    device) -> tuple[torch.Tensor, torch.Tensor] | None:
@@ -669,8 +708,10 @@ def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
         path = DEFAULT_MODEL
     model, data = load_model(path)
     kwargs.setdefault("lead_in_s", data["meta"].get("lead_in_s"))
-    return ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"),
-                         trained_body=trained_body(data["meta"]), trained_betas=trained_betas(data["meta"]), **kwargs)
+    deformer = ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"),
+                             trained_body=trained_body(data["meta"]), trained_betas=trained_betas(data["meta"]), **kwargs)
+    deformer.edge_range = data["meta"].get("garment_edge_m")
+    return deformer
 
 
 def trained_bounds(trained: tuple[np.ndarray, np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:

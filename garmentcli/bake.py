@@ -952,6 +952,14 @@ def _training_range_guard(deformer, garment, body, garment_path, explicit: bool)
     lbs when the model was not asked for by name (--method model), else ""."""
     inner = getattr(deformer, "inner", deformer)  # under --push-out
     rng = inner.training_range(garment, body)
+    edges = (rng or {}).get("edges")
+    if edges is not None and not edges["within"]:
+        (least, largest), edge = edges["trained_edge_m"], edges["median_edge_m"]
+        click.echo(f"warning: garment '{garment_path}' has edges of {edge * 1e3:.1f} mm (median), "
+                   f"{'finer' if edge < least else 'coarser'} than model '{inner.model_name}' was trained on "
+                   f"({least * 1e3:.1f}-{largest * 1e3:.1f} mm): its result may be worse than lbs (`garment "
+                   f"tradeoff` measures both on this scene); a mesh remeshed to about their size bakes as they do",
+                   err=True)
     if rng is None or rng["within"]:
         return ""
     joints = ", ".join(rng["uncovered_joints"][:4])

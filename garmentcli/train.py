@@ -347,7 +347,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
     of a resumed run), checkpoints, phase snapshots, then MODEL and its card."""
     import os
 
-    from core.model_deform import joint_coverage, trained_betas, trained_shapes
+    from core.model_deform import garment_edge_range, joint_coverage, trained_betas, trained_shapes
     from core.train import TrainingDiverged
     from formats.checkpoint import save_checkpoint
 
@@ -388,6 +388,10 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
         if init is not None and init.get("meta", {}).get("joint_coverage") is not None:  # it has seen both datasets
             coverage = [max(a, b) for a, b in zip(coverage, init["meta"]["joint_coverage"])]
 
+        # The resolution it has seen: its garments' median edges (and its --init's).
+        edge_m = garment_edge_range([g.garment for g in data.garments.values()],
+                                    None if init is None else init.get("meta", {}).get("garment_edge_m"))
+
         # The shapes it has seen: each coefficient's least and largest over the training sequences (and its --init's).
         shapes = trained_shapes([seq.betas for seq in data.splits.get("train", [])],
                                 None if init is None else trained_betas(init.get("meta", {})))
@@ -401,7 +405,7 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
                 save_checkpoint(out.with_name(f"{out.stem}.phase{phase}{out.suffix}"), model_cfg,
                                 {k: v.cpu() for k, v in tr.model.state_dict().items()},
                                 meta={"steps": tr.step, "phase": phase, "of": out.name, "joint_coverage": coverage,
-                                      "trained_betas": shapes, "lead_in_s": lead_in, "body": job.body.name,
+                                      "garment_edge_m": edge_m, "trained_betas": shapes, "lead_in_s": lead_in, "body": job.body.name,
                                       "body_sha256": job.body.content_hash()})
 
         trainer.progress = progress
@@ -426,8 +430,8 @@ def _run(out: Path, trainer: Trainer, rows: list[dict], job: _Job, interrupted: 
             "phase": trainer.phase.phase, "phase_switches": trainer.phase.switches, "device": str(device),
             "val_verts_mm": None if last_val.get("val_verts_mm") in (None, "") else float(last_val["val_verts_mm"]),
             "body": job.body.name,
-            "body_sha256": job.body.content_hash(), "joint_coverage": coverage, "trained_betas": shapes,
-            "lead_in_s": lead_in,
+            "body_sha256": job.body.content_hash(), "joint_coverage": coverage, "garment_edge_m": edge_m,
+            "trained_betas": shapes, "lead_in_s": lead_in,
             "sequences": sequences, "sequences_missing": data.missing, "garments": sorted(data.garments),
             "sequences_per_step": job.sequences_per_step,
             **({"sequences_before_resume": job.sequences_before} if job.sequences_before else {}),

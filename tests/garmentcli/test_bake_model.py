@@ -84,6 +84,39 @@ def test_garment_outside_the_training_range_is_baked_with_lbs_unless_the_model_i
     assert summary["method"] == "model" and "method_fallback" not in summary
 
 
+def test_a_garment_far_coarser_or_finer_than_the_training_garments_is_warned_of(tmp_path):
+    """A mesh far coarser or finer than the model's training garments (the shipped model's: median edges 11.0-18.5
+    mm, its checkpoint's "garment_edge_m") baked with the model unwarned: a 120-vertex skirt 29 mm from its own
+    bake, mean (LBS 12). Beyond EDGE_RANGE_FACTOR of that range it is warned of, and summary.json says so; the
+    example skirt is not."""
+    from core.garment import Garment
+    from core.model_deform import EDGE_RANGE_FACTOR, edge_range_report, garment_edge_range, median_edge_m
+    from formats.checkpoint import load_checkpoint
+    from formats.obj import read_obj, write_obj
+    from tests.core.model_fixtures import tube
+
+    trained = load_checkpoint(DEFAULT_MODEL)["meta"]["garment_edge_m"]
+    examples = [read_obj(p) for p in EXAMPLES]
+    assert trained == garment_edge_range(examples) == pytest.approx([0.011027, 0.018496])
+    v, f = tube(16, 5)  # a loose skirt of 80 vertices, edges about 10 cm
+    coarse = tmp_path / "coarse.obj"
+    write_obj(coarse, v, f)
+    edge = median_edge_m(Garment(v, f))
+    assert edge > EDGE_RANGE_FACTOR * trained[1]
+    _, summary, out = _bake(coarse, tmp_path / "coarse", "--method", "model", "--frames", "0:2")
+    assert (f"warning: garment '{coarse}' has edges of {edge * 1e3:.1f} mm (median), coarser than model "
+            f"'{DEFAULT_MODEL}' was trained on (11.0-18.5 mm): its result may be worse than lbs") in out
+    assert summary["deformer"]["training_range"]["edges"] == edge_range_report(Garment(v, f), trained)
+    assert not summary["deformer"]["training_range"]["edges"]["within"] and summary["method"] == "model"
+    # finer: the same edges' report, the garment scaled down (no bake needed)
+    fine = Garment(v * np.float32(0.04), f)
+    assert edge_range_report(fine, trained)["within"] is False and edge_range_report(examples[0], trained)["within"]
+    assert edge_range_report(fine, None) is None  # a model that records no range: nothing said
+    _, summary, out = _bake(ROOT / "examples" / "skirt.obj", tmp_path / "skirt", "--method", "model", "--frames",
+                            "0:2")
+    assert "has edges of" not in out and summary["deformer"]["training_range"]["edges"]["within"]
+
+
 def test_a_garment_partly_inside_that_falls_back_to_lbs_is_warned_about_once(tmp_path, caplog):
     """The model's preparation bound the garment and warned that it lies partly inside the body; the lbs it gave
     way to bound it again and warned again, on stderr and in summary.json."""

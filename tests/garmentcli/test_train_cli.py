@@ -65,6 +65,12 @@ def test_train_writes_model_log_and_resumes(setup):
     assert snap["meta"]["phase"] == 1 and phase_at[snap["meta"]["steps"]] == 1
     # it is a model bake can guard like the final one: it knows its training garments' joints
     assert snap["meta"]["joint_coverage"] == load_checkpoint(full)["meta"]["joint_coverage"]
+    # and their edges' lengths (the dataset's garments, as read from it)
+    from core.model_deform import garment_edge_range
+    from formats.obj import read_obj
+
+    edges = garment_edge_range([read_obj(p) for p in sorted((data / "garments").glob("*.obj"))])
+    assert snap["meta"]["garment_edge_m"] == load_checkpoint(full)["meta"]["garment_edge_m"] == edges
     # and the shapes it was trained on: the two training sequences' betas[0] are 0 and 0.5, the rest 0
     shapes = load_checkpoint(full)["meta"]["trained_betas"]
     assert snap["meta"]["trained_betas"] == shapes and shapes["max"][0] == 0.5
