@@ -11,6 +11,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from core.skinning import TURN_PATTERN, TURNS
 from core.unpose import A_POSE_ARM_DEGREES
 from formats.obj import STAGE_SUFFIXES
 from garmentcli.common import (
@@ -106,6 +107,20 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
         write_obj(tmp, *mesh, header=header, materials=materials, libraries=names)
 
 
+class TurnType(click.ParamType):
+    """--turn: a name in `core.skinning.TURNS` or an axis and degrees (`TURN_PATTERN`: y-15)."""
+
+    name = "turn"
+    choices = tuple(TURNS)
+
+    def convert(self, value, param, ctx):
+        import re
+
+        if value in TURNS or re.fullmatch(TURN_PATTERN, str(value)):
+            return value
+        self.fail(f"expected one of {', '.join(TURNS)} or an axis and degrees (y-15), got {value!r}", param, ctx)
+
+
 @click.command(name="unpose")
 @click.argument("garment_path", metavar="GARMENT", type=click.Path(dir_okay=False))
 @click.option("--pose", "pose_spec", required=True, metavar="tpose|apose|MOTION",
@@ -121,12 +136,12 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
 @click.option("--scale", type=float, default=None, callback=_check_scale, metavar="S",
               help="Metres per unit of GARMENT, multiplied in first, about the origin: 0.01 for a file in "
                    "centimetres, 0.001 millimetres, 0.0254 inches (bake names it for a garment in other units).")
-@click.option("--turn", "turns", type=click.Choice(["z-up", "x+90", "backwards", "x+180", "y+90", "y-90", "z+90",
-                                                   "z-90", "z+180"]), multiple=True,
+@click.option("--turn", "turns", type=TurnType(), multiple=True,
               help="Turn the garment first (after --scale), as bake names it for a garment written in another frame: "
                    "z-up (-90 degrees about X: authored Z-up), x+90 (+90 degrees about X), backwards (180 degrees "
-                   "about Y), or another quarter or half turn about an axis (y-90: -90 degrees about Y, right-handed); "
-                   "given several times, each in turn (Unreal's Z-up facing +Y: --turn z-up --turn backwards).")
+                   "about Y), x+180, y+90, y-90, z+90, z-90, z+180, or an axis and degrees (y-15: -15 degrees "
+                   "about Y, right-handed); given several times, each in turn (Unreal's Z-up facing +Y: --turn z-up "
+                   "--turn backwards).")
 @click.option("--move", "move", default=None, callback=_check_move, metavar="DX,DY,DZ",
               help="Metres to move the garment by first, in the body's frame (Y up): for a garment authored on a "
                    "body whose origin stands elsewhere (bake names the move).")

@@ -340,7 +340,10 @@ def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
     (["--pose", "tpose", "--scale", "0"], "--scale: expected metres per unit of the file, 0.0001 to 1000 (0.01: "
                                           "centimetres, 0.001: millimetres, 0.0254: inches), got 0"),
     (["--pose", "tpose", "--scale", "cm"], "'cm' is not a valid float"),
-    (["--pose", "tpose", "--turn", "sideways"], "Invalid value for '--turn': 'sideways' is not one of"),
+    (["--pose", "tpose", "--turn", "sideways"], "Invalid value for '--turn': expected one of z-up, x+90, backwards, "
+                                                "x+180, y+90, y-90, z+90, z-90, z+180 or an axis and degrees (y-15), "
+                                                "got 'sideways'"),
+    (["--pose", "tpose", "--turn", "y15"], "Invalid value for '--turn': expected one of z-up"),
     (["--pose", "tpose", "--move", "0,0.2"], "--move: expected 3 comma-separated numbers, got 2 in '0,0.2'"),
     (["--pose", "tpose", "--move", "0,up,0"], "--move: expected 3 comma-separated numbers, got '0,up,0'"),
     (["--pose", "tpose", "--move", "0,inf,0"], "--move: expected finite numbers, got '0,inf,0'"),
