@@ -232,10 +232,12 @@ _FEWEST_TURNS = _fewest_turns()
 
 
 _DROP = "moved down by {drop:.2f} m (authored on a body standing at y = 0)"
-#: The turns a garment file can come in, tried in this order: the three common ones (Blender's and Maya's Z-up,
-#: upside down, facing backwards) before the others (Unreal's Z-up facing +Y or +X, Y-up facing +X: `_all_turns`).
-_TURNS = tuple((", then ".join(_turn_words(t) for t in turns), turns) for turns in
-               sorted(filter(None, _FEWEST_TURNS.values()), key=lambda turns: (len(turns), not set(turns) <= set(_TURN_WORDS))))
+#: The turns a garment file can come in, tried in this order: one before two, the three common ones (Blender's and
+#: Maya's Z-up, Z-down, facing backwards) before the others (Unreal's Z-up facing +Y or +X, Y-up facing +X, ...):
+#: (the fix as told, its `TURNS`), each of `_FEWEST_TURNS` but none.
+_TURNS = tuple((", then ".join(_turn_words(t) for t in turns), turns)
+               for turns in sorted(filter(None, _FEWEST_TURNS.values()),
+                                   key=lambda turns: (len(turns), not set(turns) <= set(_TURN_WORDS))))
 #: Frame mix-ups a garment file can come with, tried in this order (one change before two, so that a symmetric
 #: skirt lifted by the floor is told to move down, not to turn and move down): (the fix, as told to the user;
 #: the turns applied to the file's vertices, names in `TURNS`; whether the body it was authored on stood on the
@@ -664,7 +666,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     as_is = mesh.signed_distance(v, exact=False) if closer_than is None else None
     base = None if as_is is None else _fit_score(as_is)
     sample = _shift_sample(v)
-    scored = []  # (score, what, rotation, drop, moved vertices) of the fixes putting it near the body, partly inside
+    scored = []  # (score, what, turns, drop, moved vertices) of the fixes putting it near the body, partly inside
     fitting = []  # (score, what, turns, drop, share inside) of those that fit
     nearest = np.inf  # the least `_fit_score` of a fix putting it within FRAME_FIX_MEDIAN_M (median)
     for what, turns, on_floor in FRAME_FIXES:
