@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 
-from core.errors import InputError, content_kind, require_input
+from core.errors import InputError, content_kind, counted, require_input
 from core.geometry import Y_UP_TO_Z_UP_MATRIX
 from formats.atomic import atomic_file, low_space_note
 from formats.obj import STAGE_SUFFIXES
@@ -460,12 +460,13 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
         raise InputError(f"{where}: expected a mesh (or one named 'garment'), got none")
     if len(named) == 1:
         meshes = named
-    elif len(meshes) > 1:
-        names = ", ".join(str(m.GetPath()) for m in meshes[:6]) + (", ..." if len(meshes) > 6 else "")
-        log.warning("%s: %d meshes (%s), none named 'garment': read as one garment, their seams welded where they "
-                    "meet (name the garment's mesh 'garment' to read it alone)", where, len(meshes), names)
     parts = [_garment_part(mesh, stage, where if len(meshes) == 1 else f"{where} (mesh '{mesh.GetPath()}')")
              for mesh in meshes]
+    if len(parts) > 1:  # each with its size: a ground plane or a prop among them shows
+        names = ", ".join(f"{p['path']} of {counted(len(p['vertices']), 'point')}" for p in parts[:6])
+        log.warning("%s: %d meshes (%s%s), none named 'garment': read as one garment, their seams welded where "
+                    "they meet (name the garment's mesh 'garment' to read it alone)", where, len(parts), names,
+                    ", ..." if len(parts) > 6 else "")
     vertices, counts, indices, uvs, uv_index, materials, bound = _joined_parts(parts, where)
     starts = _polygon_starts(counts)
     polygons = np.full((len(counts), 4), -1, dtype=np.int64)

@@ -953,7 +953,7 @@ def _training_range_guard(deformer, garment, body, garment_path, explicit: bool)
     inner = getattr(deformer, "inner", deformer)  # under --push-out
     rng = inner.training_range(garment, body)
     edges = (rng or {}).get("edges")
-    if edges is not None and not edges["within"]:
+    if edges is not None and not edges["within"] and (explicit or rng["within"]):  # (not where lbs bakes it)
         (least, largest), edge = edges["trained_edge_m"], edges["median_edge_m"]
         click.echo(f"warning: garment '{garment_path}' has edges of {edge * 1e3:.1f} mm (median), "
                    f"{'finer' if edge < least else 'coarser'} than model '{inner.model_name}' was trained on "

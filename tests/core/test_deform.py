@@ -647,6 +647,11 @@ def test_a_garment_turned_about_the_up_axis_is_refused_naming_the_turn(trousers_
                                                    "unpose t.obj --pose tpose --turn y-15`") + "$"):
         bind_garment(Garment(turned.astype(np.float32), tshirt.faces, name="t.obj"), body)
     np.testing.assert_allclose(Placement(turns=("y-15",)).apply(turned), tshirt.vertices, atol=1e-5)
+    # written Z-up as well: both named in one command (z-up alone was named, 22 % left inside "another body shape")
+    both = tshirt.vertices.astype(np.float64) @ Placement(turns=("z-up", "y-30")).rotation
+    with pytest.raises(InputError, match=re.escape("(Z-up to Y-up), then rotated -30 degrees about Y (the up axis): "
+                                                   "`garment unpose t.obj --pose tpose --turn z-up --turn y-30`") + "$"):
+        bind_garment(Garment(both.astype(np.float32), tshirt.faces, name="t.obj"), body)
     dress = read_garment(Path(__file__).resolve().parents[2] / "examples" / "dress.obj")
     turned = dress.vertices.astype(np.float64) @ Placement(turns=("y+45",)).rotation.T
     with caplog.at_level(logging.WARNING):
