@@ -163,10 +163,10 @@ EDGE_RANGE_FACTOR = 2.0
 def median_edge_m(garment: Garment) -> float:
     """The median length of a garment's rest edges, metres."""
     from core.garment import mesh_edges
+    from core.geodesic import edge_lengths
 
     edges = mesh_edges(garment.faces)
-    v = np.asarray(garment.vertices, dtype=np.float64)
-    return float(np.median(np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1))) if len(edges) else 0.0
+    return float(np.median(edge_lengths(garment.vertices, edges))) if len(edges) else 0.0
 
 
 def garment_edge_range(garments, before: list | None = None) -> list[float]:
@@ -271,7 +271,7 @@ class ModelDeformer(Deformer):
                  precision: str = "float32", coverage=None, contact_guard: bool = True,
                  lead_in_s: float | None = None, device: torch.device | str | None = None,
                  strain_limit: float | None = STRAIN_LIMIT, trained_body: dict | None = None,
-                 trained_betas: tuple[np.ndarray, np.ndarray] | None = None):
+                 trained_betas: tuple[np.ndarray, np.ndarray] | None = None, edge_range: list | None = None):
         super().__init__()
         if precision not in PRECISIONS:
             raise InputError(f"model precision: expected one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -283,7 +283,7 @@ class ModelDeformer(Deformer):
         #: Per joint, the largest share of a training garment's weight on it (None: not recorded).
         self.coverage = coverage
         #: The training garments' median edges (checkpoint meta "garment_edge_m"; None: not recorded).
-        self.edge_range: list | None = None
+        self.edge_range = edge_range
         self._garments: dict = {}
         self._trims: dict = {}  # garment content hash -> its `Trims` (or None), found once
         self._shaped: dict = {}
@@ -708,10 +708,9 @@ def load_model_deformer(path=None, **kwargs) -> ModelDeformer:
         path = DEFAULT_MODEL
     model, data = load_model(path)
     kwargs.setdefault("lead_in_s", data["meta"].get("lead_in_s"))
-    deformer = ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"),
-                             trained_body=trained_body(data["meta"]), trained_betas=trained_betas(data["meta"]), **kwargs)
-    deformer.edge_range = data["meta"].get("garment_edge_m")
-    return deformer
+    return ModelDeformer(model, model_name=str(path), coverage=data["meta"].get("joint_coverage"),
+                         trained_body=trained_body(data["meta"]), trained_betas=trained_betas(data["meta"]),
+                         edge_range=data["meta"].get("garment_edge_m"), **kwargs)
 
 
 def trained_bounds(trained: tuple[np.ndarray, np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:

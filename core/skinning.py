@@ -666,7 +666,8 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     as_is = mesh.signed_distance(v, exact=False) if closer_than is None else None
     base = None if as_is is None else _fit_score(as_is)
     sample = _shift_sample(v)
-    scored = []  # (score, what, turns, drop, moved vertices) of the fixes putting it near the body, partly inside
+    scored = []  # (score, what, turns, drop, moved vertices, share inside) of the fixes putting it near the body,
+    # partly inside
     fitting = []  # (score, what, turns, drop, share inside) of those that fit
     nearest = np.inf  # the least `_fit_score` of a fix putting it within FRAME_FIX_MEDIAN_M (median)
     for what, turns, on_floor in FRAME_FIXES:
@@ -688,7 +689,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
         elif fits and rotation[1, 1] < 0.0 and _fit_score(signed) * FRAME_FIX_SCORE_GAIN > base:
             fits = False  # upside down, but hardly better: a tube fits either way up (see FRAME_FIX_SCORE_GAIN)
         elif not fits and median <= FRAME_FIX_MEDIAN_M:
-            scored.append((_fit_score(signed), what.format(drop=drop), turns, drop, moved))
+            scored.append((_fit_score(signed), what.format(drop=drop), turns, drop, moved, inside))
         if fits:
             fitting.append((_fit_score(signed), what.format(drop=drop), turns, drop, inside))
     # One that fits but sits FRAME_FIX_SCORE_GAIN times worse than another that leaves some of it inside is by
@@ -702,9 +703,10 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     # Turned about the up axis as well: as it is, or after the two turns or drops that fit best, partly inside
     # (written Z-up from a scene whose avatar stood turned: z-up fitted, 22 % inside, blamed on the body's shape)
     scored.sort(key=lambda t: t[0])
-    tried = [] if as_is is None else [("", (), 0.0, v)] + [(w, t, d, m) for _, w, t, d, m in scored[:2]]
-    for what, turns, drop, moved in tried:
-        yaw = _yaw_fix(moved, mesh)
+    tried = [] if as_is is None else ([("", (), 0.0, v, float(np.mean(as_is < -REST_INSIDE_DEPTH_M)))]
+                                      + [entry[1:] for entry in scored[:2]])
+    for what, turns, drop, moved, inside in tried:
+        yaw = _yaw_fix(moved, mesh, inside)
         if yaw:
             degrees, left = yaw
             words = f"rotated {degrees:+d} degrees about Y (the up axis)"
@@ -717,7 +719,7 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     if (not scored or base is None or scored[0][0] * FRAME_FIX_SCORE_GAIN > base
             or (len(scored) > 1 and scored[1][0] <= FRAME_FIX_TIE * scored[0][0])):
         return None
-    _, what, turns, drop, moved = scored[0]
+    _, what, turns, drop, moved, _ = scored[0]
     sample = _shift_sample(moved)
     start = _shift_score(mesh, sample)
     ups = np.round(np.arange(-FRAME_FIX_CLIMB_M[1], FRAME_FIX_CLIMB_M[1] + 1e-9, 0.02), 2)
@@ -745,10 +747,9 @@ YAW_STEP_DEG = 5
 YAW_SHARPNESS = 1.03
 
 
-def _yaw_fix(v: np.ndarray, mesh: TriangleMesh) -> tuple[int, float] | None:
+def _yaw_fix(v: np.ndarray, mesh: TriangleMesh, inside: float) -> tuple[int, float] | None:
     """(degrees, the share then inside) of the turn about the up axis (`YAW_STEP_DEG`; `--turn y-15`) that puts
-    points `v` (V, 3) on the body's rest surface `mesh`, else None."""
-    inside = float(np.mean(mesh.signed_distance(v, exact=False) < -REST_INSIDE_DEPTH_M))
+    points `v` (V, 3), a share `inside` of them inside the body's rest surface `mesh`, on it, else None."""
     sample = _shift_sample(v)
 
     def score(degrees: float) -> float:

@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from core.skinning import TURN_PATTERN, TURNS
+from core.skinning import TURNS, turn_matrix
 from core.unpose import A_POSE_ARM_DEGREES
 from formats.obj import STAGE_SUFFIXES
 from garmentcli.common import (
@@ -108,17 +108,17 @@ def _write_obj(out: Path, garment, rest_points: np.ndarray, header: str, overwri
 
 
 class TurnType(click.ParamType):
-    """--turn: a name in `core.skinning.TURNS` or an axis and degrees (`TURN_PATTERN`: y-15)."""
+    """--turn: a name in `core.skinning.TURNS` or an axis and degrees (`core.skinning.turn_matrix`: y-15)."""
 
     name = "turn"
     choices = tuple(TURNS)
 
     def convert(self, value, param, ctx):
-        import re
-
-        if value in TURNS or re.fullmatch(TURN_PATTERN, str(value)):
-            return value
-        self.fail(f"expected one of {', '.join(TURNS)} or an axis and degrees (y-15), got {value!r}", param, ctx)
+        try:
+            turn_matrix(str(value))
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+        return value
 
 
 @click.command(name="unpose")
