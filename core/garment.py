@@ -189,14 +189,24 @@ STRAY_FACTOR = 10.0
 STRAY_LEAST_M = 1.0
 
 
-def _refuse_strays(points: np.ndarray, source: str) -> None:
-    """InputError naming `source` where a few of a garment's used vertices `points` lie far from the rest
-    (`STRAY_FACTOR`): one stray vertex 40 m off was blamed on the file's units, one 5 m off baked a spike."""
+def stray_points(points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(stray (N,) bool, distance (N,) from the middle) where a few of a garment's used vertices `points` (N, 3)
+    lie far from the rest (`STRAY_FACTOR`), else None."""
     distance = np.linalg.norm(points - np.median(points, axis=0), axis=1)
     typical = float(np.median(distance))
     stray = distance > max(STRAY_FACTOR * typical, STRAY_LEAST_M * (typical > 0))
     if not stray.any() or stray.mean() > 0.05:  # more than a few: the garment itself (its units are checked next)
+        return None
+    return stray, distance
+
+
+def _refuse_strays(points: np.ndarray, source: str) -> None:
+    """InputError naming `source` where a few of a garment's used vertices `points` lie far from the rest
+    (`stray_points`): one stray vertex 40 m off was blamed on the file's units, one 5 m off baked a spike."""
+    found = stray_points(points)
+    if found is None:
         return
+    stray, distance = found
     worst = int(np.argmax(distance))
     rest = float(distance[~stray].max())
     where = ", ".join(f"{x:.4g}" for x in points[worst])

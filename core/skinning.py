@@ -488,9 +488,15 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     if body_piece:
         raise InputError(f"garment mesh '{name}': expected the garment alone, got {body_piece}: the avatar exported "
                          f"with the garment? export the garment without it")
+    prop = _prop_piece(garment, signed)
+    if prop:
+        usd = " (or name the garment's mesh 'garment': it is read alone)" if str(name).lower().endswith(
+            (".usd", ".usda", ".usdc", ".usdz")) else ""
+        raise InputError(f"garment mesh '{name}': expected the garment alone, got {prop}: a ground plane or a prop "
+                         f"exported with the garment? export the garment without it{usd}")
     median, near = (float(d) for d in np.percentile(np.abs(signed), [50, 5]))
     inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
-    far = median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M
+    far = _rests_nowhere(np.abs(signed))
     fix = maybe = None
     if far or inside > REST_INSIDE_FRAME_SHARE or median > FRAME_FIX_SUSPECT_MEDIAN_M:
         fix, maybe = _scale_fix(garment.vertices, body, mesh, name, near, inside, placed)
@@ -585,6 +591,36 @@ def _body_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
     return ""
 
 
+def _rests_nowhere(distance: np.ndarray) -> bool:
+    """Whether points at these distances from the rest body (metres) rest on it nowhere: their median over
+    MAX_MEDIAN_BODY_DISTANCE_M, their closest 5 % over MAX_NEAR_BODY_DISTANCE_M."""
+    median, near = np.percentile(distance, [50, 5])
+    return bool(median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M)
+
+
+def _prop_piece(garment: Garment, signed: np.ndarray) -> str:
+    """"" or, for a piece of a garment of several that rests on the body nowhere (`_rests_nowhere`) while the rest
+    of the garment does, what it is: "piece 2 of 2 (4 vertices, 0.62 m from the body (median), its closest 5 %
+    0.45 m or more)": not cloth worn but a ground plane or a prop exported with it (a USD stage's 1 m ground quad
+    under the feet baked with the skirt as cloth, skinned to the feet). A garment resting nowhere as a whole is
+    left to the unit and frame checks; a ball gown's skirt, however far from the legs, is one piece with its
+    bodice."""
+    n, labels = garment.pieces
+    if n < 2:
+        return ""
+    distance = np.abs(signed)
+    order = np.argsort(labels, kind="stable")
+    for k, members in enumerate(np.split(order, np.cumsum(np.bincount(labels, minlength=n))[:-1])):
+        if len(members) < 3 or not _rests_nowhere(distance[members]):
+            continue  # a vertex no face uses is no piece
+        if _rests_nowhere(np.delete(distance, members)):
+            return ""  # the rest too: the whole garment is off the body (a unit or frame mix-up)
+        median, near = np.percentile(distance[members], [50, 5])
+        return (f"piece {k + 1} of {n} ({len(members):,} vertices, resting on the body nowhere: {median:.2f} m from "
+                f"it (median), its closest 5 % {near:.2f} m or more)")
+    return ""
+
+
 #: The outcomes of the unpose and move searches of the last garments bound, by content (`_content_key`), the body's
 #: name (which the move's text speaks of) and the garment's: (fits unposed, `_shift_fix`'s (refusal, hint)).
 _SEARCHED: dict = {}
@@ -626,7 +662,8 @@ def _unposed_angle(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     signed distances to the rest body `mesh`, metres). (The example t-shirt skinned into an A-pose: 4.3 % inside,
     0 % unposed; shrunk by 5 % instead: 2.3 %, 10.4 % unposed; a garment in the T-pose unposed from an A-pose takes
     its sleeves above the arms: further out.) Not tried where the cloth inside is not by the arms
-    (`A_POSE_ARM_WEIGHT`)."""
+    (`A_POSE_ARM_WEIGHT`); not told where a move of a few centimetres (`_near_move`) leaves as little inside (the
+    example dress moved 3 cm up, 0.6 % inside: unposed from 30 degrees it fitted, 33 mm from where it belongs)."""
     from scipy.spatial import cKDTree
 
     from core.unpose import a_pose, unpose_garment
@@ -647,10 +684,36 @@ def _unposed_angle(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
         signed = mesh.signed_distance(rest.vertices, exact=False)
         left, out = float(np.mean(signed < -REST_INSIDE_DEPTH_M)), float(np.median(np.abs(signed)))
         if left <= min(REST_INSIDE_WARN_SHARE, inside / 2) and out <= median + 0.005:
-            found.append((_fit_score(signed), degrees))
+            found.append((_fit_score(signed), degrees, left))
         elif degrees == A_POSE_CHECK_DEGREES[0] and left > A_POSE_TRY_SHARE * inside:
             break  # no A-pose's cloth: the first try brings none of it out
-    return min(found)[1] if found else None
+    if not found:
+        return None
+    score, degrees, left = min(found)
+    _, near = _near_move(mesh, _shift_sample(garment.vertices.astype(np.float64)))
+    if round(near[2] * 200) <= round(left * 200) and near[0] <= SHIFT_AXIS_GAIN * score:
+        return None  # a move of a few centimetres brings as much out: a garment moved (the example dress 3 cm up)
+    return degrees
+
+
+#: How far (metres, along each axis) `_near_move` moves a garment: a slip of a tool, not another body's origin.
+NEAR_MOVE_M = 0.03
+
+
+def _near_move(mesh: TriangleMesh, v: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """The move of points `v` (N, 3) by at most NEAR_MOVE_M along each axis (up, then sideways, then forwards;
+    whole centimetres) that leaves the least share inside the body's rest surface `mesh` (to 0.5 %), then the
+    least `_shift_score`: (move, `_shift_score` there)."""
+    move = np.zeros(3)
+    for axis in (1, 0, 2):
+        tried = []
+        for d in np.round(np.arange(-NEAR_MOVE_M, NEAR_MOVE_M + 1e-9, MOVE_SEARCH_STEP_M), 2):
+            m = move.copy()
+            m[axis] = d
+            score = _shift_score(mesh, v + m)
+            tried.append(((round(score[2] * 200), score[0]), m, score))
+        _, move, best = min(tried, key=lambda t: t[0])
+    return move, best
 
 
 def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,

@@ -467,6 +467,7 @@ def read_usd_garment(path: str | os.PathLike, scale: float = 1.0):
         log.warning("%s: %d meshes (%s%s), none named 'garment': read as one garment, their seams welded where "
                     "they meet (name the garment's mesh 'garment' to read it alone)", where, len(parts), names,
                     ", ..." if len(parts) > 6 else "")
+        _refuse_stray_part(parts, where)
     vertices, counts, indices, uvs, uv_index, materials, bound = _joined_parts(parts, where)
     starts = _polygon_starts(counts)
     polygons = np.full((len(counts), 4), -1, dtype=np.int64)
@@ -539,6 +540,25 @@ def _garment_part(mesh: UsdGeom.Mesh, stage: Usd.Stage, where: str) -> dict:
     materials, bound = _face_materials(mesh, len(counts))
     return {"vertices": vertices, "counts": counts, "indices": indices, "uvs": uvs, "uv_index": uv_index,
             "materials": materials, "bound": bound, "path": str(mesh.GetPath())}
+
+
+def _refuse_stray_part(parts: list[dict], where: str) -> None:
+    """InputError naming the mesh where a whole `_garment_part` of several lies far from the others
+    (`core.garment.stray_points`: a 20 m ground plane was refused as "stray vertices a tool left")."""
+    from core.garment import stray_points
+
+    used = [p["vertices"][np.unique(p["indices"])] for p in parts]
+    found = stray_points(np.concatenate(used))
+    if found is None:
+        return
+    stray, distance = found
+    ends = np.cumsum([len(u) for u in used])
+    for part, start, end in zip(parts, ends - [len(u) for u in used], ends):
+        if stray[start:end].all():
+            points = counted(end - start, "point")
+            raise InputError(f"{where}: expected one garment, got mesh '{part['path']}' ({points}) far from the others ({distance[start:end].max():.3g} units from their middle; the "
+                             f"others within {distance[~stray].max():.3g}): a ground plane or a prop? name the "
+                             f"garment's mesh 'garment' to read it alone, or remove that mesh")
 
 
 def _joined_parts(parts: list[dict], where: str) -> tuple:

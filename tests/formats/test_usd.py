@@ -309,6 +309,44 @@ def test_a_usd_garment_of_several_meshes_is_read_as_one_its_seams_welded(tmp_pat
     assert read_garment(named).n_vertices == len(v[0])
 
 
+@pytest.mark.parametrize("half", [0.5, 10.0])
+def test_a_ground_plane_beside_a_usd_garment_is_refused_naming_it(tmp_path, half):
+    """A stage of the example skirt and a ground quad under the body's feet: a 1 m quad was baked as part of the
+    skirt (2,020 vertices, the quad skinned to the feet), a 20 m one refused as "stray vertices a tool left"
+    without naming its mesh. Now the small one is refused by the bake as a piece resting on the body nowhere,
+    the large one on reading, naming the mesh; named 'garment', the skirt is read alone."""
+    from formats.obj import read_garment
+    from tests.garmentcli.cli import invoke
+
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    skirt = read_garment(examples / "skirt.obj")
+    quad = np.array([[-half, -1.15, -half], [half, -1.15, -half], [half, -1.15, half], [-half, -1.15, half]])
+    path = tmp_path / "scene.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    for name, (pv, counts, indices) in (("skirt", (skirt.vertices, [3] * skirt.n_faces, skirt.faces.ravel())),
+                                        ("ground", (quad, [4], [0, 3, 2, 1]))):
+        mesh = UsdGeom.Mesh.Define(stage, f"/Root/{name}")
+        mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*p) for p in np.asarray(pv, dtype=float).tolist()]))
+        mesh.CreateFaceVertexCountsAttr(counts)
+        mesh.CreateFaceVertexIndicesAttr([int(i) for i in indices])
+    stage.GetRootLayer().Save()
+    r = invoke(["bake", path, examples / "walk.npz", "--frames", "0:2", "--out", tmp_path / "out", "--no-obj"])
+    assert r.exit_code != 0 and not (tmp_path / "out").exists(), r.output
+    if half < 1.0:
+        assert (f"'{path}': expected the garment alone, got piece 2 of 2 (4 vertices, resting on the body nowhere: "
+                f"0.") in r.output and "a ground plane or a prop" in r.output
+        assert "name the garment's mesh 'garment'" in r.output
+    else:
+        assert (f"'{path}': expected one garment, got mesh '/Root/ground' (4 points) far from the others (14.2 units "
+                f"from their middle") in r.output and "name the garment's mesh 'garment'" in r.output
+    # the skirt named 'garment' (copied so): read alone
+    Sdf.CopySpec(stage.GetRootLayer(), "/Root/skirt", stage.GetRootLayer(), "/Root/garment")
+    stage.GetRootLayer().Save()
+    assert read_garment(path).n_vertices == skirt.n_vertices
+
+
 def _obj_pieces(path):
     """The connected pieces of an OBJ as written (vertices (N, 3), faces (F, 3) of each), unwelded."""
     from core.garment import mesh_edges
