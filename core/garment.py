@@ -164,6 +164,22 @@ UNIT_GUESSES = (("centimetres", 0.01), ("millimetres", 0.001), ("inches", 0.0254
 GARMENT_SPAN_M = (0.2, 2.5)
 
 
+def unit_guesses(extent: float, span_m: tuple[float, float], scaled: float = 1.0) -> list[tuple[str, float]]:
+    """[(unit, the file's scale)] of each of `UNIT_GUESSES` that makes a file `extent` units across (its
+    coordinates multiplied by `scaled`) span_m (low, high) metres."""
+    return [(name, s * scaled) for name, s in UNIT_GUESSES if span_m[0] <= extent * s <= span_m[1]]
+
+
+class UnitsError(InputError):
+    """A garment file refused as too large for metres (`validate_garment`): `head`, its message without the hint
+    of units, and `units`, the `unit_guesses` that fit a garment (a body placed by tells which: see
+    `core.skinning.fit_in_units`)."""
+
+    def __init__(self, message: str, head: str, units: list[tuple[str, float]]):
+        super().__init__(message)
+        self.head, self.units = head, units
+
+
 def unit_hint(extent: float, span_m: tuple[float, float], command: str = "", scaled: float = 1.0) -> str:
     """The hint for a file `extent` units across that is too large for metres: each of `UNIT_GUESSES` that makes
     it span_m (low, high) metres, as "; is it in centimetres? scale it by 0.01", or "; is it in centimetres
@@ -171,7 +187,7 @@ def unit_hint(extent: float, span_m: tuple[float, float], command: str = "", sca
     where none does. command: the command that scales the file, "{scale}" standing for the scale (after the
     single unit's hint it is given with that scale: ": `garment unpose ... --scale 0.01`"). scaled: what the
     file's coordinates were multiplied by to give `extent`: the scales named are the file's."""
-    units = [(name, s * scaled) for name, s in UNIT_GUESSES if span_m[0] <= extent * s <= span_m[1]]
+    units = unit_guesses(extent, span_m, scaled)
     if len(units) == 1:
         return f"; is it in {units[0][0]}? scale it by {units[0][1]:g}" + (
             f": {command.format(scale=f'{units[0][1]:g}')}" if command else "")
@@ -234,8 +250,9 @@ def validate_garment(garment: Garment, source: str, scale: float = 1.0) -> None:
         # The units whose metres fit a garment: centimetres or millimetres (Marvelous Designer's and CLO's default
         # export), inches; all of those that could be it, as the file does not say.
         hint = unit_hint(extent, GARMENT_SPAN_M, f"`garment unpose {source} --pose tpose --scale {{scale}}`", scale)
-        raise InputError(f"garment mesh '{source}': expected metres (a garment spans under 3 m), got an extent of "
-                         f"{extent:.1f} units{hint}")
+        head = (f"garment mesh '{source}': expected metres (a garment spans under 3 m), got an extent of "
+                f"{extent:.1f} units")
+        raise UnitsError(head + hint, head, unit_guesses(extent, GARMENT_SPAN_M, scale))
     if extent < 1e-3:
         raise InputError(f"garment mesh '{source}': expected metres, got an extent of {extent:.2e} units")
 

@@ -555,6 +555,35 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
                 REST_INSIDE_DEPTH_M * 1e3, cause)
 
 
+def fit_in_units(read, body: Body, units: list[tuple[str, float]], name: str) -> str | None:
+    """For a garment file `name` refused as too large for metres (`core.garment.UnitsError`), which of its `units`
+    ([(unit, scale)]) puts it on `body`, as "in centimetres (scaled by 0.01) it rests on the body: `garment unpose
+    ...`" or, where a frame mix-up comes with the units (3ds Max: centimetres, Z-up), "in centimetres (scaled by
+    0.01) it fits when rotated ...: `garment unpose ... --scale 0.01 --turn z-up`": the first that rests on it
+    (`check_rest_fit`), else the first whose fix names no other scale, else the first fix; None where none does
+    (it was told "centimetres or inches?", then refused again once scaled). read: scale -> the file's Garment."""
+    mesh = TriangleMesh(body.v_template, body.faces)
+    fixes = []  # (named another scale, the fix)
+    for unit, scale in units:
+        placed = Placement(scale=scale, body="" if body.path is None else f" --body {body.path}")
+        said = f"in {unit} (scaled by {scale:g})"
+        level = logging.root.manager.disable
+        logging.disable(logging.WARNING)  # a candidate's warnings (welded seams, partly inside) are not the file's
+        try:
+            garment = read(scale)
+            check_rest_fit(garment, body, mesh, mesh.signed_closest(garment.vertices)[1], name, placed)
+        except InputError as refused:
+            text = str(refused)
+            if "it fits when" in text:
+                fix = text[text.index("it fits when"):]
+                fixes.append(("scaled by" in fix, f"{said} {fix}"))
+            continue
+        finally:
+            logging.disable(level)
+        return f"{said} it rests on the body: {unpose_command(name, Placement(), placed)}"
+    return min(fixes, key=lambda f: f[0])[1] if fixes else None
+
+
 #: A piece of the garment file (connected component) with at least half the body's vertices, this share of them
 #: within BODY_PIECE_SKIN_M of the rest body's surface, is the body itself (an avatar exported with the garment).
 BODY_PIECE_SHARE = 0.95
@@ -1125,8 +1154,8 @@ def oriented_outward(garment: Garment, body: Body, source: str | None = None) ->
                 "; ".join(what for what, n in (
                     (f"{rewound:,} wound against their neighbours", rewound),
                     (f"{len(inward)} of its {n_pieces} pieces faced the body", len(inward)),
-                    (f"{int((closed & turned).sum()):,} of closed pieces of two layers (cloth given thickness?) "
-                     f"faced the body",
+                    (f"{int((closed & turned).sum()):,} of closed pieces facing both ways (cloth given "
+                     f"thickness? buttons?) faced the body",
                      int((closed & turned).sum()))) if n))
     face_uvs = garment.face_uvs
     if face_uvs is not None:  # a changed face had its last two corners swapped once (twice is no change)

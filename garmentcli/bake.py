@@ -45,6 +45,7 @@ from garmentcli.common import (
     frames_option,
     input_errors_as_click,
     load_body_option,
+    read_garment_on,
     motion_files,
     motion_names,
     motion_parts,
@@ -493,7 +494,6 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     folders are told apart by their folders' names (<garment>_<folder>_<motion>), files of one stem in one folder
     by their suffixes (`motion_names`).
     """
-    from formats.obj import read_garment
 
     if not np.isfinite(fps) or fps <= 0:
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
@@ -518,8 +518,8 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
         raise click.UsageError("--quality auto chooses the method and precision: leave out --method and --precision")
     require_file(garment_path)
     motion_paths = motion_files(motion_paths)
-    garment = read_garment(garment_path)
     body = load_body_option(body_path)
+    garment = read_garment_on(garment_path, body)
     out_dir = Path(out_dir)
     targets = [(m, out_dir / f"{Path(garment_path).stem}_{name}{suffix}", part)
                for m, name in zip(motion_paths, motion_names(motion_paths))

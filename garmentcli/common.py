@@ -352,6 +352,23 @@ def with_collected_warnings(func):
     return wrapper
 
 
+def read_garment_on(path, body: Body):
+    """`formats.obj.read_garment`, but a file refused as too large for metres is refused naming the units that put
+    it on `body`, and any frame fix besides, as one command (`core.skinning.fit_in_units`): a 3ds Max export in
+    centimetres, Z-up, was told "centimetres or inches?", then, once scaled, the turn."""
+    from core.garment import UnitsError
+    from core.skinning import fit_in_units
+    from formats.obj import read_garment
+
+    try:
+        return read_garment(path)
+    except UnitsError as refused:
+        fix = fit_in_units(lambda scale: read_garment(path, scale=scale), body, refused.units, str(path))
+        if fix is None:
+            raise
+        raise InputError(f"{refused.head}; {fix}") from None
+
+
 def load_body_option(body_path: str | None) -> Body:
     """The body named by --body, or the embedded default body."""
     if body_path is None:

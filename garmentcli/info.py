@@ -18,6 +18,7 @@ from garmentcli.common import (
     collected_notes,
     input_errors_as_click,
     load_body_option,
+    read_garment_on,
     motion_files,
     person_option,
     resolved_up,
@@ -32,10 +33,9 @@ def garment_info(path: str, body) -> dict:
     bake would give ('refused': its line, or None)."""
     from core.geometry import TriangleMesh
     from core.skinning import REST_INSIDE_DEPTH_M, check_rest_fit
-    from formats.obj import read_garment
 
     with collected_notes() as notes:
-        garment = read_garment(path)
+        garment = read_garment_on(path, body)
         mesh = TriangleMesh(body.v_template, body.faces)
         _, signed = mesh.signed_closest(garment.vertices)
         try:

@@ -41,6 +41,7 @@ from garmentcli.common import (
     frames_option,
     input_errors_as_click,
     load_body_option,
+    read_garment_on,
     motion_up_option,
     person_option,
     take_option,
@@ -175,7 +176,6 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     simulator at two substep settings with and without self-contact. The finest simulation with
     self-contact is the reference the errors are measured against.
     """
-    from formats.obj import read_garment
 
     for p in (garment_path, motion_path):
         require_file(p)
@@ -210,8 +210,8 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
         click.echo(f"tradeoff: discarding the simulator rows an interrupted run left in '{staged}' (--reuse-sim "
                    "would take them)", err=True)
         shutil.rmtree(staged)
-    garment = read_garment(garment_path)
     body = load_body_option(body_path)
+    garment = read_garment_on(garment_path, body)
     models = _models_for_body(models, body)
     rows = configurations(models, spread=spread, fits=fits)
 

@@ -130,7 +130,7 @@ def test_a_garment_given_thickness_reads_as_cloth_facing_out_on_both_layers(capl
     assert consistent_winding(thick.faces)[1].max() == 0  # one piece, wound alike
     with caplog.at_level(logging.WARNING):
         out = oriented_outward(thick, body, "thick.obj")
-    assert "of closed pieces of two layers (cloth given thickness?) faced the body" in caplog.text
+    assert "of closed pieces facing both ways (cloth given thickness? buttons?) faced the body" in caplog.text
     V = skirt.n_vertices
     np.testing.assert_array_equal(out.faces[:skirt.n_faces], skirt.faces)  # the outer layer as it was
     normals = vertex_normals(out.vertices, out.faces)
