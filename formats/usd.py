@@ -556,9 +556,10 @@ def _refuse_stray_part(parts: list[dict], where: str) -> None:
     for part, start, end in zip(parts, ends - [len(u) for u in used], ends):
         if stray[start:end].all():
             points = counted(end - start, "point")
-            raise InputError(f"{where}: expected one garment, got mesh '{part['path']}' ({points}) far from the others ({distance[start:end].max():.3g} units from their middle; the "
-                             f"others within {distance[~stray].max():.3g}): a ground plane or a prop? name the "
-                             f"garment's mesh 'garment' to read it alone, or remove that mesh")
+            raise InputError(f"{where}: expected one garment, got mesh '{part['path']}' ({points}) far from the "
+                             f"others ({distance[start:end].max():.3g} units from their middle; the others within "
+                             f"{distance[~stray].max():.3g}): a ground plane or a prop? name the garment's mesh "
+                             f"'garment' to read it alone, or remove that mesh")
 
 
 def _joined_parts(parts: list[dict], where: str) -> tuple:

@@ -494,7 +494,6 @@ def bake(garment_path, motion_paths, method, out_dir, body_path, fps, frames, se
     folders are told apart by their folders' names (<garment>_<folder>_<motion>), files of one stem in one folder
     by their suffixes (`motion_names`).
     """
-
     if not np.isfinite(fps) or fps <= 0:
         raise click.BadParameter(f"expected a positive frame rate, got {fps}", param_hint="--fps")
     if frames:

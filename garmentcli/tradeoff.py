@@ -176,7 +176,6 @@ def tradeoff(garment_path, motion_path, out_dir, body_path, fps, frames, model_s
     simulator at two substep settings with and without self-contact. The finest simulation with
     self-contact is the reference the errors are measured against.
     """
-
     for p in (garment_path, motion_path):
         require_file(p)
     check_preroll(preroll_frames, frames)
