@@ -488,7 +488,7 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     if body_piece:
         raise InputError(f"garment mesh '{name}': expected the garment alone, got {body_piece}: the avatar exported "
                          f"with the garment? export the garment without it")
-    prop = _prop_piece(garment, signed)
+    prop = _prop_piece(garment, body, signed)
     if prop:
         usd = " (or name the garment's mesh 'garment': it is read alone)" if str(name).lower().endswith(
             (".usd", ".usda", ".usdc", ".usdz")) else ""
@@ -627,19 +627,28 @@ def _rests_nowhere(distance: np.ndarray) -> bool:
     return bool(median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M)
 
 
-def _prop_piece(garment: Garment, signed: np.ndarray) -> str:
+#: A piece no thicker than this (metres, up and down) whose top lies no more than this above the rest body's soles
+#: is the ground, however finely divided (a 2 m plane of 100 x 100 vertices has over 5 % of them by the feet).
+GROUND_FLAT_M = 0.005
+
+
+def _prop_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
     """"" or, for a piece of a garment of several that rests on the body nowhere (`_rests_nowhere`) while the rest
-    of the garment does, what it is: "piece 2 of 2 (4 vertices, 0.62 m from the body (median), its closest 5 %
-    0.45 m or more)": not cloth worn but a ground plane or a prop exported with it (a USD stage's 1 m ground quad
-    under the feet baked with the skirt as cloth, skinned to the feet). A garment resting nowhere as a whole is
-    left to the unit and frame checks; a ball gown's skirt, however far from the legs, is one piece with its
-    bodice."""
+    of the garment does, or lies flat at its soles (`GROUND_FLAT_M`), what it is: "piece 2 of 2 (4 vertices, 0.62
+    m from the body (median), its closest 5 % 0.45 m or more)": not cloth worn but a ground plane or a prop
+    exported with it (a USD stage's 1 m ground quad under the feet baked with the skirt as cloth, skinned to the
+    feet). A garment resting nowhere as a whole is left to the unit and frame checks; a ball gown's skirt, however
+    far from the legs, is one piece with its bodice, as is a train on the floor with its dress."""
     n, labels = garment.pieces
     if n < 2:
         return ""
     distance = np.abs(signed)
+    soles = float(body.v_template[:, 1].min())
     order = np.argsort(labels, kind="stable")
     for k, members in enumerate(np.split(order, np.cumsum(np.bincount(labels, minlength=n))[:-1])):
+        height = garment.vertices[members, 1]
+        if len(members) >= 3 and np.ptp(height) <= GROUND_FLAT_M and height.max() <= soles + GROUND_FLAT_M:
+            return f"piece {k + 1} of {n} ({len(members):,} vertices, flat at the body's soles)"
         if len(members) < 3 or not _rests_nowhere(distance[members]):
             continue  # a vertex no face uses is no piece
         if _rests_nowhere(np.delete(distance, members)):

@@ -376,6 +376,30 @@ def test_a_garment_file_holding_the_body_itself_is_refused(trousers_on_body):
     bind_garment(Garment(np.concatenate([g.vertices, shrunk]), f, name="inner.obj"), body)  # warned as inside
 
 
+def test_a_ground_plane_or_a_prop_in_the_garment_file_is_refused(trousers_on_body):
+    """A 2 m ground plane of 50 x 50 cells at the body's soles (some of its vertices by the feet) and a board
+    standing beside the body, each in the trousers' file: refused naming the piece (the ground was skinned to the
+    feet as cloth); a board 15 cm behind the back (a cape's panel) is not."""
+    g, body = trousers_on_body
+    soles, back = float(body.v_template[:, 1].min()), float(body.v_template[:, 2].min())
+    unit, faces = grid(50, 50, 2.0)
+    ground = np.stack([unit[:, 0] - 1.0, np.full(len(unit), soles), unit[:, 1] - 1.0], axis=1)
+    unit, board_faces = grid(4, 8, 1.0)
+    beside = np.stack([np.full(len(unit), 0.9), unit[:, 1] - 0.6, 0.4 * unit[:, 0] - 0.2], axis=1)
+    behind = np.stack([0.5 * unit[:, 0] - 0.25, 0.5 * unit[:, 1], np.full(len(unit), back - 0.15)], axis=1)
+    for piece, f, told in ((ground, faces, f"piece 2 of 2 ({len(ground):,} vertices, flat at the body's soles)"),
+                           (beside, board_faces, f"piece 2 of 2 ({len(beside)} vertices, resting on the body "
+                                                 "nowhere: 0.")):
+        with pytest.raises(InputError) as err:
+            bind_garment(Garment(np.concatenate([g.vertices, piece.astype(np.float32)]),
+                                 np.concatenate([g.faces, f + g.n_vertices]), name="scene.obj"), body)
+        assert f"'scene.obj': expected the garment alone, got {told}" in str(err.value), str(err.value)
+        assert str(err.value).endswith("a ground plane or a prop exported with the garment? export the garment "
+                                       "without it")
+    bind_garment(Garment(np.concatenate([g.vertices, behind.astype(np.float32)]),
+                         np.concatenate([g.faces, board_faces + g.n_vertices]), name="cape.obj"), body)
+
+
 @pytest.mark.parametrize("name, dy", [("tshirt", -0.23), ("trousers", -0.27), ("jumpsuit", 0.15)])
 def test_garment_authored_higher_or_lower_is_refused_naming_the_move(trousers_on_body, name, dy):
     """An example garment moved straight down by SMPL's offset (as a garment authored on SMPL's rest body sits on
