@@ -277,8 +277,9 @@ def test_the_turns_unpose_takes_are_those_bake_names():
 
 
 def test_a_garment_in_other_units_is_scaled_back_by_the_command_bake_names(tmp_path):
-    """The example dress written in inches: bake refuses it naming the units it may be in and `garment unpose
-    --scale S`; scaled by the wrong guess (centimetres: a doll's dress), unpose refuses it naming the file's
+    """The example dress written in inches: bake refuses it naming the units that put it on the body and `garment
+    unpose --scale 0.0254` (since 2026-12-08; it named both units it may be in and `--scale S`); scaled by the
+    wrong guess (centimetres: a doll's dress), unpose refuses it naming the file's
     scale, which, run as named, writes the dress back, and bake takes it. Unposed from the A-pose with the wrong
     scale, the scale named keeps the pose."""
     import re
@@ -288,8 +289,8 @@ def test_a_garment_in_other_units_is_scaled_back_by_the_command_bake_names(tmp_p
     write_obj(inches, (g.vertices / np.float32(0.0254)), g.faces, g.uvs, g.face_uvs)
     r = invoke(["bake", inches, EXAMPLES / "walk.npz", "--frames", "0:2", "--out", tmp_path / "bake"])
     assert r.exit_code != 0 and not (tmp_path / "bake").exists()
-    assert r.output.strip().endswith("is it in centimetres (scale it by 0.01) or inches (scale it by 0.0254)? "
-                                     f"`garment unpose {inches} --pose tpose --scale S` scales it"), r.output
+    assert r.output.strip().endswith("got an extent of 31.4 units; in inches (scaled by 0.0254) it rests on the "
+                                     f"body: `garment unpose {inches} --pose tpose --scale 0.0254`"), r.output
     r = invoke(["unpose", inches, "--pose", "tpose", "--scale", "0.01"])
     assert r.exit_code != 0 and not (tmp_path / "dress_in_rest.obj").exists()
     command = re.search(r"it fits when scaled by 2\.54 \(inches read as centimetres\?\): `garment unpose (\S+) "
