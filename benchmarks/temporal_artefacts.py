@@ -18,9 +18,9 @@ artefacts from the cloth's swing: the simulator's cloth accelerates more than th
   under STILL_MM.
 
 Scenes: the example dress on the run and the skirt on the walk (30 frames at 30 fps, then the hold), the
-jumpsuit's jump (the model's kick; no simulator: 91 frames), the simulator at the bake's defaults (its output cached in data/temporal_artefacts/: about 1 minute a scene on 2
-cores, the first also compiles), the shipped model in float32 (contact guard and strain limit on, one torch
-thread) and LBS. Nothing here is asserted by the tests.
+jumpsuit's jump (the model's kick; no simulator: 91 frames); the simulator at the bake's defaults (its output
+cached in data/temporal_artefacts/: about 1 minute a scene on 2 cores, the first also compiles), the shipped
+model in float32 (contact guard and strain limit on, one torch thread) and LBS. Nothing here is asserted by the tests.
 """
 
 from __future__ import annotations
@@ -126,7 +126,8 @@ def main() -> None:
         f"reversals: vertex-frames where it turns back (both over {REVERSAL_MM:g} mm/frame) per vertex and second "
         "of the moving frames; the hold: the last pose held, the speed in its first three frames and its last five; "
         f"snap: the first held frame's speed over the last moving frames' (1: goes on, 0: stops at once); stops "
-        f"after: the held frames until its speed stays under {STILL_MM:g} mm/frame. LBS has none by definition. The simulator at the bake's defaults, the shipped model in float32.", "",
+        f"after: the held frames until its speed stays under {STILL_MM:g} mm/frame. LBS has none by definition. "
+        "The simulator at the bake's defaults, the shipped model in float32.", "",
         markdown_table(header, rows)], show=True)
 
 
