@@ -645,12 +645,20 @@ def _prop_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
     distance = np.abs(signed)
     soles = float(body.v_template[:, 1].min())
     order = np.argsort(labels, kind="stable")
-    for k, members in enumerate(np.split(order, np.cumsum(np.bincount(labels, minlength=n))[:-1])):
-        height = garment.vertices[members, 1]
-        if len(members) >= 3 and np.ptp(height) <= GROUND_FLAT_M and height.max() <= soles + GROUND_FLAT_M:
+    sizes = np.bincount(labels, minlength=n)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    height = garment.vertices[order, 1]
+    top, bottom = np.maximum.reduceat(height, starts), np.minimum.reduceat(height, starts)
+    ground = (top - bottom <= GROUND_FLAT_M) & (top <= soles + GROUND_FLAT_M)
+    # (pieces of 3 vertices or more, a face's: a vertex no face uses is no piece; only those reaching beyond
+    # MAX_MEDIAN_BODY_DISTANCE_M can rest nowhere: an unwelded file of 100,000 pieces is not looked at one by one)
+    for k in np.flatnonzero((sizes >= 3) & (ground | (np.maximum.reduceat(distance[order], starts)
+                                                       > MAX_MEDIAN_BODY_DISTANCE_M))):
+        members = order[starts[k]:starts[k] + sizes[k]]
+        if ground[k]:
             return f"piece {k + 1} of {n} ({len(members):,} vertices, flat at the body's soles)"
-        if len(members) < 3 or not _rests_nowhere(distance[members]):
-            continue  # a vertex no face uses is no piece
+        if not _rests_nowhere(distance[members]):
+            continue
         if _rests_nowhere(np.delete(distance, members)):
             return ""  # the rest too: the whole garment is off the body (a unit or frame mix-up)
         median, near = np.percentile(distance[members], [50, 5])
