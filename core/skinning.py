@@ -521,7 +521,7 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
             raise InputError(f"garment mesh '{name}': {expected}), got {inside:.1%} of its vertices more than "
                              f"{REST_INSIDE_DEPTH_M * 1e3:.0f} mm inside the body; it fits when unposed from an A-pose "
                              f"(arms lowered {unposed:g} degrees): `garment unpose {name} --pose apose{angle}"
-                             f"{placed.body}`")
+                             f"{placed.options()}{placed.body}`")  # after the scale, turns and move given
     if not (far or fix or lift) and inside <= REST_INSIDE_WARN_SHARE:
         if maybe:  # 2.5 times too large, or loose: told, not refused
             log.warning("garment mesh '%s': it rests on the body nowhere (its closest 5 %% %.0f cm or more from it); "

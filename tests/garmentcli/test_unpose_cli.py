@@ -308,6 +308,25 @@ def test_a_garment_in_other_units_is_scaled_back_by_the_command_bake_names(tmp_p
         f"`garment unpose {inches} --pose apose --scale 0.0254`"), r.output
 
 
+def test_an_a_posed_garment_in_centimetres_is_told_both_in_one_command(a_posed, tmp_path):
+    """The A-posed t-shirt written in centimetres: bake names the A-pose and the scale in one command (the A-pose's
+    command left out the scale given: run as named, unpose refused the file's units again); run, it bakes."""
+    path, rest = a_posed
+    cm = tmp_path / "shirt_cm.obj"
+    posed = read_obj(path)
+    write_obj(cm, posed.vertices * np.float32(100.0), posed.faces, posed.uvs, posed.face_uvs)
+    r = invoke(["bake", cm, EXAMPLES / "walk.npz", "--frames", "0:2", "--out", tmp_path / "bake", "--method", "lbs"])
+    assert r.exit_code != 0 and r.output.strip().endswith(
+        "in centimetres (scaled by 0.01) it fits when unposed from an A-pose (arms lowered 45 degrees): "
+        f"`garment unpose {cm} --pose apose --scale 0.01`"), r.output
+    r = invoke(["unpose", cm, "--pose", "apose", "--scale", "0.01", "--out", tmp_path / "rest.obj"])
+    assert r.exit_code == 0, r.output
+    assert np.abs(read_obj(tmp_path / "rest.obj").vertices - rest.vertices).max() < 0.005
+    r = invoke(["bake", tmp_path / "rest.obj", EXAMPLES / "walk.npz", "--frames", "0:2", "--out", tmp_path / "bake",
+                "--method", "lbs", "--no-obj"])
+    assert r.exit_code == 0, r.output
+
+
 def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
     """The example t-shirt lifted 0.3 m and moved down by only 0.1 m: the move named is the whole of it, on the
     file as given (it was the rest of it, as if on the file: run as named, the shirt stayed 0.1 m high)."""
