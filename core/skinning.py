@@ -559,29 +559,52 @@ def fit_in_units(read, body: Body, units: list[tuple[str, float]], name: str) ->
     """For a garment file `name` refused as too large for metres (`core.garment.UnitsError`), which of its `units`
     ([(unit, scale)]) puts it on `body`, as "in centimetres (scaled by 0.01) it rests on the body: `garment unpose
     ...`" or, where a frame mix-up comes with the units (3ds Max: centimetres, Z-up), "in centimetres (scaled by
-    0.01) it fits when rotated ...: `garment unpose ... --scale 0.01 --turn z-up`": the first that rests on it
-    (`check_rest_fit`), else the first whose fix names no other scale, else the first fix; None where none does
-    (it was told "centimetres or inches?", then refused again once scaled). read: scale -> the file's Garment."""
+    0.01) it fits when rotated ...: `garment unpose ... --scale 0.01 --turn z-up`": of those that rest on it
+    (`check_rest_fit`) or name a fix, the one whose `_fit_score` is least once placed so (the trousers in
+    centimetres turned 30 degrees rest on the body in inches, 2.54 times too large, 0.32 m from it: 382 mm against
+    26 once turned back in centimetres); a fix naming another scale or the same score: the one that rests; None
+    where none does (it was told "centimetres or inches?", then refused again once scaled). read: scale -> the
+    file's Garment."""
     mesh = TriangleMesh(body.v_template, body.faces)
-    fixes = []  # (named another scale, the fix)
+    found = []  # (score placed, names another scale, the text)
     for unit, scale in units:
         placed = Placement(scale=scale, body="" if body.path is None else f" --body {body.path}")
         said = f"in {unit} (scaled by {scale:g})"
         level = logging.root.manager.disable
         logging.disable(logging.WARNING)  # a candidate's warnings (welded seams, partly inside) are not the file's
+        garment = None
         try:
             garment = read(scale)
             check_rest_fit(garment, body, mesh, mesh.signed_closest(garment.vertices)[1], name, placed)
         except InputError as refused:
             text = str(refused)
-            if "it fits when" in text:
+            if garment is not None and "it fits when" in text:
                 fix = text[text.index("it fits when"):]
-                fixes.append(("scaled by" in fix, f"{said} {fix}"))
+                found.append((_placed_score(mesh, garment.vertices, fix, name, scale), "scaled by" in fix,
+                              f"{said} {fix}"))
             continue
         finally:
             logging.disable(level)
-        return f"{said} it rests on the body: {unpose_command(name, Placement(), placed)}"
-    return min(fixes, key=lambda f: f[0])[1] if fixes else None
+        found.append((_placed_score(mesh, garment.vertices, "", name, scale), False,
+                      f"{said} it rests on the body: {unpose_command(name, Placement(), placed)}"))
+    return min(found, key=lambda f: (round(f[0] * 1e4), f[1]))[2] if found else None  # (to 0.1 mm: the same
+    # placement reached by another unit's fix rounds otherwise)
+
+
+def _placed_score(mesh: TriangleMesh, vertices: np.ndarray, fix: str, name: str, scale: float) -> float:
+    """`_fit_score` of a garment's `vertices` (read at `scale`) once placed as the `garment unpose` command that
+    `fix` ends with names for the file `name` (its scale, turns and move: a pose's unposing is not made), or as they
+    are without one."""
+    import re
+
+    command = re.search(r"`garment unpose (.*)`$", fix)
+    options = command[1][len(name):] if command and command[1].startswith(name) else ""
+    if options:
+        named = re.search(r" --scale (\S+)", options)
+        move = re.search(r" --move (\S+)", options)
+        vertices = Placement(float(named[1]) / scale if named else 1.0, tuple(re.findall(r" --turn (\S+)", options)),
+                             tuple(float(m) for m in move[1].split(",")) if move else (0.0, 0.0, 0.0)).apply(vertices)
+    return _fit_score(mesh.signed_distance(np.asarray(vertices, dtype=np.float64), exact=False))
 
 
 #: A piece of the garment file (connected component) with at least half the body's vertices, this share of them
