@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import re
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -200,8 +201,6 @@ def turn_matrix(turn: str) -> np.ndarray:
     """(3, 3) the rotation of a turn: a name in `TURNS`, or an axis and degrees (`TURN_PATTERN`: "y-15")."""
     if turn in TURNS:
         return TURNS[turn]
-    import re
-
     if not re.fullmatch(TURN_PATTERN, turn):
         raise ValueError(f"expected one of {', '.join(TURNS)} or an axis and degrees (y-15), got {turn!r}")
     return _axis_turn("xyz".index(turn[0]), float(turn[1:]))
@@ -578,8 +577,9 @@ def fit_in_units(read, body: Body, units: list[tuple[str, float]], name: str) ->
             check_rest_fit(garment, body, mesh, mesh.signed_closest(garment.vertices)[1], name, placed)
         except InputError as refused:
             text = str(refused)
-            if garment is not None and "it fits when" in text:
-                fix = text[text.index("it fits when"):]
+            told = re.search(r"it fits (better )?when", text)  # a frame, unit or pose fix; a move's
+            if garment is not None and told:
+                fix = text[told.start():]
                 found.append((_placed_score(mesh, garment.vertices, fix, name, scale), "scaled by" in fix,
                               f"{said} {fix}"))
             continue
@@ -595,8 +595,6 @@ def _placed_score(mesh: TriangleMesh, vertices: np.ndarray, fix: str, name: str,
     """`_fit_score` of a garment's `vertices` (read at `scale`) once placed as the `garment unpose` command that
     `fix` ends with names for the file `name` (its scale, turns and move: a pose's unposing is not made), or as they
     are without one."""
-    import re
-
     command = re.search(r"`garment unpose (.*)`$", fix)
     options = command[1][len(name):] if command and command[1].startswith(name) else ""
     if options:

@@ -241,22 +241,27 @@ def test_bake_garment_written_z_up_is_refused_naming_the_rotation(scene):
     (1 / 0.0254, None, "in inches (scaled by 0.0254) it rests on the body: `garment unpose {path} --pose tpose "
                        "--scale 0.0254`"),
     (100.0, "yaw", "in centimetres (scaled by 0.01) it fits when rotated -30 degrees about Y (the up axis): "
-                   "`garment unpose {path} --pose tpose --scale 0.01 --turn y-30`")])
+                   "`garment unpose {path} --pose tpose --scale 0.01 --turn y-30`"),
+    (100.0, "up", "in centimetres (scaled by 0.01) it fits better when moved down by 0.25 m (authored on a body "
+                  "whose origin stands elsewhere): pass the body it was authored on with --body, or move it: "
+                  "`garment unpose {path} --pose tpose --scale 0.01 --move 0,-0.25,0`")])
 def test_a_garment_in_other_units_is_refused_naming_the_units_the_body_tells(scene, per_metre, turned, told):
     """A 3ds Max export of the example trousers (centimetres, Z-up) was told "centimetres or inches?" and, once
     scaled, refused again naming the turn: now the body tells the units, and the one command names both; run,
     its result bakes. In inches, Y-up: the inches alone. In centimetres, turned 30 degrees about the up axis: the
     turn back in centimetres, not inches, where the trousers, 2.54 times too large, rest on the body too (0.32 m
-    from it, median, baked without a word)."""
+    from it, median, baked without a word); the jumpsuit moved up 0.25 m (authored on SMPL's rest body): the move
+    besides."""
     from core.skinning import turn_matrix
 
-    src = Path(__file__).resolve().parents[2] / "examples" / "trousers.obj"
+    src = Path(__file__).resolve().parents[2] / "examples" / ("jumpsuit.obj" if turned == "up" else "trousers.obj")
     lines = []
     for line in src.read_text().splitlines():
         if line.startswith("v "):
             x, y, z = (float(c) * per_metre for c in line.split()[1:4])
             if turned == "yaw":
                 x, y, z = turn_matrix("y+30") @ [x, y, z]
+            y += 25.0 if turned == "up" else 0.0
             line = f"v {x:.5f} {-z:.5f} {y:.5f}" if turned == "z-up" else f"v {x:.5f} {y:.5f} {z:.5f}"
         lines.append(line)
     path = scene["dir"] / "max.obj"
