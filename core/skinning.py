@@ -498,7 +498,7 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
     far = _rests_nowhere(np.abs(signed))
     fix = maybe = None
     if far or inside > REST_INSIDE_FRAME_SHARE or median > FRAME_FIX_SUSPECT_MEDIAN_M:
-        fix, maybe = _scale_fix(garment.vertices, body, mesh, name, near, inside, placed)
+        fix, maybe = _scale_fix(garment.vertices, body, mesh, name, near, inside, placed, median)
         if not fix:  # no unit mix-up: a frame mix-up? (a garment near the body must be put far closer by it)
             closer = None if far or inside > REST_INSIDE_FRAME_SHARE else (median, near)
             fix = _frame_fix(garment.vertices, body, mesh, closer_than=closer, name=name, placed=placed)
@@ -523,8 +523,9 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
                              f"{placed.options()}{placed.body}`")  # after the scale, turns and move given
     if not (far or fix or lift) and inside <= REST_INSIDE_WARN_SHARE:
         if maybe:  # 2.5 times too large, or loose: told, not refused
-            log.warning("garment mesh '%s': it rests on the body nowhere (its closest 5 %% %.0f cm or more from it); "
-                        "%s: in other units? (a loose garment fits closer shrunk too)", name, near * 100, maybe)
+            log.warning("garment mesh '%s': it stands off the body (%.2f m from it, median; its closest 5 %% %.0f cm "
+                        "or more); %s: in other units? (a loose garment fits closer shrunk too)", name, median,
+                        near * 100, maybe)
         return
     if lift and not far and inside <= REST_INSIDE_FRAME_SHARE:
         above = float(garment.vertices[:, 1].max() - body.v_template[:, 1].max())
@@ -897,7 +898,7 @@ def _yaw_fix(v: np.ndarray, mesh: TriangleMesh, inside: float) -> tuple[int, flo
 
 
 def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, near: float, inside: float,
-               placed: Placement | None = None) -> tuple[str | None, str | None]:
+               placed: Placement | None = None, median: float = 0.0) -> tuple[str | None, str | None]:
     """(fix, maybe): "it fits when scaled by 2.54 (inches read as centimetres?)[, then <a frame fix>][, then moved
     ...]" (naming `garment unpose`) for a garment that one of `UNIT_MIXUPS` (about the origin; the nearest to 1
     first) puts on the body far better than it is, else None; maybe: for the first scale that fits SCALE_GAIN
@@ -908,7 +909,9 @@ def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, 
     times smaller (SCALE_SHRINK_GAIN shrunk, SCALE_TENFOLD_GAIN for a tenfold scale) than the garment's own at its
     best place, its median distance then at most FRAME_FIX_MEDIAN_M. Only scales that leave it spanning
     `GARMENT_SPAN_M` are tried; smaller ones only where its closest 5 % lie over MAX_NEAR_BODY_DISTANCE_M from the
-    body (`near`, metres: a garment too large rests on it nowhere, a loose one does, and fits closer shrunk),
+    body (`near`, metres: a garment too large rests on it nowhere, a loose one does, and fits closer shrunk) or its
+    median distance over MAX_MEDIAN_BODY_DISTANCE_M (`median`: trousers 2.54 times too large and turned cross the
+    legs, 0.32 m from the body, median; none of the loose tubes of `benchmarks/garment_placement.py` lies so),
     larger ones only where over REST_INSIDE_WARN_SHARE of it is inside (`inside`: a garment too small)."""
     from core.garment import GARMENT_SPAN_M
 
@@ -916,7 +919,8 @@ def _scale_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh, name: str, 
     span = float(np.ptp(v, axis=0).max())
     tried = sorted(((ratio, mixup) for ratio, mixup in UNIT_MIXUPS
                     if GARMENT_SPAN_M[0] <= span * ratio <= GARMENT_SPAN_M[1]
-                    and (near > MAX_NEAR_BODY_DISTANCE_M if ratio < 1.0 else inside > REST_INSIDE_WARN_SHARE)),
+                    and (near > MAX_NEAR_BODY_DISTANCE_M or median > MAX_MEDIAN_BODY_DISTANCE_M if ratio < 1.0
+                         else inside > REST_INSIDE_WARN_SHARE)),
                    key=lambda t: abs(np.log(t[0])))
     own = _best_place(mesh, v, body)[0] / span if tried else 0.0
     maybe = None

@@ -620,11 +620,22 @@ def test_a_garment_resting_nowhere_that_fits_better_shrunk_is_bound_with_a_warni
         caplog.clear()
         with caplog.at_level(logging.WARNING):
             bind_garment(Garment(tube.vertices, tube.faces, name="tube.obj"), body)
-        warned[ease] = [r.getMessage() for r in caplog.records if "rests on the body nowhere" in r.getMessage()]
+        warned[ease] = [r.getMessage() for r in caplog.records if "stands off the body" in r.getMessage()]
         assert bool(warned[ease]) == told, caplog.text
     assert re.search(r"it fits 2\.\d times better for its size when scaled by 0\.3937 \(centimetres read as "
                      r"inches\?\), then moved up by 0\.\d\d m.*`garment unpose tube.obj --pose tpose --scale 0\.393701 "
                      r"--move 0,0\.\d\d,0`: in other units\? \(a loose garment fits closer shrunk too\)$", warned[0.12][0]), warned
+    # the trousers 2.54 times too large and turned 30 degrees cross the legs (their closest 5 % within 5 cm), 0.32 m
+    # from the body (median): bound without a word before, now told the scale
+    from core.skinning import turn_matrix
+
+    trousers, _ = trousers_on_body
+    large = (trousers.vertices.astype(np.float64) * 2.54) @ turn_matrix("y+30").T
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        bind_garment(Garment(large.astype(np.float32), trousers.faces, name="large.obj"), body)
+    assert re.search(r"'large.obj': it stands off the body \(0\.3\d m from it, median; its closest 5 % \d cm or "
+                     r"more\); it fits 1\.\d times better for its size when scaled by 0\.3937", caplog.text), caplog.text
 
 
 def test_a_lifted_t_shirt_is_told_its_move_not_a_scale(trousers_on_body):
