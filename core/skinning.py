@@ -532,6 +532,8 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
         raise InputError(f"garment mesh '{name}': {expected}, resting on it), got its top {above:.2f} m above the "
                          f"body's head and none of it below y = 0 (the floor); {lift}")
     fix = fix or lift
+    if fix:  # an A-pose besides? (an avatar's A-pose on the floor)
+        fix = _then_a_pose(garment, body, mesh, fix, name, placed) or fix
     hint = f"; {fix}" if fix else f"; {maybe}: in other units?" if maybe else ""
     span = float(np.ptp(garment.vertices[np.unique(garment.faces)], axis=0).max())
     if far and not fix and span > GARMENT_MAX_SPAN_M:  # under the unit check's 10 units, over any garment
@@ -596,14 +598,53 @@ def _placed_score(mesh: TriangleMesh, vertices: np.ndarray, fix: str, name: str,
     """`_fit_score` of a garment's `vertices` (read at `scale`) once placed as the `garment unpose` command that
     `fix` ends with names for the file `name` (its scale, turns and move: a pose's unposing is not made), or as they
     are without one."""
-    command = re.search(r"`garment unpose (.*)`$", fix)
-    options = command[1][len(name):] if command and command[1].startswith(name) else ""
-    if options:
-        named = re.search(r" --scale (\S+)", options)
-        move = re.search(r" --move (\S+)", options)
-        vertices = Placement(float(named[1]) / scale if named else 1.0, tuple(re.findall(r" --turn (\S+)", options)),
-                             tuple(float(m) for m in move[1].split(",")) if move else (0.0, 0.0, 0.0)).apply(vertices)
+    named = _named_placement(fix, name)
+    if named is not None:
+        vertices = replace(named, scale=named.scale / scale).apply(vertices)
     return _fit_score(mesh.signed_distance(np.asarray(vertices, dtype=np.float64), exact=False))
+
+
+def _named_placement(fix: str, name: str) -> Placement | None:
+    """The `Placement` (scale, turns, move and pose, not the body) of the `garment unpose` command for the file
+    `name` that the text `fix` ends with (`unpose_command`), or None without one."""
+    command = re.search(r"`garment unpose (.*)`$", fix)
+    if not command or not command[1].startswith(name):
+        return None
+    options = command[1][len(name):]
+    scale, move = re.search(r" --scale (\S+)", options), re.search(r" --move (\S+)", options)
+    pose = re.match(r"( --pose \S+( --arm-angle \S+)?)", options)
+    return Placement(float(scale[1]) if scale else 1.0, tuple(re.findall(r" --turn (\S+)", options)),
+                     tuple(float(m) for m in move[1].split(",")) if move else (0.0, 0.0, 0.0),
+                     pose[1] if pose else " --pose tpose")
+
+
+def _then_a_pose(garment: Garment, body: Body, mesh: TriangleMesh, fix: str, name: str,
+                 placed: Placement) -> str | None:
+    """`fix` ("it fits when moved down by 0.90 m ...: `garment unpose ...`") with the A-pose the garment is in
+    besides, where the garment placed so is more than A_POSE_CHECK_SHARE inside the body and unposing it from an
+    A-pose puts it on it (`_unposed_angle`): "it fits when moved down by 0.90 m ..., then unposed from an A-pose
+    (arms lowered 45 degrees): `garment unpose ... --pose apose --scale 0.001 --move 0,-0.9,0`" (Marvelous
+    Designer's avatars stand A-posed on the floor, in millimetres: the drop was named, then, once made, the
+    A-pose); else None. placed: what was done to the file to make `garment` (the command names the file's whole)."""
+    whole = _named_placement(fix, name)
+    if whole is None or whole.pose != " --pose tpose":
+        return None
+    file = (garment.vertices.astype(np.float64) - np.asarray(placed.move)) @ placed.rotation / placed.scale
+    fixed = replace(garment, vertices=whole.apply(file).astype(np.float32))
+    signed = mesh.signed_distance(fixed.vertices, exact=False)
+    if np.mean(signed < -REST_INSIDE_DEPTH_M) <= A_POSE_CHECK_SHARE:
+        return None
+    angle = _unposed_angle(fixed, body, mesh, signed, float(np.median(np.abs(signed))))
+    if angle is None:
+        return None
+    from core.unpose import A_POSE_ARM_DEGREES
+
+    start = fix.index(": `garment unpose")
+    what = re.sub(r" \(\d+% of it then still inside the body: [^)]*\)", "", fix[:start])
+    option = "" if angle == A_POSE_ARM_DEGREES else f" --arm-angle {angle:g}"
+    command = fix[start:].replace(f"`garment unpose {name} --pose tpose", f"`garment unpose {name} --pose apose{option}",
+                                  1)
+    return f"{what}, then unposed from an A-pose (arms lowered {angle:g} degrees){command}"
 
 
 #: A piece of the garment file (connected component) with at least half the body's vertices, this share of them

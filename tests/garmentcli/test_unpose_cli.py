@@ -327,6 +327,28 @@ def test_an_a_posed_garment_in_centimetres_is_told_both_in_one_command(a_posed, 
     assert r.exit_code == 0, r.output
 
 
+def test_an_a_posed_garment_on_the_floor_in_millimetres_is_told_all_three_in_one_command(a_posed, tmp_path):
+    """The A-posed t-shirt standing on the floor (y = 0 at the soles) in millimetres, as Marvelous Designer's
+    avatars export: bake named the units and the drop, then, once made, the A-pose; now one command names all
+    three, which run as named gives the t-shirt back within the drop's rounding."""
+    from core.body import default_body
+
+    path, rest = a_posed
+    soles = -float(default_body().v_template[:, 1].min())
+    posed = read_obj(path)
+    mm = tmp_path / "md.obj"
+    write_obj(mm, (posed.vertices + np.float32([0.0, soles, 0.0])) * np.float32(1000.0), posed.faces, posed.uvs,
+              posed.face_uvs)
+    r = invoke(["bake", mm, EXAMPLES / "walk.npz", "--frames", "0:2", "--out", tmp_path / "bake", "--method", "lbs"])
+    assert r.exit_code != 0 and r.output.strip().endswith(
+        "in millimetres (scaled by 0.001) it fits when moved down by 0.90 m (authored on a body standing at y = 0), "
+        f"then unposed from an A-pose (arms lowered 45 degrees): `garment unpose {mm} --pose apose --scale 0.001 "
+        "--move 0,-0.9,0`"), r.output
+    r = invoke(["unpose", mm, "--pose", "apose", "--scale", "0.001", "--move", "0,-0.9,0", "--out", tmp_path / "r.obj"])
+    assert r.exit_code == 0, r.output
+    assert np.abs(read_obj(tmp_path / "r.obj").vertices - rest.vertices).max() < 0.006
+
+
 def test_a_move_unpose_names_adds_to_the_move_it_was_given(tmp_path):
     """The example t-shirt lifted 0.3 m and moved down by only 0.1 m: the move named is the whole of it, on the
     file as given (it was the rest of it, as if on the file: run as named, the shirt stayed 0.1 m high)."""
