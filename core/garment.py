@@ -229,7 +229,8 @@ def _refuse_strays(points: np.ndarray, source: str) -> None:
     raise InputError(f"garment mesh '{source}': expected one garment, got {int(stray.sum())} "
                      f"{'vertex' if stray.sum() == 1 else 'vertices'} far from the rest (the furthest at ({where}), "
                      f"{distance[worst]:.3g} units from its middle; the other vertices within {rest:.3g}): stray "
-                     f"vertices a tool left? remove them")
+                     f"vertices a tool left? remove them" + ("" if stray.sum() < 3 else " (or a ground plane or "
+                                                             "a prop exported with the garment? export it without)"))
 
 
 def validate_garment(garment: Garment, source: str, scale: float = 1.0) -> None:

@@ -691,8 +691,14 @@ def _rests_nowhere(distance: np.ndarray) -> bool:
 
 
 #: A piece no thicker than this (metres, up and down) whose top lies no more than this above the rest body's soles
-#: is the ground, however finely divided (a 2 m plane of 100 x 100 vertices has over 5 % of them by the feet).
+#: and that reaches under both feet (the body's vertices within GROUND_FEET_M of its soles) is the ground, however
+#: finely divided (a 2 m plane of 100 x 100 vertices has over 5 % of them by the feet); a dress's train lying on the
+#: floor behind the feet, a sandal's sole under one foot, are cloth (audit 30).
 GROUND_FLAT_M = 0.005
+GROUND_FEET_M = 0.05
+#: A piece resting on the body nowhere that comes within this (metres) of the rest of the garment is cloth of it (a
+#: train lying on the floor behind the dress's hem, a cape's panel by the shoulders), not a prop.
+PROP_APART_M = 0.05
 
 
 def _prop_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
@@ -701,7 +707,8 @@ def _prop_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
     m from the body (median), its closest 5 % 0.45 m or more)": not cloth worn but a ground plane or a prop
     exported with it (a USD stage's 1 m ground quad under the feet baked with the skirt as cloth, skinned to the
     feet). A garment resting nowhere as a whole is left to the unit and frame checks; a ball gown's skirt, however
-    far from the legs, is one piece with its bodice, as is a train on the floor with its dress."""
+    far from the legs, is one piece with its bodice, as is a train on the floor with its dress; a piece within
+    PROP_APART_M of the rest is cloth too."""
     n, labels = garment.pieces
     if n < 2:
         return ""
@@ -710,9 +717,14 @@ def _prop_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
     order = np.argsort(labels, kind="stable")
     sizes = np.bincount(labels, minlength=n)
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    height = garment.vertices[order, 1]
-    top, bottom = np.maximum.reduceat(height, starts), np.minimum.reduceat(height, starts)
-    ground = (top - bottom <= GROUND_FLAT_M) & (top <= soles + GROUND_FLAT_M)
+    points = garment.vertices[order]
+    top, bottom = np.maximum.reduceat(points[:, 1], starts), np.minimum.reduceat(points[:, 1], starts)
+    feet = body.v_template[body.v_template[:, 1] <= soles + GROUND_FEET_M][:, [0, 2]]
+    under = np.ones(n, dtype=bool)  # the piece reaches under both feet, on both axes along the ground
+    for axis, column in ((0, 0), (1, 2)):
+        under &= (np.minimum.reduceat(points[:, column], starts) <= feet[:, axis].min()) & (
+            np.maximum.reduceat(points[:, column], starts) >= feet[:, axis].max())
+    ground = (top - bottom <= GROUND_FLAT_M) & (top <= soles + GROUND_FLAT_M) & under
     # (pieces of 3 vertices or more, a face's: a vertex no face uses is no piece; only those reaching beyond
     # MAX_MEDIAN_BODY_DISTANCE_M can rest nowhere: an unwelded file of 100,000 pieces is not looked at one by one)
     for k in np.flatnonzero((sizes >= 3) & (ground | (np.maximum.reduceat(distance[order], starts)
@@ -724,6 +736,11 @@ def _prop_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
             continue
         if _rests_nowhere(np.delete(distance, members)):
             return ""  # the rest too: the whole garment is off the body (a unit or frame mix-up)
+        from scipy.spatial import cKDTree
+
+        rest = np.delete(garment.vertices, members, axis=0)
+        if cKDTree(rest).query(garment.vertices[members], distance_upper_bound=PROP_APART_M)[0].min() <= PROP_APART_M:
+            continue  # by the rest of the garment: cloth hanging from it (a train on the floor by the hem)
         median, near = np.percentile(distance[members], [50, 5])
         return (f"piece {k + 1} of {n} ({len(members):,} vertices, resting on the body nowhere: {median:.2f} m from "
                 f"it (median), its closest 5 % {near:.2f} m or more)")
@@ -809,14 +826,16 @@ def _unposed_angle(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
 NEAR_MOVE_M = 0.03
 
 
-def _near_move(mesh: TriangleMesh, v: np.ndarray) -> tuple[np.ndarray, tuple[float, float, float]]:
-    """The move of points `v` (N, 3) by at most NEAR_MOVE_M along each axis (up, then sideways, then forwards;
-    whole centimetres) that leaves the least share inside the body's rest surface `mesh` (to 0.5 %), then the
-    least `_shift_score`: (move, `_shift_score` there)."""
+def _near_move(mesh: TriangleMesh, v: np.ndarray,
+               reach: float = NEAR_MOVE_M) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """The move of points `v` (N, 3) by at most `reach` (metres) along each axis (up, then sideways, then
+    forwards; whole centimetres) that leaves the least share inside the body's rest surface `mesh` (to 0.5 %),
+    then the least `_shift_score`, twice over (a move up first taken for one forwards is undone in the second
+    round): (move, `_shift_score` there)."""
     move = np.zeros(3)
-    for axis in (1, 0, 2):
+    for axis in 2 * (1, 0, 2):
         tried = []
-        for d in np.round(np.arange(-NEAR_MOVE_M, NEAR_MOVE_M + 1e-9, MOVE_SEARCH_STEP_M), 2):
+        for d in np.round(np.arange(-reach, reach + 1e-9, MOVE_SEARCH_STEP_M), 2):
             m = move.copy()
             m[axis] = d
             score = _shift_score(mesh, v + m)
@@ -870,7 +889,11 @@ def _frame_fix(vertices: np.ndarray, body: Body, mesh: TriangleMesh,
     fitting = [f for f in fitting if f[0] <= FRAME_FIX_SCORE_GAIN * nearest]
     if fitting:  # the best of those that fit, an earlier (fewer changes) where about as good
         best = min(f[0] for f in fitting)
-        _, what, turns, drop, inside = next(f for f in fitting if f[0] <= FRAME_FIX_PREFER * best)
+        score, what, turns, drop, inside = next(f for f in fitting if f[0] <= FRAME_FIX_PREFER * best)
+        if closer_than is None and not drop:  # a turn that a move of a few centimetres matches: no turn
+            _, near = _near_move(mesh, sample, SHIFT_SIDE_RANGE_M[0] - MOVE_SEARCH_STEP_M)
+            if round(near[2] * 200) <= round(inside * 200) and near[0] <= FRAME_FIX_TIE * score:
+                return None  # (the dress moved 4 cm back, 17 % inside, was told to face backwards: audit 30)
         return _fix_text(what, turns, np.array([0.0, -drop, 0.0]), inside, name, placed)
     # Turned about the up axis as well: as it is, or after the two turns or drops that fit best, partly inside
     # (written Z-up from a scene whose avatar stood turned: z-up fitted, 22 % inside, blamed on the body's shape)

@@ -379,7 +379,7 @@ def test_a_garment_file_holding_the_body_itself_is_refused(trousers_on_body):
 def test_a_ground_plane_or_a_prop_in_the_garment_file_is_refused(trousers_on_body):
     """A 2 m ground plane of 50 x 50 cells at the body's soles (some of its vertices by the feet) and a board
     standing beside the body, each in the trousers' file: refused naming the piece (the ground was skinned to the
-    feet as cloth); a board 15 cm behind the back (a cape's panel) is not."""
+    feet as cloth); a board 15 cm behind the back (a cape's panel) and a sandal's sole under one foot are not."""
     g, body = trousers_on_body
     soles, back = float(body.v_template[:, 1].min()), float(body.v_template[:, 2].min())
     unit, faces = grid(50, 50, 2.0)
@@ -398,6 +398,26 @@ def test_a_ground_plane_or_a_prop_in_the_garment_file_is_refused(trousers_on_bod
                                        "without it")
     bind_garment(Garment(np.concatenate([g.vertices, behind.astype(np.float32)]),
                          np.concatenate([g.faces, board_faces + g.n_vertices]), name="cape.obj"), body)
+    # a sandal's sole, flat under one foot (audit 30: refused as the ground), is cloth
+    foot = body.v_template[(body.v_template[:, 1] < soles + 0.05) & (body.v_template[:, 0] > 0)]
+    centre = foot.mean(axis=0)
+    sole = np.stack([centre[0] + 0.1 * unit[:, 0] - 0.05, np.full(len(unit), soles - 0.003),
+                     centre[2] + 0.25 * unit[:, 1] - 0.125], axis=1)
+    bind_garment(Garment(np.concatenate([g.vertices, sole.astype(np.float32)]),
+                         np.concatenate([g.faces, board_faces + g.n_vertices]), name="sandal.obj"), body)
+
+
+def test_a_dress_moved_a_few_centimetres_back_is_not_told_to_face_backwards(trousers_on_body, caplog):
+    """The example dress moved 4 cm back (17 % inside) fitted turned 180 degrees (front and back alike) and was
+    refused naming `--turn backwards` (audit 30): a move of a few centimetres matches it, so no turn is told (it is
+    warned of as partly inside)."""
+    from formats.obj import read_obj
+
+    _, body = trousers_on_body
+    g = read_obj(Path(__file__).resolve().parents[2] / "examples" / "dress.obj")
+    with caplog.at_level(logging.WARNING):
+        bind_garment(Garment(g.vertices + np.float32([0.0, 0.0, -0.04]), g.faces, name="back.obj"), body)
+    assert "back.obj': 16.7 % of its vertices lie more than 2 mm inside" in caplog.text, caplog.text
 
 
 @pytest.mark.parametrize("name, dy", [("tshirt", -0.23), ("trousers", -0.27), ("jumpsuit", 0.15)])
