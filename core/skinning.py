@@ -827,11 +827,12 @@ NEAR_MOVE_M = 0.03
 
 
 def _near_move(mesh: TriangleMesh, v: np.ndarray,
-               reach: float = NEAR_MOVE_M) -> tuple[np.ndarray, tuple[float, float, float]]:
-    """The move of points `v` (N, 3) by at most `reach` (metres) along each axis (up, then sideways, then
-    forwards; whole centimetres) that leaves the least share inside the body's rest surface `mesh` (to 0.5 %),
+               reach: float | None = None) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """The move of points `v` (N, 3) by at most `reach` (metres; default NEAR_MOVE_M) along each axis (up, then
+    sideways, then forwards; whole centimetres) that leaves the least share inside the body's rest surface `mesh` (to 0.5 %),
     then the least `_shift_score`, twice over (a move up first taken for one forwards is undone in the second
     round): (move, `_shift_score` there)."""
+    reach = NEAR_MOVE_M if reach is None else reach
     move = np.zeros(3)
     for axis in 2 * (1, 0, 2):
         tried = []
