@@ -489,13 +489,15 @@ def check_rest_fit(garment: Garment, body: Body, mesh: TriangleMesh, signed: np.
                          f"with the garment? export the garment without it")
     prop = _prop_piece(garment, body, signed)
     if prop:
+        from formats.obj import USD_SUFFIXES
+
         usd = " (or name the garment's mesh 'garment': it is read alone)" if str(name).lower().endswith(
-            (".usd", ".usda", ".usdc", ".usdz")) else ""
+            USD_SUFFIXES) else ""
         raise InputError(f"garment mesh '{name}': expected the garment alone, got {prop}: a ground plane or a prop "
                          f"exported with the garment? export the garment without it{usd}")
     median, near = (float(d) for d in np.percentile(np.abs(signed), [50, 5]))
     inside = float(np.mean(signed < -REST_INSIDE_DEPTH_M))
-    far = _rests_nowhere(np.abs(signed))
+    far = _rests_nowhere(median, near)
     fix = maybe = None
     if far or inside > REST_INSIDE_FRAME_SHARE or median > FRAME_FIX_SUSPECT_MEDIAN_M:
         fix, maybe = _scale_fix(garment.vertices, body, mesh, name, near, inside, placed, median)
@@ -566,14 +568,13 @@ def fit_in_units(read, body: Body, units: list[tuple[str, float]], name: str) ->
     centimetres turned 30 degrees rest on the body in inches, 2.54 times too large, 0.32 m from it: 382 mm against
     26 once turned back in centimetres); a fix naming another scale or the same score: the one that rests; None
     where none does (it was told "centimetres or inches?", then refused again once scaled). read: scale -> the
-    file's Garment."""
+    file's Garment. A candidate's warnings (welded seams, partly inside) are not the file's: the caller silences
+    them (`garmentcli.common.read_garment_on`)."""
     mesh = TriangleMesh(body.v_template, body.faces)
     found = []  # (score placed, names another scale, the text)
     for unit, scale in units:
         placed = Placement(scale=scale, body="" if body.path is None else f" --body {body.path}")
         said = f"in {unit} (scaled by {scale:g})"
-        level = logging.root.manager.disable
-        logging.disable(logging.WARNING)  # a candidate's warnings (welded seams, partly inside) are not the file's
         garment = None
         try:
             garment = read(scale)
@@ -586,8 +587,6 @@ def fit_in_units(read, body: Body, units: list[tuple[str, float]], name: str) ->
                 found.append((_placed_score(mesh, garment.vertices, fix, name, scale), "scaled by" in fix,
                               f"{said} {fix}"))
             continue
-        finally:
-            logging.disable(level)
         found.append((_placed_score(mesh, garment.vertices, "", name, scale), False,
                       f"{said} it rests on the body: {unpose_command(name, Placement(), placed)}"))
     return min(found, key=lambda f: (round(f[0] * 1e4), f[1]))[2] if found else None  # (to 0.1 mm: the same
@@ -683,10 +682,10 @@ def _body_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
     return ""
 
 
-def _rests_nowhere(distance: np.ndarray) -> bool:
-    """Whether points at these distances from the rest body (metres) rest on it nowhere: their median over
-    MAX_MEDIAN_BODY_DISTANCE_M, their closest 5 % over MAX_NEAR_BODY_DISTANCE_M."""
-    median, near = np.percentile(distance, [50, 5])
+def _rests_nowhere(median: float, near: float) -> bool:
+    """Whether points whose median distance from the rest body is `median` and whose closest 5 % lie `near`
+    (metres) or more from it rest on it nowhere: the median over MAX_MEDIAN_BODY_DISTANCE_M, the closest 5 % over
+    MAX_NEAR_BODY_DISTANCE_M."""
     return bool(median > MAX_MEDIAN_BODY_DISTANCE_M and near > MAX_NEAR_BODY_DISTANCE_M)
 
 
@@ -732,16 +731,16 @@ def _prop_piece(garment: Garment, body: Body, signed: np.ndarray) -> str:
         members = order[starts[k]:starts[k] + sizes[k]]
         if ground[k]:
             return f"piece {k + 1} of {n} ({len(members):,} vertices, flat at the body's soles)"
-        if not _rests_nowhere(distance[members]):
+        median, near = np.percentile(distance[members], [50, 5])
+        if not _rests_nowhere(median, near):
             continue
-        if _rests_nowhere(np.delete(distance, members)):
+        if _rests_nowhere(*np.percentile(np.delete(distance, members), [50, 5])):
             return ""  # the rest too: the whole garment is off the body (a unit or frame mix-up)
         from scipy.spatial import cKDTree
 
         rest = np.delete(garment.vertices, members, axis=0)
         if cKDTree(rest).query(garment.vertices[members], distance_upper_bound=PROP_APART_M)[0].min() <= PROP_APART_M:
             continue  # by the rest of the garment: cloth hanging from it (a train on the floor by the hem)
-        median, near = np.percentile(distance[members], [50, 5])
         return (f"piece {k + 1} of {n} ({len(members):,} vertices, resting on the body nowhere: {median:.2f} m from "
                 f"it (median), its closest 5 % {near:.2f} m or more)")
     return ""
@@ -829,8 +828,8 @@ NEAR_MOVE_M = 0.03
 def _near_move(mesh: TriangleMesh, v: np.ndarray,
                reach: float | None = None) -> tuple[np.ndarray, tuple[float, float, float]]:
     """The move of points `v` (N, 3) by at most `reach` (metres; default NEAR_MOVE_M) along each axis (up, then
-    sideways, then forwards; whole centimetres) that leaves the least share inside the body's rest surface `mesh` (to 0.5 %),
-    then the least `_shift_score`, twice over (a move up first taken for one forwards is undone in the second
+    sideways, then forwards; whole centimetres) that leaves the least share inside the body's rest surface `mesh`
+    (to 0.5 %), then the least `_shift_score`, twice over (a move up first taken for one forwards is undone in the second
     round): (move, `_shift_score` there)."""
     reach = NEAR_MOVE_M if reach is None else reach
     move = np.zeros(3)

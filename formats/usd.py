@@ -553,7 +553,8 @@ def _refuse_stray_part(parts: list[dict], where: str) -> None:
         return
     stray, distance = found
     ends = np.cumsum([len(u) for u in used])
-    for part, start, end in zip(parts, ends - [len(u) for u in used], ends):
+    for part, u, end in zip(parts, used, ends):
+        start = end - len(u)
         if stray[start:end].all():
             points = counted(end - start, "point")
             raise InputError(f"{where}: expected one garment, got mesh '{part['path']}' ({points}) far from the "

@@ -363,7 +363,8 @@ def read_garment_on(path, body: Body):
     try:
         return read_garment(path)
     except UnitsError as refused:
-        fix = fit_in_units(lambda scale: read_garment(path, scale=scale), body, refused.units, str(path))
+        with collected_notes():  # what reading and placing each unit's candidate says is not the file's
+            fix = fit_in_units(lambda scale: read_garment(path, scale=scale), body, refused.units, str(path))
         if fix is None:
             raise
         raise InputError(f"{refused.head}; {fix}") from None
